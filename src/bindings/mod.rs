@@ -1,0 +1,16 @@
+//! PyO3 bindings: the private extension module `uwbimu_rs._native`. Only this module uses pyo3;
+//! it converts and checks arrays, calls the core, maps errors and releases the GIL.
+
+mod convert;
+mod errors;
+
+use pyo3::prelude::*;
+
+/// The native module behind the `uwbimu_rs` Python package.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("UwbImuError", m.py().get_type::<errors::UwbImuError>())?;
+    m.add("ConfigError", m.py().get_type::<errors::ConfigError>())?;
+    m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
+    Ok(())
+}

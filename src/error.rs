@@ -1,0 +1,89 @@
+//! Error type shared by every module of the crate.
+//!
+//! One `#[non_exhaustive]` enum with structured fields; the Python bindings map it to
+//! exceptions in exactly one place (`bindings::errors`).
+
+/// Everything that can go wrong in uwbimu_rs.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// An input array has the wrong shape.
+    #[error("{name}: expected shape {expected}, got {got}")]
+    Shape {
+        /// Which input (e.g. `imu`).
+        name: &'static str,
+        /// What was expected, e.g. `(N, 7)`.
+        expected: String,
+        /// What arrived, e.g. `(100, 6)`.
+        got: String,
+    },
+    /// A NaN or infinity in input data.
+    #[error("{name}: non-finite value {value} at row {row}, column {col}")]
+    NonFinite {
+        /// Which input.
+        name: &'static str,
+        /// Row index (0-based).
+        row: usize,
+        /// Column index (0-based).
+        col: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// Timestamps that do not increase (IMU) or go backwards (ranges, streaming calls).
+    #[error("{name}: time {got_s} s at row {row} is not after the previous time {prev_s} s")]
+    NonMonotonicTime {
+        /// Which input or call.
+        name: &'static str,
+        /// Row index (0-based), or the call count for streaming input.
+        row: usize,
+        /// Previous time, s.
+        prev_s: f64,
+        /// Offending time, s.
+        got_s: f64,
+    },
+    /// A range refers to an anchor that does not exist.
+    #[error("{name}: anchor index {anchor} at row {row} is out of range (there are {count} anchors)")]
+    UnknownAnchor {
+        /// Which input.
+        name: &'static str,
+        /// Row index (0-based).
+        row: usize,
+        /// The anchor value as given.
+        anchor: f64,
+        /// Number of anchors.
+        count: usize,
+    },
+    /// A configuration value is out of its domain.
+    #[error("config `{field}`: {reason}")]
+    InvalidConfig {
+        /// Config key.
+        field: String,
+        /// Why it was rejected.
+        reason: String,
+    },
+    /// An unknown string option (method name, preset, ...).
+    #[error("unknown {kind} `{got}`; allowed: {allowed}")]
+    UnknownOption {
+        /// What kind of option (e.g. `method`).
+        kind: &'static str,
+        /// The value given.
+        got: String,
+        /// Comma-separated list of accepted values.
+        allowed: String,
+    },
+    /// Not enough data to do what was asked (e.g. initialise without any UWB epoch).
+    #[error("insufficient data: {0}")]
+    InsufficientData(String),
+    /// A matrix that must be positive definite is not (e.g. an innovation covariance).
+    #[error("numerical failure in {what}: matrix not positive definite")]
+    NotPositiveDefinite {
+        /// Which computation failed.
+        what: &'static str,
+    },
+    /// A streaming call out of order (e.g. an update before the first predict).
+    #[error("{0}")]
+    InvalidCall(String),
+}
+
+/// Result with the crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

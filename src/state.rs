@@ -1,0 +1,53 @@
+//! Nominal navigation state and the 15-dimensional error-state layout.
+//!
+//! Error-state order (the project convention): δp, δv, δθ, δb_a, δb_g. Seed 000 eq. (1) and
+//! seed 004 eq. (3) use the same order. δθ is the attitude error in the **body** frame
+//! (true = nominal ⊗ exp(δθ), seed 004 eq. (5) and seed 000 eq. (19)).
+
+use crate::math::{Cov, Quat, Vec3};
+
+/// Offset of δp in the error state.
+pub const POS: usize = 0;
+/// Offset of δv in the error state.
+pub const VEL: usize = 3;
+/// Offset of δθ (body-frame attitude error) in the error state.
+pub const ATT: usize = 6;
+/// Offset of δb_a (accelerometer bias error) in the error state.
+pub const BA: usize = 9;
+/// Offset of δb_g (gyroscope bias error) in the error state.
+pub const BG: usize = 12;
+/// Dimension of the error state.
+pub const ERR_DIM: usize = 15;
+
+/// 15-vector in error-state order.
+pub type ErrVec = nalgebra::SVector<f64, ERR_DIM>;
+/// 15×15 error-state covariance.
+pub type ErrCov = Cov<ERR_DIM>;
+
+/// Nominal state of the strapdown INS (seed 000 eq. (1), seed 004 eq. (4)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NominalState {
+    /// IMU (body origin) position in the navigation frame, m.
+    pub position: Vec3,
+    /// Velocity in the navigation frame, m/s.
+    pub velocity: Vec3,
+    /// Body → navigation rotation (Hamilton).
+    pub orientation: Quat,
+    /// Accelerometer bias, m/s² (true specific force = measured − bias).
+    pub accel_bias: Vec3,
+    /// Gyroscope bias, rad/s (true rate = measured − bias).
+    pub gyro_bias: Vec3,
+}
+
+impl NominalState {
+    /// Injects an error-state correction into the nominal state (seed 000 eq. (19),
+    /// seed 004 eq. (39)): sums for p, v, biases and `q ← q ⊗ exp(δθ)`.
+    pub fn inject(&mut self, dx: &ErrVec) {
+        self.position += dx.fixed_rows::<3>(POS);
+        self.velocity += dx.fixed_rows::<3>(VEL);
+        let dtheta: Vec3 = dx.fixed_rows::<3>(ATT).into_owned();
+        self.orientation *= crate::math::quat_exp(&dtheta);
+        self.accel_bias += dx.fixed_rows::<3>(BA);
+        self.gyro_bias += dx.fixed_rows::<3>(BG);
+    }
+}

@@ -1,0 +1,83 @@
+//! Validation of raw input tables into typed, time-ordered records.
+//!
+//! Every public entry point (Python batch API, CLI, streaming calls) funnels raw numbers through
+//! here, so bad input is rejected once, with an error naming the array, row and column.
+
+use crate::error::{Error, Result};
+use crate::math::Vec3;
+use crate::records::{ImuSample, RangeMeasurement};
+
+fn check_finite<const C: usize>(name: &'static str, rows: &[[f64; C]]) -> Result<()> {
+    for (row, r) in rows.iter().enumerate() {
+        if let Some(col) = r.iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite { name, row, col, value: r[col] });
+        }
+    }
+    Ok(())
+}
+
+/// Anchor table `(K, 3)` → anchor positions (navigation frame, m). At least one anchor; finite.
+pub fn anchors(rows: &[[f64; 3]]) -> Result<Vec<Vec3>> {
+    if rows.is_empty() {
+        return Err(Error::Shape { name: "anchors", expected: "(K, 3) with K >= 1".into(), got: "(0, 3)".into() });
+    }
+    check_finite("anchors", rows)?;
+    Ok(rows.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())
+}
+
+/// IMU table `(N, 7)` = t, ax, ay, az, gx, gy, gz → samples. Finite; time strictly increasing.
+pub fn imu(rows: &[[f64; 7]]) -> Result<Vec<ImuSample>> {
+    check_finite("imu", rows)?;
+    for (row, w) in rows.windows(2).enumerate() {
+        if w[1][0] <= w[0][0] {
+            return Err(Error::NonMonotonicTime { name: "imu", row: row + 1, prev_s: w[0][0], got_s: w[1][0] });
+        }
+    }
+    Ok(rows
+        .iter()
+        .map(|r| ImuSample { t_s: r[0], accel: Vec3::new(r[1], r[2], r[3]), gyro: Vec3::new(r[4], r[5], r[6]) })
+        .collect())
+}
+
+/// Range table `(M, 3)` = t, anchor index, range → measurements. Finite; time non-decreasing
+/// (several anchors may share an epoch time); the anchor an integer in `0..anchor_count`;
+/// the range non-negative.
+pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasurement>> {
+    check_finite("ranges", rows)?;
+    let mut out = Vec::with_capacity(rows.len());
+    let mut prev = f64::NEG_INFINITY;
+    for (row, r) in rows.iter().enumerate() {
+        if r[0] < prev {
+            return Err(Error::NonMonotonicTime { name: "ranges", row, prev_s: prev, got_s: r[0] });
+        }
+        prev = r[0];
+        let a = r[1];
+        if a < 0.0 || a.fract() != 0.0 || a >= anchor_count as f64 {
+            return Err(Error::UnknownAnchor { name: "ranges", row, anchor: a, count: anchor_count });
+        }
+        if r[2] < 0.0 {
+            return Err(Error::InvalidConfig { field: format!("ranges[{row}, 2]"), reason: format!("range {} m is negative", r[2]) });
+        }
+        out.push(RangeMeasurement { t_s: r[0], anchor: a as usize, range_m: r[2] });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_decreasing_imu_time() {
+        let rows = [[0.0, 0., 0., 9.8, 0., 0., 0.], [0.0, 0., 0., 9.8, 0., 0., 0.]];
+        assert!(matches!(imu(&rows), Err(Error::NonMonotonicTime { row: 1, .. })));
+    }
+
+    #[test]
+    fn rejects_nan_and_bad_anchor() {
+        assert!(matches!(ranges(&[[0.0, 0.0, f64::NAN]], 4), Err(Error::NonFinite { row: 0, col: 2, .. })));
+        assert!(matches!(ranges(&[[0.0, 4.0, 1.0]], 4), Err(Error::UnknownAnchor { .. })));
+        assert!(matches!(ranges(&[[0.0, 1.5, 1.0]], 4), Err(Error::UnknownAnchor { .. })));
+        assert!(ranges(&[[0.0, 3.0, 1.0], [0.0, 2.0, 1.0]], 4).is_ok());
+    }
+}
