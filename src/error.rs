@@ -80,6 +80,18 @@ pub enum Error {
         /// Which computation failed.
         what: &'static str,
     },
+    /// A value outside its domain (e.g. a negative range).
+    #[error("{name}: {reason}, got {value} (row {row})")]
+    InvalidValue {
+        /// Which input.
+        name: &'static str,
+        /// Row index (0-based; 0 for single streaming calls).
+        row: usize,
+        /// The value given.
+        value: f64,
+        /// What was expected.
+        reason: &'static str,
+    },
     /// A streaming call out of order (e.g. an update before the first predict).
     #[error("{0}")]
     InvalidCall(String),

@@ -1,9 +1,15 @@
 //! uwbimu_rs: UWB ranging + IMU fusion filters for indoor positioning.
 
+pub mod config;
 pub mod error;
+pub mod filters;
+pub mod ins;
 pub mod math;
+pub mod models;
+pub mod pipeline;
 pub mod records;
 pub mod state;
+pub mod update;
 pub mod validate;
 
 #[cfg(feature = "python")]

@@ -56,7 +56,7 @@ pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasure
             return Err(Error::UnknownAnchor { name: "ranges", row, anchor: a, count: anchor_count });
         }
         if r[2] < 0.0 {
-            return Err(Error::InvalidConfig { field: format!("ranges[{row}, 2]"), reason: format!("range {} m is negative", r[2]) });
+            return Err(Error::InvalidValue { name: "ranges", row, value: r[2], reason: "range must be >= 0 m" });
         }
         out.push(RangeMeasurement { t_s: r[0], anchor: a as usize, range_m: r[2] });
     }

@@ -1,0 +1,305 @@
+//! Filter configuration and initial state: plain structs with documented units and defaults,
+//! set from Python dicts (or a CLI) through one key/value path that rejects unknown keys.
+
+use crate::error::{Error, Result};
+use crate::math::{quat_from_wxyz, Quat, Vec3};
+
+/// A configuration value as it arrives from a dict: a scalar or a vector.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigValue {
+    /// A single number.
+    Scalar(f64),
+    /// A sequence of numbers.
+    Vector(Vec<f64>),
+}
+
+/// Noise, geometry and initialisation settings shared by the inertial filters.
+///
+/// Noise densities follow the continuous-time model of seed 004 eq. (5); seed 004 eq. (21)
+/// discretises them per step as variance `density² · Δt`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterConfig {
+    /// UWB range noise standard deviation, m (seed 000 eq. (33), R = range_std²).
+    pub range_std: f64,
+    /// Accelerometer white-noise density, m/s²/√Hz.
+    pub accel_noise_density: f64,
+    /// Gyroscope white-noise density, rad/s/√Hz.
+    pub gyro_noise_density: f64,
+    /// Accelerometer bias random walk, m/s²/√s.
+    pub accel_bias_walk: f64,
+    /// Gyroscope bias random walk, rad/s/√s.
+    pub gyro_bias_walk: f64,
+    /// UWB antenna position in the body frame, m (the papers mount the IMU 5 cm below the tag:
+    /// `[0, 0, 0.05]`).
+    pub lever_arm: Vec3,
+    /// The IMU's mounting in the body frame (IMU → body), applied to accelerometer and gyroscope
+    /// before anything else; identity by default.
+    pub imu_rotation: Quat,
+    /// Gravity in the navigation frame, m/s² (default `[0, 0, -9.80665]`; a scalar `g` given as
+    /// config means `[0, 0, -g]`).
+    pub gravity: Vec3,
+    /// Initial accelerometer-bias standard deviation, m/s² (used when the initial state gives
+    /// none).
+    pub accel_bias_std: f64,
+    /// Initial gyroscope-bias standard deviation, rad/s (used when the initial state gives none).
+    pub gyro_bias_std: f64,
+    /// Self-initialisation: length of the still window at the start used for roll, pitch and
+    /// gyro bias, s.
+    pub init_still_s: f64,
+    /// Self-initialisation: UWB displacement after which the heading is taken from motion, m.
+    pub init_heading_distance_m: f64,
+}
+
+impl Default for FilterConfig {
+    fn default() -> Self {
+        Self {
+            range_std: 0.1,
+            accel_noise_density: 0.003,
+            gyro_noise_density: 5e-4,
+            accel_bias_walk: 1e-4,
+            gyro_bias_walk: 1e-5,
+            lever_arm: Vec3::zeros(),
+            imu_rotation: Quat::identity(),
+            gravity: Vec3::new(0.0, 0.0, -9.80665),
+            accel_bias_std: 0.1,
+            gyro_bias_std: 0.01,
+            init_still_s: 1.0,
+            init_heading_distance_m: 1.0,
+        }
+    }
+}
+
+fn scalar(field: &str, v: &ConfigValue) -> Result<f64> {
+    match v {
+        ConfigValue::Scalar(x) if x.is_finite() => Ok(*x),
+        ConfigValue::Scalar(x) => Err(invalid(field, format!("must be finite, got {x}"))),
+        ConfigValue::Vector(_) => Err(invalid(field, "expected a number, got a sequence".into())),
+    }
+}
+
+fn positive(field: &str, v: &ConfigValue) -> Result<f64> {
+    let x = scalar(field, v)?;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(invalid(field, format!("must be > 0, got {x}")))
+    }
+}
+
+fn non_negative(field: &str, v: &ConfigValue) -> Result<f64> {
+    let x = scalar(field, v)?;
+    if x >= 0.0 {
+        Ok(x)
+    } else {
+        Err(invalid(field, format!("must be >= 0, got {x}")))
+    }
+}
+
+fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> {
+    match v {
+        ConfigValue::Vector(xs) if xs.len() == N => {
+            let mut out = [0.0; N];
+            for (o, x) in out.iter_mut().zip(xs) {
+                if !x.is_finite() {
+                    return Err(invalid(field, format!("must be finite, got {x}")));
+                }
+                *o = *x;
+            }
+            Ok(out)
+        }
+        ConfigValue::Vector(xs) => Err(invalid(field, format!("expected {N} numbers, got {}", xs.len()))),
+        ConfigValue::Scalar(_) => Err(invalid(field, format!("expected {N} numbers, got a single number"))),
+    }
+}
+
+fn invalid(field: &str, reason: String) -> Error {
+    Error::InvalidConfig { field: field.to_string(), reason }
+}
+
+/// A 3-vector given as a scalar `s` (meaning `[s, s, s]`) or as 3 numbers.
+fn vec3_or_scalar(field: &str, v: &ConfigValue) -> Result<Vec3> {
+    match v {
+        ConfigValue::Scalar(_) => {
+            let s = non_negative(field, v)?;
+            Ok(Vec3::repeat(s))
+        }
+        ConfigValue::Vector(_) => {
+            let a = vector::<3>(field, v)?;
+            if a.iter().any(|x| *x < 0.0) {
+                return Err(invalid(field, "standard deviations must be >= 0".into()));
+            }
+            Ok(Vec3::from(a))
+        }
+    }
+}
+
+fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
+    let a = vector::<4>(field, v)?;
+    quat_from_wxyz(a).ok_or_else(|| invalid(field, "quaternion [w, x, y, z] has zero norm".into()))
+}
+
+impl FilterConfig {
+    /// Every key accepted by [`FilterConfig::set`].
+    pub const KEYS: [&'static str; 12] = [
+        "range_std",
+        "accel_noise_density",
+        "gyro_noise_density",
+        "accel_bias_walk",
+        "gyro_bias_walk",
+        "lever_arm",
+        "imu_rotation",
+        "gravity",
+        "accel_bias_std",
+        "gyro_bias_std",
+        "init_still_s",
+        "init_heading_distance_m",
+    ];
+
+    /// Sets one field by name, validating its value; unknown keys are an error that lists
+    /// the allowed ones.
+    pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+        match key {
+            "range_std" => self.range_std = positive(key, value)?,
+            "accel_noise_density" => self.accel_noise_density = positive(key, value)?,
+            "gyro_noise_density" => self.gyro_noise_density = positive(key, value)?,
+            "accel_bias_walk" => self.accel_bias_walk = non_negative(key, value)?,
+            "gyro_bias_walk" => self.gyro_bias_walk = non_negative(key, value)?,
+            "lever_arm" => self.lever_arm = Vec3::from(vector::<3>(key, value)?),
+            "imu_rotation" => self.imu_rotation = quaternion(key, value)?,
+            "gravity" => {
+                self.gravity = match value {
+                    ConfigValue::Scalar(_) => Vec3::new(0.0, 0.0, -positive(key, value)?),
+                    ConfigValue::Vector(_) => Vec3::from(vector::<3>(key, value)?),
+                }
+            }
+            "accel_bias_std" => self.accel_bias_std = non_negative(key, value)?,
+            "gyro_bias_std" => self.gyro_bias_std = non_negative(key, value)?,
+            "init_still_s" => self.init_still_s = positive(key, value)?,
+            "init_heading_distance_m" => self.init_heading_distance_m = positive(key, value)?,
+            _ => return Err(unknown_key("config", key, &Self::KEYS)),
+        }
+        Ok(())
+    }
+
+    /// The configuration as (key, value) pairs in [`FilterConfig::KEYS`] order.
+    pub fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
+        let v3 = |v: &Vec3| ConfigValue::Vector(v.iter().copied().collect());
+        let q = &self.imu_rotation;
+        vec![
+            ("range_std", ConfigValue::Scalar(self.range_std)),
+            ("accel_noise_density", ConfigValue::Scalar(self.accel_noise_density)),
+            ("gyro_noise_density", ConfigValue::Scalar(self.gyro_noise_density)),
+            ("accel_bias_walk", ConfigValue::Scalar(self.accel_bias_walk)),
+            ("gyro_bias_walk", ConfigValue::Scalar(self.gyro_bias_walk)),
+            ("lever_arm", v3(&self.lever_arm)),
+            ("imu_rotation", ConfigValue::Vector(vec![q.w, q.i, q.j, q.k])),
+            ("gravity", v3(&self.gravity)),
+            ("accel_bias_std", ConfigValue::Scalar(self.accel_bias_std)),
+            ("gyro_bias_std", ConfigValue::Scalar(self.gyro_bias_std)),
+            ("init_still_s", ConfigValue::Scalar(self.init_still_s)),
+            ("init_heading_distance_m", ConfigValue::Scalar(self.init_heading_distance_m)),
+        ]
+    }
+}
+
+fn unknown_key(kind: &'static str, key: &str, allowed: &[&str]) -> Error {
+    Error::UnknownOption { kind, got: key.to_string(), allowed: allowed.join(", ") }
+}
+
+/// Initial nominal state and its uncertainty (a diagonal initial covariance).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitialState {
+    /// Body (IMU) position, navigation frame, m.
+    pub position: Vec3,
+    /// Velocity, navigation frame, m/s.
+    pub velocity: Vec3,
+    /// Body → navigation rotation.
+    pub orientation: Quat,
+    /// Position standard deviation per axis, m.
+    pub position_std: Vec3,
+    /// Velocity standard deviation per axis, m/s.
+    pub velocity_std: Vec3,
+    /// Attitude-error standard deviation per body axis (roll, pitch, yaw-ish), rad.
+    pub orientation_std: Vec3,
+    /// Initial accelerometer bias, m/s².
+    pub accel_bias: Vec3,
+    /// Initial gyroscope bias, rad/s.
+    pub gyro_bias: Vec3,
+    /// Accelerometer-bias standard deviation, m/s² (None: [`FilterConfig::accel_bias_std`]).
+    pub accel_bias_std: Option<f64>,
+    /// Gyroscope-bias standard deviation, rad/s (None: [`FilterConfig::gyro_bias_std`]).
+    pub gyro_bias_std: Option<f64>,
+}
+
+impl Default for InitialState {
+    fn default() -> Self {
+        Self {
+            position: Vec3::zeros(),
+            velocity: Vec3::zeros(),
+            orientation: Quat::identity(),
+            position_std: Vec3::repeat(0.3),
+            velocity_std: Vec3::repeat(0.1),
+            orientation_std: Vec3::new(0.05, 0.05, 0.2),
+            accel_bias: Vec3::zeros(),
+            gyro_bias: Vec3::zeros(),
+            accel_bias_std: None,
+            gyro_bias_std: None,
+        }
+    }
+}
+
+impl InitialState {
+    /// Every key accepted by [`InitialState::set`].
+    pub const KEYS: [&'static str; 10] = [
+        "position",
+        "velocity",
+        "orientation",
+        "position_std",
+        "velocity_std",
+        "orientation_std",
+        "accel_bias",
+        "gyro_bias",
+        "accel_bias_std",
+        "gyro_bias_std",
+    ];
+
+    /// Sets one field by name; standard deviations accept a scalar (all axes) or 3 numbers.
+    pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+        match key {
+            "position" => self.position = Vec3::from(vector::<3>(key, value)?),
+            "velocity" => self.velocity = Vec3::from(vector::<3>(key, value)?),
+            "orientation" => self.orientation = quaternion(key, value)?,
+            "position_std" => self.position_std = vec3_or_scalar(key, value)?,
+            "velocity_std" => self.velocity_std = vec3_or_scalar(key, value)?,
+            "orientation_std" => self.orientation_std = vec3_or_scalar(key, value)?,
+            "accel_bias" => self.accel_bias = Vec3::from(vector::<3>(key, value)?),
+            "gyro_bias" => self.gyro_bias = Vec3::from(vector::<3>(key, value)?),
+            "accel_bias_std" => self.accel_bias_std = Some(non_negative(key, value)?),
+            "gyro_bias_std" => self.gyro_bias_std = Some(non_negative(key, value)?),
+            _ => return Err(unknown_key("initial-state key", key, &Self::KEYS)),
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_key_lists_allowed() {
+        let mut c = FilterConfig::default();
+        let e = c.set("range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
+        assert!(e.contains("range_sdt") && e.contains("range_std") && e.contains("lever_arm"), "{e}");
+    }
+
+    #[test]
+    fn rejects_bad_values() {
+        let mut c = FilterConfig::default();
+        assert!(c.set("range_std", &ConfigValue::Scalar(-1.0)).is_err());
+        assert!(c.set("lever_arm", &ConfigValue::Vector(vec![0.0, 1.0])).is_err());
+        assert!(c.set("imu_rotation", &ConfigValue::Vector(vec![0.0; 4])).is_err());
+        c.set("gravity", &ConfigValue::Scalar(9.81)).unwrap();
+        assert_eq!(c.gravity, Vec3::new(0.0, 0.0, -9.81));
+    }
+}

@@ -1,0 +1,142 @@
+//! The INS core every inertial filter owns: nominal state, error covariance, filter time and
+//! the held IMU sample, with prediction at IMU rate and propagation to measurement times.
+
+use crate::config::{FilterConfig, InitialState};
+use crate::error::{Error, Result};
+use crate::ins::{diagonal_covariance, propagate_nominal, ImuInterval, ProcessNoise, Transition};
+use crate::math::Vec3;
+use crate::state::{ErrCov, NominalState};
+
+/// Nominal state + 15×15 error covariance + time bookkeeping (seed 000 §2.1).
+#[derive(Debug, Clone)]
+pub struct InertialCore {
+    config: FilterConfig,
+    state: NominalState,
+    covariance: ErrCov,
+    time_s: Option<f64>,
+    held_accel: Vec3,
+    held_gyro: Vec3,
+    imu_count: usize,
+}
+
+fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(col) => Err(Error::NonFinite { name, row, col, value: v[col] }),
+        None => Ok(()),
+    }
+}
+
+impl InertialCore {
+    /// Starts from `initial` (diagonal covariance from its standard deviations); the filter
+    /// time is set by the first [`InertialCore::predict`].
+    pub fn new(initial: &InitialState, config: FilterConfig) -> Result<Self> {
+        for (name, v) in [("initial.position", &initial.position), ("initial.velocity", &initial.velocity)] {
+            check_finite3(name, 0, v)?;
+        }
+        let ba = Vec3::repeat(initial.accel_bias_std.unwrap_or(config.accel_bias_std));
+        let bg = Vec3::repeat(initial.gyro_bias_std.unwrap_or(config.gyro_bias_std));
+        let covariance = diagonal_covariance([initial.position_std, initial.velocity_std, initial.orientation_std, ba, bg]);
+        Ok(Self {
+            config,
+            state: NominalState {
+                position: initial.position,
+                velocity: initial.velocity,
+                orientation: initial.orientation,
+                accel_bias: initial.accel_bias,
+                gyro_bias: initial.gyro_bias,
+            },
+            covariance,
+            time_s: None,
+            held_accel: Vec3::zeros(),
+            held_gyro: Vec3::zeros(),
+            imu_count: 0,
+        })
+    }
+
+    /// Takes an IMU sample at `t_s` (IMU frame; rotated into the body frame by
+    /// `config.imu_rotation` first) and propagates from the filter time to `t_s` with the
+    /// trapezoid between the held sample and this one. The first call only sets the time.
+    pub fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        let row = self.imu_count;
+        if !t_s.is_finite() {
+            return Err(Error::NonFinite { name: "predict t", row, col: 0, value: t_s });
+        }
+        check_finite3("predict accel", row, accel)?;
+        check_finite3("predict gyro", row, gyro)?;
+        let accel = self.config.imu_rotation * accel;
+        let gyro = self.config.imu_rotation * gyro;
+        if let Some(t0) = self.time_s {
+            if t_s <= t0 {
+                return Err(Error::NonMonotonicTime { name: "predict", row, prev_s: t0, got_s: t_s });
+            }
+            self.propagate(&ImuInterval {
+                dt_s: t_s - t0,
+                accel_start: self.held_accel,
+                accel_end: accel,
+                gyro_start: self.held_gyro,
+                gyro_end: gyro,
+            });
+        }
+        self.time_s = Some(t_s);
+        self.held_accel = accel;
+        self.held_gyro = gyro;
+        self.imu_count += 1;
+        Ok(())
+    }
+
+    /// Propagates to a measurement time `t_s` ≥ the filter time with the held IMU sample
+    /// (zero-order hold), so a measurement between IMU samples is applied at its own time.
+    pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        let Some(t0) = self.time_s else {
+            return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
+        };
+        if !t_s.is_finite() {
+            return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
+        }
+        if t_s < t0 {
+            return Err(Error::NonMonotonicTime { name: "measurement", row: self.imu_count, prev_s: t0, got_s: t_s });
+        }
+        if t_s > t0 {
+            self.propagate(&ImuInterval {
+                dt_s: t_s - t0,
+                accel_start: self.held_accel,
+                accel_end: self.held_accel,
+                gyro_start: self.held_gyro,
+                gyro_end: self.held_gyro,
+            });
+            self.time_s = Some(t_s);
+        }
+        Ok(())
+    }
+
+    fn propagate(&mut self, imu: &ImuInterval) {
+        let phi = Transition::new(&self.state, imu);
+        self.state = propagate_nominal(&self.state, imu, &self.config.gravity);
+        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config, imu.dt_s));
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FilterConfig {
+        &self.config
+    }
+
+    /// The nominal state.
+    pub fn state(&self) -> &NominalState {
+        &self.state
+    }
+
+    /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g).
+    pub fn covariance(&self) -> &ErrCov {
+        &self.covariance
+    }
+
+    /// The filter time, s (None before the first IMU sample).
+    pub fn time_s(&self) -> Option<f64> {
+        self.time_s
+    }
+
+    /// Mutable access to state and covariance for a measurement step.
+    pub fn state_and_covariance_mut(&mut self) -> (&mut NominalState, &mut ErrCov) {
+        (&mut self.state, &mut self.covariance)
+    }
+}

@@ -1,0 +1,168 @@
+//! The strapdown INS core: nominal mechanization and error-state propagation on the 15-state
+//! error vector δp, δv, δθ (body frame), δb_a, δb_g.
+//!
+//! Mechanization follows seed 000 eqs. (3)–(8) and seed 004 eq. (4), integrated over one IMU
+//! interval with the two bracketing samples (trapezoidal): the rotation uses the mean rate over
+//! the interval (quaternion exponential, seed 000 eqs. (4)–(5)); navigation-frame acceleration is
+//! taken linear between the samples, which integrates velocity by the trapezoid and position
+//! exactly for that linear profile (seed 000 eq. (7) is the same to first order).
+//!
+//! The error-state transition is the discretisation of seed 004 eq. (5) to second order,
+//! Φ = I + A·Δt + (A² + Ȧ)·Δt²/2 (Ȧ from the rotating `R`, `Ṙ = R·[ω]×`), with the attitude block
+//! exact (`exp(−[ω]×Δt)`); seed 000 eq. (10)
+//! writes the first-order terms of the same matrix for a navigation-frame attitude error.
+//! Process noise is G·Q·Gᵀ with Q from noise densities (seed 004 eqs. (20)–(21)).
+
+use crate::config::FilterConfig;
+use crate::math::{quat_exp, skew, Mat3, Vec3};
+use crate::state::{ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
+
+/// Bias-uncorrected IMU readings in the body frame at the two ends of one integration interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuInterval {
+    /// Interval length, s (> 0).
+    pub dt_s: f64,
+    /// Specific force at the start, body frame, m/s².
+    pub accel_start: Vec3,
+    /// Specific force at the end, body frame, m/s².
+    pub accel_end: Vec3,
+    /// Angular rate at the start, body frame, rad/s.
+    pub gyro_start: Vec3,
+    /// Angular rate at the end, body frame, rad/s.
+    pub gyro_end: Vec3,
+}
+
+/// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)); biases are constant.
+pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, gravity: &Vec3) -> NominalState {
+    let dt = imu.dt_s;
+    let omega = 0.5 * (imu.gyro_start + imu.gyro_end) - x.gyro_bias;
+    let orientation = x.orientation * quat_exp(&(omega * dt));
+    let a0 = x.orientation * (imu.accel_start - x.accel_bias) + gravity;
+    let a1 = orientation * (imu.accel_end - x.accel_bias) + gravity;
+    NominalState {
+        position: x.position + x.velocity * dt + (a0 / 3.0 + a1 / 6.0) * (dt * dt),
+        velocity: x.velocity + 0.5 * (a0 + a1) * dt,
+        orientation,
+        accel_bias: x.accel_bias,
+        gyro_bias: x.gyro_bias,
+    }
+}
+
+/// The non-trivial 3×3 blocks of the discrete error-state transition Φ over one interval
+/// (seed 004 eqs. (5), (19) to second order); every other block is 0 or I.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    p_v: f64,
+    p_att: Mat3,
+    p_ba: Mat3,
+    v_att: Mat3,
+    v_ba: Mat3,
+    v_bg: Mat3,
+    att_att: Mat3,
+    att_bg: Mat3,
+}
+
+impl Transition {
+    /// Builds Φ at the nominal state at the start of the interval: with `C = R·[f − b_a]×`,
+    /// `W = [ω − b_g]×`, A has `A_pv = I`, `A_vθ = −C`, `A_v,ba = −R`, `A_θθ = −W`, `A_θ,bg = −I`,
+    /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`.
+    pub fn new(x: &NominalState, imu: &ImuInterval) -> Self {
+        let dt = imu.dt_s;
+        let h = 0.5 * dt * dt;
+        let r = x.orientation.to_rotation_matrix().into_inner();
+        let f = 0.5 * (imu.accel_start + imu.accel_end) - x.accel_bias;
+        let omega = 0.5 * (imu.gyro_start + imu.gyro_end) - x.gyro_bias;
+        let c = r * skew(&f);
+        let w = skew(&omega);
+        Self {
+            p_v: dt,
+            p_att: -c * h,
+            p_ba: -r * h,
+            v_att: -c * dt + (c * w - r * w * skew(&f)) * h,
+            v_ba: -r * dt - r * w * h,
+            v_bg: c * h,
+            att_att: quat_exp(&(-omega * dt)).to_rotation_matrix().into_inner(),
+            att_bg: -Mat3::identity() * dt + w * h,
+        }
+    }
+
+    /// Computes `Φ·M` using only the non-trivial blocks (no dense 15×15 product).
+    fn apply_rows(&self, m: &ErrCov) -> ErrCov {
+        let row = |i: usize| m.fixed_rows::<3>(i);
+        let mut out = *m;
+        out.fixed_rows_mut::<3>(POS)
+            .copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));
+        out.fixed_rows_mut::<3>(VEL)
+            .copy_from(&(row(VEL) + self.v_att * row(ATT) + self.v_ba * row(BA) + self.v_bg * row(BG)));
+        out.fixed_rows_mut::<3>(ATT).copy_from(&(self.att_att * row(ATT) + self.att_bg * row(BG)));
+        out
+    }
+
+    /// `Φ·P·Φᵀ + Q` (seed 000 eq. (9), seed 004 eq. (18)), exploiting the block structure; the
+    /// result is symmetrised.
+    pub fn propagate_covariance(&self, p: &ErrCov, q: &ProcessNoise) -> ErrCov {
+        let phi_p = self.apply_rows(p);
+        let mut out = self.apply_rows(&phi_p.transpose()).transpose();
+        for (offset, var) in [(VEL, q.vel_var), (ATT, q.att_var), (BA, q.accel_bias_var), (BG, q.gyro_bias_var)] {
+            for i in 0..3 {
+                out[(offset + i, offset + i)] += var;
+            }
+        }
+        crate::math::symmetrize(&mut out);
+        out
+    }
+
+    /// The dense 15×15 Φ (for tests, smoothers and documentation; the filters use
+    /// [`Transition::propagate_covariance`]).
+    pub fn to_dense(&self) -> ErrCov {
+        let mut phi = ErrCov::identity();
+        let mut put = |r: usize, c: usize, b: &Mat3| phi.fixed_view_mut::<3, 3>(r, c).copy_from(b);
+        put(POS, VEL, &(Mat3::identity() * self.p_v));
+        put(POS, ATT, &self.p_att);
+        put(POS, BA, &self.p_ba);
+        put(VEL, ATT, &self.v_att);
+        put(VEL, BA, &self.v_ba);
+        put(VEL, BG, &self.v_bg);
+        put(ATT, ATT, &self.att_att);
+        put(ATT, BG, &self.att_bg);
+        phi
+    }
+}
+
+/// Per-interval process-noise variances `G·Q·Gᵀ` (diagonal blocks; seed 004 eqs. (20)–(21)):
+/// white noise `density²·Δt` on δv and δθ, bias walk `walk²·Δt` on δb_a and δb_g.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProcessNoise {
+    /// Velocity variance per axis, (m/s)².
+    pub vel_var: f64,
+    /// Attitude variance per axis, rad².
+    pub att_var: f64,
+    /// Accelerometer-bias variance per axis, (m/s²)².
+    pub accel_bias_var: f64,
+    /// Gyroscope-bias variance per axis, (rad/s)².
+    pub gyro_bias_var: f64,
+}
+
+impl ProcessNoise {
+    /// Discretises the configured noise densities over `dt_s` seconds.
+    pub fn new(config: &FilterConfig, dt_s: f64) -> Self {
+        Self {
+            vel_var: config.accel_noise_density.powi(2) * dt_s,
+            att_var: config.gyro_noise_density.powi(2) * dt_s,
+            accel_bias_var: config.accel_bias_walk.powi(2) * dt_s,
+            gyro_bias_var: config.gyro_bias_walk.powi(2) * dt_s,
+        }
+    }
+}
+
+/// Initial diagonal covariance with per-slot standard deviations.
+pub fn diagonal_covariance(std: [Vec3; 5]) -> ErrCov {
+    let mut p = ErrCov::zeros();
+    for (block, s) in std.iter().enumerate() {
+        for i in 0..3 {
+            p[(3 * block + i, 3 * block + i)] = s[i] * s[i];
+        }
+    }
+    debug_assert_eq!(5 * 3, ERR_DIM);
+    p
+}

@@ -1,0 +1,3 @@
+//! Measurement models: predicted measurement and its Jacobian with respect to the error state.
+
+pub mod range;

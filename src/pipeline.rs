@@ -1,0 +1,81 @@
+//! The one time-ordered loop over IMU samples and range events, shared by the batch API, the
+//! CLI and (call for call) the streaming classes.
+//!
+//! Order per IMU sample k at time t_k: ranges with t < t_k are applied first (each at its own
+//! time), then the IMU sample is predicted, then ranges with t = t_k are applied, then the step is
+//! recorded. Ranges before the first IMU sample are counted and skipped (the filter has no time
+//! yet).
+
+use crate::error::Result;
+use crate::filters::InertialFilter;
+use crate::math::Mat3;
+use crate::records::{ImuSample, RangeMeasurement};
+use crate::state::{NominalState, POS};
+use crate::update::UpdateReport;
+
+/// The filter's estimate after processing one IMU sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepRecord {
+    /// Time, s.
+    pub t_s: f64,
+    /// Nominal state.
+    pub state: NominalState,
+    /// Position covariance block, m².
+    pub position_cov: Mat3,
+}
+
+/// One applied range and what the filter did with it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UpdateRecord {
+    /// Measurement time, s.
+    pub t_s: f64,
+    /// Anchor index.
+    pub anchor: usize,
+    /// Measured range, m.
+    pub range_m: f64,
+    /// The filter's report.
+    pub report: UpdateReport,
+}
+
+/// Everything one batch run produced.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Trace {
+    /// One record per IMU sample.
+    pub steps: Vec<StepRecord>,
+    /// One record per range applied.
+    pub updates: Vec<UpdateRecord>,
+    /// Ranges skipped because they came before the first IMU sample.
+    pub ranges_before_start: usize,
+}
+
+/// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
+/// event order).
+pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
+    let mut trace = Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
+    let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
+    let mut next = ranges.partition_point(|r| r.t_s < t_first);
+    trace.ranges_before_start = next;
+    let apply = |filter: &mut F, r: &RangeMeasurement, trace: &mut Trace| -> Result<()> {
+        let report = filter.update_range(r.t_s, r.anchor, r.range_m)?;
+        trace.updates.push(UpdateRecord { t_s: r.t_s, anchor: r.anchor, range_m: r.range_m, report });
+        Ok(())
+    };
+    for sample in imu {
+        while next < ranges.len() && ranges[next].t_s < sample.t_s {
+            apply(filter, &ranges[next], &mut trace)?;
+            next += 1;
+        }
+        filter.predict(sample.t_s, &sample.accel, &sample.gyro)?;
+        while next < ranges.len() && ranges[next].t_s == sample.t_s {
+            apply(filter, &ranges[next], &mut trace)?;
+            next += 1;
+        }
+        let core = filter.core();
+        trace.steps.push(StepRecord {
+            t_s: sample.t_s,
+            state: *core.state(),
+            position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
+        });
+    }
+    Ok(trace)
+}
