@@ -6,6 +6,7 @@ pub mod filters;
 pub mod ins;
 pub mod math;
 pub mod models;
+pub mod multilateration;
 pub mod pipeline;
 pub mod records;
 pub mod state;
