@@ -3,8 +3,10 @@
 pub mod config;
 pub mod error;
 pub mod filters;
+pub mod init;
 pub mod ins;
 pub mod math;
+pub mod methods;
 pub mod models;
 pub mod multilateration;
 pub mod pipeline;

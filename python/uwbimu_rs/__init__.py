@@ -1,5 +1,120 @@
-"""uwbimu_rs: UWB + IMU fusion filters for indoor positioning, implemented in Rust."""
+"""uwbimu_rs: UWB + IMU fusion filters for indoor positioning, implemented in Rust.
 
-from uwbimu_rs._native import ConfigError, NumericalError, UwbImuError
+Conventions: navigation frame ENU (z up); accelerometer = specific force in the body frame
+(≈ [0, 0, +9.81] m/s² level and still); gyroscope rad/s; quaternions Hamilton [w, x, y, z]
+rotating body → navigation; error-state order δp, δv, δθ, δb_a, δb_g; times in seconds.
+"""
 
-__all__ = ["ConfigError", "NumericalError", "UwbImuError"]
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+import polars as pl
+
+from uwbimu_rs._native import (
+    FILTERS,
+    ConfigError,
+    Ekf,
+    FilterConfig,
+    NumericalError,
+    UpdateReport,
+    UwbImuError,
+)
+from uwbimu_rs import _native
+
+__all__ = [
+    "FILTERS",
+    "ConfigError",
+    "Ekf",
+    "FilterConfig",
+    "NumericalError",
+    "UpdateReport",
+    "UwbImuError",
+    "initialize",
+    "run_filter",
+]
+
+
+def run_filter(
+    method: str,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: bool = False,
+) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
+    """Run one method over whole recordings (the GIL is released while Rust runs).
+
+    Parameters
+    ----------
+    method : str
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``).
+    imu : array (N, 7)
+        t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
+    ranges : array (M, 3)
+        t [s] (non-decreasing), anchor index (row of ``anchors``), range [m].
+    anchors : array (K, 3)
+        Anchor positions in the navigation frame [m].
+    initial : dict, optional
+        ``position`` (3,), ``velocity`` (3,), ``orientation`` (w, x, y, z) and optional
+        ``position_std``, ``velocity_std``, ``orientation_std`` (rad), ``accel_bias``,
+        ``gyro_bias``, ``accel_bias_std``, ``gyro_bias_std``; valid at the first IMU time.
+        None: the filter initialises itself (see :func:`initialize`).
+    config : FilterConfig or dict, optional
+        Keys as in ``FilterConfig.keys()``; unknown keys raise :class:`ConfigError`.
+    covariance : bool
+        Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
+    updates : bool
+        Also return a DataFrame with one row per range update
+        (t, anchor, range, innovation, nis, accepted, weight).
+
+    Returns
+    -------
+    polars.DataFrame
+        Inertial filters: one row per IMU sample with ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz,
+        std_x, std_y, std_z``. ``uwb_ls``: one row per solvable UWB epoch with
+        ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms``.
+        ``(frame, updates_frame)`` when ``updates=True``.
+
+    Raises
+    ------
+    ValueError
+        Wrong shape, NaN/inf, decreasing time, anchor index out of range, unknown method or
+        config key (the message names the array, row and column or the allowed values).
+    """
+    cols, upd, _info = _native.run_filter(
+        method, imu, ranges, anchors, initial=initial, config=config, covariance=covariance, updates=updates
+    )
+    frame = pl.DataFrame(cols)
+    if updates:
+        if upd is None:
+            raise ValueError(f"method {method!r} has no range updates to report")
+        u = pl.DataFrame(upd).with_columns(pl.col("anchor").cast(pl.Int64), pl.col("accepted").cast(pl.Boolean))
+        return frame, u
+    return frame
+
+
+def initialize(
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Initialise a filter from the start of a recording.
+
+    Roll and pitch (and gyro bias) from the first ``init_still_s`` seconds, position from
+    UWB multilateration, heading from the first ``init_heading_distance_m`` metres of motion
+    against UWB (fallback: yaw 0 with σ = π).
+
+    Returns
+    -------
+    (initial, info)
+        ``initial``: dict usable as ``initial=`` of :func:`run_filter` or a filter class;
+        ``info``: ``still_start`` (bool) and ``heading_from`` ("motion" or "fallback").
+    """
+    return _native.initialize_state(imu, ranges, anchors, config=config)

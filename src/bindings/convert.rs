@@ -2,9 +2,11 @@
 //! column-major: values are copied, never reinterpreted).
 
 use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBool, PyDict};
 
+use crate::config::ConfigValue;
 use crate::error::Error;
 use crate::math::Vec3;
 
@@ -51,4 +53,52 @@ pub fn columns<'py>(py: Python<'py>, cols: Vec<(&'static str, Vec<f64>)>) -> PyR
         d.set_item(name, values.into_pyarray(py))?;
     }
     Ok(d)
+}
+
+/// Converts any array-like to a float64 NumPy array (`numpy.ascontiguousarray`), naming the
+/// input in the error if it cannot be converted.
+pub fn array<'py>(obj: &Bound<'py, PyAny>, name: &'static str) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let np = obj.py().import("numpy")?;
+    let converted = np
+        .call_method1("ascontiguousarray", (obj, "float64"))
+        .map_err(|e| PyValueError::new_err(format!("{name}: cannot convert to a float64 array: {e}")))?;
+    converted.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
+}
+
+/// Converts a Python number or sequence into a [`ConfigValue`] (`name` is the key, for errors).
+pub fn config_value(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<ConfigValue> {
+    if obj.is_instance_of::<PyBool>() {
+        return Err(PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got a bool")));
+    }
+    if let Ok(x) = obj.extract::<f64>() {
+        return Ok(ConfigValue::Scalar(x));
+    }
+    obj.extract::<Vec<f64>>()
+        .map(ConfigValue::Vector)
+        .map_err(|_| PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got {}", type_name(obj))))
+}
+
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into())
+}
+
+/// Applies every item of a dict through `set` (a config's key/value setter).
+pub fn apply_dict(dict: &Bound<'_, PyAny>, what: &str, mut set: impl FnMut(&str, &ConfigValue) -> Result<(), Error>) -> PyResult<()> {
+    let dict = dict
+        .cast::<PyDict>()
+        .map_err(|_| PyValueError::new_err(format!("{what} must be a dict, got {}", type_name(dict))))?;
+    for (k, v) in dict.iter() {
+        let key: String = k.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
+        let value = config_value(&v, &key)?;
+        set(&key, &value)?;
+    }
+    Ok(())
+}
+
+/// Converts a [`ConfigValue`] back to a Python float or list.
+pub fn config_value_to_py<'py>(py: Python<'py>, v: &ConfigValue) -> PyResult<Bound<'py, PyAny>> {
+    match v {
+        ConfigValue::Scalar(x) => Ok(x.into_pyobject(py)?.into_any()),
+        ConfigValue::Vector(xs) => Ok(xs.clone().into_pyarray(py).into_any()),
+    }
 }

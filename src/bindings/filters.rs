@@ -1,0 +1,323 @@
+//! Python classes and functions for the filters: `FilterConfig`, `Ekf` (streaming),
+//! `UpdateReport`, the batch `run_filter` and `initialize`.
+
+use numpy::{IntoPyArray, PyArray2};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
+use crate::config::{FilterConfig, InitialState};
+use crate::filters::{Ekf, InertialFilter};
+use crate::init::{initialize, HeadingSource};
+use crate::math::{quat_to_wxyz, Vec3};
+use crate::methods::{run_method, BatchOutput, Method};
+use crate::pipeline::Trace;
+use crate::records::{ImuSample, RangeMeasurement};
+use crate::state::ERR_DIM;
+use crate::update::UpdateReport;
+use crate::validate;
+
+const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
+const RANGES_LAYOUT: &str = "(M, 3) = t, anchor index, range";
+const ANCHORS_LAYOUT: &str = "(K, 3) = x, y, z";
+
+/// Filter configuration (see `FilterConfig.keys()`); built from keyword arguments.
+#[pyclass(name = "FilterConfig", module = "uwbimu_rs._native", frozen)]
+#[derive(Clone)]
+pub struct PyFilterConfig(pub FilterConfig);
+
+#[pymethods]
+impl PyFilterConfig {
+    #[new]
+    #[pyo3(signature = (**kwargs))]
+    fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let mut c = FilterConfig::default();
+        if let Some(k) = kwargs {
+            apply_dict(k.as_any(), "config", |key, v| c.set(key, v))?;
+        }
+        Ok(Self(c))
+    }
+
+    /// The accepted keys.
+    #[staticmethod]
+    fn keys() -> Vec<&'static str> {
+        FilterConfig::KEYS.to_vec()
+    }
+
+    /// The configuration as a plain dict.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in self.0.entries() {
+            d.set_item(k, config_value_to_py(py, &v)?)?;
+        }
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        let items: Vec<String> = self.0.entries().iter().map(|(k, v)| format!("{k}={v:?}")).collect();
+        format!("FilterConfig({})", items.join(", "))
+    }
+}
+
+/// Reads `config` (None, a `FilterConfig` or a dict of the same keys).
+fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterConfig> {
+    match config {
+        None => Ok(FilterConfig::default()),
+        Some(obj) if obj.is_none() => Ok(FilterConfig::default()),
+        Some(obj) => {
+            if let Ok(c) = obj.cast::<PyFilterConfig>() {
+                return Ok(c.get().0.clone());
+            }
+            let mut c = FilterConfig::default();
+            apply_dict(obj, "config", |key, v| c.set(key, v))?;
+            Ok(c)
+        }
+    }
+}
+
+/// Reads `initial` (a dict with `position`, `velocity`, `orientation`, optional standard
+/// deviations and biases).
+fn read_initial(initial: &Bound<'_, PyAny>) -> PyResult<InitialState> {
+    let mut s = InitialState::default();
+    apply_dict(initial, "initial", |key, v| s.set(key, v))?;
+    Ok(s)
+}
+
+/// Validated arrays of one batch call.
+struct Inputs {
+    imu: Vec<ImuSample>,
+    ranges: Vec<RangeMeasurement>,
+    anchors: Vec<Vec3>,
+}
+
+fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
+    let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
+    let imu = validate::imu(&table::<7>(&array(imu, "imu")?, "imu", IMU_LAYOUT)?)?;
+    let ranges = validate::ranges(&table::<3>(&array(ranges, "ranges")?, "ranges", RANGES_LAYOUT)?, anchors.len())?;
+    Ok(Inputs { imu, ranges, anchors })
+}
+
+/// One report of a range update.
+#[pyclass(name = "UpdateReport", module = "uwbimu_rs._native", frozen, get_all)]
+pub struct PyUpdateReport {
+    /// Innovation z − h(x⁻), m.
+    innovation: f64,
+    /// Normalised innovation squared.
+    nis: f64,
+    /// Whether the range changed the state.
+    accepted: bool,
+    /// Weight relative to the nominal range noise (1 = full).
+    weight: f64,
+}
+
+impl From<UpdateReport> for PyUpdateReport {
+    fn from(r: UpdateReport) -> Self {
+        Self { innovation: r.innovation, nis: r.nis, accepted: r.accepted, weight: r.weight }
+    }
+}
+
+#[pymethods]
+impl PyUpdateReport {
+    fn __repr__(&self) -> String {
+        format!("UpdateReport(innovation={}, nis={}, accepted={}, weight={})", self.innovation, self.nis, self.accepted, self.weight)
+    }
+}
+
+fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
+    Ok(vec3(&array(obj, name)?, name)?)
+}
+
+/// The tightly coupled EKF of seed 000, sample by sample.
+#[pyclass(name = "Ekf", module = "uwbimu_rs._native")]
+pub struct PyEkf(Ekf);
+
+#[pymethods]
+impl PyEkf {
+    #[new]
+    #[pyo3(signature = (anchors, *, initial, config=None))]
+    fn new(anchors: &Bound<'_, PyAny>, initial: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
+        Ok(Self(Ekf::new(anchors, &read_initial(initial)?, read_config(config)?)?))
+    }
+
+    /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,) rad/s.
+    fn predict(&mut self, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<()> {
+        let (a, g) = (vec3_arg(accel, "accel")?, vec3_arg(gyro, "gyro")?);
+        Ok(self.0.predict(t, &a, &g)?)
+    }
+
+    /// Applies a range (m) to anchor index `anchor` measured at `t` (s).
+    fn update_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<PyUpdateReport> {
+        let count = self.0.anchors().len();
+        let index = usize::try_from(anchor).map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count })?;
+        Ok(self.0.update_range(t, index, range)?.into())
+    }
+
+    /// Filter time, s (None before the first predict).
+    #[getter]
+    fn time(&self) -> Option<f64> {
+        self.0.core().time_s()
+    }
+
+    /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
+    /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`.
+    #[getter]
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let x = self.0.core().state();
+        let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
+        let d = PyDict::new(py);
+        d.set_item("position", v(&x.position).into_pyarray(py))?;
+        d.set_item("velocity", v(&x.velocity).into_pyarray(py))?;
+        d.set_item("orientation", quat_to_wxyz(&x.orientation).to_vec().into_pyarray(py))?;
+        d.set_item("accel_bias", v(&x.accel_bias).into_pyarray(py))?;
+        d.set_item("gyro_bias", v(&x.gyro_bias).into_pyarray(py))?;
+        Ok(d)
+    }
+
+    /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy.
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let p = self.0.core().covariance();
+        let rows: Vec<Vec<f64>> = (0..ERR_DIM).map(|i| (0..ERR_DIM).map(|j| p[(i, j)]).collect()).collect();
+        Ok(PyArray2::from_vec2(py, &rows)?)
+    }
+}
+
+fn trace_columns(trace: &Trace, covariance: bool) -> Vec<(&'static str, Vec<f64>)> {
+    let s = &trace.steps;
+    let col = |f: &dyn Fn(&crate::pipeline::StepRecord) -> f64| s.iter().map(f).collect::<Vec<f64>>();
+    let mut cols = vec![
+        ("t", col(&|r| r.t_s)),
+        ("x", col(&|r| r.state.position.x)),
+        ("y", col(&|r| r.state.position.y)),
+        ("z", col(&|r| r.state.position.z)),
+        ("vx", col(&|r| r.state.velocity.x)),
+        ("vy", col(&|r| r.state.velocity.y)),
+        ("vz", col(&|r| r.state.velocity.z)),
+        ("qw", col(&|r| r.state.orientation.w)),
+        ("qx", col(&|r| r.state.orientation.i)),
+        ("qy", col(&|r| r.state.orientation.j)),
+        ("qz", col(&|r| r.state.orientation.k)),
+        ("std_x", col(&|r| r.position_cov[(0, 0)].sqrt())),
+        ("std_y", col(&|r| r.position_cov[(1, 1)].sqrt())),
+        ("std_z", col(&|r| r.position_cov[(2, 2)].sqrt())),
+    ];
+    if covariance {
+        for (name, i, j) in [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)] {
+            cols.push((name, col(&|r| r.position_cov[(i, j)])));
+        }
+    }
+    cols
+}
+
+fn update_columns(trace: &Trace) -> Vec<(&'static str, Vec<f64>)> {
+    let u = &trace.updates;
+    vec![
+        ("t", u.iter().map(|r| r.t_s).collect()),
+        ("anchor", u.iter().map(|r| r.anchor as f64).collect()),
+        ("range", u.iter().map(|r| r.range_m).collect()),
+        ("innovation", u.iter().map(|r| r.report.innovation).collect()),
+        ("nis", u.iter().map(|r| r.report.nis).collect()),
+        ("accepted", u.iter().map(|r| f64::from(u8::from(r.report.accepted))).collect()),
+        ("weight", u.iter().map(|r| r.report.weight).collect()),
+    ]
+}
+
+/// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
+/// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
+#[pyfunction]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false))]
+#[allow(clippy::too_many_arguments)]
+fn run_filter<'py>(
+    py: Python<'py>,
+    method: &str,
+    imu: &Bound<'py, PyAny>,
+    ranges: &Bound<'py, PyAny>,
+    anchors: &Bound<'py, PyAny>,
+    initial: Option<&Bound<'py, PyAny>>,
+    config: Option<&Bound<'py, PyAny>>,
+    covariance: bool,
+    updates: bool,
+) -> PyResult<(Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<'py, PyDict>)> {
+    let method = Method::parse(method)?;
+    let inputs = read_inputs(imu, ranges, anchors)?;
+    let config = read_config(config)?;
+    let initial = match initial {
+        Some(obj) if !obj.is_none() => Some(read_initial(obj)?),
+        _ => None,
+    };
+    let output = py.detach(|| run_method(method, &inputs.imu, &inputs.ranges, &inputs.anchors, initial.as_ref(), &config))?;
+    let info = PyDict::new(py);
+    match output {
+        BatchOutput::Inertial { trace, init } => {
+            info.set_item("ranges_before_start", trace.ranges_before_start)?;
+            if let Some(s) = init {
+                info.set_item("still_start", s.still)?;
+                info.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
+            }
+            let upd = if updates { Some(columns(py, update_columns(&trace))?) } else { None };
+            Ok((columns(py, trace_columns(&trace, covariance))?, upd, info))
+        }
+        BatchOutput::Multilateration(fixes) => {
+            let col = |f: &dyn Fn(&(f64, crate::multilateration::Fix)) -> f64| fixes.iter().map(f).collect::<Vec<f64>>();
+            let mut cols = vec![
+                ("t", col(&|(t, _)| *t)),
+                ("x", col(&|(_, f)| f.position.x)),
+                ("y", col(&|(_, f)| f.position.y)),
+                ("z", col(&|(_, f)| f.position.z)),
+                ("std_x", col(&|(_, f)| f.covariance[(0, 0)].sqrt())),
+                ("std_y", col(&|(_, f)| f.covariance[(1, 1)].sqrt())),
+                ("std_z", col(&|(_, f)| f.covariance[(2, 2)].sqrt())),
+                ("n_ranges", col(&|(_, f)| f.ranges_used as f64)),
+                ("residual_rms", col(&|(_, f)| f.residual_rms_m)),
+            ];
+            if covariance {
+                for (name, i, j) in [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)] {
+                    cols.push((name, col(&|(_, f)| f.covariance[(i, j)])));
+                }
+            }
+            Ok((columns(py, cols)?, None, info))
+        }
+    }
+}
+
+/// Self-initialisation from the start of a recording; returns a dict usable as `initial` plus
+/// `still_start` and `heading_from`.
+#[pyfunction]
+#[pyo3(signature = (imu, ranges, anchors, *, config=None))]
+fn initialize_state<'py>(
+    py: Python<'py>,
+    imu: &Bound<'py, PyAny>,
+    ranges: &Bound<'py, PyAny>,
+    anchors: &Bound<'py, PyAny>,
+    config: Option<&Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    let inputs = read_inputs(imu, ranges, anchors)?;
+    let config = read_config(config)?;
+    let s = py.detach(|| initialize(&inputs.imu, &inputs.ranges, &inputs.anchors, &config))?;
+    let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>().into_pyarray(py);
+    let d = PyDict::new(py);
+    let i = &s.initial;
+    d.set_item("position", v(&i.position))?;
+    d.set_item("velocity", v(&i.velocity))?;
+    d.set_item("orientation", quat_to_wxyz(&i.orientation).to_vec().into_pyarray(py))?;
+    d.set_item("position_std", v(&i.position_std))?;
+    d.set_item("velocity_std", v(&i.velocity_std))?;
+    d.set_item("orientation_std", v(&i.orientation_std))?;
+    d.set_item("gyro_bias", v(&i.gyro_bias))?;
+    let info = PyDict::new(py);
+    info.set_item("still_start", s.still)?;
+    info.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
+    Ok((d, info))
+}
+
+/// Adds the filter classes and functions to the native module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyFilterConfig>()?;
+    m.add_class::<PyEkf>()?;
+    m.add_class::<PyUpdateReport>()?;
+    m.add_function(wrap_pyfunction!(run_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(initialize_state, m)?)?;
+    m.add("FILTERS", Method::NAMES.to_vec())?;
+    Ok(())
+}

@@ -1,0 +1,77 @@
+//! The named methods of the batch API and the function that runs one of them over whole arrays.
+
+use crate::config::{FilterConfig, InitialState};
+use crate::error::{Error, Result};
+use crate::filters::Ekf;
+use crate::init::{initialize, SelfInit};
+use crate::math::Vec3;
+use crate::multilateration::{uwb_ls, Fix, LsConfig};
+use crate::pipeline::{run, Trace};
+use crate::records::{ImuSample, RangeMeasurement};
+
+/// A method name accepted by the batch API.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// UWB-only least squares per epoch (seed 004 eqs. (8)–(13), then Gauss–Newton).
+    UwbLs,
+    /// The tightly coupled EKF of seed 000.
+    Ekf,
+}
+
+impl Method {
+    /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
+    pub const NAMES: [&'static str; 2] = ["uwb_ls", "ekf"];
+
+    /// Parses a method name; the error lists the allowed names.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "uwb_ls" => Ok(Self::UwbLs),
+            "ekf" => Ok(Self::Ekf),
+            _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
+        }
+    }
+}
+
+/// What a batch run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BatchOutput {
+    /// An inertial filter's trace, with the self-initialisation used (None if the caller gave
+    /// the initial state).
+    Inertial {
+        /// Per-IMU-sample records and per-range reports.
+        trace: Trace,
+        /// Self-initialisation result, when the filter initialised itself.
+        init: Option<SelfInit>,
+    },
+    /// One UWB-only fix per solvable epoch: (epoch time s, fix).
+    Multilateration(Vec<(f64, Fix)>),
+}
+
+/// Runs `method` over validated, time-ordered data. Without `initial`, inertial filters
+/// initialise themselves ([`crate::init`]).
+pub fn run_method(
+    method: Method,
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    anchors: &[Vec3],
+    initial: Option<&InitialState>,
+    config: &FilterConfig,
+) -> Result<BatchOutput> {
+    match method {
+        Method::UwbLs => {
+            let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
+            Ok(BatchOutput::Multilateration(uwb_ls(ranges, anchors, &ls)))
+        }
+        Method::Ekf => {
+            let (initial, init) = match initial {
+                Some(i) => (i.clone(), None),
+                None => {
+                    let s = initialize(imu, ranges, anchors, config)?;
+                    (s.initial.clone(), Some(s))
+                }
+            };
+            let mut filter = Ekf::new(anchors.to_vec(), &initial, config.clone())?;
+            Ok(BatchOutput::Inertial { trace: run(&mut filter, imu, ranges)?, init })
+        }
+    }
+}
