@@ -1,0 +1,605 @@
+//! UWB-only multilateration (the `uwb_ls` baseline): a closed-form linear seed followed by
+//! Gauss–Newton on the range residuals.
+//!
+//! The linear seed differences squared ranges against the first one (seed 004 eqs. (9)–(13)):
+//! `2·G·p = b`, solved by least squares through an SVD. Gauss–Newton then minimises
+//! `Σ (‖p − a_i‖ − r_i)²` (seed 004 eq. (8)). Both run in 3-D, or in *planar* mode where the
+//! height is fixed and only x, y are estimated.
+//!
+//! Nothing here panics: degenerate input (too few ranges, collinear or coplanar anchors, unknown
+//! anchor indices, non-finite values) gives `None`. Allocation per epoch is accepted; this is
+//! not the filters' hot path.
+
+use nalgebra::{Cholesky, DMatrix, DVector, Matrix2, SymmetricEigen, Vector2};
+
+use crate::math::{Mat3, Vec3};
+use crate::records::RangeMeasurement;
+
+/// Relative singular-value threshold below which the linear system counts as rank-deficient.
+const RANK_RCOND: f64 = 1e-10;
+/// Condition number of `G` above which [`solve_epoch`] does not trust the 3-D linear seed
+/// (near-coplanar anchors) and seeds Gauss–Newton from the planar solution instead. In seeded
+/// trials (0.1 m range noise, five anchors) the 3-D seed gave the lower Gauss–Newton error up to a
+/// condition number of about 150 and the planar seed from about 500 on.
+const MAX_LINEAR_CONDITION: f64 = 300.0;
+/// Relative eigenvalue threshold below which `JᵀJ` counts as singular.
+const NORMAL_RCOND: f64 = 1e-12;
+/// Distance (m) below which the tag is "on" an anchor and the range Jacobian is undefined.
+const MIN_ANCHOR_DISTANCE_M: f64 = 1e-9;
+
+/// Options of the least-squares multilateration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LsConfig {
+    /// Standard deviation of one range, m; scales the reported covariance `σ²·(JᵀJ)⁻¹`.
+    pub range_std_m: f64,
+    /// Maximum number of Gauss–Newton steps (dimensionless count).
+    pub max_iterations: usize,
+    /// Gauss–Newton stops once the step norm is below this, m.
+    pub tolerance_m: f64,
+    /// If `Some(h)`, every fix is planar with the height fixed to `h`, m; if `None`, the mode is
+    /// chosen per epoch (see [`solve_epoch`]).
+    pub planar_height_m: Option<f64>,
+    /// Minimum vertical span (max − min height) of the anchors used for a 3-D fix, m; below it
+    /// the fix is planar.
+    pub min_vertical_span_m: f64,
+    /// Width of the window grouping consecutive ranges into one epoch, s (see [`group_epochs`]).
+    pub epoch_window_s: f64,
+}
+
+impl Default for LsConfig {
+    /// `range_std_m = 0.1`, `max_iterations = 10`, `tolerance_m = 1e-4`,
+    /// `planar_height_m = None`, `min_vertical_span_m = 0.3`, `epoch_window_s = 0.02`.
+    fn default() -> Self {
+        Self {
+            range_std_m: 0.1,
+            max_iterations: 10,
+            tolerance_m: 1e-4,
+            planar_height_m: None,
+            min_vertical_span_m: 0.3,
+            epoch_window_s: 0.02,
+        }
+    }
+}
+
+/// One multilateration fix.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fix {
+    /// Estimated tag position, navigation frame (ENU), m.
+    pub position: Vec3,
+    /// Position covariance `σ²·(JᵀJ)⁻¹`, m²; in planar mode the z row and column are 0.
+    pub covariance: Mat3,
+    /// Root mean square of the range residuals `‖p − a_i‖ − r_i` at the fix, m.
+    pub residual_rms_m: f64,
+    /// Number of ranges used.
+    pub ranges_used: usize,
+    /// Gauss–Newton steps taken.
+    pub iterations: usize,
+    /// Whether the height was held fixed (planar mode).
+    pub planar: bool,
+}
+
+/// Ranges taken at (nearly) the same time, one per anchor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Epoch {
+    /// Epoch time = time of the last range in the epoch, s.
+    pub t_s: f64,
+    /// Observations `(anchor index, range m)`, in input order.
+    pub obs: Vec<(usize, f64)>,
+}
+
+/// Groups time-ordered ranges into epochs.
+///
+/// Consecutive ranges form one epoch while each range's time `t` satisfies
+/// `0 ≤ t − t_first ≤ window_s` (with `t_first` the time of the epoch's first range) and its
+/// anchor does not already appear in the epoch; otherwise a new epoch starts with that range.
+/// The epoch time is the time of the **last** range in it (the moment the fix becomes available).
+/// Ranges are not filtered; invalid anchors or values are rejected later by [`solve_epoch`].
+pub fn group_epochs(ranges: &[RangeMeasurement], window_s: f64) -> Vec<Epoch> {
+    let mut epochs: Vec<Epoch> = Vec::new();
+    let mut first_t = f64::NAN;
+    for r in ranges {
+        let joins = match epochs.last() {
+            Some(e) => {
+                let dt = r.t_s - first_t;
+                (0.0..=window_s).contains(&dt) && e.obs.iter().all(|&(a, _)| a != r.anchor)
+            }
+            None => false,
+        };
+        match epochs.last_mut() {
+            Some(e) if joins => {
+                e.t_s = r.t_s;
+                e.obs.push((r.anchor, r.range_m));
+            }
+            _ => {
+                first_t = r.t_s;
+                epochs.push(Epoch { t_s: r.t_s, obs: vec![(r.anchor, r.range_m)] });
+            }
+        }
+    }
+    epochs
+}
+
+/// Checks that every observation names an existing anchor with finite coordinates and has a
+/// finite, non-negative range.
+fn obs_valid(anchors: &[Vec3], obs: &[(usize, f64)]) -> bool {
+    obs.iter().all(|&(a, r)| {
+        r.is_finite() && r >= 0.0 && anchors.get(a).is_some_and(|p| p.iter().all(|v| v.is_finite()))
+    })
+}
+
+/// Whether the smallest singular value (or eigenvalue) `min` exceeds `rcond · max` with a positive
+/// `max`; false for NaN.
+fn well_conditioned(min: f64, max: f64, rcond: f64) -> bool {
+    max > 0.0 && min > max * rcond
+}
+
+/// Linear least-squares seed with its condition number (seed 004 eqs. (10)–(13)).
+///
+/// Coordinates are shifted so the first anchor is the origin (this leaves eqs. (10)–(12)
+/// unchanged but avoids cancellation with large coordinates). Row `i` of `G` is `a_1 − a_i` and
+/// `b_i = r_i² − r_1² + ‖a_1‖² − ‖a_i‖²`; in planar mode (height `h`) only the x, y columns are
+/// kept and `r_i²` is replaced by `r_i² − (z_i − h)²`.
+fn linear_solve(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Option<f64>) -> Option<(Vec3, f64)> {
+    if !obs_valid(anchors, obs) {
+        return None;
+    }
+    let dim = if planar_height_m.is_some() { 2 } else { 3 };
+    if obs.len() < dim + 1 {
+        return None;
+    }
+    let (a0_idx, r0) = obs[0];
+    let origin = anchors[a0_idx];
+    // Squared range with the fixed-height part removed in planar mode.
+    let sq = |a: &Vec3, r: f64| match planar_height_m {
+        Some(h) => r * r - (a.z - h).powi(2),
+        None => r * r,
+    };
+    let r0_sq = sq(&origin, r0);
+    let rows = obs.len() - 1;
+    let mut g = DMatrix::<f64>::zeros(rows, dim);
+    let mut b = DVector::<f64>::zeros(rows);
+    for (row, &(ai, ri)) in obs[1..].iter().enumerate() {
+        let a = anchors[ai];
+        let d = a - origin; // a_i − a_1 in shifted coordinates
+        for c in 0..dim {
+            g[(row, c)] = -2.0 * d[c]; // 2·(a_1 − a_i)
+        }
+        let d_norm_sq: f64 = d.iter().take(dim).map(|v| v * v).sum();
+        b[row] = sq(&a, ri) - r0_sq - d_norm_sq; // ‖a_1‖² = 0 after the shift
+    }
+    let svd = g.svd(true, true);
+    let s_max = svd.singular_values.max();
+    let s_min = svd.singular_values.min();
+    if !well_conditioned(s_min, s_max, RANK_RCOND) {
+        return None;
+    }
+    let x = svd.solve(&b, s_max * RANK_RCOND).ok()?;
+    let mut p = origin;
+    p.x += x[0];
+    p.y += x[1];
+    match planar_height_m {
+        Some(h) => p.z = h,
+        None => p.z += x[2],
+    }
+    p.iter().all(|v| v.is_finite()).then_some((p, s_max / s_min))
+}
+
+/// Closed-form linear multilateration (seed 004 eqs. (10)–(13)): differences the squared ranges
+/// against the first observation and solves `2·G·p = b` by least squares (SVD).
+///
+/// * 3-D (`planar_height_m = None`): needs ≥ 4 ranges from non-coplanar anchors.
+/// * Planar (`Some(h)`): z is fixed to `h` m and the `(z_i − h)²` terms are subtracted from the
+///   squared ranges; needs ≥ 3 ranges from non-collinear anchors.
+///
+/// Returns `None` if the system is rank-deficient, an anchor index is unknown, or any value is
+/// not finite. Positions in m, navigation frame.
+pub fn linear_fix(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Option<f64>) -> Option<Vec3> {
+    linear_solve(anchors, obs, planar_height_m).map(|(p, _)| p)
+}
+
+/// Range residuals `e_i = ‖p − a_i‖ − r_i` (m) and their Jacobian rows `∂e_i/∂p = (p − a_i)ᵀ/‖p − a_i‖`
+/// (seed 004 eqs. (6)–(8)); `None` if `p` coincides with an anchor.
+fn residuals_and_jacobian(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> Option<Vec<(f64, Vec3)>> {
+    obs.iter()
+        .map(|&(a, r)| {
+            let d = p - anchors[a];
+            let n = d.norm();
+            (n > MIN_ANCHOR_DISTANCE_M).then(|| (n - r, d / n))
+        })
+        .collect()
+}
+
+/// Normal equations `JᵀJ` (3×3) and `Jᵀe` plus the residual sum of squares at `p`.
+fn normal_equations(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> Option<(Mat3, Vec3, f64)> {
+    let mut jtj = Mat3::zeros();
+    let mut jte = Vec3::zeros();
+    let mut sse = 0.0;
+    for (e, j) in residuals_and_jacobian(anchors, obs, p)? {
+        jtj += j * j.transpose();
+        jte += j * e;
+        sse += e * e;
+    }
+    Some((jtj, jte, sse))
+}
+
+/// Inverts the normal matrix of the free coordinates (x, y, z, or x, y in planar mode); `None`
+/// if it is singular (relative eigenvalue below `NORMAL_RCOND`) or not positive definite. The
+/// planar result has zero z row and column.
+fn invert_normal(jtj: &Mat3, planar: bool) -> Option<Mat3> {
+    if planar {
+        let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
+        let eig = SymmetricEigen::new(m).eigenvalues;
+        if !well_conditioned(eig.min(), eig.max(), NORMAL_RCOND) {
+            return None;
+        }
+        let inv = Cholesky::new(m)?.inverse();
+        let mut out = Mat3::zeros();
+        out.fixed_view_mut::<2, 2>(0, 0).copy_from(&inv);
+        Some(out)
+    } else {
+        let eig = SymmetricEigen::new(*jtj).eigenvalues;
+        if !well_conditioned(eig.min(), eig.max(), NORMAL_RCOND) {
+            return None;
+        }
+        Some(Cholesky::new(*jtj)?.inverse())
+    }
+}
+
+/// Gauss–Newton minimisation of `Σ (‖p − a_i‖ − r_i)²` (seed 004 eq. (8)) from `start`.
+///
+/// Each step solves `JᵀJ·Δ = −Jᵀe` with `J_i = (p − a_i)ᵀ/‖p − a_i‖` over 3 unknowns, or over
+/// x, y only in planar mode (`planar_height_m = Some(h)`, z held at `h` m). It stops when
+/// `‖Δ‖ < cfg.tolerance_m` or after `cfg.max_iterations` steps. The covariance is
+/// `σ²·(JᵀJ)⁻¹` at the final point with `σ = cfg.range_std_m` (z variance 0 in planar mode).
+///
+/// Returns `None` if `JᵀJ` is singular, an anchor index is unknown, the iterate lands on an
+/// anchor, or the result is not finite.
+pub fn gauss_newton_fix(
+    anchors: &[Vec3],
+    obs: &[(usize, f64)],
+    start: Vec3,
+    planar_height_m: Option<f64>,
+    cfg: &LsConfig,
+) -> Option<Fix> {
+    if !obs_valid(anchors, obs) || obs.is_empty() {
+        return None;
+    }
+    let planar = planar_height_m.is_some();
+    let mut p = start;
+    if let Some(h) = planar_height_m {
+        p.z = h;
+    }
+    if !p.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let mut iterations = 0;
+    while iterations < cfg.max_iterations {
+        let (jtj, jte, _) = normal_equations(anchors, obs, &p)?;
+        let step = if planar {
+            let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
+            let v = Vector2::new(-jte.x, -jte.y);
+            let d = Cholesky::new(m)?.solve(&v);
+            Vec3::new(d.x, d.y, 0.0)
+        } else {
+            Cholesky::new(jtj)?.solve(&(-jte))
+        };
+        if !step.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        p += step;
+        iterations += 1;
+        if step.norm() < cfg.tolerance_m {
+            break;
+        }
+    }
+    let (jtj, _, sse) = normal_equations(anchors, obs, &p)?;
+    let covariance = invert_normal(&jtj, planar)? * cfg.range_std_m.powi(2);
+    let fix = Fix {
+        position: p,
+        covariance,
+        residual_rms_m: (sse / obs.len() as f64).sqrt(),
+        ranges_used: obs.len(),
+        iterations,
+        planar,
+    };
+    let finite = fix.position.iter().chain(fix.covariance.iter()).all(|v| v.is_finite()) && fix.residual_rms_m.is_finite();
+    finite.then_some(fix)
+}
+
+/// Solves one epoch: chooses the mode, seeds linearly, refines by Gauss–Newton.
+///
+/// Mode: planar at `cfg.planar_height_m` if it is `Some`; otherwise 3-D when the anchors used
+/// span at least `cfg.min_vertical_span_m` vertically and there are ≥ 4 ranges; otherwise
+/// (fallback) planar at the **mean height of the anchors used** (one term per observation).
+/// In 3-D, if the linear system (seed 004 eq. (13)) is ill-conditioned (condition number of `G`
+/// above 300, i.e. near-coplanar anchors), Gauss–Newton starts from the planar linear solution
+/// at the mean anchor height instead; since it may then settle on the mirror image of the tag
+/// through the anchors' plane, it is run once more from the result reflected through the mean
+/// anchor height and the fix with the smaller residual RMS is kept.
+///
+/// Returns `None` on degenerate input (too few ranges, collinear anchors, unknown anchor index,
+/// negative or non-finite values).
+pub fn solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], cfg: &LsConfig) -> Option<Fix> {
+    if obs.is_empty() || !obs_valid(anchors, obs) {
+        return None;
+    }
+    if let Some(h) = cfg.planar_height_m {
+        let start = linear_fix(anchors, obs, Some(h))?;
+        return gauss_newton_fix(anchors, obs, start, Some(h), cfg);
+    }
+    let heights = obs.iter().map(|&(a, _)| anchors[a].z);
+    let z_min = heights.clone().fold(f64::INFINITY, f64::min);
+    let z_max = heights.clone().fold(f64::NEG_INFINITY, f64::max);
+    let z_mean = heights.sum::<f64>() / obs.len() as f64;
+    if obs.len() >= 4 && z_max - z_min >= cfg.min_vertical_span_m {
+        match linear_solve(anchors, obs, None) {
+            Some((start, cond)) if cond <= MAX_LINEAR_CONDITION => gauss_newton_fix(anchors, obs, start, None, cfg),
+            _ => {
+                // Near-coplanar anchors: the solution and its mirror image through the anchors'
+                // mean height fit almost equally well, so try both sides and keep the better.
+                let start = linear_fix(anchors, obs, Some(z_mean))?;
+                let first = gauss_newton_fix(anchors, obs, start, None, cfg)?;
+                let mut mirrored = first.position;
+                mirrored.z = 2.0 * z_mean - mirrored.z;
+                match gauss_newton_fix(anchors, obs, mirrored, None, cfg) {
+                    Some(second) if second.residual_rms_m < first.residual_rms_m => Some(second),
+                    _ => Some(first),
+                }
+            }
+        }
+    } else {
+        let start = linear_fix(anchors, obs, Some(z_mean))?;
+        gauss_newton_fix(anchors, obs, start, Some(z_mean), cfg)
+    }
+}
+
+/// UWB-only least-squares positioning: groups `ranges` into epochs with `cfg.epoch_window_s`
+/// ([`group_epochs`]) and solves each ([`solve_epoch`]). Returns `(epoch time s, fix)` for every
+/// solvable epoch, in input order; unsolvable epochs are skipped.
+pub fn uwb_ls(ranges: &[RangeMeasurement], anchors: &[Vec3], cfg: &LsConfig) -> Vec<(f64, Fix)> {
+    group_epochs(ranges, cfg.epoch_window_s)
+        .into_iter()
+        .filter_map(|e| solve_epoch(anchors, &e.obs, cfg).map(|f| (e.t_s, f)))
+        .collect()
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Normal};
+
+    /// Six anchors at low and high heights around a 10 m × 8 m room.
+    fn room_anchors() -> Vec<Vec3> {
+        vec![
+            Vec3::new(0.0, 0.0, 0.3),
+            Vec3::new(10.0, 0.0, 2.8),
+            Vec3::new(10.0, 8.0, 0.4),
+            Vec3::new(0.0, 8.0, 2.7),
+            Vec3::new(5.0, -0.5, 2.9),
+            Vec3::new(-0.5, 4.0, 0.2),
+        ]
+    }
+
+    fn exact_obs(anchors: &[Vec3], p: &Vec3) -> Vec<(usize, f64)> {
+        anchors.iter().enumerate().map(|(i, a)| (i, (p - a).norm())).collect()
+    }
+
+    fn noisy_obs(anchors: &[Vec3], p: &Vec3, std: f64, rng: &mut ChaCha8Rng) -> Vec<(usize, f64)> {
+        let n = Normal::new(0.0, std).unwrap();
+        anchors.iter().enumerate().map(|(i, a)| (i, (p - a).norm() + n.sample(rng))).collect()
+    }
+
+    #[test]
+    fn exact_ranges_recover_point_3d() {
+        let anchors = room_anchors();
+        let p = Vec3::new(3.2, 5.1, 1.4);
+        let fix = solve_epoch(&anchors, &exact_obs(&anchors, &p), &LsConfig::default()).unwrap();
+        assert!(!fix.planar);
+        assert!((fix.position - p).norm() < 1e-6, "{:?}", fix.position);
+        assert!(fix.residual_rms_m < 1e-6);
+        assert_eq!(fix.ranges_used, anchors.len());
+    }
+
+    #[test]
+    fn exact_ranges_recover_point_planar() {
+        let anchors: Vec<Vec3> = room_anchors().iter().map(|a| Vec3::new(a.x, a.y, 2.5)).collect();
+        let p = Vec3::new(7.3, 2.2, 1.1);
+        let obs = exact_obs(&anchors, &p);
+        // Explicit height.
+        let cfg = LsConfig { planar_height_m: Some(1.1), ..LsConfig::default() };
+        let fix = solve_epoch(&anchors, &obs, &cfg).unwrap();
+        assert!(fix.planar);
+        assert!((fix.position - p).norm() < 1e-6);
+        assert_eq!(fix.covariance[(2, 2)], 0.0);
+        // Fallback (flat anchors, no height given): planar at the mean anchor height.
+        let fallback = solve_epoch(&anchors, &obs, &LsConfig::default()).unwrap();
+        assert!(fallback.planar);
+        assert!((fallback.position.z - 2.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn linear_solution_is_exact_for_exact_data() {
+        let anchors = room_anchors();
+        let p = Vec3::new(1.7, 6.4, 0.9);
+        let lin = linear_fix(&anchors, &exact_obs(&anchors, &p), None).unwrap();
+        assert!((lin - p).norm() < 1e-9);
+        let lin_planar = linear_fix(&anchors, &exact_obs(&anchors, &p), Some(0.9)).unwrap();
+        assert!((lin_planar - p).norm() < 1e-9);
+        // Large coordinates (shift by 1 km) stay exact thanks to the origin shift.
+        let off = Vec3::new(1000.0, -2000.0, 50.0);
+        let far: Vec<Vec3> = anchors.iter().map(|a| a + off).collect();
+        let lin_far = linear_fix(&far, &exact_obs(&far, &(p + off)), None).unwrap();
+        assert!((lin_far - (p + off)).norm() < 1e-6);
+    }
+
+    #[test]
+    fn gauss_newton_improves_on_linear_with_noise() {
+        let anchors = room_anchors();
+        let cfg = LsConfig::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let (mut err_lin, mut err_gn) = (0.0, 0.0);
+        let draws = 500;
+        for _ in 0..draws {
+            let p = Vec3::new(rng.random_range(1.0..9.0), rng.random_range(1.0..7.0), rng.random_range(0.5..2.0));
+            let obs = noisy_obs(&anchors, &p, 0.1, &mut rng);
+            let lin = linear_fix(&anchors, &obs, None).unwrap();
+            let gn = gauss_newton_fix(&anchors, &obs, lin, None, &cfg).unwrap();
+            err_lin += (lin - p).norm();
+            err_gn += (gn.position - p).norm();
+        }
+        assert!(err_gn < err_lin, "GN mean {} vs linear {}", err_gn / draws as f64, err_lin / draws as f64);
+    }
+
+    #[test]
+    fn range_jacobian_matches_central_differences() {
+        let anchors = room_anchors();
+        let p = Vec3::new(4.0, 3.0, 1.2);
+        let obs = exact_obs(&anchors, &Vec3::new(4.5, 2.0, 1.0));
+        let analytic = residuals_and_jacobian(&anchors, &obs, &p).unwrap();
+        let h = 1e-6;
+        for k in 0..3 {
+            let mut dp = Vec3::zeros();
+            dp[k] = h;
+            let plus = residuals_and_jacobian(&anchors, &obs, &(p + dp)).unwrap();
+            let minus = residuals_and_jacobian(&anchors, &obs, &(p - dp)).unwrap();
+            for i in 0..obs.len() {
+                let numeric = (plus[i].0 - minus[i].0) / (2.0 * h);
+                assert!((numeric - analytic[i].1[k]).abs() < 1e-8, "row {i} col {k}");
+            }
+        }
+    }
+
+    /// Sample covariance of the fixes against the truth `p` (zero-mean errors assumed).
+    fn scatter(fixes: &[Vec3], p: &Vec3) -> Mat3 {
+        fixes.iter().map(|f| (f - p) * (f - p).transpose()).sum::<Mat3>() / fixes.len() as f64
+    }
+
+    #[test]
+    fn covariance_matches_monte_carlo_scatter() {
+        let anchors = room_anchors();
+        let p = Vec3::new(3.0, 4.0, 1.5);
+        let cfg = LsConfig { range_std_m: 0.05, ..LsConfig::default() };
+        let mut rng = ChaCha8Rng::seed_from_u64(42);
+        let mut fixes = Vec::new();
+        let mut predicted = Mat3::zeros();
+        for _ in 0..4000 {
+            let fix = solve_epoch(&anchors, &noisy_obs(&anchors, &p, cfg.range_std_m, &mut rng), &cfg).unwrap();
+            fixes.push(fix.position);
+            predicted = fix.covariance;
+        }
+        let sample = scatter(&fixes, &p);
+        for k in 0..3 {
+            let ratio = sample[(k, k)] / predicted[(k, k)];
+            assert!((ratio - 1.0).abs() < 0.2, "axis {k}: ratio {ratio}");
+        }
+    }
+
+    #[test]
+    fn planar_covariance_matches_monte_carlo_scatter() {
+        let anchors: Vec<Vec3> = room_anchors().iter().map(|a| Vec3::new(a.x, a.y, 2.5)).collect();
+        let p = Vec3::new(6.0, 3.0, 1.0);
+        let cfg = LsConfig { planar_height_m: Some(1.0), ..LsConfig::default() };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut fixes = Vec::new();
+        let mut predicted = Mat3::zeros();
+        for _ in 0..4000 {
+            let fix = solve_epoch(&anchors, &noisy_obs(&anchors, &p, cfg.range_std_m, &mut rng), &cfg).unwrap();
+            fixes.push(fix.position);
+            predicted = fix.covariance;
+        }
+        let sample = scatter(&fixes, &p);
+        for k in 0..2 {
+            let ratio = sample[(k, k)] / predicted[(k, k)];
+            assert!((ratio - 1.0).abs() < 0.2, "axis {k}: ratio {ratio}");
+        }
+        assert_eq!(sample[(2, 2)], 0.0);
+    }
+
+    #[test]
+    fn near_coplanar_anchors_still_solve_from_planar_seed() {
+        // Vertical span 0.35 m over a 100 m hall: G is ill-conditioned, the planar seed is used.
+        let anchors = vec![
+            Vec3::new(0.0, 0.0, 3.0),
+            Vec3::new(100.0, 0.0, 3.35),
+            Vec3::new(100.0, 75.0, 3.0),
+            Vec3::new(0.0, 75.0, 3.35),
+            Vec3::new(50.0, 37.5, 3.2),
+        ];
+        let p = Vec3::new(30.0, 20.0, 1.0);
+        let (_, cond) = linear_solve(&anchors, &exact_obs(&anchors, &p), None).unwrap();
+        assert!(cond > MAX_LINEAR_CONDITION, "cond {cond}");
+        let fix = solve_epoch(&anchors, &exact_obs(&anchors, &p), &LsConfig { max_iterations: 50, ..LsConfig::default() });
+        let fix = fix.unwrap();
+        assert!(!fix.planar);
+        assert!((fix.position - p).norm() < 1e-6, "{fix:?}");
+    }
+
+    #[test]
+    fn degenerate_input_gives_none() {
+        let anchors = room_anchors();
+        let p = Vec3::new(3.0, 3.0, 1.0);
+        let obs = exact_obs(&anchors, &p);
+        let cfg = LsConfig::default();
+        // Too few ranges.
+        assert!(linear_fix(&anchors, &obs[..3], None).is_none());
+        assert!(linear_fix(&anchors, &obs[..2], Some(1.0)).is_none());
+        assert!(solve_epoch(&anchors, &obs[..2], &cfg).is_none());
+        assert!(solve_epoch(&anchors, &[], &cfg).is_none());
+        // Collinear anchors.
+        let line: Vec<Vec3> = (0..5).map(|i| Vec3::new(i as f64, 0.5 * i as f64, 2.0 + 0.2 * i as f64)).collect();
+        let line_obs = exact_obs(&line, &p);
+        assert!(linear_fix(&line, &line_obs, None).is_none());
+        assert!(linear_fix(&line, &line_obs, Some(1.0)).is_none());
+        assert!(solve_epoch(&line, &line_obs, &cfg).is_none());
+        // Coplanar anchors in forced 3-D.
+        let flat: Vec<Vec3> = anchors.iter().map(|a| Vec3::new(a.x, a.y, 2.0)).collect();
+        assert!(linear_fix(&flat, &exact_obs(&flat, &p), None).is_none());
+        // Unknown anchor, non-finite or negative range.
+        assert!(solve_epoch(&anchors, &[(0, 1.0), (1, 2.0), (2, 3.0), (99, 1.0)], &cfg).is_none());
+        assert!(solve_epoch(&anchors, &[(0, 1.0), (1, f64::NAN), (2, 3.0), (3, 1.0)], &cfg).is_none());
+        assert!(solve_epoch(&anchors, &[(0, 1.0), (1, -2.0), (2, 3.0), (3, 1.0)], &cfg).is_none());
+        // Singular JᵀJ: start on the line of collinear anchors.
+        assert!(gauss_newton_fix(&line, &line_obs, Vec3::new(10.0, 5.0, 4.0), None, &cfg).is_none());
+        assert!(gauss_newton_fix(&anchors, &obs, Vec3::new(f64::NAN, 0.0, 0.0), None, &cfg).is_none());
+    }
+
+    fn rm(t_s: f64, anchor: usize) -> RangeMeasurement {
+        RangeMeasurement { t_s, anchor, range_m: 1.0 }
+    }
+
+    #[test]
+    fn group_epochs_splits_on_repeated_anchor_and_window() {
+        let ranges = [rm(0.000, 0), rm(0.005, 1), rm(0.010, 0), rm(0.012, 2), rm(0.050, 3), rm(0.060, 1)];
+        let epochs = group_epochs(&ranges, 0.02);
+        let anchors: Vec<Vec<usize>> = epochs.iter().map(|e| e.obs.iter().map(|o| o.0).collect()).collect();
+        assert_eq!(anchors, vec![vec![0, 1], vec![0, 2], vec![3, 1]]);
+        let times: Vec<f64> = epochs.iter().map(|e| e.t_s).collect();
+        assert_eq!(times, vec![0.005, 0.012, 0.060]);
+        // Window measured from the epoch's first range, not the previous one.
+        let chain = [rm(0.0, 0), rm(0.015, 1), rm(0.030, 2)];
+        assert_eq!(group_epochs(&chain, 0.02).len(), 2);
+        assert!(group_epochs(&[], 0.02).is_empty());
+    }
+
+    #[test]
+    fn uwb_ls_returns_one_fix_per_solvable_epoch() {
+        let anchors = room_anchors();
+        let p = Vec3::new(2.0, 2.0, 1.0);
+        let mut ranges = Vec::new();
+        for k in 0..3 {
+            for (i, a) in anchors.iter().enumerate() {
+                ranges.push(RangeMeasurement { t_s: k as f64 * 0.1 + i as f64 * 0.001, anchor: i, range_m: (p - a).norm() });
+            }
+        }
+        ranges.push(RangeMeasurement { t_s: 1.0, anchor: 0, range_m: 1.0 }); // lone range: unsolvable
+        let fixes = uwb_ls(&ranges, &anchors, &LsConfig::default());
+        assert_eq!(fixes.len(), 3);
+        for (k, (t, f)) in fixes.iter().enumerate() {
+            assert!((t - (k as f64 * 0.1 + 0.005)).abs() < 1e-12);
+            assert!((f.position - p).norm() < 1e-6);
+        }
+    }
+}
