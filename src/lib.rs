@@ -2,6 +2,7 @@
 
 pub mod error;
 pub mod math;
+pub mod metrics;
 pub mod multilateration;
 pub mod records;
 pub mod state;
