@@ -7,6 +7,7 @@ pub mod init;
 pub mod ins;
 pub mod math;
 pub mod methods;
+pub mod metrics;
 pub mod models;
 pub mod multilateration;
 pub mod pipeline;

@@ -4,6 +4,7 @@
 mod convert;
 mod errors;
 mod filters;
+mod metrics;
 
 use pyo3::prelude::*;
 
@@ -14,5 +15,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ConfigError", m.py().get_type::<errors::ConfigError>())?;
     m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
     filters::register(m)?;
+    metrics::register(m)?;
     Ok(())
 }
