@@ -1,0 +1,38 @@
+//! Helpers shared by the filter integration tests.
+#![allow(dead_code)]
+
+use uwbimu_rs::config::{FilterConfig, InitialState};
+use uwbimu_rs::math::Vec3;
+use uwbimu_rs::pipeline::StepRecord;
+use uwbimu_rs::sim::{SimConfig, SimData};
+
+/// Filter noise matched to the simulator's sensor model.
+pub fn config_for(sim: &SimConfig) -> FilterConfig {
+    FilterConfig {
+        range_std: sim.uwb.range_std_m,
+        accel_noise_density: sim.imu_noise.accel_noise_density.max(1e-4),
+        gyro_noise_density: sim.imu_noise.gyro_noise_density.max(1e-5),
+        accel_bias_walk: sim.imu_noise.accel_bias_walk.max(1e-6),
+        gyro_bias_walk: sim.imu_noise.gyro_bias_walk.max(1e-7),
+        lever_arm: sim.lever_arm_m,
+        imu_rotation: sim.imu_rotation,
+        gravity: sim.gravity_nav_mps2,
+        ..FilterConfig::default()
+    }
+}
+
+/// The true state at the first IMU sample, with the given position offset.
+pub fn truth_initial(data: &SimData, position_offset: Vec3) -> InitialState {
+    let t0 = &data.truth[0];
+    InitialState { position: t0.position + position_offset, velocity: t0.velocity, orientation: t0.orientation, ..InitialState::default() }
+}
+
+/// Horizontal errors of per-IMU-sample estimates against truth at the same samples.
+pub fn horizontal_errors(steps: &[StepRecord], data: &SimData) -> Vec<f64> {
+    steps.iter().zip(&data.truth).map(|(s, t)| (s.state.position - t.position).xy().norm()).collect()
+}
+
+/// Root mean square.
+pub fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+}
