@@ -98,17 +98,34 @@ impl Transition {
         out
     }
 
-    /// `Φ·P·Φᵀ + Q` (seed 000 eq. (9), seed 004 eq. (18)), exploiting the block structure; the
-    /// result is symmetrised.
+    /// `Φ·P·Φᵀ + Q` (seed 000 eq. (9), seed 004 eq. (18)), exploiting the block structure:
+    /// `M = Φ·P` by block rows, then `M·Φᵀ` only for the δp, δv, δθ columns of the δp, δv, δθ
+    /// rows (the bias rows and columns of Φ are identity); the rest follows by symmetry.
     pub fn propagate_covariance(&self, p: &ErrCov, q: &ProcessNoise) -> ErrCov {
-        let phi_p = self.apply_rows(p);
-        let mut out = self.apply_rows(&phi_p.transpose()).transpose();
+        const NAV: usize = BA; // δp, δv, δθ: the first 9 slots
+        let m = self.apply_rows(p);
+        let col = |j: usize| m.fixed_view::<NAV, 3>(0, j);
+        let mut out = m;
+        out.fixed_view_mut::<NAV, 3>(0, POS).copy_from(
+            &(col(POS) + col(VEL) * self.p_v + col(ATT) * self.p_att.transpose() + col(BA) * self.p_ba.transpose()),
+        );
+        out.fixed_view_mut::<NAV, 3>(0, VEL).copy_from(
+            &(col(VEL) + col(ATT) * self.v_att.transpose() + col(BA) * self.v_ba.transpose() + col(BG) * self.v_bg.transpose()),
+        );
+        out.fixed_view_mut::<NAV, 3>(0, ATT)
+            .copy_from(&(col(ATT) * self.att_att.transpose() + col(BG) * self.att_bg.transpose()));
         for (offset, var) in [(VEL, q.vel_var), (ATT, q.att_var), (BA, q.accel_bias_var), (BG, q.gyro_bias_var)] {
             for i in 0..3 {
                 out[(offset + i, offset + i)] += var;
             }
         }
-        crate::math::symmetrize(&mut out);
+        // Upper triangle is now exact (the bias block and bias columns of M are already final);
+        // mirror it into the lower triangle.
+        for j in 0..ERR_DIM {
+            for i in (j + 1)..ERR_DIM {
+                out[(i, j)] = out[(j, i)];
+            }
+        }
         out
     }
 

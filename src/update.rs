@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{skew, symmetrize, Mat3};
-use crate::state::{ErrCov, ErrVec, NominalState, ATT};
+use crate::state::{ErrCov, ErrVec, NominalState, ATT, ERR_DIM};
 
 /// What happened to one measurement: a typed form of what the filter decided.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,7 +39,13 @@ pub fn scalar_update(x: &mut NominalState, p: &mut ErrCov, h: &ErrVec, innovatio
         return Err(Error::NotPositiveDefinite { what: "scalar innovation covariance" });
     }
     let k = c / s;
-    *p += -(k * c.transpose()) - c * k.transpose() + (k * k.transpose()) * s;
+    for j in 0..ERR_DIM {
+        for i in 0..=j {
+            let v = p[(i, j)] - k[i] * c[j] - c[i] * k[j] + s * k[i] * k[j];
+            p[(i, j)] = v;
+            p[(j, i)] = v;
+        }
+    }
     let dx = k * innovation;
     inject_and_reset(x, p, &dx);
     Ok(s)

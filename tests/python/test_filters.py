@@ -1,0 +1,202 @@
+"""Batch and streaming filter API: shapes, accuracy, streaming == batch, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import pytest
+
+import uwbimu_rs
+from uwbimu_rs import metrics
+
+COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z"]
+
+
+def test_filters_listed():
+    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf"]
+
+
+def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
+    df = uwbimu_rs.run_filter("ekf", los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
+    assert isinstance(df, pl.DataFrame)
+    assert df.columns == COLUMNS
+    assert df.height == los_run.imu.shape[0]
+    assert (df["t"].to_numpy() == los_run.imu[:, 0]).all()
+    q = df.select("qw", "qx", "qy", "qz").to_numpy()
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0)
+    ev = metrics.evaluate(df, los_run.truth)
+    ls = uwbimu_rs.run_filter("uwb_ls", los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
+    ev_ls = metrics.evaluate(ls, los_run.truth)
+    assert ev.horizontal.rmse < 0.10
+    assert ev.horizontal.rmse < ev_ls.horizontal.rmse
+
+
+def test_uwb_ls_one_row_per_epoch(los_run):
+    df = uwbimu_rs.run_filter("uwb_ls", los_run.imu, los_run.ranges, los_run.anchors)
+    epochs = np.unique(los_run.ranges[:, 0])
+    assert df.height == epochs.size
+    assert {"t", "x", "y", "z", "std_x", "n_ranges", "residual_rms"} <= set(df.columns)
+
+
+def test_covariance_and_update_reports(los_run, filter_config):
+    df, upd = uwbimu_rs.run_filter(
+        "ekf", los_run.imu, los_run.ranges, los_run.anchors, config=filter_config, covariance=True, updates=True
+    )
+    assert {"cov_xx", "cov_xy", "cov_zz"} <= set(df.columns)
+    assert np.allclose(df["cov_xx"].to_numpy(), df["std_x"].to_numpy() ** 2)
+    assert upd.height == los_run.ranges.shape[0]
+    assert upd["accepted"].all()
+    # With matched noise the mean NIS of a consistent filter is near 1 (1 dof per range).
+    assert 0.5 < upd["nis"].mean() < 2.0
+    nees = metrics.nees(df, los_run.truth)
+    assert nees.height > 0
+
+
+def _streaming(run, initial, config):
+    ekf = uwbimu_rs.Ekf(run.anchors, initial=initial, config=config)
+    rows, reports = [], []
+    ranges = run.ranges
+    j = 0
+    for sample in run.imu:
+        t = sample[0]
+        while j < len(ranges) and ranges[j, 0] < t:
+            reports.append(ekf.update_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2]))
+            j += 1
+        ekf.predict(t, sample[1:4], sample[4:7])
+        while j < len(ranges) and ranges[j, 0] == t:
+            reports.append(ekf.update_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2]))
+            j += 1
+        s = ekf.state
+        rows.append(np.concatenate([[t], s["position"], s["velocity"], s["orientation"]]))
+    return np.array(rows), reports, ekf
+
+
+def test_streaming_equals_batch(los_run, filter_config):
+    initial, _info = uwbimu_rs.initialize(los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
+    n = 2000  # 20 s: still start and the first metres of the figure-8
+    imu = los_run.imu[:n]
+    ranges = los_run.ranges[los_run.ranges[:, 0] <= imu[-1, 0]]
+    run = type("Run", (), {"imu": imu, "ranges": ranges, "anchors": los_run.anchors})
+    rows, reports, ekf = _streaming(run, initial, filter_config)
+    df, upd = uwbimu_rs.run_filter(
+        "ekf", imu, ranges, los_run.anchors, initial=initial, config=filter_config, updates=True
+    )
+    batch = df.select(COLUMNS[:11]).to_numpy()
+    np.testing.assert_array_equal(rows, batch)
+    np.testing.assert_array_equal([r.nis for r in reports], upd["nis"].to_numpy())
+    assert ekf.covariance.shape == (15, 15)
+    np.testing.assert_allclose(np.sqrt(np.diag(ekf.covariance)[:3]), df.select("std_x", "std_y", "std_z").row(-1))
+
+
+def test_streaming_state_and_report_types(los_run):
+    ekf = uwbimu_rs.Ekf(los_run.anchors, initial={"position": [5.0, 4.0, 0.4], "velocity": [0, 0, 0], "orientation": [1, 0, 0, 0]})
+    assert ekf.time is None
+    with pytest.raises(ValueError, match="predict first"):
+        ekf.update_range(0.0, 0, 3.0)
+    ekf.predict(0.0, [0.0, 0.0, 9.80665], [0.0, 0.0, 0.0])
+    rep = ekf.update_range(0.005, 1, 6.0)
+    assert isinstance(rep, uwbimu_rs.UpdateReport)
+    assert rep.accepted and rep.weight == 1.0 and rep.nis >= 0.0
+    assert ekf.time == pytest.approx(0.005)
+    with pytest.raises(ValueError, match="not after"):
+        ekf.predict(0.001, [0.0, 0.0, 9.8], [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="anchor index 9"):
+        ekf.update_range(0.01, 9, 3.0)
+    with pytest.raises(ValueError, match="non-finite"):
+        ekf.predict(0.02, [0.0, np.nan, 9.8], [0.0, 0.0, 0.0])
+
+
+# ---------------------------------------------------------------------------- bad input
+
+
+@pytest.fixture()
+def small():
+    t = np.arange(0.0, 1.0, 0.01)
+    imu = np.zeros((t.size, 7))
+    imu[:, 0] = t
+    imu[:, 3] = 9.80665
+    anchors = np.array([[0.0, 0.0, 2.0], [8.0, 0.0, 1.0], [8.0, 6.0, 2.0], [0.0, 6.0, 1.0]])
+    ranges = np.array([[0.5, 0, 5.0], [0.5, 1, 5.0], [0.5, 2, 5.0], [0.5, 3, 5.0]])
+    initial = {"position": [4.0, 3.0, 0.3], "velocity": [0, 0, 0], "orientation": [1, 0, 0, 0]}
+    return imu, ranges, anchors, initial
+
+
+@pytest.mark.parametrize(
+    ("mutate", "pattern"),
+    [
+        (lambda i, r, a: (i[:, :6], r, a), r"imu: expected shape \(N, 7\)"),
+        (lambda i, r, a: (i, r[:, :2], a), r"ranges: expected shape \(M, 3\)"),
+        (lambda i, r, a: (i, r, a[:, :2]), r"anchors: expected shape \(K, 3\)"),
+        (lambda i, r, a: (i[:, 0], r, a), r"imu: expected shape"),
+        (lambda i, r, a: (_set(i, (5, 2), np.nan), r, a), r"imu: non-finite value NaN at row 5, column 2"),
+        (lambda i, r, a: (_set(i, (3, 4), np.inf), r, a), r"imu: non-finite value inf at row 3, column 4"),
+        (lambda i, r, a: (i, _set(r, (2, 2), np.nan), a), r"ranges: non-finite value NaN at row 2"),
+        (lambda i, r, a: (_set(i, (10, 0), 0.05), r, a), r"imu: time 0.05 s at row 10 is not after"),
+        (lambda i, r, a: (i, _set(r, (3, 0), 0.1), a), r"ranges: time 0.1 s at row 3"),
+        (lambda i, r, a: (i, _set(r, (1, 1), 4.0), a), r"anchor index 4 at row 1 is out of range \(there are 4 anchors\)"),
+        (lambda i, r, a: (i, _set(r, (1, 1), -1.0), a), r"anchor index -1 at row 1"),
+        (lambda i, r, a: (i, _set(r, (1, 2), -2.0), a), r"range must be >= 0"),
+        (lambda i, r, a: ([["a"] * 7], r, a), r"imu: cannot convert to a float64 array"),
+    ],
+)
+def test_bad_arrays_raise_value_error(small, mutate, pattern):
+    imu, ranges, anchors, initial = small
+    imu, ranges, anchors = mutate(imu.copy(), ranges.copy(), anchors.copy())
+    with pytest.raises(ValueError, match=pattern):
+        uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial)
+
+
+def _set(a, idx, value):
+    a[idx] = value
+    return a
+
+
+def test_unknown_method_lists_allowed(small):
+    imu, ranges, anchors, _ = small
+    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf"):
+        uwbimu_rs.run_filter("kalman", imu, ranges, anchors)
+
+
+def test_unknown_config_key_lists_allowed(small):
+    imu, ranges, anchors, initial = small
+    with pytest.raises(uwbimu_rs.ConfigError, match=r"unknown config `range_sigma`; allowed: range_std, "):
+        uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"range_sigma": 0.1})
+    with pytest.raises(ValueError, match=r"unknown config `foo`"):
+        uwbimu_rs.FilterConfig(foo=1.0)
+
+
+@pytest.mark.parametrize(
+    ("config", "pattern"),
+    [
+        ({"range_std": -0.1}, r"config `range_std`: must be > 0"),
+        ({"lever_arm": [0.0, 0.1]}, r"config `lever_arm`: expected 3 numbers, got 2"),
+        ({"imu_rotation": [0, 0, 0, 0]}, r"config `imu_rotation`: quaternion"),
+        ({"range_std": "big"}, r"`range_std`: expected a number"),
+        ({"gravity": float("nan")}, r"config `gravity`: must be finite"),
+    ],
+)
+def test_bad_config_values(small, config, pattern):
+    imu, ranges, anchors, initial = small
+    with pytest.raises(ValueError, match=pattern):
+        uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=config)
+
+
+def test_bad_initial_key(small):
+    imu, ranges, anchors, initial = small
+    with pytest.raises(ValueError, match=r"unknown initial-state key `pos`; allowed: position"):
+        uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial={"pos": [0, 0, 0]})
+
+
+def test_config_object_and_dict_agree(small):
+    imu, ranges, anchors, initial = small
+    cfg = uwbimu_rs.FilterConfig(range_std=0.2, lever_arm=[0, 0, 0.05])
+    a = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=cfg)
+    b = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=cfg.to_dict())
+    assert a.equals(b)
+    assert set(uwbimu_rs.FilterConfig.keys()) >= {"range_std", "accel_noise_density", "gyro_noise_density", "accel_bias_walk", "gyro_bias_walk", "lever_arm", "imu_rotation", "gravity"}
+
+
+def test_self_init_without_uwb_fails_clearly(small):
+    imu, _ranges, anchors, _ = small
+    with pytest.raises(ValueError, match="no solvable UWB epoch"):
+        uwbimu_rs.run_filter("ekf", imu, np.zeros((0, 3)), anchors)
