@@ -3,6 +3,7 @@
 pub mod error;
 pub mod math;
 pub mod records;
+pub mod sim;
 pub mod state;
 pub mod validate;
 
