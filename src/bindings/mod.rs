@@ -3,6 +3,7 @@
 
 mod convert;
 mod errors;
+mod sim;
 
 use pyo3::prelude::*;
 
@@ -12,5 +13,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("UwbImuError", m.py().get_type::<errors::UwbImuError>())?;
     m.add("ConfigError", m.py().get_type::<errors::ConfigError>())?;
     m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
+    sim::register(m)?;
     Ok(())
 }
