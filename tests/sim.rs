@@ -1,6 +1,8 @@
 //! Integration tests of the simulator: exact kinematics, IMU synthesis, noise statistics, UWB
 //! labels, reproducibility and config validation.
 
+#![allow(clippy::unwrap_used)]
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use uwbimu_rs::math::{quat_exp, Quat, Vec3};

@@ -5,6 +5,7 @@ mod convert;
 mod errors;
 mod filters;
 mod metrics;
+mod sim;
 
 use pyo3::prelude::*;
 
@@ -16,5 +17,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
     filters::register(m)?;
     metrics::register(m)?;
+    sim::register(m)?;
     Ok(())
 }

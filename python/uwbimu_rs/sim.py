@@ -1,0 +1,203 @@
+"""Seeded UWB + IMU simulator: paper presets and custom trajectories.
+
+A thin wrapper over the native core (``uwbimu_rs._native``): all maths runs in Rust with the GIL
+released. Conventions: navigation frame ENU (z up), gravity ``[0, 0, -9.80665]`` m/s², accelerometer
+= specific force in the body frame (``≈ [0, 0, +9.81]`` level and still), gyroscope in rad/s,
+quaternions Hamilton ``[w, x, y, z]`` body → navigation, times in s, ranges in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import polars as pl
+
+from uwbimu_rs import _native
+from uwbimu_rs._native import Trajectory
+
+__all__ = ["OVERRIDE_KEYS", "PRESET_NAMES", "PresetName", "SimResult", "Trajectory", "preset", "simulate"]
+
+PresetName = Literal["seed000", "seed000_los", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"]
+"""Names accepted by :func:`preset`."""
+
+PRESET_NAMES: tuple[str, ...] = tuple(_native.SIM_PRESET_NAMES)
+"""Names accepted by :func:`preset`, from the native module."""
+
+OVERRIDE_KEYS: tuple[str, ...] = tuple(_native.SIM_OVERRIDE_KEYS)
+"""Keys accepted as overrides by :func:`preset` and :func:`simulate`."""
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """One simulated run.
+
+    Attributes
+    ----------
+    imu : numpy.ndarray, shape (N, 7), float64
+        ``t`` (s), ``ax, ay, az`` (specific force, IMU frame, m/s²), ``gx, gy, gz`` (rad/s).
+    ranges : numpy.ndarray, shape (M, 3), float64
+        ``t`` (s), anchor index (as float), range (m); time-ordered.
+    range_labels : numpy.ndarray, shape (M,), uint8
+        0 = line of sight, 1 = inside an NLOS shielding window, 2 = gross outlier.
+    anchors : numpy.ndarray, shape (K, 3), float64
+        Anchor positions, navigation frame, m.
+    truth : polars.DataFrame
+        One row per IMU sample: ``t`` (s), ``x, y, z`` (m), ``vx, vy, vz`` (m/s),
+        ``qw, qx, qy, qz`` (body → navigation) of the body (IMU) origin.
+    mag : numpy.ndarray of shape (N, 4) or None
+        ``t`` (s), ``mx, my, mz`` (IMU frame, unit of the configured field, e.g. µT); ``None``
+        without a magnetometer.
+    accel_bias : numpy.ndarray, shape (N, 3), float64
+        True accelerometer bias at each IMU sample, IMU frame, m/s².
+    gyro_bias : numpy.ndarray, shape (N, 3), float64
+        True gyroscope bias at each IMU sample, IMU frame, rad/s.
+    nlos_windows : numpy.ndarray, shape (W, 4), float64
+        Realised shielding windows: anchor index, start (s), end (s), range bias (m).
+    """
+
+    imu: np.ndarray
+    ranges: np.ndarray
+    range_labels: np.ndarray
+    anchors: np.ndarray
+    truth: pl.DataFrame
+    mag: np.ndarray | None
+    accel_bias: np.ndarray
+    gyro_bias: np.ndarray
+    nlos_windows: np.ndarray
+
+
+def _result(d: dict) -> SimResult:
+    return SimResult(
+        imu=d["imu"],
+        ranges=d["ranges"],
+        range_labels=d["range_labels"],
+        anchors=d["anchors"],
+        truth=pl.DataFrame(d["truth"]),
+        mag=d["mag"],
+        accel_bias=d["accel_bias"],
+        gyro_bias=d["gyro_bias"],
+        nlos_windows=d["nlos_windows"],
+    )
+
+
+def preset(name: PresetName, *, seed: int = 0, **overrides: float | bool) -> SimResult:
+    """Simulate a paper setup.
+
+    Parameters
+    ----------
+    name : {"seed000", "seed000_los", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"}
+        ``seed000``: 4 anchors in a 10 m × 8 m hall (heights 0.8–2.2 m), figure-8 ×4, UWB 2 Hz
+        σ 0.1 m, IMU 100 Hz, 1–2 anchors randomly shielded (NLOS). ``seed000_los``: the same without
+        NLOS, outliers or dropouts. ``seed002_*``: the 10 m × 5 m garage site of seed 002,
+        rectangle or figure-8 ×2 (the latter with 10 % outliers on beacons 2 and 4).
+        ``seed004_s1`` / ``seed004_s2``: the planar simulation of seed 004 (anchors (−5,−1), (1,−1),
+        (1,5), (−5,5), 0.4 m/s along a diagonal, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2)); s2 adds gross
+        outliers. The (0.57, 0) start of scenario 1 is a filter initial error, not part of the data.
+    seed : int, default 0
+        Seed of all random draws; the same seed gives identical output.
+    **overrides : float or bool
+        Any of :data:`OVERRIDE_KEYS`, e.g. ``nlos=False``, ``outlier_prob=0.05``,
+        ``range_std_m=0.2``, ``uwb_rate_hz=5.0``, ``magnetometer=True``, ``imu_noise=False``.
+
+    Returns
+    -------
+    SimResult
+
+    Raises
+    ------
+    ValueError
+        (``uwbimu_rs.ConfigError``) for an unknown preset or override key (the message lists the
+        allowed ones) or an invalid value.
+    """
+    return _result(_native.sim_preset(name, seed, dict(overrides)))
+
+
+def simulate(
+    trajectory: Trajectory,
+    anchors: np.ndarray,
+    *,
+    seed: int = 0,
+    imu_rate_hz: float = 100.0,
+    uwb_rate_hz: float = 2.0,
+    range_std_m: float = 0.1,
+    uniform_noise_m: float = 0.0,
+    nlos: bool = False,
+    outlier_prob: float = 0.0,
+    dropout_prob: float = 0.0,
+    magnetometer: bool = False,
+    imu_noise: bool = True,
+    lever_arm_m: np.ndarray | tuple[float, float, float] = (0.0, 0.0, 0.05),
+    imu_rotation: np.ndarray | tuple[float, float, float, float] | None = None,
+    **overrides: float | bool,
+) -> SimResult:
+    """Simulate IMU, UWB ranges and truth along a trajectory.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        E.g. ``Trajectory.figure_eight(centre, a_m, b_m, lap_time_s, laps)`` or
+        ``Trajectory.waypoints(points)``.
+    anchors : array_like, shape (K, 3)
+        Anchor positions, navigation frame, m (K ≥ 1).
+    seed : int, default 0
+        Seed of all random draws.
+    imu_rate_hz : float, default 100.0
+        IMU sample rate, Hz (consumer-MEMS noise: 0.003 m/s²/√Hz, 0.0005 rad/s/√Hz, biases
+        0.05 m/s² and 0.005 rad/s).
+    uwb_rate_hz : float, default 2.0
+        Ranging epochs per second, Hz.
+    range_std_m : float, default 0.1
+        Gaussian range noise std, m.
+    uniform_noise_m : float, default 0.0
+        Half-width of additional uniform range noise, m.
+    nlos : bool, default False
+        Random NLOS shielding of 1–2 anchors at a time (bias U(0.3, 1.5) m).
+    outlier_prob : float, default 0.0
+        Probability of a gross outlier (+U(1, 5) m) per range.
+    dropout_prob : float, default 0.0
+        Probability that a range is lost.
+    magnetometer : bool, default False
+        Add a magnetometer (field [20, 0, −40] µT, noise 0.5 µT).
+    imu_noise : bool, default True
+        ``False`` makes the IMU perfect.
+    lever_arm_m : array_like, shape (3,), default (0, 0, 0.05)
+        UWB antenna position in the body frame, m.
+    imu_rotation : array_like, shape (4,), optional
+        Mounting rotation IMU frame → body, ``[w, x, y, z]``; identity by default.
+    **overrides : float or bool
+        Further keys from :data:`OVERRIDE_KEYS` (e.g. ``accel_noise_density``, ``nlos_bias_max_m``).
+
+    Returns
+    -------
+    SimResult
+
+    Raises
+    ------
+    ValueError
+        (``uwbimu_rs.ConfigError`` or ``uwbimu_rs.UwbImuError``) for an unknown override key, an
+        invalid value or a bad array shape.
+    """
+    options: dict[str, float | bool] = {
+        "imu_rate_hz": imu_rate_hz,
+        "uwb_rate_hz": uwb_rate_hz,
+        "range_std_m": range_std_m,
+        "uniform_noise_m": uniform_noise_m,
+        "nlos": nlos,
+        "outlier_prob": outlier_prob,
+        "dropout_prob": dropout_prob,
+        "magnetometer": magnetometer,
+        "imu_noise": imu_noise,
+        **overrides,
+    }
+    return _result(
+        _native.simulate(
+            trajectory,
+            np.asarray(anchors, dtype=np.float64),
+            seed,
+            np.asarray(lever_arm_m, dtype=np.float64),
+            None if imu_rotation is None else np.asarray(imu_rotation, dtype=np.float64),
+            options,
+        )
+    )
