@@ -39,7 +39,7 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
     for ax, name in zip(axes, ("seed000_los", "seed000")):
         run = frames[(name, "ekf")][1]
         ax.plot(run.truth["x"], run.truth["y"], "k-", lw=1, label="truth")
@@ -51,8 +51,9 @@ def main() -> None:
         ax.set_title(name)
         ax.set_xlabel("east [m]")
         ax.set_aspect("equal")
-    axes[0].set_ylabel("north [m]")
-    axes[0].legend(loc="upper right")
+    for ax in axes:
+        ax.set_ylabel("north [m]")
+    axes[0].legend(loc="center", fontsize=8)
     out = Path("out")
     out.mkdir(exist_ok=True)
     fig.tight_layout()

@@ -1,4 +1,4 @@
-//! uwbimu_rs: UWB ranging + IMU fusion filters for indoor positioning.
+#![doc = include_str!("../README.md")]
 
 pub mod config;
 pub mod error;
