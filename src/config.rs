@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{quat_from_wxyz, Quat, Vec3};
+use crate::validate::{self, invalid};
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
 #[derive(Debug, Clone, PartialEq)]
@@ -73,26 +74,16 @@ fn scalar(field: &str, v: &ConfigValue) -> Result<f64> {
     match v {
         ConfigValue::Scalar(x) if x.is_finite() => Ok(*x),
         ConfigValue::Scalar(x) => Err(invalid(field, format!("must be finite, got {x}"))),
-        ConfigValue::Vector(_) => Err(invalid(field, "expected a number, got a sequence".into())),
+        ConfigValue::Vector(_) => Err(invalid(field, "expected a number, got a sequence")),
     }
 }
 
 fn positive(field: &str, v: &ConfigValue) -> Result<f64> {
-    let x = scalar(field, v)?;
-    if x > 0.0 {
-        Ok(x)
-    } else {
-        Err(invalid(field, format!("must be > 0, got {x}")))
-    }
+    validate::positive(field, scalar(field, v)?)
 }
 
 fn non_negative(field: &str, v: &ConfigValue) -> Result<f64> {
-    let x = scalar(field, v)?;
-    if x >= 0.0 {
-        Ok(x)
-    } else {
-        Err(invalid(field, format!("must be >= 0, got {x}")))
-    }
+    validate::non_negative(field, scalar(field, v)?)
 }
 
 fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> {
@@ -112,10 +103,6 @@ fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> {
     }
 }
 
-fn invalid(field: &str, reason: String) -> Error {
-    Error::InvalidConfig { field: field.to_string(), reason }
-}
-
 /// A 3-vector given as a scalar `s` (meaning `[s, s, s]`) or as 3 numbers.
 fn vec3_or_scalar(field: &str, v: &ConfigValue) -> Result<Vec3> {
     match v {
@@ -126,7 +113,7 @@ fn vec3_or_scalar(field: &str, v: &ConfigValue) -> Result<Vec3> {
         ConfigValue::Vector(_) => {
             let a = vector::<3>(field, v)?;
             if a.iter().any(|x| *x < 0.0) {
-                return Err(invalid(field, "standard deviations must be >= 0".into()));
+                return Err(invalid(field, "standard deviations must be >= 0"));
             }
             Ok(Vec3::from(a))
         }
@@ -135,7 +122,7 @@ fn vec3_or_scalar(field: &str, v: &ConfigValue) -> Result<Vec3> {
 
 fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
     let a = vector::<4>(field, v)?;
-    quat_from_wxyz(a).ok_or_else(|| invalid(field, "quaternion [w, x, y, z] has zero norm".into()))
+    quat_from_wxyz(a).ok_or_else(|| invalid(field, "quaternion [w, x, y, z] has zero norm"))
 }
 
 impl FilterConfig {

@@ -87,7 +87,11 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         (first_fix.position, first_fix.covariance, 1.0)
     } else {
         let k = start_fixes.len() as f64;
-        (start_fixes.iter().map(|f| f.position).sum::<Vec3>() / k, start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k, k)
+        (
+            start_fixes.iter().map(|f| f.position).sum::<Vec3>() / k,
+            start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k,
+            k,
+        )
     };
 
     // 3. Heading from dead reckoning against UWB displacement.
@@ -122,9 +126,22 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
 
 /// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag
 /// displacement onto the UWB one, over the first epochs past the heading distance.
-fn heading_from_motion(imu: &[ImuSample], fixes: &[(f64, Fix)], tag0: Vec3, level: Quat, gyro_bias: Vec3, config: &FilterConfig) -> Option<f64> {
+fn heading_from_motion(
+    imu: &[ImuSample],
+    fixes: &[(f64, Fix)],
+    tag0: Vec3,
+    level: Quat,
+    gyro_bias: Vec3,
+    config: &FilterConfig,
+) -> Option<f64> {
     let t0 = imu.first()?.t_s;
-    let mut x = NominalState { position: Vec3::zeros(), velocity: Vec3::zeros(), orientation: level, accel_bias: Vec3::zeros(), gyro_bias };
+    let mut x = NominalState {
+        position: Vec3::zeros(),
+        velocity: Vec3::zeros(),
+        orientation: level,
+        accel_bias: Vec3::zeros(),
+        gyro_bias,
+    };
     let tag_dr = |x: &NominalState| x.position + x.orientation * config.lever_arm;
     let dr0 = tag_dr(&x);
     let (mut cross, mut dot, mut used) = (0.0, 0.0, 0usize);

@@ -90,10 +90,8 @@ impl Transition {
     fn apply_rows(&self, m: &ErrCov) -> ErrCov {
         let row = |i: usize| m.fixed_rows::<3>(i);
         let mut out = *m;
-        out.fixed_rows_mut::<3>(POS)
-            .copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));
-        out.fixed_rows_mut::<3>(VEL)
-            .copy_from(&(row(VEL) + self.v_att * row(ATT) + self.v_ba * row(BA) + self.v_bg * row(BG)));
+        out.fixed_rows_mut::<3>(POS).copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));
+        out.fixed_rows_mut::<3>(VEL).copy_from(&(row(VEL) + self.v_att * row(ATT) + self.v_ba * row(BA) + self.v_bg * row(BG)));
         out.fixed_rows_mut::<3>(ATT).copy_from(&(self.att_att * row(ATT) + self.att_bg * row(BG)));
         out
     }
@@ -106,9 +104,8 @@ impl Transition {
         let m = self.apply_rows(p);
         let col = |j: usize| m.fixed_view::<NAV, 3>(0, j);
         let mut out = m;
-        out.fixed_view_mut::<NAV, 3>(0, POS).copy_from(
-            &(col(POS) + col(VEL) * self.p_v + col(ATT) * self.p_att.transpose() + col(BA) * self.p_ba.transpose()),
-        );
+        out.fixed_view_mut::<NAV, 3>(0, POS)
+            .copy_from(&(col(POS) + col(VEL) * self.p_v + col(ATT) * self.p_att.transpose() + col(BA) * self.p_ba.transpose()));
         out.fixed_view_mut::<NAV, 3>(0, VEL).copy_from(
             &(col(VEL) + col(ATT) * self.v_att.transpose() + col(BA) * self.v_ba.transpose() + col(BG) * self.v_bg.transpose()),
         );

@@ -41,7 +41,7 @@ pub enum BatchOutput {
         /// Per-IMU-sample records and per-range reports.
         trace: Trace,
         /// Self-initialisation result, when the filter initialised itself.
-        init: Option<SelfInit>,
+        init: Option<Box<SelfInit>>,
     },
     /// One UWB-only fix per solvable epoch: (epoch time s, fix).
     Multilateration(Vec<(f64, Fix)>),
@@ -67,7 +67,7 @@ pub fn run_method(
                 Some(i) => (i.clone(), None),
                 None => {
                     let s = initialize(imu, ranges, anchors, config)?;
-                    (s.initial.clone(), Some(s))
+                    (s.initial.clone(), Some(Box::new(s)))
                 }
             };
             let mut filter = Ekf::new(anchors.to_vec(), &initial, config.clone())?;

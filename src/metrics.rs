@@ -291,7 +291,6 @@ pub fn evaluate(est_t: &[f64], est_p: &[Vec3], truth_t: &[f64], truth_p: &[Vec3]
 }
 
 #[cfg(test)]
-#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use nalgebra::Rotation3;
@@ -364,10 +363,12 @@ mod tests {
     fn rigid_alignment_recovers_known_transform() {
         let rot = Rotation3::from_euler_angles(0.3, -0.7, 2.1).into_inner();
         let trans = Vec3::new(5.0, -3.0, 1.2);
-        let truth: Vec<Vec3> = (0..20).map(|i| {
-            let s = i as f64;
-            Vec3::new(s.sin() * 4.0, (0.7 * s).cos() * 3.0, 0.1 * s)
-        }).collect();
+        let truth: Vec<Vec3> = (0..20)
+            .map(|i| {
+                let s = i as f64;
+                Vec3::new(s.sin() * 4.0, (0.7 * s).cos() * 3.0, 0.1 * s)
+            })
+            .collect();
         // est = R⁻¹ (truth − t), so the alignment est → truth is (R, t).
         let est: Vec<Vec3> = truth.iter().map(|g| rot.transpose() * (g - trans)).collect();
         let tf = rigid_alignment(&est, &truth).unwrap();

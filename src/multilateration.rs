@@ -122,9 +122,7 @@ pub fn group_epochs(ranges: &[RangeMeasurement], window_s: f64) -> Vec<Epoch> {
 /// Checks that every observation names an existing anchor with finite coordinates and has a
 /// finite, non-negative range.
 fn obs_valid(anchors: &[Vec3], obs: &[(usize, f64)]) -> bool {
-    obs.iter().all(|&(a, r)| {
-        r.is_finite() && r >= 0.0 && anchors.get(a).is_some_and(|p| p.iter().all(|v| v.is_finite()))
-    })
+    obs.iter().all(|&(a, r)| r.is_finite() && r >= 0.0 && anchors.get(a).is_some_and(|p| p.iter().all(|v| v.is_finite())))
 }
 
 /// Whether the smallest singular value (or eigenvalue) `min` exceeds `rcond · max` with a positive
@@ -364,7 +362,6 @@ pub fn uwb_ls(ranges: &[RangeMeasurement], anchors: &[Vec3], cfg: &LsConfig) -> 
 }
 
 #[cfg(test)]
-#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
@@ -477,20 +474,24 @@ mod tests {
         fixes.iter().map(|f| (f - p) * (f - p).transpose()).sum::<Mat3>() / fixes.len() as f64
     }
 
-    #[test]
-    fn covariance_matches_monte_carlo_scatter() {
-        let anchors = room_anchors();
-        let p = Vec3::new(3.0, 4.0, 1.5);
-        let cfg = LsConfig { range_std_m: 0.05, ..LsConfig::default() };
-        let mut rng = ChaCha8Rng::seed_from_u64(42);
+    /// Solves 4000 noisy epochs at `p`; returns the sample scatter about `p` and the covariance
+    /// the solver reported for the last one.
+    fn monte_carlo(anchors: &[Vec3], p: &Vec3, cfg: &LsConfig, seed: u64) -> (Mat3, Mat3) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut fixes = Vec::new();
         let mut predicted = Mat3::zeros();
         for _ in 0..4000 {
-            let fix = solve_epoch(&anchors, &noisy_obs(&anchors, &p, cfg.range_std_m, &mut rng), &cfg).unwrap();
+            let fix = solve_epoch(anchors, &noisy_obs(anchors, p, cfg.range_std_m, &mut rng), cfg).unwrap();
             fixes.push(fix.position);
             predicted = fix.covariance;
         }
-        let sample = scatter(&fixes, &p);
+        (scatter(&fixes, p), predicted)
+    }
+
+    #[test]
+    fn covariance_matches_monte_carlo_scatter() {
+        let cfg = LsConfig { range_std_m: 0.05, ..LsConfig::default() };
+        let (sample, predicted) = monte_carlo(&room_anchors(), &Vec3::new(3.0, 4.0, 1.5), &cfg, 42);
         for k in 0..3 {
             let ratio = sample[(k, k)] / predicted[(k, k)];
             assert!((ratio - 1.0).abs() < 0.2, "axis {k}: ratio {ratio}");
@@ -500,17 +501,8 @@ mod tests {
     #[test]
     fn planar_covariance_matches_monte_carlo_scatter() {
         let anchors: Vec<Vec3> = room_anchors().iter().map(|a| Vec3::new(a.x, a.y, 2.5)).collect();
-        let p = Vec3::new(6.0, 3.0, 1.0);
         let cfg = LsConfig { planar_height_m: Some(1.0), ..LsConfig::default() };
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let mut fixes = Vec::new();
-        let mut predicted = Mat3::zeros();
-        for _ in 0..4000 {
-            let fix = solve_epoch(&anchors, &noisy_obs(&anchors, &p, cfg.range_std_m, &mut rng), &cfg).unwrap();
-            fixes.push(fix.position);
-            predicted = fix.covariance;
-        }
-        let sample = scatter(&fixes, &p);
+        let (sample, predicted) = monte_carlo(&anchors, &Vec3::new(6.0, 3.0, 1.0), &cfg, 3);
         for k in 0..2 {
             let ratio = sample[(k, k)] / predicted[(k, k)];
             assert!((ratio - 1.0).abs() < 0.2, "axis {k}: ratio {ratio}");

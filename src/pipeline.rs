@@ -51,7 +51,8 @@ pub struct Trace {
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
 /// event order).
 pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
-    let mut trace = Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
+    let mut trace =
+        Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
     let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
     let mut next = ranges.partition_point(|r| r.t_s < t_first);
     trace.ranges_before_start = next;

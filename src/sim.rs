@@ -34,6 +34,7 @@ pub use uwb::{NlosConfig, NlosWindow, RandomShielding, ShieldingWindow, UwbConfi
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
 use crate::records::{ImuSample, MagSample, RangeMeasurement, TruthSample};
+use crate::validate::{invalid, non_negative, positive};
 
 /// ChaCha stream of the IMU noise.
 const STREAM_IMU: u64 = 1;
@@ -146,26 +147,6 @@ pub const OVERRIDE_KEYS: &[&str] = &[
     "mag_noise_std",
 ];
 
-fn invalid(field: &str, reason: impl Into<String>) -> Error {
-    Error::InvalidConfig { field: field.to_string(), reason: reason.into() }
-}
-
-fn positive(field: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must be finite and > 0, got {v}")))
-    }
-}
-
-fn non_negative(field: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must be finite and >= 0, got {v}")))
-    }
-}
-
 fn probability(field: &str, v: f64) -> Result<()> {
     if (0.0..=1.0).contains(&v) {
         Ok(())
@@ -277,8 +258,7 @@ impl SimConfig {
     /// by [`SimConfig::validate`]. Unknown key → [`Error::UnknownOption`]; wrong value kind or an
     /// `nlos_*`/`mag_*` key while that model is off → [`Error::InvalidConfig`].
     pub fn apply_overrides(&mut self, overrides: &[(&str, OverrideValue)]) -> Result<()> {
-        let (flags, numbers): (Vec<_>, Vec<_>) =
-            overrides.iter().partition(|(_, v)| matches!(v, OverrideValue::Flag(_)));
+        let (flags, numbers): (Vec<_>, Vec<_>) = overrides.iter().partition(|(_, v)| matches!(v, OverrideValue::Flag(_)));
         for (key, value) in flags.into_iter().chain(numbers) {
             self.apply_override(key, value)?;
         }

@@ -7,6 +7,29 @@ use crate::error::{Error, Result};
 use crate::math::Vec3;
 use crate::records::{ImuSample, RangeMeasurement};
 
+/// An [`Error::InvalidConfig`] for `field`.
+pub fn invalid(field: &str, reason: impl Into<String>) -> Error {
+    Error::InvalidConfig { field: field.to_string(), reason: reason.into() }
+}
+
+/// Checks that a setting is finite and > 0; returns it.
+pub fn positive(field: &str, v: f64) -> Result<f64> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("must be finite and > 0, got {v}")))
+    }
+}
+
+/// Checks that a setting is finite and ≥ 0; returns it.
+pub fn non_negative(field: &str, v: f64) -> Result<f64> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("must be finite and >= 0, got {v}")))
+    }
+}
+
 fn check_finite<const C: usize>(name: &'static str, rows: &[[f64; C]]) -> Result<()> {
     for (row, r) in rows.iter().enumerate() {
         if let Some(col) = r.iter().position(|v| !v.is_finite()) {

@@ -63,7 +63,8 @@ fn covariance_stays_symmetric_positive_definite_over_10_minutes() {
     };
     let data = simulate(&cfg).expect("sim");
     assert!(data.imu.last().expect("samples").t_s >= 600.0);
-    let mut ekf = Ekf::new(data.anchors.clone(), &truth_initial(&data, Vec3::new(0.3, -0.2, 0.1)), config_for(&cfg)).expect("filter");
+    let mut ekf =
+        Ekf::new(data.anchors.clone(), &truth_initial(&data, Vec3::new(0.3, -0.2, 0.1)), config_for(&cfg)).expect("filter");
     let mut next = 0;
     for (k, s) in data.imu.iter().enumerate() {
         while next < data.ranges.len() && data.ranges[next].t_s < s.t_s {
@@ -90,7 +91,12 @@ fn self_initialisation_recovers_pose_from_still_start_and_motion() {
     let init = initialize(&data.imu, &data.ranges, &data.anchors, &config_for(&cfg)).expect("self-init");
     let truth = &data.truth[0];
     assert!(init.still);
-    assert!((init.initial.position - truth.position).xy().norm() < 0.1, "position {:?} vs {:?}", init.initial.position, truth.position);
+    assert!(
+        (init.initial.position - truth.position).xy().norm() < 0.1,
+        "position {:?} vs {:?}",
+        init.initial.position,
+        truth.position
+    );
     let attitude_err = (truth.orientation.inverse() * init.initial.orientation).angle();
     assert!(attitude_err < 5f64.to_radians(), "attitude error {} deg", attitude_err.to_degrees());
 }

@@ -1,14 +1,13 @@
 //! Integration tests of the simulator: exact kinematics, IMU synthesis, noise statistics, UWB
 //! labels, reproducibility and config validation.
 
-#![allow(clippy::unwrap_used)]
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use uwbimu_rs::math::{quat_exp, Quat, Vec3};
 use uwbimu_rs::sim::{
-    ideal_imu, preset, simulate, DriveOptions, ImuNoise, MagConfig, MagDisturbance, NlosConfig, NlosWindow, OverrideValue, SimConfig,
-    Trajectory, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
+    ideal_imu, preset, simulate, DriveOptions, ImuNoise, MagConfig, MagDisturbance, NlosConfig, NlosWindow, OverrideValue,
+    SimConfig, Trajectory, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
 };
 use uwbimu_rs::Error;
 
@@ -213,7 +212,10 @@ fn nlos_ranges_are_biased_los_ranges_are_not() {
     assert!(!data.nlos_windows.is_empty());
     // Each NLOS range lies in a window of its anchor.
     for (r, _) in data.ranges.iter().zip(&data.range_labels).filter(|(_, &l)| l == LABEL_NLOS) {
-        assert!(data.nlos_windows.iter().any(|w| w.window.anchor == r.anchor && w.window.start_s <= r.t_s && r.t_s < w.window.end_s));
+        assert!(data
+            .nlos_windows
+            .iter()
+            .any(|w| w.window.anchor == r.anchor && w.window.start_s <= r.t_s && r.t_s < w.window.end_s));
     }
 }
 
@@ -316,7 +318,10 @@ fn invalid_config_is_rejected() {
         SimConfig { uwb: UwbConfig { outlier_prob: 1.5, ..UwbConfig::default() }, ..SimConfig::default() },
         SimConfig { uwb: UwbConfig { outlier_anchors: vec![7], ..UwbConfig::default() }, ..SimConfig::default() },
         SimConfig {
-            uwb: UwbConfig { nlos: Some(NlosConfig { bias_min_m: 2.0, bias_max_m: 1.0, ..NlosConfig::default() }), ..UwbConfig::default() },
+            uwb: UwbConfig {
+                nlos: Some(NlosConfig { bias_min_m: 2.0, bias_max_m: 1.0, ..NlosConfig::default() }),
+                ..UwbConfig::default()
+            },
             ..SimConfig::default()
         },
     ];

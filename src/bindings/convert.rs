@@ -12,7 +12,11 @@ use crate::math::Vec3;
 
 /// Copies a float64 array that must be 2-D with `C` columns into rows; `layout` names the
 /// columns for the error message (e.g. `"(N, 7) = t, ax, ay, az, gx, gy, gz"`).
-pub fn table<const C: usize>(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str, layout: &str) -> Result<Vec<[f64; C]>, Error> {
+pub fn table<const C: usize>(
+    arr: &PyReadonlyArrayDyn<'_, f64>,
+    name: &'static str,
+    layout: &str,
+) -> Result<Vec<[f64; C]>, Error> {
     let shape = arr.shape();
     if shape.len() != 2 || shape[1] != C {
         return Err(Error::Shape { name, expected: layout.to_string(), got: format!("{shape:?}") });
@@ -73,9 +77,9 @@ pub fn config_value(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<ConfigValue>
     if let Ok(x) = obj.extract::<f64>() {
         return Ok(ConfigValue::Scalar(x));
     }
-    obj.extract::<Vec<f64>>()
-        .map(ConfigValue::Vector)
-        .map_err(|_| PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got {}", type_name(obj))))
+    obj.extract::<Vec<f64>>().map(ConfigValue::Vector).map_err(|_| {
+        PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got {}", type_name(obj)))
+    })
 }
 
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
@@ -83,10 +87,13 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 }
 
 /// Applies every item of a dict through `set` (a config's key/value setter).
-pub fn apply_dict(dict: &Bound<'_, PyAny>, what: &str, mut set: impl FnMut(&str, &ConfigValue) -> Result<(), Error>) -> PyResult<()> {
-    let dict = dict
-        .cast::<PyDict>()
-        .map_err(|_| PyValueError::new_err(format!("{what} must be a dict, got {}", type_name(dict))))?;
+pub fn apply_dict(
+    dict: &Bound<'_, PyAny>,
+    what: &str,
+    mut set: impl FnMut(&str, &ConfigValue) -> Result<(), Error>,
+) -> PyResult<()> {
+    let dict =
+        dict.cast::<PyDict>().map_err(|_| PyValueError::new_err(format!("{what} must be a dict, got {}", type_name(dict))))?;
     for (k, v) in dict.iter() {
         let key: String = k.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
         let value = config_value(&v, &key)?;

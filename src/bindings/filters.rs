@@ -119,7 +119,10 @@ impl From<UpdateReport> for PyUpdateReport {
 #[pymethods]
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
-        format!("UpdateReport(innovation={}, nis={}, accepted={}, weight={})", self.innovation, self.nis, self.accepted, self.weight)
+        format!(
+            "UpdateReport(innovation={}, nis={}, accepted={}, weight={})",
+            self.innovation, self.nis, self.accepted, self.weight
+        )
     }
 }
 
@@ -149,7 +152,12 @@ impl PyEkf {
     /// Applies a range (m) to anchor index `anchor` measured at `t` (s).
     fn update_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<PyUpdateReport> {
         let count = self.0.anchors().len();
-        let index = usize::try_from(anchor).map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count })?;
+        let index = usize::try_from(anchor).map_err(|_| crate::Error::UnknownAnchor {
+            name: "update_range",
+            row: 0,
+            anchor: anchor as f64,
+            count,
+        })?;
         Ok(self.0.update_range(t, index, range)?.into())
     }
 
@@ -203,7 +211,9 @@ fn trace_columns(trace: &Trace, covariance: bool) -> Vec<(&'static str, Vec<f64>
         ("std_z", col(&|r| r.position_cov[(2, 2)].sqrt())),
     ];
     if covariance {
-        for (name, i, j) in [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)] {
+        for (name, i, j) in
+            [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)]
+        {
             cols.push((name, col(&|r| r.position_cov[(i, j)])));
         }
     }
@@ -223,6 +233,9 @@ fn update_columns(trace: &Trace) -> Vec<(&'static str, Vec<f64>)> {
     ]
 }
 
+/// `(columns, update columns or None, info)` of one batch run.
+type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<'py, PyDict>);
+
 /// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
 /// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
 #[pyfunction]
@@ -238,7 +251,7 @@ fn run_filter<'py>(
     config: Option<&Bound<'py, PyAny>>,
     covariance: bool,
     updates: bool,
-) -> PyResult<(Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<'py, PyDict>)> {
+) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
     let inputs = read_inputs(imu, ranges, anchors)?;
     let config = read_config(config)?;
@@ -272,7 +285,9 @@ fn run_filter<'py>(
                 ("residual_rms", col(&|(_, f)| f.residual_rms_m)),
             ];
             if covariance {
-                for (name, i, j) in [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)] {
+                for (name, i, j) in
+                    [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)]
+                {
                     cols.push((name, col(&|(_, f)| f.covariance[(i, j)])));
                 }
             }

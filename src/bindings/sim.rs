@@ -53,7 +53,14 @@ impl PyTrajectory {
     /// Straight legs through `points` (N, 3), stopping and turning in place at each one.
     #[staticmethod]
     #[pyo3(signature = (points, speed_mps = 0.5, ramp_s = 1.0, dwell_s = 1.0, turn_time_s = 2.0, still_s = 2.0))]
-    fn waypoints(points: ArrayLike<'_>, speed_mps: f64, ramp_s: f64, dwell_s: f64, turn_time_s: f64, still_s: f64) -> PyResult<Self> {
+    fn waypoints(
+        points: ArrayLike<'_>,
+        speed_mps: f64,
+        ramp_s: f64,
+        dwell_s: f64,
+        turn_time_s: f64,
+        still_s: f64,
+    ) -> PyResult<Self> {
         let rows = convert::table::<3>(&points, "points", "(N, 3) = x, y, z")?;
         let points: Vec<Vec3> = rows.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect();
         let opts = drive_options(speed_mps, ramp_s, dwell_s, turn_time_s, still_s);
@@ -141,7 +148,9 @@ fn collect_overrides(dicts: [Option<&Bound<'_, PyDict>>; 2]) -> PyResult<Vec<(St
             } else {
                 match v.extract::<f64>() {
                     Ok(x) => OverrideValue::Number(x),
-                    Err(_) => return Err(Error::InvalidConfig { field: key, reason: "expected a bool or a number".into() }.into()),
+                    Err(_) => {
+                        return Err(Error::InvalidConfig { field: key, reason: "expected a bool or a number".into() }.into())
+                    }
                 }
             };
             out.push((key, value));
@@ -164,7 +173,8 @@ fn vec3_rows<'py>(py: Python<'py>, rows: &[Vec3]) -> PyResult<Bound<'py, PyAny>>
 fn run<'py>(py: Python<'py>, cfg: SimConfig) -> PyResult<Bound<'py, PyDict>> {
     let data: SimData = py.detach(|| sim::simulate(&cfg))?;
     let d = PyDict::new(py);
-    let imu: Vec<f64> = data.imu.iter().flat_map(|s| [s.t_s, s.accel.x, s.accel.y, s.accel.z, s.gyro.x, s.gyro.y, s.gyro.z]).collect();
+    let imu: Vec<f64> =
+        data.imu.iter().flat_map(|s| [s.t_s, s.accel.x, s.accel.y, s.accel.z, s.gyro.x, s.gyro.y, s.gyro.z]).collect();
     d.set_item("imu", imu.into_pyarray(py).reshape([data.imu.len(), 7])?)?;
     let ranges: Vec<f64> = data.ranges.iter().flat_map(|r| [r.t_s, r.anchor as f64, r.range_m]).collect();
     d.set_item("ranges", ranges.into_pyarray(py).reshape([data.ranges.len(), 3])?)?;
@@ -237,14 +247,20 @@ fn simulate<'py>(
     kwargs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rows = convert::table::<3>(&anchors, "anchors", "(K, 3) = x, y, z")?;
-    let mut cfg = SimConfig { trajectory: trajectory.0.clone(), anchors: crate::validate::anchors(&rows)?, seed, ..SimConfig::default() };
+    let mut cfg =
+        SimConfig { trajectory: trajectory.0.clone(), anchors: crate::validate::anchors(&rows)?, seed, ..SimConfig::default() };
     if let Some(l) = lever_arm_m {
         cfg.lever_arm_m = convert::vec3(&l, "lever_arm_m")?;
     }
     if let Some(q) = imu_rotation {
         let a = q.as_array();
         if a.shape() != [4] {
-            return Err(Error::Shape { name: "imu_rotation", expected: "(4,) = w, x, y, z".into(), got: format!("{:?}", a.shape()) }.into());
+            return Err(Error::Shape {
+                name: "imu_rotation",
+                expected: "(4,) = w, x, y, z".into(),
+                got: format!("{:?}", a.shape()),
+            }
+            .into());
         }
         cfg.imu_rotation = quat_from_wxyz([a[0], a[1], a[2], a[3]]).ok_or_else(|| Error::InvalidConfig {
             field: "imu_rotation".into(),

@@ -46,7 +46,12 @@ pub(crate) fn check_range(anchors: &[Vec3], anchor: usize, range_m: f64) -> Resu
         return Err(Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count: anchors.len() });
     };
     if !range_m.is_finite() || range_m < 0.0 {
-        return Err(Error::InvalidValue { name: "update_range", row: 0, value: range_m, reason: "range must be finite and >= 0 m" });
+        return Err(Error::InvalidValue {
+            name: "update_range",
+            row: 0,
+            value: range_m,
+            reason: "range must be finite and >= 0 m",
+        });
     }
     Ok(*a)
 }

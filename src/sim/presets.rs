@@ -62,7 +62,13 @@ fn seed002(seed: u64, figure8: bool) -> Result<SimConfig> {
     let imu_height_m = 0.85;
     let (trajectory, uwb) = if figure8 {
         let traj = Trajectory::figure_eight(Vec3::new(5.0, 2.5, imu_height_m), 3.5, 3.0, 40.0, 2, STILL_S)?;
-        let uwb = UwbConfig { outlier_prob: 0.1, outlier_min_m: 1.0, outlier_max_m: 8.0, outlier_anchors: vec![1, 3], ..UwbConfig::default() };
+        let uwb = UwbConfig {
+            outlier_prob: 0.1,
+            outlier_min_m: 1.0,
+            outlier_max_m: 8.0,
+            outlier_anchors: vec![1, 3],
+            ..UwbConfig::default()
+        };
         (traj, uwb)
     } else {
         let opts = DriveOptions { speed_mps: 0.5, still_s: STILL_S, ..DriveOptions::default() };
@@ -74,7 +80,8 @@ fn seed002(seed: u64, figure8: bool) -> Result<SimConfig> {
 fn seed004(seed: u64, outliers: bool) -> Result<SimConfig> {
     let opts = DriveOptions { speed_mps: 0.4, still_s: STILL_S, ..DriveOptions::default() };
     let trajectory = Trajectory::diagonal(Vec3::zeros(), Vec3::new(-4.0, 4.0, 0.0), &opts)?;
-    let anchors = vec![Vec3::new(-5.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 5.0, 0.0), Vec3::new(-5.0, 5.0, 0.0)];
+    let anchors =
+        vec![Vec3::new(-5.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 5.0, 0.0), Vec3::new(-5.0, 5.0, 0.0)];
     // Per-sample std 0.06 at 100 Hz (§4.1) → density 0.006 /√Hz; biases drift ("random walk").
     let imu_noise = ImuNoise {
         accel_noise_density: 0.006,

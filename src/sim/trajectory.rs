@@ -11,8 +11,9 @@ use std::f64::consts::{PI, TAU};
 
 use nalgebra::Vector2;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::math::{Quat, Vec3};
+use crate::validate::{invalid, non_negative, positive};
 
 /// Tolerance on position continuity between segments, m.
 const POSITION_TOL_M: f64 = 1e-6;
@@ -75,11 +76,9 @@ impl PlanarPath {
                     Vector2::new(-a * s, -2.0 * b * s2),
                 )
             }
-            PlanarPath::Ellipse { centre, a_m: a, b_m: b } => (
-                Vector2::new(centre.x + a * c, centre.y + b * s),
-                Vector2::new(-a * s, b * c),
-                Vector2::new(-a * c, -b * s),
-            ),
+            PlanarPath::Ellipse { centre, a_m: a, b_m: b } => {
+                (Vector2::new(centre.x + a * c, centre.y + b * s), Vector2::new(-a * s, b * c), Vector2::new(-a * c, -b * s))
+            }
         }
     }
 
@@ -222,26 +221,6 @@ fn wrap_pi(a: f64) -> f64 {
     }
 }
 
-fn invalid(field: &str, reason: impl Into<String>) -> Error {
-    Error::InvalidConfig { field: field.to_string(), reason: reason.into() }
-}
-
-fn check_positive(field: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must be finite and > 0, got {v}")))
-    }
-}
-
-fn check_non_negative(field: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must be finite and >= 0, got {v}")))
-    }
-}
-
 fn yaw(heading_rad: f64) -> Quat {
     Quat::from_axis_angle(&Vec3::z_axis(), heading_rad)
 }
@@ -259,24 +238,27 @@ impl Piece {
     fn place(segment: Segment, t0_s: f64, position: Vec3, heading_rad: f64) -> Result<Self> {
         let duration_s = match segment {
             Segment::Still { duration_s } => {
-                check_non_negative("trajectory.still.duration_s", duration_s)?;
+                non_negative("trajectory.still.duration_s", duration_s)?;
                 duration_s
             }
             Segment::TurnInPlace { delta_rad, duration_s } => {
-                check_positive("trajectory.turn.duration_s", duration_s)?;
+                positive("trajectory.turn.duration_s", duration_s)?;
                 if !delta_rad.is_finite() {
                     return Err(invalid("trajectory.turn.delta_rad", "must be finite"));
                 }
                 duration_s
             }
             Segment::Straight { from, to, cruise_speed_mps, ramp_s } => {
-                check_positive("trajectory.straight.cruise_speed_mps", cruise_speed_mps)?;
-                check_non_negative("trajectory.straight.ramp_s", ramp_s)?;
+                positive("trajectory.straight.cruise_speed_mps", cruise_speed_mps)?;
+                non_negative("trajectory.straight.ramp_s", ramp_s)?;
                 if !(from.iter().chain(to.iter()).all(|v| v.is_finite())) {
                     return Err(invalid("trajectory.straight", "end points must be finite"));
                 }
                 if (from - position).norm() > POSITION_TOL_M {
-                    return Err(invalid("trajectory.straight.from", format!("{from:?} is not the previous end position {position:?}")));
+                    return Err(invalid(
+                        "trajectory.straight.from",
+                        format!("{from:?} is not the previous end position {position:?}"),
+                    ));
                 }
                 if (to.z - from.z).abs() > POSITION_TOL_M {
                     return Err(invalid("trajectory.straight.to", "must be at the same height as `from` (ground vehicle)"));
@@ -286,16 +268,19 @@ impl Piece {
                     return Err(invalid("trajectory.straight.to", "leg has zero length"));
                 }
                 if wrap_pi(d.y.atan2(d.x) - heading_rad).abs() > HEADING_TOL_RAD {
-                    return Err(invalid("trajectory.straight", "leg direction differs from the current heading (turn in place first)"));
+                    return Err(invalid(
+                        "trajectory.straight",
+                        "leg direction differs from the current heading (turn in place first)",
+                    ));
                 }
                 straight_profile(&from, &to, cruise_speed_mps, ramp_s).2
             }
             Segment::Curve { path, laps, duration_s, ramp_s } => {
-                check_positive("trajectory.curve.duration_s", duration_s)?;
-                check_non_negative("trajectory.curve.ramp_s", ramp_s)?;
+                positive("trajectory.curve.duration_s", duration_s)?;
+                non_negative("trajectory.curve.ramp_s", ramp_s)?;
                 let (a, b) = path.axes_m();
-                check_positive("trajectory.curve.a_m", a)?;
-                check_positive("trajectory.curve.b_m", b)?;
+                positive("trajectory.curve.a_m", a)?;
+                positive("trajectory.curve.b_m", b)?;
                 if laps == 0 {
                     return Err(invalid("trajectory.curve.laps", "must be >= 1"));
                 }
@@ -308,7 +293,10 @@ impl Piece {
                     return Err(invalid("trajectory.curve.centre", "must be finite"));
                 }
                 if (start - position).norm() > POSITION_TOL_M {
-                    return Err(invalid("trajectory.curve", format!("path starts at {start:?}, not at the previous end position {position:?}")));
+                    return Err(invalid(
+                        "trajectory.curve",
+                        format!("path starts at {start:?}, not at the previous end position {position:?}"),
+                    ));
                 }
                 if wrap_pi(dp.y.atan2(dp.x) - heading_rad).abs() > HEADING_TOL_RAD {
                     return Err(invalid("trajectory.curve", "path start tangent differs from the current heading"));
@@ -422,7 +410,7 @@ impl Trajectory {
     }
 
     fn closed_curve(path: PlanarPath, lap_time_s: f64, laps: u32, still_s: f64) -> Result<Self> {
-        check_positive("trajectory.lap_time_s", lap_time_s)?;
+        positive("trajectory.lap_time_s", lap_time_s)?;
         let duration_s = lap_time_s * f64::from(laps);
         let ramp_s = (0.25 * duration_s).min(2.0);
         let (p, dp, _) = path.eval(0.0);
@@ -439,10 +427,10 @@ impl Trajectory {
     /// `opts.turn_time_s`. Consecutive duplicate points are skipped; all points must share one
     /// height. The initial heading is that of the first leg.
     pub fn waypoints(points: &[Vec3], opts: &DriveOptions) -> Result<Self> {
-        check_positive("trajectory.speed_mps", opts.speed_mps)?;
-        check_non_negative("trajectory.ramp_s", opts.ramp_s)?;
-        check_non_negative("trajectory.dwell_s", opts.dwell_s)?;
-        check_positive("trajectory.turn_time_s", opts.turn_time_s)?;
+        positive("trajectory.speed_mps", opts.speed_mps)?;
+        non_negative("trajectory.ramp_s", opts.ramp_s)?;
+        non_negative("trajectory.dwell_s", opts.dwell_s)?;
+        positive("trajectory.turn_time_s", opts.turn_time_s)?;
         let mut pts: Vec<Vec3> = Vec::with_capacity(points.len());
         for p in points {
             if pts.last().map_or(true, |q: &Vec3| (p - q).norm() > POSITION_TOL_M) {
@@ -467,7 +455,12 @@ impl Trajectory {
                 }
                 heading = leg_heading(i);
             }
-            segments.push(Segment::Straight { from: pts[i], to: pts[i + 1], cruise_speed_mps: opts.speed_mps, ramp_s: opts.ramp_s });
+            segments.push(Segment::Straight {
+                from: pts[i],
+                to: pts[i + 1],
+                cruise_speed_mps: opts.speed_mps,
+                ramp_s: opts.ramp_s,
+            });
         }
         Self::from_segments(pts[0], leg_heading(0), &segments)
     }
@@ -476,8 +469,8 @@ impl Trajectory {
     /// (m) and size `width_m` × `height_m`, stopping and turning in place at each corner
     /// (see [`Trajectory::waypoints`]); starts and ends at `corner`.
     pub fn rectangle(corner: Vec3, width_m: f64, height_m: f64, laps: u32, opts: &DriveOptions) -> Result<Self> {
-        check_positive("trajectory.width_m", width_m)?;
-        check_positive("trajectory.height_m", height_m)?;
+        positive("trajectory.width_m", width_m)?;
+        positive("trajectory.height_m", height_m)?;
         if laps == 0 {
             return Err(invalid("trajectory.laps", "must be >= 1"));
         }
@@ -521,6 +514,7 @@ impl Trajectory {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::Error;
 
     #[test]
     fn window_integral_matches_total_and_derivatives() {
@@ -551,7 +545,12 @@ mod tests {
         let r = Trajectory::from_segments(
             Vec3::zeros(),
             0.0,
-            &[Segment::Straight { from: Vec3::new(1.0, 0.0, 0.0), to: Vec3::new(2.0, 0.0, 0.0), cruise_speed_mps: 1.0, ramp_s: 1.0 }],
+            &[Segment::Straight {
+                from: Vec3::new(1.0, 0.0, 0.0),
+                to: Vec3::new(2.0, 0.0, 0.0),
+                cruise_speed_mps: 1.0,
+                ramp_s: 1.0,
+            }],
         );
         assert!(matches!(r, Err(Error::InvalidConfig { .. })));
         let r = Trajectory::from_segments(

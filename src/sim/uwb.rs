@@ -180,10 +180,7 @@ fn shielding_windows(nlos: &NlosConfig, anchor_count: usize, duration_s: f64, rn
             t_s += length_s + uniform(rng, r.gap_min_s, r.gap_max_s);
         }
     }
-    windows
-        .into_iter()
-        .map(|window| ShieldingWindow { window, bias_m: uniform(rng, nlos.bias_min_m, nlos.bias_max_m) })
-        .collect()
+    windows.into_iter().map(|window| ShieldingWindow { window, bias_m: uniform(rng, nlos.bias_min_m, nlos.bias_max_m) }).collect()
 }
 
 /// Synthesises the ranges of `cfg` (already validated).
@@ -206,7 +203,8 @@ pub(crate) fn synthesise(cfg: &SimConfig, rng: &mut ChaCha8Rng) -> UwbOutput {
             }
             let true_range_m = (tag - a).norm();
             let los_noise_m = uwb.range_std_m * normal(rng);
-            let shielded = out.windows.iter().find(|w| w.window.anchor == anchor && w.window.start_s <= t_s && t_s < w.window.end_s);
+            let shielded =
+                out.windows.iter().find(|w| w.window.anchor == anchor && w.window.start_s <= t_s && t_s < w.window.end_s);
             let (error_m, label) = match (shielded, &uwb.nlos) {
                 (Some(w), Some(nlos)) => {
                     if rng.random::<f64>() < nlos.dropout_prob {

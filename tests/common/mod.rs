@@ -24,7 +24,12 @@ pub fn config_for(sim: &SimConfig) -> FilterConfig {
 /// The true state at the first IMU sample, with the given position offset.
 pub fn truth_initial(data: &SimData, position_offset: Vec3) -> InitialState {
     let t0 = &data.truth[0];
-    InitialState { position: t0.position + position_offset, velocity: t0.velocity, orientation: t0.orientation, ..InitialState::default() }
+    InitialState {
+        position: t0.position + position_offset,
+        velocity: t0.velocity,
+        orientation: t0.orientation,
+        ..InitialState::default()
+    }
 }
 
 /// Horizontal errors of per-IMU-sample estimates against truth at the same samples.

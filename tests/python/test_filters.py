@@ -168,7 +168,7 @@ def test_unknown_config_key_lists_allowed(small):
 @pytest.mark.parametrize(
     ("config", "pattern"),
     [
-        ({"range_std": -0.1}, r"config `range_std`: must be > 0"),
+        ({"range_std": -0.1}, r"config `range_std`: must be finite and > 0"),
         ({"lever_arm": [0.0, 0.1]}, r"config `lever_arm`: expected 3 numbers, got 2"),
         ({"imu_rotation": [0, 0, 0, 0]}, r"config `imu_rotation`: quaternion"),
         ({"range_std": "big"}, r"`range_std`: expected a number"),
