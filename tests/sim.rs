@@ -16,16 +16,16 @@ const G: f64 = 9.80665;
 fn test_trajectories() -> Vec<(&'static str, Trajectory)> {
     let opts = DriveOptions::default();
     vec![
-        ("figure8", Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 36.0, 2, 2.0).unwrap()),
-        ("ellipse", Trajectory::ellipse(Vec3::new(1.0, -2.0, 0.3), 4.0, 2.0, 30.0, 2, 1.5).unwrap()),
-        ("rectangle", Trajectory::rectangle(Vec3::new(1.0, 1.0, 0.85), 8.0, 3.0, 1, &opts).unwrap()),
+        ("figure8", Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 36.0, 2, 2.0).expect("test setup")),
+        ("ellipse", Trajectory::ellipse(Vec3::new(1.0, -2.0, 0.3), 4.0, 2.0, 30.0, 2, 1.5).expect("test setup")),
+        ("rectangle", Trajectory::rectangle(Vec3::new(1.0, 1.0, 0.85), 8.0, 3.0, 1, &opts).expect("test setup")),
         (
             "waypoints",
             Trajectory::waypoints(
                 &[Vec3::new(0.0, 0.0, 0.2), Vec3::new(3.0, 1.0, 0.2), Vec3::new(1.0, 4.0, 0.2), Vec3::new(1.2, 4.1, 0.2)],
                 &DriveOptions { speed_mps: 0.8, ramp_s: 1.5, ..opts },
             )
-            .unwrap(),
+            .expect("test setup"),
         ),
     ]
 }
@@ -75,7 +75,7 @@ fn imu_equals_finite_difference_derivatives_of_truth() {
 fn strapdown_integration_of_synthesised_imu_recovers_truth() {
     for (name, traj) in test_trajectories() {
         let cfg = SimConfig { imu_rate_hz: 1000.0, ..noiseless(traj) };
-        let data = simulate(&cfg).unwrap();
+        let data = simulate(&cfg).expect("test setup");
         let g = cfg.gravity_nav_mps2;
         let t0 = data.truth[0];
         let (mut p, mut v, mut q) = (t0.position, t0.velocity, t0.orientation);
@@ -98,8 +98,8 @@ fn strapdown_integration_of_synthesised_imu_recovers_truth() {
 
 #[test]
 fn still_segments_do_not_move_and_sense_gravity() {
-    let traj = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 36.0, 1, 2.0).unwrap();
-    let data = simulate(&noiseless(traj)).unwrap();
+    let traj = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 36.0, 1, 2.0).expect("test setup");
+    let data = simulate(&noiseless(traj)).expect("test setup");
     let still: Vec<_> = data.imu.iter().zip(&data.truth).filter(|(s, _)| s.t_s <= 2.0).collect();
     assert_eq!(still.len(), 201);
     for (s, truth) in still {
@@ -110,7 +110,7 @@ fn still_segments_do_not_move_and_sense_gravity() {
     }
     // A turn in place keeps the position and only rotates about z.
     let opts = DriveOptions::default();
-    let traj = Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).unwrap();
+    let traj = Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).expect("test setup");
     let k = traj.sample(2.0 + 5.0 + 1.0 + 1.0); // still 2 s, leg of 2/0.5 + 1 s, dwell 1 s, mid-turn
     assert!((k.position - Vec3::new(2.0, 0.0, 0.0)).norm() < 1e-12);
     assert!(k.velocity.norm() < 1e-12 && k.angular_rate_body.z > 0.1);
@@ -119,7 +119,7 @@ fn still_segments_do_not_move_and_sense_gravity() {
 #[test]
 fn figure_eight_is_closed_after_each_lap() {
     let (centre, laps) = (Vec3::new(5.0, 4.0, 0.4), 4);
-    let traj = Trajectory::figure_eight(centre, 3.5, 4.5, 37.0, laps, 2.0).unwrap();
+    let traj = Trajectory::figure_eight(centre, 3.5, 4.5, 37.0, laps, 2.0).expect("test setup");
     let end = traj.sample(traj.duration_s());
     assert!((end.position - centre).norm() < 1e-9);
     assert!(end.velocity.norm() < 1e-12 && end.acceleration.norm() < 1e-12);
@@ -141,9 +141,9 @@ fn figure_eight_is_closed_after_each_lap() {
 
 #[test]
 fn same_seed_reproduces_different_seed_differs() {
-    let a = simulate(&preset("seed000", 3).unwrap()).unwrap();
-    let b = simulate(&preset("seed000", 3).unwrap()).unwrap();
-    let c = simulate(&preset("seed000", 4).unwrap()).unwrap();
+    let a = simulate(&preset("seed000", 3).expect("test setup")).expect("test setup");
+    let b = simulate(&preset("seed000", 3).expect("test setup")).expect("test setup");
+    let c = simulate(&preset("seed000", 4).expect("test setup")).expect("test setup");
     assert_eq!(a, b);
     assert_eq!(a.truth, c.truth);
     assert_ne!(a.imu[10].accel, c.imu[10].accel);
@@ -152,10 +152,10 @@ fn same_seed_reproduces_different_seed_differs() {
 
 #[test]
 fn white_noise_std_matches_density_times_sqrt_rate() {
-    let traj = Trajectory::still(Vec3::new(1.0, 2.0, 0.3), 0.7, 200.0).unwrap();
+    let traj = Trajectory::still(Vec3::new(1.0, 2.0, 0.3), 0.7, 200.0).expect("test setup");
     let noise = ImuNoise { accel_noise_density: 0.003, gyro_noise_density: 0.0005, ..ImuNoise::none() };
     let cfg = SimConfig { trajectory: traj, imu_noise: noise, imu_rate_hz: 100.0, seed: 5, ..SimConfig::default() };
-    let data = simulate(&cfg).unwrap();
+    let data = simulate(&cfg).expect("test setup");
     let std_of = |xs: &[f64]| {
         let m = xs.iter().sum::<f64>() / xs.len() as f64;
         (xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt()
@@ -172,9 +172,9 @@ fn white_noise_std_matches_density_times_sqrt_rate() {
 
 #[test]
 fn biases_are_constant_plus_random_walk() {
-    let traj = Trajectory::still(Vec3::zeros(), 0.0, 100.0).unwrap();
+    let traj = Trajectory::still(Vec3::zeros(), 0.0, 100.0).expect("test setup");
     let noise = ImuNoise { accel_bias_std: 0.05, gyro_bias_std: 0.005, accel_bias_walk: 1e-3, ..ImuNoise::none() };
-    let data = simulate(&SimConfig { trajectory: traj, imu_noise: noise, seed: 9, ..SimConfig::default() }).unwrap();
+    let data = simulate(&SimConfig { trajectory: traj, imu_noise: noise, seed: 9, ..SimConfig::default() }).expect("test setup");
     // Noise-free readings are exactly ideal + bias.
     for (s, (ba, bg)) in data.imu.iter().zip(data.accel_bias.iter().zip(&data.gyro_bias)) {
         assert!((s.accel - Vec3::new(0.0, 0.0, G) - ba).norm() < 1e-12);
@@ -193,9 +193,9 @@ fn tag_at(cfg: &SimConfig, t_s: f64) -> Vec3 {
 
 #[test]
 fn nlos_ranges_are_biased_los_ranges_are_not() {
-    let mut cfg = preset("seed000", 21).unwrap();
+    let mut cfg = preset("seed000", 21).expect("test setup");
     cfg.uwb.outlier_prob = 0.0;
-    let data = simulate(&cfg).unwrap();
+    let data = simulate(&cfg).expect("test setup");
     let (mut los, mut nlos) = (Vec::new(), Vec::new());
     for (r, &label) in data.ranges.iter().zip(&data.range_labels) {
         let err = r.range_m - (tag_at(&cfg, r.t_s) - data.anchors[r.anchor]).norm();
@@ -221,7 +221,7 @@ fn nlos_ranges_are_biased_los_ranges_are_not() {
 
 #[test]
 fn explicit_window_outliers_and_dropouts() {
-    let traj = Trajectory::still(Vec3::new(5.0, 4.0, 0.4), 0.0, 100.0).unwrap();
+    let traj = Trajectory::still(Vec3::new(5.0, 4.0, 0.4), 0.0, 100.0).expect("test setup");
     let nlos = NlosConfig {
         windows: vec![NlosWindow { anchor: 2, start_s: 10.0, end_s: 20.0 }],
         random: None,
@@ -239,7 +239,7 @@ fn explicit_window_outliers_and_dropouts() {
         ..UwbConfig::default()
     };
     let cfg = SimConfig { trajectory: traj, imu_noise: ImuNoise::none(), uwb, ..SimConfig::default() };
-    let data = simulate(&cfg).unwrap();
+    let data = simulate(&cfg).expect("test setup");
     let n_epochs = 200;
     assert!(data.ranges.len() < 4 * n_epochs && data.ranges.len() > 4 * n_epochs * 8 / 10);
     assert!((data.ranges[0].t_s - 0.5).abs() < 1e-12, "first epoch one period after the start");
@@ -258,9 +258,9 @@ fn explicit_window_outliers_and_dropouts() {
 
 #[test]
 fn ranges_are_measured_from_the_tag_not_the_body_origin() {
-    let traj = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 36.0, 1, 2.0).unwrap();
+    let traj = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 36.0, 1, 2.0).expect("test setup");
     let cfg = SimConfig { lever_arm_m: Vec3::new(0.3, -0.2, 0.5), ..noiseless(traj) };
-    let data = simulate(&cfg).unwrap();
+    let data = simulate(&cfg).expect("test setup");
     let mut max_origin_diff: f64 = 0.0;
     for r in &data.ranges {
         let k = cfg.trajectory.sample(r.t_s);
@@ -276,11 +276,11 @@ fn ranges_are_measured_from_the_tag_not_the_body_origin() {
 fn imu_rotation_is_applied() {
     let upside_down = Quat::from_axis_angle(&Vec3::x_axis(), std::f64::consts::PI);
     let opts = DriveOptions::default();
-    let traj = Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).unwrap();
+    let traj = Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).expect("test setup");
     let cfg = SimConfig { imu_rotation: upside_down, ..noiseless(traj) };
-    let data = simulate(&cfg).unwrap();
+    let data = simulate(&cfg).expect("test setup");
     assert!((data.imu[0].accel - Vec3::new(0.0, 0.0, -G)).norm() < 1e-12);
-    let reference = simulate(&noiseless(cfg.trajectory.clone())).unwrap();
+    let reference = simulate(&noiseless(cfg.trajectory.clone())).expect("test setup");
     for (s, r) in data.imu.iter().zip(&reference.imu) {
         assert!((s.accel - upside_down.inverse() * r.accel).norm() < 1e-12);
         assert!((s.gyro - upside_down.inverse() * r.gyro).norm() < 1e-12);
@@ -291,7 +291,7 @@ fn imu_rotation_is_applied() {
 
 #[test]
 fn magnetometer_reads_rotated_field_with_disturbance() {
-    let traj = Trajectory::still(Vec3::zeros(), std::f64::consts::FRAC_PI_2, 10.0).unwrap();
+    let traj = Trajectory::still(Vec3::zeros(), std::f64::consts::FRAC_PI_2, 10.0).expect("test setup");
     let field = Vec3::new(20.0, 0.0, -40.0);
     let mag = MagConfig {
         field_nav: field,
@@ -299,13 +299,13 @@ fn magnetometer_reads_rotated_field_with_disturbance() {
         disturbances: vec![MagDisturbance { start_s: 4.0, end_s: 5.0, offset_nav: Vec3::new(0.0, 10.0, 0.0) }],
     };
     let cfg = SimConfig { magnetometer: Some(mag), ..noiseless(traj) };
-    let data = simulate(&cfg).unwrap();
+    let data = simulate(&cfg).expect("test setup");
     assert_eq!(data.mag.len(), data.imu.len());
     // Heading +90°: north-pointing body x sees the field's x component on body −y.
     assert!((data.mag[0].field - Vec3::new(0.0, -20.0, -40.0)).norm() < 1e-12);
-    let disturbed = data.mag.iter().find(|m| m.t_s >= 4.5).unwrap();
+    let disturbed = data.mag.iter().find(|m| m.t_s >= 4.5).expect("test setup");
     assert!((disturbed.field - Vec3::new(10.0, -20.0, -40.0)).norm() < 1e-12);
-    assert!(simulate(&noiseless(Trajectory::default())).unwrap().mag.is_empty());
+    assert!(simulate(&noiseless(Trajectory::default())).expect("test setup").mag.is_empty());
 }
 
 #[test]
@@ -335,8 +335,8 @@ fn invalid_config_is_rejected() {
 #[test]
 fn presets_run_and_unknown_names_are_rejected() {
     for name in uwbimu_rs::sim::PRESET_NAMES {
-        let cfg = preset(name, 1).unwrap();
-        let data = simulate(&cfg).unwrap();
+        let cfg = preset(name, 1).expect("test setup");
+        let data = simulate(&cfg).expect("test setup");
         assert_eq!(data.imu.len(), data.truth.len(), "{name}");
         assert!(data.ranges.iter().all(|r| r.range_m >= 0.0));
         assert!(data.ranges.windows(2).all(|w| w[0].t_s <= w[1].t_s));
@@ -347,32 +347,32 @@ fn presets_run_and_unknown_names_are_rejected() {
         };
         assert!(labels_ok, "{name}");
     }
-    let s1 = preset("seed004_s1", 0).unwrap();
+    let s1 = preset("seed004_s1", 0).expect("test setup");
     assert!((s1.uwb.rate_hz - 5.0).abs() < 1e-12 && s1.anchors.len() == 4);
-    let data = simulate(&s1).unwrap();
+    let data = simulate(&s1).expect("test setup");
     assert!(data.truth.iter().all(|t| t.position.z.abs() < 1e-12));
-    let end = data.truth.last().unwrap().position;
+    let end = data.truth.last().expect("test setup").position;
     assert!((end - Vec3::new(-4.0, 4.0, 0.0)).norm() < 1e-9);
     assert!(matches!(preset("seed999", 0), Err(Error::UnknownOption { kind: "preset", .. })));
 }
 
 #[test]
 fn overrides_apply_and_unknown_keys_are_rejected() {
-    let mut cfg = preset("seed000", 0).unwrap();
+    let mut cfg = preset("seed000", 0).expect("test setup");
     cfg.apply_overrides(&[
         ("nlos", OverrideValue::Flag(false)),
         ("outlier_prob", OverrideValue::Number(0.0)),
         ("dropout_prob", OverrideValue::Number(0.0)),
         ("uwb_rate_hz", OverrideValue::Number(4.0)),
     ])
-    .unwrap();
-    let data = simulate(&cfg).unwrap();
+    .expect("test setup");
+    let data = simulate(&cfg).expect("test setup");
     assert!(data.range_labels.iter().all(|&l| l == LABEL_LOS));
     assert_eq!(data.ranges.len(), 4 * (cfg.trajectory.duration_s() * 4.0).floor() as usize);
     // Switches go first, whatever the order given.
-    let mut cfg = preset("seed000_los", 0).unwrap();
-    cfg.apply_overrides(&[("nlos_bias_max_m", OverrideValue::Number(3.0)), ("nlos", OverrideValue::Flag(true))]).unwrap();
-    assert!((cfg.uwb.nlos.as_ref().unwrap().bias_max_m - 3.0).abs() < 1e-12);
+    let mut cfg = preset("seed000_los", 0).expect("test setup");
+    cfg.apply_overrides(&[("nlos_bias_max_m", OverrideValue::Number(3.0)), ("nlos", OverrideValue::Flag(true))]).expect("test setup");
+    assert!((cfg.uwb.nlos.as_ref().expect("test setup").bias_max_m - 3.0).abs() < 1e-12);
     let err = cfg.apply_overrides(&[("range_sigma", OverrideValue::Number(0.2))]).unwrap_err();
     assert!(matches!(&err, Error::UnknownOption { kind: "override", allowed, .. } if allowed.contains("range_std_m")));
     assert!(matches!(cfg.apply_overrides(&[("nlos", OverrideValue::Number(1.0))]), Err(Error::InvalidConfig { .. })));
