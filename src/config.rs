@@ -49,6 +49,14 @@ pub struct FilterConfig {
     pub init_still_s: f64,
     /// Self-initialisation: UWB displacement after which the heading is taken from motion, m.
     pub init_heading_distance_m: f64,
+    /// Significance level α of the χ² range test of the robust filters (seed 000 eq. (38));
+    /// threshold `χ²₁,α` (0.01 → 6.63).
+    pub alpha: f64,
+    /// Maximum iterations of the iterated updates (seed 000 Algorithm 1).
+    pub max_iterations: u32,
+    /// The iterated update stops when the error-state step norm falls below this (mixed units:
+    /// m, m/s, rad, m/s², rad/s).
+    pub iteration_tolerance: f64,
 }
 
 impl Default for FilterConfig {
@@ -66,6 +74,9 @@ impl Default for FilterConfig {
             gyro_bias_std: 0.01,
             init_still_s: 1.0,
             init_heading_distance_m: 1.0,
+            alpha: 0.01,
+            max_iterations: 10,
+            iteration_tolerance: 1e-4,
         }
     }
 }
@@ -84,6 +95,15 @@ fn positive(field: &str, v: &ConfigValue) -> Result<f64> {
 
 fn non_negative(field: &str, v: &ConfigValue) -> Result<f64> {
     validate::non_negative(field, scalar(field, v)?)
+}
+
+/// A whole number ≥ 1 (given as a float from Python).
+fn count(field: &str, v: &ConfigValue) -> Result<u32> {
+    let x = positive(field, v)?;
+    if x.fract() != 0.0 || x > f64::from(u32::MAX) {
+        return Err(invalid(field, format!("must be a whole number >= 1, got {x}")));
+    }
+    Ok(x as u32)
 }
 
 fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> {
@@ -127,7 +147,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 12] = [
+    pub const KEYS: [&'static str; 15] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -140,6 +160,9 @@ impl FilterConfig {
         "gyro_bias_std",
         "init_still_s",
         "init_heading_distance_m",
+        "alpha",
+        "max_iterations",
+        "iteration_tolerance",
     ];
 
     /// Sets one field by name, validating its value; unknown keys are an error that lists
@@ -163,6 +186,15 @@ impl FilterConfig {
             "gyro_bias_std" => self.gyro_bias_std = non_negative(key, value)?,
             "init_still_s" => self.init_still_s = positive(key, value)?,
             "init_heading_distance_m" => self.init_heading_distance_m = positive(key, value)?,
+            "alpha" => {
+                let a = positive(key, value)?;
+                if a >= 1.0 {
+                    return Err(invalid(key, format!("significance level must be in (0, 1), got {a}")));
+                }
+                self.alpha = a;
+            }
+            "max_iterations" => self.max_iterations = count(key, value)?,
+            "iteration_tolerance" => self.iteration_tolerance = positive(key, value)?,
             _ => return Err(unknown_key("config", key, &Self::KEYS)),
         }
         Ok(())
@@ -185,6 +217,9 @@ impl FilterConfig {
             ("gyro_bias_std", ConfigValue::Scalar(self.gyro_bias_std)),
             ("init_still_s", ConfigValue::Scalar(self.init_still_s)),
             ("init_heading_distance_m", ConfigValue::Scalar(self.init_heading_distance_m)),
+            ("alpha", ConfigValue::Scalar(self.alpha)),
+            ("max_iterations", ConfigValue::Scalar(f64::from(self.max_iterations))),
+            ("iteration_tolerance", ConfigValue::Scalar(self.iteration_tolerance)),
         ]
     }
 }

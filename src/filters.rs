@@ -2,23 +2,33 @@
 //! and the trait the pipeline drives.
 
 pub mod core;
-pub mod ekf;
+pub mod named;
+pub mod tight;
 
 use crate::error::Result;
 use crate::math::Vec3;
 use crate::update::UpdateReport;
 
 pub use self::core::InertialCore;
-pub use self::ekf::Ekf;
+pub use self::named::{Ekf, Iekf, Rekf, Riekf};
+pub use self::tight::TightFilter;
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming
 /// classes and the batch API all go through these two calls.
 pub trait InertialFilter {
     /// Takes the IMU sample at `t_s` (raw, IMU frame) and propagates the state to `t_s`.
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
-    /// Applies a range to anchor `anchor` measured at `t_s` (≥ the filter time): the state is
-    /// first propagated to `t_s` with the last IMU sample held.
-    fn update_range(&mut self, t_s: f64, anchor: usize, range_m: f64) -> Result<UpdateReport>;
+    /// Applies the ranges of one epoch, `(anchor index, range m)` all measured at `t_s` (≥ the
+    /// filter time; the state is first propagated to `t_s` with the last IMU sample held), and
+    /// writes one report per range into `reports` (same length).
+    fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+
+    /// Applies one range: an epoch of one.
+    fn update_range(&mut self, t_s: f64, anchor: usize, range_m: f64) -> Result<UpdateReport> {
+        let mut report = [UpdateReport::skipped()];
+        self.update_ranges(t_s, &[(anchor, range_m)], &mut report)?;
+        Ok(report[0])
+    }
     /// The shared INS core (state, covariance, time).
     fn core(&self) -> &InertialCore;
 }

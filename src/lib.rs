@@ -12,6 +12,7 @@ pub mod models;
 pub mod multilateration;
 pub mod pipeline;
 pub mod records;
+pub mod robust;
 pub mod sim;
 pub mod state;
 pub mod update;

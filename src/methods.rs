@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::Ekf;
+use crate::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -16,17 +16,26 @@ pub enum Method {
     UwbLs,
     /// The tightly coupled EKF of seed 000.
     Ekf,
+    /// The iterated EKF (seed 000 Algorithm 1 without re-weighting).
+    Iekf,
+    /// The robust EKF of seed 000 (χ² inflation against the prior).
+    Rekf,
+    /// The robust iterated EKF of seed 000 (Algorithm 1).
+    Riekf,
 }
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 2] = ["uwb_ls", "ekf"];
+    pub const NAMES: [&'static str; 5] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
         match name {
             "uwb_ls" => Ok(Self::UwbLs),
             "ekf" => Ok(Self::Ekf),
+            "iekf" => Ok(Self::Iekf),
+            "rekf" => Ok(Self::Rekf),
+            "riekf" => Ok(Self::Riekf),
             _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
         }
     }
@@ -62,16 +71,29 @@ pub fn run_method(
             let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
             Ok(BatchOutput::Multilateration(uwb_ls(ranges, anchors, &ls)))
         }
-        Method::Ekf => {
-            let (initial, init) = match initial {
-                Some(i) => (i.clone(), None),
-                None => {
-                    let s = initialize(imu, ranges, anchors, config)?;
-                    (s.initial.clone(), Some(Box::new(s)))
-                }
-            };
-            let mut filter = Ekf::new(anchors.to_vec(), &initial, config.clone())?;
-            Ok(BatchOutput::Inertial { trace: run(&mut filter, imu, ranges)?, init })
-        }
+        Method::Ekf => run_inertial(|i| Ekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
+        Method::Iekf => run_inertial(|i| Iekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
+        Method::Rekf => run_inertial(|i| Rekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
+        Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
     }
+}
+
+/// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
+fn run_inertial<F: InertialFilter>(
+    build: impl FnOnce(&InitialState) -> Result<F>,
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    anchors: &[Vec3],
+    initial: Option<&InitialState>,
+    config: &FilterConfig,
+) -> Result<BatchOutput> {
+    let (initial, init) = match initial {
+        Some(i) => (i.clone(), None),
+        None => {
+            let s = initialize(imu, ranges, anchors, config)?;
+            (s.initial.clone(), Some(Box::new(s)))
+        }
+    };
+    let mut filter = build(&initial)?;
+    Ok(BatchOutput::Inertial { trace: run(&mut filter, imu, ranges)?, init })
 }

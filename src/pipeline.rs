@@ -3,8 +3,8 @@
 //!
 //! Order per IMU sample k at time t_k: ranges with t < t_k are applied first (each at its own
 //! time), then the IMU sample is predicted, then ranges with t = t_k are applied, then the step is
-//! recorded. Ranges before the first IMU sample are counted and skipped (the filter has no time
-//! yet).
+//! recorded. Ranges sharing a timestamp are one epoch, applied jointly. Ranges before the first IMU
+//! sample are counted and skipped (the filter has no time yet).
 
 use crate::error::Result;
 use crate::filters::InertialFilter;
@@ -49,27 +49,37 @@ pub struct Trace {
 }
 
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
-/// event order).
+/// event order). Ranges sharing a timestamp form one epoch and go to the filter in one
+/// [`InertialFilter::update_ranges`] call.
 pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
     let mut trace =
         Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
     let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
     let mut next = ranges.partition_point(|r| r.t_s < t_first);
     trace.ranges_before_start = next;
-    let apply = |filter: &mut F, r: &RangeMeasurement, trace: &mut Trace| -> Result<()> {
-        let report = filter.update_range(r.t_s, r.anchor, r.range_m)?;
-        trace.updates.push(UpdateRecord { t_s: r.t_s, anchor: r.anchor, range_m: r.range_m, report });
-        Ok(())
+    let mut epoch: Vec<(usize, f64)> = Vec::new();
+    let mut reports: Vec<UpdateReport> = Vec::new();
+    // Applies the epoch starting at `ranges[next]`; returns the index after it.
+    let mut apply_epoch = |filter: &mut F, next: usize, trace: &mut Trace| -> Result<usize> {
+        let t = ranges[next].t_s;
+        let end = next + ranges[next..].partition_point(|r| r.t_s == t);
+        epoch.clear();
+        epoch.extend(ranges[next..end].iter().map(|r| (r.anchor, r.range_m)));
+        reports.clear();
+        reports.resize(epoch.len(), UpdateReport::skipped());
+        filter.update_ranges(t, &epoch, &mut reports)?;
+        trace.updates.extend(
+            ranges[next..end].iter().zip(&reports).map(|(r, report)| UpdateRecord { t_s: r.t_s, anchor: r.anchor, range_m: r.range_m, report: *report }),
+        );
+        Ok(end)
     };
     for sample in imu {
         while next < ranges.len() && ranges[next].t_s < sample.t_s {
-            apply(filter, &ranges[next], &mut trace)?;
-            next += 1;
+            next = apply_epoch(filter, next, &mut trace)?;
         }
         filter.predict(sample.t_s, &sample.accel, &sample.gyro)?;
         while next < ranges.len() && ranges[next].t_s == sample.t_s {
-            apply(filter, &ranges[next], &mut trace)?;
-            next += 1;
+            next = apply_epoch(filter, next, &mut trace)?;
         }
         let core = filter.core();
         trace.steps.push(StepRecord {

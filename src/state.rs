@@ -50,4 +50,16 @@ impl NominalState {
         self.accel_bias += dx.fixed_rows::<3>(BA);
         self.gyro_bias += dx.fixed_rows::<3>(BG);
     }
+
+    /// The error-state difference `self ⊖ other`: sums for p, v, biases and
+    /// `δθ = log(q_otherᵀ ⊗ q_self)` (the inverse of [`NominalState::inject`]).
+    pub fn boxminus(&self, other: &NominalState) -> ErrVec {
+        let mut d = ErrVec::zeros();
+        d.fixed_rows_mut::<3>(POS).copy_from(&(self.position - other.position));
+        d.fixed_rows_mut::<3>(VEL).copy_from(&(self.velocity - other.velocity));
+        d.fixed_rows_mut::<3>(ATT).copy_from(&(other.orientation.inverse() * self.orientation).scaled_axis());
+        d.fixed_rows_mut::<3>(BA).copy_from(&(self.accel_bias - other.accel_bias));
+        d.fixed_rows_mut::<3>(BG).copy_from(&(self.gyro_bias - other.gyro_bias));
+        d
+    }
 }

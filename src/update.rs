@@ -1,5 +1,5 @@
 //! The Kalman measurement step on the error state: gain, Joseph-form covariance, injection into
-//! the nominal state and error reset.
+//! the nominal state and error reset; and the per-measurement report.
 
 use crate::error::{Error, Result};
 use crate::math::{skew, symmetrize, Mat3};
@@ -8,37 +8,60 @@ use crate::state::{ErrCov, ErrVec, NominalState, ATT, ERR_DIM};
 /// What happened to one measurement: a typed form of what the filter decided.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UpdateReport {
-    /// Innovation `z − h(x⁻)`, in the measurement's unit (m for ranges).
+    /// Innovation `z − h(x_op)` at the (last) operating point, in the measurement's unit (m for
+    /// ranges).
     pub innovation: f64,
-    /// Normalised innovation squared `ε²/S` with `S = H·P⁻·Hᵀ + R` (seed 000 eq. (37)).
+    /// γ, the squared Mahalanobis distance `ε²/(H·P·Hᵀ + R)` used by the noise policy (seed 000
+    /// eq. (37); eq. (39) in later iterations). With a fixed policy it is the NIS.
     pub nis: f64,
     /// Whether the measurement changed the state.
     pub accepted: bool,
-    /// Weight given to the measurement relative to its nominal noise: `R / R_used` (1 = full
-    /// weight, 0 = ignored).
+    /// Weight relative to the nominal noise: `R / R_used` (1 = full weight, 0 = ignored).
     pub weight: f64,
+    /// `R_used / R` (≥ 1; seed 000 eq. (40)).
+    pub inflation: f64,
+    /// Whether the noise policy down-weighted this measurement (inflation > 1).
+    pub down_weighted: bool,
+    /// Iterations of the update it took part in (1 for a single EKF step).
+    pub iterations: u32,
 }
 
 impl UpdateReport {
     /// Report for a measurement that could not be used (e.g. degenerate geometry).
     pub fn skipped() -> Self {
-        Self { innovation: f64::NAN, nis: f64::NAN, accepted: false, weight: 0.0 }
+        Self {
+            innovation: f64::NAN,
+            nis: f64::NAN,
+            accepted: false,
+            weight: 0.0,
+            inflation: f64::INFINITY,
+            down_weighted: false,
+            iterations: 0,
+        }
+    }
+
+    /// Report of a measurement applied with `inflation = R_used / R`.
+    pub fn applied(innovation: f64, nis: f64, inflation: f64, iterations: u32) -> Self {
+        Self { innovation, nis, accepted: true, weight: 1.0 / inflation, inflation, down_weighted: inflation > 1.0, iterations }
     }
 }
 
-/// Scalar measurement update with gain `K = P·hᵀ/S` (seed 004 eqs. (37)–(38)) and the Joseph
-/// covariance `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ`, evaluated through its rank-one structure as
-/// `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for any gain, O(n²)).
-/// Then injects δx into the nominal state and resets the error (seed 004 eq. (40)).
+/// One scalar Kalman step on an error-state estimate `dx` with covariance `p` for the linear(ised)
+/// measurement `residual ≈ h·δx + v`, `v ~ N(0, r_var)`: gain `K = P·hᵀ/S` (seed 004 eqs.
+/// (37)–(38)), `dx ← dx + K·(residual − h·dx)`, and the Joseph covariance
+/// `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ` (seed 004 eq. (39) in Joseph form), evaluated through its
+/// rank-one structure as `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for
+/// any gain; O(n²), symmetric by construction).
 ///
 /// Returns the innovation variance `S`. Fails if `S` is not positive.
-pub fn scalar_update(x: &mut NominalState, p: &mut ErrCov, h: &ErrVec, innovation: f64, r_var: f64) -> Result<f64> {
+pub fn scalar_step(dx: &mut ErrVec, p: &mut ErrCov, h: &ErrVec, residual: f64, r_var: f64) -> Result<f64> {
     let c = *p * h;
     let s = h.dot(&c) + r_var;
     if !(s > 0.0 && s.is_finite()) {
         return Err(Error::NotPositiveDefinite { what: "scalar innovation covariance" });
     }
     let k = c / s;
+    *dx += k * (residual - h.dot(dx));
     for j in 0..ERR_DIM {
         for i in 0..=j {
             let v = p[(i, j)] - k[i] * c[j] - c[i] * k[j] + s * k[i] * k[j];
@@ -46,13 +69,12 @@ pub fn scalar_update(x: &mut NominalState, p: &mut ErrCov, h: &ErrVec, innovatio
             p[(j, i)] = v;
         }
     }
-    let dx = k * innovation;
-    inject_and_reset(x, p, &dx);
     Ok(s)
 }
 
-/// Injects δx into the nominal state (seed 000 eq. (19)) and applies the reset Jacobian
-/// `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new nominal.
+/// Injects δx into the nominal state (seed 000 eq. (19), seed 004 eq. (40)) and applies the reset
+/// Jacobian `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new
+/// nominal state (the error mean is reset to zero).
 pub fn inject_and_reset(x: &mut NominalState, p: &mut ErrCov, dx: &ErrVec) {
     x.inject(dx);
     let g: Mat3 = Mat3::identity() - skew(&(0.5 * dx.fixed_rows::<3>(ATT).into_owned()));

@@ -5,8 +5,8 @@ use uwbimu_rs::config::FilterConfig;
 use uwbimu_rs::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use uwbimu_rs::math::{quat_exp, Quat, Vec3};
 use uwbimu_rs::models::range::predict_range;
-use uwbimu_rs::state::{ErrCov, ErrVec, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
-use uwbimu_rs::update::{inject_and_reset, scalar_update};
+use uwbimu_rs::state::{ErrCov, ErrVec, NominalState, ATT, BA, BG, ERR_DIM, VEL};
+use uwbimu_rs::update::{inject_and_reset, scalar_step};
 
 fn example_state() -> NominalState {
     NominalState {
@@ -28,17 +28,6 @@ fn example_imu() -> ImuInterval {
     }
 }
 
-/// `a ⊖ b` in error-state coordinates (body-frame attitude error).
-fn boxminus(a: &NominalState, b: &NominalState) -> ErrVec {
-    let mut d = ErrVec::zeros();
-    d.fixed_rows_mut::<3>(POS).copy_from(&(a.position - b.position));
-    d.fixed_rows_mut::<3>(VEL).copy_from(&(a.velocity - b.velocity));
-    d.fixed_rows_mut::<3>(ATT).copy_from(&(b.orientation.inverse() * a.orientation).scaled_axis());
-    d.fixed_rows_mut::<3>(BA).copy_from(&(a.accel_bias - b.accel_bias));
-    d.fixed_rows_mut::<3>(BG).copy_from(&(a.gyro_bias - b.gyro_bias));
-    d
-}
-
 fn perturbed(x: &NominalState, j: usize, eps: f64) -> NominalState {
     let mut y = *x;
     let mut dx = ErrVec::zeros();
@@ -57,8 +46,8 @@ fn transition_matches_finite_differences_of_mechanization() {
     let eps = 1e-6;
     let mut fd = ErrCov::zeros();
     for j in 0..ERR_DIM {
-        let plus = boxminus(&propagate_nominal(&perturbed(&x0, j, eps), &imu, &g), &x1);
-        let minus = boxminus(&propagate_nominal(&perturbed(&x0, j, -eps), &imu, &g), &x1);
+        let plus = propagate_nominal(&perturbed(&x0, j, eps), &imu, &g).boxminus(&x1);
+        let minus = propagate_nominal(&perturbed(&x0, j, -eps), &imu, &g).boxminus(&x1);
         fd.set_column(j, &((plus - minus) / (2.0 * eps)));
     }
     let err = (phi - fd).abs().max();
@@ -114,7 +103,9 @@ fn joseph_update_equals_definition() {
     let x0 = x;
     let h = predict_range(&x, &Vec3::new(4.0, 3.0, 2.2), &Vec3::new(0.0, 0.0, 0.05)).expect("ok").jacobian;
     let (innov, r) = (0.3, 0.01);
-    let s = scalar_update(&mut x, &mut p, &h, innov, r).expect("update");
+    let mut dx = ErrVec::zeros();
+    let s = scalar_step(&mut dx, &mut p, &h, innov, r).expect("update");
+    inject_and_reset(&mut x, &mut p, &dx);
     // Reference: dense Joseph form, then the same injection and reset.
     let k = p0 * h / s;
     let ikh = ErrCov::identity() - k * h.transpose();
@@ -127,4 +118,13 @@ fn joseph_update_equals_definition() {
     assert!(h.dot(&(p * h)) < h.dot(&(p0 * h)));
     let q: Quat = x.orientation;
     assert!((q.norm() - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn boxminus_inverts_inject() {
+    let x = example_state();
+    let dx = ErrVec::from_fn(|i, _| 0.01 * (i as f64 - 7.0));
+    let mut y = x;
+    y.inject(&dx);
+    assert!((y.boxminus(&x) - dx).norm() < 1e-12);
 }

@@ -17,7 +17,10 @@ from uwbimu_rs._native import (
     ConfigError,
     Ekf,
     FilterConfig,
+    Iekf,
     NumericalError,
+    Rekf,
+    Riekf,
     UpdateReport,
     UwbImuError,
 )
@@ -28,7 +31,10 @@ __all__ = [
     "ConfigError",
     "Ekf",
     "FilterConfig",
+    "Iekf",
     "NumericalError",
+    "Rekf",
+    "Riekf",
     "UpdateReport",
     "UwbImuError",
     "initialize",
@@ -52,7 +58,7 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``).
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)
@@ -70,7 +76,8 @@ def run_filter(
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
     updates : bool
         Also return a DataFrame with one row per range update
-        (t, anchor, range, innovation, nis, accepted, weight).
+        (t, anchor, range, innovation, nis, accepted, weight, inflation, down_weighted,
+        iterations). Ranges sharing a timestamp are one epoch, updated jointly.
 
     Returns
     -------
@@ -93,7 +100,9 @@ def run_filter(
     if updates:
         if upd is None:
             raise ValueError(f"method {method!r} has no range updates to report")
-        u = pl.DataFrame(upd).with_columns(pl.col("anchor").cast(pl.Int64), pl.col("accepted").cast(pl.Boolean))
+        u = pl.DataFrame(upd).with_columns(
+            pl.col("anchor", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
+        )
         return frame, u
     return frame
 

@@ -7,13 +7,13 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ekf, InertialFilter};
+use crate::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchOutput, Method};
 use crate::pipeline::Trace;
 use crate::records::{ImuSample, RangeMeasurement};
-use crate::state::ERR_DIM;
+use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
 use crate::validate;
 
@@ -130,65 +130,105 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
     Ok(vec3(&array(obj, name)?, name)?)
 }
 
-/// The tightly coupled EKF of seed 000, sample by sample.
-#[pyclass(name = "Ekf", module = "uwbimu_rs._native")]
-pub struct PyEkf(Ekf);
+fn anchor_index(anchor: i64, count: usize) -> PyResult<usize> {
+    usize::try_from(anchor).map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into())
+}
 
-#[pymethods]
-impl PyEkf {
-    #[new]
-    #[pyo3(signature = (anchors, *, initial, config=None))]
-    fn new(anchors: &Bound<'_, PyAny>, initial: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
-        Ok(Self(Ekf::new(anchors, &read_initial(initial)?, read_config(config)?)?))
-    }
+/// A Python class wrapping one named filter, with the streaming API.
+macro_rules! py_filter {
+    ($(#[$doc:meta])* $py:ident, $name:literal, $core:ty) => {
+        $(#[$doc])*
+        #[pyclass(name = $name, module = "uwbimu_rs._native")]
+        pub struct $py($core);
 
-    /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,) rad/s.
-    fn predict(&mut self, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<()> {
-        let (a, g) = (vec3_arg(accel, "accel")?, vec3_arg(gyro, "gyro")?);
-        Ok(self.0.predict(t, &a, &g)?)
-    }
+        #[pymethods]
+        impl $py {
+            #[new]
+            #[pyo3(signature = (anchors, *, initial, config=None))]
+            fn new(anchors: &Bound<'_, PyAny>, initial: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+                let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
+                Ok(Self(<$core>::new(anchors, &read_initial(initial)?, read_config(config)?)?))
+            }
 
-    /// Applies a range (m) to anchor index `anchor` measured at `t` (s).
-    fn update_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<PyUpdateReport> {
-        let count = self.0.anchors().len();
-        let index = usize::try_from(anchor).map_err(|_| crate::Error::UnknownAnchor {
-            name: "update_range",
-            row: 0,
-            anchor: anchor as f64,
-            count,
-        })?;
-        Ok(self.0.update_range(t, index, range)?.into())
-    }
+            /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,) rad/s.
+            fn predict(&mut self, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<()> {
+                let (a, g) = (vec3_arg(accel, "accel")?, vec3_arg(gyro, "gyro")?);
+                Ok(self.0.predict(t, &a, &g)?)
+            }
 
-    /// Filter time, s (None before the first predict).
-    #[getter]
-    fn time(&self) -> Option<f64> {
-        self.0.core().time_s()
-    }
+            /// Applies a range (m) to anchor index `anchor` measured at `t` (s).
+            fn update_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<PyUpdateReport> {
+                let index = anchor_index(anchor, self.0.anchors().len())?;
+                Ok(self.0.update_range(t, index, range)?.into())
+            }
 
-    /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
-    /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`.
-    #[getter]
-    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let x = self.0.core().state();
-        let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
-        let d = PyDict::new(py);
-        d.set_item("position", v(&x.position).into_pyarray(py))?;
-        d.set_item("velocity", v(&x.velocity).into_pyarray(py))?;
-        d.set_item("orientation", quat_to_wxyz(&x.orientation).to_vec().into_pyarray(py))?;
-        d.set_item("accel_bias", v(&x.accel_bias).into_pyarray(py))?;
-        d.set_item("gyro_bias", v(&x.gyro_bias).into_pyarray(py))?;
-        Ok(d)
-    }
+            /// Applies the ranges of one epoch measured at `t` (s): anchor indices (M,) and
+            /// ranges (M,) m; returns one report per range. The batch API groups ranges with
+            /// equal timestamps into such epochs.
+            fn update_ranges(&mut self, t: f64, anchors: Vec<i64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
+                if anchors.len() != ranges.len() {
+                    return Err(crate::Error::Shape { name: "update_ranges", expected: format!("ranges of length {}", anchors.len()), got: format!("{}", ranges.len()) }.into());
+                }
+                let count = self.0.anchors().len();
+                let obs = anchors.iter().zip(&ranges).map(|(a, r)| Ok((anchor_index(*a, count)?, *r))).collect::<PyResult<Vec<(usize, f64)>>>()?;
+                let mut reports = vec![UpdateReport::skipped(); obs.len()];
+                self.0.update_ranges(t, &obs, &mut reports)?;
+                Ok(reports.into_iter().map(PyUpdateReport::from).collect())
+            }
 
-    /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy.
-    #[getter]
-    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let p = self.0.core().covariance();
-        let rows: Vec<Vec<f64>> = (0..ERR_DIM).map(|i| (0..ERR_DIM).map(|j| p[(i, j)]).collect()).collect();
-        Ok(PyArray2::from_vec2(py, &rows)?)
-    }
+            /// Filter time, s (None before the first predict).
+            #[getter]
+            fn time(&self) -> Option<f64> {
+                self.0.core().time_s()
+            }
+
+            /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
+            /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`.
+            #[getter]
+            fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+                state_dict(py, self.0.core().state())
+            }
+
+            /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy.
+            #[getter]
+            fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                covariance_array(py, self.0.core().covariance())
+            }
+        }
+    };
+}
+
+py_filter!(
+    /// The tightly coupled EKF of seed 000, sample by sample.
+    PyEkf, "Ekf", Ekf
+);
+py_filter!(
+    /// The iterated EKF (seed 000 Algorithm 1 without re-weighting), sample by sample.
+    PyIekf, "Iekf", Iekf
+);
+py_filter!(
+    /// The robust EKF of seed 000 (eqs. (37)–(40)), sample by sample.
+    PyRekf, "Rekf", Rekf
+);
+py_filter!(
+    /// The robust iterated EKF of seed 000 (Algorithm 1), sample by sample.
+    PyRiekf, "Riekf", Riekf
+);
+
+fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
+    let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
+    let d = PyDict::new(py);
+    d.set_item("position", v(&x.position).into_pyarray(py))?;
+    d.set_item("velocity", v(&x.velocity).into_pyarray(py))?;
+    d.set_item("orientation", quat_to_wxyz(&x.orientation).to_vec().into_pyarray(py))?;
+    d.set_item("accel_bias", v(&x.accel_bias).into_pyarray(py))?;
+    d.set_item("gyro_bias", v(&x.gyro_bias).into_pyarray(py))?;
+    Ok(d)
+}
+
+fn covariance_array<'py>(py: Python<'py>, p: &ErrCov) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let rows: Vec<Vec<f64>> = (0..ERR_DIM).map(|i| (0..ERR_DIM).map(|j| p[(i, j)]).collect()).collect();
+    Ok(PyArray2::from_vec2(py, &rows)?)
 }
 
 fn trace_columns(trace: &Trace, covariance: bool) -> Vec<(&'static str, Vec<f64>)> {
@@ -230,6 +270,9 @@ fn update_columns(trace: &Trace) -> Vec<(&'static str, Vec<f64>)> {
         ("nis", u.iter().map(|r| r.report.nis).collect()),
         ("accepted", u.iter().map(|r| f64::from(u8::from(r.report.accepted))).collect()),
         ("weight", u.iter().map(|r| r.report.weight).collect()),
+        ("inflation", u.iter().map(|r| r.report.inflation).collect()),
+        ("down_weighted", u.iter().map(|r| f64::from(u8::from(r.report.down_weighted))).collect()),
+        ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
     ]
 }
 
@@ -330,6 +373,9 @@ fn initialize_state<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFilterConfig>()?;
     m.add_class::<PyEkf>()?;
+    m.add_class::<PyIekf>()?;
+    m.add_class::<PyRekf>()?;
+    m.add_class::<PyRiekf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;

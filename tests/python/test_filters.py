@@ -13,7 +13,7 @@ COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x"
 
 
 def test_filters_listed():
-    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf"]
+    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf"]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
@@ -52,34 +52,42 @@ def test_covariance_and_update_reports(los_run, filter_config):
     assert nees.height > 0
 
 
-def _streaming(run, initial, config):
-    ekf = uwbimu_rs.Ekf(run.anchors, initial=initial, config=config)
+def _streaming(run, initial, config, cls=uwbimu_rs.Ekf):
+    """Drives a streaming filter in the batch event order (epochs = ranges sharing a time)."""
+    f = cls(run.anchors, initial=initial, config=config)
     rows, reports = [], []
     ranges = run.ranges
     j = 0
+
+    def epoch(j):
+        k = j
+        while k < len(ranges) and ranges[k, 0] == ranges[j, 0]:
+            k += 1
+        reports.extend(f.update_ranges(ranges[j, 0], ranges[j:k, 1].astype(int).tolist(), ranges[j:k, 2].tolist()))
+        return k
+
     for sample in run.imu:
         t = sample[0]
         while j < len(ranges) and ranges[j, 0] < t:
-            reports.append(ekf.update_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2]))
-            j += 1
-        ekf.predict(t, sample[1:4], sample[4:7])
+            j = epoch(j)
+        f.predict(t, sample[1:4], sample[4:7])
         while j < len(ranges) and ranges[j, 0] == t:
-            reports.append(ekf.update_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2]))
-            j += 1
-        s = ekf.state
+            j = epoch(j)
+        s = f.state
         rows.append(np.concatenate([[t], s["position"], s["velocity"], s["orientation"]]))
-    return np.array(rows), reports, ekf
+    return np.array(rows), reports, f
 
 
-def test_streaming_equals_batch(los_run, filter_config):
+@pytest.mark.parametrize(("method", "cls"), [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf)])
+def test_streaming_equals_batch(los_run, filter_config, method, cls):
     initial, _info = uwbimu_rs.initialize(los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
     n = 2000  # 20 s: still start and the first metres of the figure-8
     imu = los_run.imu[:n]
     ranges = los_run.ranges[los_run.ranges[:, 0] <= imu[-1, 0]]
     run = type("Run", (), {"imu": imu, "ranges": ranges, "anchors": los_run.anchors})
-    rows, reports, ekf = _streaming(run, initial, filter_config)
+    rows, reports, ekf = _streaming(run, initial, filter_config, cls)
     df, upd = uwbimu_rs.run_filter(
-        "ekf", imu, ranges, los_run.anchors, initial=initial, config=filter_config, updates=True
+        method, imu, ranges, los_run.anchors, initial=initial, config=filter_config, updates=True
     )
     batch = df.select(COLUMNS[:11]).to_numpy()
     np.testing.assert_array_equal(rows, batch)
@@ -153,7 +161,7 @@ def _set(a, idx, value):
 
 def test_unknown_method_lists_allowed(small):
     imu, ranges, anchors, _ = small
-    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf"):
+    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf"):
         uwbimu_rs.run_filter("kalman", imu, ranges, anchors)
 
 

@@ -1,0 +1,82 @@
+//! The named filters of seed 000, each a [`TightFilter`] with its policy and strategy.
+
+use crate::config::{FilterConfig, InitialState};
+use crate::error::Result;
+use crate::filters::{InertialCore, InertialFilter, TightFilter};
+use crate::math::Vec3;
+use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
+use crate::update::UpdateReport;
+
+macro_rules! named_filter {
+    ($(#[$doc:meta])* $name:ident, |$config:ident| ($policy:expr, $iterations:expr)) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone)]
+        pub struct $name(TightFilter);
+
+        impl $name {
+            /// Builds the filter; anchors in the navigation frame, m.
+            pub fn new(anchors: Vec<Vec3>, initial: &InitialState, $config: FilterConfig) -> Result<Self> {
+                let (policy, iterations) = ($policy, $iterations);
+                Ok(Self(TightFilter::new(anchors, initial, $config, policy, iterations)?))
+            }
+
+            /// The anchors, navigation frame, m.
+            pub fn anchors(&self) -> &[Vec3] {
+                self.0.anchors()
+            }
+        }
+
+        impl InertialFilter for $name {
+            fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+                self.0.predict(t_s, accel, gyro)
+            }
+
+            fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+                self.0.update_ranges(t_s, ranges, reports)
+            }
+
+            fn core(&self) -> &InertialCore {
+                self.0.core()
+            }
+        }
+    };
+}
+
+named_filter!(
+    /// Tightly coupled UWB/IMU EKF (seed 000 eqs. (1)–(12), (33)–(36)): fixed range noise, one
+    /// step per epoch.
+    ///
+    /// ```
+    /// use uwbimu_rs::{config::{FilterConfig, InitialState}, filters::{Ekf, InertialFilter}, math::Vec3};
+    /// let anchors = vec![Vec3::new(0., 0., 2.), Vec3::new(8., 0., 1.), Vec3::new(8., 6., 2.), Vec3::new(0., 6., 1.)];
+    /// let mut ekf = Ekf::new(anchors, &InitialState::default(), FilterConfig::default())?;
+    /// ekf.predict(0.0, &Vec3::new(0., 0., 9.80665), &Vec3::zeros())?;
+    /// let report = ekf.update_range(0.005, 0, 2.0)?;
+    /// assert!(report.accepted && report.weight == 1.0);
+    /// # Ok::<(), uwbimu_rs::Error>(())
+    /// ```
+    Ekf,
+    |config| (RangeNoisePolicy::Fixed, 1)
+);
+
+named_filter!(
+    /// Iterated EKF: the EKF with the update iterated at the operating point (seed 000
+    /// Algorithm 1 without the covariance re-weighting), up to `max_iterations`.
+    Iekf,
+    |config| (RangeNoisePolicy::Fixed, config.max_iterations)
+);
+
+named_filter!(
+    /// Robust EKF (seed 000 eqs. (37)–(38), (40)): each range's γ against the prior; beyond the
+    /// χ²₁ quantile of significance `alpha`, `R' = (γ/χ²)·R`.
+    Rekf,
+    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, 1)
+);
+
+named_filter!(
+    /// Robust iterated EKF (seed 000 Algorithm 1, eqs. (39)–(40)): γ and `R'` recomputed per
+    /// range at each operating point from the current posterior, until the step is below
+    /// `iteration_tolerance` or `max_iterations` is reached.
+    Riekf,
+    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, config.max_iterations)
+);

@@ -1,0 +1,116 @@
+//! The tightly coupled range filter every seed-000 method is built from: INS core + range model
+//! (seed 000 eqs. (33)–(36)) + a noise policy + an update strategy (single step or iterated,
+//! seed 000 Algorithm 1).
+
+use crate::config::{FilterConfig, InitialState};
+use crate::error::{Error, Result};
+use crate::filters::{InertialCore, InertialFilter};
+use crate::math::Vec3;
+use crate::models::range::predict_range;
+use crate::robust::RangeNoisePolicy;
+use crate::update::{inject_and_reset, scalar_step, UpdateReport};
+
+/// A tightly coupled UWB/IMU error-state filter.
+///
+/// All ranges of one epoch (one timestamp) are processed jointly, linearised at an operating
+/// point `X_op` (the prior at the first iteration). Per range, γ is computed at `X_op` against
+/// the latest posterior covariance (seed 000 eq. (37) at the first iteration, eq. (39) after) and
+/// the policy sets `R'` (eq. (40)); the linearised problem is then solved by sequential scalar
+/// Joseph steps, which equals the joint update of Algorithm 1 lines 9–11 for diagonal `R`. The
+/// strategy iterates until the step `‖X⁺ ⊖ X_op‖` is below `tolerance` or `max_iterations` is
+/// reached (line 12); one iteration is the single EKF step.
+#[derive(Debug, Clone)]
+pub struct TightFilter {
+    core: InertialCore,
+    anchors: Vec<Vec3>,
+    policy: RangeNoisePolicy,
+    max_iterations: u32,
+    tolerance: f64,
+}
+
+impl TightFilter {
+    /// Builds the filter. `max_iterations = 1` gives the single-step filters (EKF, REKF).
+    pub fn new(
+        anchors: Vec<Vec3>,
+        initial: &InitialState,
+        config: FilterConfig,
+        policy: RangeNoisePolicy,
+        max_iterations: u32,
+    ) -> Result<Self> {
+        if anchors.is_empty() {
+            return Err(Error::InsufficientData("at least one anchor is required".into()));
+        }
+        let tolerance = config.iteration_tolerance;
+        Ok(Self { core: InertialCore::new(initial, config)?, anchors, policy, max_iterations: max_iterations.max(1), tolerance })
+    }
+
+    /// The anchors, navigation frame, m.
+    pub fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
+    fn check_ranges(&self, ranges: &[(usize, f64)]) -> Result<()> {
+        for (row, &(anchor, range_m)) in ranges.iter().enumerate() {
+            if anchor >= self.anchors.len() {
+                return Err(Error::UnknownAnchor { name: "update_range", row, anchor: anchor as f64, count: self.anchors.len() });
+            }
+            if !range_m.is_finite() || range_m < 0.0 {
+                return Err(Error::InvalidValue { name: "update_range", row, value: range_m, reason: "range must be finite and >= 0 m" });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl InertialFilter for TightFilter {
+    fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        self.core.predict(t_s, accel, gyro)
+    }
+
+    fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        if reports.len() != ranges.len() {
+            return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
+        }
+        self.check_ranges(ranges)?;
+        self.core.advance_to(t_s)?;
+        let lever_arm = self.core.config().lever_arm;
+        let r_var = self.core.config().range_std.powi(2);
+        let (x, p_out) = self.core.state_and_covariance_mut();
+        let (prior, p_prior) = (*x, *p_out);
+        let (mut op, mut p_post) = (prior, p_prior);
+        let mut iterations = 0;
+        loop {
+            iterations += 1;
+            let mut dx = prior.boxminus(&op);
+            let mut p = p_prior;
+            for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
+                let Some(pred) = predict_range(&op, &self.anchors[anchor], &lever_arm) else {
+                    *report = UpdateReport::skipped();
+                    continue;
+                };
+                let h = pred.jacobian;
+                let residual = range_m - pred.range_m;
+                let nis = residual * residual / (h.dot(&(p_post * h)) + r_var);
+                let inflation = self.policy.inflation(nis);
+                scalar_step(&mut dx, &mut p, &h, residual, r_var * inflation)?;
+                *report = UpdateReport::applied(residual, nis, inflation, iterations);
+            }
+            if iterations >= self.max_iterations || dx.norm() < self.tolerance {
+                inject_and_reset(&mut op, &mut p, &dx);
+                *x = op;
+                *p_out = p;
+                break;
+            }
+            op.inject(&dx);
+            p_post = p;
+        }
+        for r in reports.iter_mut().filter(|r| r.accepted) {
+            r.iterations = iterations;
+        }
+        Ok(())
+    }
+
+    fn core(&self) -> &InertialCore {
+        &self.core
+    }
+}

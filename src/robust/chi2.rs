@@ -1,0 +1,72 @@
+//! χ² quantiles from a significance level (seed 000 eq. (38)).
+//!
+//! For one degree of freedom, `P(γ < χ²₁,α) = 1 − α` gives `χ²₁,α = z²` with `z = Φ⁻¹(1 − α/2)`,
+//! the standard-normal quantile. Reference values: α = 0.05 → 3.841, α = 0.01 → 6.635,
+//! α = 0.001 → 10.828. Seed 002 quotes "6.2 at α = 0.001", which matches neither of the last two
+//! (6.2 is the quantile for α ≈ 0.0128).
+
+use crate::error::{Error, Result};
+
+/// Standard-normal quantile Φ⁻¹(p) for 0 < p < 1 (P. J. Acklam's rational approximation,
+/// relative error below 1.15e-9).
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] =
+        [-3.969683028665376e1, 2.209460984245205e2, -2.759285104469687e2, 1.383577518672690e2, -3.066479806614716e1, 2.506628277459239];
+    const B: [f64; 5] = [-5.447609879822406e1, 1.615858368580409e2, -1.556989798598866e2, 6.680131188771972e1, -1.328068155288572e1];
+    const C: [f64; 6] =
+        [-7.784894002430293e-3, -3.223964580411365e-1, -2.400758277161838, -2.549732539343734, 4.374664141464968, 2.938163982698783];
+    const D: [f64; 4] = [7.784695709041462e-3, 3.224671290700398e-1, 2.445134137142996, 3.754408661907416];
+    const P_LOW: f64 = 0.02425;
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5]) / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < P_LOW {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p <= 1.0 - P_LOW {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    } else {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    }
+}
+
+/// χ² quantile with 1 degree of freedom exceeded with probability `alpha` (seed 000 eq. (38)).
+/// Fails unless `0 < alpha < 1`.
+pub fn chi2_quantile_1dof(alpha: f64) -> Result<f64> {
+    if !(alpha > 0.0 && alpha < 1.0) {
+        return Err(Error::InvalidConfig { field: "alpha".into(), reason: format!("significance level must be in (0, 1), got {alpha}") });
+    }
+    Ok(normal_quantile(1.0 - 0.5 * alpha).powi(2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_match_tables() {
+        for (alpha, expected) in [(0.05, 3.841_458_820_694_124), (0.01, 6.634_896_601_021_214), (0.001, 10.827_566_170_662_733)] {
+            let q = chi2_quantile_1dof(alpha).unwrap();
+            assert!((q - expected).abs() < 1e-7 * expected, "alpha {alpha}: {q} vs {expected}");
+        }
+        // Seed 002's "6.2 at α = 0.001" is not the 0.001 quantile.
+        assert!((chi2_quantile_1dof(0.001).unwrap() - 6.2).abs() > 4.0);
+    }
+
+    #[test]
+    fn normal_quantile_is_odd_and_monotone() {
+        assert!(normal_quantile(0.5).abs() < 1e-15);
+        assert!((normal_quantile(0.975) - 1.959_963_984_540_054).abs() < 1e-8);
+        assert!((normal_quantile(0.01) + normal_quantile(0.99)).abs() < 1e-9);
+        assert!(normal_quantile(1e-10) < normal_quantile(1e-9));
+    }
+
+    #[test]
+    fn rejects_bad_alpha() {
+        assert!(chi2_quantile_1dof(0.0).is_err());
+        assert!(chi2_quantile_1dof(1.0).is_err());
+        assert!(chi2_quantile_1dof(f64::NAN).is_err());
+    }
+}

@@ -1,0 +1,39 @@
+//! How the range noise is chosen per update.
+
+/// Range-noise policy of the tightly coupled filters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RangeNoisePolicy {
+    /// `R` as configured (EKF, iterated EKF).
+    Fixed,
+    /// Mahalanobis test against `threshold = χ²₁,α` and inflation `R' = (γ/χ²)·R` beyond it
+    /// (seed 000 eqs. (37)–(40); REKF, RIEKF).
+    ChiSquareInflation {
+        /// χ² threshold, dimensionless.
+        threshold: f64,
+    },
+}
+
+impl RangeNoisePolicy {
+    /// The factor `R'/R ≥ 1` for a range whose squared Mahalanobis distance is `nis`
+    /// (seed 000 eq. (40)).
+    pub fn inflation(&self, nis: f64) -> f64 {
+        match *self {
+            Self::Fixed => 1.0,
+            Self::ChiSquareInflation { threshold } if nis >= threshold => nis / threshold,
+            Self::ChiSquareInflation { .. } => 1.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inflation_is_ratio_beyond_threshold() {
+        let p = RangeNoisePolicy::ChiSquareInflation { threshold: 6.635 };
+        assert_eq!(p.inflation(1.0), 1.0);
+        assert!((p.inflation(13.27) - 2.0).abs() < 1e-3);
+        assert_eq!(RangeNoisePolicy::Fixed.inflation(100.0), 1.0);
+    }
+}
