@@ -1,0 +1,656 @@
+"""Type stubs of the native extension module ``uwbimu_rs._native`` (PyO3, ``src/bindings``).
+
+Private module: the public API is ``uwbimu_rs``, ``uwbimu_rs.metrics`` and ``uwbimu_rs.sim``,
+which wrap these functions (e.g. into polars DataFrames). Kept in step with the runtime module by
+``tests/python/test_stubs.py`` (``python -m mypy.stubtest uwbimu_rs._native``).
+
+Conventions: navigation frame ENU (z up), metres, seconds; accelerometer = specific force in the
+body frame (m/s²), gyroscope rad/s; quaternions Hamilton ``[w, x, y, z]`` rotating body →
+navigation; error-state order δp, δv, δθ, δb_a, δb_g. Every returned array is a fresh float64
+NumPy array (``range_labels``: uint8) owned by the caller.
+"""
+
+from collections.abc import Sequence
+from typing import Any, final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "UwbImuError",
+    "ConfigError",
+    "NumericalError",
+    "FilterConfig",
+    "Ekf",
+    "UpdateReport",
+    "run_filter",
+    "initialize_state",
+    "FILTERS",
+    "evaluate",
+    "nees",
+    "cdf",
+    "interpolate_positions",
+    "Trajectory",
+    "sim_preset",
+    "simulate",
+    "SIM_PRESET_NAMES",
+    "SIM_OVERRIDE_KEYS",
+]
+
+_F64 = NDArray[np.float64]
+# A configuration or initial-state value: a number, or a sequence / 1-D array of numbers (not a
+# bool).
+_ConfigValue = float | Sequence[float] | NDArray[Any]
+# The ``config`` argument: None (defaults), a FilterConfig, or a dict of FilterConfig keys.
+_ConfigArg = FilterConfig | dict[str, Any] | None
+# Simulator overrides: a bool switches a feature, a number sets a value.
+_Override = float | bool
+
+# --------------------------------------------------------------------------------------------
+# Exceptions (src/bindings/errors.rs)
+# --------------------------------------------------------------------------------------------
+
+class UwbImuError(ValueError):
+    """Base class of uwbimu_rs errors (a ValueError).
+
+    Raised for invalid input data: wrong array shape, NaN/inf, decreasing time, anchor index out
+    of range; the message names the array, row and column.
+    """
+
+class ConfigError(UwbImuError):
+    """Invalid configuration, method or option (unknown key, preset or method; invalid value).
+
+    The message lists the allowed keys or names.
+    """
+
+class NumericalError(UwbImuError):
+    """A matrix that must be positive definite was not (e.g. a covariance in ``nees``)."""
+
+# --------------------------------------------------------------------------------------------
+# Filters (src/bindings/filters.rs)
+# --------------------------------------------------------------------------------------------
+
+FILTERS: list[str]
+"""Method names accepted by :func:`run_filter`: ``["uwb_ls", "ekf"]``."""
+
+@final
+class FilterConfig:
+    """Filter configuration, built from keyword arguments (immutable).
+
+    Unset keys keep their defaults; unknown keys or invalid values raise :class:`ConfigError`.
+
+    Parameters
+    ----------
+    range_std : float, default 0.1
+        UWB range noise standard deviation, m (> 0).
+    accel_noise_density : float, default 0.003
+        Accelerometer white-noise density, m/s²/√Hz (> 0).
+    gyro_noise_density : float, default 5e-4
+        Gyroscope white-noise density, rad/s/√Hz (> 0).
+    accel_bias_walk : float, default 1e-4
+        Accelerometer bias random walk, m/s²/√s (≥ 0).
+    gyro_bias_walk : float, default 1e-5
+        Gyroscope bias random walk, rad/s/√s (≥ 0).
+    lever_arm : sequence of 3 floats, default [0, 0, 0]
+        UWB antenna position in the body frame, m.
+    imu_rotation : sequence of 4 floats, default [1, 0, 0, 0]
+        IMU → body mounting rotation ``[w, x, y, z]`` (normalised; zero norm is an error).
+    gravity : float or sequence of 3 floats, default [0, 0, -9.80665]
+        Gravity in the navigation frame, m/s²; a scalar ``g`` means ``[0, 0, -g]``.
+    accel_bias_std : float, default 0.1
+        Initial accelerometer-bias standard deviation, m/s², when the initial state gives none.
+    gyro_bias_std : float, default 0.01
+        Initial gyroscope-bias standard deviation, rad/s, when the initial state gives none.
+    init_still_s : float, default 1.0
+        Self-initialisation: still window at the start for roll, pitch and gyro bias, s.
+    init_heading_distance_m : float, default 1.0
+        Self-initialisation: UWB displacement after which the heading is taken from motion, m.
+
+    Raises
+    ------
+    ConfigError
+        Unknown key or invalid value.
+    ValueError
+        A value that is neither a number nor a sequence of numbers (e.g. a bool).
+    """
+
+    def __new__(cls, **kwargs: _ConfigValue) -> FilterConfig: ...
+    @staticmethod
+    def keys() -> list[str]:
+        """The accepted keyword names (12, in a fixed order).
+
+        Returns
+        -------
+        list of str
+        """
+
+    def to_dict(self) -> dict[str, float | _F64]:
+        """The full configuration as a plain dict.
+
+        Returns
+        -------
+        dict
+            Every key of :meth:`keys`: scalars as ``float``, vectors as 1-D float64 arrays
+            (``lever_arm`` (3,) m, ``imu_rotation`` (4,) w, x, y, z, ``gravity`` (3,) m/s²).
+        """
+
+@final
+class UpdateReport:
+    """The outcome of one range update (read-only; returned by :meth:`Ekf.update_range`)."""
+
+    @property
+    def innovation(self) -> float:
+        """Innovation z − h(x⁻), m."""
+
+    @property
+    def nis(self) -> float:
+        """Normalised innovation squared (dimensionless)."""
+
+    @property
+    def accepted(self) -> bool:
+        """Whether the range changed the state."""
+
+    @property
+    def weight(self) -> float:
+        """Weight relative to the nominal range noise (1 = full)."""
+
+@final
+class Ekf:
+    """The tightly coupled error-state EKF (seed 000), fed sample by sample.
+
+    Parameters
+    ----------
+    anchors : array_like, shape (K, 3)
+        Anchor positions in the navigation frame, m (finite).
+    initial : dict
+        Initial state valid at the first IMU time: ``position`` (3,) m, ``velocity`` (3,) m/s,
+        ``orientation`` (4,) w, x, y, z, and optional ``position_std`` (m), ``velocity_std``
+        (m/s), ``orientation_std`` (rad) (each a scalar or 3 values), ``accel_bias`` (3,) m/s²,
+        ``gyro_bias`` (3,) rad/s, ``accel_bias_std`` (m/s²), ``gyro_bias_std`` (rad/s). The first
+        element of :func:`initialize_state`'s result fits.
+    config : FilterConfig or dict, optional
+        Filter settings (see :class:`FilterConfig`); None for the defaults.
+
+    Raises
+    ------
+    ConfigError
+        Unknown or invalid ``initial`` / ``config`` key.
+    ValueError
+        Bad anchor shape or values, or ``initial`` / ``config`` not a dict.
+    """
+
+    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Ekf: ...
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None:
+        """Propagate with the IMU sample at time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Sample time, s (strictly increasing across calls).
+        accel : array_like, shape (3,)
+            Specific force in the IMU frame, m/s².
+        gyro : array_like, shape (3,)
+            Angular rate in the IMU frame, rad/s.
+
+        Raises
+        ------
+        UwbImuError
+            Wrong shape, non-finite values or non-increasing time.
+        """
+
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport:
+        """Apply one UWB range.
+
+        Parameters
+        ----------
+        t : float
+            Measurement time, s.
+        anchor : int
+            Anchor index (row of ``anchors``).
+        range : float
+            Measured range, m.
+
+        Returns
+        -------
+        UpdateReport
+
+        Raises
+        ------
+        UwbImuError
+            Anchor index out of range or non-finite values.
+        NumericalError
+            The innovation covariance was not positive definite.
+        """
+
+    @property
+    def time(self) -> float | None:
+        """Filter time, s (None before the first :meth:`predict`)."""
+
+    @property
+    def state(self) -> dict[str, _F64]:
+        """Snapshot of the nominal state (copies).
+
+        Keys: ``position`` (3,) m, ``velocity`` (3,) m/s, ``orientation`` (4,) w, x, y, z
+        (body → navigation), ``accel_bias`` (3,) m/s², ``gyro_bias`` (3,) rad/s.
+        """
+
+    @property
+    def covariance(self) -> _F64:
+        """Error-state covariance, shape (15, 15), order δp, δv, δθ, δb_a, δb_g (a copy)."""
+
+def run_filter(
+    method: str,
+    imu: ArrayLike,
+    ranges: ArrayLike,
+    anchors: ArrayLike,
+    *,
+    initial: dict[str, Any] | None = None,
+    config: _ConfigArg = None,
+    covariance: bool = False,
+    updates: bool = False,
+) -> tuple[dict[str, _F64], dict[str, _F64] | None, dict[str, Any]]:
+    """Run one method over whole recordings (the GIL is released while Rust runs).
+
+    Parameters
+    ----------
+    method : str
+        One of :data:`FILTERS`.
+    imu : array_like, shape (N, 7)
+        t (s, strictly increasing), ax, ay, az (m/s², body specific force), gx, gy, gz (rad/s).
+    ranges : array_like, shape (M, 3)
+        t (s, non-decreasing), anchor index (row of ``anchors``), range (m).
+    anchors : array_like, shape (K, 3)
+        Anchor positions in the navigation frame, m.
+    initial : dict, optional
+        Initial state as for :class:`Ekf`; None: self-initialisation (:func:`initialize_state`).
+    config : FilterConfig or dict, optional
+        Filter settings; None for the defaults.
+    covariance : bool, default False
+        Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` (m²).
+    updates : bool, default False
+        Also return one row per range update (inertial methods only).
+
+    Returns
+    -------
+    columns : dict of str to ndarray, each shape (R,)
+        Inertial methods: one row per IMU sample, ``t`` (s), ``x, y, z`` (m), ``vx, vy, vz``
+        (m/s), ``qw, qx, qy, qz``, ``std_x, std_y, std_z`` (m). ``uwb_ls``: one row per solvable
+        UWB epoch, ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms`` (m).
+    updates : dict of str to ndarray, each shape (U,), or None
+        With ``updates=True`` for inertial methods: ``t`` (s), ``anchor``, ``range`` (m),
+        ``innovation`` (m), ``nis``, ``accepted`` (0.0/1.0), ``weight``; otherwise None.
+    info : dict
+        Inertial methods: ``ranges_before_start`` (int, ranges dropped before the first IMU
+        sample) and, after self-initialisation, ``still_start`` (bool) and ``heading_from``
+        (``"motion"`` or ``"fallback"``). ``uwb_ls``: empty.
+
+    Raises
+    ------
+    ConfigError
+        Unknown method or config / initial key, invalid value.
+    UwbImuError
+        Wrong shape, NaN/inf, decreasing time, anchor index out of range.
+    ValueError
+        An input that cannot be converted to a float64 array, or a non-dict config / initial.
+    """
+
+def initialize_state(
+    imu: ArrayLike, ranges: ArrayLike, anchors: ArrayLike, *, config: _ConfigArg = None
+) -> tuple[dict[str, _F64], dict[str, Any]]:
+    """Self-initialisation from the start of a recording.
+
+    Roll, pitch and gyro bias from the first ``init_still_s`` seconds; position from UWB
+    multilateration; heading from the first ``init_heading_distance_m`` metres of motion
+    (fallback: yaw 0 with σ = π).
+
+    Parameters
+    ----------
+    imu : array_like, shape (N, 7)
+        t (s), ax, ay, az (m/s²), gx, gy, gz (rad/s).
+    ranges : array_like, shape (M, 3)
+        t (s), anchor index, range (m).
+    anchors : array_like, shape (K, 3)
+        Anchor positions, m.
+    config : FilterConfig or dict, optional
+        Filter settings; None for the defaults.
+
+    Returns
+    -------
+    initial : dict of str to ndarray
+        Usable as ``initial``: ``position`` (3,) m, ``velocity`` (3,) m/s, ``orientation`` (4,)
+        w, x, y, z, ``position_std`` (3,) m, ``velocity_std`` (3,) m/s, ``orientation_std``
+        (3,) rad, ``gyro_bias`` (3,) rad/s.
+    info : dict
+        ``still_start`` (bool) and ``heading_from`` (``"motion"`` or ``"fallback"``).
+
+    Raises
+    ------
+    ValueError
+        As :func:`run_filter`, or too little data to initialise.
+    """
+
+# --------------------------------------------------------------------------------------------
+# Metrics (src/bindings/metrics.rs). Inputs must be float64 NumPy arrays (no conversion).
+# --------------------------------------------------------------------------------------------
+
+def evaluate(est_t: _F64, est_xyz: _F64, truth_t: _F64, truth_xyz: _F64, align: bool) -> dict[str, Any]:
+    """Compare estimated positions with the truth (linearly interpolated at the estimate times).
+
+    Parameters
+    ----------
+    est_t : ndarray of float64, shape (N,)
+        Estimate times, s.
+    est_xyz : ndarray of float64, shape (N, 3)
+        Estimated positions, m.
+    truth_t : ndarray of float64, shape (M,)
+        Truth times, s (strictly increasing).
+    truth_xyz : ndarray of float64, shape (M, 3)
+        True positions, m.
+    align : bool
+        First map the estimate through the least-squares rigid transform onto the truth.
+
+    Returns
+    -------
+    dict
+        ``horizontal``, ``three_d``: dicts of ``n`` (int) and ``rmse, mean, median, p90, p95,
+        max`` (float, m); ``errors``: dict of 1-D columns ``t`` (s), ``e_h``, ``e_3d`` (m) over
+        the estimates inside the truth span; ``rotation``: (3, 3) array or None; ``translation``:
+        (3,) array (m) or None (None unless ``align``).
+
+    Raises
+    ------
+    UwbImuError
+        Bad shapes, non-finite values, truth time not strictly increasing, or no estimate inside
+        the truth span.
+    TypeError
+        An input that is not a float64 NumPy array.
+    """
+
+def nees(errors: _F64, covariances: _F64) -> _F64:
+    """Normalised estimation error squared ``e^T P^-1 e`` per row.
+
+    Parameters
+    ----------
+    errors : ndarray of float64, shape (N, 3)
+        Position errors, m.
+    covariances : ndarray of float64, shape (N, 6)
+        Position covariances ``xx, xy, xz, yy, yz, zz``, m².
+
+    Returns
+    -------
+    ndarray of float64, shape (N,)
+        NEES values (dimensionless).
+
+    Raises
+    ------
+    UwbImuError
+        Bad shapes or row counts.
+    NumericalError
+        A covariance that is not positive definite.
+    """
+
+def cdf(errors: _F64) -> tuple[_F64, _F64]:
+    """Empirical CDF of error magnitudes.
+
+    Parameters
+    ----------
+    errors : ndarray of float64, shape (N,)
+        Errors, m.
+
+    Returns
+    -------
+    x : ndarray of float64, shape (N,)
+        The errors sorted ascending, m.
+    p : ndarray of float64, shape (N,)
+        ``i / N`` for the i-th sorted error (1-based).
+    """
+
+def interpolate_positions(truth_t: _F64, truth_xyz: _F64, t: _F64) -> _F64:
+    """Truth positions linearly interpolated at the times ``t``.
+
+    Parameters
+    ----------
+    truth_t : ndarray of float64, shape (M,)
+        Truth times, s (strictly increasing).
+    truth_xyz : ndarray of float64, shape (M, 3)
+        True positions, m.
+    t : ndarray of float64, shape (N,)
+        Query times, s.
+
+    Returns
+    -------
+    ndarray of float64, shape (N, 3)
+        Positions, m; rows outside the truth time span are NaN.
+    """
+
+# --------------------------------------------------------------------------------------------
+# Simulator (src/bindings/sim.rs)
+# --------------------------------------------------------------------------------------------
+
+SIM_PRESET_NAMES: list[str]
+"""Preset names accepted by :func:`sim_preset` (``"seed000"``, ``"seed000_los"``, ...)."""
+
+SIM_OVERRIDE_KEYS: list[str]
+"""Override keys accepted by :func:`sim_preset` and :func:`simulate` (``"nlos"``, ...)."""
+
+@final
+class Trajectory:
+    """An analytic ground-vehicle trajectory (immutable); build it with a static constructor.
+
+    Not constructible directly. All constructors start with a still period of ``still_s`` seconds and raise
+    :class:`ConfigError` for invalid values (e.g. non-positive sizes or times).
+    """
+
+    @staticmethod
+    def figure_eight(
+        centre: ArrayLike, a_m: float, b_m: float, lap_time_s: float, laps: int, still_s: float = 2.0
+    ) -> Trajectory:
+        """Figure-8 (lemniscate of Gerono) laps about ``centre``.
+
+        Parameters
+        ----------
+        centre : array_like, shape (3,)
+            Centre, m.
+        a_m, b_m : float
+            Half-extents along x and y, m.
+        lap_time_s : float
+            Duration of one lap, s.
+        laps : int
+            Number of laps (≥ 0).
+        still_s : float, default 2.0
+            Initial still period, s.
+        """
+
+    @staticmethod
+    def ellipse(
+        centre: ArrayLike, a_m: float, b_m: float, lap_time_s: float, laps: int, still_s: float = 2.0
+    ) -> Trajectory:
+        """Counter-clockwise ellipse laps about ``centre``.
+
+        Parameters
+        ----------
+        centre : array_like, shape (3,)
+            Centre, m.
+        a_m, b_m : float
+            Semi-axes along x and y, m.
+        lap_time_s : float
+            Duration of one lap, s.
+        laps : int
+            Number of laps (≥ 0).
+        still_s : float, default 2.0
+            Initial still period, s.
+        """
+
+    @staticmethod
+    def waypoints(
+        points: ArrayLike,
+        speed_mps: float = 0.5,
+        ramp_s: float = 1.0,
+        dwell_s: float = 1.0,
+        turn_time_s: float = 2.0,
+        still_s: float = 2.0,
+    ) -> Trajectory:
+        """Straight legs through ``points``, stopping and turning in place at each one.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3)
+            Waypoints, m.
+        speed_mps : float, default 0.5
+            Cruise speed, m/s.
+        ramp_s : float, default 1.0
+            Acceleration / deceleration time per leg, s.
+        dwell_s : float, default 1.0
+            Stop at each waypoint, s.
+        turn_time_s : float, default 2.0
+            Turn in place at each waypoint, s.
+        still_s : float, default 2.0
+            Initial still period, s.
+        """
+
+    @staticmethod
+    def rectangle(
+        corner: ArrayLike,
+        width_m: float,
+        height_m: float,
+        laps: int = 1,
+        speed_mps: float = 0.5,
+        ramp_s: float = 1.0,
+        dwell_s: float = 1.0,
+        turn_time_s: float = 2.0,
+        still_s: float = 2.0,
+    ) -> Trajectory:
+        """Counter-clockwise laps of an axis-aligned rectangle from its lower-left ``corner``.
+
+        Parameters
+        ----------
+        corner : array_like, shape (3,)
+            Lower-left corner, m.
+        width_m, height_m : float
+            Extents along x and y, m.
+        laps : int, default 1
+            Number of laps (≥ 0).
+        speed_mps, ramp_s, dwell_s, turn_time_s, still_s : float
+            As for :meth:`waypoints` (m/s, s).
+        """
+
+    @staticmethod
+    def diagonal(
+        start: ArrayLike, end: ArrayLike, speed_mps: float = 0.5, ramp_s: float = 1.0, still_s: float = 2.0
+    ) -> Trajectory:
+        """One straight leg from ``start`` to ``end``.
+
+        Parameters
+        ----------
+        start, end : array_like, shape (3,)
+            End points, m.
+        speed_mps : float, default 0.5
+            Cruise speed, m/s.
+        ramp_s : float, default 1.0
+            Acceleration / deceleration time, s.
+        still_s : float, default 2.0
+            Initial still period, s.
+        """
+
+    @property
+    def duration_s(self) -> float:
+        """Total duration, s."""
+
+    def sample(self, t_s: float) -> dict[str, Any]:
+        """Exact kinematic state at ``t_s`` (s).
+
+        Returns
+        -------
+        dict
+            ``t`` (float, s), ``position`` (3,) m, ``velocity`` (3,) m/s, ``acceleration`` (3,)
+            m/s², ``orientation`` (4,) w, x, y, z, ``angular_rate_body`` (3,) rad/s.
+        """
+
+    def sample_many(self, t_s: ArrayLike) -> dict[str, _F64]:
+        """States at the times ``t_s``.
+
+        Parameters
+        ----------
+        t_s : array_like, shape (N,)
+            Times, s.
+
+        Returns
+        -------
+        dict of str to ndarray, each shape (N,)
+            ``t`` (s), ``x, y, z`` (m), ``vx, vy, vz`` (m/s), ``qw, qx, qy, qz``.
+        """
+
+def sim_preset(
+    name: str, seed: int = 0, overrides: dict[str, _Override] | None = None, **kwargs: _Override
+) -> dict[str, Any]:
+    """Simulate a named preset (the GIL is released while Rust runs).
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`SIM_PRESET_NAMES`.
+    seed : int, default 0
+        Seed of all random draws (≥ 0); the same seed gives identical output.
+    overrides : dict, optional
+        Keys of :data:`SIM_OVERRIDE_KEYS`: a bool switches a feature (``nlos``,
+        ``magnetometer``, ``imu_noise``), a number sets a value (e.g. ``range_std_m``).
+    **kwargs : float or bool
+        Further overrides, applied after ``overrides``.
+
+    Returns
+    -------
+    dict
+        ``imu`` (N, 7) t, ax, ay, az, gx, gy, gz (s, m/s², rad/s); ``ranges`` (M, 3) t, anchor,
+        range (s, -, m); ``range_labels`` (M,) uint8 (0 LOS, 1 NLOS, 2 outlier); ``anchors``
+        (K, 3) m; ``truth``: dict of 1-D columns t, x, y, z, vx, vy, vz, qw, qx, qy, qz;
+        ``mag`` (N, 4) t, mx, my, mz or None; ``accel_bias`` (N, 3) m/s²; ``gyro_bias`` (N, 3)
+        rad/s; ``nlos_windows`` (W, 4) anchor, start (s), end (s), bias (m).
+
+    Raises
+    ------
+    ConfigError
+        Unknown preset or override key, or an invalid value.
+    """
+
+def simulate(
+    trajectory: Trajectory,
+    anchors: ArrayLike,
+    seed: int = 0,
+    lever_arm_m: ArrayLike | None = None,
+    imu_rotation: ArrayLike | None = None,
+    overrides: dict[str, _Override] | None = None,
+    **kwargs: _Override,
+) -> dict[str, Any]:
+    """Simulate IMU, UWB ranges and truth along ``trajectory`` (GIL released).
+
+    Default configuration: 100 Hz consumer-MEMS IMU, 2 Hz LOS ranging with σ = 0.1 m.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The path of the body (IMU) origin.
+    anchors : array_like, shape (K, 3)
+        Anchor positions, m (K ≥ 1).
+    seed : int, default 0
+        Seed of all random draws (≥ 0).
+    lever_arm_m : array_like, shape (3,), optional
+        UWB antenna position in the body frame, m (None: ``[0, 0, 0.05]``).
+    imu_rotation : array_like, shape (4,), optional
+        IMU → body mounting rotation ``[w, x, y, z]`` (None: identity).
+    overrides : dict, optional
+        Keys of :data:`SIM_OVERRIDE_KEYS`, as for :func:`sim_preset`.
+    **kwargs : float or bool
+        Further overrides, applied after ``overrides``.
+
+    Returns
+    -------
+    dict
+        As :func:`sim_preset`.
+
+    Raises
+    ------
+    ConfigError
+        Unknown override key, invalid value or zero-norm ``imu_rotation``.
+    UwbImuError
+        Bad array shape or non-finite values.
+    """
