@@ -68,9 +68,12 @@ pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[Range
         reports.clear();
         reports.resize(epoch.len(), UpdateReport::skipped());
         filter.update_ranges(t, &epoch, &mut reports)?;
-        trace.updates.extend(
-            ranges[next..end].iter().zip(&reports).map(|(r, report)| UpdateRecord { t_s: r.t_s, anchor: r.anchor, range_m: r.range_m, report: *report }),
-        );
+        trace.updates.extend(ranges[next..end].iter().zip(&reports).map(|(r, report)| UpdateRecord {
+            t_s: r.t_s,
+            anchor: r.anchor,
+            range_m: r.range_m,
+            report: *report,
+        }));
         Ok(end)
     };
     for sample in imu {

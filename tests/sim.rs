@@ -1,7 +1,6 @@
 //! Integration tests of the simulator: exact kinematics, IMU synthesis, noise statistics, UWB
 //! labels, reproducibility and config validation.
 
-
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use uwbimu_rs::math::{quat_exp, Quat, Vec3};
@@ -110,7 +109,8 @@ fn still_segments_do_not_move_and_sense_gravity() {
     }
     // A turn in place keeps the position and only rotates about z.
     let opts = DriveOptions::default();
-    let traj = Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).expect("test setup");
+    let traj =
+        Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).expect("test setup");
     let k = traj.sample(2.0 + 5.0 + 1.0 + 1.0); // still 2 s, leg of 2/0.5 + 1 s, dwell 1 s, mid-turn
     assert!((k.position - Vec3::new(2.0, 0.0, 0.0)).norm() < 1e-12);
     assert!(k.velocity.norm() < 1e-12 && k.angular_rate_body.z > 0.1);
@@ -276,7 +276,8 @@ fn ranges_are_measured_from_the_tag_not_the_body_origin() {
 fn imu_rotation_is_applied() {
     let upside_down = Quat::from_axis_angle(&Vec3::x_axis(), std::f64::consts::PI);
     let opts = DriveOptions::default();
-    let traj = Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).expect("test setup");
+    let traj =
+        Trajectory::waypoints(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)], &opts).expect("test setup");
     let cfg = SimConfig { imu_rotation: upside_down, ..noiseless(traj) };
     let data = simulate(&cfg).expect("test setup");
     assert!((data.imu[0].accel - Vec3::new(0.0, 0.0, -G)).norm() < 1e-12);
@@ -371,7 +372,8 @@ fn overrides_apply_and_unknown_keys_are_rejected() {
     assert_eq!(data.ranges.len(), 4 * (cfg.trajectory.duration_s() * 4.0).floor() as usize);
     // Switches go first, whatever the order given.
     let mut cfg = preset("seed000_los", 0).expect("test setup");
-    cfg.apply_overrides(&[("nlos_bias_max_m", OverrideValue::Number(3.0)), ("nlos", OverrideValue::Flag(true))]).expect("test setup");
+    cfg.apply_overrides(&[("nlos_bias_max_m", OverrideValue::Number(3.0)), ("nlos", OverrideValue::Flag(true))])
+        .expect("test setup");
     assert!((cfg.uwb.nlos.as_ref().expect("test setup").bias_max_m - 3.0).abs() < 1e-12);
     let err = cfg.apply_overrides(&[("range_sigma", OverrideValue::Number(0.2))]).unwrap_err();
     assert!(matches!(&err, Error::UnknownOption { kind: "override", allowed, .. } if allowed.contains("range_std_m")));

@@ -94,7 +94,14 @@ def run_filter(
         config key (the message names the array, row and column or the allowed values).
     """
     cols, upd, _info = _native.run_filter(
-        method, imu, ranges, anchors, initial=initial, config=config, covariance=covariance, updates=updates
+        method,
+        imu,
+        ranges,
+        anchors,
+        initial=_as_dict(initial),
+        config=_as_dict(config),
+        covariance=covariance,
+        updates=updates,
     )
     frame = pl.DataFrame(cols)
     if updates:
@@ -126,4 +133,9 @@ def initialize(
         ``initial``: dict usable as ``initial=`` of :func:`run_filter` or a filter class;
         ``info``: ``still_start`` (bool) and ``heading_from`` ("motion" or "fallback").
     """
-    return _native.initialize_state(imu, ranges, anchors, config=config)
+    return _native.initialize_state(imu, ranges, anchors, config=_as_dict(config))
+
+
+def _as_dict(value: Any) -> Any:
+    """A plain dict for any mapping (the native layer reads dicts); other values unchanged."""
+    return dict(value) if isinstance(value, Mapping) else value

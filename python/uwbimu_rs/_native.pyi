@@ -17,6 +17,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "Iekf",
+    "Rekf",
+    "Riekf",
     "UwbImuError",
     "ConfigError",
     "NumericalError",
@@ -144,7 +147,7 @@ class UpdateReport:
 
     @property
     def nis(self) -> float:
-        """Normalised innovation squared (dimensionless)."""
+        """γ: squared Mahalanobis distance of the innovation (seed 000 eqs. (37), (39))."""
 
     @property
     def accepted(self) -> bool:
@@ -152,7 +155,19 @@ class UpdateReport:
 
     @property
     def weight(self) -> float:
-        """Weight relative to the nominal range noise (1 = full)."""
+        """Weight relative to the nominal range noise, R / R_used (1 = full)."""
+
+    @property
+    def inflation(self) -> float:
+        """R_used / R (≥ 1; seed 000 eq. (40))."""
+
+    @property
+    def down_weighted(self) -> bool:
+        """Whether the noise policy down-weighted the range (inflation > 1)."""
+
+    @property
+    def iterations(self) -> int:
+        """Iterations of the (iterated) update the range took part in."""
 
 @final
 class Ekf:
@@ -222,6 +237,24 @@ class Ekf:
             The innovation covariance was not positive definite.
         """
 
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]:
+        """Apply the ranges of one epoch (all measured at ``t``) jointly.
+
+        Parameters
+        ----------
+        t : float
+            Measurement time, s.
+        anchors : sequence of int, length M
+            Anchor indices.
+        ranges : sequence of float, length M
+            Measured ranges, m.
+
+        Returns
+        -------
+        list of UpdateReport
+            One per range. The batch API groups ranges with equal timestamps into such epochs.
+        """
+
     @property
     def time(self) -> float | None:
         """Filter time, s (None before the first :meth:`predict`)."""
@@ -237,6 +270,52 @@ class Ekf:
     @property
     def covariance(self) -> _F64:
         """Error-state covariance, shape (15, 15), order δp, δv, δθ, δb_a, δb_g (a copy)."""
+
+
+@final
+class Iekf:
+    """The iterated EKF (seed 000 Algorithm 1 without re-weighting), fed sample by sample; API as :class:`Ekf`."""
+
+    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Iekf: ...
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
+
+@final
+class Rekf:
+    """The robust EKF of seed 000 (eqs. (37)–(40)), fed sample by sample; API as :class:`Ekf`."""
+
+    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Rekf: ...
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
+
+@final
+class Riekf:
+    """The robust iterated EKF of seed 000 (Algorithm 1), fed sample by sample; API as :class:`Ekf`."""
+
+    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Riekf: ...
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
 
 def run_filter(
     method: str,

@@ -100,19 +100,33 @@ fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Boun
 /// One report of a range update.
 #[pyclass(name = "UpdateReport", module = "uwbimu_rs._native", frozen, get_all)]
 pub struct PyUpdateReport {
-    /// Innovation z − h(x⁻), m.
+    /// Innovation z − h(x_op), m.
     innovation: f64,
-    /// Normalised innovation squared.
+    /// γ, squared Mahalanobis distance of the innovation.
     nis: f64,
     /// Whether the range changed the state.
     accepted: bool,
-    /// Weight relative to the nominal range noise (1 = full).
+    /// Weight relative to the nominal range noise, R / R_used (1 = full).
     weight: f64,
+    /// R_used / R (seed 000 eq. (40)).
+    inflation: f64,
+    /// Whether the noise policy down-weighted the range.
+    down_weighted: bool,
+    /// Iterations of the update.
+    iterations: u32,
 }
 
 impl From<UpdateReport> for PyUpdateReport {
     fn from(r: UpdateReport) -> Self {
-        Self { innovation: r.innovation, nis: r.nis, accepted: r.accepted, weight: r.weight }
+        Self {
+            innovation: r.innovation,
+            nis: r.nis,
+            accepted: r.accepted,
+            weight: r.weight,
+            inflation: r.inflation,
+            down_weighted: r.down_weighted,
+            iterations: r.iterations,
+        }
     }
 }
 
@@ -120,8 +134,8 @@ impl From<UpdateReport> for PyUpdateReport {
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
         format!(
-            "UpdateReport(innovation={}, nis={}, accepted={}, weight={})",
-            self.innovation, self.nis, self.accepted, self.weight
+            "UpdateReport(innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={})",
+            self.innovation, self.nis, self.accepted, self.weight, self.inflation, self.down_weighted, self.iterations
         )
     }
 }
@@ -131,7 +145,8 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
 }
 
 fn anchor_index(anchor: i64, count: usize) -> PyResult<usize> {
-    usize::try_from(anchor).map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into())
+    usize::try_from(anchor)
+        .map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into())
 }
 
 /// A Python class wrapping one named filter, with the streaming API.

@@ -55,7 +55,12 @@ impl TightFilter {
                 return Err(Error::UnknownAnchor { name: "update_range", row, anchor: anchor as f64, count: self.anchors.len() });
             }
             if !range_m.is_finite() || range_m < 0.0 {
-                return Err(Error::InvalidValue { name: "update_range", row, value: range_m, reason: "range must be finite and >= 0 m" });
+                return Err(Error::InvalidValue {
+                    name: "update_range",
+                    row,
+                    value: range_m,
+                    reason: "range must be finite and >= 0 m",
+                });
             }
         }
         Ok(())

@@ -10,15 +10,29 @@ use crate::error::{Error, Result};
 /// Standard-normal quantile Φ⁻¹(p) for 0 < p < 1 (P. J. Acklam's rational approximation,
 /// relative error below 1.15e-9).
 pub fn normal_quantile(p: f64) -> f64 {
-    const A: [f64; 6] =
-        [-3.969683028665376e1, 2.209460984245205e2, -2.759285104469687e2, 1.383577518672690e2, -3.066479806614716e1, 2.506628277459239];
-    const B: [f64; 5] = [-5.447609879822406e1, 1.615858368580409e2, -1.556989798598866e2, 6.680131188771972e1, -1.328068155288572e1];
-    const C: [f64; 6] =
-        [-7.784894002430293e-3, -3.223964580411365e-1, -2.400758277161838, -2.549732539343734, 4.374664141464968, 2.938163982698783];
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383577518672690e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] =
+        [-5.447609879822406e1, 1.615858368580409e2, -1.556989798598866e2, 6.680131188771972e1, -1.328068155288572e1];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
     const D: [f64; 4] = [7.784695709041462e-3, 3.224671290700398e-1, 2.445134137142996, 3.754408661907416];
     const P_LOW: f64 = 0.02425;
     let tail = |q: f64| {
-        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5]) / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
     };
     if p < P_LOW {
         tail((-2.0 * p.ln()).sqrt())
@@ -36,7 +50,10 @@ pub fn normal_quantile(p: f64) -> f64 {
 /// Fails unless `0 < alpha < 1`.
 pub fn chi2_quantile_1dof(alpha: f64) -> Result<f64> {
     if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(Error::InvalidConfig { field: "alpha".into(), reason: format!("significance level must be in (0, 1), got {alpha}") });
+        return Err(Error::InvalidConfig {
+            field: "alpha".into(),
+            reason: format!("significance level must be in (0, 1), got {alpha}"),
+        });
     }
     Ok(normal_quantile(1.0 - 0.5 * alpha).powi(2))
 }
