@@ -12,6 +12,8 @@ pub enum ConfigValue {
     Scalar(f64),
     /// A sequence of numbers.
     Vector(Vec<f64>),
+    /// A switch.
+    Flag(bool),
 }
 
 /// Noise, geometry and initialisation settings shared by the inertial filters.
@@ -57,6 +59,30 @@ pub struct FilterConfig {
     /// The iterated update stops when the error-state step norm falls below this (mixed units:
     /// m, m/s, rad, m/s², rad/s).
     pub iteration_tolerance: f64,
+    /// Zero-velocity constraint on (seed 000 eqs. (13)–(19)); always on in CRIEKF.
+    pub zupt: bool,
+    /// Pseudo-velocity constraint on (seed 000 eqs. (20)–(26)); always on in CRIEKF.
+    pub pseudo_velocity: bool,
+    /// Plane constraint on (seed 000 eqs. (27)–(32)); always on in CRIEKF.
+    pub plane: bool,
+    /// Still detector window, IMU samples.
+    pub zupt_window: usize,
+    /// Still detector GLRT threshold (≈ 6 at rest with matched noise), dimensionless.
+    pub zupt_threshold: f64,
+    /// Still detector speed gate: no ZUPT above this estimated speed, m/s.
+    pub zupt_max_speed: f64,
+    /// ZUPT measurement noise std per axis, m/s.
+    pub zupt_velocity_std: f64,
+    /// Pseudo-velocity measurement variance, m²/s² (seed 000 §3.5: 6).
+    pub pseudo_velocity_var: f64,
+    /// Pseudo-velocity: number of past constraint steps averaged (seed 000 eq. (20): 20).
+    pub pseudo_velocity_window: usize,
+    /// Plane constraint height of the body origin, m (None: the initial height).
+    pub plane_height: Option<f64>,
+    /// Plane constraint noise std, m.
+    pub plane_std: f64,
+    /// Constraints are applied at most once per this interval, s.
+    pub constraint_interval_s: f64,
 }
 
 impl Default for FilterConfig {
@@ -77,6 +103,18 @@ impl Default for FilterConfig {
             alpha: 0.01,
             max_iterations: 10,
             iteration_tolerance: 1e-4,
+            zupt: false,
+            pseudo_velocity: false,
+            plane: false,
+            zupt_window: 20,
+            zupt_threshold: 20.0,
+            zupt_max_speed: 0.2,
+            zupt_velocity_std: 0.01,
+            pseudo_velocity_var: 6.0,
+            pseudo_velocity_window: 20,
+            plane_height: None,
+            plane_std: 0.05,
+            constraint_interval_s: 0.1,
         }
     }
 }
@@ -86,6 +124,7 @@ fn scalar(field: &str, v: &ConfigValue) -> Result<f64> {
         ConfigValue::Scalar(x) if x.is_finite() => Ok(*x),
         ConfigValue::Scalar(x) => Err(invalid(field, format!("must be finite, got {x}"))),
         ConfigValue::Vector(_) => Err(invalid(field, "expected a number, got a sequence")),
+        ConfigValue::Flag(_) => Err(invalid(field, "expected a number, got a bool")),
     }
 }
 
@@ -99,11 +138,24 @@ fn non_negative(field: &str, v: &ConfigValue) -> Result<f64> {
 
 /// A whole number ≥ 1 (given as a float from Python).
 fn count(field: &str, v: &ConfigValue) -> Result<u32> {
-    let x = positive(field, v)?;
-    if x.fract() != 0.0 || x > f64::from(u32::MAX) {
-        return Err(invalid(field, format!("must be a whole number >= 1, got {x}")));
+    bounded_count(field, v, 1, u32::MAX as usize).map(|n| n as u32)
+}
+
+/// A whole number in `lo..=hi`.
+fn bounded_count(field: &str, v: &ConfigValue, lo: usize, hi: usize) -> Result<usize> {
+    let x = scalar(field, v)?;
+    if x.fract() != 0.0 || x < lo as f64 || x > hi as f64 {
+        return Err(invalid(field, format!("must be a whole number in {lo}..={hi}, got {x}")));
     }
-    Ok(x as u32)
+    Ok(x as usize)
+}
+
+/// A switch (True / False).
+fn flag(field: &str, v: &ConfigValue) -> Result<bool> {
+    match v {
+        ConfigValue::Flag(b) => Ok(*b),
+        _ => Err(invalid(field, "expected True or False")),
+    }
 }
 
 fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> {
@@ -119,7 +171,7 @@ fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> {
             Ok(out)
         }
         ConfigValue::Vector(xs) => Err(invalid(field, format!("expected {N} numbers, got {}", xs.len()))),
-        ConfigValue::Scalar(_) => Err(invalid(field, format!("expected {N} numbers, got a single number"))),
+        ConfigValue::Scalar(_) | ConfigValue::Flag(_) => Err(invalid(field, format!("expected {N} numbers, got a single value"))),
     }
 }
 
@@ -130,7 +182,7 @@ fn vec3_or_scalar(field: &str, v: &ConfigValue) -> Result<Vec3> {
             let s = non_negative(field, v)?;
             Ok(Vec3::repeat(s))
         }
-        ConfigValue::Vector(_) => {
+        ConfigValue::Vector(_) | ConfigValue::Flag(_) => {
             let a = vector::<3>(field, v)?;
             if a.iter().any(|x| *x < 0.0) {
                 return Err(invalid(field, "standard deviations must be >= 0"));
@@ -147,7 +199,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 15] = [
+    pub const KEYS: [&'static str; 27] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -163,6 +215,18 @@ impl FilterConfig {
         "alpha",
         "max_iterations",
         "iteration_tolerance",
+        "zupt",
+        "pseudo_velocity",
+        "plane",
+        "zupt_window",
+        "zupt_threshold",
+        "zupt_max_speed",
+        "zupt_velocity_std",
+        "pseudo_velocity_var",
+        "pseudo_velocity_window",
+        "plane_height",
+        "plane_std",
+        "constraint_interval_s",
     ];
 
     /// Sets one field by name, validating its value; unknown keys are an error that lists
@@ -179,7 +243,7 @@ impl FilterConfig {
             "gravity" => {
                 self.gravity = match value {
                     ConfigValue::Scalar(_) => Vec3::new(0.0, 0.0, -positive(key, value)?),
-                    ConfigValue::Vector(_) => Vec3::from(vector::<3>(key, value)?),
+                    ConfigValue::Vector(_) | ConfigValue::Flag(_) => Vec3::from(vector::<3>(key, value)?),
                 }
             }
             "accel_bias_std" => self.accel_bias_std = non_negative(key, value)?,
@@ -195,16 +259,31 @@ impl FilterConfig {
             }
             "max_iterations" => self.max_iterations = count(key, value)?,
             "iteration_tolerance" => self.iteration_tolerance = positive(key, value)?,
+            "zupt" => self.zupt = flag(key, value)?,
+            "pseudo_velocity" => self.pseudo_velocity = flag(key, value)?,
+            "plane" => self.plane = flag(key, value)?,
+            "zupt_window" => self.zupt_window = bounded_count(key, value, 2, crate::constraints::still::MAX_WINDOW)?,
+            "zupt_threshold" => self.zupt_threshold = positive(key, value)?,
+            "zupt_max_speed" => self.zupt_max_speed = positive(key, value)?,
+            "zupt_velocity_std" => self.zupt_velocity_std = positive(key, value)?,
+            "pseudo_velocity_var" => self.pseudo_velocity_var = positive(key, value)?,
+            "pseudo_velocity_window" => {
+                self.pseudo_velocity_window = bounded_count(key, value, 1, crate::constraints::MAX_SPEED_HISTORY)?
+            }
+            "plane_height" => self.plane_height = Some(scalar(key, value)?),
+            "plane_std" => self.plane_std = positive(key, value)?,
+            "constraint_interval_s" => self.constraint_interval_s = non_negative(key, value)?,
             _ => return Err(unknown_key("config", key, &Self::KEYS)),
         }
         Ok(())
     }
 
-    /// The configuration as (key, value) pairs in [`FilterConfig::KEYS`] order.
+    /// The configuration as (key, value) pairs in [`FilterConfig::KEYS`] order (`plane_height`
+    /// only when set).
     pub fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
         let v3 = |v: &Vec3| ConfigValue::Vector(v.iter().copied().collect());
         let q = &self.imu_rotation;
-        vec![
+        let mut entries = vec![
             ("range_std", ConfigValue::Scalar(self.range_std)),
             ("accel_noise_density", ConfigValue::Scalar(self.accel_noise_density)),
             ("gyro_noise_density", ConfigValue::Scalar(self.gyro_noise_density)),
@@ -220,7 +299,22 @@ impl FilterConfig {
             ("alpha", ConfigValue::Scalar(self.alpha)),
             ("max_iterations", ConfigValue::Scalar(f64::from(self.max_iterations))),
             ("iteration_tolerance", ConfigValue::Scalar(self.iteration_tolerance)),
-        ]
+            ("zupt", ConfigValue::Flag(self.zupt)),
+            ("pseudo_velocity", ConfigValue::Flag(self.pseudo_velocity)),
+            ("plane", ConfigValue::Flag(self.plane)),
+            ("zupt_window", ConfigValue::Scalar(self.zupt_window as f64)),
+            ("zupt_threshold", ConfigValue::Scalar(self.zupt_threshold)),
+            ("zupt_max_speed", ConfigValue::Scalar(self.zupt_max_speed)),
+            ("zupt_velocity_std", ConfigValue::Scalar(self.zupt_velocity_std)),
+            ("pseudo_velocity_var", ConfigValue::Scalar(self.pseudo_velocity_var)),
+            ("pseudo_velocity_window", ConfigValue::Scalar(self.pseudo_velocity_window as f64)),
+        ];
+        if let Some(h) = self.plane_height {
+            entries.push(("plane_height", ConfigValue::Scalar(h)));
+        }
+        entries.push(("plane_std", ConfigValue::Scalar(self.plane_std)));
+        entries.push(("constraint_interval_s", ConfigValue::Scalar(self.constraint_interval_s)));
+        entries
     }
 }
 

@@ -10,7 +10,7 @@ use crate::math::Vec3;
 use crate::update::UpdateReport;
 
 pub use self::core::InertialCore;
-pub use self::named::{Ekf, Iekf, Rekf, Riekf};
+pub use self::named::{Criekf, Ekf, Iekf, Rekf, Riekf};
 pub use self::tight::TightFilter;
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming
@@ -31,4 +31,10 @@ pub trait InertialFilter {
     }
     /// The shared INS core (state, covariance, time).
     fn core(&self) -> &InertialCore;
+
+    /// Whether the still detector reported the platform still at the last constraint step
+    /// (always false without the zero-velocity constraint).
+    fn still(&self) -> bool {
+        false
+    }
 }

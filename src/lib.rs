@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod config;
+pub mod constraints;
 pub mod error;
 pub mod filters;
 pub mod init;

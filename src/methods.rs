@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -22,11 +22,13 @@ pub enum Method {
     Rekf,
     /// The robust iterated EKF of seed 000 (Algorithm 1).
     Riekf,
+    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF).
+    Criekf,
 }
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 5] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf"];
+    pub const NAMES: [&'static str; 6] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -36,6 +38,7 @@ impl Method {
             "iekf" => Ok(Self::Iekf),
             "rekf" => Ok(Self::Rekf),
             "riekf" => Ok(Self::Riekf),
+            "criekf" => Ok(Self::Criekf),
             _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
         }
     }
@@ -75,6 +78,9 @@ pub fn run_method(
         Method::Iekf => run_inertial(|i| Iekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
         Method::Rekf => run_inertial(|i| Rekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
         Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
+        Method::Criekf => {
+            run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config)
+        }
     }
 }
 

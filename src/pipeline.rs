@@ -22,6 +22,8 @@ pub struct StepRecord {
     pub state: NominalState,
     /// Position covariance block, m².
     pub position_cov: Mat3,
+    /// Whether the still detector reported the platform still (zero-velocity constraint only).
+    pub still: bool,
 }
 
 /// One applied range and what the filter did with it.
@@ -89,6 +91,7 @@ pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[Range
             t_s: sample.t_s,
             state: *core.state(),
             position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
+            still: filter.still(),
         });
     }
     Ok(trace)

@@ -15,6 +15,7 @@ import polars as pl
 from uwbimu_rs._native import (
     FILTERS,
     ConfigError,
+    Criekf,
     Ekf,
     FilterConfig,
     Iekf,
@@ -29,6 +30,7 @@ from uwbimu_rs import _native
 __all__ = [
     "FILTERS",
     "ConfigError",
+    "Criekf",
     "Ekf",
     "FilterConfig",
     "Iekf",
@@ -58,7 +60,7 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``).
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)
@@ -83,7 +85,7 @@ def run_filter(
     -------
     polars.DataFrame
         Inertial filters: one row per IMU sample with ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz,
-        std_x, std_y, std_z``. ``uwb_ls``: one row per solvable UWB epoch with
+        std_x, std_y, std_z, still`` (``still``: the zero-velocity detector's decision). ``uwb_ls``: one row per solvable UWB epoch with
         ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms``.
         ``(frame, updates_frame)`` when ``updates=True``.
 
@@ -104,6 +106,8 @@ def run_filter(
         updates=updates,
     )
     frame = pl.DataFrame(cols)
+    if "still" in frame.columns:
+        frame = frame.with_columns(pl.col("still").cast(pl.Boolean))
     if updates:
         if upd is None:
             raise ValueError(f"method {method!r} has no range updates to report")

@@ -69,10 +69,10 @@ pub fn array<'py>(obj: &Bound<'py, PyAny>, name: &'static str) -> PyResult<PyRea
     converted.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
 }
 
-/// Converts a Python number or sequence into a [`ConfigValue`] (`name` is the key, for errors).
+/// Converts a Python bool, number or sequence into a [`ConfigValue`] (`name` is the key, for errors).
 pub fn config_value(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<ConfigValue> {
-    if obj.is_instance_of::<PyBool>() {
-        return Err(PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got a bool")));
+    if let Ok(b) = obj.cast::<PyBool>() {
+        return Ok(ConfigValue::Flag(b.is_true()));
     }
     if let Ok(x) = obj.extract::<f64>() {
         return Ok(ConfigValue::Scalar(x));
@@ -107,5 +107,6 @@ pub fn config_value_to_py<'py>(py: Python<'py>, v: &ConfigValue) -> PyResult<Bou
     match v {
         ConfigValue::Scalar(x) => Ok(x.into_pyobject(py)?.into_any()),
         ConfigValue::Vector(xs) => Ok(xs.clone().into_pyarray(py).into_any()),
+        ConfigValue::Flag(b) => Ok(PyBool::new(py, *b).to_owned().into_any()),
     }
 }

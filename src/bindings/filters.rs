@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchOutput, Method};
@@ -229,6 +229,10 @@ py_filter!(
     /// The robust iterated EKF of seed 000 (Algorithm 1), sample by sample.
     PyRiekf, "Riekf", Riekf
 );
+py_filter!(
+    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF).
+    PyCriekf, "Criekf", Criekf
+);
 
 fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
     let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
@@ -264,6 +268,7 @@ fn trace_columns(trace: &Trace, covariance: bool) -> Vec<(&'static str, Vec<f64>
         ("std_x", col(&|r| r.position_cov[(0, 0)].sqrt())),
         ("std_y", col(&|r| r.position_cov[(1, 1)].sqrt())),
         ("std_z", col(&|r| r.position_cov[(2, 2)].sqrt())),
+        ("still", col(&|r| f64::from(u8::from(r.still)))),
     ];
     if covariance {
         for (name, i, j) in
@@ -391,6 +396,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyIekf>()?;
     m.add_class::<PyRekf>()?;
     m.add_class::<PyRiekf>()?;
+    m.add_class::<PyCriekf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;

@@ -14,6 +14,8 @@ pub struct InertialCore {
     state: NominalState,
     covariance: ErrCov,
     time_s: Option<f64>,
+    last_imu_t_s: Option<f64>,
+    last_interval_s: Option<f64>,
     held_accel: Vec3,
     held_gyro: Vec3,
     imu_count: usize,
@@ -47,6 +49,8 @@ impl InertialCore {
             },
             covariance,
             time_s: None,
+            last_imu_t_s: None,
+            last_interval_s: None,
             held_accel: Vec3::zeros(),
             held_gyro: Vec3::zeros(),
             imu_count: 0,
@@ -69,6 +73,7 @@ impl InertialCore {
             if t_s <= t0 {
                 return Err(Error::NonMonotonicTime { name: "predict", row, prev_s: t0, got_s: t_s });
             }
+            self.last_interval_s = self.last_imu_t_s.map(|t_imu| t_s - t_imu);
             self.propagate(&ImuInterval {
                 dt_s: t_s - t0,
                 accel_start: self.held_accel,
@@ -78,6 +83,7 @@ impl InertialCore {
             });
         }
         self.time_s = Some(t_s);
+        self.last_imu_t_s = Some(t_s);
         self.held_accel = accel;
         self.held_gyro = gyro;
         self.imu_count += 1;
@@ -113,6 +119,17 @@ impl InertialCore {
         let phi = Transition::new(&self.state, imu);
         self.state = propagate_nominal(&self.state, imu, &self.config.gravity);
         self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config, imu.dt_s));
+    }
+
+    /// The last IMU sample in the body frame (after the mounting rotation): specific force m/s²,
+    /// rate rad/s.
+    pub fn last_imu_body(&self) -> (Vec3, Vec3) {
+        (self.held_accel, self.held_gyro)
+    }
+
+    /// Time between the last two IMU samples, s (None before the second sample).
+    pub fn last_interval_s(&self) -> Option<f64> {
+        self.last_interval_s
     }
 
     /// The configuration.

@@ -8,15 +8,16 @@ use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 use crate::update::UpdateReport;
 
 macro_rules! named_filter {
-    ($(#[$doc:meta])* $name:ident, |$config:ident| ($policy:expr, $iterations:expr)) => {
+    ($(#[$doc:meta])* $name:ident, |$config:ident| $setup:expr) => {
         $(#[$doc])*
         #[derive(Debug, Clone)]
         pub struct $name(TightFilter);
 
         impl $name {
             /// Builds the filter; anchors in the navigation frame, m.
-            pub fn new(anchors: Vec<Vec3>, initial: &InitialState, $config: FilterConfig) -> Result<Self> {
-                let (policy, iterations) = ($policy, $iterations);
+            #[allow(unused_mut)]
+            pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut $config: FilterConfig) -> Result<Self> {
+                let (policy, iterations): (RangeNoisePolicy, u32) = $setup;
                 Ok(Self(TightFilter::new(anchors, initial, $config, policy, iterations)?))
             }
 
@@ -37,6 +38,10 @@ macro_rules! named_filter {
 
             fn core(&self) -> &InertialCore {
                 self.0.core()
+            }
+
+            fn still(&self) -> bool {
+                self.0.still()
             }
         }
     };
@@ -79,4 +84,14 @@ named_filter!(
     /// `iteration_tolerance` or `max_iterations` is reached.
     Riekf,
     |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, config.max_iterations)
+);
+
+named_filter!(
+    /// Constrained robust iterated EKF (seed 000 CRIEKF): RIEKF with the zero-velocity,
+    /// pseudo-velocity and plane constraints all switched on.
+    Criekf,
+    |config| {
+        (config.zupt, config.pseudo_velocity, config.plane) = (true, true, true);
+        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, config.max_iterations)
+    }
 );

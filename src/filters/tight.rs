@@ -3,6 +3,7 @@
 //! seed 000 Algorithm 1).
 
 use crate::config::{FilterConfig, InitialState};
+use crate::constraints::Constraints;
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
@@ -18,7 +19,12 @@ use crate::update::{inject_and_reset, scalar_step, UpdateReport};
 /// the policy sets `R'` (eq. (40)); the linearised problem is then solved by sequential scalar
 /// Joseph steps, which equals the joint update of Algorithm 1 lines 9–11 for diagonal `R`. The
 /// strategy iterates until the step `‖X⁺ ⊖ X_op‖` is below `tolerance` or `max_iterations` is
-/// reached (line 12); one iteration is the single EKF step.
+/// reached (line 12); one iteration is the single EKF step. The iteration re-linearises from the
+/// prior covariance `P⁻` each time (a standard iterated EKF); Algorithm 1 line 8 as printed
+/// (`P⁻ := P⁺`) would re-use each iteration's posterior as the next prior and count the ranges
+/// repeatedly, so only γ (eq. (39)) uses the posterior.
+///
+/// Motion constraints ([`Constraints`], seed 000 §2.2) run after each prediction when switched on.
 #[derive(Debug, Clone)]
 pub struct TightFilter {
     core: InertialCore,
@@ -26,6 +32,7 @@ pub struct TightFilter {
     policy: RangeNoisePolicy,
     max_iterations: u32,
     tolerance: f64,
+    constraints: Constraints,
 }
 
 impl TightFilter {
@@ -41,7 +48,15 @@ impl TightFilter {
             return Err(Error::InsufficientData("at least one anchor is required".into()));
         }
         let tolerance = config.iteration_tolerance;
-        Ok(Self { core: InertialCore::new(initial, config)?, anchors, policy, max_iterations: max_iterations.max(1), tolerance })
+        let constraints = Constraints::new(&config, initial.position.z);
+        Ok(Self {
+            core: InertialCore::new(initial, config)?,
+            anchors,
+            policy,
+            max_iterations: max_iterations.max(1),
+            tolerance,
+            constraints,
+        })
     }
 
     /// The anchors, navigation frame, m.
@@ -69,7 +84,11 @@ impl TightFilter {
 
 impl InertialFilter for TightFilter {
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.core.predict(t_s, accel, gyro)
+        self.core.predict(t_s, accel, gyro)?;
+        if self.constraints.any() {
+            self.constraints.after_predict(&mut self.core)?;
+        }
+        Ok(())
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
@@ -117,5 +136,9 @@ impl InertialFilter for TightFilter {
 
     fn core(&self) -> &InertialCore {
         &self.core
+    }
+
+    fn still(&self) -> bool {
+        self.constraints.still()
     }
 }

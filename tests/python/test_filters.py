@@ -9,11 +9,11 @@ import pytest
 import uwbimu_rs
 from uwbimu_rs import metrics
 
-COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z"]
+COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z", "still"]
 
 
 def test_filters_listed():
-    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf"]
+    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf"]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
@@ -78,7 +78,7 @@ def _streaming(run, initial, config, cls=uwbimu_rs.Ekf):
     return np.array(rows), reports, f
 
 
-@pytest.mark.parametrize(("method", "cls"), [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf)])
+@pytest.mark.parametrize(("method", "cls"), [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf), ("criekf", uwbimu_rs.Criekf)])
 def test_streaming_equals_batch(los_run, filter_config, method, cls):
     initial, _info = uwbimu_rs.initialize(los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
     n = 2000  # 20 s: still start and the first metres of the figure-8
@@ -161,7 +161,7 @@ def _set(a, idx, value):
 
 def test_unknown_method_lists_allowed(small):
     imu, ranges, anchors, _ = small
-    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf"):
+    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf, criekf"):
         uwbimu_rs.run_filter("kalman", imu, ranges, anchors)
 
 

@@ -1,0 +1,73 @@
+//! Still (zero-velocity) detector: the GLRT of Fischer et al. 2013 (cited by seed 000 §2.2(1)) on
+//! a trailing window of IMU samples, gated by the estimated speed.
+
+use crate::math::Vec3;
+
+/// Largest window the detector holds, samples.
+pub const MAX_WINDOW: usize = 128;
+
+/// GLRT still detector on a trailing window of `window` samples:
+///
+/// `T = (1/W) Σ_j [ ‖a_j − g·ā/‖ā‖‖² / σ_a² + ‖ω_j‖² / σ_ω² ]`
+///
+/// with bias-corrected specific force `a_j` and rate `ω_j`, the window mean `ā`, gravity magnitude
+/// `g` and per-sample noise stds `σ`. With matched noise `T ≈ 6` at rest. The platform is declared
+/// still when `T < threshold` **and** the filter's speed is below `max_speed` — the speed gate is
+/// our addition for wheeled platforms, whose constant-velocity cruise the IMU alone cannot tell
+/// from rest. The window is causal (Fischer's is centred), so detection lags by `W/2` samples.
+#[derive(Debug, Clone)]
+pub struct StillDetector {
+    accel: [Vec3; MAX_WINDOW],
+    gyro: [Vec3; MAX_WINDOW],
+    window: usize,
+    len: usize,
+    head: usize,
+    threshold: f64,
+    max_speed: f64,
+}
+
+impl StillDetector {
+    /// A detector over `window` samples (clamped to 2..=[`MAX_WINDOW`]) with GLRT `threshold`
+    /// and speed gate `max_speed` (m/s).
+    pub fn new(window: usize, threshold: f64, max_speed: f64) -> Self {
+        Self {
+            accel: [Vec3::zeros(); MAX_WINDOW],
+            gyro: [Vec3::zeros(); MAX_WINDOW],
+            window: window.clamp(2, MAX_WINDOW),
+            len: 0,
+            head: 0,
+            threshold,
+            max_speed,
+        }
+    }
+
+    /// Adds one bias-corrected sample (body frame: specific force m/s², rate rad/s).
+    pub fn push(&mut self, accel: Vec3, gyro: Vec3) {
+        self.accel[self.head] = accel;
+        self.gyro[self.head] = gyro;
+        self.head = (self.head + 1) % self.window;
+        self.len = (self.len + 1).min(self.window);
+    }
+
+    /// The GLRT statistic over the current window (None until the window is full).
+    pub fn statistic(&self, gravity: f64, accel_std: f64, gyro_std: f64) -> Option<f64> {
+        if self.len < self.window {
+            return None;
+        }
+        let n = self.window as f64;
+        let mean = self.accel[..self.window].iter().sum::<Vec3>() / n;
+        let up = mean.try_normalize(1e-9)? * gravity;
+        let (va, vg) = (accel_std * accel_std, gyro_std * gyro_std);
+        let t = self.accel[..self.window]
+            .iter()
+            .zip(&self.gyro[..self.window])
+            .map(|(a, w)| (a - up).norm_squared() / va + w.norm_squared() / vg)
+            .sum::<f64>();
+        Some(t / n)
+    }
+
+    /// Whether the platform is still: GLRT below threshold and speed below the gate.
+    pub fn is_still(&self, gravity: f64, accel_std: f64, gyro_std: f64, speed: f64) -> bool {
+        speed < self.max_speed && self.statistic(gravity, accel_std, gyro_std).is_some_and(|t| t < self.threshold)
+    }
+}
