@@ -67,8 +67,14 @@ pub struct FilterConfig {
     pub plane: bool,
     /// Still detector window, IMU samples.
     pub zupt_window: usize,
-    /// Still detector GLRT threshold (≈ 6 at rest with matched noise), dimensionless.
+    /// Still detector threshold on its statistic, dimensionless (see
+    /// [`crate::constraints::StillDetector`]).
     pub zupt_threshold: f64,
+    /// Still detector: std of the specific force about its value at rest, m/s² (sensor noise
+    /// plus attitude and bias errors).
+    pub zupt_accel_std: f64,
+    /// Still detector: std of the angular rate at rest, rad/s.
+    pub zupt_gyro_std: f64,
     /// Still detector speed gate: no ZUPT above this estimated speed, m/s.
     pub zupt_max_speed: f64,
     /// ZUPT measurement noise std per axis, m/s.
@@ -107,7 +113,9 @@ impl Default for FilterConfig {
             pseudo_velocity: false,
             plane: false,
             zupt_window: 20,
-            zupt_threshold: 20.0,
+            zupt_threshold: 9.0,
+            zupt_accel_std: 0.05,
+            zupt_gyro_std: 0.01,
             zupt_max_speed: 0.2,
             zupt_velocity_std: 0.01,
             pseudo_velocity_var: 6.0,
@@ -199,7 +207,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 27] = [
+    pub const KEYS: [&'static str; 29] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -220,6 +228,8 @@ impl FilterConfig {
         "plane",
         "zupt_window",
         "zupt_threshold",
+        "zupt_accel_std",
+        "zupt_gyro_std",
         "zupt_max_speed",
         "zupt_velocity_std",
         "pseudo_velocity_var",
@@ -264,6 +274,8 @@ impl FilterConfig {
             "plane" => self.plane = flag(key, value)?,
             "zupt_window" => self.zupt_window = bounded_count(key, value, 2, crate::constraints::still::MAX_WINDOW)?,
             "zupt_threshold" => self.zupt_threshold = positive(key, value)?,
+            "zupt_accel_std" => self.zupt_accel_std = positive(key, value)?,
+            "zupt_gyro_std" => self.zupt_gyro_std = positive(key, value)?,
             "zupt_max_speed" => self.zupt_max_speed = positive(key, value)?,
             "zupt_velocity_std" => self.zupt_velocity_std = positive(key, value)?,
             "pseudo_velocity_var" => self.pseudo_velocity_var = positive(key, value)?,
@@ -304,6 +316,8 @@ impl FilterConfig {
             ("plane", ConfigValue::Flag(self.plane)),
             ("zupt_window", ConfigValue::Scalar(self.zupt_window as f64)),
             ("zupt_threshold", ConfigValue::Scalar(self.zupt_threshold)),
+            ("zupt_accel_std", ConfigValue::Scalar(self.zupt_accel_std)),
+            ("zupt_gyro_std", ConfigValue::Scalar(self.zupt_gyro_std)),
             ("zupt_max_speed", ConfigValue::Scalar(self.zupt_max_speed)),
             ("zupt_velocity_std", ConfigValue::Scalar(self.zupt_velocity_std)),
             ("pseudo_velocity_var", ConfigValue::Scalar(self.pseudo_velocity_var)),

@@ -83,10 +83,9 @@ impl Constraints {
         if self.next_t_s.is_some_and(|next| t < next) {
             return Ok(());
         }
-        let dt = core.last_interval_s().unwrap_or(0.01).max(1e-6);
-        let (accel_std, gyro_std) = (cfg.accel_noise_density / dt.sqrt(), cfg.gyro_noise_density / dt.sqrt());
         let speed = x.velocity.norm();
-        self.still = self.zupt && self.detector.is_still(cfg.gravity.norm(), accel_std, gyro_std, speed);
+        let rest_accel = x.orientation.inverse() * (-cfg.gravity);
+        self.still = self.zupt && self.detector.is_still(&rest_accel, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
         let (zupt_var, pseudo_var, plane_var) = (cfg.zupt_velocity_std.powi(2), cfg.pseudo_velocity_var, cfg.plane_std.powi(2));
         self.next_t_s = Some(t + cfg.constraint_interval_s);
         let velocity = x.velocity;

@@ -1,20 +1,23 @@
 //! Still (zero-velocity) detector: the GLRT of Fischer et al. 2013 (cited by seed 000 §2.2(1)) on
-//! a trailing window of IMU samples, gated by the estimated speed.
+//! a trailing window of IMU samples, with the gravity direction taken from the filter's attitude,
+//! gated by the estimated speed.
 
 use crate::math::Vec3;
 
 /// Largest window the detector holds, samples.
 pub const MAX_WINDOW: usize = 128;
 
-/// GLRT still detector on a trailing window of `window` samples:
+/// GLRT still detector on a trailing window of `W` samples:
 ///
-/// `T = (1/W) Σ_j [ ‖a_j − g·ā/‖ā‖‖² / σ_a² + ‖ω_j‖² / σ_ω² ]`
+/// `T = (1/W) Σ_j [ ‖a_j − f₀‖² / σ_a² + ‖ω_j‖² / σ_ω² ]`
 ///
-/// with bias-corrected specific force `a_j` and rate `ω_j`, the window mean `ā`, gravity magnitude
-/// `g` and per-sample noise stds `σ`. With matched noise `T ≈ 6` at rest. The platform is declared
-/// still when `T < threshold` **and** the filter's speed is below `max_speed` — the speed gate is
-/// our addition for wheeled platforms, whose constant-velocity cruise the IMU alone cannot tell
-/// from rest. The window is causal (Fischer's is centred), so detection lags by `W/2` samples.
+/// with bias-corrected specific force `a_j` and rate `ω_j`, the specific force at rest
+/// `f₀ = R̂ᵀ·(−g_n)` from the filter's attitude, and the detector's stds `σ_a`, `σ_ω`.
+/// Fischer et al. use the window's own mean direction, `f₀ = g·ā/‖ā‖`, which suits a foot but not
+/// a wheeled platform: a steady acceleration only tilts `ā` and goes unseen, so the end of a
+/// smooth braking looks still. The platform is declared still when `T < threshold` **and** the
+/// filter's speed is below `max_speed` (our addition: a constant-velocity cruise is invisible to
+/// any IMU test). The window is causal (Fischer's is centred), so detection lags by `W/2` samples.
 #[derive(Debug, Clone)]
 pub struct StillDetector {
     accel: [Vec3; MAX_WINDOW],
@@ -49,25 +52,23 @@ impl StillDetector {
         self.len = (self.len + 1).min(self.window);
     }
 
-    /// The GLRT statistic over the current window (None until the window is full).
-    pub fn statistic(&self, gravity: f64, accel_std: f64, gyro_std: f64) -> Option<f64> {
+    /// The statistic over the current window against the specific force at rest `rest_accel`
+    /// (body frame, m/s²); None until the window is full.
+    pub fn statistic(&self, rest_accel: &Vec3, accel_std: f64, gyro_std: f64) -> Option<f64> {
         if self.len < self.window {
             return None;
         }
-        let n = self.window as f64;
-        let mean = self.accel[..self.window].iter().sum::<Vec3>() / n;
-        let up = mean.try_normalize(1e-9)? * gravity;
         let (va, vg) = (accel_std * accel_std, gyro_std * gyro_std);
         let t = self.accel[..self.window]
             .iter()
             .zip(&self.gyro[..self.window])
-            .map(|(a, w)| (a - up).norm_squared() / va + w.norm_squared() / vg)
+            .map(|(a, w)| (a - rest_accel).norm_squared() / va + w.norm_squared() / vg)
             .sum::<f64>();
-        Some(t / n)
+        Some(t / self.window as f64)
     }
 
-    /// Whether the platform is still: GLRT below threshold and speed below the gate.
-    pub fn is_still(&self, gravity: f64, accel_std: f64, gyro_std: f64, speed: f64) -> bool {
-        speed < self.max_speed && self.statistic(gravity, accel_std, gyro_std).is_some_and(|t| t < self.threshold)
+    /// Whether the platform is still: statistic below threshold and speed below the gate.
+    pub fn is_still(&self, rest_accel: &Vec3, accel_std: f64, gyro_std: f64, speed: f64) -> bool {
+        speed < self.max_speed && self.statistic(rest_accel, accel_std, gyro_std).is_some_and(|t| t < self.threshold)
     }
 }
