@@ -13,7 +13,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.mark.parametrize(
     "script",
-    [["examples/demo.py", "--no-plot"], ["benches/python_api.py", "--repeat", "1"]],
+    [
+        ["examples/demo.py", "--no-plot"],
+        ["examples/seed000_table1.py", "--seeds", "1"],
+        ["benches/python_api.py", "--repeat", "1"],
+    ],
     ids=lambda s: s[0],
 )
 def test_script_runs(script):
