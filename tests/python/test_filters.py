@@ -208,3 +208,35 @@ def test_self_init_without_uwb_fails_clearly(small):
     imu, _ranges, anchors, _ = small
     with pytest.raises(ValueError, match="no solvable UWB epoch"):
         uwbimu_rs.run_filter("ekf", imu, np.zeros((0, 3)), anchors)
+
+
+def test_robust_reports_on_nlos_data(filter_config):
+    from uwbimu_rs import sim
+
+    run = sim.preset("seed000", seed=2)
+    df, upd = uwbimu_rs.run_filter("riekf", run.imu, run.ranges, run.anchors, config=filter_config, updates=True)
+    assert {"inflation", "down_weighted", "iterations"} <= set(upd.columns)
+    assert upd["down_weighted"].dtype == pl.Boolean and upd["iterations"].dtype == pl.Int64
+    assert upd["down_weighted"].any() and (upd["iterations"] >= 1).all()
+    down = upd.filter(pl.col("down_weighted"))
+    np.testing.assert_allclose(down["weight"] * down["inflation"], 1.0)
+    assert (down["inflation"] > 1.0).all()
+    # The χ² threshold at the default α = 0.01 is 6.63: a down-weighted range has γ above it
+    # for its last iterate.
+    assert (down["nis"] >= 6.63).all()
+
+
+def test_constraint_switches_and_still_column(filter_config):
+    from uwbimu_rs import sim
+
+    run = sim.preset("seed000_los", seed=0)
+    cfg = uwbimu_rs.FilterConfig(**filter_config, zupt=True)
+    assert cfg.to_dict()["zupt"] is True
+    df = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, config=cfg)
+    assert df["still"].dtype == pl.Boolean
+    # The preset starts with 2 s still: the detector fires there and not while driving.
+    early = df.filter(pl.col("t") < 2.0)["still"].mean()
+    late = df.filter(pl.col("t") > 10.0)["still"].mean()
+    assert early > 0.5 and late < 0.02
+    with pytest.raises(ValueError, match=r"config `zupt`: expected True or False"):
+        uwbimu_rs.FilterConfig(zupt=1.0)
