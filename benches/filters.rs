@@ -21,7 +21,11 @@ fn setup<F: InertialFilter>(build: fn(Vec<Vec3>, &InitialState, FilterConfig) ->
     f
 }
 
-fn bench_filter<F: InertialFilter>(c: &mut Criterion, name: &str, build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::Result<F>) {
+fn bench_filter<F: InertialFilter>(
+    c: &mut Criterion,
+    name: &str,
+    build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::Result<F>,
+) {
     let mut group = c.benchmark_group(name);
     group.throughput(Throughput::Elements(1));
     let accel = Vec3::new(0.2, -0.1, 9.8);

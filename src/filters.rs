@@ -9,7 +9,7 @@ use crate::error::Result;
 use crate::math::Vec3;
 use crate::update::UpdateReport;
 
-pub use self::core::InertialCore;
+pub use self::core::{InertialCore, Segment};
 pub use self::named::{Criekf, Ekf, Iekf, Rekf, Riekf};
 pub use self::tight::TightFilter;
 
@@ -31,6 +31,9 @@ pub trait InertialFilter {
     }
     /// The shared INS core (state, covariance, time).
     fn core(&self) -> &InertialCore;
+
+    /// Mutable access to the INS core (e.g. to start recording for smoothing).
+    fn core_mut(&mut self) -> &mut InertialCore;
 
     /// Whether the still detector reported the platform still at the last constraint step
     /// (always false without the zero-velocity constraint).

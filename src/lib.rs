@@ -15,6 +15,7 @@ pub mod pipeline;
 pub mod records;
 pub mod robust;
 pub mod sim;
+pub mod smoother;
 pub mod state;
 pub mod update;
 pub mod validate;

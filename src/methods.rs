@@ -6,7 +6,7 @@ use crate::filters::{Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
-use crate::pipeline::{run, Trace};
+use crate::pipeline::{run, run_smoothed, StepRecord, Trace};
 use crate::records::{ImuSample, RangeMeasurement};
 
 /// A method name accepted by the batch API.
@@ -54,45 +54,55 @@ pub enum BatchOutput {
         trace: Trace,
         /// Self-initialisation result, when the filter initialised itself.
         init: Option<Box<SelfInit>>,
+        /// RTS-smoothed records, one per IMU sample, when smoothing was asked for.
+        smoothed: Option<Vec<StepRecord>>,
     },
     /// One UWB-only fix per solvable epoch: (epoch time s, fix).
     Multilateration(Vec<(f64, Fix)>),
 }
 
-/// Runs `method` over validated, time-ordered data. Without `initial`, inertial filters
-/// initialise themselves ([`crate::init`]).
-pub fn run_method(
-    method: Method,
-    imu: &[ImuSample],
-    ranges: &[RangeMeasurement],
-    anchors: &[Vec3],
-    initial: Option<&InitialState>,
-    config: &FilterConfig,
-) -> Result<BatchOutput> {
+/// What a batch run is given besides the method.
+#[derive(Debug, Clone, Copy)]
+pub struct BatchInput<'a> {
+    /// IMU samples, validated and time-ordered.
+    pub imu: &'a [ImuSample],
+    /// Ranges, validated and time-ordered.
+    pub ranges: &'a [RangeMeasurement],
+    /// Anchor positions, m.
+    pub anchors: &'a [Vec3],
+    /// Initial state (None: self-initialisation, [`crate::init`]).
+    pub initial: Option<&'a InitialState>,
+    /// Filter settings.
+    pub config: &'a FilterConfig,
+    /// Also RTS-smooth the run (inertial filters only).
+    pub smooth: bool,
+}
+
+/// Runs `method` over one recording.
+pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    let BatchInput { ranges, anchors, config, .. } = *input;
     match method {
+        Method::UwbLs if input.smooth => {
+            Err(Error::UnknownOption { kind: "smoothing method", got: "uwb_ls".into(), allowed: Method::NAMES[1..].join(", ") })
+        }
         Method::UwbLs => {
             let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
             Ok(BatchOutput::Multilateration(uwb_ls(ranges, anchors, &ls)))
         }
-        Method::Ekf => run_inertial(|i| Ekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
-        Method::Iekf => run_inertial(|i| Iekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
-        Method::Rekf => run_inertial(|i| Rekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
-        Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config),
-        Method::Criekf => {
-            run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), imu, ranges, anchors, initial, config)
-        }
+        Method::Ekf => run_inertial(|i| Ekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Iekf => run_inertial(|i| Iekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Rekf => run_inertial(|i| Rekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
     }
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
 fn run_inertial<F: InertialFilter>(
     build: impl FnOnce(&InitialState) -> Result<F>,
-    imu: &[ImuSample],
-    ranges: &[RangeMeasurement],
-    anchors: &[Vec3],
-    initial: Option<&InitialState>,
-    config: &FilterConfig,
+    input: &BatchInput<'_>,
 ) -> Result<BatchOutput> {
+    let BatchInput { imu, ranges, anchors, initial, config, smooth } = *input;
     let (initial, init) = match initial {
         Some(i) => (i.clone(), None),
         None => {
@@ -101,5 +111,10 @@ fn run_inertial<F: InertialFilter>(
         }
     };
     let mut filter = build(&initial)?;
-    Ok(BatchOutput::Inertial { trace: run(&mut filter, imu, ranges)?, init })
+    if smooth {
+        let (trace, smoothed) = run_smoothed(&mut filter, imu, ranges)?;
+        Ok(BatchOutput::Inertial { trace, init, smoothed: Some(smoothed) })
+    } else {
+        Ok(BatchOutput::Inertial { trace: run(&mut filter, imu, ranges)?, init, smoothed: None })
+    }
 }

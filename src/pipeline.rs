@@ -6,10 +6,11 @@
 //! recorded. Ranges sharing a timestamp are one epoch, applied jointly. Ranges before the first IMU
 //! sample are counted and skipped (the filter has no time yet).
 
-use crate::error::Result;
-use crate::filters::InertialFilter;
+use crate::error::{Error, Result};
+use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Mat3;
 use crate::records::{ImuSample, RangeMeasurement};
+use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::state::{NominalState, POS};
 use crate::update::UpdateReport;
 
@@ -95,4 +96,41 @@ pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[Range
         });
     }
     Ok(trace)
+}
+
+/// Runs `filter` like [`run`] while recording, then smooths the run backwards
+/// ([`crate::smoother::rts_smooth`]). Returns the filtered trace and one smoothed record per IMU
+/// sample.
+pub fn run_smoothed<F: InertialFilter>(
+    filter: &mut F,
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+) -> Result<(Trace, Vec<StepRecord>)> {
+    filter.core_mut().start_recording(imu.len() + ranges.len());
+    let trace = run(filter, imu, ranges)?;
+    let nodes = smooth_recording(filter.core())?;
+    // Each IMU step's record is the posterior at its time: the node starting there.
+    let mut k = 0;
+    let smoothed = trace
+        .steps
+        .iter()
+        .map(|step| {
+            while k + 1 < nodes.len() && nodes[k].t_s < step.t_s {
+                k += 1;
+            }
+            let n = &nodes[k];
+            StepRecord { state: n.state, position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(), ..*step }
+        })
+        .collect();
+    Ok((trace, smoothed))
+}
+
+/// Smooths what `core` recorded since [`InertialCore::start_recording`]; one node per recorded
+/// propagation start plus the current state.
+pub fn smooth_recording(core: &InertialCore) -> Result<Vec<SmoothedNode>> {
+    let Some(t_s) = core.time_s() else {
+        return Err(Error::InvalidCall("nothing to smooth: the filter has not started".into()));
+    };
+    let last = SmoothedNode { t_s, state: *core.state(), covariance: *core.covariance() };
+    rts_smooth(core.segments(), last, core.config())
 }

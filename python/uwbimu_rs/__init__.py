@@ -54,6 +54,7 @@ def run_filter(
     config: FilterConfig | Mapping[str, Any] | None = None,
     covariance: bool = False,
     updates: bool = False,
+    smooth: bool = False,
 ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
@@ -76,6 +77,9 @@ def run_filter(
         Keys as in ``FilterConfig.keys()``; unknown keys raise :class:`ConfigError`.
     covariance : bool
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
+    smooth : bool
+        Return the Rauch–Tung–Striebel smoothed estimates (same columns) instead of the filtered
+        ones (inertial methods only; the updates frame stays the forward pass's).
     updates : bool
         Also return a DataFrame with one row per range update
         (t, anchor, range, innovation, nis, accepted, weight, inflation, down_weighted,
@@ -104,6 +108,7 @@ def run_filter(
         config=_as_dict(config),
         covariance=covariance,
         updates=updates,
+        smooth=smooth,
     )
     frame = pl.DataFrame(cols)
     if "still" in frame.columns:

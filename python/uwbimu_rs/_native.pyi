@@ -195,7 +195,13 @@ class Ekf:
         Bad anchor shape or values, or ``initial`` / ``config`` not a dict.
     """
 
-    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Ekf: ...
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Ekf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
     def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None:
         """Propagate with the IMU sample at time ``t``.
 
@@ -277,7 +283,13 @@ class Ekf:
 class Iekf:
     """The iterated EKF (seed 000 Algorithm 1 without re-weighting), fed sample by sample; API as :class:`Ekf`."""
 
-    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Iekf: ...
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Iekf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
     def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
     def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
     def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
@@ -292,7 +304,13 @@ class Iekf:
 class Rekf:
     """The robust EKF of seed 000 (eqs. (37)–(40)), fed sample by sample; API as :class:`Ekf`."""
 
-    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Rekf: ...
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Rekf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
     def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
     def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
     def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
@@ -307,7 +325,13 @@ class Rekf:
 class Riekf:
     """The robust iterated EKF of seed 000 (Algorithm 1), fed sample by sample; API as :class:`Ekf`."""
 
-    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Riekf: ...
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Riekf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
     def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
     def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
     def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
@@ -322,7 +346,13 @@ class Riekf:
 class Criekf:
     """RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF); API as :class:`Ekf`."""
 
-    def __new__(cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None) -> Criekf: ...
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Criekf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
     def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
     def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
     def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
@@ -343,6 +373,7 @@ def run_filter(
     config: _ConfigArg = None,
     covariance: bool = False,
     updates: bool = False,
+    smooth: bool = False,
 ) -> tuple[dict[str, _F64], dict[str, _F64] | None, dict[str, Any]]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 

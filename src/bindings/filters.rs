@@ -10,8 +10,8 @@ use crate::config::{FilterConfig, InitialState};
 use crate::filters::{Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
-use crate::methods::{run_method, BatchOutput, Method};
-use crate::pipeline::Trace;
+use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::pipeline::{smooth_recording, StepRecord, Trace};
 use crate::records::{ImuSample, RangeMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
@@ -144,6 +144,9 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
     Ok(vec3(&array(obj, name)?, name)?)
 }
 
+/// Initial room for recorded segments of a streaming filter (it grows as needed).
+const RECORD_CAPACITY: usize = 1 << 16;
+
 fn anchor_index(anchor: i64, count: usize) -> PyResult<usize> {
     usize::try_from(anchor)
         .map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into())
@@ -159,10 +162,38 @@ macro_rules! py_filter {
         #[pymethods]
         impl $py {
             #[new]
-            #[pyo3(signature = (anchors, *, initial, config=None))]
-            fn new(anchors: &Bound<'_, PyAny>, initial: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+            #[pyo3(signature = (anchors, *, initial, config=None, record=false))]
+            fn new(anchors: &Bound<'_, PyAny>, initial: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>, record: bool) -> PyResult<Self> {
                 let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
-                Ok(Self(<$core>::new(anchors, &read_initial(initial)?, read_config(config)?)?))
+                let mut filter = <$core>::new(anchors, &read_initial(initial)?, read_config(config)?)?;
+                if record {
+                    filter.core_mut().start_recording(RECORD_CAPACITY);
+                }
+                Ok(Self(filter))
+            }
+
+            /// RTS-smooths everything seen so far (needs ``record=True``): a dict of columns
+            /// ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z``, one row per
+            /// propagation start (each IMU sample and each range time between samples) plus
+            /// the current time. Releases the GIL.
+            fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+                if self.0.core().segments().is_empty() {
+                    return Err(crate::Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()).into());
+                }
+                let core = self.0.core();
+                let nodes = py.detach(|| smooth_recording(core))?;
+                let steps: Vec<StepRecord> = nodes
+                    .iter()
+                    .map(|n| StepRecord {
+                        t_s: n.t_s,
+                        state: n.state,
+                        position_cov: n.covariance.fixed_view::<3, 3>(crate::state::POS, crate::state::POS).into_owned(),
+                        still: false,
+                    })
+                    .collect();
+                let mut cols = step_columns(&steps, false);
+                cols.retain(|(name, _)| *name != "still");
+                columns(py, cols)
             }
 
             /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,) rad/s.
@@ -250,9 +281,8 @@ fn covariance_array<'py>(py: Python<'py>, p: &ErrCov) -> PyResult<Bound<'py, PyA
     Ok(PyArray2::from_vec2(py, &rows)?)
 }
 
-fn trace_columns(trace: &Trace, covariance: bool) -> Vec<(&'static str, Vec<f64>)> {
-    let s = &trace.steps;
-    let col = |f: &dyn Fn(&crate::pipeline::StepRecord) -> f64| s.iter().map(f).collect::<Vec<f64>>();
+fn step_columns(s: &[StepRecord], covariance: bool) -> Vec<(&'static str, Vec<f64>)> {
+    let col = |f: &dyn Fn(&StepRecord) -> f64| s.iter().map(f).collect::<Vec<f64>>();
     let mut cols = vec![
         ("t", col(&|r| r.t_s)),
         ("x", col(&|r| r.state.position.x)),
@@ -302,7 +332,7 @@ type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<
 /// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
 /// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
 #[pyfunction]
-#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false))]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=false))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -314,6 +344,7 @@ fn run_filter<'py>(
     config: Option<&Bound<'py, PyAny>>,
     covariance: bool,
     updates: bool,
+    smooth: bool,
 ) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
     let inputs = read_inputs(imu, ranges, anchors)?;
@@ -322,17 +353,26 @@ fn run_filter<'py>(
         Some(obj) if !obj.is_none() => Some(read_initial(obj)?),
         _ => None,
     };
-    let output = py.detach(|| run_method(method, &inputs.imu, &inputs.ranges, &inputs.anchors, initial.as_ref(), &config))?;
+    let input = BatchInput {
+        imu: &inputs.imu,
+        ranges: &inputs.ranges,
+        anchors: &inputs.anchors,
+        initial: initial.as_ref(),
+        config: &config,
+        smooth,
+    };
+    let output = py.detach(|| run_method(method, &input))?;
     let info = PyDict::new(py);
     match output {
-        BatchOutput::Inertial { trace, init } => {
+        BatchOutput::Inertial { trace, init, smoothed } => {
             info.set_item("ranges_before_start", trace.ranges_before_start)?;
             if let Some(s) = init {
                 info.set_item("still_start", s.still)?;
                 info.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
             }
             let upd = if updates { Some(columns(py, update_columns(&trace))?) } else { None };
-            Ok((columns(py, trace_columns(&trace, covariance))?, upd, info))
+            let steps = smoothed.as_deref().unwrap_or(&trace.steps);
+            Ok((columns(py, step_columns(steps, covariance))?, upd, info))
         }
         BatchOutput::Multilateration(fixes) => {
             let col = |f: &dyn Fn(&(f64, crate::multilateration::Fix)) -> f64| fixes.iter().map(f).collect::<Vec<f64>>();

@@ -19,6 +19,21 @@ pub struct InertialCore {
     held_accel: Vec3,
     held_gyro: Vec3,
     imu_count: usize,
+    recording: Option<Vec<Segment>>,
+}
+
+/// One recorded propagation, for smoothing: the posterior at its start and the IMU interval
+/// (Φ, Q and the prediction are recomputed from them in the backward pass).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Segment {
+    /// Time at the start, s.
+    pub t_s: f64,
+    /// Posterior nominal state at the start.
+    pub state: NominalState,
+    /// Posterior error covariance at the start.
+    pub covariance: ErrCov,
+    /// The IMU interval propagated over.
+    pub interval: ImuInterval,
 }
 
 fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
@@ -54,6 +69,7 @@ impl InertialCore {
             held_accel: Vec3::zeros(),
             held_gyro: Vec3::zeros(),
             imu_count: 0,
+            recording: None,
         })
     }
 
@@ -116,6 +132,9 @@ impl InertialCore {
     }
 
     fn propagate(&mut self, imu: &ImuInterval) {
+        if let (Some(rec), Some(t_s)) = (self.recording.as_mut(), self.time_s) {
+            rec.push(Segment { t_s, state: self.state, covariance: self.covariance, interval: *imu });
+        }
         let phi = Transition::new(&self.state, imu);
         self.state = propagate_nominal(&self.state, imu, &self.config.gravity);
         self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config, imu.dt_s));
@@ -130,6 +149,19 @@ impl InertialCore {
     /// Time between the last two IMU samples, s (None before the second sample).
     pub fn last_interval_s(&self) -> Option<f64> {
         self.last_interval_s
+    }
+
+    /// Starts recording every propagation for a later RTS pass ([`crate::smoother`]), with room
+    /// for `capacity` segments (≈ 2.2 kB each; one per IMU sample plus one per measurement time
+    /// between samples). Recording is the only thing that allocates while filtering, and only when
+    /// switched on.
+    pub fn start_recording(&mut self, capacity: usize) {
+        self.recording = Some(Vec::with_capacity(capacity));
+    }
+
+    /// The recorded segments (empty when not recording).
+    pub fn segments(&self) -> &[Segment] {
+        self.recording.as_deref().unwrap_or(&[])
     }
 
     /// The configuration.

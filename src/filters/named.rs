@@ -40,6 +40,10 @@ macro_rules! named_filter {
                 self.0.core()
             }
 
+            fn core_mut(&mut self) -> &mut InertialCore {
+                self.0.core_mut()
+            }
+
             fn still(&self) -> bool {
                 self.0.still()
             }

@@ -138,6 +138,10 @@ impl InertialFilter for TightFilter {
         &self.core
     }
 
+    fn core_mut(&mut self) -> &mut InertialCore {
+        &mut self.core
+    }
+
     fn still(&self) -> bool {
         self.constraints.still()
     }

@@ -240,3 +240,27 @@ def test_constraint_switches_and_still_column(filter_config):
     assert early > 0.5 and late < 0.02
     with pytest.raises(ValueError, match=r"config `zupt`: expected True or False"):
         uwbimu_rs.FilterConfig(zupt=1.0)
+
+
+def test_smoothing_batch_and_streaming(los_run, filter_config):
+    df = uwbimu_rs.run_filter("ekf", los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
+    sm = uwbimu_rs.run_filter("ekf", los_run.imu, los_run.ranges, los_run.anchors, config=filter_config, smooth=True)
+    assert sm.columns == df.columns and sm.height == df.height
+    assert metrics.evaluate(sm, los_run.truth).horizontal.rmse < metrics.evaluate(df, los_run.truth).horizontal.rmse
+    assert (sm["std_x"] <= df["std_x"] * (1 + 1e-9)).all()
+    with pytest.raises(ValueError, match="smoothing method `uwb_ls`"):
+        uwbimu_rs.run_filter("uwb_ls", los_run.imu, los_run.ranges, los_run.anchors, smooth=True)
+
+    initial, _ = uwbimu_rs.initialize(los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
+    n = 1500
+    run = type("Run", (), {"imu": los_run.imu[:n], "ranges": los_run.ranges[los_run.ranges[:, 0] <= los_run.imu[n - 1, 0]], "anchors": los_run.anchors})
+    plain = uwbimu_rs.Ekf(run.anchors, initial=initial, config=filter_config)
+    with pytest.raises(ValueError, match="record=True"):
+        plain.smooth()
+    _, _, f = _streaming(run, initial, filter_config, lambda *a, **k: uwbimu_rs.Ekf(*a, **k, record=True))
+    nodes = pl.DataFrame(f.smooth())
+    batch = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, initial=initial, config=filter_config, smooth=True)
+    # Every IMU time is a node; there the streaming and batch smoothers agree.
+    joined = batch.join(nodes, on="t", suffix="_s")
+    assert joined.height == batch.height
+    np.testing.assert_allclose(joined["x"], joined["x_s"], atol=1e-12)

@@ -1,0 +1,48 @@
+//! RTS smoothing of recorded runs.
+
+mod common;
+
+use common::{config_for, horizontal_errors, rms, truth_initial};
+use uwbimu_rs::filters::{Ekf, Riekf};
+use uwbimu_rs::math::Vec3;
+use uwbimu_rs::pipeline::{run, run_smoothed};
+use uwbimu_rs::sim::{preset, simulate};
+
+#[test]
+fn smoothing_lowers_error_and_covariance() {
+    for (name, seed) in [("seed000_los", 1), ("seed000", 2)] {
+        let cfg = preset(name, seed).expect("preset");
+        let data = simulate(&cfg).expect("sim");
+        let initial = truth_initial(&data, Vec3::new(0.2, -0.2, 0.0));
+        let mut ekf = Riekf::new(data.anchors.clone(), &initial, config_for(&cfg)).expect("filter");
+        let (trace, smoothed) = run_smoothed(&mut ekf, &data.imu, &data.ranges).expect("run");
+        let (filtered_rmse, smoothed_rmse) =
+            (rms(&horizontal_errors(&trace.steps, &data)), rms(&horizontal_errors(&smoothed, &data)));
+        println!("{name}: horizontal RMSE filtered {filtered_rmse:.4} m, smoothed {smoothed_rmse:.4} m");
+        assert!(smoothed_rmse < filtered_rmse, "{name}: {smoothed_rmse} vs {filtered_rmse}");
+        for (f, s) in trace.steps.iter().zip(&smoothed) {
+            assert_eq!(f.t_s, s.t_s);
+            assert!(
+                s.position_cov.trace() <= f.position_cov.trace() * (1.0 + 1e-9),
+                "t {}: smoothed trace above filtered",
+                f.t_s
+            );
+        }
+        // At the last sample the smoother has nothing to add.
+        let (lf, ls) = (trace.steps.last().expect("steps"), smoothed.last().expect("steps"));
+        assert!((lf.state.position - ls.state.position).norm() < 1e-12);
+    }
+}
+
+#[test]
+fn recording_does_not_change_the_filter() {
+    let cfg = preset("seed000_los", 3).expect("preset");
+    let data = simulate(&cfg).expect("sim");
+    let initial = truth_initial(&data, Vec3::zeros());
+    let plain = run(&mut Ekf::new(data.anchors.clone(), &initial, config_for(&cfg)).expect("filter"), &data.imu, &data.ranges)
+        .expect("run");
+    let (recorded, _) =
+        run_smoothed(&mut Ekf::new(data.anchors.clone(), &initial, config_for(&cfg)).expect("filter"), &data.imu, &data.ranges)
+            .expect("run");
+    assert_eq!(plain, recorded);
+}
