@@ -290,6 +290,13 @@ impl FilterConfig {
         Ok(())
     }
 
+    /// Checks every field against the same rules as [`FilterConfig::set`] (for configs built in
+    /// Rust rather than key by key).
+    pub fn validate(&self) -> Result<()> {
+        let mut probe = Self::default();
+        self.entries().iter().try_for_each(|(key, value)| probe.set(key, value))
+    }
+
     /// The configuration as (key, value) pairs in [`FilterConfig::KEYS`] order (`plane_height`
     /// only when set).
     pub fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
@@ -379,6 +386,14 @@ impl Default for InitialState {
 }
 
 impl InitialState {
+    /// The diagonal initial error covariance (order δp, δv, δθ, δb_a, δb_g); bias standard
+    /// deviations fall back to the configuration's.
+    pub fn covariance(&self, config: &FilterConfig) -> crate::state::ErrCov {
+        let ba = Vec3::repeat(self.accel_bias_std.unwrap_or(config.accel_bias_std));
+        let bg = Vec3::repeat(self.gyro_bias_std.unwrap_or(config.gyro_bias_std));
+        crate::ins::diagonal_covariance([self.position_std, self.velocity_std, self.orientation_std, ba, bg])
+    }
+
     /// Every key accepted by [`InitialState::set`].
     pub const KEYS: [&'static str; 10] = [
         "position",
@@ -421,6 +436,13 @@ mod tests {
         let mut c = FilterConfig::default();
         let e = c.set("range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
         assert!(e.contains("range_sdt") && e.contains("range_std") && e.contains("lever_arm"), "{e}");
+    }
+
+    #[test]
+    fn validate_applies_the_setter_rules() {
+        assert!(FilterConfig::default().validate().is_ok());
+        let bad = FilterConfig { range_std: 0.0, ..FilterConfig::default() };
+        assert!(matches!(bad.validate(), Err(Error::InvalidConfig { field, .. }) if field == "range_std"));
     }
 
     #[test]

@@ -2,6 +2,7 @@
 
 pub mod config;
 pub mod constraints;
+pub mod crlb;
 pub mod error;
 pub mod filters;
 pub mod init;

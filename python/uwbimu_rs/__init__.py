@@ -39,6 +39,7 @@ __all__ = [
     "Riekf",
     "UpdateReport",
     "UwbImuError",
+    "crlb",
     "initialize",
     "run_filter",
 ]
@@ -148,3 +149,46 @@ def initialize(
 def _as_dict(value: Any) -> Any:
     """A plain dict for any mapping (the native layer reads dicts); other values unchanged."""
     return dict(value) if isinstance(value, Mapping) else value
+
+
+_TRUTH_COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz"]
+
+
+def crlb(
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    truth: pl.DataFrame | np.ndarray,
+    *,
+    biases: np.ndarray | None = None,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+) -> pl.DataFrame:
+    """Posterior Cramér–Rao lower bound along the true trajectory (seed 002 eqs. (43)–(44)).
+
+    Parameters
+    ----------
+    imu, ranges, anchors : arrays
+        As for :func:`run_filter`.
+    truth : polars.DataFrame or array (N, 11)
+        The true state at every IMU time: ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz`` (as
+        ``sim.SimResult.truth``).
+    biases : array (N, 6), optional
+        True accelerometer (m/s²) and gyroscope (rad/s) biases per IMU sample
+        (``np.hstack([run.accel_bias, run.gyro_bias])``); zero when omitted.
+    initial : dict, optional
+        Only its standard deviations are used: the bound starts from that covariance.
+    config : FilterConfig or dict, optional
+        Noise model (as given to the filter being compared).
+
+    Returns
+    -------
+    polars.DataFrame
+        ``t, crlb_x, crlb_y, crlb_z``: the bound as standard deviations, m, one row per IMU sample.
+    """
+    if isinstance(truth, pl.DataFrame):
+        truth = truth.select(_TRUTH_COLUMNS).to_numpy()
+    cols = _native.posterior_crlb(
+        imu, ranges, anchors, truth, biases=biases, initial=_as_dict(initial), config=_as_dict(config)
+    )
+    return pl.DataFrame(cols)

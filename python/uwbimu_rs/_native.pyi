@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "posterior_crlb",
     "Criekf",
     "Iekf",
     "Rekf",
@@ -362,6 +363,19 @@ class Criekf:
     def state(self) -> dict[str, _F64]: ...
     @property
     def covariance(self) -> _F64: ...
+
+def posterior_crlb(
+    imu: ArrayLike,
+    ranges: ArrayLike,
+    anchors: ArrayLike,
+    truth: ArrayLike,
+    *,
+    biases: ArrayLike | None = None,
+    initial: dict[str, Any] | None = None,
+    config: _ConfigArg = None,
+) -> dict[str, _F64]:
+    """Posterior CRLB (seed 002 eqs. (43)–(44)) along ``truth`` (N, 11) = t, x, y, z, vx, vy, vz,
+    qw, qx, qy, qz; ``biases`` (N, 6). Returns columns t, crlb_x, crlb_y, crlb_z (std, m)."""
 
 def run_filter(
     method: str,

@@ -429,6 +429,76 @@ fn initialize_state<'py>(
     Ok((d, info))
 }
 
+/// Posterior CRLB (seed 002 eqs. (43)–(44)) along a true trajectory: `truth` (N, 11) = t, x, y, z,
+/// vx, vy, vz, qw, qx, qy, qz at the IMU times, optional `biases` (N, 6) = true accelerometer and
+/// gyroscope biases; the bound starts from the initial covariance of `initial` (its standard
+/// deviations). Returns columns `t, crlb_x, crlb_y, crlb_z` (standard deviations, m).
+#[pyfunction]
+#[pyo3(signature = (imu, ranges, anchors, truth, *, biases=None, initial=None, config=None))]
+#[allow(clippy::too_many_arguments)]
+fn posterior_crlb<'py>(
+    py: Python<'py>,
+    imu: &Bound<'py, PyAny>,
+    ranges: &Bound<'py, PyAny>,
+    anchors: &Bound<'py, PyAny>,
+    truth: &Bound<'py, PyAny>,
+    biases: Option<&Bound<'py, PyAny>>,
+    initial: Option<&Bound<'py, PyAny>>,
+    config: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let inputs = read_inputs(imu, ranges, anchors)?;
+    let config = read_config(config)?;
+    config.validate()?;
+    let truth = table::<11>(&array(truth, "truth")?, "truth", "(N, 11) = t, x, y, z, vx, vy, vz, qw, qx, qy, qz")?;
+    let biases = match biases {
+        Some(b) if !b.is_none() => table::<6>(&array(b, "biases")?, "biases", "(N, 6) = bax, bay, baz, bgx, bgy, bgz")?,
+        _ => vec![[0.0; 6]; truth.len()],
+    };
+    if biases.len() != truth.len() {
+        return Err(crate::Error::Shape {
+            name: "biases",
+            expected: format!("({}, 6)", truth.len()),
+            got: format!("({}, 6)", biases.len()),
+        }
+        .into());
+    }
+    let states = truth
+        .iter()
+        .zip(&biases)
+        .enumerate()
+        .map(|(row, (t, b))| {
+            let orientation = crate::math::quat_from_wxyz([t[7], t[8], t[9], t[10]]).ok_or(crate::Error::InvalidValue {
+                name: "truth",
+                row,
+                value: 0.0,
+                reason: "quaternion has zero norm",
+            })?;
+            Ok(NominalState {
+                position: Vec3::new(t[1], t[2], t[3]),
+                velocity: Vec3::new(t[4], t[5], t[6]),
+                orientation,
+                accel_bias: Vec3::new(b[0], b[1], b[2]),
+                gyro_bias: Vec3::new(b[3], b[4], b[5]),
+            })
+        })
+        .collect::<Result<Vec<NominalState>, crate::Error>>()?;
+    let initial = match initial {
+        Some(obj) if !obj.is_none() => read_initial(obj)?,
+        _ => InitialState::default(),
+    };
+    let p0 = initial.covariance(&config);
+    let bound = py.detach(|| crate::crlb::posterior_crlb(&states, &inputs.imu, &inputs.ranges, &inputs.anchors, &p0, &config))?;
+    columns(
+        py,
+        vec![
+            ("t", inputs.imu.iter().map(|s| s.t_s).collect()),
+            ("crlb_x", bound.iter().map(|b| b[(0, 0)].sqrt()).collect()),
+            ("crlb_y", bound.iter().map(|b| b[(1, 1)].sqrt()).collect()),
+            ("crlb_z", bound.iter().map(|b| b[(2, 2)].sqrt()).collect()),
+        ],
+    )
+}
+
 /// Adds the filter classes and functions to the native module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFilterConfig>()?;
@@ -440,6 +510,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;
+    m.add_function(wrap_pyfunction!(posterior_crlb, m)?)?;
     m.add("FILTERS", Method::NAMES.to_vec())?;
     Ok(())
 }

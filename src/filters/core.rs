@@ -3,7 +3,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::ins::{diagonal_covariance, propagate_nominal, ImuInterval, ProcessNoise, Transition};
+use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::math::Vec3;
 use crate::state::{ErrCov, NominalState};
 
@@ -45,14 +45,13 @@ fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
 
 impl InertialCore {
     /// Starts from `initial` (diagonal covariance from its standard deviations); the filter
-    /// time is set by the first [`InertialCore::predict`].
+    /// time is set by the first [`InertialCore::predict`]. Fails on an invalid configuration.
     pub fn new(initial: &InitialState, config: FilterConfig) -> Result<Self> {
+        config.validate()?;
         for (name, v) in [("initial.position", &initial.position), ("initial.velocity", &initial.velocity)] {
             check_finite3(name, 0, v)?;
         }
-        let ba = Vec3::repeat(initial.accel_bias_std.unwrap_or(config.accel_bias_std));
-        let bg = Vec3::repeat(initial.gyro_bias_std.unwrap_or(config.gyro_bias_std));
-        let covariance = diagonal_covariance([initial.position_std, initial.velocity_std, initial.orientation_std, ba, bg]);
+        let covariance = initial.covariance(&config);
         Ok(Self {
             config,
             state: NominalState {

@@ -264,3 +264,23 @@ def test_smoothing_batch_and_streaming(los_run, filter_config):
     joined = batch.join(nodes, on="t", suffix="_s")
     assert joined.height == batch.height
     np.testing.assert_allclose(joined["x"], joined["x_s"], atol=1e-12)
+
+
+def test_crlb_beside_the_filter_error(los_run, filter_config):
+    initial = {
+        "position": los_run.truth.select("x", "y", "z").row(0),
+        "velocity": [0.0, 0.0, 0.0],
+        "orientation": los_run.truth.select("qw", "qx", "qy", "qz").row(0),
+    }
+    df = uwbimu_rs.run_filter("ekf", los_run.imu, los_run.ranges, los_run.anchors, initial=initial, config=filter_config)
+    biases = np.hstack([los_run.accel_bias, los_run.gyro_bias])
+    bound = uwbimu_rs.crlb(los_run.imu, los_run.ranges, los_run.anchors, los_run.truth, biases=biases, initial=initial, config=filter_config)
+    assert bound.columns == ["t", "crlb_x", "crlb_y", "crlb_z"] and bound.height == df.height
+    late = pl.col("t") > 30.0
+    e = metrics.evaluate(df.filter(late), los_run.truth).errors
+    b = bound.filter(late)
+    mse = (e["e_h"] ** 2).mean()
+    crlb_h = (b["crlb_x"] ** 2 + b["crlb_y"] ** 2).mean()
+    assert mse > 0.5 * crlb_h  # one run: loose Monte-Carlo tolerance (6 runs in tests/crlb.rs)
+    with pytest.raises(ValueError, match=r"truth: expected shape \(N, 11\)"):
+        uwbimu_rs.crlb(los_run.imu, los_run.ranges, los_run.anchors, np.zeros((3, 4)))

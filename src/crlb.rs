@@ -1,0 +1,68 @@
+//! Posterior Cramér–Rao lower bound along a known trajectory (seed 002 eqs. (43)–(44)).
+//!
+//! `J_{k+1} = (Q_k + F_k·J_k⁻¹·F_kᵀ)⁻¹ + H_{k+1}ᵀ·R⁻¹·H_{k+1}` and `CRLB_k = J_k⁻¹`, with the
+//! transition `F` ([`Transition`]) and the range Jacobians `H` ([`predict_range`]) evaluated at the
+//! **true** state. It is computed in covariance form, `B = J⁻¹`: `B⁻ = F·B·Fᵀ + Q`, then one
+//! information update per range — the covariance recursion of a filter linearised at the truth.
+//! Ranges are taken at the IMU sample at or after their time (the simulator's epochs coincide
+//! with IMU samples).
+
+use crate::config::FilterConfig;
+use crate::error::{Error, Result};
+use crate::ins::{ImuInterval, ProcessNoise, Transition};
+use crate::math::Vec3;
+use crate::models::range::predict_range;
+use crate::records::{ImuSample, RangeMeasurement};
+use crate::state::{ErrCov, ErrVec, NominalState};
+use crate::update::scalar_step;
+
+/// The bound `J_k⁻¹` (15×15, error-state order) at every IMU sample, starting from `initial`
+/// (= `J_0⁻¹`, the prior covariance). `truth` holds the true nominal state (biases included) at
+/// each IMU sample. Fails on mismatched lengths or a non-positive information update.
+pub fn posterior_crlb(
+    truth: &[NominalState],
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    anchors: &[Vec3],
+    initial: &ErrCov,
+    config: &FilterConfig,
+) -> Result<Vec<ErrCov>> {
+    if truth.len() != imu.len() {
+        return Err(Error::Shape {
+            name: "truth",
+            expected: format!("one row per IMU sample ({})", imu.len()),
+            got: truth.len().to_string(),
+        });
+    }
+    let r_var = config.range_std.powi(2);
+    let body = |s: &ImuSample| (config.imu_rotation * s.accel, config.imu_rotation * s.gyro);
+    let mut bound = *initial;
+    let mut out = Vec::with_capacity(imu.len());
+    let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
+    let mut next = ranges.partition_point(|r| r.t_s < t_first);
+    for k in 0..imu.len() {
+        if k > 0 {
+            let ((a0, g0), (a1, g1)) = (body(&imu[k - 1]), body(&imu[k]));
+            let interval =
+                ImuInterval { dt_s: imu[k].t_s - imu[k - 1].t_s, accel_start: a0, accel_end: a1, gyro_start: g0, gyro_end: g1 };
+            bound =
+                Transition::new(&truth[k - 1], &interval).propagate_covariance(&bound, &ProcessNoise::new(config, interval.dt_s));
+        }
+        let mut dx = ErrVec::zeros();
+        while next < ranges.len() && ranges[next].t_s <= imu[k].t_s {
+            let r = &ranges[next];
+            let anchor = anchors.get(r.anchor).ok_or(Error::UnknownAnchor {
+                name: "ranges",
+                row: next,
+                anchor: r.anchor as f64,
+                count: anchors.len(),
+            })?;
+            if let Some(pred) = predict_range(&truth[k], anchor, &config.lever_arm) {
+                scalar_step(&mut dx, &mut bound, &pred.jacobian, 0.0, r_var)?;
+            }
+            next += 1;
+        }
+        out.push(bound);
+    }
+    Ok(out)
+}
