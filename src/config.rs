@@ -41,6 +41,12 @@ pub struct FilterConfig {
     /// Gravity in the navigation frame, m/s² (default `[0, 0, -9.80665]`; a scalar `g` given as
     /// config means `[0, 0, -g]`).
     pub gravity: Vec3,
+    /// Accelerometer-bias time constant τ_a of a first-order Markov model, s (seed 002 eq. (17));
+    /// None: random walk.
+    pub accel_bias_tau: Option<f64>,
+    /// Gyroscope-bias time constant τ_g of a first-order Markov model, s (seed 002 eq. (18));
+    /// None: random walk.
+    pub gyro_bias_tau: Option<f64>,
     /// Initial accelerometer-bias standard deviation, m/s² (used when the initial state gives
     /// none).
     pub accel_bias_std: f64,
@@ -102,6 +108,8 @@ impl Default for FilterConfig {
             lever_arm: Vec3::zeros(),
             imu_rotation: Quat::identity(),
             gravity: Vec3::new(0.0, 0.0, -9.80665),
+            accel_bias_tau: None,
+            gyro_bias_tau: None,
             accel_bias_std: 0.1,
             gyro_bias_std: 0.01,
             init_still_s: 1.0,
@@ -207,7 +215,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 29] = [
+    pub const KEYS: [&'static str; 31] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -216,6 +224,8 @@ impl FilterConfig {
         "lever_arm",
         "imu_rotation",
         "gravity",
+        "accel_bias_tau",
+        "gyro_bias_tau",
         "accel_bias_std",
         "gyro_bias_std",
         "init_still_s",
@@ -256,6 +266,8 @@ impl FilterConfig {
                     ConfigValue::Vector(_) | ConfigValue::Flag(_) => Vec3::from(vector::<3>(key, value)?),
                 }
             }
+            "accel_bias_tau" => self.accel_bias_tau = Some(positive(key, value)?),
+            "gyro_bias_tau" => self.gyro_bias_tau = Some(positive(key, value)?),
             "accel_bias_std" => self.accel_bias_std = non_negative(key, value)?,
             "gyro_bias_std" => self.gyro_bias_std = non_negative(key, value)?,
             "init_still_s" => self.init_still_s = positive(key, value)?,
@@ -297,8 +309,8 @@ impl FilterConfig {
         self.entries().iter().try_for_each(|(key, value)| probe.set(key, value))
     }
 
-    /// The configuration as (key, value) pairs in [`FilterConfig::KEYS`] order (`plane_height`
-    /// only when set).
+    /// The configuration as (key, value) pairs (`accel_bias_tau`, `gyro_bias_tau` and
+    /// `plane_height` only when set).
     pub fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
         let v3 = |v: &Vec3| ConfigValue::Vector(v.iter().copied().collect());
         let q = &self.imu_rotation;
@@ -330,6 +342,11 @@ impl FilterConfig {
             ("pseudo_velocity_var", ConfigValue::Scalar(self.pseudo_velocity_var)),
             ("pseudo_velocity_window", ConfigValue::Scalar(self.pseudo_velocity_window as f64)),
         ];
+        for (key, tau) in [("accel_bias_tau", self.accel_bias_tau), ("gyro_bias_tau", self.gyro_bias_tau)] {
+            if let Some(t) = tau {
+                entries.push((key, ConfigValue::Scalar(t)));
+            }
+        }
         if let Some(h) = self.plane_height {
             entries.push(("plane_height", ConfigValue::Scalar(h)));
         }

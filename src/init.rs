@@ -159,7 +159,7 @@ fn heading_from_motion(
                 gyro_start: config.imu_rotation * a.gyro,
                 gyro_end: config.imu_rotation * b.gyro,
             };
-            x = propagate_nominal(&x, &interval, &config.gravity);
+            x = propagate_nominal(&x, &interval, config);
             k += 1;
         }
         let d_uwb = fix.position - tag0;

@@ -32,19 +32,33 @@ pub struct ImuInterval {
     pub gyro_end: Vec3,
 }
 
-/// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)); biases are constant.
-pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, gravity: &Vec3) -> NominalState {
+/// Bias decay factors `e^{−Δt/τ}` over `dt_s` (1 for random-walk biases; seed 002 eqs. (17)–(18)
+/// for first-order Markov biases with time constants τ).
+fn bias_decay(config: &FilterConfig, dt_s: f64) -> (f64, f64) {
+    let decay = |tau: Option<f64>| tau.map_or(1.0, |t| (-dt_s / t).exp());
+    (decay(config.accel_bias_tau), decay(config.gyro_bias_tau))
+}
+
+/// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)). Biases are constant
+/// (random walk) or decay as first-order Markov processes when `config` gives time constants
+/// (seed 002 eqs. (17)–(18)).
+pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &FilterConfig) -> NominalState {
     let dt = imu.dt_s;
-    let omega = 0.5 * (imu.gyro_start + imu.gyro_end) - x.gyro_bias;
+    let gravity = &config.gravity;
+    // Biases at the end of the interval (decayed for Markov biases); each sample is corrected by
+    // the bias at its own time.
+    let (decay_a, decay_g) = bias_decay(config, dt);
+    let (ba_end, bg_end) = (x.accel_bias * decay_a, x.gyro_bias * decay_g);
+    let omega = 0.5 * ((imu.gyro_start - x.gyro_bias) + (imu.gyro_end - bg_end));
     let orientation = x.orientation * quat_exp(&(omega * dt));
     let a0 = x.orientation * (imu.accel_start - x.accel_bias) + gravity;
-    let a1 = orientation * (imu.accel_end - x.accel_bias) + gravity;
+    let a1 = orientation * (imu.accel_end - ba_end) + gravity;
     NominalState {
         position: x.position + x.velocity * dt + (a0 / 3.0 + a1 / 6.0) * (dt * dt),
         velocity: x.velocity + 0.5 * (a0 + a1) * dt,
         orientation,
-        accel_bias: x.accel_bias,
-        gyro_bias: x.gyro_bias,
+        accel_bias: ba_end,
+        gyro_bias: bg_end,
     }
 }
 
@@ -60,13 +74,17 @@ pub struct Transition {
     v_bg: Mat3,
     att_att: Mat3,
     att_bg: Mat3,
+    ba_ba: f64,
+    bg_bg: f64,
 }
 
 impl Transition {
     /// Builds Φ at the nominal state at the start of the interval: with `C = R·[f − b_a]×`,
     /// `W = [ω − b_g]×`, A has `A_pv = I`, `A_vθ = −C`, `A_v,ba = −R`, `A_θθ = −W`, `A_θ,bg = −I`,
-    /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`.
-    pub fn new(x: &NominalState, imu: &ImuInterval) -> Self {
+    /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`. With Markov biases (seed 002 eq. (24))
+    /// `A_ba,ba = −I/τ_a`, `A_bg,bg = −I/τ_g`: their blocks of Φ are `e^{−Δt/τ}·I` and the
+    /// second-order terms gain `R/τ_a` (δv, δb_a) and `I/τ_g` (δθ, δb_g).
+    pub fn new(x: &NominalState, imu: &ImuInterval, config: &FilterConfig) -> Self {
         let dt = imu.dt_s;
         let h = 0.5 * dt * dt;
         let r = x.orientation.to_rotation_matrix().into_inner();
@@ -74,15 +92,20 @@ impl Transition {
         let omega = 0.5 * (imu.gyro_start + imu.gyro_end) - x.gyro_bias;
         let c = r * skew(&f);
         let w = skew(&omega);
+        let rate = |tau: Option<f64>| tau.map_or(0.0, |t| 1.0 / t);
+        let (ra, rg) = (rate(config.accel_bias_tau), rate(config.gyro_bias_tau));
+        let (ba_ba, bg_bg) = bias_decay(config, dt);
         Self {
             p_v: dt,
             p_att: -c * h,
             p_ba: -r * h,
             v_att: -c * dt + (c * w - r * w * skew(&f)) * h,
-            v_ba: -r * dt - r * w * h,
+            v_ba: -r * dt + (r * ra - r * w) * h,
             v_bg: c * h,
             att_att: quat_exp(&(-omega * dt)).to_rotation_matrix().into_inner(),
-            att_bg: -Mat3::identity() * dt + w * h,
+            att_bg: -Mat3::identity() * dt + (w + Mat3::identity() * rg) * h,
+            ba_ba,
+            bg_bg,
         }
     }
 
@@ -93,12 +116,15 @@ impl Transition {
         out.fixed_rows_mut::<3>(POS).copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));
         out.fixed_rows_mut::<3>(VEL).copy_from(&(row(VEL) + self.v_att * row(ATT) + self.v_ba * row(BA) + self.v_bg * row(BG)));
         out.fixed_rows_mut::<3>(ATT).copy_from(&(self.att_att * row(ATT) + self.att_bg * row(BG)));
+        out.fixed_rows_mut::<3>(BA).copy_from(&(row(BA) * self.ba_ba));
+        out.fixed_rows_mut::<3>(BG).copy_from(&(row(BG) * self.bg_bg));
         out
     }
 
     /// `Φ·P·Φᵀ + Q` (seed 000 eq. (9), seed 004 eq. (18)), exploiting the block structure:
     /// `M = Φ·P` by block rows, then `M·Φᵀ` only for the δp, δv, δθ columns of the δp, δv, δθ
-    /// rows (the bias rows and columns of Φ are identity); the rest follows by symmetry.
+    /// rows (the bias rows of Φ are diagonal, so their columns are scaled); the rest follows by
+    /// symmetry.
     pub fn propagate_covariance(&self, p: &ErrCov, q: &ProcessNoise) -> ErrCov {
         const NAV: usize = BA; // δp, δv, δθ: the first 9 slots
         let m = self.apply_rows(p);
@@ -111,6 +137,12 @@ impl Transition {
         );
         out.fixed_view_mut::<NAV, 3>(0, ATT)
             .copy_from(&(col(ATT) * self.att_att.transpose() + col(BG) * self.att_bg.transpose()));
+        for j in 0..3 {
+            for i in 0..ERR_DIM {
+                out[(i, BA + j)] = m[(i, BA + j)] * self.ba_ba;
+                out[(i, BG + j)] = m[(i, BG + j)] * self.bg_bg;
+            }
+        }
         for (offset, var) in [(VEL, q.vel_var), (ATT, q.att_var), (BA, q.accel_bias_var), (BG, q.gyro_bias_var)] {
             for i in 0..3 {
                 out[(offset + i, offset + i)] += var;
@@ -139,6 +171,8 @@ impl Transition {
         put(VEL, BG, &self.v_bg);
         put(ATT, ATT, &self.att_att);
         put(ATT, BG, &self.att_bg);
+        put(BA, BA, &(Mat3::identity() * self.ba_ba));
+        put(BG, BG, &(Mat3::identity() * self.bg_bg));
         phi
     }
 }

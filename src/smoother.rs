@@ -34,9 +34,9 @@ pub struct SmoothedNode {
 pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, config: &FilterConfig) -> Result<Vec<SmoothedNode>> {
     let mut out = vec![last; segments.len() + 1];
     for (i, seg) in segments.iter().enumerate().rev() {
-        let phi = Transition::new(&seg.state, &seg.interval);
+        let phi = Transition::new(&seg.state, &seg.interval, config);
         let q = ProcessNoise::new(config, seg.interval.dt_s);
-        let x_pred = propagate_nominal(&seg.state, &seg.interval, &config.gravity);
+        let x_pred = propagate_nominal(&seg.state, &seg.interval, config);
         let p_pred = phi.propagate_covariance(&seg.covariance, &q);
         let chol = p_pred.cholesky().ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
         // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.

@@ -38,11 +38,17 @@ fn perturbed(x: &NominalState, j: usize, eps: f64) -> NominalState {
 
 #[test]
 fn transition_matches_finite_differences_of_mechanization() {
+    // Random-walk biases, and first-order Markov biases (seed 002) with short time constants.
+    for config in [FilterConfig::default(), FilterConfig { accel_bias_tau: Some(2.0), gyro_bias_tau: Some(0.5), ..FilterConfig::default() }] {
+        check_transition(&config);
+    }
+}
+
+fn check_transition(g: &FilterConfig) {
     let x0 = example_state();
     let imu = example_imu();
-    let g = Vec3::new(0.0, 0.0, -9.80665);
-    let x1 = propagate_nominal(&x0, &imu, &g);
-    let phi = Transition::new(&x0, &imu).to_dense();
+    let x1 = propagate_nominal(&x0, &imu, g);
+    let phi = Transition::new(&x0, &imu, g).to_dense();
     let eps = 1e-6;
     let mut fd = ErrCov::zeros();
     for j in 0..ERR_DIM {
@@ -61,10 +67,10 @@ fn transition_matches_finite_differences_of_mechanization() {
 fn block_propagation_equals_dense_product() {
     let x0 = example_state();
     let imu = example_imu();
-    let t = Transition::new(&x0, &imu);
+    let cfg = FilterConfig { accel_bias_tau: Some(30.0), gyro_bias_tau: Some(100.0), ..FilterConfig::default() };
+    let t = Transition::new(&x0, &imu, &cfg);
     let a = ErrCov::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.01 + if i == j { 1.0 } else { 0.0 });
     let p = a * a.transpose();
-    let cfg = FilterConfig::default();
     let q = ProcessNoise::new(&cfg, imu.dt_s);
     let phi = t.to_dense();
     let mut dense = phi * p * phi.transpose();

@@ -134,8 +134,8 @@ impl InertialCore {
         if let (Some(rec), Some(t_s)) = (self.recording.as_mut(), self.time_s) {
             rec.push(Segment { t_s, state: self.state, covariance: self.covariance, interval: *imu });
         }
-        let phi = Transition::new(&self.state, imu);
-        self.state = propagate_nominal(&self.state, imu, &self.config.gravity);
+        let phi = Transition::new(&self.state, imu, &self.config);
+        self.state = propagate_nominal(&self.state, imu, &self.config);
         self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config, imu.dt_s));
     }
 
