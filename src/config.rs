@@ -47,6 +47,9 @@ pub struct FilterConfig {
     /// Gyroscope-bias time constant τ_g of a first-order Markov model, s (seed 002 eq. (18));
     /// None: random walk.
     pub gyro_bias_tau: Option<f64>,
+    /// Discretise the process noise as seed 002 eq. (28), `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`, instead of adding
+    /// `G·Q·Gᵀ` (always on in ckf and arckf).
+    pub trapezoidal_process_noise: bool,
     /// Initial accelerometer-bias standard deviation, m/s² (used when the initial state gives
     /// none).
     pub accel_bias_std: f64,
@@ -108,6 +111,7 @@ impl Default for FilterConfig {
             lever_arm: Vec3::zeros(),
             imu_rotation: Quat::identity(),
             gravity: Vec3::new(0.0, 0.0, -9.80665),
+            trapezoidal_process_noise: false,
             accel_bias_tau: None,
             gyro_bias_tau: None,
             accel_bias_std: 0.1,
@@ -215,7 +219,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 31] = [
+    pub const KEYS: [&'static str; 32] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -226,6 +230,7 @@ impl FilterConfig {
         "gravity",
         "accel_bias_tau",
         "gyro_bias_tau",
+        "trapezoidal_process_noise",
         "accel_bias_std",
         "gyro_bias_std",
         "init_still_s",
@@ -267,6 +272,7 @@ impl FilterConfig {
                 }
             }
             "accel_bias_tau" => self.accel_bias_tau = Some(positive(key, value)?),
+            "trapezoidal_process_noise" => self.trapezoidal_process_noise = flag(key, value)?,
             "gyro_bias_tau" => self.gyro_bias_tau = Some(positive(key, value)?),
             "accel_bias_std" => self.accel_bias_std = non_negative(key, value)?,
             "gyro_bias_std" => self.gyro_bias_std = non_negative(key, value)?,
@@ -323,6 +329,7 @@ impl FilterConfig {
             ("lever_arm", v3(&self.lever_arm)),
             ("imu_rotation", ConfigValue::Vector(vec![q.w, q.i, q.j, q.k])),
             ("gravity", v3(&self.gravity)),
+            ("trapezoidal_process_noise", ConfigValue::Flag(self.trapezoidal_process_noise)),
             ("accel_bias_std", ConfigValue::Scalar(self.accel_bias_std)),
             ("gyro_bias_std", ConfigValue::Scalar(self.gyro_bias_std)),
             ("init_still_s", ConfigValue::Scalar(self.init_still_s)),

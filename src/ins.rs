@@ -143,10 +143,12 @@ impl Transition {
                 out[(i, BG + j)] = m[(i, BG + j)] * self.bg_bg;
             }
         }
-        for (offset, var) in [(VEL, q.vel_var), (ATT, q.att_var), (BA, q.accel_bias_var), (BG, q.gyro_bias_var)] {
-            for i in 0..3 {
-                out[(offset + i, offset + i)] += var;
-            }
+        if q.trapezoid {
+            // Seed 002 eq. (28): Q_k = ½(Φ·G·Q·Gᵀ + G·Q·Gᵀ·Φᵀ).
+            let phi_q = self.apply_rows(&q.continuous());
+            out += 0.5 * (phi_q + phi_q.transpose());
+        } else {
+            out += q.continuous();
         }
         // Upper triangle is now exact (the bias block and bias columns of M are already final);
         // mirror it into the lower triangle.
@@ -178,7 +180,8 @@ impl Transition {
 }
 
 /// Per-interval process-noise variances `G·Q·Gᵀ` (diagonal blocks; seed 004 eqs. (20)–(21)):
-/// white noise `density²·Δt` on δv and δθ, bias walk `walk²·Δt` on δb_a and δb_g.
+/// white noise `density²·Δt` on δv and δθ, bias walk `walk²·Δt` on δb_a and δb_g; added as is, or
+/// (seed 002 eq. (28)) as `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProcessNoise {
     /// Velocity variance per axis, (m/s)².
@@ -189,6 +192,8 @@ pub struct ProcessNoise {
     pub accel_bias_var: f64,
     /// Gyroscope-bias variance per axis, (rad/s)².
     pub gyro_bias_var: f64,
+    /// Discretise as seed 002 eq. (28) instead of adding `G·Q·Gᵀ`.
+    pub trapezoid: bool,
 }
 
 impl ProcessNoise {
@@ -199,7 +204,14 @@ impl ProcessNoise {
             att_var: config.gyro_noise_density.powi(2) * dt_s,
             accel_bias_var: config.accel_bias_walk.powi(2) * dt_s,
             gyro_bias_var: config.gyro_bias_walk.powi(2) * dt_s,
+            trapezoid: config.trapezoidal_process_noise,
         }
+    }
+
+    /// `G·Q·Gᵀ` as a 15×15 matrix (diagonal: the rotations in G cancel for isotropic noise).
+    pub fn continuous(&self) -> ErrCov {
+        let v = |x: f64| Vec3::repeat(x);
+        diagonal_covariance([v(0.0), v(self.vel_var.sqrt()), v(self.att_var.sqrt()), v(self.accel_bias_var.sqrt()), v(self.gyro_bias_var.sqrt())])
     }
 }
 

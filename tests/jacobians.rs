@@ -81,6 +81,12 @@ fn block_propagation_equals_dense_product() {
     }
     let fast = t.propagate_covariance(&p, &q);
     assert!((fast - dense).abs().max() < 1e-12);
+    // Seed 002 eq. (28): ½(Φ·Q + Q·Φᵀ) instead of Q.
+    let trap = ProcessNoise { trapezoid: true, ..q };
+    let qc = q.continuous();
+    let dense_trap = phi * p * phi.transpose() + 0.5 * (phi * qc + qc * phi.transpose());
+    assert!((t.propagate_covariance(&p, &trap) - dense_trap).abs().max() < 1e-12);
+    assert!((dense_trap - dense).abs().max() > 1e-12);
 }
 
 #[test]
