@@ -6,9 +6,16 @@
 //! `Σ (‖p − a_i‖ − r_i)²` (seed 004 eq. (8)). Both run in 3-D, or in *planar* mode where the
 //! height is fixed and only x, y are estimated.
 //!
+//! [`l1`] adds the L1 fix of seed 002 eqs. (33)–(34) (sum of absolute range residuals, by IRLS
+//! from the L2 fix), whose residuals drive the ARCKF robustness factor.
+//!
 //! Nothing here panics: degenerate input (too few ranges, collinear or coplanar anchors, unknown
 //! anchor indices, non-finite values) gives `None`. Allocation per epoch is accepted; this is
 //! not the filters' hot path.
+
+pub mod l1;
+
+pub use l1::{l1_fix, l1_solve_epoch, L1Config, L1Fix};
 
 use nalgebra::{Cholesky, DMatrix, DVector, Matrix2, SymmetricEigen, Vector2};
 
