@@ -42,10 +42,10 @@ pub struct FilterConfig {
     /// config means `[0, 0, -g]`).
     pub gravity: Vec3,
     /// Accelerometer-bias time constant τ_a of a first-order Markov model, s (seed 002 eq. (17));
-    /// None: random walk.
+    /// None: random walk. A Markov bias has steady-state std `accel_bias_std`.
     pub accel_bias_tau: Option<f64>,
     /// Gyroscope-bias time constant τ_g of a first-order Markov model, s (seed 002 eq. (18));
-    /// None: random walk.
+    /// None: random walk. A Markov bias has steady-state std `gyro_bias_std`.
     pub gyro_bias_tau: Option<f64>,
     /// Discretise the process noise as seed 002 eq. (28), `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`, instead of adding
     /// `G·Q·Gᵀ` (always on in ckf and arckf).

@@ -45,8 +45,8 @@ pub fn posterior_crlb(
             let ((a0, g0), (a1, g1)) = (body(&imu[k - 1]), body(&imu[k]));
             let interval =
                 ImuInterval { dt_s: imu[k].t_s - imu[k - 1].t_s, accel_start: a0, accel_end: a1, gyro_start: g0, gyro_end: g1 };
-            bound =
-                Transition::new(&truth[k - 1], &interval, config).propagate_covariance(&bound, &ProcessNoise::new(config, interval.dt_s));
+            bound = Transition::new(&truth[k - 1], &interval, config)
+                .propagate_covariance(&bound, &ProcessNoise::new(config, interval.dt_s));
         }
         let mut dx = ErrVec::zeros();
         while next < ranges.len() && ranges[next].t_s <= imu[k].t_s {

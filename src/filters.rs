@@ -10,7 +10,7 @@ use crate::math::Vec3;
 use crate::update::UpdateReport;
 
 pub use self::core::{InertialCore, Segment};
-pub use self::named::{Criekf, Ekf, Iekf, Rekf, Riekf};
+pub use self::named::{Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
 pub use self::tight::TightFilter;
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming

@@ -197,13 +197,20 @@ pub struct ProcessNoise {
 }
 
 impl ProcessNoise {
-    /// Discretises the configured noise densities over `dt_s` seconds.
+    /// Discretises the configured noise densities over `dt_s` seconds. A first-order Markov bias
+    /// (time constant τ given) is driven so that its steady-state std is the configured bias std
+    /// (`accel_bias_std`, `gyro_bias_std`: the bias instability): variance `σ²·(1 − e^{−2Δt/τ})`
+    /// per step; a random-walk bias gets `walk²·Δt`.
     pub fn new(config: &FilterConfig, dt_s: f64) -> Self {
+        let bias_var = |tau: Option<f64>, std: f64, walk: f64| match tau {
+            Some(t) => std * std * (1.0 - (-2.0 * dt_s / t).exp()),
+            None => walk * walk * dt_s,
+        };
         Self {
             vel_var: config.accel_noise_density.powi(2) * dt_s,
             att_var: config.gyro_noise_density.powi(2) * dt_s,
-            accel_bias_var: config.accel_bias_walk.powi(2) * dt_s,
-            gyro_bias_var: config.gyro_bias_walk.powi(2) * dt_s,
+            accel_bias_var: bias_var(config.accel_bias_tau, config.accel_bias_std, config.accel_bias_walk),
+            gyro_bias_var: bias_var(config.gyro_bias_tau, config.gyro_bias_std, config.gyro_bias_walk),
             trapezoid: config.trapezoidal_process_noise,
         }
     }
@@ -211,7 +218,13 @@ impl ProcessNoise {
     /// `G·Q·Gᵀ` as a 15×15 matrix (diagonal: the rotations in G cancel for isotropic noise).
     pub fn continuous(&self) -> ErrCov {
         let v = |x: f64| Vec3::repeat(x);
-        diagonal_covariance([v(0.0), v(self.vel_var.sqrt()), v(self.att_var.sqrt()), v(self.accel_bias_var.sqrt()), v(self.gyro_bias_var.sqrt())])
+        diagonal_covariance([
+            v(0.0),
+            v(self.vel_var.sqrt()),
+            v(self.att_var.sqrt()),
+            v(self.accel_bias_var.sqrt()),
+            v(self.gyro_bias_var.sqrt()),
+        ])
     }
 }
 

@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Ckf, Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -24,11 +24,13 @@ pub enum Method {
     Riekf,
     /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF).
     Criekf,
+    /// The complementary Kalman filter of seed 002.
+    Ckf,
 }
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 6] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf"];
+    pub const NAMES: [&'static str; 7] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -39,6 +41,7 @@ impl Method {
             "rekf" => Ok(Self::Rekf),
             "riekf" => Ok(Self::Riekf),
             "criekf" => Ok(Self::Criekf),
+            "ckf" => Ok(Self::Ckf),
             _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
         }
     }
@@ -94,6 +97,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Rekf => run_inertial(|i| Rekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Ckf => run_inertial(|i| Ckf::new(anchors.to_vec(), i, config.clone()), input),
     }
 }
 

@@ -39,7 +39,9 @@ fn perturbed(x: &NominalState, j: usize, eps: f64) -> NominalState {
 #[test]
 fn transition_matches_finite_differences_of_mechanization() {
     // Random-walk biases, and first-order Markov biases (seed 002) with short time constants.
-    for config in [FilterConfig::default(), FilterConfig { accel_bias_tau: Some(2.0), gyro_bias_tau: Some(0.5), ..FilterConfig::default() }] {
+    for config in
+        [FilterConfig::default(), FilterConfig { accel_bias_tau: Some(2.0), gyro_bias_tau: Some(0.5), ..FilterConfig::default() }]
+    {
         check_transition(&config);
     }
 }

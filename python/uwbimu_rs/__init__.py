@@ -14,6 +14,7 @@ import polars as pl
 
 from uwbimu_rs._native import (
     FILTERS,
+    Ckf,
     ConfigError,
     Criekf,
     Ekf,
@@ -29,6 +30,7 @@ from uwbimu_rs import _native
 
 __all__ = [
     "FILTERS",
+    "Ckf",
     "ConfigError",
     "Criekf",
     "Ekf",
@@ -62,7 +64,7 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``).
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)

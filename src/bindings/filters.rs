@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Ckf, Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -264,6 +264,10 @@ py_filter!(
     /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF).
     PyCriekf, "Criekf", Criekf
 );
+py_filter!(
+    /// The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)).
+    PyCkf, "Ckf", Ckf
+);
 
 fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
     let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
@@ -507,6 +511,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRekf>()?;
     m.add_class::<PyRiekf>()?;
     m.add_class::<PyCriekf>()?;
+    m.add_class::<PyCkf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;

@@ -99,3 +99,26 @@ named_filter!(
         (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, config.max_iterations)
     }
 );
+
+/// Bias time constant used by `Ckf` when the configuration gives none, s (seed 002
+/// models the biases as first-order Markov processes without giving τ).
+pub const DEFAULT_BIAS_TAU_S: f64 = 300.0;
+
+/// The complementary-filter settings of seed 002: Markov biases (eqs. (17)–(18)) and the
+/// process noise of eq. (28).
+fn complementary(config: &mut FilterConfig) {
+    config.accel_bias_tau = config.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
+    config.gyro_bias_tau = config.gyro_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
+    config.trapezoidal_process_noise = true;
+}
+
+named_filter!(
+    /// Complementary (error-state, feedback) Kalman filter of seed 002 eqs. (1)–(32): Markov
+    /// biases, Φ to second order, `Q_k` of eq. (28), range observations linearised at the INS
+    /// position (eqs. (29)–(31), the same linearisation as seed 000 eq. (36)), fixed noise.
+    Ckf,
+    |config| {
+        complementary(&mut config);
+        (RangeNoisePolicy::Fixed, 1)
+    }
+);
