@@ -46,16 +46,16 @@ fn transition_matches_finite_differences_of_mechanization() {
     }
 }
 
-fn check_transition(g: &FilterConfig) {
+fn check_transition(config: &FilterConfig) {
     let x0 = example_state();
     let imu = example_imu();
-    let x1 = propagate_nominal(&x0, &imu, g);
-    let phi = Transition::new(&x0, &imu, g).to_dense();
+    let x1 = propagate_nominal(&x0, &imu, config);
+    let phi = Transition::new(&x0, &imu, config).to_dense();
     let eps = 1e-6;
     let mut fd = ErrCov::zeros();
     for j in 0..ERR_DIM {
-        let plus = propagate_nominal(&perturbed(&x0, j, eps), &imu, &g).boxminus(&x1);
-        let minus = propagate_nominal(&perturbed(&x0, j, -eps), &imu, &g).boxminus(&x1);
+        let plus = propagate_nominal(&perturbed(&x0, j, eps), &imu, config).boxminus(&x1);
+        let minus = propagate_nominal(&perturbed(&x0, j, -eps), &imu, config).boxminus(&x1);
         fd.set_column(j, &((plus - minus) / (2.0 * eps)));
     }
     let err = (phi - fd).abs().max();
