@@ -31,6 +31,8 @@ const RANK_RCOND: f64 = 1e-10;
 const MAX_LINEAR_CONDITION: f64 = 300.0;
 /// Relative eigenvalue threshold below which `JᵀJ` counts as singular.
 const NORMAL_RCOND: f64 = 1e-12;
+/// Gauss–Newton halves a step at most this many times looking for a lower sum of squares.
+const MAX_STEP_HALVINGS: u32 = 30;
 /// Distance (m) below which the tag is "on" an anchor and the range Jacobian is undefined.
 const MIN_ANCHOR_DISTANCE_M: f64 = 1e-9;
 
@@ -279,8 +281,8 @@ pub fn gauss_newton_fix(
     }
     let mut iterations = 0;
     while iterations < cfg.max_iterations {
-        let (jtj, jte, _) = normal_equations(anchors, obs, &p)?;
-        let step = if planar {
+        let (jtj, jte, sse) = normal_equations(anchors, obs, &p)?;
+        let mut step = if planar {
             let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
             let v = Vector2::new(-jte.x, -jte.y);
             let d = Cholesky::new(m)?.solve(&v);
@@ -290,6 +292,18 @@ pub fn gauss_newton_fix(
         };
         if !step.iter().all(|v| v.is_finite()) {
             return None;
+        }
+        // Step halving: accept only steps that lower the sum of squares, so an outlier or a
+        // poorly conditioned height cannot send the iteration away (undamped, it reached
+        // kilometres on near-coplanar anchors).
+        let mut halvings = 0;
+        while normal_equations(anchors, obs, &(p + step)).is_none_or(|(_, _, s)| s > sse) {
+            halvings += 1;
+            if halvings > MAX_STEP_HALVINGS {
+                step = Vec3::zeros();
+                break;
+            }
+            step *= 0.5;
         }
         p += step;
         iterations += 1;
@@ -316,11 +330,11 @@ pub fn gauss_newton_fix(
 /// Mode: planar at `cfg.planar_height_m` if it is `Some`; otherwise 3-D when the anchors used
 /// span at least `cfg.min_vertical_span_m` vertically and there are ≥ 4 ranges; otherwise
 /// (fallback) planar at the **mean height of the anchors used** (one term per observation).
-/// In 3-D, if the linear system (seed 004 eq. (13)) is ill-conditioned (condition number of `G`
-/// above 300, i.e. near-coplanar anchors), Gauss–Newton starts from the planar linear solution
-/// at the mean anchor height instead; since it may then settle on the mirror image of the tag
-/// through the anchors' plane, it is run once more from the result reflected through the mean
-/// anchor height and the fix with the smaller residual RMS is kept.
+/// In 3-D, Gauss–Newton runs from the linear solution (seed 004 eq. (13); skipped when `G` is
+/// ill-conditioned, condition number above 300, i.e. near-coplanar anchors) and from the planar
+/// linear solution at the mean anchor height, then once more from the better result reflected
+/// through that height (near-coplanar anchors fit the mirror image almost as well); the fix with
+/// the smallest residual RMS is kept.
 ///
 /// Returns `None` on degenerate input (too few ranges, collinear anchors, unknown anchor index,
 /// negative or non-finite values).
@@ -337,24 +351,31 @@ pub fn solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], cfg: &LsConfig) -> Op
     let z_max = heights.clone().fold(f64::NEG_INFINITY, f64::max);
     let z_mean = heights.sum::<f64>() / obs.len() as f64;
     if obs.len() >= 4 && z_max - z_min >= cfg.min_vertical_span_m {
-        match linear_solve(anchors, obs, None) {
+        // Candidates: Gauss–Newton from the 3-D linear seed (when well conditioned), from the
+        // planar seed at the anchors' mean height, and from the mirror image of the better one
+        // through that height (near-coplanar anchors fit both sides almost equally). The fix with
+        // the smallest residual RMS wins, so one bad seed (e.g. a gross outlier in a badly
+        // conditioned linear system, which can send Gauss–Newton kilometres away) cannot.
+        let linear = match linear_solve(anchors, obs, None) {
             Some((start, cond)) if cond <= MAX_LINEAR_CONDITION => gauss_newton_fix(anchors, obs, start, None, cfg),
-            _ => {
-                // Near-coplanar anchors: the solution and its mirror image through the anchors'
-                // mean height fit almost equally well, so try both sides and keep the better.
-                let start = linear_fix(anchors, obs, Some(z_mean))?;
-                let first = gauss_newton_fix(anchors, obs, start, None, cfg)?;
-                let mut mirrored = first.position;
-                mirrored.z = 2.0 * z_mean - mirrored.z;
-                match gauss_newton_fix(anchors, obs, mirrored, None, cfg) {
-                    Some(second) if second.residual_rms_m < first.residual_rms_m => Some(second),
-                    _ => Some(first),
-                }
-            }
-        }
+            _ => None,
+        };
+        let planar = linear_fix(anchors, obs, Some(z_mean)).and_then(|start| gauss_newton_fix(anchors, obs, start, None, cfg));
+        let best = better(linear, planar)?;
+        let mut mirrored = best.position;
+        mirrored.z = 2.0 * z_mean - mirrored.z;
+        better(Some(best), gauss_newton_fix(anchors, obs, mirrored, None, cfg))
     } else {
         let start = linear_fix(anchors, obs, Some(z_mean))?;
         gauss_newton_fix(anchors, obs, start, Some(z_mean), cfg)
+    }
+}
+
+/// The fix with the smaller residual RMS.
+fn better(a: Option<Fix>, b: Option<Fix>) -> Option<Fix> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.residual_rms_m < a.residual_rms_m { b } else { a }),
+        (a, b) => a.or(b),
     }
 }
 
@@ -534,6 +555,26 @@ mod tests {
         let fix = fix.unwrap();
         assert!(!fix.planar);
         assert!((fix.position - p).norm() < 1e-6, "{fix:?}");
+    }
+
+    #[test]
+    fn gross_outlier_on_near_coplanar_anchors_stays_bounded() {
+        // The seed-002 garage: anchors at 1.5 / 2.0 m, tag at 0.9 m, one range 6 m too long.
+        // Undamped Gauss–Newton went kilometres away here; with step halving the fix stays near.
+        let anchors =
+            vec![Vec3::new(0.0, 0.0, 1.5), Vec3::new(10.0, 0.0, 2.0), Vec3::new(10.0, 5.0, 1.5), Vec3::new(0.0, 5.0, 2.0)];
+        let cfg = LsConfig::default();
+        for p in [Vec3::new(2.0, 1.0, 0.9), Vec3::new(5.0, 2.5, 0.9), Vec3::new(8.5, 4.0, 0.9)] {
+            for bad in 0..4 {
+                let obs: Vec<(usize, f64)> =
+                    anchors.iter().enumerate().map(|(i, a)| (i, (p - a).norm() + if i == bad { 6.0 } else { 0.0 })).collect();
+                let fix = solve_epoch(&anchors, &obs, &cfg).unwrap();
+                assert!((fix.position - p).norm() < 10.0, "tag {p:?}, outlier on {bad}: fix {:?}", fix.position);
+                // and the clean epoch is still exact
+                let clean: Vec<(usize, f64)> = anchors.iter().enumerate().map(|(i, a)| (i, (p - a).norm())).collect();
+                assert!((solve_epoch(&anchors, &clean, &cfg).unwrap().position - p).norm() < 1e-6);
+            }
+        }
     }
 
     #[test]
