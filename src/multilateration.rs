@@ -297,7 +297,7 @@ pub fn gauss_newton_fix(
         // poorly conditioned height cannot send the iteration away (undamped, it reached
         // kilometres on near-coplanar anchors).
         let mut halvings = 0;
-        while normal_equations(anchors, obs, &(p + step)).is_none_or(|(_, _, s)| s > sse) {
+        while normal_equations(anchors, obs, &(p + step)).map_or(true, |(_, _, s)| s > sse) {
             halvings += 1;
             if halvings > MAX_STEP_HALVINGS {
                 step = Vec3::zeros();
