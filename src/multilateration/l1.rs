@@ -160,15 +160,63 @@ pub fn l1_fix(
     finite.then_some(L1Fix { position: p, residuals_m, iterations, planar })
 }
 
-/// L1 fix of one epoch (seed 002 eqs. (33)–(34)) started from its L2 fix: runs
-/// [`solve_epoch`] with `ls_cfg` (which chooses planar or 3-D mode, see there), then [`l1_fix`]
-/// from that position in the same mode (planar at the L2 fix's height).
+/// L1 fix of one epoch (seed 002 eqs. (33)–(34)): the mode (planar or 3-D) and a first start come
+/// from the L2 fix ([`solve_epoch`] with `ls_cfg`). In planar mode the L1 optimum lies where two
+/// range circles meet (at least two residuals vanish), so every pairwise circle intersection is
+/// also tried as a start and the one with the smallest `E(p)` is refined by [`l1_fix`]; started
+/// from the L2 fix alone, the iteration can settle in a local minimum that fits a gross outlier
+/// exactly. In 3-D only the L2 start is used.
 ///
 /// Returns `None` if either stage fails (see [`solve_epoch`] and [`l1_fix`]).
 pub fn l1_solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], ls_cfg: &LsConfig, l1_cfg: &L1Config) -> Option<L1Fix> {
     let l2 = solve_epoch(anchors, obs, ls_cfg)?;
     let height = l2.planar.then_some(l2.position.z);
-    l1_fix(anchors, obs, l2.position, height, l1_cfg)
+    let start = match height {
+        Some(h) => circle_intersections(anchors, obs, h)
+            .into_iter()
+            .chain(std::iter::once(l2.position))
+            .map(|p| (abs_cost(anchors, obs, &p), p))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map_or(l2.position, |(_, p)| p),
+        None => l2.position,
+    };
+    l1_fix(anchors, obs, start, height, l1_cfg)
+}
+
+/// `E(p) = Σ |‖p − a_i‖ − r_i|` (seed 002 eq. (33)).
+fn abs_cost(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> f64 {
+    obs.iter().map(|&(a, r)| ((p - anchors[a]).norm() - r).abs()).sum()
+}
+
+/// Every intersection, in the plane `z = h`, of two range circles (centre: the anchor's foot
+/// point, radius `√(r² − (h − z_a)²)`); ranges shorter than the height difference are skipped.
+fn circle_intersections(anchors: &[Vec3], obs: &[(usize, f64)], h: f64) -> Vec<Vec3> {
+    let circles: Vec<(f64, f64, f64)> = obs
+        .iter()
+        .filter_map(|&(a, r)| {
+            let dz = h - anchors[a].z;
+            let rho2 = r * r - dz * dz;
+            (rho2 > 0.0).then(|| (anchors[a].x, anchors[a].y, rho2.sqrt()))
+        })
+        .collect();
+    let mut points = Vec::new();
+    for (i, &(x1, y1, r1)) in circles.iter().enumerate() {
+        for &(x2, y2, r2) in &circles[i + 1..] {
+            let (dx, dy) = (x2 - x1, y2 - y1);
+            let d = dx.hypot(dy);
+            if d < 1e-9 {
+                continue;
+            }
+            // Distance from centre 1 along the centre line, and the half chord (0 when the
+            // circles miss each other: the closest point between them).
+            let a = (r1 * r1 - r2 * r2 + d * d) / (2.0 * d);
+            let half = (r1 * r1 - a * a).max(0.0).sqrt();
+            let (mx, my) = (x1 + a * dx / d, y1 + a * dy / d);
+            points.push(Vec3::new(mx - half * dy / d, my + half * dx / d, h));
+            points.push(Vec3::new(mx + half * dy / d, my - half * dx / d, h));
+        }
+    }
+    points
 }
 
 #[cfg(test)]
@@ -296,6 +344,40 @@ mod tests {
         obs[0].1 += 1.5;
         let fix = l1_fix(&anchors, &obs, p, Some(1.0), &L1Config::default()).unwrap();
         assert!((fix.residuals_m[0] - 1.5).abs() < 1e-3, "{:?}", fix.residuals_m);
+    }
+
+    #[test]
+    fn planar_epoch_finds_the_global_l1_optimum() {
+        // Four anchors of the seed-002 garage, one range 3 m too long, tags on a grid. The fix must
+        // be the global minimum of E(p): no circle intersection has a lower cost.
+        let anchors =
+            vec![Vec3::new(0.0, 0.0, 1.5), Vec3::new(10.0, 0.0, 2.0), Vec3::new(10.0, 5.0, 1.5), Vec3::new(0.0, 5.0, 2.0)];
+        let ls = LsConfig { planar_height_m: Some(0.9), ..LsConfig::default() };
+        let (mut isolated, mut cases) = (0, 0);
+        for ix in 1..10 {
+            for iy in 1..5 {
+                let p = Vec3::new(f64::from(ix), f64::from(iy), 0.9);
+                for bad in 0..4 {
+                    let mut obs = exact_obs(&anchors, &p);
+                    obs[bad].1 += 3.0;
+                    let fix = l1_solve_epoch(&anchors, &obs, &ls, &L1Config::default()).unwrap();
+                    let best = circle_intersections(&anchors, &obs, 0.9)
+                        .iter()
+                        .map(|c| l1_cost(&anchors, &obs, c))
+                        .fold(f64::INFINITY, f64::min);
+                    assert!(l1_cost(&anchors, &obs, &fix.position) <= best + 1e-3, "tag {p:?}: not the global optimum");
+                    cases += 1;
+                    if fix.residuals_m[bad] > 2.9 && (fix.position - p).norm() < 0.01 {
+                        isolated += 1;
+                    }
+                }
+            }
+        }
+        // Measured: the optimum isolates the outlier in 53 % of these cases; in the rest it fits
+        // two good ranges and splits the error (a limit of L1 with two spare ranges).
+        let share = f64::from(isolated) / f64::from(cases);
+        println!("outlier isolated in {share:.2} of {cases} cases");
+        assert!(share > 0.4, "outlier isolated in {share:.2} of the cases");
     }
 
     #[test]
