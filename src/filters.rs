@@ -2,6 +2,7 @@
 //! and the trait the pipeline drives.
 
 pub mod core;
+pub mod loose;
 pub mod named;
 pub mod tight;
 
@@ -10,6 +11,7 @@ use crate::math::Vec3;
 use crate::update::UpdateReport;
 
 pub use self::core::{InertialCore, Segment};
+pub use self::loose::Eskf;
 pub use self::named::{Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
 pub use self::tight::TightFilter;
 

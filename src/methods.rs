@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Ckf, Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -26,11 +26,13 @@ pub enum Method {
     Criekf,
     /// The complementary Kalman filter of seed 002.
     Ckf,
+    /// The loosely coupled error-state filter of seed 004.
+    Eskf,
 }
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 7] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf"];
+    pub const NAMES: [&'static str; 8] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -42,6 +44,7 @@ impl Method {
             "riekf" => Ok(Self::Riekf),
             "criekf" => Ok(Self::Criekf),
             "ckf" => Ok(Self::Ckf),
+            "eskf" => Ok(Self::Eskf),
             _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
         }
     }
@@ -98,6 +101,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Ckf => run_inertial(|i| Ckf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Eskf => run_inertial(|i| Eskf::new(anchors.to_vec(), i, config.clone()), input),
     }
 }
 

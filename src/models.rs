@@ -1,3 +1,4 @@
 //! Measurement models: predicted measurement and its Jacobian with respect to the error state.
 
+pub mod loose;
 pub mod range;

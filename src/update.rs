@@ -84,3 +84,29 @@ pub fn inject_and_reset(x: &mut NominalState, p: &mut ErrCov, dx: &ErrVec) {
     p.fixed_columns_mut::<3>(ATT).copy_from(&cols);
     symmetrize(p);
 }
+
+/// Vector measurement step for `residual ≈ H·δx + v`, `v ~ N(0, R)` with a full `M×M` noise
+/// covariance: whitened by the Cholesky factor `R = L·Lᵀ` (`H' = L⁻¹H`, `r' = L⁻¹r`, `R' = I`)
+/// and applied as `M` [`scalar_step`]s, which equals the joint Joseph update (seed 004 eqs.
+/// (37)–(39)). Returns the normalised innovation squared `rᵀ(H·P·Hᵀ + R)⁻¹r` against the
+/// covariance before the step. Fails if `R` or the innovation covariance is not positive definite.
+pub fn vector_step<const M: usize>(
+    dx: &mut ErrVec,
+    p: &mut ErrCov,
+    h: &nalgebra::SMatrix<f64, M, ERR_DIM>,
+    residual: &nalgebra::SVector<f64, M>,
+    r: &nalgebra::SMatrix<f64, M, M>,
+) -> Result<f64> {
+    let s = h * *p * h.transpose() + r;
+    let nis = match s.cholesky() {
+        Some(c) => residual.dot(&c.solve(residual)),
+        None => return Err(Error::NotPositiveDefinite { what: "innovation covariance" }),
+    };
+    let l = r.cholesky().ok_or(Error::NotPositiveDefinite { what: "measurement covariance" })?.l();
+    let hw = l.solve_lower_triangular(h).ok_or(Error::NotPositiveDefinite { what: "measurement covariance" })?;
+    let rw = l.solve_lower_triangular(residual).ok_or(Error::NotPositiveDefinite { what: "measurement covariance" })?;
+    for i in 0..M {
+        scalar_step(dx, p, &hw.row(i).transpose(), rw[i], 1.0)?;
+    }
+    Ok(nis)
+}

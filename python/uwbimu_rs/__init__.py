@@ -18,6 +18,7 @@ from uwbimu_rs._native import (
     ConfigError,
     Criekf,
     Ekf,
+    Eskf,
     FilterConfig,
     Iekf,
     NumericalError,
@@ -34,6 +35,7 @@ __all__ = [
     "ConfigError",
     "Criekf",
     "Ekf",
+    "Eskf",
     "FilterConfig",
     "Iekf",
     "NumericalError",
@@ -64,7 +66,7 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``).
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"eskf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)

@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ckf, Criekf, Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -268,6 +268,10 @@ py_filter!(
     /// The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)).
     PyCkf, "Ckf", Ckf
 );
+py_filter!(
+    /// The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity).
+    PyEskf, "Eskf", Eskf
+);
 
 fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
     let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
@@ -512,6 +516,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRiekf>()?;
     m.add_class::<PyCriekf>()?;
     m.add_class::<PyCkf>()?;
+    m.add_class::<PyEskf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;

@@ -63,23 +63,6 @@ impl TightFilter {
     pub fn anchors(&self) -> &[Vec3] {
         &self.anchors
     }
-
-    fn check_ranges(&self, ranges: &[(usize, f64)]) -> Result<()> {
-        for (row, &(anchor, range_m)) in ranges.iter().enumerate() {
-            if anchor >= self.anchors.len() {
-                return Err(Error::UnknownAnchor { name: "update_range", row, anchor: anchor as f64, count: self.anchors.len() });
-            }
-            if !range_m.is_finite() || range_m < 0.0 {
-                return Err(Error::InvalidValue {
-                    name: "update_range",
-                    row,
-                    value: range_m,
-                    reason: "range must be finite and >= 0 m",
-                });
-            }
-        }
-        Ok(())
-    }
 }
 
 impl InertialFilter for TightFilter {
@@ -95,7 +78,7 @@ impl InertialFilter for TightFilter {
         if reports.len() != ranges.len() {
             return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
         }
-        self.check_ranges(ranges)?;
+        check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
         let lever_arm = self.core.config().lever_arm;
         let r_var = self.core.config().range_std.powi(2);
@@ -145,4 +128,22 @@ impl InertialFilter for TightFilter {
     fn still(&self) -> bool {
         self.constraints.still()
     }
+}
+
+/// Checks the anchor indices and values of one epoch of ranges.
+pub(crate) fn check_ranges(anchors: &[Vec3], ranges: &[(usize, f64)]) -> Result<()> {
+    for (row, &(anchor, range_m)) in ranges.iter().enumerate() {
+        if anchor >= anchors.len() {
+            return Err(Error::UnknownAnchor { name: "update_range", row, anchor: anchor as f64, count: anchors.len() });
+        }
+        if !range_m.is_finite() || range_m < 0.0 {
+            return Err(Error::InvalidValue {
+                name: "update_range",
+                row,
+                value: range_m,
+                reason: "range must be finite and >= 0 m",
+            });
+        }
+    }
+    Ok(())
 }
