@@ -56,6 +56,11 @@ def main() -> None:
     print(f"ekf streaming : {stream / n * 1e9:8.0f} ns per IMU sample (Python loop)")
     print(f"uwb_ls batch  : {ls / epochs * 1e9:8.0f} ns per epoch")
     print(f"streaming / batch ratio: {stream / batch:.1f}")
+    runs = [sim.preset("seed000", seed=s) for s in range(4)]
+    tuples = [(r.imu, r.ranges, r.anchors) for r in runs]
+    one_by_one = best_of(lambda: [uwbimu_rs.run_filter("riekf", *t, config=config) for t in tuples], args.repeat)
+    parallel = best_of(lambda: uwbimu_rs.run_filters("riekf", tuples, config=config), args.repeat)
+    print(f"riekf over 4 runs: one by one / run_filters (all cores) = {one_by_one / parallel:.2f}")
 
 
 if __name__ == "__main__":

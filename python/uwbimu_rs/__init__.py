@@ -7,7 +7,7 @@ rotating body → navigation; error-state order δp, δv, δθ, δb_a, δb_g; ti
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import polars as pl
@@ -46,6 +46,7 @@ __all__ = [
     "crlb",
     "initialize",
     "run_filter",
+    "run_filters",
 ]
 
 
@@ -115,9 +116,7 @@ def run_filter(
         updates=updates,
         smooth=smooth,
     )
-    frame = pl.DataFrame(cols)
-    if "still" in frame.columns:
-        frame = frame.with_columns(pl.col("still").cast(pl.Boolean))
+    frame = _frame(cols)
     if updates:
         if upd is None:
             raise ValueError(f"method {method!r} has no range updates to report")
@@ -126,6 +125,41 @@ def run_filter(
         )
         return frame, u
     return frame
+
+
+def run_filters(
+    method: str,
+    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    *,
+    initial: Sequence[Mapping[str, Any] | None] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    smooth: bool = False,
+) -> list[pl.DataFrame]:
+    """Run one method over many recordings in parallel on all cores (GIL released).
+
+    Parameters
+    ----------
+    method : str
+        As for :func:`run_filter`.
+    runs : sequence of (imu, ranges, anchors)
+        One tuple of arrays per recording, shapes as for :func:`run_filter`
+        (e.g. ``[(r.imu, r.ranges, r.anchors) for r in sims]``).
+    initial : sequence of dict or None, optional
+        One initial state per run (None entries self-initialise); None: all self-initialise.
+    config, covariance, smooth
+        As for :func:`run_filter`, shared by all runs.
+
+    Returns
+    -------
+    list of polars.DataFrame
+        One frame per run, in order, identical to what :func:`run_filter` returns for it.
+    """
+    inits = None if initial is None else [_as_dict(i) for i in initial]
+    outputs = _native.run_filters(
+        method, list(runs), initial=inits, config=_as_dict(config), covariance=covariance, smooth=smooth
+    )
+    return [_frame(cols) for cols, _upd, _info in outputs]
 
 
 def initialize(
@@ -148,6 +182,14 @@ def initialize(
         ``info``: ``still_start`` (bool) and ``heading_from`` ("motion" or "fallback").
     """
     return _native.initialize_state(imu, ranges, anchors, config=_as_dict(config))
+
+
+def _frame(cols: dict[str, np.ndarray]) -> pl.DataFrame:
+    """A result frame from native columns (``still`` as a boolean)."""
+    frame = pl.DataFrame(cols)
+    if "still" in frame.columns:
+        frame = frame.with_columns(pl.col("still").cast(pl.Boolean))
+    return frame
 
 
 def _as_dict(value: Any) -> Any:

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "run_filters",
     "Eskf",
     "Ckf",
     "posterior_crlb",
@@ -420,6 +421,18 @@ def posterior_crlb(
 ) -> dict[str, _F64]:
     """Posterior CRLB (seed 002 eqs. (43)–(44)) along ``truth`` (N, 11) = t, x, y, z, vx, vy, vz,
     qw, qx, qy, qz; ``biases`` (N, 6). Returns columns t, crlb_x, crlb_y, crlb_z (std, m)."""
+
+def run_filters(
+    method: str,
+    runs: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
+    *,
+    initial: Sequence[dict[str, Any] | None] | None = None,
+    config: _ConfigArg = None,
+    covariance: bool = False,
+    smooth: bool = False,
+) -> list[tuple[dict[str, _F64], None, dict[str, Any]]]:
+    """Run one method over many ``(imu, ranges, anchors)`` recordings in parallel (rayon, GIL
+    released); one ``(columns, None, info)`` per run, in order."""
 
 def run_filter(
     method: str,

@@ -370,6 +370,11 @@ fn run_filter<'py>(
         smooth,
     };
     let output = py.detach(|| run_method(method, &input))?;
+    output_columns(py, output, covariance, updates)
+}
+
+/// Python columns of one batch output: `(columns, update columns or None, info)`.
+fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, updates: bool) -> PyResult<BatchColumns<'py>> {
     let info = PyDict::new(py);
     match output {
         BatchOutput::Inertial { trace, init, smoothed } => {
@@ -405,6 +410,66 @@ fn run_filter<'py>(
             Ok((columns(py, cols)?, None, info))
         }
     }
+}
+
+/// Runs one method over many recordings in parallel on all cores (rayon), with the GIL released.
+/// `runs` is a sequence of `(imu, ranges, anchors)`; `initial` is None or a sequence of the same
+/// length (each item a dict or None). Returns one `(columns, None, info)` per run, in order; the
+/// first failing run's error is raised.
+#[pyfunction]
+#[pyo3(signature = (method, runs, *, initial=None, config=None, covariance=false, smooth=false))]
+fn run_filters<'py>(
+    py: Python<'py>,
+    method: &str,
+    runs: &Bound<'py, PyAny>,
+    initial: Option<&Bound<'py, PyAny>>,
+    config: Option<&Bound<'py, PyAny>>,
+    covariance: bool,
+    smooth: bool,
+) -> PyResult<Vec<BatchColumns<'py>>> {
+    use rayon::prelude::*;
+    let method = Method::parse(method)?;
+    let config = read_config(config)?;
+    let mut inputs = Vec::new();
+    for (k, run) in runs.try_iter()?.enumerate() {
+        let (imu, ranges, anchors): (Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>) = run?.extract().map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(format!("runs[{k}]: expected a tuple (imu, ranges, anchors)"))
+        })?;
+        inputs.push(read_inputs(&imu, &ranges, &anchors)?);
+    }
+    let initials: Vec<Option<InitialState>> = match initial {
+        Some(obj) if !obj.is_none() => {
+            let items: Vec<Bound<'py, PyAny>> = obj.try_iter()?.collect::<PyResult<_>>()?;
+            if items.len() != inputs.len() {
+                return Err(crate::Error::Shape {
+                    name: "initial",
+                    expected: format!("{} items (one per run)", inputs.len()),
+                    got: items.len().to_string(),
+                }
+                .into());
+            }
+            items.iter().map(|i| if i.is_none() { Ok(None) } else { read_initial(i).map(Some) }).collect::<PyResult<_>>()?
+        }
+        _ => vec![None; inputs.len()],
+    };
+    let outputs = py.detach(|| {
+        inputs
+            .par_iter()
+            .zip(initials.par_iter())
+            .map(|(inp, init)| {
+                let input = BatchInput {
+                    imu: &inp.imu,
+                    ranges: &inp.ranges,
+                    anchors: &inp.anchors,
+                    initial: init.as_ref(),
+                    config: &config,
+                    smooth,
+                };
+                run_method(method, &input)
+            })
+            .collect::<Vec<_>>()
+    });
+    outputs.into_iter().map(|o| output_columns(py, o?, covariance, false)).collect()
 }
 
 /// Self-initialisation from the start of a recording; returns a dict usable as `initial` plus
@@ -519,6 +584,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyEskf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(run_filters, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;
     m.add_function(wrap_pyfunction!(posterior_crlb, m)?)?;
     m.add("FILTERS", Method::NAMES.to_vec())?;

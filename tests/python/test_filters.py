@@ -284,3 +284,18 @@ def test_crlb_beside_the_filter_error(los_run, filter_config):
     assert mse > 0.5 * crlb_h  # one run: loose Monte-Carlo tolerance (6 runs in tests/crlb.rs)
     with pytest.raises(ValueError, match=r"truth: expected shape \(N, 11\)"):
         uwbimu_rs.crlb(los_run.imu, los_run.ranges, los_run.anchors, np.zeros((3, 4)))
+
+
+def test_run_filters_in_parallel_equals_one_by_one(filter_config):
+    from uwbimu_rs import sim
+
+    runs = [sim.preset("seed000", seed=s) for s in range(3)]
+    many = uwbimu_rs.run_filters("riekf", [(r.imu, r.ranges, r.anchors) for r in runs], config=filter_config)
+    assert len(many) == 3
+    for r, df in zip(runs, many):
+        one = uwbimu_rs.run_filter("riekf", r.imu, r.ranges, r.anchors, config=filter_config)
+        assert df.equals(one)
+    with pytest.raises(ValueError, match=r"runs\[1\]: expected a tuple"):
+        uwbimu_rs.run_filters("ekf", [(runs[0].imu, runs[0].ranges, runs[0].anchors), "nope"])
+    with pytest.raises(ValueError, match=r"initial: expected shape 1 items \(one per run\), got 2"):
+        uwbimu_rs.run_filters("ekf", [(runs[0].imu, runs[0].ranges, runs[0].anchors)], initial=[None, None])
