@@ -692,7 +692,7 @@ mod tests {
     #[test]
     fn shaf_converges_to_true_r_scalar() {
         let errs = check_shaf_convergence(&m1(0.0025), &m1(0.01), 11);
-        eprintln!("SHAF convergence errors {errs:?}");
+        // Measured: [0.0003, 0.041, 0.042].
         assert!(errs[0] < 0.05 && errs[1] < 0.10 && errs[2] < 0.10, "{errs:?}");
     }
 
@@ -701,7 +701,294 @@ mod tests {
         let r_true = SMatrix::<f64, 2, 2>::new(0.04, 0.01, 0.01, 0.02);
         let hph = r_true * 0.25 + Cov::<2>::identity() * 0.002;
         let errs = check_shaf_convergence(&hph, &r_true, 21);
-        eprintln!("SHAF convergence errors {errs:?}");
+        // Measured: [0.021, 0.029, 0.066].
         assert!(errs[0] < 0.05 && errs[1] < 0.10 && errs[2] < 0.10, "{errs:?}");
+    }
+
+    /// One scalar run: `R_true` = 0.01 for 300 steps, then 0.04 (×4); hph = 0.0025. Returns the
+    /// number of steps after the change until `R ≥ 0.8·0.04`, the mean `R` over steps 500..700
+    /// and the number of clean innovations (steps 51..299) flagged as outliers.
+    fn step_up_run(cfg: SageHusaConfig, seed: u64) -> (usize, f64, usize) {
+        let hph = m1(0.0025);
+        let mut est = SageHusa::<1>::new(cfg, m1(0.01)).expect("valid");
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (mut follow, mut mean_after, mut false_alarms) = (usize::MAX, 0.0, 0);
+        for k in 0..700 {
+            let r_true = if k < 300 { 0.01 } else { 0.04 };
+            let st = est.step(&draw(&(hph + m1(r_true)), &mut rng), &hph);
+            if (51..300).contains(&k) && st.is_outlier() {
+                false_alarms += 1;
+            }
+            if k >= 300 && follow == usize::MAX && st.r[(0, 0)] >= 0.8 * 0.04 {
+                follow = k - 300;
+            }
+            if k >= 500 {
+                mean_after += st.r[(0, 0)] / 200.0;
+            }
+        }
+        (follow, mean_after, false_alarms)
+    }
+
+    #[test]
+    fn estimate_follows_a_step_in_r() {
+        // 40 seeds each. Measured (steps to reach 80 % of the new R): SHAF (λ = 1, b = 0.96)
+        // median 30, max 102; SHFAF (defaults) median 12, max 62. Mean R over steps 500..700:
+        // SHAF 0.0409, SHFAF 0.0436 (s_k grows with |Tr(Ŝ)/Tr(S) − 1|, and Ŝ_k contains ε_k, so
+        // large samples get larger weights: SHFAF overestimates R by a few per cent).
+        let stats = |cfg: SageHusaConfig| {
+            let mut v: Vec<(usize, f64, usize)> = (0..40).map(|s| step_up_run(cfg, 100 + s)).collect();
+            v.sort_by_key(|x| x.0);
+            let mean_after = v.iter().map(|x| x.1).sum::<f64>() / 40.0;
+            let alarms: usize = v.iter().map(|x| x.2).sum();
+            (v[20].0, v[39].0, mean_after, alarms)
+        };
+        let (shaf_med, shaf_max, shaf_after, _) = stats(SageHusaConfig::shaf());
+        let (shfaf_med, shfaf_max, shfaf_after, alarms) = stats(SageHusaConfig::default());
+        assert!(shaf_med <= 40 && shaf_max <= 150, "SHAF median {shaf_med}, max {shaf_max}");
+        assert!(shfaf_med <= 18 && shfaf_max <= 90, "SHFAF median {shfaf_med}, max {shfaf_max}");
+        assert!(shfaf_med < shaf_med);
+        // Both settle on the new value.
+        assert!((shaf_after / 0.04 - 1.0).abs() < 0.1, "{shaf_after}");
+        assert!((shfaf_after / 0.04 - 1.0).abs() < 0.15, "{shfaf_after}");
+        // A step in R is not mistaken for outliers before it happens (measured 0 of 40·249).
+        assert!(alarms <= 40 * 249 / 100, "{alarms}");
+    }
+
+    #[test]
+    fn guard_keeps_r_positive_definite_under_small_innovations() {
+        let hph = SMatrix::<f64, 2, 2>::new(1.0, 0.3, 0.3, 0.5);
+        for cfg in [SageHusaConfig::shaf(), SageHusaConfig::default()] {
+            let mut est = SageHusa::<2>::new(cfg, Cov::<2>::identity() * 2.0).expect("valid");
+            let mut rng = ChaCha8Rng::seed_from_u64(5);
+            let mut guarded = 0;
+            for k in 0..500 {
+                // Innovations far smaller than H P Hᵀ: eq. (26) alone would go negative.
+                let e = draw(&(hph * 1e-4), &mut rng);
+                let st = est.step(&e, &hph);
+                guarded += usize::from(st.guarded);
+                assert!(above_floor(&st.r, cfg.min_var * (1.0 - 1e-9)), "k = {k}: {}", st.r);
+                assert!((st.r - st.r.transpose()).amax() == 0.0);
+            }
+            assert!(guarded > 0);
+            // R settles at the floor.
+            assert!((est.r() - Cov::<2>::identity() * cfg.min_var).amax() < 1e-3 * cfg.min_var, "{}", est.r());
+        }
+    }
+
+    #[test]
+    fn unguarded_steps_are_plain_eq_26() {
+        // ε = 0 with a small hph: the candidate stays above the floor, so no guard.
+        let mut est = SageHusa::<1>::new(SageHusaConfig::shaf(), m1(1.0)).expect("valid");
+        est.step(&SVector::<f64, 1>::new(1.1), &m1(0.01)); // k = 0: R = 1.2
+        let st = est.step(&SVector::<f64, 1>::new(0.0), &m1(0.01));
+        let w = 0.04 / 0.0784;
+        assert!(!st.guarded);
+        assert!((st.r[(0, 0)] - ((1.0 - w) * 1.2 - w * 0.01)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn fading_window_weights_and_covariance() {
+        let mut w = FadingWindow::<2, 8>::new(5, 0.9).expect("valid");
+        assert!(w.is_empty() && w.covariance() == Cov::<2>::zeros());
+        let e = SVector::<f64, 2>::new(0.3, -0.2);
+        for n in 1..=12 {
+            w.push(&e);
+            assert_eq!(w.len(), n.min(5));
+            let total: f64 = (0..8).map(|age| w.weight(age)).sum();
+            assert!((total - 1.0).abs() < 1e-14, "n = {n}: {total}");
+            // Constant innovations: Ŝ = ε εᵀ.
+            assert!((w.covariance() - e * e.transpose()).amax() < 1e-15);
+        }
+        // Full window: σ_age = a^age (1 − a)/(1 − a^l), older weighs less.
+        let norm = 0.1 / (1.0 - 0.9f64.powi(5));
+        for age in 0..5 {
+            assert!((w.weight(age) - 0.9f64.powi(age as i32) * norm).abs() < 1e-15);
+            assert!(w.weight(age + 1) < w.weight(age));
+        }
+        assert_eq!(w.weight(5), 0.0);
+        // Distinct innovations: Ŝ = Σ σ_age ε ε ᵀ, and the sample 5 pushes ago has left.
+        let mut w = FadingWindow::<1, 8>::new(3, 0.5).expect("valid");
+        for v in [100.0, 1.0, 2.0, 3.0] {
+            w.push(&SVector::<f64, 1>::new(v));
+        }
+        // σ = (1 − a)/(1 − a³)·a^age = (4/7, 2/7, 1/7) on 3², 2², 1².
+        let expected = (4.0 * 9.0 + 2.0 * 4.0 + 1.0) / 7.0;
+        assert!((w.covariance()[(0, 0)] - expected).abs() < 1e-12);
+        // a = 1: equal weights.
+        let mut w = FadingWindow::<1, 4>::new(4, 1.0).expect("valid");
+        w.push(&SVector::<f64, 1>::new(1.0));
+        w.push(&SVector::<f64, 1>::new(3.0));
+        assert!((w.covariance()[(0, 0)] - 5.0).abs() < 1e-15);
+        assert!(FadingWindow::<1, 4>::new(5, 0.9).is_err() && FadingWindow::<1, 4>::new(2, 0.0).is_err());
+    }
+
+    #[test]
+    fn outlier_is_detected_and_scaled_clean_data_is_not() {
+        let hph = SMatrix::<f64, 2, 2>::new(0.0025, 0.0, 0.0, 0.0025);
+        let r_true = SMatrix::<f64, 2, 2>::new(0.01, 0.002, 0.002, 0.01);
+        let s_true = hph + r_true;
+        let mut est = SageHusa::<2>::new(SageHusaConfig::default(), r_true).expect("valid");
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let (mut clean, mut flagged) = (0, 0);
+        for _ in 0..400 {
+            let st = est.step(&draw(&s_true, &mut rng), &hph);
+            if est.steps() > 20 {
+                clean += 1;
+                flagged += usize::from(st.is_outlier());
+            }
+        }
+        // Measured: 0 of 380 flagged.
+        assert!(flagged * 20 <= clean, "{flagged} of {clean} clean innovations flagged");
+        // A 20σ innovation in the first component.
+        let sigma = s_true[(0, 0)].sqrt();
+        let e = SVector::<f64, 2>::new(20.0 * sigma, 0.5 * s_true[(1, 1)].sqrt());
+        let r_before = *est.r();
+        let st = est.step(&e, &hph);
+        assert!(st.fr[0] < 1.0 && st.fr[1] == 1.0, "fr = {:?}", st.fr);
+        // Eq. (34): fr = 1/√M with M = G/D; here M ≈ 1 + σ_0·399 with σ_0 = 0.05/(1 − 0.95^20).
+        let m = 1.0 / (st.fr[0] * st.fr[0]);
+        let sigma0 = 0.05 / (1.0 - 0.95f64.powi(20));
+        assert!(m > 0.5 * sigma0 * 400.0 && m < 2.0 * sigma0 * 400.0, "M = {m}");
+        // Eq. (35): the measurement (= innovation, ẑ = 0) is scaled component-wise.
+        assert!((st.innovation[0] - e[0] * st.fr[0]).abs() < 1e-15 && st.innovation[1] == e[1]);
+        // R grows far less than it would from the raw outlier.
+        let raw_growth = st.weight * (e[0] * e[0] - hph[(0, 0)]);
+        assert!(st.r[(0, 0)] - r_before[(0, 0)] < 0.2 * raw_growth);
+        // SHAF does not correct.
+        let mut shaf = SageHusa::<2>::new(SageHusaConfig::shaf(), r_true).expect("valid");
+        for _ in 0..100 {
+            shaf.step(&draw(&s_true, &mut rng), &hph);
+        }
+        assert_eq!(shaf.step(&e, &hph).fr, SVector::<f64, 2>::repeat(1.0));
+    }
+
+    #[test]
+    fn outlier_correction_acts_on_the_measurement() {
+        // With a predicted measurement ẑ the corrected innovation is fr ⊙ (ε + ẑ) − ẑ.
+        let hph = m1(0.0025);
+        let mut est = SageHusa::<1>::new(SageHusaConfig::default(), m1(0.01)).expect("valid");
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..100 {
+            est.step(&draw(&(hph + m1(0.01)), &mut rng), &hph);
+        }
+        let zhat = SVector::<f64, 1>::new(0.05);
+        let e = SVector::<f64, 1>::new(2.0);
+        let st = est.step_with_prediction(&e, &zhat, &hph);
+        assert!(st.fr[0] < 1.0);
+        assert!((st.innovation[0] - (st.fr[0] * 2.05 - 0.05)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn fuzzy_factor_follows_the_rules() {
+        for defuzzification in [Defuzzification::Centroid, Defuzzification::WeightedAverage] {
+            let f = FuzzyConfig { defuzzification, ..FuzzyConfig::default() };
+            // Memberships sum to 1.
+            for i in 0..40 {
+                let r = 0.05 * i as f64;
+                let m = f.input_memberships(r);
+                assert!((m.iter().sum::<f64>() - 1.0).abs() < 1e-15, "r = {r}");
+            }
+            // r = 0: only "Less" fires, s = centroid of (0.5, 0.75, 1.0) = 0.75, just below the
+            // "Equal" output 1 (the paper: small mismatch → slightly smaller s).
+            let s0 = f.regulatory_factor(0.0);
+            assert!((s0 - 0.75).abs() < 1e-3, "{defuzzification:?}: {s0}");
+            // r at the "Equal" centre: s = 1.
+            assert!((f.regulatory_factor(0.5) - 1.0).abs() < 1e-3);
+            // Large r: the "More" end, centroid of (1, 2, 3) = 2.
+            for r in [1.5, 3.0, 100.0, f64::INFINITY, f64::NAN] {
+                assert!((f.regulatory_factor(r) - 2.0).abs() < 1e-3, "r = {r}");
+            }
+            // Monotone non-decreasing in r.
+            let mut prev = 0.0;
+            for i in 0..=200 {
+                let s = f.regulatory_factor(0.01 * i as f64);
+                assert!(s >= prev - 1e-12, "r = {}: {s} < {prev}", 0.01 * i as f64);
+                prev = s;
+            }
+        }
+        // Halfway between Less and Equal: weighted average of 0.75 and 1.0.
+        let wa = FuzzyConfig { defuzzification: Defuzzification::WeightedAverage, ..FuzzyConfig::default() };
+        assert!((wa.regulatory_factor(0.25) - 0.875).abs() < 1e-12);
+    }
+
+    #[test]
+    fn warmup_gives_s_one_then_fuzzy() {
+        let cfg = SageHusaConfig { warmup_steps: 10, ..SageHusaConfig::default() };
+        let mut est = SageHusa::<1>::new(cfg, m1(1.0)).expect("valid");
+        for k in 0..=10 {
+            // Innovations wildly off the model: r large, yet s = 1 while k ≤ k_s.
+            let st = est.step(&SVector::<f64, 1>::new(10.0), &m1(0.01));
+            assert_eq!(st.s, 1.0, "k = {k}");
+        }
+        let st = est.step(&SVector::<f64, 1>::new(10.0), &m1(0.01));
+        assert!(st.s != 1.0);
+        assert!((st.weight - (st.s * st.d).min(1.0)).abs() < 1e-15);
+        // α scales the exponent.
+        let cfg = SageHusaConfig { warmup_steps: 0, alpha: 2.0, ..SageHusaConfig::default() };
+        let mut est = SageHusa::<1>::new(cfg, m1(1.0)).expect("valid");
+        est.step(&SVector::<f64, 1>::new(1.0), &m1(0.01));
+        let st = est.step(&SVector::<f64, 1>::new(1.0), &m1(0.01));
+        assert!((st.weight - (st.s * st.s * st.d).min(1.0)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn config_is_validated() {
+        let ok = SageHusaConfig::default();
+        assert!(ok.validate().is_ok() && SageHusaConfig::shaf().validate().is_ok());
+        let bad = [
+            SageHusaConfig { forgetting_factor: 1.0, ..ok },
+            SageHusaConfig { forgetting_factor: 0.0, ..ok },
+            SageHusaConfig { lambda: 0.99, ..ok },
+            SageHusaConfig { alpha: 0.0, ..ok },
+            SageHusaConfig { window_len: 0, ..ok },
+            SageHusaConfig { window_len: MAX_WINDOW + 1, ..ok },
+            SageHusaConfig { fading_rate: 1.01, ..ok },
+            SageHusaConfig { outlier_threshold: f64::NAN, ..ok },
+            SageHusaConfig { min_var: 0.0, ..ok },
+            SageHusaConfig { fuzzy: FuzzyConfig { input_centers: [0.0, 0.5, 0.5], ..FuzzyConfig::default() }, ..ok },
+            SageHusaConfig { fuzzy: FuzzyConfig { output_more: [1.0, 0.5, 3.0], ..FuzzyConfig::default() }, ..ok },
+        ];
+        for cfg in bad {
+            assert!(matches!(cfg.validate(), Err(crate::Error::InvalidConfig { .. })), "{cfg:?}");
+            assert!(SageHusa::<1>::new(cfg, m1(1.0)).is_err());
+        }
+        // Initial R: PD above the floor, symmetric, finite.
+        assert!(SageHusa::<1>::new(ok, m1(ok.min_var * 0.5)).is_err());
+        assert!(SageHusa::<2>::new(ok, SMatrix::<f64, 2, 2>::new(1.0, 0.5, 0.4, 1.0)).is_err());
+        assert!(SageHusa::<2>::new(ok, SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 1.0)).is_err());
+        assert!(SageHusa::<1>::new(ok, m1(f64::NAN)).is_err());
+    }
+
+    #[test]
+    fn non_finite_input_leaves_the_state_unchanged() {
+        let mut est = SageHusa::<1>::new(SageHusaConfig::default(), m1(1.0)).expect("valid");
+        est.step(&SVector::<f64, 1>::new(0.5), &m1(0.01));
+        let before = est.clone();
+        let st = est.step(&SVector::<f64, 1>::new(f64::NAN), &m1(0.01));
+        assert!(st.guarded && st.r == *before.r());
+        assert_eq!(est, before);
+    }
+
+    #[test]
+    fn six_dimensional_loose_measurement_runs_clean() {
+        // Seed 004's position + velocity fix: R_true = diag(0.01 m², 0.0025 (m/s)²).
+        let mut r_true = Cov::<6>::identity() * 0.01;
+        for i in 3..6 {
+            r_true[(i, i)] = 0.0025;
+        }
+        let hph = r_true * 0.3;
+        let mut est = SageHusa::<6>::new(SageHusaConfig::default(), Cov::<6>::identity()).expect("valid");
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let mut mean = Cov::<6>::zeros();
+        for k in 0..3000 {
+            let st = est.step(&draw(&(hph + r_true), &mut rng), &hph);
+            assert!(above_floor(&st.r, 0.0));
+            if k >= 1000 {
+                mean += st.r / 2000.0;
+            }
+        }
+        for i in 0..6 {
+            assert!((mean[(i, i)] / r_true[(i, i)] - 1.0).abs() < 0.15, "{i}: {}", mean[(i, i)]);
+        }
     }
 }
