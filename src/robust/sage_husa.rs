@@ -58,7 +58,7 @@ use crate::validate::invalid;
 pub const MAX_WINDOW: usize = 32;
 
 /// Number of grid points on the output universe for the Mamdani centroid.
-const CENTROID_GRID: usize = 201;
+const CENTROID_GRID: usize = 101;
 
 /// Modified innovation contribution weight `d_k = (λ − b)/(λ − b^{k+1})` of seed 004 eq. (27).
 ///
@@ -86,10 +86,13 @@ pub enum SageHusaVariant {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Defuzzification {
     /// Mamdani inference: min implication, max aggregation, centroid of the aggregated output
-    /// set (evaluated on a 201-point grid). The default (the usual fuzzy-toolbox choice).
-    #[default]
+    /// set, evaluated on a 101-point grid (the usual fuzzy-toolbox choice; about 1 µs per call).
     Centroid,
-    /// Weighted average of the output sets' centroids, weights = rule firing strengths.
+    /// Weighted average of the output sets' centroids, weights = rule firing strengths. The
+    /// default: exact and a few nanoseconds. Equal to [`Self::Centroid`] where a single rule
+    /// fires; where two fire, the centroid weights each clipped set by its area, so the wide
+    /// "More" set pulls harder (up to 35 % higher `s` for the default sets, measured).
+    #[default]
     WeightedAverage,
 }
 
@@ -114,7 +117,7 @@ pub struct FuzzyConfig {
     pub output_equal: [f64; 3],
     /// Output triangle "More". Default `(1.0, 2.0, 3.0)`.
     pub output_more: [f64; 3],
-    /// Defuzzification method. Default [`Defuzzification::Centroid`].
+    /// Defuzzification method. Default [`Defuzzification::WeightedAverage`].
     pub defuzzification: Defuzzification,
 }
 
@@ -125,7 +128,7 @@ impl Default for FuzzyConfig {
             output_less: [0.5, 0.75, 1.0],
             output_equal: [0.75, 1.0, 1.25],
             output_more: [1.0, 2.0, 3.0],
-            defuzzification: Defuzzification::Centroid,
+            defuzzification: Defuzzification::WeightedAverage,
         }
     }
 }
@@ -383,9 +386,12 @@ impl<const M: usize, const CAP: usize> FadingWindow<M, CAP> {
     pub fn covariance(&self) -> Cov<M> {
         let mut s = Cov::<M>::zeros();
         let mut idx = self.head;
-        for age in 0..self.len {
+        // σ_0, then σ_{age+1} = a·σ_age.
+        let mut w = self.weight(0);
+        for _ in 0..self.len {
             let e = &self.buf[idx];
-            s += self.weight(age) * e * e.transpose();
+            s.ger(w, e, e, 1.0);
+            w *= self.rate;
             idx = (idx + CAP - 1) % CAP;
         }
         s
