@@ -1,10 +1,12 @@
-//! Robust noise policies: χ² thresholds, the covariance inflation of outlying ranges, and the
-//! ARCKF robustness factor (seed 002 §3).
+//! Robust noise policies: χ² thresholds, the covariance inflation of outlying ranges, the
+//! ARCKF robustness factor (seed 002 §3) and the Sage–Husa (fuzzy) adaptive R (seed 004 §3.2–§3.3).
 
 pub mod chi2;
 pub mod policy;
 pub mod robustness;
+pub mod sage_husa;
 
 pub use chi2::chi2_quantile_1dof;
 pub use policy::RangeNoisePolicy;
 pub use robustness::{arckf_branch, robustness_factors, ArckfBranch, RobustnessFactor};
+pub use sage_husa::{SageHusa, SageHusaConfig, SageHusaStep};
