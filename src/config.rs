@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{quat_from_wxyz, Quat, Vec3};
+use crate::robust::sage_husa::SageHusaConfig;
 use crate::validate::{self, invalid};
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
@@ -98,6 +99,12 @@ pub struct FilterConfig {
     pub plane_std: f64,
     /// Constraints are applied at most once per this interval, s.
     pub constraint_interval_s: f64,
+    /// Loosely coupled filters: scale of the least-squares fix covariance used as the
+    /// measurement noise (and as the initial R of the Sage–Husa estimators), dimensionless.
+    pub loose_noise_scale: f64,
+    /// Sage–Husa estimator settings of `shaf` / `shfaf` (seed 004 eqs. (26)–(36)); the method
+    /// chooses the variant.
+    pub sage_husa: SageHusaConfig,
 }
 
 impl Default for FilterConfig {
@@ -135,6 +142,8 @@ impl Default for FilterConfig {
             plane_height: None,
             plane_std: 0.05,
             constraint_interval_s: 0.1,
+            loose_noise_scale: 1.0,
+            sage_husa: SageHusaConfig::default(),
         }
     }
 }
@@ -219,7 +228,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 32] = [
+    pub const KEYS: [&'static str; 40] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -252,6 +261,14 @@ impl FilterConfig {
         "plane_height",
         "plane_std",
         "constraint_interval_s",
+        "loose_noise_scale",
+        "sh_forgetting_factor",
+        "sh_lambda",
+        "sh_alpha",
+        "sh_warmup_steps",
+        "sh_window",
+        "sh_fading_rate",
+        "sh_outlier_threshold",
     ];
 
     /// Sets one field by name, validating its value; unknown keys are an error that lists
@@ -303,6 +320,14 @@ impl FilterConfig {
             "plane_height" => self.plane_height = Some(scalar(key, value)?),
             "plane_std" => self.plane_std = positive(key, value)?,
             "constraint_interval_s" => self.constraint_interval_s = non_negative(key, value)?,
+            "loose_noise_scale" => self.loose_noise_scale = positive(key, value)?,
+            "sh_forgetting_factor" => self.sage_husa.forgetting_factor = positive(key, value)?,
+            "sh_lambda" => self.sage_husa.lambda = positive(key, value)?,
+            "sh_alpha" => self.sage_husa.alpha = positive(key, value)?,
+            "sh_warmup_steps" => self.sage_husa.warmup_steps = bounded_count(key, value, 0, 1 << 20)?,
+            "sh_window" => self.sage_husa.window_len = bounded_count(key, value, 1, crate::robust::sage_husa::MAX_WINDOW)?,
+            "sh_fading_rate" => self.sage_husa.fading_rate = positive(key, value)?,
+            "sh_outlier_threshold" => self.sage_husa.outlier_threshold = positive(key, value)?,
             _ => return Err(unknown_key("config", key, &Self::KEYS)),
         }
         Ok(())
@@ -312,7 +337,8 @@ impl FilterConfig {
     /// Rust rather than key by key).
     pub fn validate(&self) -> Result<()> {
         let mut probe = Self::default();
-        self.entries().iter().try_for_each(|(key, value)| probe.set(key, value))
+        self.entries().iter().try_for_each(|(key, value)| probe.set(key, value))?;
+        self.sage_husa.validate()
     }
 
     /// The configuration as (key, value) pairs (`accel_bias_tau`, `gyro_bias_tau` and
@@ -359,6 +385,17 @@ impl FilterConfig {
         }
         entries.push(("plane_std", ConfigValue::Scalar(self.plane_std)));
         entries.push(("constraint_interval_s", ConfigValue::Scalar(self.constraint_interval_s)));
+        let sh = &self.sage_husa;
+        entries.extend([
+            ("loose_noise_scale", ConfigValue::Scalar(self.loose_noise_scale)),
+            ("sh_forgetting_factor", ConfigValue::Scalar(sh.forgetting_factor)),
+            ("sh_lambda", ConfigValue::Scalar(sh.lambda)),
+            ("sh_alpha", ConfigValue::Scalar(sh.alpha)),
+            ("sh_warmup_steps", ConfigValue::Scalar(sh.warmup_steps as f64)),
+            ("sh_window", ConfigValue::Scalar(sh.window_len as f64)),
+            ("sh_fading_rate", ConfigValue::Scalar(sh.fading_rate)),
+            ("sh_outlier_threshold", ConfigValue::Scalar(sh.outlier_threshold)),
+        ]);
         entries
     }
 }

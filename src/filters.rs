@@ -11,7 +11,7 @@ use crate::math::Vec3;
 use crate::update::UpdateReport;
 
 pub use self::core::{InertialCore, Segment};
-pub use self::loose::Eskf;
+pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::{Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
 pub use self::tight::TightFilter;
 

@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -28,11 +28,15 @@ pub enum Method {
     Ckf,
     /// The loosely coupled error-state filter of seed 004.
     Eskf,
+    /// The Sage–Husa adaptive ESKF of seed 004.
+    Shaf,
+    /// The Sage–Husa fuzzy adaptive ESKF of seed 004.
+    Shfaf,
 }
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 8] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf"];
+    pub const NAMES: [&'static str; 10] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf", "shaf", "shfaf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -45,6 +49,8 @@ impl Method {
             "criekf" => Ok(Self::Criekf),
             "ckf" => Ok(Self::Ckf),
             "eskf" => Ok(Self::Eskf),
+            "shaf" => Ok(Self::Shaf),
+            "shfaf" => Ok(Self::Shfaf),
             _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
         }
     }
@@ -102,6 +108,8 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Ckf => run_inertial(|i| Ckf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Eskf => run_inertial(|i| Eskf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Shaf => run_inertial(|i| Shaf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Shfaf => run_inertial(|i| Shfaf::new(anchors.to_vec(), i, config.clone()), input),
     }
 }
 

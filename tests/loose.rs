@@ -36,3 +36,69 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
         assert!(eskf.core().covariance().cholesky().is_some());
     }
 }
+
+/// Horizontal RMSE of uwb_ls, eskf, shaf, shfaf on one seed of a seed-004 preset, and the time
+/// after which each inertial filter's error stays below 0.2 m.
+fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64) -> ([f64; 4], [f64; 3]) {
+    use uwbimu_rs::filters::{Shaf, Shfaf};
+    let cfg = preset(name, seed).expect("preset");
+    let data = simulate(&cfg).expect("sim");
+    let mut fc = config_for(&cfg);
+    fc.range_std = (0.1f64.powi(2) + 0.4f64.powi(2) / 12.0).sqrt();
+    fc.loose_noise_scale = noise_scale;
+    let initial = truth_initial(&data, start_offset);
+    let a = data.anchors.clone();
+    let traces = [
+        run(&mut Eskf::new(a.clone(), &initial, fc.clone()).expect("eskf"), &data.imu, &data.ranges).expect("run"),
+        run(&mut Shaf::new(a.clone(), &initial, fc.clone()).expect("shaf"), &data.imu, &data.ranges).expect("run"),
+        run(&mut Shfaf::new(a.clone(), &initial, fc.clone()).expect("shfaf"), &data.imu, &data.ranges).expect("run"),
+    ];
+    let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.range_std, ..LsConfig::default() });
+    let truth_t: Vec<f64> = data.truth.iter().map(|t| t.t_s).collect();
+    let truth_p: Vec<Vec3> = data.truth.iter().map(|t| t.position).collect();
+    let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
+    let ls = evaluate(&ft, &fp, &truth_t, &truth_p, false).expect("evaluate").horizontal.rmse;
+    let mut rmse = [ls, 0.0, 0.0, 0.0];
+    let mut settle = [0.0; 3];
+    for (k, t) in traces.iter().enumerate() {
+        let e = horizontal_errors(&t.steps, &data);
+        rmse[k + 1] = rms(&e);
+        settle[k] = t.steps.iter().zip(&e).find(|(_, e)| **e < 0.2).map_or(f64::INFINITY, |(s, _)| s.t_s - t.steps[0].t_s);
+    }
+    (rmse, settle)
+}
+
+#[test]
+fn seed004_scenario2_table1_over_five_seeds() {
+    let mut sum = [0.0; 4];
+    for seed in 0..5 {
+        let (rmse, _) = seed004_run("seed004_s2", seed, Vec3::zeros(), 1.0);
+        println!("seed {seed}: uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}", rmse[0], rmse[1], rmse[2], rmse[3]);
+        for k in 0..4 {
+            sum[k] += rmse[k] / 5.0;
+        }
+    }
+    println!(
+        "mean RMSE: uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}  (paper: 0.804 / 0.390 / 0.320 / 0.144)",
+        sum[0], sum[1], sum[2], sum[3]
+    );
+    // What reproduces here: every fusion filter beats UWB-only and SHFAF beats the ESKF. SHAF is
+    // not below the ESKF (see the README).
+    assert!(sum[1] < sum[0] && sum[3] < sum[0], "{sum:?}");
+    assert!(sum[3] < sum[1], "shfaf {} vs eskf {}", sum[3], sum[1]);
+}
+
+#[test]
+fn seed004_scenario1_convergence() {
+    for seed in 0..3 {
+        // A large initial R (σ ×5): the fixed-R ESKF trusts the fixes little, the adaptive
+        // filters learn the real noise.
+        let (_, settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0);
+        println!(
+            "seed {seed}: first below 0.2 m after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s",
+            settle[0], settle[1], settle[2]
+        );
+        // All converge; the paper's "SHFAF faster than ESKF" does not reproduce (README).
+        assert!(settle.iter().all(|s| *s < 10.0), "{settle:?}");
+    }
+}

@@ -24,6 +24,8 @@ from uwbimu_rs._native import (
     NumericalError,
     Rekf,
     Riekf,
+    Shaf,
+    Shfaf,
     UpdateReport,
     UwbImuError,
 )
@@ -41,6 +43,8 @@ __all__ = [
     "NumericalError",
     "Rekf",
     "Riekf",
+    "Shaf",
+    "Shfaf",
     "UpdateReport",
     "UwbImuError",
     "crlb",
@@ -67,7 +71,8 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"eskf"``).
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"eskf"``, ``"shaf"``,
+        ``"shfaf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)

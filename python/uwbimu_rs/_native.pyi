@@ -17,6 +17,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "Shaf",
+    "Shfaf",
     "run_filters",
     "Eskf",
     "Ckf",
@@ -395,6 +397,48 @@ class Eskf:
     def __new__(
         cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
     ) -> Eskf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
+
+@final
+class Shaf:
+    """The Sage–Husa adaptive ESKF of seed 004; API as :class:`Ekf`."""
+
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Shaf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
+
+@final
+class Shfaf:
+    """The Sage–Husa fuzzy adaptive ESKF of seed 004; API as :class:`Ekf`."""
+
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Shfaf: ...
     def smooth(self) -> dict[str, _F64]:
         """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
         qz, std_x, std_y, std_z, one row per propagation start plus the current time."""

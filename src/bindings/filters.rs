@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf};
+use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -271,6 +271,14 @@ py_filter!(
 py_filter!(
     /// The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity).
     PyEskf, "Eskf", Eskf
+);
+py_filter!(
+    /// The Sage–Husa adaptive ESKF of seed 004.
+    PyShaf, "Shaf", Shaf
+);
+py_filter!(
+    /// The Sage–Husa fuzzy adaptive ESKF of seed 004.
+    PyShfaf, "Shfaf", Shfaf
 );
 
 fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
@@ -582,6 +590,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCriekf>()?;
     m.add_class::<PyCkf>()?;
     m.add_class::<PyEskf>()?;
+    m.add_class::<PyShaf>()?;
+    m.add_class::<PyShfaf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(run_filters, m)?)?;

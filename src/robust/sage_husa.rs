@@ -138,7 +138,10 @@ impl FuzzyConfig {
     pub fn validate(&self) -> Result<()> {
         let [c0, c1, c2] = self.input_centers;
         if !(c0.is_finite() && c1.is_finite() && c2.is_finite() && 0.0 <= c0 && c0 < c1 && c1 < c2) {
-            return Err(invalid("fuzzy.input_centers", format!("need finite 0 <= c_L < c_E < c_M, got {:?}", self.input_centers)));
+            return Err(invalid(
+                "fuzzy.input_centers",
+                format!("need finite 0 <= c_L < c_E < c_M, got {:?}", self.input_centers),
+            ));
         }
         for (name, t) in [
             ("fuzzy.output_less", self.output_less),
@@ -687,10 +690,12 @@ mod tests {
     /// fluctuation of `√(2w/(2 − w))·S ≈ 0.2·S` (±25 % of R here, measured).
     fn check_shaf_convergence<const M: usize>(hph: &Cov<M>, r_true: &Cov<M>, seed: u64) -> [f64; 3] {
         let runs = 400;
-        let ensemble = (0..runs).fold(Cov::<M>::zeros(), |acc, i| acc + shaf_run(0.96, hph, r_true, 400, seed + i)[399]) / runs as f64;
+        let ensemble =
+            (0..runs).fold(Cov::<M>::zeros(), |acc, i| acc + shaf_run(0.96, hph, r_true, 400, seed + i)[399]) / runs as f64;
         let traj = shaf_run(0.96, hph, r_true, 2000, seed + 1000);
         let mean = traj[300..].iter().fold(Cov::<M>::zeros(), |a, r| a + r) / 1700.0;
-        let mut long: Vec<f64> = (0..100).map(|i| rel_err(&shaf_run(0.998, hph, r_true, 800, seed + 2000 + i)[799], r_true)).collect();
+        let mut long: Vec<f64> =
+            (0..100).map(|i| rel_err(&shaf_run(0.998, hph, r_true, 800, seed + 2000 + i)[799], r_true)).collect();
         long.sort_by(f64::total_cmp);
         [rel_err(&ensemble, r_true), rel_err(&mean, r_true), long[50]]
     }
