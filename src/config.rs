@@ -99,6 +99,9 @@ pub struct FilterConfig {
     pub plane_std: f64,
     /// Constraints are applied at most once per this interval, s.
     pub constraint_interval_s: f64,
+    /// Tightly coupled filters: estimate each anchor's range noise on line (Sage–Husa, seed 004)
+    /// instead of using `range_std` throughout.
+    pub adaptive_range_noise: bool,
     /// Loosely coupled filters: scale of the least-squares fix covariance used as the
     /// measurement noise (and as the initial R of the Sage–Husa estimators), dimensionless.
     pub loose_noise_scale: f64,
@@ -142,6 +145,7 @@ impl Default for FilterConfig {
             plane_height: None,
             plane_std: 0.05,
             constraint_interval_s: 0.1,
+            adaptive_range_noise: false,
             loose_noise_scale: 1.0,
             sage_husa: SageHusaConfig::default(),
         }
@@ -228,7 +232,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 40] = [
+    pub const KEYS: [&'static str; 41] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -261,6 +265,7 @@ impl FilterConfig {
         "plane_height",
         "plane_std",
         "constraint_interval_s",
+        "adaptive_range_noise",
         "loose_noise_scale",
         "sh_forgetting_factor",
         "sh_lambda",
@@ -320,6 +325,7 @@ impl FilterConfig {
             "plane_height" => self.plane_height = Some(scalar(key, value)?),
             "plane_std" => self.plane_std = positive(key, value)?,
             "constraint_interval_s" => self.constraint_interval_s = non_negative(key, value)?,
+            "adaptive_range_noise" => self.adaptive_range_noise = flag(key, value)?,
             "loose_noise_scale" => self.loose_noise_scale = positive(key, value)?,
             "sh_forgetting_factor" => self.sage_husa.forgetting_factor = positive(key, value)?,
             "sh_lambda" => self.sage_husa.lambda = positive(key, value)?,
@@ -387,6 +393,7 @@ impl FilterConfig {
         entries.push(("constraint_interval_s", ConfigValue::Scalar(self.constraint_interval_s)));
         let sh = &self.sage_husa;
         entries.extend([
+            ("adaptive_range_noise", ConfigValue::Flag(self.adaptive_range_noise)),
             ("loose_noise_scale", ConfigValue::Scalar(self.loose_noise_scale)),
             ("sh_forgetting_factor", ConfigValue::Scalar(sh.forgetting_factor)),
             ("sh_lambda", ConfigValue::Scalar(sh.lambda)),

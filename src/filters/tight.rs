@@ -8,8 +8,10 @@ use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
 use crate::models::range::predict_range;
+use crate::robust::sage_husa::SageHusa;
 use crate::robust::RangeNoisePolicy;
 use crate::update::{inject_and_reset, scalar_step, UpdateReport};
+use nalgebra::{SMatrix, SVector};
 
 /// A tightly coupled UWB/IMU error-state filter.
 ///
@@ -25,6 +27,9 @@ use crate::update::{inject_and_reset, scalar_step, UpdateReport};
 /// repeatedly, so only γ (eq. (39)) uses the posterior.
 ///
 /// Motion constraints ([`Constraints`], seed 000 §2.2) run after each prediction when switched on.
+/// With `adaptive_range_noise`, each anchor's range noise is estimated on line by its own
+/// Sage–Husa estimator ([`SageHusa`], seed 004, variant and settings from `config.sage_husa`),
+/// started at `range_std²` — real anchors differ.
 #[derive(Debug, Clone)]
 pub struct TightFilter {
     core: InertialCore,
@@ -33,6 +38,7 @@ pub struct TightFilter {
     max_iterations: u32,
     tolerance: f64,
     constraints: Constraints,
+    range_noise: Vec<SageHusa<1>>,
 }
 
 impl TightFilter {
@@ -49,6 +55,12 @@ impl TightFilter {
         }
         let tolerance = config.iteration_tolerance;
         let constraints = Constraints::new(&config, initial.position.z);
+        let range_noise = if config.adaptive_range_noise {
+            let initial_r = SMatrix::<f64, 1, 1>::new(config.range_std.powi(2));
+            (0..anchors.len()).map(|_| SageHusa::new(config.sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             core: InertialCore::new(initial, config)?,
             anchors,
@@ -56,6 +68,7 @@ impl TightFilter {
             max_iterations: max_iterations.max(1),
             tolerance,
             constraints,
+            range_noise,
         })
     }
 
@@ -96,11 +109,23 @@ impl InertialFilter for TightFilter {
                     continue;
                 };
                 let h = pred.jacobian;
-                let residual = range_m - pred.range_m;
-                let nis = residual * residual / (h.dot(&(p_post * h)) + r_var);
+                let mut residual = range_m - pred.range_m;
+                let hph = h.dot(&(p_post * h));
+                // Per-anchor Sage–Husa noise (seed 004 eqs. (26)–(36) on the range innovation),
+                // stepped once per epoch (first iterate), then held.
+                let base_var = match self.range_noise.get_mut(anchor) {
+                    Some(est) if iterations == 1 => {
+                        let step = est.step(&SVector::<f64, 1>::new(residual), &SMatrix::<f64, 1, 1>::new(hph));
+                        residual = step.innovation[0];
+                        step.r[(0, 0)]
+                    }
+                    Some(est) => est.r()[(0, 0)],
+                    None => r_var,
+                };
+                let nis = residual * residual / (hph + base_var);
                 let inflation = self.policy.inflation(nis);
-                scalar_step(&mut dx, &mut p, &h, residual, r_var * inflation)?;
-                *report = UpdateReport::applied(residual, nis, inflation, iterations);
+                scalar_step(&mut dx, &mut p, &h, residual, base_var * inflation)?;
+                *report = UpdateReport::applied(residual, nis, base_var * inflation / r_var, iterations);
             }
             if iterations >= self.max_iterations || dx.norm() < self.tolerance {
                 inject_and_reset(&mut op, &mut p, &dx);
