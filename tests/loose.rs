@@ -82,10 +82,8 @@ fn seed004_scenario2_table1_over_five_seeds() {
         "mean RMSE: uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}  (paper: 0.804 / 0.390 / 0.320 / 0.144)",
         sum[0], sum[1], sum[2], sum[3]
     );
-    // What reproduces here: every fusion filter beats UWB-only and SHFAF beats the ESKF. SHAF is
-    // not below the ESKF (see the README).
-    assert!(sum[1] < sum[0] && sum[3] < sum[0], "{sum:?}");
-    assert!(sum[3] < sum[1], "shfaf {} vs eskf {}", sum[3], sum[1]);
+    // The paper's order SHFAF < SHAF < ESKF < UWB holds, by much smaller margins (README).
+    assert!(sum[3] < sum[2] && sum[2] < sum[1] && sum[1] < sum[0], "{sum:?}");
 }
 
 #[test]

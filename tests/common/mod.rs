@@ -17,6 +17,8 @@ pub fn config_for(sim: &SimConfig) -> FilterConfig {
         lever_arm: sim.lever_arm_m,
         imu_rotation: sim.imu_rotation,
         gravity: sim.gravity_nav_mps2,
+        accel_bias_std: sim.imu_noise.accel_bias_std.max(1e-3),
+        gyro_bias_std: sim.imu_noise.gyro_bias_std.max(1e-4),
         ..FilterConfig::default()
     }
 }
