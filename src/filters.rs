@@ -1,6 +1,46 @@
 //! Named filters composed from the shared pieces (INS core, measurement models, update step),
 //! and the trait the pipeline drives.
 
+/// Implements [`InertialFilter`] and `anchors()` for a newtype over another filter (`self.0`),
+/// so a named filter is only its constructor.
+macro_rules! delegate_filter {
+    ($name:ident) => {
+        impl $name {
+            /// The anchors, navigation frame, m.
+            pub fn anchors(&self) -> &[crate::math::Vec3] {
+                self.0.anchors()
+            }
+        }
+
+        impl crate::filters::InertialFilter for $name {
+            fn predict(&mut self, t_s: f64, accel: &crate::math::Vec3, gyro: &crate::math::Vec3) -> crate::error::Result<()> {
+                self.0.predict(t_s, accel, gyro)
+            }
+
+            fn update_ranges(
+                &mut self,
+                t_s: f64,
+                ranges: &[(usize, f64)],
+                reports: &mut [crate::update::UpdateReport],
+            ) -> crate::error::Result<()> {
+                self.0.update_ranges(t_s, ranges, reports)
+            }
+
+            fn core(&self) -> &crate::filters::InertialCore {
+                self.0.core()
+            }
+
+            fn core_mut(&mut self) -> &mut crate::filters::InertialCore {
+                self.0.core_mut()
+            }
+
+            fn still(&self) -> bool {
+                self.0.still()
+            }
+        }
+    };
+}
+
 pub mod core;
 pub mod loose;
 pub mod named;

@@ -201,29 +201,9 @@ macro_rules! adaptive_eskf {
                 Ok(Self(Eskf::adaptive(anchors, initial, config, $variant)?))
             }
 
-            /// The anchors, navigation frame, m.
-            pub fn anchors(&self) -> &[Vec3] {
-                self.0.anchors()
-            }
         }
 
-        impl InertialFilter for $name {
-            fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-                self.0.predict(t_s, accel, gyro)
-            }
-
-            fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
-                self.0.update_ranges(t_s, ranges, reports)
-            }
-
-            fn core(&self) -> &InertialCore {
-                self.0.core()
-            }
-
-            fn core_mut(&mut self) -> &mut InertialCore {
-                self.0.core_mut()
-            }
-        }
+        delegate_filter!($name);
     };
 }
 

@@ -2,10 +2,9 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::Result;
-use crate::filters::{InertialCore, InertialFilter, TightFilter};
+use crate::filters::TightFilter;
 use crate::math::Vec3;
 use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
-use crate::update::UpdateReport;
 
 macro_rules! named_filter {
     ($(#[$doc:meta])* $name:ident, |$config:ident| $setup:expr) => {
@@ -21,33 +20,9 @@ macro_rules! named_filter {
                 Ok(Self(TightFilter::new(anchors, initial, $config, policy, iterations)?))
             }
 
-            /// The anchors, navigation frame, m.
-            pub fn anchors(&self) -> &[Vec3] {
-                self.0.anchors()
-            }
         }
 
-        impl InertialFilter for $name {
-            fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-                self.0.predict(t_s, accel, gyro)
-            }
-
-            fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
-                self.0.update_ranges(t_s, ranges, reports)
-            }
-
-            fn core(&self) -> &InertialCore {
-                self.0.core()
-            }
-
-            fn core_mut(&mut self) -> &mut InertialCore {
-                self.0.core_mut()
-            }
-
-            fn still(&self) -> bool {
-                self.0.still()
-            }
-        }
+        delegate_filter!($name);
     };
 }
 
