@@ -35,16 +35,13 @@ pub fn posterior_crlb(
         });
     }
     let r_var = config.range_std.powi(2);
-    let body = |s: &ImuSample| (config.imu_rotation * s.accel, config.imu_rotation * s.gyro);
     let mut bound = *initial;
     let mut out = Vec::with_capacity(imu.len());
     let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
     let mut next = ranges.partition_point(|r| r.t_s < t_first);
     for k in 0..imu.len() {
         if k > 0 {
-            let ((a0, g0), (a1, g1)) = (body(&imu[k - 1]), body(&imu[k]));
-            let interval =
-                ImuInterval { dt_s: imu[k].t_s - imu[k - 1].t_s, accel_start: a0, accel_end: a1, gyro_start: g0, gyro_end: g1 };
+            let interval = ImuInterval::between(&imu[k - 1], &imu[k], &config.imu_rotation);
             bound = Transition::new(&truth[k - 1], &interval, config)
                 .propagate_covariance(&bound, &ProcessNoise::new(config, interval.dt_s));
         }

@@ -151,14 +151,7 @@ fn heading_from_motion(
             break;
         }
         while k + 1 < imu.len() && imu[k + 1].t_s <= *t_fix {
-            let (a, b) = (&imu[k], &imu[k + 1]);
-            let interval = ImuInterval {
-                dt_s: b.t_s - a.t_s,
-                accel_start: config.imu_rotation * a.accel,
-                accel_end: config.imu_rotation * b.accel,
-                gyro_start: config.imu_rotation * a.gyro,
-                gyro_end: config.imu_rotation * b.gyro,
-            };
+            let interval = ImuInterval::between(&imu[k], &imu[k + 1], &config.imu_rotation);
             x = propagate_nominal(&x, &interval, config);
             k += 1;
         }

@@ -14,7 +14,8 @@
 //! Process noise is G·Q·Gᵀ with Q from noise densities (seed 004 eqs. (20)–(21)).
 
 use crate::config::FilterConfig;
-use crate::math::{quat_exp, skew, Mat3, Vec3};
+use crate::math::{quat_exp, skew, Mat3, Quat, Vec3};
+use crate::records::ImuSample;
 use crate::state::{ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
 
 /// Bias-uncorrected IMU readings in the body frame at the two ends of one integration interval.
@@ -37,6 +38,20 @@ pub struct ImuInterval {
 fn bias_decay(config: &FilterConfig, dt_s: f64) -> (f64, f64) {
     let decay = |tau: Option<f64>| tau.map_or(1.0, |t| (-dt_s / t).exp());
     (decay(config.accel_bias_tau), decay(config.gyro_bias_tau))
+}
+
+impl ImuInterval {
+    /// The interval between two consecutive raw IMU samples, rotated from the IMU frame into the
+    /// body frame by the mounting `imu_rotation`.
+    pub fn between(start: &ImuSample, end: &ImuSample, imu_rotation: &Quat) -> Self {
+        Self {
+            dt_s: end.t_s - start.t_s,
+            accel_start: imu_rotation * start.accel,
+            accel_end: imu_rotation * end.accel,
+            gyro_start: imu_rotation * start.gyro,
+            gyro_end: imu_rotation * end.gyro,
+        }
+    }
 }
 
 /// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)). Biases are constant

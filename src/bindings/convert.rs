@@ -34,6 +34,11 @@ pub fn table<const C: usize>(
         .collect())
 }
 
+/// Copies an `(N, 3)` float64 array into points (m).
+pub fn points(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str) -> Result<Vec<Vec3>, Error> {
+    Ok(table::<3>(arr, name, "(N, 3) = x, y, z")?.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())
+}
+
 /// Copies a float64 vector of length 3 (e.g. a lever arm) into a [`Vec3`], rejecting non-finite
 /// values.
 pub fn vec3(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str) -> Result<Vec3, Error> {

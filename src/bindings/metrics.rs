@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert;
 use crate::error::Error;
-use crate::math::{Mat3, Vec3};
+use crate::math::Mat3;
 use crate::metrics::{self, ErrorStats};
 
 /// Registers the metrics functions on the native module.
@@ -26,11 +26,6 @@ fn vector(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str) -> Result<Vec<f
         return Err(Error::Shape { name, expected: "(N,)".into(), got: format!("{shape:?}") });
     }
     Ok(arr.as_array().iter().copied().collect())
-}
-
-/// Copies an `(N, 3)` float64 array into points.
-fn points(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str) -> Result<Vec<Vec3>, Error> {
-    Ok(convert::table::<3>(arr, name, "(N, 3) = x, y, z")?.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())
 }
 
 /// `ErrorStats` as a `dict` with keys n, rmse, mean, median, p90, p95, max.
@@ -58,9 +53,9 @@ fn evaluate<'py>(
     align: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let est_t = vector(&est_t, "est_t")?;
-    let est_p = points(&est_xyz, "est_xyz")?;
+    let est_p = convert::points(&est_xyz, "est_xyz")?;
     let truth_t = vector(&truth_t, "truth_t")?;
-    let truth_p = points(&truth_xyz, "truth_xyz")?;
+    let truth_p = convert::points(&truth_xyz, "truth_xyz")?;
     let ev = py.detach(|| metrics::evaluate(&est_t, &est_p, &truth_t, &truth_p, align))?;
     let d = PyDict::new(py);
     d.set_item("horizontal", stats_dict(py, &ev.horizontal)?)?;
@@ -86,7 +81,7 @@ fn nees<'py>(
     errors: PyReadonlyArrayDyn<'py, f64>,
     covariances: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let e = points(&errors, "errors")?;
+    let e = convert::points(&errors, "errors")?;
     let covs: Vec<Mat3> = convert::table::<6>(&covariances, "covariances", "(N, 6) = xx, xy, xz, yy, yz, zz")?
         .iter()
         .map(|c| Mat3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5]))
@@ -115,7 +110,7 @@ fn interpolate_positions<'py>(
     t: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let truth_t = vector(&truth_t, "truth_t")?;
-    let truth_p = points(&truth_xyz, "truth_xyz")?;
+    let truth_p = convert::points(&truth_xyz, "truth_xyz")?;
     let t = vector(&t, "t")?;
     let out = metrics::interpolate_positions(&truth_t, &truth_p, &t)?;
     let arr = Array2::from_shape_fn((out.len(), 3), |(i, j)| out[i].map_or(f64::NAN, |p| p[j]));

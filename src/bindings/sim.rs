@@ -61,8 +61,7 @@ impl PyTrajectory {
         turn_time_s: f64,
         still_s: f64,
     ) -> PyResult<Self> {
-        let rows = convert::table::<3>(&points, "points", "(N, 3) = x, y, z")?;
-        let points: Vec<Vec3> = rows.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect();
+        let points = convert::points(&points, "points")?;
         let opts = drive_options(speed_mps, ramp_s, dwell_s, turn_time_s, still_s);
         Ok(Self(Trajectory::waypoints(&points, &opts)?))
     }
