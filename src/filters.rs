@@ -52,7 +52,7 @@ use crate::update::UpdateReport;
 
 pub use self::core::{InertialCore, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
-pub use self::named::{Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
+pub use self::named::{Arckf, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
 pub use self::tight::TightFilter;
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming

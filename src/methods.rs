@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
+use crate::filters::{Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -26,6 +26,8 @@ pub enum Method {
     Criekf,
     /// The complementary Kalman filter of seed 002.
     Ckf,
+    /// The adaptive-robust complementary Kalman filter of seed 002 (ARCKF).
+    Arckf,
     /// The loosely coupled error-state filter of seed 004.
     Eskf,
     /// The Sage–Husa adaptive ESKF of seed 004.
@@ -36,7 +38,8 @@ pub enum Method {
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 10] = ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf", "shaf", "shfaf"];
+    pub const NAMES: [&'static str; 11] =
+        ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "eskf", "shaf", "shfaf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -48,6 +51,7 @@ impl Method {
             "riekf" => Ok(Self::Riekf),
             "criekf" => Ok(Self::Criekf),
             "ckf" => Ok(Self::Ckf),
+            "arckf" => Ok(Self::Arckf),
             "eskf" => Ok(Self::Eskf),
             "shaf" => Ok(Self::Shaf),
             "shfaf" => Ok(Self::Shfaf),
@@ -107,6 +111,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Ckf => run_inertial(|i| Ckf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Arckf => run_inertial(|i| Arckf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Eskf => run_inertial(|i| Eskf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Shaf => run_inertial(|i| Shaf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Shfaf => run_inertial(|i| Shfaf::new(anchors.to_vec(), i, config.clone()), input),

@@ -8,5 +8,5 @@ pub mod sage_husa;
 
 pub use chi2::chi2_quantile_1dof;
 pub use policy::RangeNoisePolicy;
-pub use robustness::{arckf_branch, robustness_factors, ArckfBranch, RobustnessFactor};
+pub use robustness::{fade_position_velocity, prior_fading, robustness_factors, RobustnessFactor};
 pub use sage_husa::{SageHusa, SageHusaConfig, SageHusaStep};

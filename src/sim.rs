@@ -19,6 +19,7 @@
 //! changing one sensor's settings leaves the other sensors' noise unchanged.
 
 mod imu;
+mod outliers;
 mod presets;
 mod trajectory;
 mod uwb;
@@ -27,6 +28,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
+pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
 pub use presets::{preset, PRESET_NAMES};
 pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Trajectory};
 pub use uwb::{NlosConfig, NlosWindow, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER};
@@ -42,6 +44,8 @@ const STREAM_IMU: u64 = 1;
 const STREAM_UWB: u64 = 2;
 /// ChaCha stream of the magnetometer noise.
 const STREAM_MAG: u64 = 3;
+/// ChaCha stream of the accelerometer outliers.
+const STREAM_ACCEL_OUTLIERS: u64 = 4;
 
 /// Everything the simulator needs.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,6 +68,8 @@ pub struct SimConfig {
     pub uwb: UwbConfig,
     /// Magnetometer model (`None` = no magnetometer).
     pub magnetometer: Option<MagConfig>,
+    /// Abnormal accelerometer samples (seed 002 §4.1); none by default.
+    pub accel_outliers: AccelOutliers,
     /// Seed of all random draws.
     pub seed: u64,
 }
@@ -83,6 +89,7 @@ impl Default for SimConfig {
             anchors: presets::hall_anchors(),
             uwb: UwbConfig::default(),
             magnetometer: None,
+            accel_outliers: AccelOutliers::default(),
             seed: 0,
         }
     }
@@ -109,6 +116,8 @@ pub struct SimData {
     pub gyro_bias: Vec<Vec3>,
     /// Shielding windows realised in this run, with their biases.
     pub nlos_windows: Vec<ShieldingWindow>,
+    /// Times of the abnormal accelerometer samples, s (empty without [`SimConfig::accel_outliers`]).
+    pub accel_outlier_times: Vec<f64>,
 }
 
 /// A value for [`SimConfig::apply_overrides`].
@@ -145,6 +154,8 @@ pub const OVERRIDE_KEYS: &[&str] = &[
     "accel_bias_walk",
     "gyro_bias_walk",
     "mag_noise_std",
+    "accel_outlier_count",
+    "accel_outlier_std_mps2",
 ];
 
 fn probability(field: &str, v: f64) -> Result<()> {
@@ -192,6 +203,7 @@ impl SimConfig {
         non_negative("imu_noise.gyro_bias_std", n.gyro_bias_std)?;
         non_negative("imu_noise.accel_bias_walk", n.accel_bias_walk)?;
         non_negative("imu_noise.gyro_bias_walk", n.gyro_bias_walk)?;
+        non_negative("accel_outliers.std_mps2", self.accel_outliers.std_mps2)?;
         finite_vec("gravity_nav_mps2", &self.gravity_nav_mps2)?;
         finite_vec("lever_arm_m", &self.lever_arm_m)?;
         if !self.imu_rotation.coords.iter().all(|x| x.is_finite()) {
@@ -289,6 +301,13 @@ impl SimConfig {
                 }
                 Ok(())
             }
+            OverrideValue::Number(x) if key == "accel_outlier_count" => {
+                if !(x >= 0.0 && x.fract() == 0.0 && x <= 1e6) {
+                    return Err(invalid(key, format!("must be a whole number of samples in [0, 1e6], got {x}")));
+                }
+                self.accel_outliers.count = x as usize;
+                Ok(())
+            }
             OverrideValue::Number(x) => {
                 *self.number_slot(key)? = x;
                 Ok(())
@@ -327,6 +346,7 @@ impl SimConfig {
             "gyro_bias_std" => Ok(&mut self.imu_noise.gyro_bias_std),
             "accel_bias_walk" => Ok(&mut self.imu_noise.accel_bias_walk),
             "gyro_bias_walk" => Ok(&mut self.imu_noise.gyro_bias_walk),
+            "accel_outlier_std_mps2" => Ok(&mut self.accel_outliers.std_mps2),
             _ => Err(unknown_override(key)),
         }
     }
@@ -353,7 +373,8 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
         rng
     };
     let (mut imu_rng, mut uwb_rng, mut mag_rng) = (stream(STREAM_IMU), stream(STREAM_UWB), stream(STREAM_MAG));
-    let imu_out = imu::synthesise(cfg, &mut imu_rng, &mut mag_rng);
+    let mut imu_out = imu::synthesise(cfg, &mut imu_rng, &mut mag_rng);
+    let accel_outlier_times = outliers::inject(&mut imu_out.imu, &cfg.accel_outliers, &mut stream(STREAM_ACCEL_OUTLIERS));
     let uwb_out = uwb::synthesise(cfg, &mut uwb_rng);
     Ok(SimData {
         imu: imu_out.imu,
@@ -365,5 +386,6 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
         accel_bias: imu_out.accel_bias,
         gyro_bias: imu_out.gyro_bias,
         nlos_windows: uwb_out.windows,
+        accel_outlier_times,
     })
 }

@@ -3,7 +3,8 @@
 //!
 //! The forward pass records, for every propagation, the posterior at its start and the IMU
 //! interval ([`Segment`]). The backward pass recomputes `Φ`, `Q` and the prediction
-//! `(x⁻, P⁻)` of each segment and applies, from the last node back,
+//! `(x⁻, P⁻)` of each segment (with the ARCKF fading of `P⁻`, seed 002 eq. (42), where the
+//! forward pass applied one) and applies, from the last node back,
 //!
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
@@ -15,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::filters::Segment;
 use crate::ins::{propagate_nominal, ProcessNoise, Transition};
 use crate::math::symmetrize;
+use crate::robust::fade_position_velocity;
 use crate::state::{ErrCov, NominalState};
 
 /// A smoothed estimate at one node of the recording.
@@ -37,7 +39,10 @@ pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, config: &FilterConfi
         let phi = Transition::new(&seg.state, &seg.interval, config);
         let q = ProcessNoise::new(config, seg.interval.dt_s);
         let x_pred = propagate_nominal(&seg.state, &seg.interval, config);
-        let p_pred = phi.propagate_covariance(&seg.covariance, &q);
+        let mut p_pred = phi.propagate_covariance(&seg.covariance, &q);
+        if seg.prior_fading != 1.0 {
+            fade_position_velocity(&mut p_pred, seg.prior_fading);
+        }
         let chol = p_pred.cholesky().ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
         // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.
         let gain = chol.solve(&(phi.to_dense() * seg.covariance)).transpose();

@@ -24,6 +24,9 @@ pub struct UpdateReport {
     pub down_weighted: bool,
     /// Iterations of the update it took part in (1 for a single EKF step).
     pub iterations: u32,
+    /// Factor `λ ≥ 1` by which the prior covariance of this measurement's epoch was inflated
+    /// (seed 002 eq. (42), ARCKF adaptive branch); 1 otherwise.
+    pub prior_fading: f64,
 }
 
 impl UpdateReport {
@@ -37,12 +40,22 @@ impl UpdateReport {
             inflation: f64::INFINITY,
             down_weighted: false,
             iterations: 0,
+            prior_fading: 1.0,
         }
     }
 
     /// Report of a measurement applied with `inflation = R_used / R`.
     pub fn applied(innovation: f64, nis: f64, inflation: f64, iterations: u32) -> Self {
-        Self { innovation, nis, accepted: true, weight: 1.0 / inflation, inflation, down_weighted: inflation > 1.0, iterations }
+        Self {
+            innovation,
+            nis,
+            accepted: true,
+            weight: 1.0 / inflation,
+            inflation,
+            down_weighted: inflation > 1.0,
+            iterations,
+            prior_fading: 1.0,
+        }
     }
 }
 

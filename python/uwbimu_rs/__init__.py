@@ -14,6 +14,7 @@ import polars as pl
 
 from uwbimu_rs._native import (
     FILTERS,
+    Arckf,
     Ckf,
     ConfigError,
     Criekf,
@@ -33,6 +34,7 @@ from uwbimu_rs import _native
 
 __all__ = [
     "FILTERS",
+    "Arckf",
     "Ckf",
     "ConfigError",
     "Criekf",
@@ -71,7 +73,7 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"eskf"``, ``"shaf"``,
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"eskf"``, ``"shaf"``,
         ``"shfaf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
@@ -94,7 +96,7 @@ def run_filter(
     updates : bool
         Also return a DataFrame with one row per range update
         (t, anchor, range, innovation, nis, accepted, weight, inflation, down_weighted,
-        iterations). Ranges sharing a timestamp are one epoch, updated jointly.
+        iterations, prior_fading). Ranges sharing a timestamp are one epoch, updated jointly.
 
     Returns
     -------

@@ -21,6 +21,7 @@ __all__ = [
     "Shfaf",
     "run_filters",
     "Eskf",
+    "Arckf",
     "Ckf",
     "posterior_crlb",
     "Criekf",
@@ -175,6 +176,10 @@ class UpdateReport:
     @property
     def iterations(self) -> int:
         """Iterations of the (iterated) update the range took part in."""
+
+    @property
+    def prior_fading(self) -> float:
+        """Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42), ARCKF); 1 if not."""
 
 @final
 class Ekf:
@@ -376,6 +381,27 @@ class Ckf:
     def __new__(
         cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
     ) -> Ckf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
+
+@final
+class Arckf:
+    """The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1); API as :class:`Ekf`."""
+
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Arckf: ...
     def smooth(self) -> dict[str, _F64]:
         """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
         qz, std_x, std_y, std_z, one row per propagation start plus the current time."""

@@ -55,6 +55,9 @@ class SimResult:
         True gyroscope bias at each IMU sample, IMU frame, rad/s.
     nlos_windows : numpy.ndarray, shape (W, 4), float64
         Realised shielding windows: anchor index, start (s), end (s), range bias (m).
+    accel_outlier_times : numpy.ndarray, shape (P,), float64
+        Times (s) of the abnormal accelerometer samples (override ``accel_outlier_count``,
+        seed 002 §4.1); empty by default.
     """
 
     imu: np.ndarray
@@ -66,6 +69,7 @@ class SimResult:
     accel_bias: np.ndarray
     gyro_bias: np.ndarray
     nlos_windows: np.ndarray
+    accel_outlier_times: np.ndarray
 
 
 def _result(d: dict) -> SimResult:
@@ -79,6 +83,7 @@ def _result(d: dict) -> SimResult:
         accel_bias=d["accel_bias"],
         gyro_bias=d["gyro_bias"],
         nlos_windows=d["nlos_windows"],
+        accel_outlier_times=d["accel_outlier_times"],
     )
 
 

@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
+use crate::filters::{Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -114,6 +114,8 @@ pub struct PyUpdateReport {
     down_weighted: bool,
     /// Iterations of the update.
     iterations: u32,
+    /// Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42)); 1 if not.
+    prior_fading: f64,
 }
 
 impl From<UpdateReport> for PyUpdateReport {
@@ -126,6 +128,7 @@ impl From<UpdateReport> for PyUpdateReport {
             inflation: r.inflation,
             down_weighted: r.down_weighted,
             iterations: r.iterations,
+            prior_fading: r.prior_fading,
         }
     }
 }
@@ -134,8 +137,8 @@ impl From<UpdateReport> for PyUpdateReport {
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
         format!(
-            "UpdateReport(innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={})",
-            self.innovation, self.nis, self.accepted, self.weight, self.inflation, self.down_weighted, self.iterations
+            "UpdateReport(innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={})",
+            self.innovation, self.nis, self.accepted, self.weight, self.inflation, self.down_weighted, self.iterations, self.prior_fading
         )
     }
 }
@@ -269,6 +272,10 @@ py_filter!(
     PyCkf, "Ckf", Ckf
 );
 py_filter!(
+    /// The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1).
+    PyArckf, "Arckf", Arckf
+);
+py_filter!(
     /// The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity).
     PyEskf, "Eskf", Eskf
 );
@@ -339,6 +346,7 @@ fn update_columns(trace: &Trace) -> Vec<(&'static str, Vec<f64>)> {
         ("inflation", u.iter().map(|r| r.report.inflation).collect()),
         ("down_weighted", u.iter().map(|r| f64::from(u8::from(r.report.down_weighted))).collect()),
         ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
+        ("prior_fading", u.iter().map(|r| r.report.prior_fading).collect()),
     ]
 }
 
@@ -589,6 +597,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRiekf>()?;
     m.add_class::<PyCriekf>()?;
     m.add_class::<PyCkf>()?;
+    m.add_class::<PyArckf>()?;
     m.add_class::<PyEskf>()?;
     m.add_class::<PyShaf>()?;
     m.add_class::<PyShfaf>()?;

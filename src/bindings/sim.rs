@@ -209,12 +209,14 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig) -> PyResult<Bound<'py, PyDict>> {
     let windows: Vec<f64> =
         data.nlos_windows.iter().flat_map(|w| [w.window.anchor as f64, w.window.start_s, w.window.end_s, w.bias_m]).collect();
     d.set_item("nlos_windows", windows.into_pyarray(py).reshape([data.nlos_windows.len(), 4])?)?;
+    d.set_item("accel_outlier_times", data.accel_outlier_times.clone().into_pyarray(py))?;
     Ok(d)
 }
 
 /// Simulates a named preset with optional overrides (a dict and/or keyword arguments); returns a
 /// dict of arrays (imu (N,7), ranges (M,3), range_labels (M,), anchors (K,3), truth columns,
-/// mag (N,4) or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias).
+/// mag (N,4) or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
+/// accel_outlier_times (P,) s).
 #[pyfunction]
 #[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]
 fn sim_preset<'py>(

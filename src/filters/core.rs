@@ -5,6 +5,7 @@ use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::math::Vec3;
+use crate::robust::fade_position_velocity;
 use crate::state::{ErrCov, NominalState};
 
 /// Nominal state + 15×15 error covariance + time bookkeeping (seed 000 §2.1).
@@ -34,6 +35,9 @@ pub struct Segment {
     pub covariance: ErrCov,
     /// The IMU interval propagated over.
     pub interval: ImuInterval,
+    /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
+    /// the end of this segment (seed 002 eq. (42), [`InertialCore::fade_prior`]); 1 if none.
+    pub prior_fading: f64,
 }
 
 fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
@@ -132,11 +136,22 @@ impl InertialCore {
 
     fn propagate(&mut self, imu: &ImuInterval) {
         if let (Some(rec), Some(t_s)) = (self.recording.as_mut(), self.time_s) {
-            rec.push(Segment { t_s, state: self.state, covariance: self.covariance, interval: *imu });
+            rec.push(Segment { t_s, state: self.state, covariance: self.covariance, interval: *imu, prior_fading: 1.0 });
         }
         let phi = Transition::new(&self.state, imu, &self.config);
         self.state = propagate_nominal(&self.state, imu, &self.config);
         self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config, imu.dt_s));
+    }
+
+    /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (seed 002
+    /// eq. (42), ARCKF; see [`crate::robust::fade_position_velocity`]) and notes `λ` on the last
+    /// recorded segment, so that the RTS pass predicts the same prior. Several fadings at one
+    /// time multiply.
+    pub fn fade_prior(&mut self, lambda: f64) {
+        fade_position_velocity(&mut self.covariance, lambda);
+        if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
+            last.prior_fading *= lambda;
+        }
     }
 
     /// The last IMU sample in the body frame (after the mounting rotation): specific force m/s²,

@@ -97,3 +97,17 @@ named_filter!(
         (RangeNoisePolicy::Fixed, 1)
     }
 );
+
+named_filter!(
+    /// Adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1): the
+    /// [`Ckf`] with `R_i = σ²·Cu_i` from the L1 robustness factor (eqs. (33)–(38)), the prior
+    /// inflated by `γ/χ²` when the epoch shows an abnormal state (eq. (42)), and `R_i` inflated by
+    /// `γ/χ²` for outlying ranges (eq. (41)); χ² is the 1-dof quantile of `alpha`. Which branch a
+    /// failing range takes follows [`crate::robust::robustness`] (a documented deviation: the
+    /// prior is inflated only when every range of the epoch fails the test).
+    Arckf,
+    |config| {
+        complementary(&mut config);
+        (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.alpha)? }, 1)
+    }
+);

@@ -7,9 +7,10 @@ use crate::constraints::Constraints;
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
-use crate::models::range::predict_range;
+use crate::models::range::{predict_range, tag_position};
+use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
 use crate::robust::sage_husa::SageHusa;
-use crate::robust::RangeNoisePolicy;
+use crate::robust::{prior_fading, robustness_factors, RangeNoisePolicy, RobustnessFactor};
 use crate::update::{inject_and_reset, scalar_step, UpdateReport};
 use nalgebra::{SMatrix, SVector};
 
@@ -76,6 +77,33 @@ impl TightFilter {
     pub fn anchors(&self) -> &[Vec3] {
         &self.anchors
     }
+
+    /// Robustness factors `Cu_i` of one epoch (seed 002 eqs. (33)–(37)) from the L1 fit of its
+    /// ranges in the plane of the predicted tag height (seed 002 §3.1 works in the plane; the
+    /// height comes from the INS). Allocates (the L1 fit does); UWB epochs are far rarer than
+    /// IMU samples.
+    fn robustness(&self, ranges: &[(usize, f64)]) -> Vec<RobustnessFactor> {
+        let config = self.core.config();
+        let tag = tag_position(self.core.state(), &config.lever_arm);
+        let ls = LsConfig { range_std_m: config.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
+        let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
+        robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.range_std)
+    }
+
+    /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
+    /// range's γ against the prior with `R_i = σ²·Cu_i`.
+    fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
+        let (x, p) = (self.core.state(), self.core.covariance());
+        let config = self.core.config();
+        let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
+            let nis = predict_range(x, &self.anchors[anchor], &config.lever_arm).map_or(f64::NAN, |pred| {
+                let hph = pred.jacobian.dot(&(p * pred.jacobian));
+                (range_m - pred.range_m).powi(2) / (hph + f.range_var_m2(config.range_std))
+            });
+            (*f, nis)
+        });
+        prior_fading(nis, threshold)
+    }
 }
 
 impl InertialFilter for TightFilter {
@@ -94,7 +122,20 @@ impl InertialFilter for TightFilter {
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
         let lever_arm = self.core.config().lever_arm;
-        let r_var = self.core.config().range_std.powi(2);
+        let range_std = self.core.config().range_std;
+        let r_var = range_std * range_std;
+        // ARCKF (seed 002 Algorithm 1): robustness factors and the fading of the prior.
+        let (factors, fading) = match self.policy {
+            RangeNoisePolicy::AdaptiveRobust { threshold } => {
+                let factors = self.robustness(ranges);
+                let fading = self.epoch_fading(ranges, &factors, threshold);
+                if fading > 1.0 {
+                    self.core.fade_prior(fading);
+                }
+                (Some(factors), fading)
+            }
+            _ => (None, 1.0),
+        };
         let (x, p_out) = self.core.state_and_covariance_mut();
         let (prior, p_prior) = (*x, *p_out);
         let (mut op, mut p_post) = (prior, p_prior);
@@ -103,7 +144,7 @@ impl InertialFilter for TightFilter {
             iterations += 1;
             let mut dx = prior.boxminus(&op);
             let mut p = p_prior;
-            for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
+            for (k, (report, &(anchor, range_m))) in reports.iter_mut().zip(ranges).enumerate() {
                 let Some(pred) = predict_range(&op, &self.anchors[anchor], &lever_arm) else {
                     *report = UpdateReport::skipped();
                     continue;
@@ -121,9 +162,12 @@ impl InertialFilter for TightFilter {
                     }
                     Some(est) => est.r()[(0, 0)],
                     None => r_var,
-                };
+                } * factors.as_ref().map_or(1.0, |f| f[k].cu);
                 let nis = residual * residual / (hph + base_var);
-                let inflation = self.policy.inflation(nis);
+                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
+                // adaptive branch); only capped ones are inflated (robust branch).
+                let trusted_in_faded = fading > 1.0 && factors.as_ref().is_some_and(|f| !f[k].is_capped());
+                let inflation = if trusted_in_faded { 1.0 } else { self.policy.inflation(nis) };
                 scalar_step(&mut dx, &mut p, &h, residual, base_var * inflation)?;
                 *report = UpdateReport::applied(residual, nis, base_var * inflation / r_var, iterations);
             }
@@ -138,6 +182,7 @@ impl InertialFilter for TightFilter {
         }
         for r in reports.iter_mut().filter(|r| r.accepted) {
             r.iterations = iterations;
+            r.prior_fading = fading;
         }
         Ok(())
     }

@@ -11,16 +11,24 @@ pub enum RangeNoisePolicy {
         /// χ² threshold, dimensionless.
         threshold: f64,
     },
+    /// The adaptive-robust policy of seed 002 (ARCKF, Algorithm 1): base variance `σ²·Cu_i` from the
+    /// L1 robustness factor (eqs. (35)–(38)), the prior faded by [`crate::robust::prior_fading`]
+    /// when the epoch shows an abnormal state (eq. (42)), and `R' = (γ/χ²)·R` for the ranges that
+    /// still fail the test (eq. (41)).
+    AdaptiveRobust {
+        /// χ² threshold, dimensionless.
+        threshold: f64,
+    },
 }
 
 impl RangeNoisePolicy {
     /// The factor `R'/R ≥ 1` for a range whose squared Mahalanobis distance is `nis`
-    /// (seed 000 eq. (40)).
+    /// (seed 000 eq. (40), seed 002 eq. (41)).
     pub fn inflation(&self, nis: f64) -> f64 {
         match *self {
             Self::Fixed => 1.0,
-            Self::ChiSquareInflation { threshold } if nis >= threshold => nis / threshold,
-            Self::ChiSquareInflation { .. } => 1.0,
+            Self::ChiSquareInflation { threshold } | Self::AdaptiveRobust { threshold } if nis >= threshold => nis / threshold,
+            Self::ChiSquareInflation { .. } | Self::AdaptiveRobust { .. } => 1.0,
         }
     }
 }

@@ -5,19 +5,42 @@
 //! range a robustness factor `Cu_i = e^{|Δr_i|}` (eq. (35)), capped at
 //! `Cu_max = e^{f(d) + 3σ}` (eq. (37)) with the distance-dependent ranging error `f(d)` (eq. (36)).
 //! The range variance becomes `R_i = σ²·Cu_i` (eq. (38)). Then the χ² test on the squared
-//! Mahalanobis distance `γ_i` (eqs. (39)–(40)) chooses, per range (Algorithm 1, lines 3–9):
+//! Mahalanobis distance `γ_i` (eqs. (39)–(40)) decides between blaming the state (inflate the
+//! prior covariance, eq. (42), the *adaptive* branch) and blaming the range (inflate `R_i`,
+//! eq. (41), the *robust* branch).
 //!
-//! * `Cu_i < Cu_max` and `γ_i ≥ χ²₁,α`: the range is trusted, so the *state* is blamed and the prior
-//!   covariance is inflated, `P⁻' = (γ_i/χ²₁,α)·P⁻` (eq. (42), adaptive branch);
-//! * `Cu_i = Cu_max` (capped) and `γ_i ≥ χ²₁,α`: the range is an outlier and its variance is
-//!   inflated, `R_i' = (γ_i/χ²₁,α)·R_i` (eq. (41), robust branch);
-//! * `γ_i < χ²₁,α`: nothing changes.
+//! **Attribution and fading (deviations from Algorithm 1, lines 3–9, measured on the seed 002
+//! presets).**
+//!
+//! * *Which epochs blame the state.* Algorithm 1 blames the state for every failing range that the
+//!   L1 fit trusts (`Cu_i < Cu_max`). With four anchors the L1 fit has too few spare ranges to
+//!   isolate an outlier reliably: on the seed 002 garage grid it isolates a +3 m outlier at only
+//!   about half of the positions, and each misattributed outlier inflated the prior by `γ/χ²`
+//!   (factors of 50–400), so that literal ARCKF diverged in 10 of 12 figure-8 runs with 3–10 %
+//!   outliers. An abnormal *state* makes most ranges disagree with the prediction (seed 002
+//!   Fig. 12: γ above the threshold on all four beacons), an outlier only its own. So the prior is
+//!   faded only when a **strict majority** of the epoch's ranges fail the test and at least one of
+//!   the failing ranges is trusted ([`prior_fading`]). Requiring *all* ranges to fail missed
+//!   abnormal states whose error is perpendicular to one anchor's line of sight.
+//! * *By how much.* Algorithm 1 inflates `P` once per failing trusted range, i.e. by the product
+//!   of their ratios; here it is inflated once, by the largest ratio `γ_i/χ²` among them. (The
+//!   smallest ratio left most of the jump uncorrected: ARCKF then beat CKF in only 12 of 16
+//!   Table 4 runs.)
+//! * *What is faded.* Only the position–velocity block, `P⁻' = D·P⁻·D` with
+//!   `D = diag(√λ·I₆, I₉)` ([`fade_position_velocity`]; positive definite like `P⁻`). Fading the
+//!   whole `P⁻` also inflates the attitude and bias blocks; on the Table 4 runs it ended three of
+//!   sixteen runs with a non-positive innovation variance.
+//! * In a faded epoch the trusted ranges keep `R_i = σ²·Cu_i` (adaptive branch) and the capped
+//!   ones get `R_i' = (γ_i/χ²)·R_i` (robust branch, eq. (41)); in any other epoch every failing
+//!   range gets the robust branch, whatever its `Cu_i`.
 //!
 //! Algorithm 1 writes the inflations as `while γ ≥ χ²: P = (γ/χ²)·P` (resp. `R`), eqs. (41)–(42)
 //! as one assignment. A literal loop that recomputes γ after each inflation never terminates in
 //! exact arithmetic: with `a = HP⁻Hᵀ`, ratio `g = γ/χ² > 1` and either inflation, the new ratio is
-//! `g·(a + R)/(a·g + R)` (P inflated) or `g·(a + R)/(a + g·R)` (R inflated), both still > 1. So the
+//! `g·(a + R)/(a·g + R)` (P inflated) or `g·(a + R)/(a + g·R)` (R inflated), both still > 1. So each
 //! factor is applied once, as eqs. (41)–(42) state.
+
+use crate::state::{ErrCov, POS, VEL};
 
 /// Ranging error (m) of seed 002 eq. (36), `f(d) = 0.4·(1.10 − e^{−0.17·d})`, at the tag–beacon
 /// distance `d` (m; seed 002 takes it from its ref. \[9\] and plots it for `d` within 20 m).
@@ -83,43 +106,43 @@ pub fn robustness_factors(obs: &[(usize, f64)], residuals_m: Option<&[f64]>, ran
     }
 }
 
-/// What Algorithm 1 of seed 002 does with one range.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum ArckfBranch {
-    /// `γ_i < χ²₁,α`: a standard update with `R_i = σ²·Cu_i`.
-    Normal,
-    /// Trusted range, abnormal state: inflate the prior covariance, `P⁻' = p_scale·P⁻`
-    /// (seed 002 eq. (42)).
-    Adaptive {
-        /// `γ_i/χ²₁,α ≥ 1`, dimensionless.
-        p_scale: f64,
-    },
-    /// Outlying range: inflate its variance, `R_i' = r_scale·R_i` (seed 002 eq. (41)).
-    Robust {
-        /// `γ_i/χ²₁,α ≥ 1`, dimensionless.
-        r_scale: f64,
-    },
+/// Fading factor `λ ≥ 1` of the prior covariance for one epoch (seed 002 eq. (42)), with the
+/// attribution rule of the module doc.
+///
+/// `ranges` yields, for each range of the epoch, its robustness factor (eqs. (35)–(37)) and
+/// `γ_i = ν_i²/(H_i P⁻ H_iᵀ + σ²·Cu_i)` (eqs. (38)–(39)); `chi2_threshold` is `χ²₁,α` of eq. (40).
+/// Returns the largest `γ_i/χ²` over the trusted failing ranges (`Cu_i < Cu_max`,
+/// `γ_i ≥ χ²₁,α`) if more than half of the ranges fail and at least one failing range is trusted,
+/// else 1 (no fading). A NaN γ passes the test. With fewer than 3 ranges every `Cu_i = 1`
+/// (trusted), so two failing ranges out of two fade the prior, as in Algorithm 1.
+pub fn prior_fading(ranges: impl IntoIterator<Item = (RobustnessFactor, f64)>, chi2_threshold: f64) -> f64 {
+    let (mut total, mut failing) = (0usize, 0usize);
+    let mut largest_trusted: Option<f64> = None;
+    for (factor, nis) in ranges {
+        total += 1;
+        if nis >= chi2_threshold {
+            failing += 1;
+            if !factor.is_capped() {
+                let ratio = nis / chi2_threshold;
+                largest_trusted = Some(largest_trusted.map_or(ratio, |r| r.max(ratio)));
+            }
+        }
+    }
+    match largest_trusted {
+        Some(ratio) if 2 * failing > total => ratio,
+        _ => 1.0,
+    }
 }
 
-/// Branch of seed 002 Algorithm 1 (lines 3–9) for one range.
-///
-/// `nis` is `γ_i = ν_i²/(H_i P⁻ H_iᵀ + R_i)` of eq. (39), with `R_i = σ²·Cu_i` from eq. (38);
-/// `chi2_threshold` is `χ²₁,α` of eq. (40) (seed 002 quotes 6.2 for α = 0.001, see
-/// [`crate::robust::chi2`]). Returns [`ArckfBranch::Adaptive`] if `Cu_i < Cu_max` and
-/// `γ_i ≥ χ²₁,α`, [`ArckfBranch::Robust`] if `Cu_i = Cu_max` and `γ_i ≥ χ²₁,α`, else
-/// [`ArckfBranch::Normal`]; both scales are `γ_i/χ²₁,α` (eqs. (41)–(42)), applied once (see the
-/// module doc). A NaN `nis` gives `Normal`. With fewer than 3 ranges `Cu_i = 1 < Cu_max`, so a
-/// failed test inflates `P⁻`.
-pub fn arckf_branch(factor: &RobustnessFactor, nis: f64, chi2_threshold: f64) -> ArckfBranch {
-    if nis >= chi2_threshold {
-        let scale = nis / chi2_threshold;
-        if factor.is_capped() {
-            ArckfBranch::Robust { r_scale: scale }
-        } else {
-            ArckfBranch::Adaptive { p_scale: scale }
-        }
-    } else {
-        ArckfBranch::Normal
+/// Fades the position–velocity block of an error covariance by `λ` (seed 002 eq. (42), restricted
+/// as in the module doc): `P ← D·P·D` with `D = diag(√λ·I₆, I₉)`, so the position–velocity block
+/// is multiplied by `λ`, its cross-covariances with attitude and biases by `√λ`, and the rest is
+/// unchanged. A congruence, so `P` stays symmetric positive definite for `λ > 0`.
+pub fn fade_position_velocity(p: &mut ErrCov, lambda: f64) {
+    let s = lambda.sqrt();
+    for i in (POS..POS + 3).chain(VEL..VEL + 3) {
+        p.row_mut(i).scale_mut(s);
+        p.column_mut(i).scale_mut(s);
     }
 }
 
@@ -180,19 +203,44 @@ mod tests {
     }
 
     #[test]
-    fn branch_follows_algorithm_1() {
+    fn prior_fades_when_most_ranges_fail() {
         let chi2 = 6.2;
         let trusted = RobustnessFactor { cu: 1.2, cu_max: 1.7 };
         let capped = RobustnessFactor { cu: 1.7, cu_max: 1.7 };
-        // Cu < Cu_max, γ ≥ χ²: inflate P⁻ by γ/χ².
-        assert_eq!(arckf_branch(&trusted, 12.4, chi2), ArckfBranch::Adaptive { p_scale: 2.0 });
-        // Cu = Cu_max, γ ≥ χ²: inflate R_i by γ/χ².
-        assert_eq!(arckf_branch(&capped, 18.6, chi2), ArckfBranch::Robust { r_scale: 3.0 });
-        // γ < χ²: normal, whatever Cu.
-        assert_eq!(arckf_branch(&trusted, 6.1, chi2), ArckfBranch::Normal);
-        assert_eq!(arckf_branch(&capped, 6.1, chi2), ArckfBranch::Normal);
-        // Boundary γ = χ² fails the test (eqs. (41)–(42) use ≥); NaN does not.
-        assert_eq!(arckf_branch(&trusted, chi2, chi2), ArckfBranch::Adaptive { p_scale: 1.0 });
-        assert_eq!(arckf_branch(&capped, f64::NAN, chi2), ArckfBranch::Normal);
+        // Three of four fail: inflate by the largest trusted ratio (31/6.2 = 5), capped ones ignored.
+        let most_fail = [(trusted, 12.4), (trusted, 31.0), (capped, 62.0), (trusted, 1.0)];
+        assert_eq!(prior_fading(most_fail, chi2), 5.0);
+        // Two of four fail (an outlier pair, not a state jump): no fading.
+        assert_eq!(prior_fading([(trusted, 12.4), (trusted, 31.0), (trusted, 1.0), (trusted, 2.0)], chi2), 1.0);
+        // One of three: no fading, whatever its Cu.
+        assert_eq!(prior_fading([(trusted, 12.4), (trusted, 1.0), (trusted, 2.0)], chi2), 1.0);
+        // Only capped ranges fail: nothing trusted, no fading.
+        assert_eq!(prior_fading([(capped, 12.4), (capped, 62.0), (trusted, 1.0)], chi2), 1.0);
+        // Two of two (fewer than 3 ranges, Cu = 1): fades, as in Algorithm 1.
+        assert_eq!(prior_fading([(trusted, 12.4), (trusted, 18.6)], chi2), 3.0);
+        // Boundary γ = χ² fails the test (eqs. (41)–(42) use ≥); NaN passes it.
+        assert_eq!(prior_fading([(trusted, chi2)], chi2), 1.0);
+        assert_eq!(prior_fading([(trusted, 12.4), (trusted, f64::NAN)], chi2), 1.0);
+        assert_eq!(prior_fading([], chi2), 1.0);
+    }
+
+    #[test]
+    fn fading_scales_the_position_velocity_block_only() {
+        // A dense SPD matrix: A·Aᵀ + I.
+        let a = ErrCov::from_fn(|i, j| ((i * 7 + j * 3) % 5) as f64 - 2.0);
+        let p = a * a.transpose() + ErrCov::identity();
+        let mut faded = p;
+        fade_position_velocity(&mut faded, 4.0);
+        for i in 0..15 {
+            for j in 0..15 {
+                let factor = match (i < 6, j < 6) {
+                    (true, true) => 4.0,
+                    (false, false) => 1.0,
+                    _ => 2.0,
+                };
+                assert!((faded[(i, j)] - factor * p[(i, j)]).abs() < 1e-12, "({i}, {j})");
+            }
+        }
+        assert!(faded.cholesky().is_some());
     }
 }

@@ -13,7 +13,7 @@ COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x"
 
 
 def test_filters_listed():
-    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf", "shaf", "shfaf"]
+    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "eskf", "shaf", "shfaf"]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
@@ -161,7 +161,7 @@ def _set(a, idx, value):
 
 def test_unknown_method_lists_allowed(small):
     imu, ranges, anchors, _ = small
-    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf"):
+    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, arckf, eskf, shaf, shfaf"):
         uwbimu_rs.run_filter("kalman", imu, ranges, anchors)
 
 

@@ -1,0 +1,90 @@
+//! ARCKF against CKF on the seed 002 experiments (Tables 4 and 6), over several seeds.
+
+mod common;
+
+use common::{config_for, horizontal_errors, rms, truth_initial};
+use uwbimu_rs::filters::{Arckf, Ckf};
+use uwbimu_rs::math::Vec3;
+use uwbimu_rs::pipeline::{run, Trace};
+use uwbimu_rs::sim::{preset, simulate, OverrideValue, SimData, LABEL_OUTLIER};
+
+const SEEDS: u64 = 3;
+
+/// Simulates `name` with one numeric override; runs CKF and ARCKF from the true initial state.
+fn ckf_and_arckf(name: &str, seed: u64, key: &str, value: f64) -> (SimData, Trace, Trace) {
+    let mut cfg = preset(name, seed).expect("preset");
+    cfg.apply_overrides(&[(key, OverrideValue::Number(value))]).expect("override");
+    let data = simulate(&cfg).expect("sim");
+    let fc = config_for(&cfg);
+    let initial = truth_initial(&data, Vec3::zeros());
+    let a = data.anchors.clone();
+    let ckf = run(&mut Ckf::new(a.clone(), &initial, fc.clone()).expect("ckf"), &data.imu, &data.ranges).expect("ckf run");
+    let arckf = run(&mut Arckf::new(a, &initial, fc).expect("arckf"), &data.imu, &data.ranges).expect("arckf run");
+    (data, ckf, arckf)
+}
+
+/// Mean over seeds of the horizontal RMSE of (CKF, ARCKF).
+fn mean_rmse(name: &str, key: &str, value: f64) -> (f64, f64) {
+    let (mut c, mut a) = (0.0, 0.0);
+    for seed in 0..SEEDS {
+        let (data, ckf, arckf) = ckf_and_arckf(name, seed, key, value);
+        c += rms(&horizontal_errors(&ckf.steps, &data)) / SEEDS as f64;
+        a += rms(&horizontal_errors(&arckf.steps, &data)) / SEEDS as f64;
+    }
+    (c, a)
+}
+
+#[test]
+fn table6_arckf_resists_range_outliers_on_beacons_2_and_4() {
+    let levels = [0.03, 0.05, 0.07, 0.10];
+    let rmse: Vec<(f64, f64)> = levels.iter().map(|&p| mean_rmse("seed002_figure8", "outlier_prob", p)).collect();
+    for (p, (c, a)) in levels.iter().zip(&rmse) {
+        println!("{:>3.0} % outliers: CKF {c:.3} m, ARCKF {a:.3} m", p * 100.0);
+    }
+    let ((c3, a3), (c10, a10)) = (rmse[0], rmse[3]);
+    assert!(a10 <= 0.7 * c10, "ARCKF {a10} not 30 % below CKF {c10} at 10 %");
+    assert!(c10 - c3 > 0.2, "CKF should degrade with more outliers: {c3} → {c10}");
+    assert!(a10 - a3 < 0.25 * (c10 - c3), "ARCKF grows {a3} → {a10}, CKF {c3} → {c10}");
+}
+
+#[test]
+fn table4_arckf_below_ckf_with_acceleration_outliers() {
+    for count in 1..=4 {
+        let (c, a) = mean_rmse("seed002_rectangle", "accel_outlier_count", count as f64);
+        println!("{count} acceleration outlier(s): CKF {c:.3} m, ARCKF {a:.3} m");
+        assert!(a < c, "{count} outliers: ARCKF {a} vs CKF {c}");
+    }
+}
+
+#[test]
+fn arckf_fades_after_an_acceleration_jump_and_down_weights_outliers() {
+    // Acceleration outliers: the prior is faded (eq. (42)) within 2 s of each jump, rarely otherwise.
+    let (data, _, arckf) = ckf_and_arckf("seed002_rectangle", 0, "accel_outlier_count", 2.0);
+    let faded: Vec<f64> = arckf.updates.iter().filter(|u| u.report.prior_fading > 1.0).map(|u| u.t_s).collect();
+    for &t in &data.accel_outlier_times {
+        assert!(faded.iter().any(|&f| f > t && f < t + 2.0), "no fading after the jump at {t} s: {faded:?}");
+    }
+    let epochs = arckf.updates.iter().map(|u| u.t_s).fold(Vec::<f64>::new(), |mut v, t| {
+        if v.last() != Some(&t) {
+            v.push(t);
+        }
+        v
+    });
+    let faded_epochs = epochs.iter().filter(|t| faded.contains(t)).count();
+    assert!(faded_epochs * 10 < epochs.len(), "{faded_epochs} of {} epochs faded", epochs.len());
+    // Range outliers: the outlying ranges lose weight (eq. (41)), the clean ones keep it.
+    let (data, _, arckf) = ckf_and_arckf("seed002_figure8", 0, "outlier_prob", 0.1);
+    let mean_weight = |outlier: bool| {
+        let w: Vec<f64> = arckf
+            .updates
+            .iter()
+            .zip(&data.range_labels)
+            .filter(|(_, &l)| (l == LABEL_OUTLIER) == outlier)
+            .map(|(u, _)| u.report.weight)
+            .collect();
+        w.iter().sum::<f64>() / w.len() as f64
+    };
+    let (w_out, w_clean) = (mean_weight(true), mean_weight(false));
+    println!("mean weight: outliers {w_out:.3}, clean {w_clean:.3}");
+    assert!(w_out < 0.1 && w_clean > 0.7, "outliers {w_out}, clean {w_clean}");
+}
