@@ -108,6 +108,36 @@ pub struct FilterConfig {
     /// Sage–Husa estimator settings of `shaf` / `shfaf` (seed 004 eqs. (26)–(36)); the method
     /// chooses the variant.
     pub sage_husa: SageHusaConfig,
+    /// Gravity and geomagnetic attitude aiding of `ackf` (seed 003 §2.2.2).
+    pub aiding: AidingConfig,
+}
+
+/// Settings of the gravity / geomagnetic observations of `ackf` (seed 003 §2.2.2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AidingConfig {
+    /// Length of the initial still period whose mean accelerometer and magnetometer readings,
+    /// rotated to the navigation frame, become the reference gravity and field, s (seed 003:
+    /// 5–10 s).
+    pub reference_s: f64,
+    /// Base std of one accelerometer axis as a gravity observation, m/s².
+    pub gravity_std: f64,
+    /// Base std of one magnetometer axis, unit of the magnetometer readings.
+    pub mag_std: f64,
+    /// Scale the variances with the residual uncertainty ([`crate::robust::aiding`]); `false`
+    /// keeps them fixed.
+    pub adaptive: bool,
+    /// Residual scale `c` of the uncertainty, dimensionless.
+    pub uncertainty_scale: f64,
+    /// Cap `U_max` of the uncertainty, dimensionless (≥ 1).
+    pub uncertainty_max: f64,
+}
+
+impl Default for AidingConfig {
+    /// Reference from the first 5 s, gravity std 0.5 m/s², field std 1.0 (µT), adaptive, scale
+    /// 0.005 (a 0.5 % magnitude residual multiplies the variance by e), cap 10⁴.
+    fn default() -> Self {
+        Self { reference_s: 5.0, gravity_std: 0.5, mag_std: 1.0, adaptive: true, uncertainty_scale: 0.005, uncertainty_max: 1e4 }
+    }
 }
 
 impl Default for FilterConfig {
@@ -148,6 +178,7 @@ impl Default for FilterConfig {
             adaptive_range_noise: false,
             loose_noise_scale: 1.0,
             sage_husa: SageHusaConfig::default(),
+            aiding: AidingConfig::default(),
         }
     }
 }
@@ -232,7 +263,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 41] = [
+    pub const KEYS: [&'static str; 47] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -274,6 +305,12 @@ impl FilterConfig {
         "sh_window",
         "sh_fading_rate",
         "sh_outlier_threshold",
+        "aiding_reference_s",
+        "aiding_gravity_std",
+        "aiding_mag_std",
+        "aiding_adaptive",
+        "aiding_uncertainty_scale",
+        "aiding_uncertainty_max",
     ];
 
     /// Sets one field by name, validating its value; unknown keys are an error that lists
@@ -334,6 +371,18 @@ impl FilterConfig {
             "sh_window" => self.sage_husa.window_len = bounded_count(key, value, 1, crate::robust::sage_husa::MAX_WINDOW)?,
             "sh_fading_rate" => self.sage_husa.fading_rate = positive(key, value)?,
             "sh_outlier_threshold" => self.sage_husa.outlier_threshold = positive(key, value)?,
+            "aiding_reference_s" => self.aiding.reference_s = positive(key, value)?,
+            "aiding_gravity_std" => self.aiding.gravity_std = positive(key, value)?,
+            "aiding_mag_std" => self.aiding.mag_std = positive(key, value)?,
+            "aiding_adaptive" => self.aiding.adaptive = flag(key, value)?,
+            "aiding_uncertainty_scale" => self.aiding.uncertainty_scale = positive(key, value)?,
+            "aiding_uncertainty_max" => {
+                let v = positive(key, value)?;
+                if v < 1.0 {
+                    return Err(invalid(key, format!("must be >= 1, got {v}")));
+                }
+                self.aiding.uncertainty_max = v;
+            }
             _ => return Err(unknown_key("config", key, &Self::KEYS)),
         }
         Ok(())
@@ -402,6 +451,15 @@ impl FilterConfig {
             ("sh_window", ConfigValue::Scalar(sh.window_len as f64)),
             ("sh_fading_rate", ConfigValue::Scalar(sh.fading_rate)),
             ("sh_outlier_threshold", ConfigValue::Scalar(sh.outlier_threshold)),
+        ]);
+        let ai = &self.aiding;
+        entries.extend([
+            ("aiding_reference_s", ConfigValue::Scalar(ai.reference_s)),
+            ("aiding_gravity_std", ConfigValue::Scalar(ai.gravity_std)),
+            ("aiding_mag_std", ConfigValue::Scalar(ai.mag_std)),
+            ("aiding_adaptive", ConfigValue::Flag(ai.adaptive)),
+            ("aiding_uncertainty_scale", ConfigValue::Scalar(ai.uncertainty_scale)),
+            ("aiding_uncertainty_max", ConfigValue::Scalar(ai.uncertainty_max)),
         ]);
         entries
     }

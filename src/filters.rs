@@ -41,6 +41,7 @@ macro_rules! delegate_filter {
     };
 }
 
+pub mod ackf;
 pub mod core;
 pub mod loose;
 pub mod named;
@@ -50,6 +51,7 @@ use crate::error::Result;
 use crate::math::Vec3;
 use crate::update::UpdateReport;
 
+pub use self::ackf::Ackf;
 pub use self::core::{InertialCore, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::{Arckf, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
@@ -76,6 +78,14 @@ pub trait InertialFilter {
 
     /// Mutable access to the INS core (e.g. to start recording for smoothing).
     fn core_mut(&mut self) -> &mut InertialCore;
+
+    /// Applies one magnetometer sample (IMU frame, any unit) measured at `t_s` ≥ the filter time.
+    /// Only filters with geomagnetic aiding use it ([`Ackf`], seed 003); the others return
+    /// [`crate::error::Error::InvalidCall`].
+    fn update_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
+        let _ = (t_s, field);
+        Err(crate::error::Error::InvalidCall("this filter does not use a magnetometer (use ackf)".into()))
+    }
 
     /// Whether the still detector reported the platform still at the last constraint step
     /// (always false without the zero-velocity constraint).

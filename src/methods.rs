@@ -2,12 +2,12 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
+use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
-use crate::pipeline::{run, run_smoothed, StepRecord, Trace};
-use crate::records::{ImuSample, RangeMeasurement};
+use crate::pipeline::{run_with_magnetometer, smoothed_steps, StepRecord, Trace};
+use crate::records::{ImuSample, MagSample, RangeMeasurement};
 
 /// A method name accepted by the batch API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -28,6 +28,8 @@ pub enum Method {
     Ckf,
     /// The adaptive-robust complementary Kalman filter of seed 002 (ARCKF).
     Arckf,
+    /// The adaptive complementary Kalman filter of seed 003 (gravity and geomagnetic aiding).
+    Ackf,
     /// The loosely coupled error-state filter of seed 004.
     Eskf,
     /// The Sage–Husa adaptive ESKF of seed 004.
@@ -38,8 +40,8 @@ pub enum Method {
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 11] =
-        ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "eskf", "shaf", "shfaf"];
+    pub const NAMES: [&'static str; 12] =
+        ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf"];
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -52,6 +54,7 @@ impl Method {
             "criekf" => Ok(Self::Criekf),
             "ckf" => Ok(Self::Ckf),
             "arckf" => Ok(Self::Arckf),
+            "ackf" => Ok(Self::Ackf),
             "eskf" => Ok(Self::Eskf),
             "shaf" => Ok(Self::Shaf),
             "shfaf" => Ok(Self::Shfaf),
@@ -92,10 +95,15 @@ pub struct BatchInput<'a> {
     pub config: &'a FilterConfig,
     /// Also RTS-smooth the run (inertial filters only).
     pub smooth: bool,
+    /// Magnetometer samples, validated and time-ordered (used by `ackf`; empty if none).
+    pub mag: &'a [MagSample],
 }
 
 /// Runs `method` over one recording.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    if !input.mag.is_empty() && method != Method::Ackf {
+        return Err(Error::InvalidCall("magnetometer data given, but only ackf uses a magnetometer".into()));
+    }
     let BatchInput { ranges, anchors, config, .. } = *input;
     match method {
         Method::UwbLs if input.smooth => {
@@ -112,6 +120,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Ckf => run_inertial(|i| Ckf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Arckf => run_inertial(|i| Arckf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Ackf => run_inertial(|i| Ackf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Eskf => run_inertial(|i| Eskf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Shaf => run_inertial(|i| Shaf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Shfaf => run_inertial(|i| Shfaf::new(anchors.to_vec(), i, config.clone()), input),
@@ -123,7 +132,7 @@ fn run_inertial<F: InertialFilter>(
     build: impl FnOnce(&InitialState) -> Result<F>,
     input: &BatchInput<'_>,
 ) -> Result<BatchOutput> {
-    let BatchInput { imu, ranges, anchors, initial, config, smooth } = *input;
+    let BatchInput { imu, ranges, anchors, initial, config, smooth, mag } = *input;
     let (initial, init) = match initial {
         Some(i) => (i.clone(), None),
         None => {
@@ -133,9 +142,9 @@ fn run_inertial<F: InertialFilter>(
     };
     let mut filter = build(&initial)?;
     if smooth {
-        let (trace, smoothed) = run_smoothed(&mut filter, imu, ranges)?;
-        Ok(BatchOutput::Inertial { trace, init, smoothed: Some(smoothed) })
-    } else {
-        Ok(BatchOutput::Inertial { trace: run(&mut filter, imu, ranges)?, init, smoothed: None })
+        filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len());
     }
+    let trace = run_with_magnetometer(&mut filter, imu, ranges, mag)?;
+    let smoothed = if smooth { Some(smoothed_steps(&trace, filter.core())?) } else { None };
+    Ok(BatchOutput::Inertial { trace, init, smoothed })
 }

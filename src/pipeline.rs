@@ -9,7 +9,7 @@
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Mat3;
-use crate::records::{ImuSample, RangeMeasurement};
+use crate::records::{ImuSample, MagSample, RangeMeasurement};
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::state::{NominalState, POS};
 use crate::update::UpdateReport;
@@ -55,10 +55,23 @@ pub struct Trace {
 /// event order). Ranges sharing a timestamp form one epoch and go to the filter in one
 /// [`InertialFilter::update_ranges`] call.
 pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
+    run_with_magnetometer(filter, imu, ranges, &[])
+}
+
+/// [`run`] with magnetometer samples as a third time-ordered stream, applied through
+/// [`InertialFilter::update_magnetometer`] in the same order as ranges (before the IMU sample if
+/// earlier, after it if at the same time; samples before the first IMU sample are skipped).
+pub fn run_with_magnetometer<F: InertialFilter>(
+    filter: &mut F,
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    mag: &[MagSample],
+) -> Result<Trace> {
     let mut trace =
         Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
     let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
     let mut next = ranges.partition_point(|r| r.t_s < t_first);
+    let mut next_mag = mag.partition_point(|m| m.t_s < t_first);
     trace.ranges_before_start = next;
     let mut epoch: Vec<(usize, f64)> = Vec::new();
     let mut reports: Vec<UpdateReport> = Vec::new();
@@ -83,9 +96,17 @@ pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[Range
         while next < ranges.len() && ranges[next].t_s < sample.t_s {
             next = apply_epoch(filter, next, &mut trace)?;
         }
+        while next_mag < mag.len() && mag[next_mag].t_s < sample.t_s {
+            filter.update_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
+            next_mag += 1;
+        }
         filter.predict(sample.t_s, &sample.accel, &sample.gyro)?;
         while next < ranges.len() && ranges[next].t_s == sample.t_s {
             next = apply_epoch(filter, next, &mut trace)?;
+        }
+        while next_mag < mag.len() && mag[next_mag].t_s == sample.t_s {
+            filter.update_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
+            next_mag += 1;
         }
         let core = filter.core();
         trace.steps.push(StepRecord {
@@ -108,10 +129,16 @@ pub fn run_smoothed<F: InertialFilter>(
 ) -> Result<(Trace, Vec<StepRecord>)> {
     filter.core_mut().start_recording(imu.len() + ranges.len());
     let trace = run(filter, imu, ranges)?;
-    let nodes = smooth_recording(filter.core())?;
-    // Each IMU step's record is the posterior at its time: the node starting there.
+    let smoothed = smoothed_steps(&trace, filter.core())?;
+    Ok((trace, smoothed))
+}
+
+/// RTS-smooths what `core` recorded during the run that produced `trace` and returns one
+/// smoothed record per IMU step of `trace` (the node starting at each step's time).
+pub fn smoothed_steps(trace: &Trace, core: &InertialCore) -> Result<Vec<StepRecord>> {
+    let nodes = smooth_recording(core)?;
     let mut k = 0;
-    let smoothed = trace
+    Ok(trace
         .steps
         .iter()
         .map(|step| {
@@ -121,8 +148,7 @@ pub fn run_smoothed<F: InertialFilter>(
             let n = &nodes[k];
             StepRecord { state: n.state, position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(), ..*step }
         })
-        .collect();
-    Ok((trace, smoothed))
+        .collect())
 }
 
 /// Smooths what `core` recorded since [`InertialCore::start_recording`]; one node per recorded

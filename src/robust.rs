@@ -1,6 +1,7 @@
 //! Robust noise policies: χ² thresholds, the covariance inflation of outlying ranges, the
 //! ARCKF robustness factor (seed 002 §3) and the Sage–Husa (fuzzy) adaptive R (seed 004 §3.2–§3.3).
 
+pub mod aiding;
 pub mod chi2;
 pub mod policy;
 pub mod robustness;
@@ -8,5 +9,7 @@ pub mod sage_husa;
 
 pub use chi2::chi2_quantile_1dof;
 pub use policy::RangeNoisePolicy;
-pub use robustness::{fade_position_velocity, prior_fading, robustness_factors, RobustnessFactor};
+pub use robustness::{
+    fade_position_velocity, prior_fading, robustness_factor, robustness_factors, two_range_residuals, RobustnessFactor,
+};
 pub use sage_husa::{SageHusa, SageHusaConfig, SageHusaStep};

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::Vec3;
-use crate::records::{ImuSample, RangeMeasurement};
+use crate::records::{ImuSample, MagSample, RangeMeasurement};
 
 /// An [`Error::InvalidConfig`] for `field`.
 pub fn invalid(field: &str, reason: impl Into<String>) -> Error {
@@ -60,6 +60,18 @@ pub fn imu(rows: &[[f64; 7]]) -> Result<Vec<ImuSample>> {
         .iter()
         .map(|r| ImuSample { t_s: r[0], accel: Vec3::new(r[1], r[2], r[3]), gyro: Vec3::new(r[4], r[5], r[6]) })
         .collect())
+}
+
+/// Magnetometer table `(N, 4)` = t, mx, my, mz (IMU frame) → samples. Finite; time strictly
+/// increasing.
+pub fn magnetometer(rows: &[[f64; 4]]) -> Result<Vec<MagSample>> {
+    check_finite("mag", rows)?;
+    for (row, w) in rows.windows(2).enumerate() {
+        if w[1][0] <= w[0][0] {
+            return Err(Error::NonMonotonicTime { name: "mag", row: row + 1, prev_s: w[0][0], got_s: w[1][0] });
+        }
+    }
+    Ok(rows.iter().map(|r| MagSample { t_s: r[0], field: Vec3::new(r[1], r[2], r[3]) }).collect())
 }
 
 /// Range table `(M, 3)` = t, anchor index, range → measurements. Finite; time non-decreasing

@@ -14,6 +14,7 @@ import polars as pl
 
 from uwbimu_rs._native import (
     FILTERS,
+    Ackf,
     Arckf,
     Ckf,
     ConfigError,
@@ -34,6 +35,7 @@ from uwbimu_rs import _native
 
 __all__ = [
     "FILTERS",
+    "Ackf",
     "Arckf",
     "Ckf",
     "ConfigError",
@@ -67,13 +69,14 @@ def run_filter(
     covariance: bool = False,
     updates: bool = False,
     smooth: bool = False,
+    mag: np.ndarray | None = None,
 ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"eskf"``, ``"shaf"``,
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"ackf"``, ``"eskf"``, ``"shaf"``,
         ``"shfaf"``).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
@@ -93,6 +96,9 @@ def run_filter(
     smooth : bool
         Return the Rauch–Tung–Striebel smoothed estimates (same columns) instead of the filtered
         ones (inertial methods only; the updates frame stays the forward pass's).
+    mag : numpy.ndarray, shape (N, 4), optional
+        Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
+        only ``ackf`` uses them (seed 003 geomagnetic aiding), other methods raise ValueError.
     updates : bool
         Also return a DataFrame with one row per range update
         (t, anchor, range, innovation, nis, accepted, weight, inflation, down_weighted,
@@ -122,6 +128,7 @@ def run_filter(
         covariance=covariance,
         updates=updates,
         smooth=smooth,
+        mag=mag,
     )
     frame = _frame(cols)
     if updates:

@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
+use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -18,6 +18,7 @@ use crate::update::UpdateReport;
 use crate::validate;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
+const MAG_LAYOUT: &str = "(N, 4) = t, mx, my, mz";
 const RANGES_LAYOUT: &str = "(M, 3) = t, anchor index, range";
 const ANCHORS_LAYOUT: &str = "(K, 3) = x, y, z";
 
@@ -211,6 +212,13 @@ macro_rules! py_filter {
                 Ok(self.0.update_range(t, index, range)?.into())
             }
 
+            /// Applies a magnetometer sample (3,) (IMU frame) measured at `t` (s); only `Ackf`
+            /// uses one (seed 003), the others raise ValueError.
+            fn update_magnetometer(&mut self, t: f64, field: &Bound<'_, PyAny>) -> PyResult<()> {
+                let field = vec3_arg(field, "field")?;
+                Ok(self.0.update_magnetometer(t, &field)?)
+            }
+
             /// Applies the ranges of one epoch measured at `t` (s): anchor indices (M,) and
             /// ranges (M,) m; returns one report per range. The batch API groups ranges with
             /// equal timestamps into such epochs.
@@ -274,6 +282,10 @@ py_filter!(
 py_filter!(
     /// The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1).
     PyArckf, "Arckf", Arckf
+);
+py_filter!(
+    /// The adaptive complementary Kalman filter of seed 003 (gravity and geomagnetic aiding).
+    PyAckf, "Ackf", Ackf
 );
 py_filter!(
     /// The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity).
@@ -356,7 +368,7 @@ type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<
 /// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
 /// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
 #[pyfunction]
-#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=false))]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=false, mag=None))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -369,9 +381,14 @@ fn run_filter<'py>(
     covariance: bool,
     updates: bool,
     smooth: bool,
+    mag: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
     let inputs = read_inputs(imu, ranges, anchors)?;
+    let mag = match mag {
+        Some(m) if !m.is_none() => validate::magnetometer(&table::<4>(&array(m, "mag")?, "mag", MAG_LAYOUT)?)?,
+        _ => Vec::new(),
+    };
     let config = read_config(config)?;
     let initial = match initial {
         Some(obj) if !obj.is_none() => Some(read_initial(obj)?),
@@ -384,6 +401,7 @@ fn run_filter<'py>(
         initial: initial.as_ref(),
         config: &config,
         smooth,
+        mag: &mag,
     };
     let output = py.detach(|| run_method(method, &input))?;
     output_columns(py, output, covariance, updates)
@@ -480,6 +498,7 @@ fn run_filters<'py>(
                     initial: init.as_ref(),
                     config: &config,
                     smooth,
+                    mag: &[],
                 };
                 run_method(method, &input)
             })
@@ -598,6 +617,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCriekf>()?;
     m.add_class::<PyCkf>()?;
     m.add_class::<PyArckf>()?;
+    m.add_class::<PyAckf>()?;
     m.add_class::<PyEskf>()?;
     m.add_class::<PyShaf>()?;
     m.add_class::<PyShfaf>()?;

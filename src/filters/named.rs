@@ -81,7 +81,7 @@ pub const DEFAULT_BIAS_TAU_S: f64 = 300.0;
 
 /// The complementary-filter settings of seed 002: Markov biases (eqs. (17)–(18)) and the
 /// process noise of eq. (28).
-fn complementary(config: &mut FilterConfig) {
+pub(crate) fn complementary(config: &mut FilterConfig) {
     config.accel_bias_tau = config.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
     config.gyro_bias_tau = config.gyro_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
     config.trapezoidal_process_noise = true;

@@ -10,7 +10,9 @@ use crate::math::Vec3;
 use crate::models::range::{predict_range, tag_position};
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
 use crate::robust::sage_husa::SageHusa;
-use crate::robust::{prior_fading, robustness_factors, RangeNoisePolicy, RobustnessFactor};
+use crate::robust::{
+    prior_fading, robustness_factor, robustness_factors, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
+};
 use crate::update::{inject_and_reset, scalar_step, UpdateReport};
 use nalgebra::{SMatrix, SVector};
 
@@ -86,6 +88,10 @@ impl TightFilter {
         let config = self.core.config();
         let tag = tag_position(self.core.state(), &config.lever_arm);
         let ls = LsConfig { range_std_m: config.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
+        if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
+            let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
+            return vec![robustness_factor(r1, res[0], config.range_std), robustness_factor(r2, res[1], config.range_std)];
+        }
         let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
         robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.range_std)
     }
@@ -134,6 +140,7 @@ impl InertialFilter for TightFilter {
                 }
                 (Some(factors), fading)
             }
+            RangeNoisePolicy::ResidualWeighted => (Some(self.robustness(ranges)), 1.0),
             _ => (None, 1.0),
         };
         let (x, p_out) = self.core.state_and_covariance_mut();

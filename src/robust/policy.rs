@@ -19,6 +19,10 @@ pub enum RangeNoisePolicy {
         /// χ² threshold, dimensionless.
         threshold: f64,
     },
+    /// Range variance `σ²·Cu_i` from the multilateration residual only, no χ² test (seed 003
+    /// §2.2.1, ACKF): the L1 residual of eqs. (33)–(35) of seed 002 with three or more ranges,
+    /// [`crate::robust::two_range_residuals`] with two.
+    ResidualWeighted,
 }
 
 impl RangeNoisePolicy {
@@ -28,7 +32,7 @@ impl RangeNoisePolicy {
         match *self {
             Self::Fixed => 1.0,
             Self::ChiSquareInflation { threshold } | Self::AdaptiveRobust { threshold } if nis >= threshold => nis / threshold,
-            Self::ChiSquareInflation { .. } | Self::AdaptiveRobust { .. } => 1.0,
+            Self::ChiSquareInflation { .. } | Self::AdaptiveRobust { .. } | Self::ResidualWeighted => 1.0,
         }
     }
 }

@@ -40,6 +40,7 @@
 //! `g·(a + R)/(a·g + R)` (P inflated) or `g·(a + R)/(a + g·R)` (R inflated), both still > 1. So each
 //! factor is applied once, as eqs. (41)–(42) state.
 
+use crate::math::Vec3;
 use crate::state::{ErrCov, POS, VEL};
 
 /// Ranging error (m) of seed 002 eq. (36), `f(d) = 0.4·(1.10 − e^{−0.17·d})`, at the tag–beacon
@@ -78,6 +79,28 @@ fn cu_max(distance_m: f64, range_std_m: f64) -> f64 {
     (ranging_error_m(distance_m) + 3.0 * range_std_m).exp()
 }
 
+/// Robustness factor of one range `r` (m) with residual `Δr` (m): `Cu = min(e^{|Δr|}, Cu_max)`
+/// (seed 002 eq. (35)) with `Cu_max` at the fitted distance `r − Δr` (eq. (37)); a non-finite
+/// residual counts as capped.
+pub fn robustness_factor(range_m: f64, residual_m: f64, range_std_m: f64) -> RobustnessFactor {
+    let cap = cu_max(range_m - residual_m, range_std_m);
+    let raw = residual_m.abs().exp();
+    RobustnessFactor { cu: if raw < cap { raw } else { cap }, cu_max: cap }
+}
+
+/// Residuals of an epoch with exactly two ranges (seed 003 §2.2.1): 0 for both if the two range
+/// spheres meet (`r₁ + r₂ ≥ ‖a₁ − a₂‖`), else each range is short by half the gap,
+/// `Δr = −(‖a₁ − a₂‖ − r₁ − r₂)/2` (seed 003 gives only the first case; the second is this
+/// crate's reading).
+pub fn two_range_residuals(anchor_1: &Vec3, range_1_m: f64, anchor_2: &Vec3, range_2_m: f64) -> [f64; 2] {
+    let gap = (anchor_1 - anchor_2).norm() - range_1_m - range_2_m;
+    if gap > 0.0 {
+        [-0.5 * gap; 2]
+    } else {
+        [0.0; 2]
+    }
+}
+
 /// Robustness factors of one epoch's ranges (seed 002 eqs. (35)–(37)).
 ///
 /// * `obs`: the epoch's `(anchor index, measured range r_i m)`.
@@ -93,15 +116,9 @@ fn cu_max(distance_m: f64, range_std_m: f64) -> f64 {
 /// measured range. A non-finite residual counts as capped.
 pub fn robustness_factors(obs: &[(usize, f64)], residuals_m: Option<&[f64]>, range_std_m: f64) -> Vec<RobustnessFactor> {
     match residuals_m {
-        Some(res) if obs.len() >= 3 && res.len() == obs.len() => obs
-            .iter()
-            .zip(res)
-            .map(|(&(_, r), &dr)| {
-                let cap = cu_max(r - dr, range_std_m);
-                let raw = dr.abs().exp();
-                RobustnessFactor { cu: if raw < cap { raw } else { cap }, cu_max: cap }
-            })
-            .collect(),
+        Some(res) if obs.len() >= 3 && res.len() == obs.len() => {
+            obs.iter().zip(res).map(|(&(_, r), &dr)| robustness_factor(r, dr, range_std_m)).collect()
+        }
         _ => obs.iter().map(|&(_, r)| RobustnessFactor { cu: 1.0, cu_max: cu_max(r, range_std_m) }).collect(),
     }
 }
@@ -242,5 +259,15 @@ mod tests {
             }
         }
         assert!(faded.cholesky().is_some());
+    }
+
+    #[test]
+    fn two_ranges_have_zero_residual_when_their_spheres_meet() {
+        let (a, b) = (Vec3::zeros(), Vec3::new(10.0, 0.0, 0.0));
+        assert_eq!(two_range_residuals(&a, 6.0, &b, 5.0), [0.0, 0.0]);
+        assert_eq!(two_range_residuals(&a, 5.0, &b, 5.0), [0.0, 0.0]);
+        assert_eq!(two_range_residuals(&a, 3.0, &b, 5.0), [-1.0, -1.0]);
+        let f = robustness_factor(3.0, -1.0, 0.1);
+        assert!((f.cu - f.cu_max).abs() < 1e-12 && f.is_capped(), "{f:?}");
     }
 }

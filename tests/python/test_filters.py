@@ -13,7 +13,7 @@ COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x"
 
 
 def test_filters_listed():
-    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "eskf", "shaf", "shfaf"]
+    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf"]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
@@ -161,7 +161,7 @@ def _set(a, idx, value):
 
 def test_unknown_method_lists_allowed(small):
     imu, ranges, anchors, _ = small
-    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, arckf, eskf, shaf, shfaf"):
+    with pytest.raises(ValueError, match=r"unknown method `kalman`; allowed: uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, eskf, shaf, shfaf"):
         uwbimu_rs.run_filter("kalman", imu, ranges, anchors)
 
 
@@ -299,3 +299,19 @@ def test_run_filters_in_parallel_equals_one_by_one(filter_config):
         uwbimu_rs.run_filters("ekf", [(runs[0].imu, runs[0].ranges, runs[0].anchors), "nope"])
     with pytest.raises(ValueError, match=r"initial: expected shape 1 items \(one per run\), got 2"):
         uwbimu_rs.run_filters("ekf", [(runs[0].imu, runs[0].ranges, runs[0].anchors)], initial=[None, None])
+
+
+def test_ackf_uses_the_magnetometer_and_others_refuse_it():
+    run = uwbimu_rs.sim.preset("seed004_s1", seed=1)
+    assert run.mag is not None
+    df = uwbimu_rs.run_filter("ackf", run.imu, run.ranges, run.anchors, mag=run.mag, config={"aiding_reference_s": 1.5})
+    err = uwbimu_rs.metrics.evaluate(df, run.truth).horizontal.rmse
+    assert err < 0.5, err
+    with pytest.raises(ValueError, match="only ackf uses a magnetometer"):
+        uwbimu_rs.run_filter("ckf", run.imu, run.ranges, run.anchors, mag=run.mag)
+    bad = run.mag.copy()
+    bad[5, 0] = bad[4, 0]
+    with pytest.raises(ValueError, match="mag"):
+        uwbimu_rs.run_filter("ackf", run.imu, run.ranges, run.anchors, mag=bad)
+    with pytest.raises(ValueError, match="mag"):
+        uwbimu_rs.run_filter("ackf", run.imu, run.ranges, run.anchors, mag=run.mag[:, :3])

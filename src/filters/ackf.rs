@@ -1,0 +1,168 @@
+//! The adaptive complementary Kalman filter of seed 003 (ACKF): the complementary filter of
+//! seed 002 plus gravity and geomagnetic observations of the attitude, each with a covariance set
+//! from its residuals, and range variances set from the multilateration residuals.
+
+use crate::config::{AidingConfig, FilterConfig, InitialState};
+use crate::error::{Error, Result};
+use crate::filters::named::complementary;
+use crate::filters::{InertialCore, InertialFilter, TightFilter};
+use crate::math::Vec3;
+use crate::models::attitude::{predict_vector, VectorSensor};
+use crate::robust::aiding::AidingUncertainty;
+use crate::robust::RangeNoisePolicy;
+use crate::state::ErrVec;
+use crate::update::{inject_and_reset, scalar_step, UpdateReport};
+
+/// Running mean of navigation-frame vectors over the reference period.
+#[derive(Debug, Clone, Copy, Default)]
+struct Reference {
+    sum: Vec3,
+    count: u32,
+    fixed: Option<Vec3>,
+}
+
+impl Reference {
+    fn add(&mut self, v: Vec3) {
+        self.sum += v;
+        self.count += 1;
+    }
+
+    /// Fixes the reference as the mean vector.
+    fn fix(&mut self) {
+        if self.fixed.is_none() && self.count > 0 {
+            self.fixed = Some(self.sum / f64::from(self.count));
+        }
+    }
+
+    /// Fixes the reference as the mean vector's magnitude along the navigation vertical (+z).
+    fn fix_vertical(&mut self) {
+        self.fix();
+        self.fixed = self.fixed.map(|v| Vec3::new(0.0, 0.0, v.norm()));
+    }
+}
+
+/// Seed 003's ACKF.
+///
+/// * **Ranges**: the [`crate::filters::Ckf`] range update with `R_i = σ²·Cu_i`, `Cu_i` from the L1
+///   multilateration residual (three or more ranges) or the two-range rule
+///   ([`crate::robust::two_range_residuals`]), no χ² test ([`RangeNoisePolicy::ResidualWeighted`]).
+/// * **Gravity and field references**: the mean accelerometer (bias-compensated) and magnetometer
+///   readings of the first `aiding.reference_s` seconds, rotated to the navigation frame by the
+///   filter's attitude (seed 003 §3.1.2; the platform must be still then). The field reference
+///   therefore fixes heading relative to the initial attitude. Of the gravity mean only the
+///   magnitude is kept, along +z: the vertical is the navigation frame's by definition, and the
+///   mean's tilt is the (not yet estimated) accelerometer bias, which the reference would
+///   otherwise absorb and then count twice once the filter estimates it.
+/// * **Observations** after the reference period: at every IMU sample the accelerometer reading,
+///   and at every [`InertialFilter::update_magnetometer`] call the magnetometer reading, as vector
+///   observations of the reference ([`crate::models::attitude`]) with noise
+///   `σ²·U·I₃`, `U` from the magnitude and direction residuals ([`AidingUncertainty`]) when
+///   `aiding.adaptive`, else `U = 1`.
+#[derive(Debug, Clone)]
+pub struct Ackf {
+    inner: TightFilter,
+    aiding: AidingConfig,
+    start_s: Option<f64>,
+    gravity: Reference,
+    field: Reference,
+}
+
+impl Ackf {
+    /// Builds the filter; anchors in the navigation frame, m.
+    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut config: FilterConfig) -> Result<Self> {
+        complementary(&mut config);
+        let aiding = config.aiding;
+        let inner = TightFilter::new(anchors, initial, config, RangeNoisePolicy::ResidualWeighted, 1)?;
+        Ok(Self { inner, aiding, start_s: None, gravity: Reference::default(), field: Reference::default() })
+    }
+
+    /// The anchors, navigation frame, m.
+    pub fn anchors(&self) -> &[Vec3] {
+        self.inner.anchors()
+    }
+
+    /// The reference gravity (specific force at rest, ≈ `[0, 0, +9.81]`) and field in the
+    /// navigation frame, once the reference period is over.
+    pub fn references(&self) -> (Option<Vec3>, Option<Vec3>) {
+        (self.gravity.fixed, self.field.fixed)
+    }
+
+    /// Whether `t_s` is still inside the reference period.
+    fn in_reference_period(&mut self, t_s: f64) -> bool {
+        let start = *self.start_s.get_or_insert(t_s);
+        t_s - start < self.aiding.reference_s
+    }
+
+    /// One vector observation (seed 003 §2.2.2): `reading` in the body frame against the
+    /// navigation-frame `reference`, base std `std`.
+    fn vector_update(&mut self, reading: &Vec3, reference: &Vec3, sensor: VectorSensor, std: f64) -> Result<()> {
+        let uncertainty = AidingUncertainty { scale: self.aiding.uncertainty_scale, max: self.aiding.uncertainty_max };
+        let adaptive = self.aiding.adaptive;
+        let (x, p) = self.inner.core_mut().state_and_covariance_mut();
+        let pred = predict_vector(x, reference, sensor);
+        let u = if adaptive {
+            let compensated = match sensor {
+                VectorSensor::Accelerometer => reading - x.accel_bias,
+                VectorSensor::Magnetometer => *reading,
+            };
+            uncertainty.uncertainty(&(x.orientation * compensated), reference)
+        } else {
+            1.0
+        };
+        let residual = reading - pred.reading;
+        let mut dx = ErrVec::zeros();
+        for axis in 0..3 {
+            let h: ErrVec = pred.jacobian.row(axis).transpose();
+            scalar_step(&mut dx, p, &h, residual[axis], std * std * u)?;
+        }
+        inject_and_reset(x, p, &dx);
+        Ok(())
+    }
+}
+
+impl InertialFilter for Ackf {
+    fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        self.inner.predict(t_s, accel, gyro)?;
+        let (f_body, _) = self.inner.core().last_imu_body();
+        if self.in_reference_period(t_s) {
+            let x = self.inner.core().state();
+            self.gravity.add(x.orientation * (f_body - x.accel_bias));
+            return Ok(());
+        }
+        self.gravity.fix_vertical();
+        self.field.fix();
+        match self.gravity.fixed {
+            Some(g) => self.vector_update(&f_body, &g, VectorSensor::Accelerometer, self.aiding.gravity_std),
+            None => Ok(()),
+        }
+    }
+
+    fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        self.inner.update_ranges(t_s, ranges, reports)
+    }
+
+    fn update_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
+        if let Some(col) = field.iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite { name: "magnetometer", row: 0, col, value: field[col] });
+        }
+        self.inner.core_mut().advance_to(t_s)?;
+        let body = self.inner.core().config().imu_rotation * field;
+        if self.in_reference_period(t_s) {
+            self.field.add(self.inner.core().state().orientation * body);
+            return Ok(());
+        }
+        self.field.fix();
+        match self.field.fixed {
+            Some(m) => self.vector_update(&body, &m, VectorSensor::Magnetometer, self.aiding.mag_std),
+            None => Ok(()),
+        }
+    }
+
+    fn core(&self) -> &InertialCore {
+        self.inner.core()
+    }
+
+    fn core_mut(&mut self) -> &mut InertialCore {
+        self.inner.core_mut()
+    }
+}
