@@ -8,7 +8,7 @@
 
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
-use crate::math::Mat3;
+use crate::math::{Mat3, Vec3};
 use crate::records::{ImuSample, RangeMeasurement};
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::state::{NominalState, POS};
@@ -51,10 +51,42 @@ pub struct Trace {
     pub ranges_before_start: usize,
 }
 
+/// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of seed 001
+/// ([`crate::planar::PlanarFilter`]), which record their 4-state estimate in the same
+/// [`StepRecord`].
+pub trait Estimator {
+    /// Takes the IMU sample at `t_s` (raw, IMU frame).
+    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
+    /// Applies one epoch of ranges measured at `t_s`, one report per range.
+    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+    /// The estimate to record at IMU time `t_s`.
+    fn record(&self, t_s: f64) -> StepRecord;
+}
+
+impl<F: InertialFilter> Estimator for F {
+    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        self.predict(t_s, accel, gyro)
+    }
+
+    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        self.update_ranges(t_s, ranges, reports)
+    }
+
+    fn record(&self, t_s: f64) -> StepRecord {
+        let core = self.core();
+        StepRecord {
+            t_s,
+            state: *core.state(),
+            position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
+            still: self.still(),
+        }
+    }
+}
+
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
 /// event order). Ranges sharing a timestamp form one epoch and go to the filter in one
-/// [`InertialFilter::update_ranges`] call.
-pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
+/// [`Estimator::feed_ranges`] call.
+pub fn run<F: Estimator>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
     let mut trace =
         Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
     let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
@@ -70,7 +102,7 @@ pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[Range
         epoch.extend(ranges[next..end].iter().map(|r| (r.anchor, r.range_m)));
         reports.clear();
         reports.resize(epoch.len(), UpdateReport::skipped());
-        filter.update_ranges(t, &epoch, &mut reports)?;
+        filter.feed_ranges(t, &epoch, &mut reports)?;
         trace.updates.extend(ranges[next..end].iter().zip(&reports).map(|(r, report)| UpdateRecord {
             t_s: r.t_s,
             anchor: r.anchor,
@@ -83,17 +115,11 @@ pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[Range
         while next < ranges.len() && ranges[next].t_s < sample.t_s {
             next = apply_epoch(filter, next, &mut trace)?;
         }
-        filter.predict(sample.t_s, &sample.accel, &sample.gyro)?;
+        filter.feed_imu(sample.t_s, &sample.accel, &sample.gyro)?;
         while next < ranges.len() && ranges[next].t_s == sample.t_s {
             next = apply_epoch(filter, next, &mut trace)?;
         }
-        let core = filter.core();
-        trace.steps.push(StepRecord {
-            t_s: sample.t_s,
-            state: *core.state(),
-            position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
-            still: filter.still(),
-        });
+        trace.steps.push(filter.record(sample.t_s));
     }
     Ok(trace)
 }
