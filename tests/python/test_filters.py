@@ -13,7 +13,9 @@ COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x"
 
 
 def test_filters_listed():
-    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf", "shaf", "shfaf"]
+    assert uwbimu_rs.FILTERS == [
+        "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf", "shaf", "shfaf", "ukf", "ekf2d", "ukf2d", "cekf2d",
+    ]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
