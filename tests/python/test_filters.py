@@ -80,7 +80,10 @@ def _streaming(run, initial, config, cls=uwbimu_rs.Ekf):
     return np.array(rows), reports, f
 
 
-@pytest.mark.parametrize(("method", "cls"), [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf), ("criekf", uwbimu_rs.Criekf)])
+@pytest.mark.parametrize(
+    ("method", "cls"),
+    [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf), ("criekf", uwbimu_rs.Criekf), ("ukf", uwbimu_rs.Ukf)],
+)
 def test_streaming_equals_batch(los_run, filter_config, method, cls):
     initial, _info = uwbimu_rs.initialize(los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
     n = 2000  # 20 s: still start and the first metres of the figure-8
