@@ -5,27 +5,29 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::filters::{Criekf, Ekf, InertialFilter, Riekf};
+use uwbimu_rs::filters::{Criekf, Ekf, Riekf, Ukf};
 use uwbimu_rs::math::Vec3;
+use uwbimu_rs::pipeline::Estimator;
+use uwbimu_rs::planar::{PlanarFilter, PlanarKind};
 use uwbimu_rs::update::UpdateReport;
 
 fn anchors() -> Vec<Vec3> {
     vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, 0.0, 1.0), Vec3::new(10.0, 8.0, 2.2), Vec3::new(0.0, 8.0, 0.8)]
 }
 
-fn setup<F: InertialFilter>(build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::Result<F>) -> F {
+/// A filter constructor of the shape shared by the named filters.
+type Build<F> = Box<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::Result<F>>;
+
+fn setup<F: Estimator>(build: &Build<F>) -> F {
     let initial = InitialState { position: Vec3::new(4.0, 3.0, 0.3), ..InitialState::default() };
     let config = FilterConfig { lever_arm: Vec3::new(0.0, 0.0, 0.05), ..FilterConfig::default() };
     let mut f = build(anchors(), &initial, config).expect("valid filter");
-    f.predict(0.0, &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.1)).expect("first sample");
+    f.feed_imu(0.0, &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.1)).expect("first sample");
     f
 }
 
-fn bench_filter<F: InertialFilter>(
-    c: &mut Criterion,
-    name: &str,
-    build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::Result<F>,
-) {
+fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
+    let build = &build;
     let mut group = c.benchmark_group(name);
     group.throughput(Throughput::Elements(1));
     let accel = Vec3::new(0.2, -0.1, 9.8);
@@ -35,13 +37,17 @@ fn bench_filter<F: InertialFilter>(
         let mut t = 0.0;
         b.iter(|| {
             t += 0.01;
-            f.predict(black_box(t), black_box(&accel), black_box(&gyro)).expect("predict");
+            f.feed_imu(black_box(t), black_box(&accel), black_box(&gyro)).expect("predict");
         })
     });
     group.bench_function("update_range", |b| {
         b.iter_batched_ref(
             || setup(build),
-            |f| f.update_range(black_box(0.0), black_box(1), black_box(6.3)).expect("update"),
+            |f| {
+                let mut report = [UpdateReport::skipped()];
+                f.feed_ranges(black_box(0.0), black_box(&[(1, 6.3)]), &mut report).expect("update");
+                report
+            },
             BatchSize::SmallInput,
         )
     });
@@ -53,7 +59,7 @@ fn bench_filter<F: InertialFilter>(
             || setup(build),
             |f| {
                 let mut reports = [UpdateReport::skipped(); 4];
-                f.update_ranges(black_box(0.0), black_box(&epoch), &mut reports).expect("update");
+                f.feed_ranges(black_box(0.0), black_box(&epoch), &mut reports).expect("update");
                 reports
             },
             BatchSize::SmallInput,
@@ -63,9 +69,13 @@ fn bench_filter<F: InertialFilter>(
 }
 
 fn bench_all(c: &mut Criterion) {
-    bench_filter(c, "ekf", Ekf::new);
-    bench_filter(c, "riekf", Riekf::new);
-    bench_filter(c, "criekf", Criekf::new);
+    bench_filter(c, "ekf", Box::new(Ekf::new));
+    bench_filter(c, "riekf", Box::new(Riekf::new));
+    bench_filter(c, "criekf", Box::new(Criekf::new));
+    bench_filter(c, "ukf", Box::new(Ukf::new));
+    for (name, kind) in [("ekf2d", PlanarKind::Ekf), ("ukf2d", PlanarKind::Ukf), ("cekf2d", PlanarKind::Cekf)] {
+        bench_filter(c, name, Box::new(move |a, i, cfg| PlanarFilter::new(kind, a, i, &cfg)));
+    }
 }
 
 criterion_group!(benches, bench_all);

@@ -3,8 +3,12 @@
 
 use crate::error::{Error, Result};
 use crate::math::{quat_from_wxyz, Quat, Vec3};
+use crate::ranging::calibration::RangeCalibration;
 use crate::robust::sage_husa::SageHusaConfig;
 use crate::validate::{self, invalid};
+
+/// Smallest state dimension an unscented filter uses (`ukf2d`); bounds `ukf_lambda`.
+const MIN_UNSCENTED_DIM: usize = 4;
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
 #[derive(Debug, Clone, PartialEq)]
@@ -108,6 +112,23 @@ pub struct FilterConfig {
     /// Sage–Husa estimator settings of `shaf` / `shfaf` (seed 004 eqs. (26)–(36)); the method
     /// chooses the variant.
     pub sage_husa: SageHusaConfig,
+    /// Per-anchor cubic range calibration (seed 001 §2.2, §4.1) applied to the ranges before any
+    /// batch method runs; empty by default. Set from Python as `{anchor: [c0, c1, c2, c3]}`.
+    pub range_calibration: RangeCalibration,
+    /// Unscented transform: α of seed 001 eq. (14) (enters only `W₀ᶜ`; seed 001: 0.01). Not the
+    /// χ² significance `alpha`.
+    pub ukf_alpha: f64,
+    /// Unscented transform: β of seed 001 eq. (14) (2 for Gaussian priors).
+    pub ukf_beta: f64,
+    /// Unscented transform: λ of seed 001 eqs. (13)–(14) (seed 001: −1); `n + λ > 0` is required
+    /// for every state dimension n used (4 and 15), so λ > −4.
+    pub ukf_lambda: f64,
+    /// Errors-complementary EKF (`cekf2d`): moving-average window of the range prefilter, ranges
+    /// per anchor (seed 001 §3.3; 1 = no averaging).
+    pub cekf_window: usize,
+    /// Planar filters: density of the horizontal acceleration input error, m/s²/√Hz (sensor
+    /// noise, unmodelled bias and yaw error), white noise entering through B (seed 001 eq. (6)).
+    pub planar_accel_density: f64,
     /// Gravity and geomagnetic attitude aiding of `ackf` (seed 003 §2.2.2).
     pub aiding: AidingConfig,
 }
@@ -179,6 +200,12 @@ impl Default for FilterConfig {
             loose_noise_scale: 1.0,
             sage_husa: SageHusaConfig::default(),
             aiding: AidingConfig::default(),
+            range_calibration: RangeCalibration::default(),
+            ukf_alpha: 0.01,
+            ukf_beta: 2.0,
+            ukf_lambda: -1.0,
+            cekf_window: 5,
+            planar_accel_density: 0.3,
         }
     }
 }
@@ -263,7 +290,7 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 47] = [
+    pub const KEYS: [&'static str; 53] = [
         "range_std",
         "accel_noise_density",
         "gyro_noise_density",
@@ -311,6 +338,12 @@ impl FilterConfig {
         "aiding_adaptive",
         "aiding_uncertainty_scale",
         "aiding_uncertainty_max",
+        "range_calibration",
+        "ukf_alpha",
+        "ukf_beta",
+        "ukf_lambda",
+        "cekf_window",
+        "planar_accel_density",
     ];
 
     /// Sets one field by name, validating its value; unknown keys are an error that lists
@@ -383,6 +416,20 @@ impl FilterConfig {
                 }
                 self.aiding.uncertainty_max = v;
             }
+            "range_calibration" => {
+                return Err(invalid(key, "expected a mapping {anchor index: [c0, c1, c2, c3]}; set the field directly in Rust"))
+            }
+            "ukf_alpha" => self.ukf_alpha = positive(key, value)?,
+            "ukf_beta" => self.ukf_beta = non_negative(key, value)?,
+            "ukf_lambda" => {
+                let l = scalar(key, value)?;
+                if l <= -(MIN_UNSCENTED_DIM as f64) {
+                    return Err(invalid(key, format!("n + λ must be > 0 for n = {MIN_UNSCENTED_DIM} (ukf2d), got λ = {l}")));
+                }
+                self.ukf_lambda = l;
+            }
+            "cekf_window" => self.cekf_window = bounded_count(key, value, 1, crate::planar::MAX_CEKF_WINDOW)?,
+            "planar_accel_density" => self.planar_accel_density = positive(key, value)?,
             _ => return Err(unknown_key("config", key, &Self::KEYS)),
         }
         Ok(())
@@ -397,7 +444,8 @@ impl FilterConfig {
     }
 
     /// The configuration as (key, value) pairs (`accel_bias_tau`, `gyro_bias_tau` and
-    /// `plane_height` only when set).
+    /// `plane_height` only when set; `range_calibration` is not a scalar or vector and is left out:
+    /// see [`FilterConfig::range_calibration`]).
     pub fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
         let v3 = |v: &Vec3| ConfigValue::Vector(v.iter().copied().collect());
         let q = &self.imu_rotation;
@@ -451,6 +499,11 @@ impl FilterConfig {
             ("sh_window", ConfigValue::Scalar(sh.window_len as f64)),
             ("sh_fading_rate", ConfigValue::Scalar(sh.fading_rate)),
             ("sh_outlier_threshold", ConfigValue::Scalar(sh.outlier_threshold)),
+            ("ukf_alpha", ConfigValue::Scalar(self.ukf_alpha)),
+            ("ukf_beta", ConfigValue::Scalar(self.ukf_beta)),
+            ("ukf_lambda", ConfigValue::Scalar(self.ukf_lambda)),
+            ("cekf_window", ConfigValue::Scalar(self.cekf_window as f64)),
+            ("planar_accel_density", ConfigValue::Scalar(self.planar_accel_density)),
         ]);
         let ai = &self.aiding;
         entries.extend([

@@ -45,6 +45,7 @@ pub mod ackf;
 pub mod core;
 pub mod loose;
 pub mod named;
+pub mod sigma_points;
 pub mod tight;
 
 use crate::error::Result;
@@ -54,7 +55,7 @@ use crate::update::UpdateReport;
 pub use self::ackf::Ackf;
 pub use self::core::{InertialCore, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
-pub use self::named::{Arckf, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf};
+pub use self::named::{Arckf, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf};
 pub use self::tight::TightFilter;
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming

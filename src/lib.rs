@@ -13,6 +13,8 @@ pub mod metrics;
 pub mod models;
 pub mod multilateration;
 pub mod pipeline;
+pub mod planar;
+pub mod ranging;
 pub mod records;
 pub mod robust;
 pub mod sim;

@@ -2,11 +2,12 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
+use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
-use crate::pipeline::{run_with_magnetometer, smoothed_steps, StepRecord, Trace};
+use crate::pipeline::{run, run_with_magnetometer, smoothed_steps, StepRecord, Trace};
+use crate::planar::{PlanarFilter, PlanarKind};
 use crate::records::{ImuSample, MagSample, RangeMeasurement};
 
 /// A method name accepted by the batch API.
@@ -36,12 +37,27 @@ pub enum Method {
     Shaf,
     /// The Sage–Husa fuzzy adaptive ESKF of seed 004.
     Shfaf,
+    /// The 15-state error-state UKF (seed 001 eqs. (11)–(14) on the INS error state).
+    Ukf,
+    /// The planar 4-state EKF of seed 001 (eqs. (5)–(10)).
+    Ekf2d,
+    /// The planar 4-state UKF of seed 001 (eqs. (11)–(14)).
+    Ukf2d,
+    /// The planar errors-complementary EKF of seed 001 with moving-average ranges (eqs. (15)–(18)).
+    Cekf2d,
 }
 
 impl Method {
     /// Every method name, in the order listed by `uwbimu_rs.FILTERS`.
-    pub const NAMES: [&'static str; 12] =
-        ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf"];
+    pub const NAMES: [&'static str; 16] = [
+        "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf", "ekf2d",
+        "ukf2d", "cekf2d",
+    ];
+
+    /// The method's name (the variants are declared in the order of [`Method::NAMES`]).
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
@@ -58,6 +74,10 @@ impl Method {
             "eskf" => Ok(Self::Eskf),
             "shaf" => Ok(Self::Shaf),
             "shfaf" => Ok(Self::Shfaf),
+            "ukf" => Ok(Self::Ukf),
+            "ekf2d" => Ok(Self::Ekf2d),
+            "ukf2d" => Ok(Self::Ukf2d),
+            "cekf2d" => Ok(Self::Cekf2d),
             _ => Err(Error::UnknownOption { kind: "method", got: name.to_string(), allowed: Self::NAMES.join(", ") }),
         }
     }
@@ -99,15 +119,27 @@ pub struct BatchInput<'a> {
     pub mag: &'a [MagSample],
 }
 
-/// Runs `method` over one recording.
+/// Names of the methods that can be RTS-smoothed (the inertial 15-state filters).
+const SMOOTHABLE: &str = "ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf, ukf";
+
+/// Runs `method` over one recording. A non-empty `config.range_calibration` (seed 001 §2.2) is
+/// applied to the ranges first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     if !input.mag.is_empty() && method != Method::Ackf {
         return Err(Error::InvalidCall("magnetometer data given, but only ackf uses a magnetometer".into()));
     }
+    if !input.config.range_calibration.is_empty() {
+        let calibrated = input.config.range_calibration.apply(input.ranges, input.anchors.len())?;
+        return run_calibrated(method, &BatchInput { ranges: &calibrated, ..*input });
+    }
+    run_calibrated(method, input)
+}
+
+fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let BatchInput { ranges, anchors, config, .. } = *input;
     match method {
-        Method::UwbLs if input.smooth => {
-            Err(Error::UnknownOption { kind: "smoothing method", got: "uwb_ls".into(), allowed: Method::NAMES[1..].join(", ") })
+        Method::UwbLs | Method::Ekf2d | Method::Ukf2d | Method::Cekf2d if input.smooth => {
+            Err(Error::UnknownOption { kind: "smoothing method", got: method.name().into(), allowed: SMOOTHABLE.into() })
         }
         Method::UwbLs => {
             let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
@@ -124,7 +156,31 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Eskf => run_inertial(|i| Eskf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Shaf => run_inertial(|i| Shaf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Shfaf => run_inertial(|i| Shfaf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Ukf => run_inertial(|i| Ukf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Ekf2d => run_planar(PlanarKind::Ekf, input),
+        Method::Ukf2d => run_planar(PlanarKind::Ukf, input),
+        Method::Cekf2d => run_planar(PlanarKind::Cekf, input),
     }
+}
+
+/// The given initial state, or the self-initialisation's.
+fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<SelfInit>>)> {
+    let BatchInput { imu, ranges, anchors, initial, config, .. } = *input;
+    Ok(match initial {
+        Some(i) => (i.clone(), None),
+        None => {
+            let s = initialize(imu, ranges, anchors, config)?;
+            (s.initial.clone(), Some(Box::new(s)))
+        }
+    })
+}
+
+/// Runs a planar filter of seed 001 (initialised like the inertial filters: x, y, velocity, yaw
+/// and gyro bias from the initial state).
+fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    let (initial, init) = initial_state(input)?;
+    let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
+    Ok(BatchOutput::Inertial { trace: run(&mut filter, input.imu, input.ranges)?, init, smoothed: None })
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
@@ -132,14 +188,8 @@ fn run_inertial<F: InertialFilter>(
     build: impl FnOnce(&InitialState) -> Result<F>,
     input: &BatchInput<'_>,
 ) -> Result<BatchOutput> {
-    let BatchInput { imu, ranges, anchors, initial, config, smooth, mag } = *input;
-    let (initial, init) = match initial {
-        Some(i) => (i.clone(), None),
-        None => {
-            let s = initialize(imu, ranges, anchors, config)?;
-            (s.initial.clone(), Some(Box::new(s)))
-        }
-    };
+    let BatchInput { imu, ranges, smooth, mag, .. } = *input;
+    let (initial, init) = initial_state(input)?;
     let mut filter = build(&initial)?;
     if smooth {
         filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len());
@@ -147,4 +197,16 @@ fn run_inertial<F: InertialFilter>(
     let trace = run_with_magnetometer(&mut filter, imu, ranges, mag)?;
     let smoothed = if smooth { Some(smoothed_steps(&trace, filter.core())?) } else { None };
     Ok(BatchOutput::Inertial { trace, init, smoothed })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for name in Method::NAMES {
+            assert_eq!(Method::parse(name).map(Method::name), Ok(name));
+        }
+    }
 }

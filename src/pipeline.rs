@@ -8,7 +8,7 @@
 
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
-use crate::math::Mat3;
+use crate::math::{Mat3, Vec3};
 use crate::records::{ImuSample, MagSample, RangeMeasurement};
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::state::{NominalState, POS};
@@ -51,17 +51,59 @@ pub struct Trace {
     pub ranges_before_start: usize,
 }
 
+/// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of seed 001
+/// ([`crate::planar::PlanarFilter`]), which record their 4-state estimate in the same
+/// [`StepRecord`].
+pub trait Estimator {
+    /// Takes the IMU sample at `t_s` (raw, IMU frame).
+    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
+    /// Applies one epoch of ranges measured at `t_s`, one report per range.
+    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+    /// The estimate to record at IMU time `t_s`.
+    fn record(&self, t_s: f64) -> StepRecord;
+    /// Applies one magnetometer sample (IMU frame) measured at `t_s`; only filters with
+    /// geomagnetic aiding take one ([`crate::filters::Ackf`]).
+    fn feed_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
+        let _ = (t_s, field);
+        Err(Error::InvalidCall("this filter does not use a magnetometer (use ackf)".into()))
+    }
+}
+
+impl<F: InertialFilter> Estimator for F {
+    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        self.predict(t_s, accel, gyro)
+    }
+
+    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        self.update_ranges(t_s, ranges, reports)
+    }
+
+    fn feed_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
+        self.update_magnetometer(t_s, field)
+    }
+
+    fn record(&self, t_s: f64) -> StepRecord {
+        let core = self.core();
+        StepRecord {
+            t_s,
+            state: *core.state(),
+            position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
+            still: self.still(),
+        }
+    }
+}
+
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
 /// event order). Ranges sharing a timestamp form one epoch and go to the filter in one
-/// [`InertialFilter::update_ranges`] call.
-pub fn run<F: InertialFilter>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
+/// [`Estimator::feed_ranges`] call.
+pub fn run<F: Estimator>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
     run_with_magnetometer(filter, imu, ranges, &[])
 }
 
 /// [`run`] with magnetometer samples as a third time-ordered stream, applied through
-/// [`InertialFilter::update_magnetometer`] in the same order as ranges (before the IMU sample if
+/// [`Estimator::feed_magnetometer`] in the same order as ranges (before the IMU sample if
 /// earlier, after it if at the same time; samples before the first IMU sample are skipped).
-pub fn run_with_magnetometer<F: InertialFilter>(
+pub fn run_with_magnetometer<F: Estimator>(
     filter: &mut F,
     imu: &[ImuSample],
     ranges: &[RangeMeasurement],
@@ -83,7 +125,7 @@ pub fn run_with_magnetometer<F: InertialFilter>(
         epoch.extend(ranges[next..end].iter().map(|r| (r.anchor, r.range_m)));
         reports.clear();
         reports.resize(epoch.len(), UpdateReport::skipped());
-        filter.update_ranges(t, &epoch, &mut reports)?;
+        filter.feed_ranges(t, &epoch, &mut reports)?;
         trace.updates.extend(ranges[next..end].iter().zip(&reports).map(|(r, report)| UpdateRecord {
             t_s: r.t_s,
             anchor: r.anchor,
@@ -97,24 +139,18 @@ pub fn run_with_magnetometer<F: InertialFilter>(
             next = apply_epoch(filter, next, &mut trace)?;
         }
         while next_mag < mag.len() && mag[next_mag].t_s < sample.t_s {
-            filter.update_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
+            filter.feed_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
             next_mag += 1;
         }
-        filter.predict(sample.t_s, &sample.accel, &sample.gyro)?;
+        filter.feed_imu(sample.t_s, &sample.accel, &sample.gyro)?;
         while next < ranges.len() && ranges[next].t_s == sample.t_s {
             next = apply_epoch(filter, next, &mut trace)?;
         }
         while next_mag < mag.len() && mag[next_mag].t_s == sample.t_s {
-            filter.update_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
+            filter.feed_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
             next_mag += 1;
         }
-        let core = filter.core();
-        trace.steps.push(StepRecord {
-            t_s: sample.t_s,
-            state: *core.state(),
-            position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
-            still: filter.still(),
-        });
+        trace.steps.push(filter.record(sample.t_s));
     }
     Ok(trace)
 }

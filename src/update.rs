@@ -2,8 +2,9 @@
 //! the nominal state and error reset; and the per-measurement report.
 
 use crate::error::{Error, Result};
-use crate::math::{skew, symmetrize, Mat3};
+use crate::math::{skew, symmetrize, Cov, Mat3};
 use crate::state::{ErrCov, ErrVec, NominalState, ATT, ERR_DIM};
+use nalgebra::SVector;
 
 /// What happened to one measurement: a typed form of what the filter decided.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,8 +67,15 @@ impl UpdateReport {
 /// rank-one structure as `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for
 /// any gain; O(n²), symmetric by construction).
 ///
-/// Returns the innovation variance `S`. Fails if `S` is not positive.
-pub fn scalar_step(dx: &mut ErrVec, p: &mut ErrCov, h: &ErrVec, residual: f64, r_var: f64) -> Result<f64> {
+/// Generic over the state dimension N (15 for the INS error state, 4 for the planar filters of
+/// seed 001). Returns the innovation variance `S`. Fails if `S` is not positive.
+pub fn scalar_step<const N: usize>(
+    dx: &mut SVector<f64, N>,
+    p: &mut Cov<N>,
+    h: &SVector<f64, N>,
+    residual: f64,
+    r_var: f64,
+) -> Result<f64> {
     let c = *p * h;
     let s = h.dot(&c) + r_var;
     if !(s > 0.0 && s.is_finite()) {
@@ -75,7 +83,7 @@ pub fn scalar_step(dx: &mut ErrVec, p: &mut ErrCov, h: &ErrVec, residual: f64, r
     }
     let k = c / s;
     *dx += k * (residual - h.dot(dx));
-    for j in 0..ERR_DIM {
+    for j in 0..N {
         for i in 0..=j {
             let v = p[(i, j)] - k[i] * c[j] - c[i] * k[j] + s * k[i] * k[j];
             p[(i, j)] = v;

@@ -342,7 +342,7 @@ fn presets_run_and_unknown_names_are_rejected() {
         assert!(data.ranges.iter().all(|r| r.range_m >= 0.0));
         assert!(data.ranges.windows(2).all(|w| w[0].t_s <= w[1].t_s));
         let labels_ok = match *name {
-            "seed000_los" | "seed002_rectangle" | "seed004_s1" => data.range_labels.iter().all(|&l| l == LABEL_LOS),
+            "seed000_los" | "seed001" | "seed002_rectangle" | "seed004_s1" => data.range_labels.iter().all(|&l| l == LABEL_LOS),
             "seed004_s2" | "seed002_figure8" => data.range_labels.contains(&LABEL_OUTLIER),
             _ => data.range_labels.contains(&LABEL_NLOS),
         };

@@ -28,10 +28,11 @@ from uwbimu_rs._native import (
     Riekf,
     Shaf,
     Shfaf,
+    Ukf,
     UpdateReport,
     UwbImuError,
 )
-from uwbimu_rs import _native
+from uwbimu_rs import _native, ranging
 
 __all__ = [
     "FILTERS",
@@ -49,10 +50,12 @@ __all__ = [
     "Riekf",
     "Shaf",
     "Shfaf",
+    "Ukf",
     "UpdateReport",
     "UwbImuError",
     "crlb",
     "initialize",
+    "ranging",
     "run_filter",
     "run_filters",
 ]
@@ -76,8 +79,8 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"ackf"``, ``"eskf"``, ``"shaf"``,
-        ``"shfaf"``).
+        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"ackf"``, ``"eskf"``,
+        ``"shaf"``, ``"shfaf"``, ``"ukf"``, and the planar ``"ekf2d"``, ``"ukf2d"``, ``"cekf2d"`` of seed 001).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)
@@ -91,6 +94,7 @@ def run_filter(
         None: the filter initialises itself (see :func:`initialize`).
     config : FilterConfig or dict, optional
         Keys as in ``FilterConfig.keys()``; unknown keys raise :class:`ConfigError`.
+        ``range_calibration={anchor: [c0, c1, c2, c3]}`` calibrates the ranges first (seed 001).
     covariance : bool
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
     smooth : bool
@@ -108,7 +112,9 @@ def run_filter(
     -------
     polars.DataFrame
         Inertial filters: one row per IMU sample with ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz,
-        std_x, std_y, std_z, still`` (``still``: the zero-velocity detector's decision). ``uwb_ls``: one row per solvable UWB epoch with
+        std_x, std_y, std_z, still`` (``still``: the zero-velocity detector's decision). Planar
+        methods fill the same columns: ``z`` = the plane height, ``vz`` = 0, a yaw-only
+        quaternion, ``std_z`` = 0. ``uwb_ls``: one row per solvable UWB epoch with
         ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms``.
         ``(frame, updates_frame)`` when ``updates=True``.
 

@@ -17,6 +17,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "Ukf",
+    "sds_twr",
+    "ss_twr",
+    "dw1000_elapsed",
+    "calibration_fit",
+    "calibration_fit_anchors",
+    "calibration_apply",
+    "calibrate_ranges",
+    "DW1000_TICK_S",
+    "SPEED_OF_LIGHT_MPS",
     "Shaf",
     "Shfaf",
     "run_filters",
@@ -117,6 +127,15 @@ class FilterConfig:
         Self-initialisation: still window at the start for roll, pitch and gyro bias, s.
     init_heading_distance_m : float, default 1.0
         Self-initialisation: UWB displacement after which the heading is taken from motion, m.
+    range_calibration : dict {int: [c0, c1, c2, c3]}, default {}
+        Per-anchor cubic range calibration applied before any batch method (seed 001 §2.2);
+        ascending coefficients, ``true = c0 + c1·m + c2·m² + c3·m³``.
+    ukf_alpha, ukf_beta, ukf_lambda : float, default 0.01, 2, -1
+        Unscented-transform α, β, λ of ``ukf``, ``ukf2d`` (seed 001 eq. (14)); λ > −4.
+    cekf_window : int, default 5
+        ``cekf2d``: moving-average window of the range prefilter, ranges per anchor (1..=64).
+    planar_accel_density : float, default 0.3
+        Planar filters: horizontal acceleration input noise density, m/s²/√Hz.
 
     Raises
     ------
@@ -126,24 +145,25 @@ class FilterConfig:
         A value that is neither a number nor a sequence of numbers (e.g. a bool).
     """
 
-    def __new__(cls, **kwargs: _ConfigValue) -> FilterConfig: ...
+    def __new__(cls, **kwargs: _ConfigValue | dict[int, Sequence[float]]) -> FilterConfig: ...
     @staticmethod
     def keys() -> list[str]:
-        """The accepted keyword names (12, in a fixed order).
+        """The accepted keyword names (in a fixed order).
 
         Returns
         -------
         list of str
         """
 
-    def to_dict(self) -> dict[str, float | _F64]:
+    def to_dict(self) -> dict[str, Any]:
         """The full configuration as a plain dict.
 
         Returns
         -------
         dict
             Every key of :meth:`keys`: scalars as ``float``, vectors as 1-D float64 arrays
-            (``lever_arm`` (3,) m, ``imu_rotation`` (4,) w, x, y, z, ``gravity`` (3,) m/s²).
+            (``lever_arm`` (3,) m, ``imu_rotation`` (4,) w, x, y, z, ``gravity`` (3,) m/s²),
+            ``range_calibration`` as a dict ``{anchor: [c0, c1, c2, c3]}``.
         """
 
 @final
@@ -514,6 +534,62 @@ class Shfaf:
     def state(self) -> dict[str, _F64]: ...
     @property
     def covariance(self) -> _F64: ...
+
+@final
+class Ukf:
+    """The 15-state error-state UKF (seed 001 eqs. (11)–(14) over the INS error state); API as
+    :class:`Ekf`."""
+
+    def __new__(
+        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> Ukf: ...
+    def smooth(self) -> dict[str, _F64]:
+        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
+        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+
+    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> None: ...
+    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
+    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
+    @property
+    def time(self) -> float | None: ...
+    @property
+    def state(self) -> dict[str, _F64]: ...
+    @property
+    def covariance(self) -> _F64: ...
+
+# --------------------------------------------------------------------------------------------
+# Ranging (src/bindings/ranging.rs): seed 001 §2
+# --------------------------------------------------------------------------------------------
+
+DW1000_TICK_S: float
+"""One DW1000 timestamp tick, 1/(128·499.2 MHz) ≈ 15.65 ps, in s."""
+
+SPEED_OF_LIGHT_MPS: float
+"""Speed of light, m/s."""
+
+def sds_twr(
+    t_round1: ArrayLike, t_reply1: ArrayLike, t_round2: ArrayLike, t_reply2: ArrayLike, *, antenna_delay_s: float = 0.0
+) -> _F64:
+    """SDS-TWR distances (m), seed 001 eqs. (1)–(2), element-wise over same-shaped arrays of
+    intervals (s); ``antenna_delay_s`` is the sum of both devices' antenna delays."""
+
+def ss_twr(t_round: ArrayLike, t_reply: ArrayLike, *, antenna_delay_s: float = 0.0) -> _F64:
+    """SS-TWR distances (m), ``C·((T_round − T_reply)/2 − antenna_delay_s)``, element-wise."""
+
+def dw1000_elapsed(start_ticks: ArrayLike, end_ticks: ArrayLike) -> _F64:
+    """Seconds between DW1000 40-bit timestamps (whole ticks), one wrap-around undone."""
+
+def calibration_fit(measured: ArrayLike, true_range: ArrayLike) -> list[float]:
+    """Least-squares cubic ``[c0, c1, c2, c3]`` (ascending) mapping measured to true ranges."""
+
+def calibration_fit_anchors(anchor: ArrayLike, measured: ArrayLike, true_range: ArrayLike) -> dict[int, list[float]]:
+    """One cubic per anchor index from labelled (measured, true) pairs."""
+
+def calibration_apply(coefficients: Sequence[float], measured: ArrayLike) -> _F64:
+    """Evaluates the cubic ``[c0, c1, c2, c3]`` at measured ranges, element-wise."""
+
+def calibrate_ranges(ranges: ArrayLike, calibration: dict[int, Sequence[float]], anchor_count: int) -> NDArray[np.float64]:
+    """Applies per-anchor cubics to a range table (M, 3) = t, anchor index, range; returns a copy."""
 
 def posterior_crlb(
     imu: ArrayLike,

@@ -19,7 +19,7 @@ from uwbimu_rs._native import Trajectory
 
 __all__ = ["OVERRIDE_KEYS", "PRESET_NAMES", "PresetName", "SimResult", "Trajectory", "preset", "simulate"]
 
-PresetName = Literal["seed000", "seed000_los", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"]
+PresetName = Literal["seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"]
 """Names accepted by :func:`preset`."""
 
 PRESET_NAMES: tuple[str, ...] = tuple(_native.SIM_PRESET_NAMES)
@@ -92,7 +92,7 @@ def preset(name: PresetName, *, seed: int = 0, **overrides: float | bool) -> Sim
 
     Parameters
     ----------
-    name : {"seed000", "seed000_los", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"}
+    name : {"seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"}
         ``seed000``: 4 anchors in a 10 m × 8 m hall (heights 0.8–2.2 m), figure-8 ×4, UWB 2 Hz
         σ 0.1 m, IMU 100 Hz, 1–2 anchors randomly shielded (NLOS). ``seed000_los``: the same without
         NLOS, outliers or dropouts. ``seed002_*``: the 10 m × 5 m garage site of seed 002,

@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf};
+use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -32,11 +32,10 @@ impl PyFilterConfig {
     #[new]
     #[pyo3(signature = (**kwargs))]
     fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let mut c = FilterConfig::default();
-        if let Some(k) = kwargs {
-            apply_dict(k.as_any(), "config", |key, v| c.set(key, v))?;
-        }
-        Ok(Self(c))
+        Ok(Self(match kwargs {
+            Some(k) => config_from_dict(k.as_any())?,
+            None => FilterConfig::default(),
+        }))
     }
 
     /// The accepted keys.
@@ -51,6 +50,11 @@ impl PyFilterConfig {
         for (k, v) in self.0.entries() {
             d.set_item(k, config_value_to_py(py, &v)?)?;
         }
+        let cal = PyDict::new(py);
+        for (anchor, c) in self.0.range_calibration.coefficients() {
+            cal.set_item(anchor, c.to_vec())?;
+        }
+        d.set_item("range_calibration", cal)?;
         Ok(d)
     }
 
@@ -69,11 +73,28 @@ fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterConfig> {
             if let Ok(c) = obj.cast::<PyFilterConfig>() {
                 return Ok(c.get().0.clone());
             }
-            let mut c = FilterConfig::default();
-            apply_dict(obj, "config", |key, v| c.set(key, v))?;
-            Ok(c)
+            config_from_dict(obj)
         }
     }
+}
+
+/// A configuration from a dict of `FilterConfig` keys; `range_calibration` is a dict
+/// `{anchor index: [c0, c1, c2, c3]}`, every other value a number, bool or sequence.
+fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
+    let mut c = FilterConfig::default();
+    let rest = match obj.cast::<PyDict>() {
+        Ok(d) if d.contains("range_calibration")? => {
+            let rest = d.copy()?;
+            if let Some(cal) = rest.get_item("range_calibration")? {
+                c.range_calibration = super::ranging::read_calibration(&cal)?;
+            }
+            rest.del_item("range_calibration")?;
+            rest.into_any()
+        }
+        _ => obj.clone(),
+    };
+    apply_dict(&rest, "config", |key, v| c.set(key, v))?;
+    Ok(c)
 }
 
 /// Reads `initial` (a dict with `position`, `velocity`, `orientation`, optional standard
@@ -298,6 +319,10 @@ py_filter!(
 py_filter!(
     /// The Sage–Husa fuzzy adaptive ESKF of seed 004.
     PyShfaf, "Shfaf", Shfaf
+);
+py_filter!(
+    /// The 15-state error-state UKF (seed 001 eqs. (11)–(14) over the INS error state).
+    PyUkf, "Ukf", Ukf
 );
 
 fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
@@ -621,6 +646,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyEskf>()?;
     m.add_class::<PyShaf>()?;
     m.add_class::<PyShfaf>()?;
+    m.add_class::<PyUkf>()?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(run_filters, m)?)?;

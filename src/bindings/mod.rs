@@ -5,6 +5,7 @@ mod convert;
 mod errors;
 mod filters;
 mod metrics;
+mod ranging;
 mod sim;
 
 use pyo3::prelude::*;
@@ -17,6 +18,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
     filters::register(m)?;
     metrics::register(m)?;
+    ranging::register(m)?;
     sim::register(m)?;
     Ok(())
 }

@@ -103,11 +103,37 @@ named_filter!(
     /// [`Ckf`] with `R_i = σ²·Cu_i` from the L1 robustness factor (eqs. (33)–(38)), the prior
     /// inflated by `γ/χ²` when the epoch shows an abnormal state (eq. (42)), and `R_i` inflated by
     /// `γ/χ²` for outlying ranges (eq. (41)); χ² is the 1-dof quantile of `alpha`. Which branch a
-    /// failing range takes follows [`crate::robust::robustness`] (a documented deviation: the
-    /// prior is inflated only when every range of the epoch fails the test).
+    /// failing range takes follows [`crate::robust::robustness`] (documented deviations: the
+    /// prior is faded, in its position–velocity block, only when most ranges of the epoch fail).
     Arckf,
     |config| {
         complementary(&mut config);
         (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.alpha)? }, 1)
     }
 );
+
+/// 15-state error-state unscented Kalman filter: the shared INS core and tightly coupled range
+/// model with the sigma-point update of seed 001 eqs. (11)–(14) over the error state (our
+/// extension of the paper's planar UKF to 3-D; [`TightFilter::unscented`]), fixed range noise.
+///
+/// ```
+/// use uwbimu_rs::{config::{FilterConfig, InitialState}, filters::{InertialFilter, Ukf}, math::Vec3};
+/// let anchors = vec![Vec3::new(0., 0., 2.), Vec3::new(8., 0., 1.), Vec3::new(8., 6., 2.), Vec3::new(0., 6., 1.)];
+/// let mut ukf = Ukf::new(anchors, &InitialState::default(), FilterConfig::default())?;
+/// ukf.predict(0.0, &Vec3::new(0., 0., 9.80665), &Vec3::zeros())?;
+/// let report = ukf.update_range(0.005, 0, 2.0)?;
+/// assert!(report.accepted);
+/// # Ok::<(), uwbimu_rs::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Ukf(TightFilter);
+
+impl Ukf {
+    /// Builds the filter; anchors in the navigation frame, m. Fails on an invalid configuration
+    /// (including `n + λ ≤ 0`).
+    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
+        Ok(Self(TightFilter::unscented(anchors, initial, config, RangeNoisePolicy::Fixed)?))
+    }
+}
+
+delegate_filter!(Ukf);

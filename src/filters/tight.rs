@@ -5,6 +5,7 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
+use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
 use crate::models::range::{predict_range, tag_position};
@@ -13,6 +14,7 @@ use crate::robust::sage_husa::SageHusa;
 use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
+use crate::state::{ErrVec, ERR_DIM};
 use crate::update::{inject_and_reset, scalar_step, UpdateReport};
 use nalgebra::{SMatrix, SVector};
 
@@ -42,7 +44,12 @@ pub struct TightFilter {
     tolerance: f64,
     constraints: Constraints,
     range_noise: Vec<SageHusa<1>>,
+    unscented: Option<UnscentedWeights>,
 }
+
+/// Sigma points of the 15-state unscented update: 2n + 1 with n = 15 (checked at compile time
+/// by [`scalar_moments`]).
+pub const SIGMA_POINTS: usize = 2 * ERR_DIM + 1;
 
 impl TightFilter {
     /// Builds the filter. `max_iterations = 1` gives the single-step filters (EKF, REKF).
@@ -72,7 +79,22 @@ impl TightFilter {
             tolerance,
             constraints,
             range_noise,
+            unscented: None,
         })
+    }
+
+    /// Builds the filter with the unscented update strategy (our extension of seed 001 eqs.
+    /// (11)–(14) to the 15-state error state): per range, the [`SIGMA_POINTS`] sigma points of the
+    /// error state about the prior are injected into the nominal state (`x ⊞ χᵢ`), the tag range
+    /// is predicted for each, and the scalar unscented step updates the error mean and covariance;
+    /// the ranges of an epoch are applied in turn (sigma points redrawn from the updated error
+    /// estimate), then the error is injected and reset as in the EKF. Weights from
+    /// `ukf_alpha`, `ukf_beta`, `ukf_lambda`. Prediction is the shared INS core's.
+    pub fn unscented(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig, policy: RangeNoisePolicy) -> Result<Self> {
+        let weights = UnscentedWeights::new(ERR_DIM, config.ukf_alpha, config.ukf_beta, config.ukf_lambda)?;
+        let mut filter = Self::new(anchors, initial, config, policy, 1)?;
+        filter.unscented = Some(weights);
+        Ok(filter)
     }
 
     /// The anchors, navigation frame, m.
@@ -127,6 +149,9 @@ impl InertialFilter for TightFilter {
         }
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
+        if let Some(weights) = self.unscented {
+            return self.update_unscented(&weights, ranges, reports);
+        }
         let lever_arm = self.core.config().lever_arm;
         let range_std = self.core.config().range_std;
         let r_var = range_std * range_std;
@@ -159,17 +184,8 @@ impl InertialFilter for TightFilter {
                 let h = pred.jacobian;
                 let mut residual = range_m - pred.range_m;
                 let hph = h.dot(&(p_post * h));
-                // Per-anchor Sage–Husa noise (seed 004 eqs. (26)–(36) on the range innovation),
-                // stepped once per epoch (first iterate), then held.
-                let base_var = match self.range_noise.get_mut(anchor) {
-                    Some(est) if iterations == 1 => {
-                        let step = est.step(&SVector::<f64, 1>::new(residual), &SMatrix::<f64, 1, 1>::new(hph));
-                        residual = step.innovation[0];
-                        step.r[(0, 0)]
-                    }
-                    Some(est) => est.r()[(0, 0)],
-                    None => r_var,
-                } * factors.as_ref().map_or(1.0, |f| f[k].cu);
+                let base_var = range_noise(&mut self.range_noise, anchor, &mut residual, hph, iterations == 1, r_var)
+                    * factors.as_ref().map_or(1.0, |f| f[k].cu);
                 let nis = residual * residual / (hph + base_var);
                 // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
                 // adaptive branch); only capped ones are inflated (robust branch).
@@ -204,6 +220,61 @@ impl InertialFilter for TightFilter {
 
     fn still(&self) -> bool {
         self.constraints.still()
+    }
+}
+
+impl TightFilter {
+    /// The unscented epoch update (see [`TightFilter::unscented`]).
+    fn update_unscented(
+        &mut self,
+        weights: &UnscentedWeights,
+        ranges: &[(usize, f64)],
+        reports: &mut [UpdateReport],
+    ) -> Result<()> {
+        let lever_arm = self.core.config().lever_arm;
+        let r_var = self.core.config().range_std.powi(2);
+        let (x, p_out) = self.core.state_and_covariance_mut();
+        let prior = *x;
+        let mut dx = ErrVec::zeros();
+        let mut p = *p_out;
+        for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
+            let a = self.anchors[anchor];
+            let measure = |d: &ErrVec| {
+                let mut s = prior;
+                s.inject(d);
+                let r = (tag_position(&s, &lever_arm) - a).norm();
+                (r > 1e-9).then_some(r)
+            };
+            let Some(m) = scalar_moments::<ERR_DIM, SIGMA_POINTS>(&dx, &p, weights, measure)? else {
+                *report = UpdateReport::skipped();
+                continue;
+            };
+            let mut residual = range_m - m.predicted;
+            let base_var = range_noise(&mut self.range_noise, anchor, &mut residual, m.variance, true, r_var);
+            let nis = residual * residual / (m.variance + base_var);
+            let inflation = self.policy.inflation(nis);
+            apply_scalar(&mut dx, &mut p, &m, m.predicted + residual, base_var * inflation)?;
+            *report = UpdateReport::applied(residual, nis, base_var * inflation / r_var, 1);
+        }
+        inject_and_reset(x, &mut p, &dx);
+        *p_out = p;
+        Ok(())
+    }
+}
+
+/// The range noise variance for one range: per-anchor Sage–Husa (seed 004 eqs. (26)–(36) on the
+/// range innovation, stepped when `step` — once per epoch, at the first iterate — else held; may
+/// correct `residual`), or the fixed `r_var` without adaptive noise. `hph` is the predicted
+/// range variance.
+fn range_noise(estimators: &mut [SageHusa<1>], anchor: usize, residual: &mut f64, hph: f64, step: bool, r_var: f64) -> f64 {
+    match estimators.get_mut(anchor) {
+        Some(est) if step => {
+            let s = est.step(&SVector::<f64, 1>::new(*residual), &SMatrix::<f64, 1, 1>::new(hph));
+            *residual = s.innovation[0];
+            s.r[(0, 0)]
+        }
+        Some(est) => est.r()[(0, 0)],
+        None => r_var,
     }
 }
 

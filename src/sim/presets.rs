@@ -8,7 +8,8 @@ use crate::math::Vec3;
 use crate::sim::{DriveOptions, ImuNoise, MagConfig, NlosConfig, RandomShielding, SimConfig, Trajectory, UwbConfig};
 
 /// Names accepted by [`preset`].
-pub const PRESET_NAMES: &[&str] = &["seed000", "seed000_los", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"];
+pub const PRESET_NAMES: &[&str] =
+    &["seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"];
 
 /// Standard gravity, m/s².
 const G_MPS2: f64 = 9.80665;
@@ -56,6 +57,39 @@ fn seed000(seed: u64, nlos: bool) -> Result<SimConfig> {
         UwbConfig::default()
     };
     Ok(SimConfig { trajectory, anchors: hall_anchors(), uwb, seed, ..SimConfig::default() })
+}
+
+/// The seed 001 laboratory (m): six anchors around a 4 m × 3 m area — the corners and the middle
+/// of the long sides — alternately at 1.0 and 1.6 m.
+fn lab_anchors() -> Vec<Vec3> {
+    vec![
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(2.0, 0.0, 1.6),
+        Vec3::new(4.0, 0.0, 1.0),
+        Vec3::new(4.0, 3.0, 1.6),
+        Vec3::new(2.0, 3.0, 1.0),
+        Vec3::new(0.0, 3.0, 1.6),
+    ]
+}
+
+/// Seed 001 §4: a small omnidirectional robot (IMU 0.20 m high, tag 5 cm above) driving a
+/// figure-8 inside the 4 m × 3 m area (2 laps of 30 s, ≤ 0.4 m/s), six anchors, UWB at 40 Hz with
+/// σ 0.0514 m (§3.1), a consumer MEMS IMU at 100 Hz (the MPU9250 class). NLOS: desks and chairs
+/// shield 1–2 anchors at a time (windows of 3–8 s), each adding a bias of 0.1–0.6 m and 0.05 m of
+/// extra noise, 10 % of the shielded ranges lost.
+fn seed001(seed: u64, nlos: bool) -> Result<SimConfig> {
+    let imu_height_m = 0.20;
+    let trajectory = Trajectory::figure_eight(Vec3::new(2.0, 1.5, imu_height_m), 1.5, 1.1, 30.0, 2, STILL_S)?;
+    let nlos = nlos.then(|| NlosConfig {
+        random: Some(RandomShielding { start_s: STILL_S, ..RandomShielding::default() }),
+        bias_min_m: 0.1,
+        bias_max_m: 0.6,
+        extra_std_m: 0.05,
+        dropout_prob: 0.1,
+        ..NlosConfig::default()
+    });
+    let uwb = UwbConfig { rate_hz: 40.0, range_std_m: 0.0514, nlos, ..UwbConfig::default() };
+    Ok(SimConfig { trajectory, anchors: lab_anchors(), uwb, seed, ..SimConfig::default() })
 }
 
 fn seed002(seed: u64, figure8: bool) -> Result<SimConfig> {
@@ -116,6 +150,8 @@ fn seed004(seed: u64, outliers: bool) -> Result<SimConfig> {
 /// |---|---|
 /// | `seed000` | seed 000 §3: 4 anchors in a ~10 m × 8 m hall at 0.8–2.2 m, figure-8 ×4 (37 s laps, ≤ 1 m/s), tag 0.45 m high (IMU 5 cm below), UWB 2 Hz σ 0.1 m, IMU 100 Hz consumer MEMS, 1–2 anchors randomly shielded (bias 0.3–1.5 m), 1 % outliers, 2 % dropouts |
 /// | `seed000_los` | `seed000` without NLOS, outliers or dropouts |
+/// | `seed001` | seed 001 §4: six anchors around a 4 m × 3 m lab (corners and mid long sides, 1.0 / 1.6 m), figure-8 ×2 (30 s laps) of a small robot (IMU 0.20 m, tag 5 cm above), UWB 40 Hz σ 0.0514 m, IMU 100 Hz consumer MEMS |
+/// | `seed001_nlos` | `seed001` with 1–2 anchors at a time shielded by furniture: bias 0.1–0.6 m, +0.05 m noise, 10 % of shielded ranges lost |
 /// | `seed002_rectangle` | seed 002 §4: 10 m × 5 m site, 4 anchors at 1.5/2.0 m, 8 m × 3 m rectangle ×2 at 0.5 m/s, UWB 2 Hz, IMU 100 Hz with Table 1 densities |
 /// | `seed002_figure8` | same site, figure-8 ×2 (40 s laps); 10 % outliers U(1, 8) m on beacons 2 and 4 (§4.2) |
 /// | `seed004_s1` | seed 004 §4.1: anchors (−5,−1), (1,−1), (1,5), (−5,5) and tag at z = 0, diagonal (0,0) → (−4,4) of a 4 m square at 0.4 m/s, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2), IMU 100 Hz with per-sample std 0.06, magnetometer on |
@@ -130,6 +166,8 @@ pub fn preset(name: &str, seed: u64) -> Result<SimConfig> {
     match name {
         "seed000" => seed000(seed, true),
         "seed000_los" => seed000(seed, false),
+        "seed001" => seed001(seed, false),
+        "seed001_nlos" => seed001(seed, true),
         "seed002_rectangle" => seed002(seed, false),
         "seed002_figure8" => seed002(seed, true),
         "seed004_s1" => seed004(seed, false),

@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
         ["examples/seed000_table1.py", "--seeds", "1"],
         ["examples/seed004_table1.py", "--seeds", "1"],
         ["examples/seed002_tables.py", "--seeds", "1"],
+        ["examples/seed001_compare.py", "--seeds", "1"],
         ["benches/python_api.py", "--repeat", "1"],
     ],
     ids=lambda s: s[0],

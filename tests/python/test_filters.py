@@ -13,7 +13,10 @@ COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x"
 
 
 def test_filters_listed():
-    assert uwbimu_rs.FILTERS == ["uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf"]
+    assert uwbimu_rs.FILTERS == [
+        "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf", "ekf2d",
+        "ukf2d", "cekf2d",
+    ]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
@@ -78,7 +81,10 @@ def _streaming(run, initial, config, cls=uwbimu_rs.Ekf):
     return np.array(rows), reports, f
 
 
-@pytest.mark.parametrize(("method", "cls"), [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf), ("criekf", uwbimu_rs.Criekf)])
+@pytest.mark.parametrize(
+    ("method", "cls"),
+    [("ekf", uwbimu_rs.Ekf), ("riekf", uwbimu_rs.Riekf), ("criekf", uwbimu_rs.Criekf), ("ukf", uwbimu_rs.Ukf)],
+)
 def test_streaming_equals_batch(los_run, filter_config, method, cls):
     initial, _info = uwbimu_rs.initialize(los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
     n = 2000  # 20 s: still start and the first metres of the figure-8

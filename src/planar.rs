@@ -1,0 +1,232 @@
+//! The planar filter family of seed 001: a 4-state (x, y, vx, vy) filter driven by the IMU's
+//! horizontal acceleration, rotated into the navigation frame by the gyro-integrated yaw
+//! (eqs. (3)–(6) with roll = pitch = 0), and corrected by UWB ranges with one of three updates:
+//!
+//! | method | update | paper |
+//! |---|---|---|
+//! | `ekf2d` | EKF, the ranges of an epoch linearised at the prior (Joseph form) | eqs. (7)–(10) |
+//! | `ukf2d` | unscented, 2n + 1 = 9 sigma points per range, α, β, λ = `ukf_alpha`, `ukf_beta`, `ukf_lambda` | eqs. (11)–(14) |
+//! | `cekf2d` | errors-complementary EKF on Δx = [Δp, Δv] with feedback, after a per-anchor moving average of `cekf_window` ranges | eqs. (15)–(18) |
+//!
+//! Yaw and biases are not estimated: the yaw starts from the initial orientation and integrates
+//! the body z rate minus the initial gyro bias; the initial accelerometer bias is subtracted.
+//! The plane height is `plane_height` (default: the initial height). The range model uses the
+//! 3-D distance to each anchor with that known height (eq. (8) is the case of equal heights).
+
+pub mod cekf;
+pub mod ekf;
+pub mod model;
+pub mod ukf;
+
+use nalgebra::{UnitQuaternion, Vector2};
+
+use crate::config::{FilterConfig, InitialState};
+use crate::error::{Error, Result};
+use crate::filters::sigma_points::UnscentedWeights;
+use crate::filters::tight::check_ranges;
+use crate::math::{Mat3, Vec3};
+use crate::pipeline::{Estimator, StepRecord};
+use crate::state::NominalState;
+use crate::update::UpdateReport;
+
+pub use cekf::MovingAverage;
+pub use model::{PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
+
+/// Largest moving-average window of `cekf2d`, ranges per anchor.
+pub const MAX_CEKF_WINDOW: usize = 64;
+
+/// Which planar update (seed 001 §3.1–§3.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlanarKind {
+    /// EKF, eqs. (7)–(10).
+    Ekf,
+    /// UKF, eqs. (11)–(14).
+    Ukf,
+    /// Errors-complementary EKF with a moving-average range prefilter, eqs. (15)–(18).
+    Cekf,
+}
+
+/// A planar UWB/IMU filter of seed 001 (see the module doc).
+#[derive(Debug, Clone)]
+pub struct PlanarFilter {
+    kind: PlanarKind,
+    anchors: Vec<Vec3>,
+    geometry: PlanarGeometry,
+    state: PlanarState,
+    covariance: PlanarCov,
+    yaw_rad: f64,
+    gyro_bias_z: f64,
+    accel_bias_xy: Vector2<f64>,
+    imu_rotation: nalgebra::UnitQuaternion<f64>,
+    accel_density: f64,
+    range_var: f64,
+    weights: UnscentedWeights,
+    prefilter: MovingAverage,
+    time_s: Option<f64>,
+    held_accel: Vector2<f64>,
+    held_rate_z: f64,
+}
+
+impl PlanarFilter {
+    /// Builds a planar filter from the initial state (x, y, vx, vy and their standard deviations;
+    /// yaw from the orientation; gyro z bias and accelerometer x, y bias) and the configuration
+    /// (`range_std`, `lever_arm`, `imu_rotation`, `plane_height`, `planar_accel_density`, the
+    /// `ukf_*` weights and `cekf_window`). Fails on an invalid configuration or no anchors.
+    pub fn new(kind: PlanarKind, anchors: Vec<Vec3>, initial: &InitialState, config: &FilterConfig) -> Result<Self> {
+        config.validate()?;
+        if anchors.is_empty() {
+            return Err(Error::InsufficientData("at least one anchor is required".into()));
+        }
+        let weights = UnscentedWeights::new(PLANAR_DIM, config.ukf_alpha, config.ukf_beta, config.ukf_lambda)?;
+        let (p, v) = (initial.position, initial.velocity);
+        if let Some(col) = [p.x, p.y, p.z, v.x, v.y].iter().position(|x| !x.is_finite()) {
+            return Err(Error::NonFinite { name: "initial state", row: 0, col, value: [p.x, p.y, p.z, v.x, v.y][col] });
+        }
+        let mut covariance = PlanarCov::zeros();
+        for (i, s) in
+            [initial.position_std.x, initial.position_std.y, initial.velocity_std.x, initial.velocity_std.y].iter().enumerate()
+        {
+            covariance[(i, i)] = s * s;
+        }
+        let window = if kind == PlanarKind::Cekf { config.cekf_window } else { 1 };
+        Ok(Self {
+            kind,
+            geometry: PlanarGeometry { height_m: config.plane_height.unwrap_or(p.z), lever_arm: config.lever_arm },
+            prefilter: MovingAverage::new(anchors.len(), window)?,
+            anchors,
+            state: PlanarState::new(p.x, p.y, v.x, v.y),
+            covariance,
+            yaw_rad: initial.orientation.euler_angles().2,
+            gyro_bias_z: initial.gyro_bias.z,
+            accel_bias_xy: initial.accel_bias.xy(),
+            imu_rotation: config.imu_rotation,
+            accel_density: config.planar_accel_density,
+            range_var: config.range_std.powi(2),
+            weights,
+            time_s: None,
+            held_accel: Vector2::zeros(),
+            held_rate_z: 0.0,
+        })
+    }
+
+    /// The anchors, navigation frame, m.
+    pub fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
+    /// The state `[x, y, vx, vy]`.
+    pub fn state(&self) -> &PlanarState {
+        &self.state
+    }
+
+    /// The 4×4 state covariance.
+    pub fn covariance(&self) -> &PlanarCov {
+        &self.covariance
+    }
+
+    /// The gyro-integrated yaw, rad.
+    pub fn yaw_rad(&self) -> f64 {
+        self.yaw_rad
+    }
+
+    /// The filter time, s (None before the first IMU sample).
+    pub fn time_s(&self) -> Option<f64> {
+        self.time_s
+    }
+
+    /// Takes the IMU sample at `t_s` (IMU frame) and propagates to it (seed 001 eqs. (4)–(6)):
+    /// yaw by the trapezoid of the z rates, the navigation acceleration as the mean of the held and
+    /// the new sample, each rotated by the yaw at its time. The first call only sets the time.
+    pub fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        if let Some(col) = [t_s, accel.x, accel.y, accel.z, gyro.x, gyro.y, gyro.z].iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                name: "planar predict",
+                row: 0,
+                col,
+                value: [t_s, accel.x, accel.y, accel.z, gyro.x, gyro.y, gyro.z][col],
+            });
+        }
+        let (a, g) = (self.imu_rotation * accel, self.imu_rotation * gyro);
+        let (a_xy, rate_z) = (a.xy() - self.accel_bias_xy, g.z - self.gyro_bias_z);
+        if let Some(t0) = self.time_s {
+            if t_s <= t0 {
+                return Err(Error::NonMonotonicTime { name: "planar predict", row: 0, prev_s: t0, got_s: t_s });
+            }
+            self.propagate(t_s - t0, a_xy, rate_z);
+        }
+        self.time_s = Some(t_s);
+        self.held_accel = a_xy;
+        self.held_rate_z = rate_z;
+        Ok(())
+    }
+
+    fn propagate(&mut self, dt_s: f64, accel_end: Vector2<f64>, rate_end: f64) {
+        let yaw_end = self.yaw_rad + 0.5 * (self.held_rate_z + rate_end) * dt_s;
+        let u = 0.5 * (model::yaw_rotation(self.yaw_rad) * self.held_accel + model::yaw_rotation(yaw_end) * accel_end);
+        model::propagate(&mut self.state, &mut self.covariance, &u, dt_s, self.accel_density);
+        self.yaw_rad = yaw_end;
+    }
+
+    /// Applies the ranges of one epoch at `t_s` (≥ the filter time; propagated there with the
+    /// held sample), one report per range.
+    pub fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        if reports.len() != ranges.len() {
+            return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
+        }
+        check_ranges(&self.anchors, ranges)?;
+        let Some(t0) = self.time_s else {
+            return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
+        };
+        if !(t_s >= t0) {
+            return Err(Error::NonMonotonicTime { name: "measurement", row: 0, prev_s: t0, got_s: t_s });
+        }
+        if t_s > t0 {
+            self.propagate(t_s - t0, self.held_accel, self.held_rate_z);
+            self.time_s = Some(t_s);
+        }
+        let epoch =
+            ekf::Epoch { anchors: &self.anchors, geometry: &self.geometry, yaw_rad: self.yaw_rad, range_var: self.range_var };
+        match self.kind {
+            PlanarKind::Ekf => {
+                ekf::linearised_update(&epoch, &mut self.state, &mut self.covariance, ranges, reports, |_, r| Ok(r))
+            }
+            PlanarKind::Ukf => {
+                ukf::unscented_update(&epoch, &self.weights, &mut self.state, &mut self.covariance, ranges, reports)
+            }
+            PlanarKind::Cekf => {
+                cekf::complementary_update(&epoch, &mut self.prefilter, &mut self.state, &mut self.covariance, ranges, reports)
+            }
+        }
+    }
+}
+
+impl Estimator for PlanarFilter {
+    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        self.predict(t_s, accel, gyro)
+    }
+
+    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        self.update_ranges(t_s, ranges, reports)
+    }
+
+    /// Position (x, y, plane height), velocity (vx, vy, 0), yaw-only orientation, gyro bias
+    /// (0, 0, b_z) and accelerometer bias (b_x, b_y, 0) as given initially; the position
+    /// covariance has the x, y block and zeros for z (the height is fixed).
+    fn record(&self, t_s: f64) -> StepRecord {
+        let x = &self.state;
+        let mut position_cov = Mat3::zeros();
+        position_cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&self.covariance.fixed_view::<2, 2>(X, X));
+        StepRecord {
+            t_s,
+            state: NominalState {
+                position: Vec3::new(x[X], x[Y], self.geometry.height_m),
+                velocity: Vec3::new(x[VX], x[VY], 0.0),
+                orientation: UnitQuaternion::from_euler_angles(0.0, 0.0, self.yaw_rad),
+                accel_bias: Vec3::new(self.accel_bias_xy.x, self.accel_bias_xy.y, 0.0),
+                gyro_bias: Vec3::new(0.0, 0.0, self.gyro_bias_z),
+            },
+            position_cov,
+            still: false,
+        }
+    }
+}

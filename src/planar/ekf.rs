@@ -1,0 +1,51 @@
+//! The planar EKF update of seed 001 eqs. (7)–(10): the ranges of an epoch (eq. (7)) against the
+//! predicted ranges (eq. (8)) with the Jacobian of eq. (9), all linearised at the prior and
+//! applied as sequential scalar Joseph steps (the joint update of eq. (10) for diagonal R).
+
+use crate::error::Result;
+use crate::math::Vec3;
+use crate::planar::model::{PlanarCov, PlanarGeometry, PlanarState};
+use crate::update::{scalar_step, UpdateReport};
+
+/// What every planar update of one epoch needs besides the state.
+#[derive(Debug, Clone, Copy)]
+pub struct Epoch<'a> {
+    /// Anchor positions, m.
+    pub anchors: &'a [Vec3],
+    /// Plane height and lever arm.
+    pub geometry: &'a PlanarGeometry,
+    /// Yaw at the epoch, rad.
+    pub yaw_rad: f64,
+    /// Range noise variance R, m².
+    pub range_var: f64,
+}
+
+/// Applies one epoch linearised at the prior `x`: per range, `prefilter(anchor, range)` gives the
+/// range used (identity for the EKF, the moving average for the CEKF), its residual against
+/// `h(x⁻)` and `H(x⁻)` enter a scalar step on the accumulated correction, which is added to `x`
+/// at the end. Reports carry the residual at the prior and its NIS against the prior covariance.
+pub fn linearised_update(
+    epoch: &Epoch<'_>,
+    x: &mut PlanarState,
+    p: &mut PlanarCov,
+    ranges: &[(usize, f64)],
+    reports: &mut [UpdateReport],
+    mut prefilter: impl FnMut(usize, f64) -> Result<f64>,
+) -> Result<()> {
+    let prior = *x;
+    let p_prior = *p;
+    let mut dx = PlanarState::zeros();
+    for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
+        let z = prefilter(anchor, range_m)?;
+        let Some((predicted, h)) = epoch.geometry.range_and_jacobian(&prior, epoch.yaw_rad, &epoch.anchors[anchor]) else {
+            *report = UpdateReport::skipped();
+            continue;
+        };
+        let residual = z - predicted;
+        let nis = residual * residual / (h.dot(&(p_prior * h)) + epoch.range_var);
+        scalar_step(&mut dx, p, &h, residual, epoch.range_var)?;
+        *report = UpdateReport::applied(residual, nis, 1.0, 1);
+    }
+    *x = prior + dx;
+    Ok(())
+}
