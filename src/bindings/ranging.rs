@@ -20,7 +20,12 @@ fn same_shape<const N: usize>(arrays: [(&Bound<'_, PyAny>, &'static str); N]) ->
     let shape = read[0].shape().to_vec();
     for (r, (_, name)) in read.iter().zip(&arrays) {
         if r.shape() != shape.as_slice() {
-            return Err(Error::Shape { name, expected: format!("{shape:?} like {}", arrays[0].1), got: format!("{:?}", r.shape()) }.into());
+            return Err(Error::Shape {
+                name,
+                expected: format!("{shape:?} like {}", arrays[0].1),
+                got: format!("{:?}", r.shape()),
+            }
+            .into());
         }
     }
     let mut out: [Vec<f64>; N] = std::array::from_fn(|_| Vec::new());
@@ -144,13 +149,17 @@ pub fn read_calibration(obj: &Bound<'_, PyAny>) -> PyResult<RangeCalibration> {
         .map_err(|_| PyValueError::new_err("range_calibration: expected a dict {anchor index: [c0, c1, c2, c3]}"))?;
     let mut by_anchor = BTreeMap::new();
     for (k, v) in dict.iter() {
-        let anchor: usize =
-            k.extract().map_err(|_| PyValueError::new_err(format!("range_calibration: key {k} is not an anchor index (int >= 0)")))?;
+        let anchor: usize = k
+            .extract()
+            .map_err(|_| PyValueError::new_err(format!("range_calibration: key {k} is not an anchor index (int >= 0)")))?;
         let c: Vec<f64> = v.extract().map_err(|_| {
             PyValueError::new_err(format!("range_calibration[{anchor}]: expected 4 numbers [c0, c1, c2, c3], got {v}"))
         })?;
         let c: Cubic = c.try_into().map_err(|c: Vec<f64>| {
-            PyValueError::new_err(format!("range_calibration[{anchor}]: expected 4 coefficients [c0, c1, c2, c3], got {}", c.len()))
+            PyValueError::new_err(format!(
+                "range_calibration[{anchor}]: expected 4 coefficients [c0, c1, c2, c3], got {}",
+                c.len()
+            ))
         })?;
         by_anchor.insert(anchor, c);
     }
@@ -170,17 +179,29 @@ fn calibrate_ranges<'py>(
     let ranges = crate::validate::ranges(&rows, anchor_count)?;
     let out = read_calibration(calibration)?.apply(&ranges, anchor_count)?;
     let flat: Vec<f64> = out.iter().flat_map(|r| [r.t_s, r.anchor as f64, r.range_m]).collect();
-    Ok(flat.into_pyarray(py).reshape([out.len(), 3])?)
+    flat.into_pyarray(py).reshape([out.len(), 3])
 }
 
 /// Evaluates one cubic `[c0, c1, c2, c3]` at measured ranges (m), element-wise.
 #[pyfunction]
-fn calibration_apply<'py>(py: Python<'py>, coefficients: [f64; 4], measured: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+fn calibration_apply<'py>(
+    py: Python<'py>,
+    coefficients: [f64; 4],
+    measured: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let ([m], shape) = same_shape([(measured, "measured")])?;
     let cal = RangeCalibration::new([(0, coefficients)].into_iter().collect())?;
-    let out = m.iter().enumerate().map(|(row, &v)| {
-        if v.is_finite() { Ok(cal.correct(0, v)) } else { Err(Error::NonFinite { name: "measured", row, col: 0, value: v }) }
-    }).collect::<Result<Vec<f64>, Error>>()?;
+    let out = m
+        .iter()
+        .enumerate()
+        .map(|(row, &v)| {
+            if v.is_finite() {
+                Ok(cal.correct(0, v))
+            } else {
+                Err(Error::NonFinite { name: "measured", row, col: 0, value: v })
+            }
+        })
+        .collect::<Result<Vec<f64>, Error>>()?;
     shaped(py, out, &shape)
 }
 
