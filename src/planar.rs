@@ -177,7 +177,10 @@ impl PlanarFilter {
         let Some(t0) = self.time_s else {
             return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
         };
-        if !(t_s >= t0) {
+        if !t_s.is_finite() {
+            return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
+        }
+        if t_s < t0 {
             return Err(Error::NonMonotonicTime { name: "measurement", row: 0, prev_s: t0, got_s: t_s });
         }
         if t_s > t0 {

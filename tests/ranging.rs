@@ -73,7 +73,7 @@ fn calibration_recovers_a_cubic_exactly_and_helps_on_noisy_pairs() {
     let c = fit_cubic(&measured, &truth).expect("fit");
     let worst = measured.iter().zip(&truth).map(|(m, t)| (eval_cubic(&c, *m) - t).abs()).fold(0.0, f64::max);
     println!("noise-free: coefficients {c:?}, worst error {worst:.2e} m");
-    assert!(worst < 1e-3 && worst < 1e-9, "{worst}");
+    assert!(worst < 1e-9, "{worst}"); // the issue asks for < 1 mm
 
     // Noisy pairs as in §4.1: 5 distances, 200 ranges each with σ = 0.0514 m around the distorted
     // value; fit to all pairs, test on fresh ones.

@@ -179,7 +179,7 @@ fn calibrate_ranges<'py>(
     let ranges = crate::validate::ranges(&rows, anchor_count)?;
     let out = read_calibration(calibration)?.apply(&ranges, anchor_count)?;
     let flat: Vec<f64> = out.iter().flat_map(|r| [r.t_s, r.anchor as f64, r.range_m]).collect();
-    Ok(flat.into_pyarray(py).reshape([out.len(), 3])?)
+    flat.into_pyarray(py).reshape([out.len(), 3])
 }
 
 /// Evaluates one cubic `[c0, c1, c2, c3]` at measured ranges (m), element-wise.

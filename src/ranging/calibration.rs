@@ -46,7 +46,7 @@ pub fn fit_cubic(measured: &[f64], truth: &[f64]) -> Result<Cubic> {
     let rhs = DMatrix::from_column_slice(truth.len(), 1, truth);
     let svd = design.svd(true, true);
     let (max_sv, min_sv) = (svd.singular_values.max(), svd.singular_values.min());
-    if measured.len() < 4 || scale == 0.0 || !(min_sv > 1e-10 * max_sv) {
+    if measured.len() < 4 || scale == 0.0 || min_sv.is_nan() || min_sv <= 1e-10 * max_sv {
         return Err(Error::InsufficientData(format!(
             "a cubic range calibration needs at least 4 distinct measured ranges, got {} pairs",
             measured.len()
