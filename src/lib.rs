@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+pub mod columns;
 pub mod config;
 pub mod constraints;
 pub mod crlb;
