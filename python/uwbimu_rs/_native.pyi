@@ -30,6 +30,10 @@ __all__ = [
     "UwbImuError",
     "ConfigError",
     "NumericalError",
+    "MappingError",
+    "FormatError",
+    "read_mcap",
+    "replay",
     "FilterConfig",
     "Ekf",
     "UpdateReport",
@@ -75,6 +79,12 @@ class ConfigError(UwbImuError):
 
 class NumericalError(UwbImuError):
     """A matrix that must be positive definite was not (e.g. a covariance in ``nees``)."""
+
+class MappingError(UwbImuError):
+    """A topic/field mapping that does not fit the recording (missing topic, unknown field)."""
+
+class FormatError(OSError):
+    """A file that is not well-formed (bad magic, truncation, CRC mismatch, unknown encoding)."""
 
 # --------------------------------------------------------------------------------------------
 # Filters (src/bindings/filters.rs)
@@ -895,3 +905,26 @@ def simulate(
     UwbImuError
         Bad array shape or non-finite values.
     """
+
+# --------------------------------------------------------------------------------------------
+# MCAP reading and replay (src/bindings/io.rs)
+# --------------------------------------------------------------------------------------------
+
+def read_mcap(path: str, *, mapping: str | None = None, config_file: str | None = None) -> dict[str, Any]:
+    """Read an MCAP file through a mapping (JSON text of the ``[mapping]`` table) and/or a replay
+    TOML file. Returns ``imu``, ``ranges``, ``anchors``, ``ground_truth`` (dicts of float64
+    columns), ``anchor_ids`` (list of str) and ``stats`` (dict). Raises OSError (``FormatError``)
+    for unreadable or corrupt files and ``MappingError`` for a mapping that does not fit."""
+
+def replay(
+    path: str,
+    method: str | None = None,
+    *,
+    mapping: str | None = None,
+    config_file: str | None = None,
+    config: _ConfigArg = None,
+    smooth: bool = False,
+) -> tuple[dict[str, _F64], dict[str, Any]]:
+    """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core). Returns
+    ``(columns, info)``: the run_filter columns and per-anchor statistics, mean NIS, read
+    statistics and RMSE against ground truth when mapped."""

@@ -12,7 +12,7 @@ use crate::filters::{Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, 
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
-use crate::pipeline::{smooth_recording, StepRecord, Trace};
+use crate::pipeline::{smooth_recording, StepRecord};
 use crate::records::{ImuSample, RangeMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
@@ -61,7 +61,7 @@ impl PyFilterConfig {
 }
 
 /// Reads `config` (None, a `FilterConfig` or a dict of the same keys).
-fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterConfig> {
+pub(super) fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterConfig> {
     match config {
         None => Ok(FilterConfig::default()),
         Some(obj) if obj.is_none() => Ok(FilterConfig::default()),
