@@ -71,7 +71,7 @@ pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f
 }
 
 /// Writes IMU samples (topic `/imu`) and ranges (topic `/uwb`, anchor ids `A0`, `A1`, …) plus
-/// the anchor metadata. `label` names the output in errors.
+/// the anchor metadata, in zstd chunks when `compress`. `label` names the output in errors.
 ///
 /// # Errors
 /// [`Error::Io`] if writing fails.
@@ -82,9 +82,11 @@ pub fn write_recording_mcap<W: Write + Seek>(
     ranges: &[RangeMeasurement],
     anchors: &[Vec3],
     range_std_m: Option<f64>,
+    compress: bool,
 ) -> Result<()> {
     let err = |e: mcap::McapError| Error::Io { path: label.to_string(), reason: e.to_string() };
-    let mut w = WriteOptions::new().profile("").compression(Some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
+    let mut w =
+        WriteOptions::new().profile("").compression(compress.then_some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
     let imu_schema = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", IMU_MSG.as_bytes()).map_err(err)?;
     let imu_ch = w.add_channel(imu_schema, "/imu", "cdr", &BTreeMap::new()).map_err(err)?;
     let uwb_schema = w.add_schema(UWB_RANGE_JSON, "jsonschema", UWB_RANGE_JSON_SCHEMA.as_bytes()).map_err(err)?;
