@@ -34,6 +34,7 @@ __all__ = [
     "FormatError",
     "read_mcap",
     "replay",
+    "write_mcap",
     "FilterConfig",
     "Ekf",
     "UpdateReport",
@@ -928,3 +929,10 @@ def replay(
     """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core). Returns
     ``(columns, info)``: the run_filter columns and per-anchor statistics, mean NIS, read
     statistics and RMSE against ground truth when mapped."""
+
+def write_mcap(
+    path: str, imu: ArrayLike, ranges: ArrayLike, anchors: ArrayLike, *, range_std: float | None = None
+) -> None:
+    """Write a recording as MCAP: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON
+    ``uwbimu.UwbRange`` on ``/uwb`` (anchor ids ``A0``, ``A1``, ...), anchor positions in the
+    ``uwbimu.anchors`` metadata record; zstd chunks."""

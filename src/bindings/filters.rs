@@ -85,13 +85,13 @@ fn read_initial(initial: &Bound<'_, PyAny>) -> PyResult<InitialState> {
 }
 
 /// Validated arrays of one batch call.
-struct Inputs {
-    imu: Vec<ImuSample>,
-    ranges: Vec<RangeMeasurement>,
-    anchors: Vec<Vec3>,
+pub(super) struct Inputs {
+    pub(super) imu: Vec<ImuSample>,
+    pub(super) ranges: Vec<RangeMeasurement>,
+    pub(super) anchors: Vec<Vec3>,
 }
 
-fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
+pub(super) fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
     let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
     let imu = validate::imu(&table::<7>(&array(imu, "imu")?, "imu", IMU_LAYOUT)?)?;
     let ranges = validate::ranges(&table::<3>(&array(ranges, "ranges")?, "ranges", RANGES_LAYOUT)?, anchors.len())?;

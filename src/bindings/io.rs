@@ -8,8 +8,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use super::convert::columns;
-use super::filters::read_config;
+use super::filters::{read_config, read_inputs};
 use crate::columns::output_columns;
+use crate::error::Error;
+use crate::io::recording_out::write_recording_mcap;
 use crate::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
 use crate::methods::Method;
 use crate::replay::{compare_with_truth, replay as replay_recording};
@@ -171,9 +173,33 @@ fn replay<'py>(
     Ok((columns(py, output_columns(&result.output, false))?, info))
 }
 
+/// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
+/// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...), anchors in the `uwbimu.anchors`
+/// metadata record; zstd chunks.
+#[pyfunction]
+#[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None))]
+fn write_mcap(
+    py: Python<'_>,
+    path: PathBuf,
+    imu: &Bound<'_, PyAny>,
+    ranges: &Bound<'_, PyAny>,
+    anchors: &Bound<'_, PyAny>,
+    range_std: Option<f64>,
+) -> PyResult<()> {
+    let inputs = read_inputs(imu, ranges, anchors)?;
+    let label = path.display().to_string();
+    py.detach(|| {
+        let file = std::fs::File::create(&path).map_err(|e| Error::Io { path: label.clone(), reason: e.to_string() })?;
+        let sink = std::io::BufWriter::new(file);
+        write_recording_mcap(sink, &label, &inputs.imu, &inputs.ranges, &inputs.anchors, range_std, true)
+    })?;
+    Ok(())
+}
+
 /// Registers the functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(replay, m)?)?;
+    m.add_function(wrap_pyfunction!(write_mcap, m)?)?;
     Ok(())
 }
