@@ -32,7 +32,8 @@ fn recording() -> Vec<u8> {
         .collect();
     let ranges: Vec<RangeMeasurement> = (0..RANGE_MESSAGES)
         .map(|k| {
-            let t = k as f64 * 0.04 + 0.005;
+            // Epochs of one range per anchor, 0.16 s apart (800 s, like the IMU).
+            let t = (k / 4) as f64 * 0.16 + 0.005;
             let p = Vec3::new(4.0 + 1.5 * (w * t).cos(), 3.0 + 1.5 * (w * t).sin(), 1.0);
             let anchor = k % anchors.len();
             RangeMeasurement { t_s: 100.0 + t, anchor, range_m: (p - anchors[anchor]).norm() }
