@@ -123,7 +123,7 @@ fn broken_files_exit_with_code_2_and_a_clear_message() {
     let mut plain = sim_mcap(&sim(), false);
     let at = plain.len() / 2;
     plain[at] ^= 0x40;
-    fails_with(&run_on(&write("crc.mcap", &plain)), "crc");
+    fails_with(&run_on(&write("crc.mcap", &plain)), "CRC mismatch");
 }
 
 #[test]

@@ -386,3 +386,75 @@ impl PoseDecoder {
         Ok((stamp_ns(self.stamp.as_ref(), &v)?, p))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::io::mcap_read::SchemaInfo;
+
+    const HEADER: &str = "===\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n\
+                          ===\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n";
+
+    fn channel(topic: &str, with_variance: bool) -> ChannelInfo {
+        let body = format!(
+            "uint8 ULTRASOUND=0\nstd_msgs/Header header\nuint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\n\
+             float32 max_range\nfloat32 range\n{}{HEADER}",
+            if with_variance { "float32 variance\n" } else { "" }
+        );
+        let schema = SchemaInfo { name: "sensor_msgs/msg/Range".into(), encoding: "ros2msg".into(), data: body.into_bytes() };
+        ChannelInfo { id: 1, topic: topic.into(), message_encoding: "cdr".into(), schema: Some(Arc::new(schema)) }
+    }
+
+    /// XCDR1 LE `sensor_msgs/msg/Range` with frame "a7", range 3.5 m (and variance 0.04).
+    fn payload(with_variance: bool) -> Vec<u8> {
+        let mut b = vec![0, 1, 0, 0];
+        b.extend_from_slice(&5i32.to_le_bytes());
+        b.extend_from_slice(&250u32.to_le_bytes());
+        b.extend_from_slice(&3u32.to_le_bytes());
+        b.extend_from_slice(b"a7\0");
+        b.push(2); // radiation_type, then pad to 4
+        for v in [0.0f32, 0.1, 60.0, 3.5] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        if with_variance {
+            b.extend_from_slice(&0.04f32.to_le_bytes());
+        }
+        b
+    }
+
+    #[test]
+    fn sensor_msgs_range_takes_the_anchor_from_frame_or_topic_and_variance_only_when_defined() {
+        for with_variance in [true, false] {
+            let ch = channel("/uwb/b2", with_variance);
+            let d = RangeDecoder::new(&ch, &UwbMapping::default()).unwrap();
+            let mut out = Vec::new();
+            let t = d.decode(&payload(with_variance), &mut out).unwrap();
+            assert_eq!(t, Some(5_000_000_250));
+            assert_eq!(out.len(), 1);
+            assert_eq!(out[0].anchor_id, "a7");
+            assert!((out[0].range_m - 3.5).abs() < 1e-6);
+            assert_eq!(out[0].variance_m2.is_some(), with_variance);
+            let by_topic = UwbMapping { anchor_from: AnchorFrom::Topic, ..UwbMapping::default() };
+            let mut out = Vec::new();
+            RangeDecoder::new(&ch, &by_topic).unwrap().decode(&payload(with_variance), &mut out).unwrap();
+            assert_eq!(out[0].anchor_id, "/uwb/b2");
+        }
+        // A payload one float short is a format error, not a panic.
+        let ch = channel("/uwb/b2", true);
+        let d = RangeDecoder::new(&ch, &UwbMapping::default()).unwrap();
+        assert!(matches!(d.decode(&payload(false), &mut Vec::new()), Err(Error::Format { .. })));
+    }
+
+    #[test]
+    fn json_range_round_trips_and_rejects_unknown_keys() {
+        let mut out = Vec::new();
+        let bytes = crate::io::recording_out::range_json(12.25, "A3", 4.5, Some(0.01));
+        assert_eq!(decode_json(&bytes, &mut out).unwrap(), Some(12_250_000_000));
+        assert_eq!((out[0].anchor_id.as_str(), out[0].range_m, out[0].variance_m2), ("A3", 4.5, Some(0.01)));
+        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":"a","range":1,"rang":2}"#, &mut out).is_err());
+        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":5,"range":1}"#, &mut out).is_ok());
+        assert_eq!(out.last().map(|r| r.anchor_id.as_str()), Some("5"));
+    }
+}
