@@ -140,7 +140,7 @@ fn print_found(args: &Args, cfg: &ReplayConfig, rec: &Recording) {
         m.time_source,
         m.reorder_window_s,
         u.range.as_deref().unwrap_or("range"),
-        u.anchor_id.as_deref().unwrap_or("(frame_id / topic)"),
+        u.anchor_id.as_deref().unwrap_or("(from the message: JSON anchor_id / Range frame_id or topic)"),
         u.valid.as_deref().unwrap_or("-"),
         u.anchor_position.as_deref().unwrap_or("-"),
         u.scale.unwrap_or(1.0)
