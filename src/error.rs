@@ -95,6 +95,32 @@ pub enum Error {
     /// A streaming call out of order (e.g. an update before the first predict).
     #[error("{0}")]
     InvalidCall(String),
+    /// A file could not be opened, read or written.
+    #[error("{path}: {reason}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What the operating system said.
+        reason: String,
+    },
+    /// A file or message is not well-formed (bad magic, CRC mismatch, truncation, a payload that
+    /// does not match its schema, an unsupported encoding).
+    #[error("{what}: {reason}")]
+    Format {
+        /// What was being read (file, topic, schema).
+        what: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A topic/field mapping that does not fit the recording (missing topic, a field the schema
+    /// does not have, a field of the wrong type).
+    #[error("mapping `{field}`: {reason}")]
+    Mapping {
+        /// The mapping entry (e.g. `uwb.range`).
+        field: String,
+        /// Why it does not fit.
+        reason: String,
+    },
 }
 
 /// Result with the crate's [`Error`].

@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+pub mod columns;
 pub mod config;
 pub mod constraints;
 pub mod crlb;
@@ -7,6 +8,7 @@ pub mod error;
 pub mod filters;
 pub mod init;
 pub mod ins;
+pub mod io;
 pub mod math;
 pub mod methods;
 pub mod metrics;
@@ -16,6 +18,7 @@ pub mod pipeline;
 pub mod planar;
 pub mod ranging;
 pub mod records;
+pub mod replay;
 pub mod robust;
 pub mod sim;
 pub mod smoother;

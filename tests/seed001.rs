@@ -12,7 +12,8 @@ use uwbimu_rs::pipeline::{run, StepRecord};
 use uwbimu_rs::sim::{preset, simulate, SimData};
 
 fn steps(method: Method, data: &SimData, initial: Option<&InitialState>, config: &FilterConfig) -> Vec<StepRecord> {
-    let input = BatchInput { imu: &data.imu, ranges: &data.ranges, anchors: &data.anchors, initial, config, smooth: false };
+    let input =
+        BatchInput { imu: &data.imu, ranges: &data.ranges, anchors: &data.anchors, initial, config, smooth: false, mag: &[] };
     match run_method(method, &input).expect("run") {
         BatchOutput::Inertial { trace, .. } => trace.steps,
         BatchOutput::Multilateration(_) => unreachable!("inertial method"),

@@ -7,6 +7,8 @@ rotating body → navigation; error-state order δp, δv, δθ, δb_a, δb_g; ti
 
 from __future__ import annotations
 
+import json
+import os
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -22,7 +24,9 @@ from uwbimu_rs._native import (
     Ekf,
     Eskf,
     FilterConfig,
+    FormatError,
     Iekf,
+    MappingError,
     NumericalError,
     Rekf,
     Riekf,
@@ -44,7 +48,9 @@ __all__ = [
     "Ekf",
     "Eskf",
     "FilterConfig",
+    "FormatError",
     "Iekf",
+    "MappingError",
     "NumericalError",
     "Rekf",
     "Riekf",
@@ -56,6 +62,8 @@ __all__ = [
     "crlb",
     "initialize",
     "ranging",
+    "read_mcap",
+    "replay",
     "run_filter",
     "run_filters",
 ]
@@ -202,6 +210,115 @@ def initialize(
         ``info``: ``still_start`` (bool) and ``heading_from`` ("motion" or "fallback").
     """
     return _native.initialize_state(imu, ranges, anchors, config=_as_dict(config))
+
+
+def _mapping_json(mapping: Mapping[str, Any] | None) -> str | None:
+    """The mapping as JSON text for the native layer (it parses and checks it)."""
+    if mapping is None:
+        return None
+    try:
+        return json.dumps(dict(mapping), default=os.fspath)
+    except TypeError as e:
+        raise MappingError(f"mapping: cannot convert to JSON: {e}") from e
+
+
+def read_mcap(
+    path: str | os.PathLike[str],
+    *,
+    mapping: Mapping[str, Any] | None = None,
+    config_file: str | os.PathLike[str] | None = None,
+) -> dict[str, Any]:
+    """Read an MCAP recording (IMU + UWB ranges) into polars DataFrames.
+
+    Parameters
+    ----------
+    path : str or path
+        The MCAP file (chunked or not, indexed or not, zstd / lz4 / uncompressed).
+    mapping : dict, optional
+        The ``[mapping]`` table of a replay file as a dict (see the README, "MCAP replay"), e.g.
+        ``{"imu_topic": "/imu", "uwb": {"topics": ["/uwb"], "range": "ranges[].range",
+        "anchor_id": "ranges[].id", "valid": "ranges[].ra == 1"}}``; replaces the file's mapping.
+    config_file : str or path, optional
+        A replay TOML file whose ``[mapping]`` is used.
+
+    Returns
+    -------
+    dict
+        ``imu``: DataFrame t, ax, ay, az, gx, gy, gz (s, m/s², rad/s); ``ranges``: t, anchor
+        (index into ``anchors``), range (m), variance (m², NaN when not in the message);
+        ``anchors``: id, x, y, z (m); ``ground_truth``: t, x, y, z (empty when not mapped);
+        ``stats``: dict (topics with schema, count and role; duration_s; reordered;
+        late_dropped; invalid_per_anchor; anchor_source; ...).
+
+    Raises
+    ------
+    FileNotFoundError, OSError
+        Missing, unreadable or corrupt file (``FormatError``, an OSError, for bad magic,
+        truncation, CRC mismatch, unknown encoding).
+    ValueError
+        A mapping that does not fit the file (``MappingError``: missing topic, unknown field).
+    """
+    out = _native.read_mcap(
+        os.fspath(path), mapping=_mapping_json(mapping), config_file=None if config_file is None else os.fspath(config_file)
+    )
+    ranges = pl.DataFrame(out["ranges"]).with_columns(pl.col("anchor").cast(pl.Int64))
+    anchors = pl.DataFrame(out["anchors"]).insert_column(0, pl.Series("id", out["anchor_ids"], dtype=pl.String))
+    return {
+        "imu": pl.DataFrame(out["imu"]),
+        "ranges": ranges,
+        "anchors": anchors,
+        "ground_truth": pl.DataFrame(out["ground_truth"]),
+        "stats": out["stats"],
+    }
+
+
+def replay(
+    path: str | os.PathLike[str],
+    method: str | None = None,
+    *,
+    mapping: Mapping[str, Any] | None = None,
+    config_file: str | os.PathLike[str] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    smooth: bool = False,
+) -> tuple[pl.DataFrame, dict[str, Any]]:
+    """Replay an MCAP recording through one method (the core of the ``uwbimu-replay`` binary).
+
+    Parameters
+    ----------
+    path : str or path
+        The MCAP file.
+    method : str, optional
+        One of ``FILTERS``; None: the config file's ``method``, else ``"riekf"``.
+    mapping, config_file
+        As for :func:`read_mcap`; the config file also supplies ``method`` and ``[config]``.
+    config : FilterConfig or dict, optional
+        Filter settings; replaces the config file's ``[config]``.
+    smooth : bool
+        Return RTS-smoothed estimates (inertial methods).
+
+    Returns
+    -------
+    (polars.DataFrame, dict)
+        The trajectory with the :func:`run_filter` columns, and ``info``: ``method``,
+        ``anchors`` (per anchor: id, accepted, down_weighted, rejected), ``mean_nis``,
+        ``stats`` (as :func:`read_mcap`) and, when ground truth is mapped,
+        ``rmse_horizontal_m``, ``rmse_horizontal_aligned_m``, ``rmse_3d_m``,
+        ``rmse_3d_aligned_m`` (rigid SE(3) alignment).
+
+    Raises
+    ------
+    OSError, ValueError
+        As :func:`read_mcap`; ``ConfigError`` for an unknown method or config key.
+    """
+    cols, info = _native.replay(
+        os.fspath(path),
+        method,
+        mapping=_mapping_json(mapping),
+        config_file=None if config_file is None else os.fspath(config_file),
+        config=_as_dict(config),
+        smooth=smooth,
+    )
+    return _frame(cols), info
 
 
 def _frame(cols: dict[str, np.ndarray]) -> pl.DataFrame:

@@ -42,6 +42,11 @@ __all__ = [
     "UwbImuError",
     "ConfigError",
     "NumericalError",
+    "MappingError",
+    "FormatError",
+    "read_mcap",
+    "replay",
+    "write_mcap",
     "FilterConfig",
     "Ekf",
     "UpdateReport",
@@ -87,6 +92,12 @@ class ConfigError(UwbImuError):
 
 class NumericalError(UwbImuError):
     """A matrix that must be positive definite was not (e.g. a covariance in ``nees``)."""
+
+class MappingError(UwbImuError):
+    """A topic/field mapping that does not fit the recording (missing topic, unknown field)."""
+
+class FormatError(OSError):
+    """A file that is not well-formed (bad magic, truncation, CRC mismatch, unknown encoding)."""
 
 # --------------------------------------------------------------------------------------------
 # Filters (src/bindings/filters.rs)
@@ -1035,3 +1046,33 @@ def simulate(
     UwbImuError
         Bad array shape or non-finite values.
     """
+
+# --------------------------------------------------------------------------------------------
+# MCAP reading and replay (src/bindings/io.rs)
+# --------------------------------------------------------------------------------------------
+
+def read_mcap(path: str, *, mapping: str | None = None, config_file: str | None = None) -> dict[str, Any]:
+    """Read an MCAP file through a mapping (JSON text of the ``[mapping]`` table) and/or a replay
+    TOML file. Returns ``imu``, ``ranges``, ``anchors``, ``ground_truth`` (dicts of float64
+    columns), ``anchor_ids`` (list of str) and ``stats`` (dict). Raises OSError (``FormatError``)
+    for unreadable or corrupt files and ``MappingError`` for a mapping that does not fit."""
+
+def replay(
+    path: str,
+    method: str | None = None,
+    *,
+    mapping: str | None = None,
+    config_file: str | None = None,
+    config: _ConfigArg = None,
+    smooth: bool = False,
+) -> tuple[dict[str, _F64], dict[str, Any]]:
+    """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core). Returns
+    ``(columns, info)``: the run_filter columns and per-anchor statistics, mean NIS, read
+    statistics and RMSE against ground truth when mapped."""
+
+def write_mcap(
+    path: str, imu: ArrayLike, ranges: ArrayLike, anchors: ArrayLike, *, range_std: float | None = None
+) -> None:
+    """Write a recording as MCAP: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON
+    ``uwbimu.UwbRange`` on ``/uwb`` (anchor ids ``A0``, ``A1``, ...), anchor positions in the
+    ``uwbimu.anchors`` metadata record; zstd chunks."""

@@ -8,6 +8,8 @@ quaternions Hamilton ``[w, x, y, z]`` body → navigation, times in s, ranges in
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass
 from typing import Literal
 
@@ -17,7 +19,7 @@ import polars as pl
 from uwbimu_rs import _native
 from uwbimu_rs._native import Trajectory
 
-__all__ = ["OVERRIDE_KEYS", "PRESET_NAMES", "PresetName", "SimResult", "Trajectory", "preset", "simulate"]
+__all__ = ["OVERRIDE_KEYS", "PRESET_NAMES", "PresetName", "SimResult", "Trajectory", "preset", "simulate", "write_mcap"]
 
 PresetName = Literal["seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"]
 """Names accepted by :func:`preset`."""
@@ -206,3 +208,11 @@ def simulate(
             options,
         )
     )
+
+
+def write_mcap(run: SimResult, path: str | os.PathLike[str], *, range_std: float | None = None) -> None:
+    """Write a simulated run as an MCAP recording that ``uwbimu-replay`` and :func:`uwbimu_rs.replay`
+    read without a mapping: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON ``uwbimu.UwbRange`` on
+    ``/uwb`` (anchor ids ``A0``, ``A1``, ...; ``variance = range_std²`` when given) and the anchor
+    positions in the ``uwbimu.anchors`` metadata record."""
+    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std)

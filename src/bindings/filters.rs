@@ -6,12 +6,13 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
+use crate::columns::{fix_columns, step_columns, update_columns};
 use crate::config::{FilterConfig, InitialState};
 use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
-use crate::pipeline::{smooth_recording, StepRecord, Trace};
+use crate::pipeline::{smooth_recording, StepRecord};
 use crate::records::{ImuSample, RangeMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
@@ -65,7 +66,7 @@ impl PyFilterConfig {
 }
 
 /// Reads `config` (None, a `FilterConfig` or a dict of the same keys).
-fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterConfig> {
+pub(super) fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterConfig> {
     match config {
         None => Ok(FilterConfig::default()),
         Some(obj) if obj.is_none() => Ok(FilterConfig::default()),
@@ -106,13 +107,13 @@ fn read_initial(initial: &Bound<'_, PyAny>) -> PyResult<InitialState> {
 }
 
 /// Validated arrays of one batch call.
-struct Inputs {
-    imu: Vec<ImuSample>,
-    ranges: Vec<RangeMeasurement>,
-    anchors: Vec<Vec3>,
+pub(super) struct Inputs {
+    pub(super) imu: Vec<ImuSample>,
+    pub(super) ranges: Vec<RangeMeasurement>,
+    pub(super) anchors: Vec<Vec3>,
 }
 
-fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
+pub(super) fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
     let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
     let imu = validate::imu(&table::<7>(&array(imu, "imu")?, "imu", IMU_LAYOUT)?)?;
     let ranges = validate::ranges(&table::<3>(&array(ranges, "ranges")?, "ranges", RANGES_LAYOUT)?, anchors.len())?;
@@ -341,52 +342,6 @@ fn covariance_array<'py>(py: Python<'py>, p: &ErrCov) -> PyResult<Bound<'py, PyA
     Ok(PyArray2::from_vec2(py, &rows)?)
 }
 
-fn step_columns(s: &[StepRecord], covariance: bool) -> Vec<(&'static str, Vec<f64>)> {
-    let col = |f: &dyn Fn(&StepRecord) -> f64| s.iter().map(f).collect::<Vec<f64>>();
-    let mut cols = vec![
-        ("t", col(&|r| r.t_s)),
-        ("x", col(&|r| r.state.position.x)),
-        ("y", col(&|r| r.state.position.y)),
-        ("z", col(&|r| r.state.position.z)),
-        ("vx", col(&|r| r.state.velocity.x)),
-        ("vy", col(&|r| r.state.velocity.y)),
-        ("vz", col(&|r| r.state.velocity.z)),
-        ("qw", col(&|r| r.state.orientation.w)),
-        ("qx", col(&|r| r.state.orientation.i)),
-        ("qy", col(&|r| r.state.orientation.j)),
-        ("qz", col(&|r| r.state.orientation.k)),
-        ("std_x", col(&|r| r.position_cov[(0, 0)].sqrt())),
-        ("std_y", col(&|r| r.position_cov[(1, 1)].sqrt())),
-        ("std_z", col(&|r| r.position_cov[(2, 2)].sqrt())),
-        ("still", col(&|r| f64::from(u8::from(r.still)))),
-    ];
-    if covariance {
-        for (name, i, j) in
-            [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)]
-        {
-            cols.push((name, col(&|r| r.position_cov[(i, j)])));
-        }
-    }
-    cols
-}
-
-fn update_columns(trace: &Trace) -> Vec<(&'static str, Vec<f64>)> {
-    let u = &trace.updates;
-    vec![
-        ("t", u.iter().map(|r| r.t_s).collect()),
-        ("anchor", u.iter().map(|r| r.anchor as f64).collect()),
-        ("range", u.iter().map(|r| r.range_m).collect()),
-        ("innovation", u.iter().map(|r| r.report.innovation).collect()),
-        ("nis", u.iter().map(|r| r.report.nis).collect()),
-        ("accepted", u.iter().map(|r| f64::from(u8::from(r.report.accepted))).collect()),
-        ("weight", u.iter().map(|r| r.report.weight).collect()),
-        ("inflation", u.iter().map(|r| r.report.inflation).collect()),
-        ("down_weighted", u.iter().map(|r| f64::from(u8::from(r.report.down_weighted))).collect()),
-        ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
-        ("prior_fading", u.iter().map(|r| r.report.prior_fading).collect()),
-    ]
-}
-
 /// `(columns, update columns or None, info)` of one batch run.
 type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<'py, PyDict>);
 
@@ -446,28 +401,7 @@ fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, u
             let steps = smoothed.as_deref().unwrap_or(&trace.steps);
             Ok((columns(py, step_columns(steps, covariance))?, upd, info))
         }
-        BatchOutput::Multilateration(fixes) => {
-            let col = |f: &dyn Fn(&(f64, crate::multilateration::Fix)) -> f64| fixes.iter().map(f).collect::<Vec<f64>>();
-            let mut cols = vec![
-                ("t", col(&|(t, _)| *t)),
-                ("x", col(&|(_, f)| f.position.x)),
-                ("y", col(&|(_, f)| f.position.y)),
-                ("z", col(&|(_, f)| f.position.z)),
-                ("std_x", col(&|(_, f)| f.covariance[(0, 0)].sqrt())),
-                ("std_y", col(&|(_, f)| f.covariance[(1, 1)].sqrt())),
-                ("std_z", col(&|(_, f)| f.covariance[(2, 2)].sqrt())),
-                ("n_ranges", col(&|(_, f)| f.ranges_used as f64)),
-                ("residual_rms", col(&|(_, f)| f.residual_rms_m)),
-            ];
-            if covariance {
-                for (name, i, j) in
-                    [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)]
-                {
-                    cols.push((name, col(&|(_, f)| f.covariance[(i, j)])));
-                }
-            }
-            Ok((columns(py, cols)?, None, info))
-        }
+        BatchOutput::Multilateration(fixes) => Ok((columns(py, fix_columns(&fixes, covariance))?, None, info)),
     }
 }
 

@@ -4,6 +4,7 @@
 mod convert;
 mod errors;
 mod filters;
+mod io;
 mod metrics;
 mod ranging;
 mod sim;
@@ -16,7 +17,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("UwbImuError", m.py().get_type::<errors::UwbImuError>())?;
     m.add("ConfigError", m.py().get_type::<errors::ConfigError>())?;
     m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
+    m.add("MappingError", m.py().get_type::<errors::MappingError>())?;
+    m.add("FormatError", m.py().get_type::<errors::FormatError>())?;
     filters::register(m)?;
+    io::register(m)?;
     metrics::register(m)?;
     ranging::register(m)?;
     sim::register(m)?;

@@ -1,0 +1,223 @@
+//! `uwbimu-replay`: replays an MCAP recording (IMU + UWB ranges) through one of the filters,
+//! prints what it found and the end statistics, and writes the trajectory as Foxglove MCAP and/or
+//! CSV. Any error prints one message on stderr and exits with code 2.
+
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+
+use uwbimu_rs::columns::output_columns;
+use uwbimu_rs::io::csv_out::write_columns_csv;
+use uwbimu_rs::io::foxglove_out::write_trajectory_mcap;
+use uwbimu_rs::io::mapping::AnchorMapping;
+use uwbimu_rs::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
+use uwbimu_rs::methods::Method;
+use uwbimu_rs::replay::{compare_with_truth, replay, Replay};
+use uwbimu_rs::{Error, Result};
+
+/// Replay an MCAP recording of IMU and UWB ranges through a uwbimu_rs filter.
+#[derive(Debug, Parser)]
+#[command(name = "uwbimu-replay", version)]
+struct Args {
+    /// The MCAP file to replay.
+    file: PathBuf,
+    /// Method (uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf); default: the
+    /// config file's, else riekf.
+    #[arg(long)]
+    method: Option<String>,
+    /// Replay TOML: `method`, `[config]` filter settings and the `[mapping]` of topics and fields.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// IMU topic (default: the only sensor_msgs/msg/Imu topic).
+    #[arg(long)]
+    imu_topic: Option<String>,
+    /// UWB range topic (repeatable).
+    #[arg(long = "uwb-topic")]
+    uwb_topics: Vec<String>,
+    /// Anchor positions file (CSV `id,x,y,z`, TOML or JSON).
+    #[arg(long)]
+    anchors: Option<PathBuf>,
+    /// Message time: header stamp (when non-zero) or MCAP log time.
+    #[arg(long, value_parser = ["header", "log"])]
+    time_source: Option<String>,
+    /// Ground-truth topic (PoseStamped, TransformStamped or Odometry).
+    #[arg(long)]
+    ground_truth_topic: Option<String>,
+    /// Ground-truth CSV (`t_s, x, y, z`).
+    #[arg(long)]
+    ground_truth: Option<PathBuf>,
+    /// Write the trajectory as Foxglove MCAP here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the trajectory as CSV (the run_filter columns) here.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// RTS-smooth the run (inertial methods).
+    #[arg(long)]
+    smooth: bool,
+    /// No progress bar even on a terminal.
+    #[arg(long)]
+    no_progress: bool,
+}
+
+/// A one-line progress bar on stderr, drawn only on a terminal.
+struct Progress {
+    total: u64,
+    enabled: bool,
+    last_percent: u64,
+}
+
+impl Progress {
+    fn update(&mut self, done: u64) {
+        let percent = (done * 100).checked_div(self.total).unwrap_or(100).min(100);
+        if !self.enabled || percent == self.last_percent {
+            return;
+        }
+        self.last_percent = percent;
+        let filled = (percent / 4) as usize;
+        eprint!("\rreading [{}{}] {percent:3}%", "#".repeat(filled), ".".repeat(25 - filled));
+        if percent == 100 {
+            eprintln!();
+        }
+        let _ = std::io::stderr().flush();
+    }
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("uwbimu-replay: error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn settings(args: &Args) -> Result<(ReplayConfig, Method, String)> {
+    let mut cfg = match &args.config {
+        Some(p) => ReplayConfig::read(p)?,
+        None => ReplayConfig::from_toml("", std::path::Path::new("."))?,
+    };
+    let m = &mut cfg.mapping;
+    if let Some(t) = &args.imu_topic {
+        m.imu_topic = Some(t.clone());
+    }
+    if !args.uwb_topics.is_empty() {
+        m.uwb.topics = args.uwb_topics.clone();
+    }
+    if let Some(a) = &args.anchors {
+        m.anchors = AnchorMapping { file: Some(a.clone()), ..AnchorMapping::default() };
+    }
+    if let Some(t) = &args.time_source {
+        m.time_source = TimeSource::parse(t)?;
+    }
+    if let Some(t) = &args.ground_truth_topic {
+        m.ground_truth.topic = Some(t.clone());
+    }
+    if let Some(f) = &args.ground_truth {
+        m.ground_truth.file = Some(f.clone());
+    }
+    let name = args.method.as_deref().or(cfg.method.as_deref()).unwrap_or("riekf").to_string();
+    Ok((cfg, Method::parse(&name)?, name))
+}
+
+fn print_found(args: &Args, cfg: &ReplayConfig, rec: &Recording) {
+    let s = &rec.stats;
+    println!("file: {}", args.file.display());
+    println!("{:<36} {:<44} {:<10} {:>8}  use", "topic", "schema", "encoding", "messages");
+    for t in &s.topics {
+        println!("{:<36} {:<44} {:<10} {:>8}  {}", t.topic, t.schema, t.encoding, t.count, t.role.name());
+    }
+    println!("duration: {:.2} s", s.duration_s());
+    let m = &cfg.mapping;
+    let u = &m.uwb;
+    println!(
+        "mapping: time source {:?}, reorder window {} s; uwb range `{}`, anchor id `{}`, valid `{}`, anchor position `{}`, scale {}",
+        m.time_source,
+        m.reorder_window_s,
+        u.range.as_deref().unwrap_or("range"),
+        u.anchor_id.as_deref().unwrap_or("(from the message: JSON anchor_id / Range frame_id or topic)"),
+        u.valid.as_deref().unwrap_or("-"),
+        u.anchor_position.as_deref().unwrap_or("-"),
+        u.scale.unwrap_or(1.0)
+    );
+    println!(
+        "read: {} IMU samples, {} ranges, {} anchors (from {}), {} ground-truth samples",
+        rec.imu.len(),
+        rec.ranges.len(),
+        rec.anchors.len(),
+        s.anchor_source,
+        rec.ground_truth.len()
+    );
+    println!(
+        "order: {} reordered within the window, {} late beyond it (dropped), {} duplicate IMU stamps, {} stamped by log time",
+        s.reordered, s.late_dropped, s.imu_duplicates, s.log_time_stamps
+    );
+    if s.unknown_anchor > 0 {
+        println!("dropped: {} ranges to anchors without a position", s.unknown_anchor);
+    }
+}
+
+fn print_stats(rec: &Recording, result: &Replay) {
+    println!("{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}", "anchor", "invalid", "accepted", "down-weighted", "rejected", "bad");
+    for a in &result.anchors {
+        let read = rec.stats.per_anchor.get(&a.id).copied().unwrap_or_default();
+        println!(
+            "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
+            a.id, read.invalid, a.accepted, a.down_weighted, a.rejected, read.bad_value
+        );
+    }
+    match result.mean_nis {
+        Some(n) => println!("mean NIS: {n:.3} (1 for a consistent filter)"),
+        None => println!("mean NIS: -"),
+    }
+}
+
+fn run(args: &Args) -> Result<()> {
+    let (cfg, method, method_name) = settings(args)?;
+    let size = std::fs::metadata(&args.file)
+        .map_err(|e| Error::Io { path: args.file.display().to_string(), reason: e.to_string() })?
+        .len();
+    let mut progress = Progress {
+        total: size,
+        enabled: !args.no_progress && std::io::stderr().is_terminal() && size > 8 << 20,
+        last_percent: 101,
+    };
+    let start = Instant::now();
+    let rec = read_recording_file(&args.file, &cfg.mapping, |n| progress.update(n))?;
+    let read_s = start.elapsed().as_secs_f64();
+    print_found(args, &cfg, &rec);
+    let start = Instant::now();
+    let result = replay(&rec, method, &cfg.config, args.smooth)?;
+    println!(
+        "method: {method_name}{}; read {read_s:.2} s, filter {:.2} s",
+        if args.smooth { " (smoothed)" } else { "" },
+        start.elapsed().as_secs_f64()
+    );
+    print_stats(&rec, &result);
+    let trajectory = result.trajectory();
+    if !rec.ground_truth.is_empty() {
+        let (raw, aligned) = compare_with_truth(&trajectory, &rec.ground_truth)?;
+        println!(
+            "RMSE vs ground truth ({} steps): horizontal {:.3} m, 3-D {:.3} m; after rigid alignment: horizontal {:.3} m, 3-D {:.3} m",
+            raw.horizontal.n, raw.horizontal.rmse, raw.three_d.rmse, aligned.horizontal.rmse, aligned.three_d.rmse
+        );
+    }
+    if let Some(path) = &args.out {
+        let label = path.display().to_string();
+        let file = std::fs::File::create(path).map_err(|e| Error::Io { path: label.clone(), reason: e.to_string() })?;
+        write_trajectory_mcap(std::io::BufWriter::new(file), &label, &trajectory, 1.0, 0.2)?;
+        println!(
+            "wrote {label} (foxglove.PoseInFrame /uwbimu/pose, foxglove.PosesInFrame /uwbimu/path, foxglove.FrameTransform /tf)"
+        );
+    }
+    if let Some(path) = &args.csv {
+        write_columns_csv(path, &output_columns(&result.output, false))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

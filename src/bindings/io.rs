@@ -1,0 +1,205 @@
+//! Bindings of the MCAP reader and replay: `read_mcap` (columns of IMU, ranges, anchors, ground
+//! truth) and `replay` (the `uwbimu-replay` core: read, self-initialise, filter, statistics).
+
+use std::path::{Path, PathBuf};
+
+use pyo3::exceptions::PyFileNotFoundError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use super::convert::columns;
+use super::filters::{read_config, read_inputs};
+use crate::columns::output_columns;
+use crate::error::Error;
+use crate::io::recording_out::write_recording_mcap;
+use crate::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
+use crate::methods::Method;
+use crate::replay::{compare_with_truth, replay as replay_recording};
+
+/// The replay settings from an optional TOML file and an optional mapping (JSON text).
+fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<ReplayConfig> {
+    let mut cfg = match config_file {
+        Some(p) => ReplayConfig::read(p)?,
+        None => ReplayConfig::from_toml("", Path::new("."))?,
+    };
+    if let Some(m) = mapping_json {
+        cfg.mapping = Mapping::from_json(m)?;
+    }
+    Ok(cfg)
+}
+
+fn read(py: Python<'_>, path: &Path, mapping: &Mapping) -> PyResult<Recording> {
+    if !path.exists() {
+        return Err(PyFileNotFoundError::new_err(format!("{}: no such file", path.display())));
+    }
+    Ok(py.detach(|| read_recording_file(path, mapping, |_| {}))?)
+}
+
+fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let topics = PyList::empty(py);
+    for t in &s.topics {
+        let td = PyDict::new(py);
+        td.set_item("topic", &t.topic)?;
+        td.set_item("schema", &t.schema)?;
+        td.set_item("encoding", &t.encoding)?;
+        td.set_item("count", t.count)?;
+        td.set_item("role", t.role.name())?;
+        topics.append(td)?;
+    }
+    d.set_item("topics", topics)?;
+    d.set_item("duration_s", s.duration_s())?;
+    d.set_item("late_dropped", s.late_dropped)?;
+    d.set_item("reordered", s.reordered)?;
+    d.set_item("imu_duplicates", s.imu_duplicates)?;
+    d.set_item("unknown_anchor", s.unknown_anchor)?;
+    d.set_item("anchor_source", s.anchor_source)?;
+    d.set_item("log_time_stamps", s.log_time_stamps)?;
+    let invalid = PyDict::new(py);
+    for (id, c) in &s.per_anchor {
+        invalid.set_item(id, c.invalid)?;
+    }
+    d.set_item("invalid_per_anchor", invalid)?;
+    Ok(d)
+}
+
+/// Reads an MCAP file through a mapping (JSON text of the `[mapping]` table) and/or a replay TOML
+/// file. Returns a dict: `imu`, `ranges`, `anchors`, `ground_truth` (dicts of columns),
+/// `anchor_ids` (list of str) and `stats` (dict).
+#[pyfunction]
+#[pyo3(signature = (path, *, mapping=None, config_file=None))]
+fn read_mcap<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    mapping: Option<&str>,
+    config_file: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let cfg = settings(config_file.as_deref(), mapping)?;
+    let rec = read(py, &path, &cfg.mapping)?;
+    let out = PyDict::new(py);
+    let col = |f: &dyn Fn(usize) -> f64, n: usize| (0..n).map(f).collect::<Vec<f64>>();
+    let (imu, ranges, gt) = (&rec.imu, &rec.ranges, &rec.ground_truth);
+    out.set_item(
+        "imu",
+        columns(
+            py,
+            vec![
+                ("t", col(&|i| imu[i].t_s, imu.len())),
+                ("ax", col(&|i| imu[i].accel.x, imu.len())),
+                ("ay", col(&|i| imu[i].accel.y, imu.len())),
+                ("az", col(&|i| imu[i].accel.z, imu.len())),
+                ("gx", col(&|i| imu[i].gyro.x, imu.len())),
+                ("gy", col(&|i| imu[i].gyro.y, imu.len())),
+                ("gz", col(&|i| imu[i].gyro.z, imu.len())),
+            ],
+        )?,
+    )?;
+    out.set_item(
+        "ranges",
+        columns(
+            py,
+            vec![
+                ("t", col(&|i| ranges[i].t_s, ranges.len())),
+                ("anchor", col(&|i| ranges[i].anchor as f64, ranges.len())),
+                ("range", col(&|i| ranges[i].range_m, ranges.len())),
+                ("variance", rec.range_variances.clone()),
+            ],
+        )?,
+    )?;
+    let a = &rec.anchors;
+    out.set_item(
+        "anchors",
+        columns(py, vec![("x", col(&|i| a[i].x, a.len())), ("y", col(&|i| a[i].y, a.len())), ("z", col(&|i| a[i].z, a.len()))])?,
+    )?;
+    out.set_item("anchor_ids", rec.anchor_ids.clone())?;
+    out.set_item(
+        "ground_truth",
+        columns(
+            py,
+            vec![
+                ("t", col(&|i| gt[i].0, gt.len())),
+                ("x", col(&|i| gt[i].1.x, gt.len())),
+                ("y", col(&|i| gt[i].1.y, gt.len())),
+                ("z", col(&|i| gt[i].1.z, gt.len())),
+            ],
+        )?,
+    )?;
+    out.set_item("stats", stats_dict(py, &rec.stats)?)?;
+    Ok(out)
+}
+
+/// Reads an MCAP file and replays it through `method` (None: the config file's, else `riekf`);
+/// the same core as the `uwbimu-replay` binary. Returns `(columns, info)`.
+#[pyfunction]
+#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, smooth=false))]
+fn replay<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    method: Option<&str>,
+    mapping: Option<&str>,
+    config_file: Option<PathBuf>,
+    config: Option<&Bound<'py, PyAny>>,
+    smooth: bool,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    let mut cfg = settings(config_file.as_deref(), mapping)?;
+    if config.is_some_and(|c| !c.is_none()) {
+        cfg.config = read_config(config)?;
+    }
+    let name = method.or(cfg.method.as_deref()).unwrap_or("riekf").to_string();
+    let method = Method::parse(&name)?;
+    let rec = read(py, &path, &cfg.mapping)?;
+    let result = py.detach(|| replay_recording(&rec, method, &cfg.config, smooth))?;
+    let info = PyDict::new(py);
+    info.set_item("method", name)?;
+    info.set_item("stats", stats_dict(py, &rec.stats)?)?;
+    info.set_item("mean_nis", result.mean_nis)?;
+    let anchors = PyList::empty(py);
+    for a in &result.anchors {
+        let d = PyDict::new(py);
+        d.set_item("id", &a.id)?;
+        d.set_item("accepted", a.accepted)?;
+        d.set_item("down_weighted", a.down_weighted)?;
+        d.set_item("rejected", a.rejected)?;
+        anchors.append(d)?;
+    }
+    info.set_item("anchors", anchors)?;
+    if !rec.ground_truth.is_empty() {
+        let (raw, aligned) = compare_with_truth(&result.trajectory(), &rec.ground_truth)?;
+        info.set_item("rmse_horizontal_m", raw.horizontal.rmse)?;
+        info.set_item("rmse_horizontal_aligned_m", aligned.horizontal.rmse)?;
+        info.set_item("rmse_3d_m", raw.three_d.rmse)?;
+        info.set_item("rmse_3d_aligned_m", aligned.three_d.rmse)?;
+    }
+    Ok((columns(py, output_columns(&result.output, false))?, info))
+}
+
+/// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
+/// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...), anchors in the `uwbimu.anchors`
+/// metadata record; zstd chunks.
+#[pyfunction]
+#[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None))]
+fn write_mcap(
+    py: Python<'_>,
+    path: PathBuf,
+    imu: &Bound<'_, PyAny>,
+    ranges: &Bound<'_, PyAny>,
+    anchors: &Bound<'_, PyAny>,
+    range_std: Option<f64>,
+) -> PyResult<()> {
+    let inputs = read_inputs(imu, ranges, anchors)?;
+    let label = path.display().to_string();
+    py.detach(|| {
+        let file = std::fs::File::create(&path).map_err(|e| Error::Io { path: label.clone(), reason: e.to_string() })?;
+        let sink = std::io::BufWriter::new(file);
+        write_recording_mcap(sink, &label, &inputs.imu, &inputs.ranges, &inputs.anchors, range_std, true)
+    })?;
+    Ok(())
+}
+
+/// Registers the functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(read_mcap, m)?)?;
+    m.add_function(wrap_pyfunction!(replay, m)?)?;
+    m.add_function(wrap_pyfunction!(write_mcap, m)?)?;
+    Ok(())
+}

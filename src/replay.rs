@@ -1,0 +1,99 @@
+//! Replay of a decoded recording through one method ([`crate::methods::run_method`]), with the
+//! per-anchor update statistics and the comparison with ground truth that the `uwbimu-replay`
+//! binary and `uwbimu_rs.replay` report.
+
+use crate::config::FilterConfig;
+use crate::error::{Error, Result};
+use crate::io::Recording;
+use crate::math::{Quat, Vec3};
+use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::metrics::{evaluate, Evaluation};
+
+/// What the filter did with one anchor's ranges.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct AnchorUpdateStats {
+    /// Anchor id.
+    pub id: String,
+    /// Ranges applied at full weight.
+    pub accepted: usize,
+    /// Ranges applied with inflated noise (robust methods).
+    pub down_weighted: usize,
+    /// Ranges not applied (gated out or unusable).
+    pub rejected: usize,
+}
+
+/// The result of [`replay`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Replay {
+    /// The method's output.
+    pub output: BatchOutput,
+    /// Per anchor, in anchor-index order (inertial methods; empty for `uwb_ls`).
+    pub anchors: Vec<AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges (None when there were none).
+    pub mean_nis: Option<f64>,
+}
+
+/// One trajectory point: time s, position m, orientation (None for `uwb_ls`).
+pub type PosePoint = (f64, Vec3, Option<Quat>);
+
+impl Replay {
+    /// The estimated trajectory (filtered or smoothed records; `uwb_ls` fixes).
+    pub fn trajectory(&self) -> Vec<PosePoint> {
+        match &self.output {
+            BatchOutput::Inertial { trace, smoothed, .. } => smoothed
+                .as_deref()
+                .unwrap_or(&trace.steps)
+                .iter()
+                .map(|s| (s.t_s, s.state.position, Some(s.state.orientation)))
+                .collect(),
+            BatchOutput::Multilateration(fixes) => fixes.iter().map(|(t, f)| (*t, f.position, None)).collect(),
+        }
+    }
+}
+
+/// Runs `method` over `rec` (self-initialising) and gathers per-anchor statistics.
+///
+/// # Errors
+/// As [`run_method`]; [`Error::InsufficientData`] if the recording has no IMU samples or ranges.
+pub fn replay(rec: &Recording, method: Method, config: &FilterConfig, smooth: bool) -> Result<Replay> {
+    if rec.imu.is_empty() || rec.ranges.is_empty() {
+        return Err(Error::InsufficientData(format!(
+            "the recording has {} IMU samples and {} usable ranges",
+            rec.imu.len(),
+            rec.ranges.len()
+        )));
+    }
+    let input = BatchInput { imu: &rec.imu, ranges: &rec.ranges, anchors: &rec.anchors, initial: None, config, smooth, mag: &[] };
+    let output = run_method(method, &input)?;
+    let mut anchors: Vec<AnchorUpdateStats> =
+        rec.anchor_ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect();
+    let (mut nis_sum, mut nis_n) = (0.0, 0usize);
+    if let BatchOutput::Inertial { trace, .. } = &output {
+        for u in &trace.updates {
+            let Some(a) = anchors.get_mut(u.anchor) else { continue };
+            match (u.report.accepted, u.report.down_weighted) {
+                (true, false) => a.accepted += 1,
+                (true, true) => a.down_weighted += 1,
+                (false, _) => a.rejected += 1,
+            }
+            if u.report.accepted && u.report.nis.is_finite() {
+                nis_sum += u.report.nis;
+                nis_n += 1;
+            }
+        }
+    }
+    Ok(Replay { output, anchors, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
+}
+
+/// Errors of a trajectory against ground truth: directly and after the least-squares rigid
+/// (SE(3)) alignment of the estimate onto the truth ([`crate::metrics::rigid_alignment`]).
+///
+/// # Errors
+/// As [`evaluate`] (e.g. no estimate inside the truth time span).
+pub fn compare_with_truth(trajectory: &[PosePoint], truth: &[(f64, Vec3)]) -> Result<(Evaluation, Evaluation)> {
+    let t: Vec<f64> = trajectory.iter().map(|p| p.0).collect();
+    let p: Vec<Vec3> = trajectory.iter().map(|p| p.1).collect();
+    let tt: Vec<f64> = truth.iter().map(|g| g.0).collect();
+    let tp: Vec<Vec3> = truth.iter().map(|g| g.1).collect();
+    Ok((evaluate(&t, &p, &tt, &tp, false)?, evaluate(&t, &p, &tt, &tp, true)?))
+}

@@ -1,0 +1,161 @@
+//! The `uwbimu-replay` binary end to end: a simulated recording written as MCAP is replayed
+//! (statistics, RMSE, Foxglove MCAP and CSV output), and broken inputs (truncated file, bad magic,
+//! CRC mismatch, unknown encoding, a mapping that does not fit, missing topics, empty file) end
+//! with one clear message and exit code 2, never a panic.
+
+#![allow(clippy::unwrap_used)]
+
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use uwbimu_rs::io::mcap_read::{read_mcap, McapEvent};
+use uwbimu_rs::io::recording_out::{write_recording_mcap, IMU_MSG};
+use uwbimu_rs::sim::{preset, simulate, SimData};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("uwbimu_cli_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn sim() -> SimData {
+    simulate(&preset("seed000_los", 3).unwrap()).unwrap()
+}
+
+/// The simulated run as MCAP bytes (zstd or uncompressed chunks).
+fn sim_mcap(data: &SimData, compress: bool) -> Vec<u8> {
+    let mut buf = Cursor::new(Vec::new());
+    write_recording_mcap(&mut buf, "sim", &data.imu, &data.ranges, &data.anchors, Some(0.1), compress).unwrap();
+    buf.into_inner()
+}
+
+fn replay(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_uwbimu-replay")).args(args).output().unwrap()
+}
+
+/// Asserts exit code 2 with one error line on stderr containing `needle`, and no panic.
+fn fails_with(out: &Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("error") && stderr.contains(needle), "expected `{needle}` in: {stderr}");
+}
+
+#[test]
+fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
+    let data = sim();
+    let file = scratch("sim.mcap");
+    std::fs::write(&file, sim_mcap(&data, true)).unwrap();
+    let truth = scratch("truth.csv");
+    let mut text = String::from("t_s,x,y,z\n");
+    for s in &data.truth {
+        text += &format!("{},{},{},{}\n", s.t_s, s.position.x, s.position.y, s.position.z);
+    }
+    std::fs::write(&truth, text).unwrap();
+    let (out_mcap, out_csv) = (scratch("out.mcap"), scratch("out.csv"));
+    let out = replay(&[
+        file.to_str().unwrap(),
+        "--method",
+        "ekf",
+        "--ground-truth",
+        truth.to_str().unwrap(),
+        "--out",
+        out_mcap.to_str().unwrap(),
+        "--csv",
+        out_csv.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    for needle in ["/imu", "sensor_msgs/msg/Imu", "uwbimu.UwbRange", "metadata uwbimu.anchors", "mean NIS", "A0", "RMSE"] {
+        assert!(stdout.contains(needle), "`{needle}` missing in:\n{stdout}");
+    }
+    // The RMSE line: the simulated LOS run is tracked to well under a metre.
+    let rmse: f64 = stdout.split("horizontal ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+    assert!(rmse < 0.5, "{stdout}");
+    let csv = std::fs::read_to_string(&out_csv).unwrap();
+    assert!(csv.starts_with("t,x,y,z,vx,vy,vz,qw,qx,qy,qz,std_x,std_y,std_z,still\n"));
+    assert_eq!(csv.lines().count(), data.imu.len() + 1);
+    // The Foxglove file: three JSON channels with the exact schema names.
+    let bytes = std::fs::read(&out_mcap).unwrap();
+    let mut schemas = BTreeMap::new();
+    read_mcap(
+        Cursor::new(&bytes),
+        bytes.len() as u64,
+        "out",
+        |e| {
+            if let McapEvent::Message { channel, .. } = e {
+                let s = channel.schema.as_ref().unwrap();
+                assert_eq!((s.encoding.as_str(), channel.message_encoding.as_str()), ("jsonschema", "json"));
+                *schemas.entry(s.name.clone()).or_insert(0usize) += 1;
+            }
+            Ok(())
+        },
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(schemas["foxglove.PoseInFrame"], data.imu.len());
+    assert_eq!(schemas["foxglove.FrameTransform"], data.imu.len());
+    assert!(schemas["foxglove.PosesInFrame"] > 1);
+}
+
+fn write(name: &str, bytes: &[u8]) -> PathBuf {
+    let p = scratch(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn run_on(path: &Path) -> Output {
+    replay(&[path.to_str().unwrap()])
+}
+
+#[test]
+fn broken_files_exit_with_code_2_and_a_clear_message() {
+    let good = sim_mcap(&sim(), true);
+    fails_with(&run_on(&write("truncated.mcap", &good[..good.len() / 2])), "truncated");
+    let mut bad_magic = good.clone();
+    bad_magic[1] = b'X';
+    fails_with(&run_on(&write("magic.mcap", &bad_magic)), "magic");
+    fails_with(&run_on(&write("empty.mcap", b"")), "empty");
+    fails_with(&run_on(Path::new("/nonexistent/file.mcap")), "No such file");
+    // A flipped byte inside an uncompressed chunk: the chunk CRC no longer matches.
+    let mut plain = sim_mcap(&sim(), false);
+    let at = plain.len() / 2;
+    plain[at] ^= 0x40;
+    fails_with(&run_on(&write("crc.mcap", &plain)), "CRC mismatch");
+}
+
+#[test]
+fn unknown_encoding_is_reported() {
+    let mut buf = Cursor::new(Vec::new());
+    {
+        let mut w = mcap::WriteOptions::new().create(&mut buf).unwrap();
+        let schema = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", IMU_MSG.as_bytes()).unwrap();
+        let ch = w.add_channel(schema, "/imu", "protobuf", &BTreeMap::new()).unwrap();
+        let header = mcap::records::MessageHeader { channel_id: ch, sequence: 0, log_time: 1, publish_time: 1 };
+        w.write_to_known_channel(&header, &[0, 1, 2, 3]).unwrap();
+        w.finish().unwrap();
+    }
+    fails_with(&run_on(&write("protobuf.mcap", &buf.into_inner())), "unknown message encoding `protobuf`");
+}
+
+#[test]
+fn mappings_that_do_not_fit_are_reported() {
+    let file = write("sim2.mcap", &sim_mcap(&sim(), true));
+    let f = file.to_str().unwrap();
+    fails_with(&replay(&[f, "--imu-topic", "/nope"]), "topic `/nope` not found");
+    fails_with(&replay(&[f, "--uwb-topic", "/uwb2"]), "topic `/uwb2` not found");
+    fails_with(&replay(&[f, "--method", "kalman"]), "allowed: uwb_ls, ekf");
+    let isas = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/isas-walk1/isas-walk1.mcap");
+    let config = write(
+        "misfit.toml",
+        b"[mapping]\nimu_topic = \"/waveshare_sense_hat_b\"\n[mapping.uwb]\ntopics = [\"/rtls_flares\"]\nrange = \"ranges[].rng\"\nanchor_id = \"ranges[].id\"\n",
+    );
+    fails_with(&replay(&[isas.to_str().unwrap(), "--config", config.to_str().unwrap()]), "has no field `rng`");
+    let no_anchor_id = write(
+        "noid.toml",
+        b"[mapping]\nimu_topic = \"/waveshare_sense_hat_b\"\n[mapping.uwb]\ntopics = [\"/rtls_flares\"]\nrange = \"ranges[].range\"\n",
+    );
+    fails_with(&replay(&[isas.to_str().unwrap(), "--config", no_anchor_id.to_str().unwrap()]), "needs `anchor_id`");
+}
