@@ -33,6 +33,16 @@ ANCHORS = {"11": (0.0, 0.0, 2.0), "12": (6.0, 0.0, 0.5), "13": (6.0, 5.0, 2.0), 
 T0_NS = 1_700_000_000_000_000_000
 IMU_HZ, UWB_HZ, DURATION_S = 50, 10, 4.0
 SEP = "=" * 80
+# The dependency sections every message with a std_msgs/Header carries in its ros2msg schema.
+HEADER_DEPS = f"""{SEP}
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+{SEP}
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
 
 IMU_MSG = f"""std_msgs/Header header
 geometry_msgs/Quaternion orientation
@@ -41,15 +51,7 @@ geometry_msgs/Vector3 angular_velocity
 float64[9] angular_velocity_covariance
 geometry_msgs/Vector3 linear_acceleration
 float64[9] linear_acceleration_covariance
-{SEP}
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-{SEP}
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-{SEP}
+{HEADER_DEPS}{SEP}
 MSG: geometry_msgs/Quaternion
 float64 x 0
 float64 y 0
@@ -66,15 +68,7 @@ UWB_MSG = f"""# A vendor-style UWB message: one entry per anchor.
 std_msgs/Header header
 UwbRange[] ranges
 uint8 MAX_ANCHORS=8
-{SEP}
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-{SEP}
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-{SEP}
+{HEADER_DEPS}{SEP}
 MSG: demo_msgs/UwbRange
 uint16 id
 float32 range_mm
@@ -90,15 +84,7 @@ float32 min_range
 float32 max_range
 float32 range
 float32 variance
-{SEP}
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-{SEP}
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-"""
+{HEADER_DEPS}"""
 
 UWB_RANGE_SCHEMA = {
     "title": "uwbimu.UwbRange",

@@ -396,8 +396,9 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
 
-    /// Six anchors at low and high heights around a 10 m × 8 m room.
-    fn room_anchors() -> Vec<Vec3> {
+    /// Six anchors at low and high heights around a 10 m × 8 m room (also used by the
+    /// [`super::l1`] tests).
+    pub(super) fn room_anchors() -> Vec<Vec3> {
         vec![
             Vec3::new(0.0, 0.0, 0.3),
             Vec3::new(10.0, 0.0, 2.8),
@@ -408,7 +409,8 @@ mod tests {
         ]
     }
 
-    fn exact_obs(anchors: &[Vec3], p: &Vec3) -> Vec<(usize, f64)> {
+    /// Noise-free `(anchor index, range)` from `p` to every anchor.
+    pub(super) fn exact_obs(anchors: &[Vec3], p: &Vec3) -> Vec<(usize, f64)> {
         anchors.iter().enumerate().map(|(i, a)| (i, (p - a).norm())).collect()
     }
 

@@ -226,23 +226,11 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
 
-    /// Five anchors at low and high heights around a 10 m × 8 m room.
+    use crate::multilateration::tests::exact_obs;
+
+    /// The first five of the multilateration tests' room anchors.
     fn room_anchors() -> Vec<Vec3> {
-        vec![
-            Vec3::new(0.0, 0.0, 0.3),
-            Vec3::new(10.0, 0.0, 2.8),
-            Vec3::new(10.0, 8.0, 0.4),
-            Vec3::new(0.0, 8.0, 2.7),
-            Vec3::new(5.0, -0.5, 2.9),
-        ]
-    }
-
-    fn exact_obs(anchors: &[Vec3], p: &Vec3) -> Vec<(usize, f64)> {
-        anchors.iter().enumerate().map(|(i, a)| (i, (p - a).norm())).collect()
-    }
-
-    fn l1_cost(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> f64 {
-        obs.iter().map(|&(a, r)| ((p - anchors[a]).norm() - r).abs()).sum()
+        crate::multilateration::tests::room_anchors()[..5].to_vec()
     }
 
     #[test]
@@ -294,8 +282,8 @@ mod tests {
         let largest_other = others.fold(0.0, f64::max);
         assert!(biased > 10.0 * largest_other, "{:?}", l1.residuals_m);
         // The L1 fix is a minimum of E(p) (eq. (33)), below the L2 fix's cost.
-        let cost = l1_cost(anchors, &obs, &l1.position);
-        assert!(cost < l1_cost(anchors, &obs, &l2.position));
+        let cost = abs_cost(anchors, &obs, &l1.position);
+        assert!(cost < abs_cost(anchors, &obs, &l2.position));
         for k in 0..3 {
             if l1.planar && k == 2 {
                 continue;
@@ -303,8 +291,8 @@ mod tests {
             let mut d = Vec3::zeros();
             d[k] = 1e-3;
             let tol = 1e-6;
-            assert!(cost <= l1_cost(anchors, &obs, &(l1.position + d)) + tol, "axis {k}");
-            assert!(cost <= l1_cost(anchors, &obs, &(l1.position - d)) + tol, "axis {k}");
+            assert!(cost <= abs_cost(anchors, &obs, &(l1.position + d)) + tol, "axis {k}");
+            assert!(cost <= abs_cost(anchors, &obs, &(l1.position - d)) + tol, "axis {k}");
         }
     }
 
@@ -363,9 +351,9 @@ mod tests {
                     let fix = l1_solve_epoch(&anchors, &obs, &ls, &L1Config::default()).unwrap();
                     let best = circle_intersections(&anchors, &obs, 0.9)
                         .iter()
-                        .map(|c| l1_cost(&anchors, &obs, c))
+                        .map(|c| abs_cost(&anchors, &obs, c))
                         .fold(f64::INFINITY, f64::min);
-                    assert!(l1_cost(&anchors, &obs, &fix.position) <= best + 1e-3, "tag {p:?}: not the global optimum");
+                    assert!(abs_cost(&anchors, &obs, &fix.position) <= best + 1e-3, "tag {p:?}: not the global optimum");
                     cases += 1;
                     if fix.residuals_m[bad] > 2.9 && (fix.position - p).norm() < 0.01 {
                         isolated += 1;
