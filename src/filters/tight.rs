@@ -104,16 +104,17 @@ impl TightFilter {
 
     /// Robustness factors `Cu_i` of one epoch (seed 002 eqs. (33)–(37)) from the L1 fit of its
     /// ranges in the plane of the predicted tag height (seed 002 §3.1 works in the plane; the
-    /// height comes from the INS). Allocates (the L1 fit does); UWB epochs are far rarer than
+    /// height comes from the INS); for `ResidualWeighted` with two ranges, from the two-range
+    /// rule of seed 003 instead. Allocates (the L1 fit does); UWB epochs are far rarer than
     /// IMU samples.
     fn robustness(&self, ranges: &[(usize, f64)]) -> Vec<RobustnessFactor> {
         let config = self.core.config();
-        let tag = tag_position(self.core.state(), &config.lever_arm);
-        let ls = LsConfig { range_std_m: config.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
         if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
             let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
             return vec![robustness_factor(r1, res[0], config.range_std), robustness_factor(r2, res[1], config.range_std)];
         }
+        let tag = tag_position(self.core.state(), &config.lever_arm);
+        let ls = LsConfig { range_std_m: config.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
         let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
         robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.range_std)
     }
