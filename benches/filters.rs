@@ -5,7 +5,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::filters::{Criekf, Ekf, Riekf, Ukf};
+use uwbimu_rs::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Riekf, Ukf};
 use uwbimu_rs::math::Vec3;
 use uwbimu_rs::pipeline::Estimator;
 use uwbimu_rs::planar::{PlanarFilter, PlanarKind};
@@ -72,6 +72,9 @@ fn bench_all(c: &mut Criterion) {
     bench_filter(c, "ekf", Box::new(Ekf::new));
     bench_filter(c, "riekf", Box::new(Riekf::new));
     bench_filter(c, "criekf", Box::new(Criekf::new));
+    bench_filter(c, "ckf", Box::new(Ckf::new));
+    bench_filter(c, "arckf", Box::new(Arckf::new));
+    bench_filter(c, "ackf", Box::new(Ackf::new));
     bench_filter(c, "ukf", Box::new(Ukf::new));
     for (name, kind) in [("ekf2d", PlanarKind::Ekf), ("ukf2d", PlanarKind::Ukf), ("cekf2d", PlanarKind::Cekf)] {
         bench_filter(c, name, Box::new(move |a, i, cfg| PlanarFilter::new(kind, a, i, &cfg)));
