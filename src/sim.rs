@@ -20,18 +20,24 @@
 
 mod imu;
 mod outliers;
+mod overlay;
 mod presets;
 mod trajectory;
 mod uwb;
+mod zoo;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
 pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
+pub use overlay::{Overlay, Sinusoid};
 pub use presets::{preset, PRESET_NAMES};
 pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Trajectory};
-pub use uwb::{NlosConfig, NlosWindow, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER};
+pub use uwb::{
+    NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
+};
+pub use zoo::{matched_config, zoo, Scenario, ZOO_NAMES};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
@@ -72,6 +78,12 @@ pub struct SimConfig {
     pub accel_outliers: AccelOutliers,
     /// Seed of all random draws.
     pub seed: u64,
+    /// The recording starts at this trajectory time, s: IMU samples and ranges before it are not
+    /// delivered (a log started while the platform was already moving).
+    pub start_s: f64,
+    /// Survey errors: the anchor table handed out ([`SimData::anchors`]) is the true one plus
+    /// these offsets `(anchor index, offset m)`; ranges are measured to the true anchors.
+    pub anchor_survey_errors: Vec<(usize, Vec3)>,
 }
 
 impl Default for SimConfig {
@@ -91,6 +103,8 @@ impl Default for SimConfig {
             magnetometer: None,
             accel_outliers: AccelOutliers::default(),
             seed: 0,
+            start_s: 0.0,
+            anchor_survey_errors: Vec::new(),
         }
     }
 }
@@ -104,8 +118,11 @@ pub struct SimData {
     pub ranges: Vec<RangeMeasurement>,
     /// One label per range: [`LABEL_LOS`], [`LABEL_NLOS`] or [`LABEL_OUTLIER`].
     pub range_labels: Vec<u8>,
-    /// Anchor positions, navigation frame, m.
+    /// Anchor positions as surveyed (the true ones plus [`SimConfig::anchor_survey_errors`]),
+    /// navigation frame, m: what a filter is given.
     pub anchors: Vec<Vec3>,
+    /// True anchor positions, navigation frame, m.
+    pub true_anchors: Vec<Vec3>,
     /// Truth of the body origin at the IMU times.
     pub truth: Vec<TruthSample>,
     /// Magnetometer samples at the IMU times (empty without a magnetometer).
@@ -227,6 +244,25 @@ impl SimConfig {
         probability("uwb.dropout_prob", u.dropout_prob)?;
         for &a in &u.outlier_anchors {
             anchor_index("uwb.outlier_anchors", a, k)?;
+        }
+        non_negative("uwb.stagger_s", u.stagger_s)?;
+        non_negative("uwb.jitter_s", u.jitter_s)?;
+        if u.anchor_rate_divisors.len() > k || u.anchor_rate_divisors.contains(&0) {
+            return Err(invalid("uwb.anchor_rate_divisors", "one divisor >= 1 per anchor at most"));
+        }
+        for o in &u.outages {
+            if !(o.start_s.is_finite() && o.end_s.is_finite()) {
+                return Err(invalid("uwb.outages", "times must be finite"));
+            }
+            ordered("uwb.outages", o.start_s, o.end_s)?;
+        }
+        non_negative("start_s", self.start_s)?;
+        if self.start_s >= self.trajectory.duration_s() {
+            return Err(invalid("start_s", "must be before the end of the trajectory"));
+        }
+        for (anchor, offset) in &self.anchor_survey_errors {
+            anchor_index("anchor_survey_errors", *anchor, k)?;
+            finite_vec("anchor_survey_errors", offset)?;
         }
         if let Some(nlos) = &u.nlos {
             non_negative("uwb.nlos.bias_min_m", nlos.bias_min_m)?;
@@ -375,12 +411,20 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
     let (mut imu_rng, mut uwb_rng, mut mag_rng) = (stream(STREAM_IMU), stream(STREAM_UWB), stream(STREAM_MAG));
     let mut imu_out = imu::synthesise(cfg, &mut imu_rng, &mut mag_rng);
     let accel_outlier_times = outliers::inject(&mut imu_out.imu, &cfg.accel_outliers, &mut stream(STREAM_ACCEL_OUTLIERS));
-    let uwb_out = uwb::synthesise(cfg, &mut uwb_rng);
+    let mut uwb_out = uwb::synthesise(cfg, &mut uwb_rng);
+    let delivered = uwb_out.ranges.partition_point(|r| r.t_s < cfg.start_s);
+    uwb_out.ranges.drain(..delivered);
+    uwb_out.labels.drain(..delivered);
+    let mut anchors = cfg.anchors.clone();
+    for (anchor, offset) in &cfg.anchor_survey_errors {
+        anchors[*anchor] += offset;
+    }
     Ok(SimData {
         imu: imu_out.imu,
         ranges: uwb_out.ranges,
         range_labels: uwb_out.labels,
-        anchors: cfg.anchors.clone(),
+        anchors,
+        true_anchors: cfg.anchors.clone(),
         truth: imu_out.truth,
         mag: imu_out.mag,
         accel_bias: imu_out.accel_bias,

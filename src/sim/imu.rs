@@ -144,7 +144,7 @@ pub(crate) fn synthesise(cfg: &SimConfig, imu_rng: &mut ChaCha8Rng, mag_rng: &mu
         gyro_bias: Vec::with_capacity(n),
         mag: Vec::with_capacity(if mag.is_some() { n } else { 0 }),
     };
-    for t_s in sample_times(traj.duration_s(), rate_hz) {
+    for t_s in sample_times(traj.duration_s(), rate_hz).filter(|t| *t >= cfg.start_s) {
         let k = traj.sample(t_s);
         let (f_body, w_body) = ideal_imu(&k, gravity_nav);
         let accel = imu_rotation.inverse_transform_vector(&f_body) + accel_bias + normal3(imu_rng) * accel_white_std;

@@ -13,6 +13,7 @@ use nalgebra::Vector2;
 
 use crate::error::Result;
 use crate::math::{Quat, Vec3};
+use crate::sim::overlay::{attitude_and_body_rate, Overlay};
 use crate::validate::{invalid, non_negative, positive};
 
 /// Tolerance on position continuity between segments, m.
@@ -171,10 +172,12 @@ struct Piece {
     start_heading_rad: f64,
 }
 
-/// A ground-vehicle trajectory: segments evaluated analytically and joined end to start.
+/// A ground-vehicle trajectory: segments evaluated analytically and joined end to start, with an
+/// optional periodic [`Overlay`] (walking, flight) on top.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     pieces: Vec<Piece>,
+    overlay: Option<Overlay>,
 }
 
 /// Quintic smoothstep σ(τ) = 10τ³ − 15τ⁴ + 6τ⁵ and its derivative, τ clamped to [0, 1].
@@ -351,6 +354,7 @@ impl Default for Trajectory {
         let segment = Segment::Still { duration_s: 10.0 };
         Self {
             pieces: vec![Piece { segment, t0_s: 0.0, duration_s: 10.0, start_position: Vec3::zeros(), start_heading_rad: 0.0 }],
+            overlay: None,
         }
     }
 }
@@ -379,7 +383,15 @@ impl Trajectory {
         if t_s <= 0.0 {
             return Err(invalid("trajectory", "total duration must be > 0"));
         }
-        Ok(Self { pieces })
+        Ok(Self { pieces, overlay: None })
+    }
+
+    /// The same trajectory with `overlay` added (position offsets and attitude oscillations; see
+    /// [`Overlay`]); the motion is no longer level or planar.
+    pub fn with_overlay(mut self, overlay: Overlay) -> Result<Self> {
+        overlay.validate()?;
+        self.overlay = Some(overlay);
+        Ok(self)
     }
 
     /// Standing still at `position` with heading `heading_rad` for `duration_s` s.
@@ -500,13 +512,27 @@ impl Trajectory {
         let idx = self.pieces.partition_point(|p| p.t0_s <= t_s).saturating_sub(1);
         let piece = &self.pieces[idx.min(self.pieces.len() - 1)];
         let (position, velocity, acceleration, heading, heading_rate) = piece.eval(t_s - piece.t0_s);
+        let Some(overlay) = &self.overlay else {
+            return KinematicSample {
+                t_s,
+                position,
+                velocity,
+                acceleration,
+                orientation: yaw(heading),
+                angular_rate_body: Vec3::new(0.0, 0.0, heading_rate),
+            };
+        };
+        let o = overlay.sample(t_s);
+        let [roll, pitch, (yaw_offset, yaw_rate)] = o.angles;
+        let (orientation, angular_rate_body) =
+            attitude_and_body_rate(roll, pitch, (heading + yaw_offset, heading_rate + yaw_rate));
         KinematicSample {
             t_s,
-            position,
-            velocity,
-            acceleration,
-            orientation: yaw(heading),
-            angular_rate_body: Vec3::new(0.0, 0.0, heading_rate),
+            position: position + o.offset[0],
+            velocity: velocity + o.offset[1],
+            acceleration: acceleration + o.offset[2],
+            orientation,
+            angular_rate_body,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! UWB range synthesis with LOS noise, NLOS shielding windows, gross outliers and dropouts.
 //!
 //! Per epoch (every 1/rate s, the first one 1/rate after the start) and per anchor, from the tag
-//! position p_tag = p + R_nb·lever_arm:
+//! position p_tag = p + R_nb·lever_arm at the range's own time:
 //! - LOS: r = ‖p_tag − a‖ + N(0, σ²) + U(−u, u) (seed 004 §4.1: σ = 0.1 m, u = 0.2 m);
 //! - NLOS (the anchor is inside one of its shielding windows, seed 000 §3: "1–2 base stations
 //!   randomly shielded"): a positive bias drawn once per window from U(bias_min, bias_max), plus
@@ -13,6 +13,11 @@
 //!
 //! Ranges are clipped at 0. Every range carries a label: [`LABEL_LOS`], [`LABEL_NLOS`] or
 //! [`LABEL_OUTLIER`].
+//!
+//! Timing as deployments deliver it: anchor k's range of an epoch is taken `k·stagger_s` after the
+//! epoch time (sequential two-way ranging) plus a jitter U(0, `jitter_s`); anchor k takes part
+//! only in every `anchor_rate_divisors[k]`-th epoch (anchors at different rates); no range is
+//! delivered inside an outage window. The output is sorted by time.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -126,11 +131,28 @@ pub struct UwbConfig {
     pub outlier_anchors: Vec<usize>,
     /// Probability that a range is lost, any condition.
     pub dropout_prob: f64,
+    /// Delay between consecutive anchors' ranges of one epoch (anchor k at `k·stagger_s`), s.
+    pub stagger_s: f64,
+    /// Each range's time is further delayed by U(0, `jitter_s`), s.
+    pub jitter_s: f64,
+    /// Per anchor: it ranges in every n-th epoch only (rate `rate_hz / n`); empty = every epoch.
+    pub anchor_rate_divisors: Vec<u32>,
+    /// Windows `[start, end)` (s) in which no range at all is delivered.
+    pub outages: Vec<Outage>,
+}
+
+/// A time window `[start, end)` without any UWB range (e.g. the tag's radio off, a tunnel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outage {
+    /// Start time, s.
+    pub start_s: f64,
+    /// End time, s.
+    pub end_s: f64,
 }
 
 impl Default for UwbConfig {
     /// 2 Hz, σ = 0.1 m, no uniform noise, no NLOS, no outliers (errors U(1, 5) m when enabled),
-    /// no dropouts.
+    /// no dropouts; all anchors of an epoch at the epoch time, every epoch, no outage.
     fn default() -> Self {
         Self {
             rate_hz: 2.0,
@@ -142,6 +164,10 @@ impl Default for UwbConfig {
             outlier_max_m: 5.0,
             outlier_anchors: Vec::new(),
             dropout_prob: 0.0,
+            stagger_s: 0.0,
+            jitter_s: 0.0,
+            anchor_rate_divisors: Vec::new(),
+            outages: Vec::new(),
         }
     }
 }
@@ -194,13 +220,19 @@ pub(crate) fn synthesise(cfg: &SimConfig, rng: &mut ChaCha8Rng) -> UwbOutput {
     let mut out = UwbOutput { ranges: Vec::new(), labels: Vec::new(), windows };
     let epochs = (duration_s * uwb.rate_hz + 1e-9).floor() as usize;
     for epoch in 1..=epochs {
-        let t_s = epoch as f64 / uwb.rate_hz;
-        let k = cfg.trajectory.sample(t_s);
-        let tag = k.position + k.orientation * cfg.lever_arm_m;
+        let epoch_t_s = epoch as f64 / uwb.rate_hz;
         for (anchor, a) in cfg.anchors.iter().enumerate() {
+            let divisor = uwb.anchor_rate_divisors.get(anchor).copied().unwrap_or(1).max(1) as usize;
+            if epoch % divisor != 0 {
+                continue;
+            }
+            let jitter_s = if uwb.jitter_s > 0.0 { uniform(rng, 0.0, uwb.jitter_s) } else { 0.0 };
+            let t_s = epoch_t_s + anchor as f64 * uwb.stagger_s + jitter_s;
             if rng.random::<f64>() < uwb.dropout_prob {
                 continue;
             }
+            let k = cfg.trajectory.sample(t_s);
+            let tag = k.position + k.orientation * cfg.lever_arm_m;
             let true_range_m = (tag - a).norm();
             let los_noise_m = uwb.range_std_m * normal(rng);
             let shielded =
@@ -222,9 +254,25 @@ pub(crate) fn synthesise(cfg: &SimConfig, rng: &mut ChaCha8Rng) -> UwbOutput {
                     }
                 }
             };
+            if t_s > duration_s || uwb.outages.iter().any(|o| o.start_s <= t_s && t_s < o.end_s) {
+                continue;
+            }
             out.ranges.push(RangeMeasurement { t_s, anchor, range_m: (true_range_m + error_m).max(0.0) });
             out.labels.push(label);
         }
     }
+    sort_by_time(&mut out);
     out
+}
+
+/// Sorts ranges (and their labels) by time, stably: staggered and jittered ranges of consecutive
+/// epochs may interleave.
+fn sort_by_time(out: &mut UwbOutput) {
+    if out.ranges.windows(2).all(|w| w[0].t_s <= w[1].t_s) {
+        return;
+    }
+    let mut order: Vec<usize> = (0..out.ranges.len()).collect();
+    order.sort_by(|&i, &j| out.ranges[i].t_s.total_cmp(&out.ranges[j].t_s));
+    out.ranges = order.iter().map(|&i| out.ranges[i]).collect();
+    out.labels = order.iter().map(|&i| out.labels[i]).collect();
 }
