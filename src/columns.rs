@@ -40,12 +40,13 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
     cols
 }
 
-/// One row per range update: `t, anchor, range, innovation, nis, accepted, weight, inflation,
-/// down_weighted, iterations, prior_fading`.
+/// One row per range update: `t, epoch_t, anchor, range, innovation, nis, accepted, weight,
+/// inflation, down_weighted, iterations, prior_fading` (`epoch_t`: when its epoch was applied).
 pub fn update_columns(trace: &Trace) -> Columns {
     let u = &trace.updates;
     vec![
         ("t", u.iter().map(|r| r.t_s).collect()),
+        ("epoch_t", u.iter().map(|r| r.epoch_t_s).collect()),
         ("anchor", u.iter().map(|r| r.anchor as f64).collect()),
         ("range", u.iter().map(|r| r.range_m).collect()),
         ("innovation", u.iter().map(|r| r.report.innovation).collect()),

@@ -29,6 +29,9 @@ pub enum ConfigValue {
 pub struct FilterConfig {
     /// UWB range noise standard deviation, m (seed 000 eq. (33), R = range_std²).
     pub range_std: f64,
+    /// Window of the epoch rule, s: ranges within this time of an epoch's first range, one per
+    /// anchor, form one epoch ([`crate::epoch`]); 0 = only equal timestamps.
+    pub epoch_window_s: f64,
     /// Accelerometer white-noise density, m/s²/√Hz.
     pub accel_noise_density: f64,
     /// Gyroscope white-noise density, rad/s/√Hz.
@@ -165,6 +168,7 @@ impl Default for FilterConfig {
     fn default() -> Self {
         Self {
             range_std: 0.1,
+            epoch_window_s: crate::epoch::DEFAULT_EPOCH_WINDOW_S,
             accel_noise_density: 0.003,
             gyro_noise_density: 5e-4,
             accel_bias_walk: 1e-4,
@@ -290,8 +294,9 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 53] = [
+    pub const KEYS: [&'static str; 54] = [
         "range_std",
+        "epoch_window_s",
         "accel_noise_density",
         "gyro_noise_density",
         "accel_bias_walk",
@@ -351,6 +356,7 @@ impl FilterConfig {
     pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
         match key {
             "range_std" => self.range_std = positive(key, value)?,
+            "epoch_window_s" => self.epoch_window_s = crate::epoch::check_window(scalar(key, value)?)?,
             "accel_noise_density" => self.accel_noise_density = positive(key, value)?,
             "gyro_noise_density" => self.gyro_noise_density = positive(key, value)?,
             "accel_bias_walk" => self.accel_bias_walk = non_negative(key, value)?,
@@ -451,6 +457,7 @@ impl FilterConfig {
         let q = &self.imu_rotation;
         let mut entries = vec![
             ("range_std", ConfigValue::Scalar(self.range_std)),
+            ("epoch_window_s", ConfigValue::Scalar(self.epoch_window_s)),
             ("accel_noise_density", ConfigValue::Scalar(self.accel_noise_density)),
             ("gyro_noise_density", ConfigValue::Scalar(self.gyro_noise_density)),
             ("accel_bias_walk", ConfigValue::Scalar(self.accel_bias_walk)),

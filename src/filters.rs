@@ -1,18 +1,15 @@
 //! Named filters composed from the shared pieces (INS core, measurement models, update step),
 //! and the trait the pipeline drives.
 
-/// Implements [`InertialFilter`] and `anchors()` for a newtype over another filter (`self.0`),
-/// so a named filter is only its constructor.
+/// Implements [`InertialFilter`] for a newtype over another filter (`self.0`), so a named filter
+/// is only its constructor.
 macro_rules! delegate_filter {
     ($name:ident) => {
-        impl $name {
-            /// The anchors, navigation frame, m.
-            pub fn anchors(&self) -> &[crate::math::Vec3] {
+        impl crate::filters::InertialFilter for $name {
+            fn anchors(&self) -> &[crate::math::Vec3] {
                 self.0.anchors()
             }
-        }
 
-        impl crate::filters::InertialFilter for $name {
             fn predict(&mut self, t_s: f64, accel: &crate::math::Vec3, gyro: &crate::math::Vec3) -> crate::error::Result<()> {
                 self.0.predict(t_s, accel, gyro)
             }
@@ -67,6 +64,9 @@ pub trait InertialFilter {
     /// filter time; the state is first propagated to `t_s` with the last IMU sample held), and
     /// writes one report per range into `reports` (same length).
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+
+    /// The anchors, navigation frame, m.
+    fn anchors(&self) -> &[Vec3];
 
     /// Applies one range: an epoch of one.
     fn update_range(&mut self, t_s: f64, anchor: usize, range_m: f64) -> Result<UpdateReport> {

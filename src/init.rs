@@ -15,10 +15,11 @@
 //!    deviation of π (the filter has to find the heading from the ranges by itself).
 
 use crate::config::{FilterConfig, InitialState};
+use crate::epoch::group_epochs;
 use crate::error::{Error, Result};
 use crate::ins::{propagate_nominal, ImuInterval};
 use crate::math::{Quat, Vec3};
-use crate::multilateration::{group_epochs, solve_epoch, Fix, LsConfig};
+use crate::multilateration::{solve_epoch, Fix, LsConfig};
 use crate::records::{ImuSample, RangeMeasurement};
 use crate::state::NominalState;
 
@@ -73,8 +74,8 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
     let gyro_bias = if still { w_mean } else { Vec3::zeros() };
 
     // 2. Tag position from UWB fixes.
-    let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
-    let fixes: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s)
+    let ls = LsConfig::from_filter_config(config);
+    let fixes: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
         .into_iter()
         .filter(|e| e.t_s >= t0 - 0.5)
         .filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f)))

@@ -4,6 +4,7 @@ pub mod columns;
 pub mod config;
 pub mod constraints;
 pub mod crlb;
+pub mod epoch;
 pub mod error;
 pub mod filters;
 pub mod init;

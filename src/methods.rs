@@ -142,7 +142,7 @@ fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
             Err(Error::UnknownOption { kind: "smoothing method", got: method.name().into(), allowed: SMOOTHABLE.into() })
         }
         Method::UwbLs => {
-            let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
+            let ls = LsConfig::from_filter_config(config);
             Ok(BatchOutput::Multilateration(uwb_ls(ranges, anchors, &ls)))
         }
         Method::Ekf => run_inertial(|i| Ekf::new(anchors.to_vec(), i, config.clone()), input),

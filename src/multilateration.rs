@@ -19,6 +19,8 @@ pub use l1::{l1_fix, l1_solve_epoch, L1Config, L1Fix};
 
 use nalgebra::{Cholesky, DMatrix, DVector, Matrix2, SymmetricEigen, Vector2};
 
+use crate::config::FilterConfig;
+use crate::epoch::{group_epochs, DEFAULT_EPOCH_WINDOW_S};
 use crate::math::{Mat3, Vec3};
 use crate::records::RangeMeasurement;
 
@@ -51,13 +53,22 @@ pub struct LsConfig {
     /// Minimum vertical span (max − min height) of the anchors used for a 3-D fix, m; below it
     /// the fix is planar.
     pub min_vertical_span_m: f64,
-    /// Width of the window grouping consecutive ranges into one epoch, s (see [`group_epochs`]).
+    /// Width of the window grouping consecutive ranges into one epoch, s (the epoch rule of
+    /// [`crate::epoch`]).
     pub epoch_window_s: f64,
+}
+
+impl LsConfig {
+    /// The defaults with the range σ and the epoch window of a filter configuration.
+    pub fn from_filter_config(config: &FilterConfig) -> Self {
+        Self { range_std_m: config.range_std, epoch_window_s: config.epoch_window_s, ..Self::default() }
+    }
 }
 
 impl Default for LsConfig {
     /// `range_std_m = 0.1`, `max_iterations = 10`, `tolerance_m = 1e-4`,
-    /// `planar_height_m = None`, `min_vertical_span_m = 0.3`, `epoch_window_s = 0.02`.
+    /// `planar_height_m = None`, `min_vertical_span_m = 0.3`,
+    /// `epoch_window_s = ` [`DEFAULT_EPOCH_WINDOW_S`].
     fn default() -> Self {
         Self {
             range_std_m: 0.1,
@@ -65,7 +76,7 @@ impl Default for LsConfig {
             tolerance_m: 1e-4,
             planar_height_m: None,
             min_vertical_span_m: 0.3,
-            epoch_window_s: 0.02,
+            epoch_window_s: DEFAULT_EPOCH_WINDOW_S,
         }
     }
 }
@@ -85,47 +96,6 @@ pub struct Fix {
     pub iterations: usize,
     /// Whether the height was held fixed (planar mode).
     pub planar: bool,
-}
-
-/// Ranges taken at (nearly) the same time, one per anchor.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Epoch {
-    /// Epoch time = time of the last range in the epoch, s.
-    pub t_s: f64,
-    /// Observations `(anchor index, range m)`, in input order.
-    pub obs: Vec<(usize, f64)>,
-}
-
-/// Groups time-ordered ranges into epochs.
-///
-/// Consecutive ranges form one epoch while each range's time `t` satisfies
-/// `0 ≤ t − t_first ≤ window_s` (with `t_first` the time of the epoch's first range) and its
-/// anchor does not already appear in the epoch; otherwise a new epoch starts with that range.
-/// The epoch time is the time of the **last** range in it (the moment the fix becomes available).
-/// Ranges are not filtered; invalid anchors or values are rejected later by [`solve_epoch`].
-pub fn group_epochs(ranges: &[RangeMeasurement], window_s: f64) -> Vec<Epoch> {
-    let mut epochs: Vec<Epoch> = Vec::new();
-    let mut first_t = f64::NAN;
-    for r in ranges {
-        let joins = match epochs.last() {
-            Some(e) => {
-                let dt = r.t_s - first_t;
-                (0.0..=window_s).contains(&dt) && e.obs.iter().all(|&(a, _)| a != r.anchor)
-            }
-            None => false,
-        };
-        match epochs.last_mut() {
-            Some(e) if joins => {
-                e.t_s = r.t_s;
-                e.obs.push((r.anchor, r.range_m));
-            }
-            _ => {
-                first_t = r.t_s;
-                epochs.push(Epoch { t_s: r.t_s, obs: vec![(r.anchor, r.range_m)] });
-            }
-        }
-    }
-    epochs
 }
 
 /// Checks that every observation names an existing anchor with finite coordinates and has a
@@ -379,11 +349,11 @@ fn better(a: Option<Fix>, b: Option<Fix>) -> Option<Fix> {
     }
 }
 
-/// UWB-only least-squares positioning: groups `ranges` into epochs with `cfg.epoch_window_s`
-/// ([`group_epochs`]) and solves each ([`solve_epoch`]). Returns `(epoch time s, fix)` for every
-/// solvable epoch, in input order; unsolvable epochs are skipped.
+/// UWB-only least-squares positioning: groups `ranges` into epochs by the library's epoch rule
+/// with `cfg.epoch_window_s` ([`group_epochs`]) and solves each ([`solve_epoch`]). Returns
+/// `(epoch time s, fix)` for every solvable epoch, in input order; unsolvable epochs are skipped.
 pub fn uwb_ls(ranges: &[RangeMeasurement], anchors: &[Vec3], cfg: &LsConfig) -> Vec<(f64, Fix)> {
-    group_epochs(ranges, cfg.epoch_window_s)
+    group_epochs(ranges, cfg.epoch_window_s, anchors.len())
         .into_iter()
         .filter_map(|e| solve_epoch(anchors, &e.obs, cfg).map(|f| (e.t_s, f)))
         .collect()
@@ -606,24 +576,6 @@ mod tests {
         // Singular JᵀJ: start on the line of collinear anchors.
         assert!(gauss_newton_fix(&line, &line_obs, Vec3::new(10.0, 5.0, 4.0), None, &cfg).is_none());
         assert!(gauss_newton_fix(&anchors, &obs, Vec3::new(f64::NAN, 0.0, 0.0), None, &cfg).is_none());
-    }
-
-    fn rm(t_s: f64, anchor: usize) -> RangeMeasurement {
-        RangeMeasurement { t_s, anchor, range_m: 1.0 }
-    }
-
-    #[test]
-    fn group_epochs_splits_on_repeated_anchor_and_window() {
-        let ranges = [rm(0.000, 0), rm(0.005, 1), rm(0.010, 0), rm(0.012, 2), rm(0.050, 3), rm(0.060, 1)];
-        let epochs = group_epochs(&ranges, 0.02);
-        let anchors: Vec<Vec<usize>> = epochs.iter().map(|e| e.obs.iter().map(|o| o.0).collect()).collect();
-        assert_eq!(anchors, vec![vec![0, 1], vec![0, 2], vec![3, 1]]);
-        let times: Vec<f64> = epochs.iter().map(|e| e.t_s).collect();
-        assert_eq!(times, vec![0.005, 0.012, 0.060]);
-        // Window measured from the epoch's first range, not the previous one.
-        let chain = [rm(0.0, 0), rm(0.015, 1), rm(0.030, 2)];
-        assert_eq!(group_epochs(&chain, 0.02).len(), 2);
-        assert!(group_epochs(&[], 0.02).is_empty());
     }
 
     #[test]

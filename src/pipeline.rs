@@ -1,14 +1,22 @@
-//! The one time-ordered loop over IMU samples and range events, shared by the batch API, the
-//! CLI and (call for call) the streaming classes.
+//! The one time-ordered loop over IMU samples, range epochs and magnetometer samples, shared by
+//! the batch API, the CLI and the streaming classes (which drive the same [`Pipeline`] call for
+//! call, so streaming equals batch bit for bit).
 //!
-//! Order per IMU sample k at time t_k: ranges with t < t_k are applied first (each at its own
-//! time), then the IMU sample is predicted, then ranges with t = t_k are applied, then the step is
-//! recorded. Ranges sharing a timestamp are one epoch, applied jointly. Ranges before the first IMU
-//! sample are counted and skipped (the filter has no time yet).
+//! Events are taken in time order. An IMU sample is predicted at once; a magnetometer sample is
+//! applied at its own time. Ranges are gathered into epochs by the epoch rule of
+//! [`crate::epoch`]; an epoch is applied jointly when it closes — when it holds every anchor, when
+//! a range does not fit it, or when an IMU sample passes its window — at the reference time
+//! `max(time of its last range, filter time)`, each range first aligned to that time along its
+//! predicted rate ([`crate::epoch::align_to_reference`]). The batch order at equal times is IMU
+//! sample first, then magnetometer samples, then ranges; a step is recorded after every IMU
+//! sample and the events at its time. Ranges before the first IMU sample are counted and skipped
+//! (the filter has no time yet); ranges after the last IMU sample are not applied.
 
+use crate::epoch::{align_to_reference, EpochAssembler};
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::{Mat3, Vec3};
+use crate::models::range::tag_position;
 use crate::records::{ImuSample, MagSample, RangeMeasurement};
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::state::{NominalState, POS};
@@ -32,9 +40,11 @@ pub struct StepRecord {
 pub struct UpdateRecord {
     /// Measurement time, s.
     pub t_s: f64,
+    /// Time at which its epoch was applied (the epoch's reference time), s.
+    pub epoch_t_s: f64,
     /// Anchor index.
     pub anchor: usize,
-    /// Measured range, m.
+    /// Measured range, m (before the alignment to the reference time).
     pub range_m: f64,
     /// The filter's report.
     pub report: UpdateReport,
@@ -57,7 +67,7 @@ pub struct Trace {
 pub trait Estimator {
     /// Takes the IMU sample at `t_s` (raw, IMU frame).
     fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
-    /// Applies one epoch of ranges measured at `t_s`, one report per range.
+    /// Applies one epoch of ranges, all valid at `t_s` (≥ the filter time), one report per range.
     fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
     /// The estimate to record at IMU time `t_s`.
     fn record(&self, t_s: f64) -> StepRecord;
@@ -67,6 +77,16 @@ pub trait Estimator {
         let _ = (t_s, field);
         Err(Error::InvalidCall("this filter does not use a magnetometer (use ackf)".into()))
     }
+    /// The filter time, s (None before the first IMU sample).
+    fn time_s(&self) -> Option<f64>;
+    /// Propagates to `t_s` ≥ the filter time with the last IMU sample held.
+    fn advance_to(&mut self, t_s: f64) -> Result<()>;
+    /// The tag (UWB antenna) position and velocity, navigation frame, m and m/s.
+    fn tag_motion(&self) -> (Vec3, Vec3);
+    /// The anchors, navigation frame, m.
+    fn anchors(&self) -> &[Vec3];
+    /// The window of the epoch rule, s (`epoch_window_s` of the filter's configuration).
+    fn epoch_window_s(&self) -> f64;
 }
 
 impl<F: InertialFilter> Estimator for F {
@@ -91,67 +111,257 @@ impl<F: InertialFilter> Estimator for F {
             still: self.still(),
         }
     }
+
+    fn time_s(&self) -> Option<f64> {
+        self.core().time_s()
+    }
+
+    fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        self.core_mut().advance_to(t_s)
+    }
+
+    /// Tag position `p + R·l` and velocity `v + R·(ω × l)` (ω the last bias-corrected rate).
+    fn tag_motion(&self) -> (Vec3, Vec3) {
+        let core = self.core();
+        let (x, lever_arm) = (core.state(), &core.config().lever_arm);
+        let omega = core.last_imu_body().1 - x.gyro_bias;
+        (tag_position(x, lever_arm), x.velocity + x.orientation * omega.cross(lever_arm))
+    }
+
+    fn anchors(&self) -> &[Vec3] {
+        InertialFilter::anchors(self)
+    }
+
+    fn epoch_window_s(&self) -> f64 {
+        self.core().config().epoch_window_s
+    }
+}
+
+/// The event loop's own state: the open range epoch, scratch buffers and the applied updates not
+/// yet collected. Each call takes the estimator it drives; [`Stream`] bundles the two.
+#[derive(Debug, Clone)]
+pub struct Pipeline {
+    epochs: EpochAssembler,
+    aligned: Vec<(usize, f64)>,
+    reports: Vec<UpdateReport>,
+    applied: Vec<UpdateRecord>,
+    last_t_s: Option<f64>,
+    ranges_before_start: usize,
+}
+
+impl Pipeline {
+    /// A loop for `anchor_count` anchors with the epoch window `epoch_window_s` (s).
+    pub fn new(epoch_window_s: f64, anchor_count: usize) -> Result<Self> {
+        Ok(Self {
+            epochs: EpochAssembler::new(epoch_window_s, anchor_count)?,
+            aligned: Vec::with_capacity(anchor_count),
+            reports: Vec::with_capacity(anchor_count),
+            applied: Vec::with_capacity(anchor_count),
+            last_t_s: None,
+            ranges_before_start: 0,
+        })
+    }
+
+    /// Checks that an event at `t_s` is not earlier than the previous one.
+    fn check_order(&mut self, name: &'static str, t_s: f64) -> Result<()> {
+        if !t_s.is_finite() {
+            return Err(Error::NonFinite { name, row: 0, col: 0, value: t_s });
+        }
+        match self.last_t_s {
+            Some(prev) if t_s < prev => Err(Error::NonMonotonicTime { name, row: 0, prev_s: prev, got_s: t_s }),
+            _ => {
+                self.last_t_s = Some(t_s);
+                Ok(())
+            }
+        }
+    }
+
+    /// Takes an IMU sample: closes the open epoch first if the sample is past its window, then
+    /// predicts.
+    pub fn imu<E: Estimator>(&mut self, est: &mut E, s: &ImuSample) -> Result<()> {
+        self.check_order("imu", s.t_s)?;
+        if self.epochs.expires_before(s.t_s) {
+            self.flush(est)?;
+        }
+        est.feed_imu(s.t_s, &s.accel, &s.gyro)
+    }
+
+    /// Takes a range: before the first IMU sample it is counted and skipped; otherwise it closes
+    /// the open epoch if it does not fit, joins the (new) open epoch, and closes it when it holds
+    /// every anchor.
+    pub fn range<E: Estimator>(&mut self, est: &mut E, r: &RangeMeasurement) -> Result<()> {
+        if est.time_s().is_none() {
+            self.ranges_before_start += 1;
+            return Ok(());
+        }
+        self.check_order("range", r.t_s)?;
+        if self.epochs.closes_before(r) {
+            self.flush(est)?;
+        }
+        self.epochs.push(*r);
+        if self.epochs.is_full() {
+            self.flush(est)?;
+        }
+        Ok(())
+    }
+
+    /// Takes a magnetometer sample, applied at its own time.
+    pub fn magnetometer<E: Estimator>(&mut self, est: &mut E, m: &MagSample) -> Result<()> {
+        if est.time_s().is_none() {
+            return Ok(());
+        }
+        self.check_order("magnetometer", m.t_s)?;
+        est.feed_magnetometer(m.t_s, &m.field)
+    }
+
+    /// Applies the open epoch (if any) at `max(time of its last range, filter time)`, its ranges
+    /// aligned to that time, and keeps one [`UpdateRecord`] per range for [`Pipeline::take_applied`].
+    pub fn flush<E: Estimator>(&mut self, est: &mut E) -> Result<()> {
+        let Some(last) = self.epochs.ranges().last() else {
+            return Ok(());
+        };
+        let t_ref = est.time_s().map_or(last.t_s, |t| t.max(last.t_s));
+        est.advance_to(t_ref)?;
+        let (tag, velocity) = est.tag_motion();
+        let epoch = self.epochs.ranges();
+        self.aligned.resize(epoch.len(), (0, 0.0));
+        align_to_reference(epoch, t_ref, est.anchors(), &tag, &velocity, &mut self.aligned);
+        self.reports.clear();
+        self.reports.resize(epoch.len(), UpdateReport::skipped());
+        est.feed_ranges(t_ref, &self.aligned, &mut self.reports)?;
+        self.applied.extend(epoch.iter().zip(&self.reports).map(|(r, report)| UpdateRecord {
+            t_s: r.t_s,
+            epoch_t_s: t_ref,
+            anchor: r.anchor,
+            range_m: r.range_m,
+            report: *report,
+        }));
+        self.epochs.clear();
+        Ok(())
+    }
+
+    /// Moves the records of the ranges applied since the last call into `out`.
+    pub fn take_applied(&mut self, out: &mut Vec<UpdateRecord>) {
+        out.append(&mut self.applied);
+    }
+
+    /// Ranges skipped because they came before the first IMU sample.
+    pub fn ranges_before_start(&self) -> usize {
+        self.ranges_before_start
+    }
+
+    /// Ranges of the open (not yet applied) epoch.
+    pub fn pending(&self) -> &[RangeMeasurement] {
+        self.epochs.ranges()
+    }
+}
+
+/// An estimator with its [`Pipeline`]: the streaming form of the loop.
+#[derive(Debug, Clone)]
+pub struct Stream<E> {
+    estimator: E,
+    pipeline: Pipeline,
+}
+
+impl<E: Estimator> Stream<E> {
+    /// Drives `estimator` (with its own epoch window).
+    pub fn new(estimator: E) -> Result<Self> {
+        let pipeline = Pipeline::new(estimator.epoch_window_s(), estimator.anchors().len())?;
+        Ok(Self { estimator, pipeline })
+    }
+
+    /// The estimator.
+    pub fn estimator(&self) -> &E {
+        &self.estimator
+    }
+
+    /// The estimator, mutably (e.g. to start recording, or to apply an epoch directly).
+    pub fn estimator_mut(&mut self) -> &mut E {
+        &mut self.estimator
+    }
+
+    /// The loop state (open epoch, counts).
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
+    }
+
+    /// [`Pipeline::imu`].
+    pub fn imu(&mut self, s: &ImuSample) -> Result<()> {
+        self.pipeline.imu(&mut self.estimator, s)
+    }
+
+    /// [`Pipeline::range`].
+    pub fn range(&mut self, r: &RangeMeasurement) -> Result<()> {
+        self.pipeline.range(&mut self.estimator, r)
+    }
+
+    /// [`Pipeline::magnetometer`].
+    pub fn magnetometer(&mut self, m: &MagSample) -> Result<()> {
+        self.pipeline.magnetometer(&mut self.estimator, m)
+    }
+
+    /// [`Pipeline::flush`].
+    pub fn flush(&mut self) -> Result<()> {
+        self.pipeline.flush(&mut self.estimator)
+    }
+
+    /// [`Pipeline::take_applied`].
+    pub fn take_applied(&mut self, out: &mut Vec<UpdateRecord>) {
+        self.pipeline.take_applied(out)
+    }
 }
 
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
-/// event order). Ranges sharing a timestamp form one epoch and go to the filter in one
-/// [`Estimator::feed_ranges`] call.
+/// event order).
 pub fn run<F: Estimator>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
     run_with_magnetometer(filter, imu, ranges, &[])
 }
 
-/// [`run`] with magnetometer samples as a third time-ordered stream, applied through
-/// [`Estimator::feed_magnetometer`] in the same order as ranges (before the IMU sample if
-/// earlier, after it if at the same time; samples before the first IMU sample are skipped).
+/// [`run`] with magnetometer samples as a third time-ordered stream, merged with the ranges by
+/// time (samples before the first IMU sample are skipped).
 pub fn run_with_magnetometer<F: Estimator>(
     filter: &mut F,
     imu: &[ImuSample],
     ranges: &[RangeMeasurement],
     mag: &[MagSample],
 ) -> Result<Trace> {
+    let mut pipeline = Pipeline::new(filter.epoch_window_s(), filter.anchors().len())?;
     let mut trace =
         Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
-    let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
-    let mut next = ranges.partition_point(|r| r.t_s < t_first);
-    let mut next_mag = mag.partition_point(|m| m.t_s < t_first);
-    trace.ranges_before_start = next;
-    let mut epoch: Vec<(usize, f64)> = Vec::new();
-    let mut reports: Vec<UpdateReport> = Vec::new();
-    // Applies the epoch starting at `ranges[next]`; returns the index after it.
-    let mut apply_epoch = |filter: &mut F, next: usize, trace: &mut Trace| -> Result<usize> {
-        let t = ranges[next].t_s;
-        let end = next + ranges[next..].partition_point(|r| r.t_s == t);
-        epoch.clear();
-        epoch.extend(ranges[next..end].iter().map(|r| (r.anchor, r.range_m)));
-        reports.clear();
-        reports.resize(epoch.len(), UpdateReport::skipped());
-        filter.feed_ranges(t, &epoch, &mut reports)?;
-        trace.updates.extend(ranges[next..end].iter().zip(&reports).map(|(r, report)| UpdateRecord {
-            t_s: r.t_s,
-            anchor: r.anchor,
-            range_m: r.range_m,
-            report: *report,
-        }));
-        Ok(end)
+    let (mut next, mut next_mag) = (0, 0);
+    // Feeds the ranges and magnetometer samples up to `t_s` (inclusive when `inclusive`), by time.
+    let mut feed_until = |filter: &mut F, pipeline: &mut Pipeline, t_s: f64, inclusive: bool| -> Result<()> {
+        let due = |t: f64| t < t_s || (inclusive && t == t_s);
+        loop {
+            let range_t = ranges.get(next).map(|r| r.t_s).filter(|t| due(*t));
+            let mag_t = mag.get(next_mag).map(|m| m.t_s).filter(|t| due(*t));
+            match (range_t, mag_t) {
+                (Some(tr), Some(tm)) if tm <= tr => {
+                    pipeline.magnetometer(filter, &mag[next_mag])?;
+                    next_mag += 1;
+                }
+                (Some(_), _) => {
+                    pipeline.range(filter, &ranges[next])?;
+                    next += 1;
+                }
+                (None, Some(_)) => {
+                    pipeline.magnetometer(filter, &mag[next_mag])?;
+                    next_mag += 1;
+                }
+                (None, None) => return Ok(()),
+            }
+        }
     };
     for sample in imu {
-        while next < ranges.len() && ranges[next].t_s < sample.t_s {
-            next = apply_epoch(filter, next, &mut trace)?;
-        }
-        while next_mag < mag.len() && mag[next_mag].t_s < sample.t_s {
-            filter.feed_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
-            next_mag += 1;
-        }
-        filter.feed_imu(sample.t_s, &sample.accel, &sample.gyro)?;
-        while next < ranges.len() && ranges[next].t_s == sample.t_s {
-            next = apply_epoch(filter, next, &mut trace)?;
-        }
-        while next_mag < mag.len() && mag[next_mag].t_s == sample.t_s {
-            filter.feed_magnetometer(mag[next_mag].t_s, &mag[next_mag].field)?;
-            next_mag += 1;
-        }
+        feed_until(filter, &mut pipeline, sample.t_s, false)?;
+        pipeline.imu(filter, sample)?;
+        feed_until(filter, &mut pipeline, sample.t_s, true)?;
+        pipeline.take_applied(&mut trace.updates);
         trace.steps.push(filter.record(sample.t_s));
     }
+    pipeline.flush(filter)?;
+    pipeline.take_applied(&mut trace.updates);
+    trace.ranges_before_start = pipeline.ranges_before_start();
     Ok(trace)
 }
 

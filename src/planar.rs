@@ -62,6 +62,7 @@ pub struct PlanarFilter {
     range_var: f64,
     weights: UnscentedWeights,
     prefilter: MovingAverage,
+    epoch_window_s: f64,
     time_s: Option<f64>,
     held_accel: Vector2<f64>,
     held_rate_z: f64,
@@ -103,6 +104,7 @@ impl PlanarFilter {
             accel_density: config.planar_accel_density,
             range_var: config.range_std.powi(2),
             weights,
+            epoch_window_s: config.epoch_window_s,
             time_s: None,
             held_accel: Vector2::zeros(),
             held_rate_z: 0.0,
@@ -160,6 +162,24 @@ impl PlanarFilter {
         Ok(())
     }
 
+    /// Propagates to a measurement time `t_s` ≥ the filter time with the held sample.
+    pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        let Some(t0) = self.time_s else {
+            return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
+        };
+        if !t_s.is_finite() {
+            return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
+        }
+        if t_s < t0 {
+            return Err(Error::NonMonotonicTime { name: "measurement", row: 0, prev_s: t0, got_s: t_s });
+        }
+        if t_s > t0 {
+            self.propagate(t_s - t0, self.held_accel, self.held_rate_z);
+            self.time_s = Some(t_s);
+        }
+        Ok(())
+    }
+
     fn propagate(&mut self, dt_s: f64, accel_end: Vector2<f64>, rate_end: f64) {
         let yaw_end = self.yaw_rad + 0.5 * (self.held_rate_z + rate_end) * dt_s;
         let u = 0.5 * (model::yaw_rotation(self.yaw_rad) * self.held_accel + model::yaw_rotation(yaw_end) * accel_end);
@@ -174,19 +194,7 @@ impl PlanarFilter {
             return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
         }
         check_ranges(&self.anchors, ranges)?;
-        let Some(t0) = self.time_s else {
-            return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
-        };
-        if !t_s.is_finite() {
-            return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
-        }
-        if t_s < t0 {
-            return Err(Error::NonMonotonicTime { name: "measurement", row: 0, prev_s: t0, got_s: t_s });
-        }
-        if t_s > t0 {
-            self.propagate(t_s - t0, self.held_accel, self.held_rate_z);
-            self.time_s = Some(t_s);
-        }
+        self.advance_to(t_s)?;
         let epoch =
             ekf::Epoch { anchors: &self.anchors, geometry: &self.geometry, yaw_rad: self.yaw_rad, range_var: self.range_var };
         match self.kind {
@@ -210,6 +218,30 @@ impl Estimator for PlanarFilter {
 
     fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         self.update_ranges(t_s, ranges, reports)
+    }
+
+    fn time_s(&self) -> Option<f64> {
+        self.time_s
+    }
+
+    fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        PlanarFilter::advance_to(self, t_s)
+    }
+
+    /// Tag at the plane height (lever arm turned by the yaw); velocity in the plane.
+    fn tag_motion(&self) -> (Vec3, Vec3) {
+        let x = &self.state;
+        let body = Vec3::new(x[X], x[Y], self.geometry.height_m);
+        let tag = body + UnitQuaternion::from_euler_angles(0.0, 0.0, self.yaw_rad) * self.geometry.lever_arm;
+        (tag, Vec3::new(x[VX], x[VY], 0.0))
+    }
+
+    fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
+    fn epoch_window_s(&self) -> f64 {
+        self.epoch_window_s
     }
 
     /// Position (x, y, plane height), velocity (vx, vy, 0), yaw-only orientation, gyro bias

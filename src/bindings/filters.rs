@@ -12,8 +12,8 @@ use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, 
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
-use crate::pipeline::{smooth_recording, StepRecord};
-use crate::records::{ImuSample, RangeMeasurement};
+use crate::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
+use crate::records::{ImuSample, MagSample, RangeMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
 use crate::validate;
@@ -123,6 +123,14 @@ pub(super) fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anc
 /// One report of a range update.
 #[pyclass(name = "UpdateReport", module = "uwbimu_rs._native", frozen, get_all)]
 pub struct PyUpdateReport {
+    /// Measurement time, s.
+    t: f64,
+    /// Time at which its epoch was applied, s.
+    epoch_t: f64,
+    /// Anchor index.
+    anchor: usize,
+    /// The range as measured, m.
+    range: f64,
     /// Innovation z − h(x_op), m.
     innovation: f64,
     /// γ, squared Mahalanobis distance of the innovation.
@@ -141,9 +149,14 @@ pub struct PyUpdateReport {
     prior_fading: f64,
 }
 
-impl From<UpdateReport> for PyUpdateReport {
-    fn from(r: UpdateReport) -> Self {
+impl From<UpdateRecord> for PyUpdateReport {
+    fn from(u: UpdateRecord) -> Self {
+        let r = u.report;
         Self {
+            t: u.t_s,
+            epoch_t: u.epoch_t_s,
+            anchor: u.anchor,
+            range: u.range_m,
             innovation: r.innovation,
             nis: r.nis,
             accepted: r.accepted,
@@ -160,10 +173,17 @@ impl From<UpdateReport> for PyUpdateReport {
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
         format!(
-            "UpdateReport(innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={})",
-            self.innovation, self.nis, self.accepted, self.weight, self.inflation, self.down_weighted, self.iterations, self.prior_fading
+            "UpdateReport(t={}, epoch_t={}, anchor={}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={})",
+            self.t, self.epoch_t, self.anchor, self.range, self.innovation, self.nis, self.accepted, self.weight, self.inflation, self.down_weighted, self.iterations, self.prior_fading
         )
     }
+}
+
+/// The reports of the ranges a streaming call applied.
+fn applied_reports<E: Estimator>(stream: &mut Stream<E>) -> Vec<PyUpdateReport> {
+    let mut out = Vec::new();
+    stream.take_applied(&mut out);
+    out.into_iter().map(PyUpdateReport::from).collect()
 }
 
 fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
@@ -178,12 +198,13 @@ fn anchor_index(anchor: i64, count: usize) -> PyResult<usize> {
         .map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into())
 }
 
-/// A Python class wrapping one named filter, with the streaming API.
+/// A Python class wrapping one named filter, with the streaming API: the filter driven by its own
+/// [`Stream`] (the batch API's event loop), so streaming in time order equals batch.
 macro_rules! py_filter {
     ($(#[$doc:meta])* $py:ident, $name:literal, $core:ty) => {
         $(#[$doc])*
         #[pyclass(name = $name, module = "uwbimu_rs._native")]
-        pub struct $py($core);
+        pub struct $py(Stream<$core>);
 
         #[pymethods]
         impl $py {
@@ -195,18 +216,18 @@ macro_rules! py_filter {
                 if record {
                     filter.core_mut().start_recording(RECORD_CAPACITY);
                 }
-                Ok(Self(filter))
+                Ok(Self(Stream::new(filter)?))
             }
 
             /// RTS-smooths everything seen so far (needs ``record=True``): a dict of columns
             /// ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z``, one row per
-            /// propagation start (each IMU sample and each range time between samples) plus
+            /// propagation start (each IMU sample and each epoch time between samples) plus
             /// the current time. Releases the GIL.
             fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-                if self.0.core().segments().is_empty() {
+                let core = self.0.estimator().core();
+                if core.segments().is_empty() {
                     return Err(crate::Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()).into());
                 }
-                let core = self.0.core();
                 let nodes = py.detach(|| smooth_recording(core))?;
                 let steps: Vec<StepRecord> = nodes
                     .iter()
@@ -222,56 +243,88 @@ macro_rules! py_filter {
                 columns(py, cols)
             }
 
-            /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,) rad/s.
-            fn predict(&mut self, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<()> {
-                let (a, g) = (vec3_arg(accel, "accel")?, vec3_arg(gyro, "gyro")?);
-                Ok(self.0.predict(t, &a, &g)?)
+            /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,)
+            /// rad/s. Closes the open range epoch first when `t` is past its window; returns the
+            /// reports of the ranges that applied (usually none).
+            fn predict(&mut self, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                let (accel, gyro) = (vec3_arg(accel, "accel")?, vec3_arg(gyro, "gyro")?);
+                self.0.imu(&ImuSample { t_s: t, accel, gyro })?;
+                Ok(applied_reports(&mut self.0))
             }
 
-            /// Applies a range (m) to anchor index `anchor` measured at `t` (s).
+            /// Adds a range (m) to anchor index `anchor` measured at `t` (s) to the open epoch
+            /// (the epoch rule of the batch API); returns the reports of the ranges applied by
+            /// this call: the epoch it closed, if any.
+            fn add_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
+                let anchor = anchor_index(anchor, InertialFilter::anchors(self.0.estimator()).len())?;
+                crate::filters::tight::check_ranges(InertialFilter::anchors(self.0.estimator()), &[(anchor, range)])?;
+                self.0.range(&RangeMeasurement { t_s: t, anchor, range_m: range })?;
+                Ok(applied_reports(&mut self.0))
+            }
+
+            /// Applies the open epoch now; returns its reports.
+            fn flush(&mut self) -> PyResult<Vec<PyUpdateReport>> {
+                self.0.flush()?;
+                Ok(applied_reports(&mut self.0))
+            }
+
+            /// Ranges waiting in the open epoch.
+            #[getter]
+            fn pending(&self) -> usize {
+                self.0.pipeline().pending().len()
+            }
+
+            /// Applies one range (m) to anchor index `anchor` at `t` (s) at once, as an epoch of
+            /// its own (after applying the open epoch, if any).
             fn update_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<PyUpdateReport> {
-                let index = anchor_index(anchor, self.0.anchors().len())?;
-                Ok(self.0.update_range(t, index, range)?.into())
+                let mut reports = self.update_ranges(t, vec![anchor], vec![range])?;
+                Ok(reports.remove(0))
             }
 
             /// Applies a magnetometer sample (3,) (IMU frame) measured at `t` (s); only `Ackf`
             /// uses one (seed 003), the others raise ValueError.
             fn update_magnetometer(&mut self, t: f64, field: &Bound<'_, PyAny>) -> PyResult<()> {
                 let field = vec3_arg(field, "field")?;
-                Ok(self.0.update_magnetometer(t, &field)?)
+                Ok(self.0.magnetometer(&MagSample { t_s: t, field })?)
             }
 
-            /// Applies the ranges of one epoch measured at `t` (s): anchor indices (M,) and
-            /// ranges (M,) m; returns one report per range. The batch API groups ranges with
-            /// equal timestamps into such epochs.
+            /// Applies the ranges of one epoch, all measured at `t` (s), at once: anchor
+            /// indices (M,) and ranges (M,) m (after applying the open epoch, if any); returns
+            /// one report per range.
             fn update_ranges(&mut self, t: f64, anchors: Vec<i64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
                 if anchors.len() != ranges.len() {
                     return Err(crate::Error::Shape { name: "update_ranges", expected: format!("ranges of length {}", anchors.len()), got: format!("{}", ranges.len()) }.into());
                 }
-                let count = self.0.anchors().len();
+                let count = InertialFilter::anchors(self.0.estimator()).len();
                 let obs = anchors.iter().zip(&ranges).map(|(a, r)| Ok((anchor_index(*a, count)?, *r))).collect::<PyResult<Vec<(usize, f64)>>>()?;
+                self.0.flush()?;
                 let mut reports = vec![UpdateReport::skipped(); obs.len()];
-                self.0.update_ranges(t, &obs, &mut reports)?;
-                Ok(reports.into_iter().map(PyUpdateReport::from).collect())
+                self.0.estimator_mut().update_ranges(t, &obs, &mut reports)?;
+                let epoch_t = self.0.estimator().core().time_s().unwrap_or(t);
+                let mut out = applied_reports(&mut self.0);
+                out.extend(obs.iter().zip(reports).map(|(&(anchor, range_m), report)| {
+                    PyUpdateReport::from(UpdateRecord { t_s: t, epoch_t_s: epoch_t, anchor, range_m, report })
+                }));
+                Ok(out)
             }
 
             /// Filter time, s (None before the first predict).
             #[getter]
             fn time(&self) -> Option<f64> {
-                self.0.core().time_s()
+                self.0.estimator().core().time_s()
             }
 
             /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
             /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`.
             #[getter]
             fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-                state_dict(py, self.0.core().state())
+                state_dict(py, self.0.estimator().core().state())
             }
 
             /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy.
             #[getter]
             fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-                covariance_array(py, self.0.core().covariance())
+                covariance_array(py, self.0.estimator().core().covariance())
             }
         }
     };

@@ -76,11 +76,6 @@ impl Ackf {
         Ok(Self { inner, aiding, start_s: None, gravity: Reference::default(), field: Reference::default() })
     }
 
-    /// The anchors, navigation frame, m.
-    pub fn anchors(&self) -> &[Vec3] {
-        self.inner.anchors()
-    }
-
     /// The reference gravity (specific force at rest, ≈ `[0, 0, +9.81]`) and field in the
     /// navigation frame, once the reference period is over.
     pub fn references(&self) -> (Option<Vec3>, Option<Vec3>) {
@@ -121,6 +116,10 @@ impl Ackf {
 }
 
 impl InertialFilter for Ackf {
+    fn anchors(&self) -> &[Vec3] {
+        self.inner.anchors()
+    }
+
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
         self.inner.predict(t_s, accel, gyro)?;
         let (f_body, _) = self.inner.core().last_imu_body();

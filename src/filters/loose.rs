@@ -58,11 +58,6 @@ impl Eskf {
         f.adaptive = Some(variant);
         Ok(f)
     }
-
-    /// The anchors, navigation frame, m.
-    pub fn anchors(&self) -> &[Vec3] {
-        &self.anchors
-    }
 }
 
 /// Applies the first `N` rows (x, y or x, y, z) of a 3-row measurement block.
@@ -80,6 +75,10 @@ fn block<const N: usize>(
 }
 
 impl InertialFilter for Eskf {
+    fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
         self.core.predict(t_s, accel, gyro)
     }
@@ -92,7 +91,7 @@ impl InertialFilter for Eskf {
         self.core.advance_to(t_s)?;
         let config = self.core.config();
         let lever_arm = config.lever_arm;
-        let ls = LsConfig { range_std_m: config.range_std, ..LsConfig::default() };
+        let ls = LsConfig::from_filter_config(config);
         let Some(fix) = solve_epoch(&self.anchors, ranges, &ls) else {
             reports.iter_mut().for_each(|r| *r = UpdateReport::skipped());
             return Ok(());

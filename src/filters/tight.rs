@@ -97,11 +97,6 @@ impl TightFilter {
         Ok(filter)
     }
 
-    /// The anchors, navigation frame, m.
-    pub fn anchors(&self) -> &[Vec3] {
-        &self.anchors
-    }
-
     /// Robustness factors `Cu_i` of one epoch (seed 002 eqs. (33)–(37)) from the L1 fit of its
     /// ranges in the plane of the predicted tag height (seed 002 §3.1 works in the plane; the
     /// height comes from the INS); for `ResidualWeighted` with two ranges, from the two-range
@@ -136,6 +131,10 @@ impl TightFilter {
 }
 
 impl InertialFilter for TightFilter {
+    fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
         self.core.predict(t_s, accel, gyro)?;
         if self.constraints.any() {
