@@ -41,7 +41,8 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
 }
 
 /// One row per range update: `t, epoch_t, anchor, range, innovation, nis, accepted, weight,
-/// inflation, down_weighted, iterations, prior_fading` (`epoch_t`: when its epoch was applied).
+/// inflation, down_weighted, iterations, prior_fading, reacquired` (`epoch_t`: when its epoch was
+/// applied; `reacquired`: applied as its UWB-only fix).
 pub fn update_columns(trace: &Trace) -> Columns {
     let u = &trace.updates;
     vec![
@@ -57,6 +58,7 @@ pub fn update_columns(trace: &Trace) -> Columns {
         ("down_weighted", u.iter().map(|r| f64::from(u8::from(r.report.down_weighted))).collect()),
         ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
         ("prior_fading", u.iter().map(|r| r.report.prior_fading).collect()),
+        ("reacquired", u.iter().map(|r| f64::from(u8::from(r.report.reacquired))).collect()),
     ]
 }
 

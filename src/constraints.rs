@@ -25,6 +25,11 @@ use crate::update::{inject_and_reset, scalar_step};
 /// Largest pseudo-velocity history, steps.
 pub const MAX_SPEED_HISTORY: usize = 256;
 
+/// Threshold of the plane and pseudo-velocity constraints' own innovation test: `γ = r²/(h·P·hᵀ
+/// + R)` above it (`χ²₁` at α = 10⁻⁴) means the constraint does not hold now (a climb, a wrong
+/// plane height) and it is not applied.
+const CONSTRAINT_GATE: f64 = 15.136_705_226_623_606;
+
 /// Speed below which the pseudo-velocity direction `v/‖v‖` is undefined, m/s.
 const MIN_PSEUDO_SPEED: f64 = 1e-3;
 
@@ -41,6 +46,7 @@ pub struct Constraints {
     speed_head: usize,
     next_t_s: Option<f64>,
     still: bool,
+    gate: f64,
 }
 
 impl Constraints {
@@ -58,6 +64,7 @@ impl Constraints {
             speed_head: 0,
             next_t_s: None,
             still: false,
+            gate: CONSTRAINT_GATE,
         }
     }
 
@@ -104,13 +111,13 @@ impl Constraints {
             if let Some(target) = mean_speed {
                 let mut h = ErrVec::zeros();
                 h.fixed_rows_mut::<3>(VEL).copy_from(&(velocity / speed));
-                scalar_step(&mut dx, p, &h, target - speed, pseudo_var)?;
+                gated_step(&mut dx, p, &h, target - speed, pseudo_var, self.gate)?;
             }
         }
         if let Some(height) = self.plane_height {
             let mut h = ErrVec::zeros();
             h[POS + 2] = 1.0;
-            scalar_step(&mut dx, p, &h, height - z, plane_var)?;
+            gated_step(&mut dx, p, &h, height - z, plane_var, self.gate)?;
         }
         inject_and_reset(x, p, &dx);
         self.push_speed(x.velocity.norm());
@@ -129,4 +136,14 @@ impl Constraints {
         self.speed_head = (self.speed_head + 1) % self.speed_window;
         self.speed_len = (self.speed_len + 1).min(self.speed_window);
     }
+}
+
+/// A scalar step applied only when the innovation's `γ = r²/(h·(P + dx-free)·hᵀ + R)` is at most
+/// `gate` (the state before this constraint's step).
+fn gated_step(dx: &mut ErrVec, p: &mut crate::state::ErrCov, h: &ErrVec, residual: f64, r_var: f64, gate: f64) -> Result<()> {
+    let r = residual - h.dot(dx);
+    if r * r / (h.dot(&(*p * h)) + r_var) > gate {
+        return Ok(());
+    }
+    scalar_step(dx, p, h, residual, r_var).map(|_| ())
 }

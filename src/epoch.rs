@@ -140,9 +140,9 @@ pub fn group_epochs(ranges: &[RangeMeasurement], window_s: f64, anchor_count: us
 
 /// Moves each range of an epoch to the reference time `t_ref_s` along its predicted rate:
 /// `r' = r + uᵀ·v·(t_ref − t)`, with `u` the unit vector from the anchor to `tag` and `v` the tag
-/// velocity (navigation frame, m and m/s). Writes `(anchor, r')` into `out` (same length as
-/// `ranges`). A range whose anchor is unknown or coincides with the tag is passed unchanged (the
-/// filter reports it).
+/// velocity (navigation frame, m and m/s), floored at 0. Writes `(anchor, r')` into `out` (same
+/// length as `ranges`). A range whose anchor is unknown or coincides with the tag is passed
+/// unchanged (the filter reports it).
 pub fn align_to_reference(
     ranges: &[RangeMeasurement],
     t_ref_s: f64,
@@ -157,7 +157,7 @@ pub fn align_to_reference(
             let n = d.norm();
             (n > 1e-9).then(|| d.dot(velocity) / n)
         });
-        *o = (r.anchor, r.range_m + rate.unwrap_or(0.0) * (t_ref_s - r.t_s));
+        *o = (r.anchor, (r.range_m + rate.unwrap_or(0.0) * (t_ref_s - r.t_s)).max(0.0));
     }
 }
 

@@ -42,6 +42,7 @@ pub mod ackf;
 pub mod core;
 pub mod loose;
 pub mod named;
+pub mod reacquire;
 pub mod sigma_points;
 pub mod tight;
 

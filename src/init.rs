@@ -5,8 +5,10 @@
 //!    `init_still_s` seconds (the platform is assumed still there; if the window is not still,
 //!    roll and pitch still come from the mean specific force, the gyro bias is left at zero and
 //!    the attitude and velocity uncertainties are widened).
-//! 2. **Position** from UWB-only multilateration: the mean of the fixes inside the still window,
-//!    or the first fix after the start.
+//! 2. **Position** from UWB-only multilateration: the median of the fixes inside the still
+//!    window, or the first fix after the start. Fixes whose ranges fail the least-squares
+//!    consistency test ([`Fix::is_consistent`], α = 0.01: an outlier or NLOS range) are left out
+//!    here and in step 3 unless no fix passes.
 //! 3. **Heading from the first metres of motion against UWB**: the IMU is dead-reckoned from the
 //!    start with yaw 0; once the UWB tag has moved `init_heading_distance_m`, the yaw is the angle
 //!    that rotates the dead-reckoned tag displacement onto the UWB displacement (least squares over
@@ -31,6 +33,9 @@ const STILL_GYRO_RATE: f64 = 0.05;
 const HEADING_MAX_S: f64 = 30.0;
 /// Epochs past `init_heading_distance_m` used for the heading least squares.
 const HEADING_EPOCHS: usize = 5;
+/// Significance of the consistency test that screens the UWB fixes used (see
+/// [`Fix::is_consistent`]).
+const CONSISTENCY_ALPHA: f64 = 0.01;
 /// Yaw standard deviation when the heading comes from motion, rad (≈ 11°).
 const HEADING_FROM_MOTION_STD: f64 = 0.2;
 
@@ -75,11 +80,15 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
 
     // 2. Tag position from UWB fixes.
     let ls = LsConfig::from_filter_config(config);
-    let fixes: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
+    let all: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
         .into_iter()
         .filter(|e| e.t_s >= t0 - 0.5)
         .filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f)))
         .collect();
+    // Fixes whose ranges disagree (an outlier, NLOS) are left out when any others exist.
+    let consistent: Vec<(f64, Fix)> =
+        all.iter().filter(|(_, f)| f.is_consistent(config.range_std, CONSISTENCY_ALPHA)).copied().collect();
+    let fixes = if consistent.is_empty() { all } else { consistent };
     let Some((_, first_fix)) = fixes.first() else {
         return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));
     };
@@ -88,11 +97,8 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         (first_fix.position, first_fix.covariance, 1.0)
     } else {
         let k = start_fixes.len() as f64;
-        (
-            start_fixes.iter().map(|f| f.position).sum::<Vec3>() / k,
-            start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k,
-            k,
-        )
+        let median = Vec3::from_fn(|i, _| median(start_fixes.iter().map(|f| f.position[i]).collect()));
+        (median, start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k, k)
     };
 
     // 3. Heading from dead reckoning against UWB displacement.
@@ -123,6 +129,17 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         still,
         heading,
     })
+}
+
+/// Median of a non-empty list (mean of the middle two for an even count).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 /// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag

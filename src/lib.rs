@@ -7,6 +7,7 @@ pub mod crlb;
 pub mod epoch;
 pub mod error;
 pub mod filters;
+pub mod generality;
 pub mod init;
 pub mod ins;
 pub mod io;

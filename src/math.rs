@@ -34,6 +34,54 @@ pub fn symmetrize<const N: usize>(m: &mut Cov<N>) {
     }
 }
 
+/// Eigen-decomposition `m = V·diag(λ)·Vᵀ` of a small symmetric matrix by cyclic Jacobi rotations
+/// (no allocation, any fixed size): returns `(λ, V)`, eigenvalues unordered, `V` orthonormal.
+/// Converges quadratically; sweeps stop once the off-diagonal mass is below 1e-15 of the
+/// matrix's (at most 50 sweeps).
+pub fn symmetric_eigen<const N: usize>(m: &Cov<N>) -> (SVector<f64, N>, Cov<N>) {
+    let mut a = *m;
+    symmetrize(&mut a);
+    let mut v = Cov::<N>::identity();
+    let scale = a.norm_squared();
+    for _ in 0..50 {
+        let off: f64 =
+            (0..N).flat_map(|i| (0..N).filter(move |j| *j != i).map(move |j| (i, j))).map(|(i, j)| a[(i, j)].powi(2)).sum();
+        if !(off > 1e-30 * scale) {
+            break;
+        }
+        for p in 0..N {
+            for q in (p + 1)..N {
+                let apq = a[(p, q)];
+                if apq == 0.0 {
+                    continue;
+                }
+                // Rotation angle zeroing a[p][q] (Golub & Van Loan, Algorithm 8.4.1).
+                let theta = (a[(q, q)] - a[(p, p)]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..N {
+                    let (akp, akq) = (a[(k, p)], a[(k, q)]);
+                    a[(k, p)] = c * akp - s * akq;
+                    a[(k, q)] = s * akp + c * akq;
+                }
+                for k in 0..N {
+                    let (apk, aqk) = (a[(p, k)], a[(q, k)]);
+                    a[(p, k)] = c * apk - s * aqk;
+                    a[(q, k)] = s * apk + c * aqk;
+                }
+                for k in 0..N {
+                    let (vkp, vkq) = (v[(k, p)], v[(k, q)]);
+                    v[(k, p)] = c * vkp - s * vkq;
+                    v[(k, q)] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    (SVector::<f64, N>::from_fn(|i, _| a[(i, i)]), v)
+}
+
 /// Builds a quaternion from `[w, x, y, z]`, normalising it; `None` if its norm is not finite
 /// or is near zero.
 pub fn quat_from_wxyz(wxyz: [f64; 4]) -> Option<Quat> {
@@ -59,6 +107,25 @@ mod tests {
         let a = Vec3::new(0.3, -1.2, 2.0);
         let b = Vec3::new(-0.7, 0.4, 1.1);
         assert!((skew(&a) * b - a.cross(&b)).norm() < 1e-15);
+    }
+
+    #[test]
+    fn symmetric_eigen_reconstructs_and_matches_nalgebra() {
+        let b = nalgebra::SMatrix::<f64, 6, 6>::from_fn(|i, j| ((i * 7 + j * 3) % 5) as f64 - 1.7 + 0.1 * (i as f64));
+        let m = b * b.transpose() - Cov::<6>::identity() * 3.0;
+        let (lambda, v) = symmetric_eigen(&m);
+        let rebuilt = v * Cov::<6>::from_diagonal(&lambda) * v.transpose();
+        assert!((rebuilt - m).amax() < 1e-10 * m.amax(), "{rebuilt} vs {m}");
+        assert!((v.transpose() * v - Cov::<6>::identity()).amax() < 1e-12);
+        let mut ours: Vec<f64> = lambda.iter().copied().collect();
+        let mut reference: Vec<f64> = m.symmetric_eigen().eigenvalues.iter().copied().collect();
+        ours.sort_by(f64::total_cmp);
+        reference.sort_by(f64::total_cmp);
+        for (a, b) in ours.iter().zip(&reference) {
+            assert!((a - b).abs() < 1e-10 * m.amax());
+        }
+        let (l1, v1) = symmetric_eigen(&Cov::<1>::new(2.5));
+        assert_eq!((l1[0], v1[(0, 0)]), (2.5, 1.0));
     }
 
     #[test]

@@ -23,6 +23,7 @@ use crate::config::FilterConfig;
 use crate::epoch::{group_epochs, DEFAULT_EPOCH_WINDOW_S};
 use crate::math::{Mat3, Vec3};
 use crate::records::RangeMeasurement;
+use crate::robust::chi2_quantile;
 
 /// Relative singular-value threshold below which the linear system counts as rank-deficient.
 const RANK_RCOND: f64 = 1e-10;
@@ -33,6 +34,9 @@ const RANK_RCOND: f64 = 1e-10;
 const MAX_LINEAR_CONDITION: f64 = 300.0;
 /// Relative eigenvalue threshold below which `JᵀJ` counts as singular.
 const NORMAL_RCOND: f64 = 1e-12;
+/// `χ²₁` quantile at α = 0.001: the drop of the sum of squared range residuals (in units of σ²)
+/// that an extra unknown must bring to be kept.
+const EXTRA_UNKNOWN_CHI2: f64 = 10.827_566_170_662_733;
 /// Gauss–Newton halves a step at most this many times looking for a lower sum of squares.
 const MAX_STEP_HALVINGS: u32 = 30;
 /// Distance (m) below which the tag is "on" an anchor and the range Jacobian is undefined.
@@ -96,6 +100,36 @@ pub struct Fix {
     pub iterations: usize,
     /// Whether the height was held fixed (planar mode).
     pub planar: bool,
+}
+
+impl Fix {
+    /// A-posteriori variance factor `σ̂²/σ² = SSR/((n − u)·σ²)` of the fix (`n` ranges, `u` = 2
+    /// planar or 3 unknowns, σ = `range_std_m`): about 1 when the ranges agree with their noise,
+    /// far above 1 when one of them is an outlier. 1 without redundancy (`n ≤ u`).
+    pub fn variance_factor(&self, range_std_m: f64) -> f64 {
+        let redundancy = self.redundancy();
+        if redundancy == 0 || !(range_std_m > 0.0) {
+            return 1.0;
+        }
+        let n = self.ranges_used as f64;
+        n * self.residual_rms_m.powi(2) / (redundancy as f64 * range_std_m * range_std_m)
+    }
+
+    /// Ranges beyond the unknowns (2 planar, 3 in 3-D).
+    pub fn redundancy(&self) -> usize {
+        self.ranges_used.saturating_sub(if self.planar { 2 } else { 3 })
+    }
+
+    /// Whether the ranges agree with each other at significance `alpha`: the sum of squared
+    /// residuals `SSR/σ²` is below the `χ²` quantile with the redundancy's degrees of freedom
+    /// (global test of the adjustment). Always true without redundancy.
+    pub fn is_consistent(&self, range_std_m: f64, alpha: f64) -> bool {
+        let redundancy = self.redundancy();
+        match chi2_quantile(redundancy, alpha) {
+            Ok(q) if range_std_m > 0.0 => self.variance_factor(range_std_m) * redundancy as f64 <= q,
+            _ => true,
+        }
+    }
 }
 
 /// Checks that every observation names an existing anchor with finite coordinates and has a
@@ -299,7 +333,9 @@ pub fn gauss_newton_fix(
 ///
 /// Mode: planar at `cfg.planar_height_m` if it is `Some`; otherwise 3-D when the anchors used
 /// span at least `cfg.min_vertical_span_m` vertically and there are ≥ 4 ranges; otherwise
-/// (fallback) planar at the **mean height of the anchors used** (one term per observation).
+/// (fallback) planar at the **mean height of the anchors used** (one term per observation),
+/// unless the ranges show the tag well below the anchors' plane, which gives a 3-D fix below it
+/// (see [`below_coplanar_anchors`]).
 /// In 3-D, Gauss–Newton runs from the linear solution (seed 004 eq. (13); skipped when `G` is
 /// ill-conditioned, condition number above 300, i.e. near-coplanar anchors) and from the planar
 /// linear solution at the mean anchor height, then once more from the better result reflected
@@ -337,8 +373,47 @@ pub fn solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], cfg: &LsConfig) -> Op
         better(Some(best), gauss_newton_fix(anchors, obs, mirrored, None, cfg))
     } else {
         let start = linear_fix(anchors, obs, Some(z_mean))?;
-        gauss_newton_fix(anchors, obs, start, Some(z_mean), cfg)
+        let planar = gauss_newton_fix(anchors, obs, start, Some(z_mean), cfg);
+        let below = below_coplanar_anchors(anchors, obs, &start, z_mean, cfg);
+        // The extra unknown must pay for itself: the sum of squares must drop by more than the
+        // χ²₁ quantile at α = 0.001 (in units of σ²), else an outlier or noise chose it.
+        let ssr = |f: &Fix| f.residual_rms_m.powi(2) * obs.len() as f64;
+        match (below, planar) {
+            (Some(b), Some(p)) if ssr(&p) - ssr(&b) > EXTRA_UNKNOWN_CHI2 * cfg.range_std_m.powi(2) => Some(b),
+            (Some(b), None) => Some(b),
+            (_, p) => p,
+        }
     }
+}
+
+/// The 3-D fix below coplanar anchors, when the ranges say the tag is off their plane.
+///
+/// With every anchor at one height `h`, differencing squared ranges cancels the tag's height, so
+/// the linear x, y are right wherever the tag is; the height offset shows only in
+/// `Δz² = mean(rᵢ² − dᵢ²)` (`dᵢ` the horizontal distance to anchor i). When `Δz²` exceeds three
+/// standard deviations of its noise (`≈ 2σ·√Σrᵢ²/n`), Gauss–Newton runs in 3-D from
+/// `(x, y, h − √Δz²)`: the tag is taken **below** the anchors (they are mounted on walls and
+/// ceilings; the mirror image above fits equally well). A fix that ends above the plane, no
+/// significant offset, or (in [`solve_epoch`]) a fit hardly better than the planar one leaves the
+/// planar fix at the anchors' height.
+fn below_coplanar_anchors(anchors: &[Vec3], obs: &[(usize, f64)], xy: &Vec3, h: f64, cfg: &LsConfig) -> Option<Fix> {
+    if obs.len() < 3 {
+        return None;
+    }
+    let n = obs.len() as f64;
+    let (mut dz2, mut r2) = (0.0, 0.0);
+    for &(a, r) in obs {
+        let d = anchors[a] - xy;
+        dz2 += r * r - d.x * d.x - d.y * d.y - (anchors[a].z - h).powi(2);
+        r2 += r * r;
+    }
+    dz2 /= n;
+    let noise = 2.0 * cfg.range_std_m * r2.sqrt() / n;
+    if dz2 <= 3.0 * noise {
+        return None;
+    }
+    let start = Vec3::new(xy.x, xy.y, h - dz2.sqrt());
+    gauss_newton_fix(anchors, obs, start, None, cfg).filter(|f| f.position.z < h)
 }
 
 /// The fix with the smaller residual RMS.
@@ -411,10 +486,39 @@ mod tests {
         assert!(fix.planar);
         assert!((fix.position - p).norm() < 1e-6);
         assert_eq!(fix.covariance[(2, 2)], 0.0);
-        // Fallback (flat anchors, no height given): planar at the mean anchor height.
-        let fallback = solve_epoch(&anchors, &obs, &LsConfig::default()).unwrap();
+        // Flat anchors, no height given, tag 1.4 m below them: the 3-D fix below the plane.
+        let below = solve_epoch(&anchors, &obs, &LsConfig::default()).unwrap();
+        assert!(!below.planar);
+        assert!((below.position - p).norm() < 1e-6, "{:?}", below.position);
+        // Tag in the anchors' plane: planar at the anchors' height.
+        let level = Vec3::new(7.3, 2.2, 2.5);
+        let fallback = solve_epoch(&anchors, &exact_obs(&anchors, &level), &LsConfig::default()).unwrap();
         assert!(fallback.planar);
-        assert!((fallback.position.z - 2.5).abs() < 1e-12);
+        assert!((fallback.position - level).norm() < 1e-9);
+    }
+
+    #[test]
+    fn coplanar_anchors_resolve_a_tag_below_them_with_noise() {
+        // Ceiling anchors 2.6 m up, tag 0.35 m high, σ = 0.1 m: the planar fix at the ceiling
+        // height was off by the vertical offset's projection; the fix below recovers the tag.
+        let anchors: Vec<Vec3> =
+            [(0.0, 0.0), (12.0, 0.0), (12.0, 8.0), (0.0, 8.0)].iter().map(|&(x, y)| Vec3::new(x, y, 2.6)).collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let cfg = LsConfig::default();
+        let in_plane = LsConfig { planar_height_m: Some(2.6), ..cfg };
+        let (mut err_h, mut err_in_plane, mut below) = (0.0, 0.0, 0);
+        for k in 0..200 {
+            let p = Vec3::new(1.5 + 0.045 * k as f64, 1.0 + 0.03 * k as f64, 0.35);
+            let obs = noisy_obs(&anchors, &p, 0.1, &mut rng);
+            let fix = solve_epoch(&anchors, &obs, &cfg).unwrap();
+            err_h += (fix.position - p).xy().norm_squared();
+            err_in_plane += (solve_epoch(&anchors, &obs, &in_plane).unwrap().position - p).xy().norm_squared();
+            below += usize::from(!fix.planar && fix.position.z < 2.6);
+        }
+        let (rms, rms_in_plane) = ((err_h / 200.0).sqrt(), (err_in_plane / 200.0).sqrt());
+        assert!(below >= 195, "{below} of 200 fixes below the anchors");
+        // Measured: 0.110 m below the anchors against 0.174 m in their plane.
+        assert!(rms < 0.13 && rms < 0.75 * rms_in_plane, "horizontal RMS {rms} m (in plane {rms_in_plane} m)");
     }
 
     #[test]

@@ -10,6 +10,9 @@
 //!
 //! Yaw and biases are not estimated: the yaw starts from the initial orientation and integrates
 //! the body z rate minus the initial gyro bias; the initial accelerometer bias is subtracted.
+//! The initial roll and pitch are taken as a fixed levelling of the body frame (the IMU samples,
+//! biases and lever arm are turned by them first), so a tilted or upside-down mounting works
+//! without `imu_rotation`; with a level start this is the identity.
 //! The plane height is `plane_height` (default: the initial height). The range model uses the
 //! 3-D distance to each anchor with that known height (eq. (8) is the case of equal heights).
 
@@ -18,16 +21,18 @@ pub mod ekf;
 pub mod model;
 pub mod ukf;
 
-use nalgebra::{UnitQuaternion, Vector2};
+use nalgebra::{Matrix2, UnitQuaternion, Vector2};
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
+use crate::filters::reacquire::reacquisition_fix;
 use crate::filters::sigma_points::UnscentedWeights;
 use crate::filters::tight::check_ranges;
 use crate::math::{Mat3, Vec3};
+use crate::multilateration::LsConfig;
 use crate::pipeline::{Estimator, StepRecord};
 use crate::state::NominalState;
-use crate::update::UpdateReport;
+use crate::update::{scalar_step, UpdateReport};
 
 pub use cekf::MovingAverage;
 pub use model::{PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
@@ -57,7 +62,8 @@ pub struct PlanarFilter {
     yaw_rad: f64,
     gyro_bias_z: f64,
     accel_bias_xy: Vector2<f64>,
-    imu_rotation: nalgebra::UnitQuaternion<f64>,
+    level: UnitQuaternion<f64>,
+    imu_rotation: UnitQuaternion<f64>,
     accel_density: f64,
     range_var: f64,
     weights: UnscentedWeights,
@@ -90,17 +96,22 @@ impl PlanarFilter {
             covariance[(i, i)] = s * s;
         }
         let window = if kind == PlanarKind::Cekf { config.cekf_window } else { 1 };
+        // The initial roll and pitch level the body frame once and for all (e.g. an IMU mounted
+        // upside down and not declared in `imu_rotation`).
+        let (roll, pitch, yaw) = initial.orientation.euler_angles();
+        let level = UnitQuaternion::from_euler_angles(roll, pitch, 0.0);
         Ok(Self {
             kind,
-            geometry: PlanarGeometry { height_m: config.plane_height.unwrap_or(p.z), lever_arm: config.lever_arm },
+            geometry: PlanarGeometry { height_m: config.plane_height.unwrap_or(p.z), lever_arm: level * config.lever_arm },
             prefilter: MovingAverage::new(anchors.len(), window)?,
             anchors,
             state: PlanarState::new(p.x, p.y, v.x, v.y),
             covariance,
-            yaw_rad: initial.orientation.euler_angles().2,
-            gyro_bias_z: initial.gyro_bias.z,
-            accel_bias_xy: initial.accel_bias.xy(),
-            imu_rotation: config.imu_rotation,
+            yaw_rad: yaw,
+            gyro_bias_z: (level * initial.gyro_bias).z,
+            accel_bias_xy: (level * initial.accel_bias).xy(),
+            level,
+            imu_rotation: level * config.imu_rotation,
             accel_density: config.planar_accel_density,
             range_var: config.range_std.powi(2),
             weights,
@@ -187,6 +198,37 @@ impl PlanarFilter {
         self.yaw_rad = yaw_end;
     }
 
+    /// Re-acquisition ([`crate::filters::reacquire`]): when the prior is far less precise than
+    /// the epoch's UWB-only fix at the plane height, applies the fix (body x, y = tag fix minus
+    /// the yaw-turned lever arm) as a linear update and returns its innovation norm and NIS.
+    fn reacquire(&mut self, ranges: &[(usize, f64)]) -> Result<Option<(f64, f64)>> {
+        let prior_xy = self.covariance[(X, X)] + self.covariance[(Y, Y)];
+        let tag_height = self.geometry.height_m + self.geometry.lever_arm.z;
+        let ls = LsConfig { range_std_m: self.range_var.sqrt(), planar_height_m: Some(tag_height), ..LsConfig::default() };
+        let Some(fix) = reacquisition_fix(prior_xy, &self.anchors, ranges, &ls) else {
+            return Ok(None);
+        };
+        let lever = model::yaw_rotation(self.yaw_rad) * self.geometry.lever_arm.xy();
+        let residual = fix.position.xy() - lever - Vector2::new(self.state[X], self.state[Y]);
+        let cov: Matrix2<f64> = fix.covariance.fixed_view::<2, 2>(0, 0).into_owned();
+        let innovation_cov = self.covariance.fixed_view::<2, 2>(X, X) + cov;
+        let (Some(l), Some(s)) = (cov.cholesky(), innovation_cov.cholesky()) else {
+            return Ok(None);
+        };
+        let Some(l_inv) = l.l().solve_lower_triangular(&Matrix2::identity()) else {
+            return Ok(None);
+        };
+        let nis = residual.dot(&s.solve(&residual));
+        let whitened = l_inv * residual;
+        let mut dx = PlanarState::zeros();
+        for i in 0..2 {
+            let h = PlanarState::new(l_inv[(i, 0)], l_inv[(i, 1)], 0.0, 0.0);
+            scalar_step(&mut dx, &mut self.covariance, &h, whitened[i], 1.0)?;
+        }
+        self.state += dx;
+        Ok(Some((residual.norm(), nis)))
+    }
+
     /// Applies the ranges of one epoch at `t_s` (≥ the filter time; propagated there with the
     /// held sample), one report per range.
     pub fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
@@ -195,11 +237,22 @@ impl PlanarFilter {
         }
         check_ranges(&self.anchors, ranges)?;
         self.advance_to(t_s)?;
-        let epoch =
-            ekf::Epoch { anchors: &self.anchors, geometry: &self.geometry, yaw_rad: self.yaw_rad, range_var: self.range_var };
+        if let Some((innovation, nis)) = self.reacquire(ranges)? {
+            reports
+                .iter_mut()
+                .for_each(|r| *r = UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
+            return Ok(());
+        }
+        let epoch = ekf::Epoch {
+            t_s,
+            anchors: &self.anchors,
+            geometry: &self.geometry,
+            yaw_rad: self.yaw_rad,
+            range_var: self.range_var,
+        };
         match self.kind {
             PlanarKind::Ekf => {
-                ekf::linearised_update(&epoch, &mut self.state, &mut self.covariance, ranges, reports, |_, r| Ok(r))
+                ekf::linearised_update(&epoch, &mut self.state, &mut self.covariance, ranges, reports, |r| Ok(r.range_m))
             }
             PlanarKind::Ukf => {
                 ukf::unscented_update(&epoch, &self.weights, &mut self.state, &mut self.covariance, ranges, reports)
@@ -244,8 +297,9 @@ impl Estimator for PlanarFilter {
         self.epoch_window_s
     }
 
-    /// Position (x, y, plane height), velocity (vx, vy, 0), yaw-only orientation, gyro bias
-    /// (0, 0, b_z) and accelerometer bias (b_x, b_y, 0) as given initially; the position
+    /// Position (x, y, plane height), velocity (vx, vy, 0), orientation = the yaw after the
+    /// initial levelling, gyro bias (0, 0, b_z) and accelerometer bias (b_x, b_y, 0) in the
+    /// levelled frame as given initially; the position
     /// covariance has the x, y block and zeros for z (the height is fixed).
     fn record(&self, t_s: f64) -> StepRecord {
         let x = &self.state;
@@ -256,7 +310,7 @@ impl Estimator for PlanarFilter {
             state: NominalState {
                 position: Vec3::new(x[X], x[Y], self.geometry.height_m),
                 velocity: Vec3::new(x[VX], x[VY], 0.0),
-                orientation: UnitQuaternion::from_euler_angles(0.0, 0.0, self.yaw_rad),
+                orientation: UnitQuaternion::from_euler_angles(0.0, 0.0, self.yaw_rad) * self.level,
                 accel_bias: Vec3::new(self.accel_bias_xy.x, self.accel_bias_xy.y, 0.0),
                 gyro_bias: Vec3::new(0.0, 0.0, self.gyro_bias_z),
             },

@@ -1,13 +1,16 @@
 //! Robust noise policies: χ² thresholds, the covariance inflation of outlying ranges, the
-//! ARCKF robustness factor (seed 002 §3) and the Sage–Husa (fuzzy) adaptive R (seed 004 §3.2–§3.3).
+//! ARCKF robustness factor (seed 002 §3), the Sage–Husa (fuzzy) adaptive R (seed 004 §3.2–§3.3)
+//! and the bounds and divergence detection that keep adaptive noise from running away.
 
 pub mod aiding;
 pub mod chi2;
+pub mod noise_bounds;
 pub mod policy;
 pub mod robustness;
 pub mod sage_husa;
 
-pub use chi2::chi2_quantile_1dof;
+pub use chi2::{chi2_quantile, chi2_quantile_1dof};
+pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
 pub use policy::RangeNoisePolicy;
 pub use robustness::{
     fade_position_velocity, prior_fading, robustness_factor, robustness_factors, two_range_residuals, RobustnessFactor,

@@ -28,6 +28,9 @@ pub struct UpdateReport {
     /// Factor `λ ≥ 1` by which the prior covariance of this measurement's epoch was inflated
     /// (seed 002 eq. (42), ARCKF adaptive branch); 1 otherwise.
     pub prior_fading: f64,
+    /// Whether the epoch was applied as its UWB-only fix to re-acquire the solution
+    /// ([`crate::filters::reacquire`]); `innovation` and `nis` are then the fix's.
+    pub reacquired: bool,
 }
 
 impl UpdateReport {
@@ -42,6 +45,7 @@ impl UpdateReport {
             down_weighted: false,
             iterations: 0,
             prior_fading: 1.0,
+            reacquired: false,
         }
     }
 
@@ -56,6 +60,7 @@ impl UpdateReport {
             down_weighted: inflation > 1.0,
             iterations,
             prior_fading: 1.0,
+            reacquired: false,
         }
     }
 }
@@ -130,4 +135,20 @@ pub fn vector_step<const M: usize>(
         scalar_step(dx, p, &hw.row(i).transpose(), rw[i], 1.0)?;
     }
     Ok(nis)
+}
+
+/// [`vector_step`] on the first `N` rows (x, y or x, y, z) of a 3-row measurement with residual
+/// `residual`, Jacobian `h` and noise covariance `cov` (its leading `N × N` block): a planar
+/// UWB fix constrains x and y only.
+pub fn leading_rows_step<const N: usize>(
+    dx: &mut ErrVec,
+    p: &mut ErrCov,
+    residual: &nalgebra::SVector<f64, 3>,
+    h: &nalgebra::SMatrix<f64, 3, ERR_DIM>,
+    cov: &Mat3,
+) -> Result<f64> {
+    let r: nalgebra::SVector<f64, N> = residual.fixed_rows::<N>(0).into_owned();
+    let hn: nalgebra::SMatrix<f64, N, ERR_DIM> = h.fixed_rows::<N>(0).into_owned();
+    let c: nalgebra::SMatrix<f64, N, N> = cov.fixed_view::<N, N>(0, 0).into_owned();
+    vector_step(dx, p, &hn, &r, &c)
 }

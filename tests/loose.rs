@@ -39,13 +39,20 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
 
 /// Horizontal RMSE of uwb_ls, eskf, shaf, shfaf on one seed of a seed-004 preset, and the time
 /// after which each inertial filter's error stays below 0.2 m.
-fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64) -> ([f64; 4], [f64; 3]) {
+/// One seed-004 run of the three loose filters and `uwb_ls`: RMSEs `[uwb_ls, eskf, shaf, shfaf]`
+/// and the time each filter first gets below 0.2 m. `paper`: the filters as printed (plain
+/// least-squares fix covariance, unbounded Sage–Husa); else this crate's defaults.
+fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, paper: bool) -> ([f64; 4], [f64; 3]) {
     use uwbimu_rs::filters::{Shaf, Shfaf};
     let cfg = preset(name, seed).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let mut fc = config_for(&cfg);
     fc.range_std = (0.1f64.powi(2) + 0.4f64.powi(2) / 12.0).sqrt();
     fc.loose_noise_scale = noise_scale;
+    if paper {
+        fc.loose_variance_factor = false;
+        fc.sage_husa.bounds = None;
+    }
     let initial = truth_initial(&data, start_offset);
     let a = data.anchors.clone();
     let traces = [
@@ -70,20 +77,30 @@ fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64) -> (
 
 #[test]
 fn seed004_scenario2_table1_over_five_seeds() {
-    let mut sum = [0.0; 4];
+    let (mut paper, mut ours) = ([0.0; 4], [0.0; 4]);
     for seed in 0..5 {
-        let (rmse, _) = seed004_run("seed004_s2", seed, Vec3::zeros(), 1.0);
-        println!("seed {seed}: uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}", rmse[0], rmse[1], rmse[2], rmse[3]);
+        let (p, _) = seed004_run("seed004_s2", seed, Vec3::zeros(), 1.0, true);
+        let (o, _) = seed004_run("seed004_s2", seed, Vec3::zeros(), 1.0, false);
+        println!(
+            "seed {seed}: as printed uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}; ours eskf {:.3} shaf {:.3} shfaf {:.3}",
+            p[0], p[1], p[2], p[3], o[1], o[2], o[3]
+        );
         for k in 0..4 {
-            sum[k] += rmse[k] / 5.0;
+            paper[k] += p[k] / 5.0;
+            ours[k] += o[k] / 5.0;
         }
     }
     println!(
-        "mean RMSE: uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}  (paper: 0.804 / 0.390 / 0.320 / 0.144)",
-        sum[0], sum[1], sum[2], sum[3]
+        "mean RMSE as printed: uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}  (paper: 0.804 / 0.390 / 0.320 / 0.144); ours: eskf {:.3} shaf {:.3} shfaf {:.3}",
+        paper[0], paper[1], paper[2], paper[3], ours[1], ours[2], ours[3]
     );
-    // The paper's order SHFAF < SHAF < ESKF < UWB holds, by much smaller margins (README).
-    assert!(sum[3] < sum[2] && sum[2] < sum[1] && sum[1] < sum[0], "{sum:?}");
+    // As printed, every filter beats UWB-only and SHFAF beats SHAF, but the ESKF is the best
+    // (measured 1.129 / 0.710 / 0.796 / 0.787): the paper's SHAF, SHFAF < ESKF does not reproduce.
+    assert!(paper[1..].iter().all(|r| *r < 0.75 * paper[0]), "{paper:?}");
+    assert!(paper[3] < paper[2] && paper[1] < 0.8 && paper[3] < 0.9, "{paper:?}");
+    // Ours (fix covariance scaled by its variance factor, bounded Sage–Husa): measured
+    // 0.135 / 0.143 / 0.177 m, about 8× below UWB-only.
+    assert!(ours[1..].iter().all(|r| *r < 0.2), "{ours:?}");
 }
 
 #[test]
@@ -91,7 +108,7 @@ fn seed004_scenario1_convergence() {
     for seed in 0..3 {
         // A large initial R (σ ×5): the fixed-R ESKF trusts the fixes little, the adaptive
         // filters learn the real noise.
-        let (_, settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0);
+        let (_, settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, true);
         println!(
             "seed {seed}: first below 0.2 m after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s",
             settle[0], settle[1], settle[2]

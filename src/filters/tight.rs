@@ -5,16 +5,18 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
+use crate::filters::reacquire::{reacquire, DivergenceWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
 use crate::models::range::{predict_range, tag_position};
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
-use crate::robust::sage_husa::SageHusa;
+use crate::robust::sage_husa::{SageHusa, SageHusaConfig};
+use crate::robust::NoiseBounds;
 use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
-use crate::state::{ErrVec, ERR_DIM};
+use crate::state::{ErrCov, ErrVec, NominalState, ERR_DIM};
 use crate::update::{inject_and_reset, scalar_step, UpdateReport};
 use nalgebra::{SMatrix, SVector};
 
@@ -26,7 +28,9 @@ use nalgebra::{SMatrix, SVector};
 /// the policy sets `R'` (eq. (40)); the linearised problem is then solved by sequential scalar
 /// Joseph steps, which equals the joint update of Algorithm 1 lines 9–11 for diagonal `R`. The
 /// strategy iterates until the step `‖X⁺ ⊖ X_op‖` is below `tolerance` or `max_iterations` is
-/// reached (line 12); one iteration is the single EKF step. The iteration re-linearises from the
+/// reached (line 12); one iteration is the single EKF step. An iteration whose step is longer
+/// than the previous one (Gauss–Newton no longer contracting: gross outliers sent it to
+/// kilometres on the zoo) is discarded and the previous iterate kept (ours). The iteration re-linearises from the
 /// prior covariance `P⁻` each time (a standard iterated EKF); Algorithm 1 line 8 as printed
 /// (`P⁻ := P⁺`) would re-use each iteration's posterior as the next prior and count the ranges
 /// repeatedly, so only γ (eq. (39)) uses the posterior.
@@ -45,7 +49,13 @@ pub struct TightFilter {
     constraints: Constraints,
     range_noise: Vec<SageHusa<1>>,
     unscented: Option<UnscentedWeights>,
+    divergence: DivergenceWatch,
 }
+
+/// Bounds of each anchor's adaptive range variance relative to `range_std²` (when the Sage–Husa
+/// bounds are on): σ from half to ten times the configured one — a range estimator must be able
+/// to learn one anchor far noisier than the rest (measured 24·σ² for a true 26·σ²).
+const RANGE_NOISE_BOUNDS: NoiseBounds = NoiseBounds { min_ratio: 0.25, max_ratio: 100.0 };
 
 /// Sigma points of the 15-state unscented update: 2n + 1 with n = 15 (checked at compile time
 /// by [`scalar_moments`]).
@@ -67,7 +77,8 @@ impl TightFilter {
         let constraints = Constraints::new(&config, initial.position.z);
         let range_noise = if config.adaptive_range_noise {
             let initial_r = SMatrix::<f64, 1, 1>::new(config.range_std.powi(2));
-            (0..anchors.len()).map(|_| SageHusa::new(config.sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
+            let sage_husa = SageHusaConfig { bounds: config.sage_husa.bounds.map(|_| RANGE_NOISE_BOUNDS), ..config.sage_husa };
+            (0..anchors.len()).map(|_| SageHusa::new(sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
         } else {
             Vec::new()
         };
@@ -80,6 +91,7 @@ impl TightFilter {
             constraints,
             range_noise,
             unscented: None,
+            divergence: DivergenceWatch::default(),
         })
     }
 
@@ -112,6 +124,22 @@ impl TightFilter {
         let ls = LsConfig { range_std_m: config.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
         let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
         robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.range_std)
+    }
+
+    /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
+    /// noise (for the divergence watch, [`crate::filters::reacquire`]).
+    fn failed_at_prior(&self, ranges: &[(usize, f64)]) -> usize {
+        let (x, p) = (self.core.state(), self.core.covariance());
+        let config = self.core.config();
+        let r_var = config.range_std * config.range_std;
+        ranges
+            .iter()
+            .filter(|&&(anchor, range_m)| {
+                predict_range(x, &self.anchors[anchor], &config.lever_arm).is_some_and(|pred| {
+                    (range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var) > RANGE_FAIL_NIS
+                })
+            })
+            .count()
     }
 
     /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
@@ -149,6 +177,13 @@ impl InertialFilter for TightFilter {
         }
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
+        let failed = self.failed_at_prior(ranges);
+        if let Some((innovation, nis)) = reacquire(&mut self.core, &mut self.divergence, &self.anchors, ranges, failed)? {
+            reports
+                .iter_mut()
+                .for_each(|r| *r = UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
+            return Ok(());
+        }
         if let Some(weights) = self.unscented {
             return self.update_unscented(&weights, ranges, reports);
         }
@@ -172,6 +207,9 @@ impl InertialFilter for TightFilter {
         let (prior, p_prior) = (*x, *p_out);
         let (mut op, mut p_post) = (prior, p_prior);
         let mut iterations = 0;
+        // The previous iterate (operating point, covariance, step), to fall back on when the
+        // iteration stops contracting.
+        let mut previous: Option<(NominalState, ErrCov, ErrVec)> = None;
         loop {
             iterations += 1;
             let mut dx = prior.boxminus(&op);
@@ -194,12 +232,22 @@ impl InertialFilter for TightFilter {
                 scalar_step(&mut dx, &mut p, &h, residual, base_var * inflation)?;
                 *report = UpdateReport::applied(residual, nis, base_var * inflation / r_var, iterations);
             }
-            if iterations >= self.max_iterations || dx.norm() < self.tolerance {
+            let step = dx.norm();
+            if let Some((mut op_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, d)| step > d.norm()) {
+                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
+                // to thousands of radians): keep the previous iterate.
+                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
+                *x = op_prev;
+                *p_out = p_prev;
+                break;
+            }
+            if iterations >= self.max_iterations || step < self.tolerance {
                 inject_and_reset(&mut op, &mut p, &dx);
                 *x = op;
                 *p_out = p;
                 break;
             }
+            previous = Some((op, p, dx));
             op.inject(&dx);
             p_post = p;
         }
@@ -263,13 +311,18 @@ impl TightFilter {
 }
 
 /// The range noise variance for one range: per-anchor Sage–Husa (seed 004 eqs. (26)–(36) on the
-/// range innovation, stepped when `step` — once per epoch, at the first iterate — else held; may
-/// correct `residual`), or the fixed `r_var` without adaptive noise. `hph` is the predicted
+/// range innovation, stepped when `step` — once per epoch, at the first iterate — else held;
+/// within the configured bounds of `r_var`; may correct `residual`), or the fixed `r_var` without
+/// adaptive noise. `hph` is the predicted
 /// range variance.
 fn range_noise(estimators: &mut [SageHusa<1>], anchor: usize, residual: &mut f64, hph: f64, step: bool, r_var: f64) -> f64 {
     match estimators.get_mut(anchor) {
         Some(est) if step => {
-            let s = est.step(&SVector::<f64, 1>::new(*residual), &SMatrix::<f64, 1, 1>::new(hph));
+            let s = est.step_bounded(
+                &SVector::<f64, 1>::new(*residual),
+                &SMatrix::<f64, 1, 1>::new(hph),
+                &SMatrix::<f64, 1, 1>::new(r_var),
+            );
             *residual = s.innovation[0];
             s.r[(0, 0)]
         }

@@ -29,16 +29,22 @@ pub fn position_measurement(x: &NominalState, fix: &TagFix, lever_arm: &Vec3) ->
     (residual, h)
 }
 
+/// Longest time between two fixes that are differenced into a velocity, s: beyond it (an outage,
+/// sparse UWB) the difference is the mean over a stretch in which the velocity changed, not a
+/// velocity measurement.
+pub const MAX_VELOCITY_BASELINE_S: f64 = 1.0;
+
 /// Differenced tag velocity (seed 004 eq. (14)) `(p_k − p_{k−1})/Δt` against the INS velocity
 /// (the lever-arm term `R·(ω × l)` is neglected); residual, Jacobian (`I` on δv) and covariance
-/// `(Σ_k + Σ_{k−1})/Δt²`. None if the fixes are not in time order.
+/// `(Σ_k + Σ_{k−1})/Δt²`. None if the fixes are not in time order or more than
+/// [`MAX_VELOCITY_BASELINE_S`] apart.
 pub fn velocity_measurement(
     x: &NominalState,
     fix: &TagFix,
     previous: &TagFix,
 ) -> Option<(SVector<f64, 3>, SMatrix<f64, 3, ERR_DIM>, Mat3)> {
     let dt = fix.t_s - previous.t_s;
-    if dt <= 0.0 {
+    if dt <= 0.0 || dt > MAX_VELOCITY_BASELINE_S {
         return None;
     }
     let velocity = (fix.position - previous.position) / dt;

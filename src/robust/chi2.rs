@@ -58,9 +58,111 @@ pub fn chi2_quantile_1dof(alpha: f64) -> Result<f64> {
     Ok(normal_quantile(1.0 - 0.5 * alpha).powi(2))
 }
 
+/// ln Γ(x) for x > 0 (Lanczos, g = 7, 9 terms; relative error below 1e-14).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = x - 1.0;
+    let t = x + 7.5;
+    let sum = G[1..].iter().enumerate().fold(G[0], |acc, (i, g)| acc + g / (x + i as f64 + 1.0));
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
+}
+
+/// Upper regularised incomplete gamma `Q(a, x) = Γ(a, x)/Γ(a)` for a > 0, x ≥ 0: the series of
+/// `P` below `x < a + 1`, Lentz's continued fraction above (Numerical Recipes §6.2).
+fn upper_gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let front = (-x + a * x.ln() - ln_gamma(a)).exp();
+    if x < a + 1.0 {
+        let (mut term, mut sum, mut n) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..500 {
+            n += 1.0;
+            term *= x / n;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-16 {
+                break;
+            }
+        }
+        return 1.0 - sum * front;
+    }
+    let tiny = 1e-300;
+    let mut b = x + 1.0 - a;
+    let mut c = 1.0 / tiny;
+    let mut d = 1.0 / b;
+    let mut h = d;
+    for i in 1..500 {
+        let an = -(i as f64) * (i as f64 - a);
+        b += 2.0;
+        d = an * d + b;
+        d = if d.abs() < tiny { tiny } else { d };
+        c = b + an / c;
+        c = if c.abs() < tiny { tiny } else { c };
+        d = 1.0 / d;
+        let delta = d * c;
+        h *= delta;
+        if (delta - 1.0).abs() < 1e-16 {
+            break;
+        }
+    }
+    front * h
+}
+
+/// χ² quantile with `dof ≥ 1` degrees of freedom exceeded with probability `alpha`: exact for one
+/// degree of freedom ([`chi2_quantile_1dof`]); otherwise the root of `Q(k/2, x/2) = α` (the χ²
+/// upper tail through the regularised incomplete gamma function) by bisection to 1e-12
+/// relative. Fails unless `0 < alpha < 1` and `dof ≥ 1`.
+pub fn chi2_quantile(dof: usize, alpha: f64) -> Result<f64> {
+    if dof == 0 {
+        return Err(Error::InvalidConfig { field: "dof".into(), reason: "needs at least one degree of freedom".into() });
+    }
+    let one = chi2_quantile_1dof(alpha)?;
+    if dof == 1 {
+        return Ok(one);
+    }
+    let a = 0.5 * dof as f64;
+    let (mut lo, mut hi) = (0.0, one + 10.0 * dof as f64);
+    while upper_gamma_q(a, 0.5 * hi) > alpha {
+        hi *= 2.0;
+    }
+    while hi - lo > 1e-12 * hi {
+        let mid = 0.5 * (lo + hi);
+        if upper_gamma_q(a, 0.5 * mid) > alpha {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Ok(0.5 * (lo + hi))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn multi_dof_quantiles_match_tables() {
+        for (dof, alpha, expected) in
+            [(2, 0.001, 13.8155), (4, 0.001, 18.4668), (6, 0.001, 22.4577), (6, 1e-4, 27.8563), (3, 0.05, 7.8147)]
+        {
+            let q = chi2_quantile(dof, alpha).unwrap();
+            assert!((q - expected).abs() < 1e-4 * expected, "dof {dof}, alpha {alpha}: {q} vs {expected}");
+        }
+        assert_eq!(chi2_quantile(1, 0.01).unwrap(), chi2_quantile_1dof(0.01).unwrap());
+        // Two degrees of freedom in closed form: −2 ln α.
+        assert!((chi2_quantile(2, 0.01).unwrap() + 2.0 * 0.01f64.ln()).abs() < 1e-9);
+        assert!(chi2_quantile(0, 0.01).is_err() && chi2_quantile(3, 1.5).is_err());
+    }
 
     #[test]
     fn quantiles_match_tables() {
