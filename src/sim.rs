@@ -3,7 +3,8 @@
 //!
 //! - **Trajectories** ([`Trajectory`]): still / turn-in-place / straight / closed-curve segments
 //!   (figure-8 lemniscate of Gerono, ellipse), evaluated in closed form at constant height with
-//!   roll = pitch = 0 and heading along the path tangent. Speed changes use the quintic smoothstep,
+//!   roll = pitch = 0 and heading along the path tangent; an optional [`Overlay`] adds periodic
+//!   position and attitude motion (walking, flight). Speed changes use the quintic smoothstep,
 //!   so velocity and acceleration are continuous. Every constructor starts with a still period
 //!   for levelling from gravity.
 //! - **IMU** ([`ImuNoise`]): f_b = R_nbᵀ(a_n − g_n) and ω_b, rotated into the IMU frame by
@@ -11,9 +12,13 @@
 //!   a bias random walk. Optional magnetometer ([`MagConfig`]) at the IMU times.
 //! - **UWB** ([`UwbConfig`]): per-anchor ranges from the tag (body origin + R·lever arm) with
 //!   Gaussian and uniform noise, NLOS shielding windows (positive bias, extra noise, dropouts),
-//!   gross outliers and dropouts; each range is labelled LOS / NLOS / outlier.
+//!   gross outliers and dropouts, staggered and jittered per-anchor times, per-anchor rates and
+//!   outages; each range is labelled LOS / NLOS / outlier.
 //! - **Presets** ([`preset`]): `seed000` (figure-8 ×4 in a hall, NLOS shielding), `seed000_los`,
 //!   `seed002_rectangle`, `seed002_figure8`, `seed004_s1`, `seed004_s2`.
+//! - **The scenario zoo** ([`zoo`]): deployment-like runs (staggered ranges, mixed rates,
+//!   coplanar and cuboid anchors, 20–1000 Hz IMUs, walking and flight, NLOS, outliers, outages,
+//!   survey errors) with the filter configuration matched to their sensors ([`matched_config`]).
 //!
 //! Randomness: one seed; the IMU, UWB and magnetometer draw from separate ChaCha8 streams, so
 //! changing one sensor's settings leaves the other sensors' noise unchanged.
@@ -37,7 +42,7 @@ pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Traject
 pub use uwb::{
     NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
 };
-pub use zoo::{matched_config, zoo, Scenario, ZOO_NAMES};
+pub use zoo::{matched_config, true_initial, zoo, Scenario, ZOO_NAMES};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};

@@ -62,6 +62,9 @@ __all__ = [
     "simulate",
     "SIM_PRESET_NAMES",
     "SIM_OVERRIDE_KEYS",
+    "SIM_ZOO_NAMES",
+    "sim_zoo",
+    "sim_zoo_matrix",
 ]
 
 _F64 = NDArray[np.float64]
@@ -919,6 +922,26 @@ SIM_PRESET_NAMES: list[str]
 SIM_OVERRIDE_KEYS: list[str]
 """Override keys accepted by :func:`sim_preset` and :func:`simulate` (``"nlos"``, ...)."""
 
+SIM_ZOO_NAMES: list[str]
+"""Scenario names accepted by :func:`sim_zoo` (``"agv_loop"``, ``"stop_and_go"``, ...)."""
+
+def sim_zoo(name: str, seed: int = 0) -> dict[str, Any]:
+    """Simulate a scenario of the zoo: the dict of :func:`sim_preset` with the scenario's filter
+    ``config`` and ``default_sensors`` (bool). Raises ``ConfigError`` for an unknown name."""
+
+def sim_zoo_matrix(
+    methods: Sequence[str],
+    scenarios: Sequence[str],
+    seeds: Sequence[int],
+    start: str,
+    settings: str,
+    config: _ConfigArg = None,
+) -> dict[str, Any]:
+    """The generality matrix over every (scenario, seed, method), in parallel with the GIL
+    released: columns ``scenario``, ``seed``, ``method``, ``rmse``, ``uwb_ls_rmse``, ``ratio``,
+    ``finite``, ``outage_max_error``. ``start`` is ``"given"`` or ``"self"``; ``settings``
+    ``"matched"``, ``"defaults"`` or ``"custom"`` (with ``config``)."""
+
 @final
 class Trajectory:
     """An analytic ground-vehicle trajectory (immutable); build it with a static constructor.
@@ -1090,7 +1113,9 @@ def sim_preset(
         range (s, -, m); ``range_labels`` (M,) uint8 (0 LOS, 1 NLOS, 2 outlier); ``anchors``
         (K, 3) m; ``truth``: dict of 1-D columns t, x, y, z, vx, vy, vz, qw, qx, qy, qz;
         ``mag`` (N, 4) t, mx, my, mz or None; ``accel_bias`` (N, 3) m/s²; ``gyro_bias`` (N, 3)
-        rad/s; ``nlos_windows`` (W, 4) anchor, start (s), end (s), bias (m).
+        rad/s; ``nlos_windows`` (W, 4) anchor, start (s), end (s), bias (m); ``true_anchors``
+        (K, 3) m; ``config``: the filter configuration matched to the sensors (dict);
+        ``initial``: the true state at the first IMU sample (dict for ``initial=``).
 
     Raises
     ------

@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal, Mapping
 
 import numpy as np
 import polars as pl
@@ -19,7 +19,20 @@ import polars as pl
 from uwbimu_rs import _native
 from uwbimu_rs._native import Trajectory
 
-__all__ = ["OVERRIDE_KEYS", "PRESET_NAMES", "PresetName", "SimResult", "Trajectory", "preset", "simulate", "write_mcap"]
+__all__ = [
+    "OVERRIDE_KEYS",
+    "PRESET_NAMES",
+    "PresetName",
+    "SimResult",
+    "Trajectory",
+    "ZOO_NAMES",
+    "ZooName",
+    "preset",
+    "simulate",
+    "write_mcap",
+    "zoo",
+    "zoo_matrix",
+]
 
 PresetName = Literal["seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"]
 """Names accepted by :func:`preset`."""
@@ -29,6 +42,26 @@ PRESET_NAMES: tuple[str, ...] = tuple(_native.SIM_PRESET_NAMES)
 
 OVERRIDE_KEYS: tuple[str, ...] = tuple(_native.SIM_OVERRIDE_KEYS)
 """Keys accepted as overrides by :func:`preset` and :func:`simulate`."""
+
+ZooName = Literal[
+    "agv_loop",
+    "stop_and_go",
+    "handheld_walk",
+    "drone_flight",
+    "imu_20hz",
+    "imu_z_down",
+    "mixed_rates",
+    "nlos_one",
+    "nlos_two",
+    "outliers",
+    "outage",
+    "survey_error",
+    "far_start",
+]
+"""Names accepted by :func:`zoo`."""
+
+ZOO_NAMES: tuple[str, ...] = tuple(_native.SIM_ZOO_NAMES)
+"""Scenario names accepted by :func:`zoo` and :func:`zoo_matrix`, from the native module."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +93,16 @@ class SimResult:
     accel_outlier_times : numpy.ndarray, shape (P,), float64
         Times (s) of the abnormal accelerometer samples (override ``accel_outlier_count``,
         seed 002 §4.1); empty by default.
+    true_anchors : numpy.ndarray, shape (K, 3), float64
+        The true anchor positions (``anchors`` is the surveyed table a filter gets; they differ
+        only in the zoo's ``survey_error``).
+    config : dict
+        A filter configuration matched to the simulated sensors (range σ, IMU noise densities
+        and bias sizes, lever arm, mounting): pass it as ``config=`` to compare methods on equal
+        terms. The library defaults are chosen for real logs, not for this simulator.
+    initial : dict
+        The true state at the first IMU sample as the filter configured by ``config`` sees it
+        (pass as ``initial=``).
     """
 
     imu: np.ndarray
@@ -72,6 +115,9 @@ class SimResult:
     gyro_bias: np.ndarray
     nlos_windows: np.ndarray
     accel_outlier_times: np.ndarray
+    true_anchors: np.ndarray
+    config: dict
+    initial: dict
 
 
 def _result(d: dict) -> SimResult:
@@ -86,6 +132,9 @@ def _result(d: dict) -> SimResult:
         gyro_bias=d["gyro_bias"],
         nlos_windows=d["nlos_windows"],
         accel_outlier_times=d["accel_outlier_times"],
+        true_anchors=d["true_anchors"],
+        config=d["config"],
+        initial=d["initial"],
     )
 
 
@@ -216,3 +265,74 @@ def write_mcap(run: SimResult, path: str | os.PathLike[str], *, range_std: float
     ``/uwb`` (anchor ids ``A0``, ``A1``, ...; ``variance = range_std²`` when given) and the anchor
     positions in the ``uwbimu.anchors`` metadata record."""
     _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std)
+
+
+def zoo(name: ZooName, *, seed: int = 0) -> SimResult:
+    """Simulate a scenario of the zoo: deployment-like runs built to check that a method holds up
+    on data it was not tuned on (staggered and jittered range times, anchors at different rates,
+    4–8 coplanar or cuboid anchors, IMUs at 20–1000 Hz, an upside-down mounting, vehicle, walking
+    and flight motion, sustained NLOS, outliers, an outage, a survey error, a far start).
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`ZOO_NAMES` (the README's "Generality" section describes each).
+    seed : int, default 0
+        Seed of all random draws.
+
+    Returns
+    -------
+    SimResult
+        With ``config`` the scenario's filter configuration (matched to its sensors; the mounting
+        of ``imu_z_down`` is left to the filter to find) and ``initial`` the true start.
+
+    Raises
+    ------
+    ValueError
+        (``uwbimu_rs.ConfigError``) for an unknown name (the message lists the allowed ones).
+    """
+    return _result(_native.sim_zoo(name, seed))
+
+
+def zoo_matrix(
+    methods: list[str] | None = None,
+    scenarios: list[str] | None = None,
+    *,
+    seeds: list[int] | tuple[int, ...] = (0,),
+    start: Literal["given", "self"] = "given",
+    settings: Literal["matched", "defaults", "custom"] = "matched",
+    config: Mapping[str, Any] | None = None,
+) -> pl.DataFrame:
+    """The generality matrix: each method on each zoo scenario and seed against ``uwb_ls`` on the
+    same run, in parallel on all cores (GIL released).
+
+    A cell's horizontal RMSE leaves out the first 10 s when self-initialised and the time inside
+    range outages (gaps over 1 s, where ``uwb_ls`` has no output; the worst error there is the
+    ``outage_max_error`` column).
+
+    Parameters
+    ----------
+    methods : list of str, optional
+        Filters of ``uwbimu_rs.FILTERS`` (default: all but ``uwb_ls``, the baseline).
+    scenarios : list of str, optional
+        Names of :data:`ZOO_NAMES` (default: all).
+    seeds : sequence of int, default (0,)
+        Simulator seeds.
+    start : {"given", "self"}
+        Initial state given (the truth) or self-initialised.
+    settings : {"matched", "defaults", "custom"}
+        The scenario's matched configuration, the library defaults (with the rig's lever arm and
+        declared mounting), or ``config``.
+    config : dict, optional
+        The configuration for ``settings="custom"``.
+
+    Returns
+    -------
+    polars.DataFrame
+        ``scenario, seed, method, rmse, uwb_ls_rmse, ratio, finite, outage_max_error`` (m).
+    """
+    from uwbimu_rs import FILTERS
+
+    chosen = [m for m in FILTERS if m != "uwb_ls"] if methods is None else list(methods)
+    names = list(ZOO_NAMES) if scenarios is None else list(scenarios)
+    return pl.DataFrame(_native.sim_zoo_matrix(chosen, names, list(seeds), start, settings, config))

@@ -47,22 +47,50 @@ impl PyFilterConfig {
 
     /// The configuration as a plain dict.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        for (k, v) in self.0.entries() {
-            d.set_item(k, config_value_to_py(py, &v)?)?;
-        }
-        let cal = PyDict::new(py);
-        for (anchor, c) in self.0.range_calibration.coefficients() {
-            cal.set_item(anchor, c.to_vec())?;
-        }
-        d.set_item("range_calibration", cal)?;
-        Ok(d)
+        config_dict(py, &self.0)
     }
 
     fn __repr__(&self) -> String {
         let items: Vec<String> = self.0.entries().iter().map(|(k, v)| format!("{k}={v:?}")).collect();
         format!("FilterConfig({})", items.join(", "))
     }
+}
+
+/// A configuration as a plain dict of its keys (`range_calibration` as `{anchor: [c0..c3]}`).
+pub(super) fn config_dict<'py>(py: Python<'py>, config: &FilterConfig) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (k, v) in config.entries() {
+        d.set_item(k, config_value_to_py(py, &v)?)?;
+    }
+    let cal = PyDict::new(py);
+    for (anchor, c) in config.range_calibration.coefficients() {
+        cal.set_item(anchor, c.to_vec())?;
+    }
+    d.set_item("range_calibration", cal)?;
+    Ok(d)
+}
+
+/// An initial state as the dict `initial=` takes: `position`, `velocity`, `orientation`
+/// (w, x, y, z), `position_std`, `velocity_std`, `orientation_std`, `accel_bias`, `gyro_bias`
+/// (and the bias stds when set).
+pub(super) fn initial_dict<'py>(py: Python<'py>, i: &InitialState) -> PyResult<Bound<'py, PyDict>> {
+    let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>().into_pyarray(py);
+    let d = PyDict::new(py);
+    d.set_item("position", v(&i.position))?;
+    d.set_item("velocity", v(&i.velocity))?;
+    d.set_item("orientation", quat_to_wxyz(&i.orientation).to_vec().into_pyarray(py))?;
+    d.set_item("position_std", v(&i.position_std))?;
+    d.set_item("velocity_std", v(&i.velocity_std))?;
+    d.set_item("orientation_std", v(&i.orientation_std))?;
+    d.set_item("accel_bias", v(&i.accel_bias))?;
+    d.set_item("gyro_bias", v(&i.gyro_bias))?;
+    if let Some(s) = i.accel_bias_std {
+        d.set_item("accel_bias_std", s)?;
+    }
+    if let Some(s) = i.gyro_bias_std {
+        d.set_item("gyro_bias_std", s)?;
+    }
+    Ok(d)
 }
 
 /// Reads `config` (None, a `FilterConfig` or a dict of the same keys).
@@ -533,16 +561,7 @@ fn initialize_state<'py>(
     let inputs = read_inputs(imu, ranges, anchors)?;
     let config = read_config(config)?;
     let s = py.detach(|| initialize(&inputs.imu, &inputs.ranges, &inputs.anchors, &config))?;
-    let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>().into_pyarray(py);
-    let d = PyDict::new(py);
-    let i = &s.initial;
-    d.set_item("position", v(&i.position))?;
-    d.set_item("velocity", v(&i.velocity))?;
-    d.set_item("orientation", quat_to_wxyz(&i.orientation).to_vec().into_pyarray(py))?;
-    d.set_item("position_std", v(&i.position_std))?;
-    d.set_item("velocity_std", v(&i.velocity_std))?;
-    d.set_item("orientation_std", v(&i.orientation_std))?;
-    d.set_item("gyro_bias", v(&i.gyro_bias))?;
+    let d = initial_dict(py, &s.initial)?;
     let info = PyDict::new(py);
     info.set_item("still_start", s.still)?;
     info.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;

@@ -6,7 +6,11 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict};
 
 use crate::bindings::convert;
+use crate::bindings::filters::{config_dict, initial_dict, read_config};
+use crate::config::FilterConfig;
 use crate::error::Error;
+use crate::generality::{run_cell, Cell, CellResult, Settings, Start};
+use crate::methods::Method;
 use crate::math::{quat_from_wxyz, quat_to_wxyz, Vec3};
 use crate::sim::{self, DriveOptions, KinematicSample, OverrideValue, SimConfig, SimData, Trajectory};
 
@@ -168,10 +172,16 @@ fn vec3_rows<'py>(py: Python<'py>, rows: &[Vec3]) -> PyResult<Bound<'py, PyAny>>
     Ok(flat.into_pyarray(py).reshape([rows.len(), 3])?.into_any())
 }
 
-/// Runs the simulator without the GIL and converts the result to a dict of arrays.
-fn run<'py>(py: Python<'py>, cfg: SimConfig) -> PyResult<Bound<'py, PyDict>> {
+/// Runs the simulator without the GIL and converts the result to a dict of arrays, with the
+/// filter configuration `config` for the run (default: matched to its sensors) and the true
+/// initial state as that filter sees it.
+fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> PyResult<Bound<'py, PyDict>> {
     let data: SimData = py.detach(|| sim::simulate(&cfg))?;
+    let config = config.unwrap_or_else(|| sim::matched_config(&cfg));
     let d = PyDict::new(py);
+    d.set_item("config", config_dict(py, &config)?)?;
+    d.set_item("initial", initial_dict(py, &sim::true_initial(&cfg, &config, &data)?)?)?;
+    d.set_item("true_anchors", vec3_rows(py, &data.true_anchors)?)?;
     let imu: Vec<f64> =
         data.imu.iter().flat_map(|s| [s.t_s, s.accel.x, s.accel.y, s.accel.z, s.gyro.x, s.gyro.y, s.gyro.z]).collect();
     d.set_item("imu", imu.into_pyarray(py).reshape([data.imu.len(), 7])?)?;
@@ -228,7 +238,80 @@ fn sim_preset<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut cfg = sim::preset(name, seed)?;
     apply(&mut cfg, &collect_overrides([overrides, kwargs])?)?;
-    run(py, cfg)
+    run(py, cfg, None)
+}
+
+/// Simulates a scenario of the zoo (`sim::zoo`); returns the dict of `sim_preset` with the
+/// scenario's filter configuration and `default_sensors` (whether its sensors are those the
+/// library defaults describe).
+#[pyfunction]
+#[pyo3(signature = (name, seed = 0))]
+fn sim_zoo<'py>(py: Python<'py>, name: &str, seed: u64) -> PyResult<Bound<'py, PyDict>> {
+    let scenario = sim::zoo(name, seed)?;
+    let d = run(py, scenario.sim, Some(scenario.config))?;
+    d.set_item("default_sensors", scenario.default_sensors)?;
+    Ok(d)
+}
+
+/// The generality matrix ([`crate::generality`]): every combination of `methods`, `scenarios`
+/// and `seeds`, with `start` ("given" or "self") and `settings` ("matched", "defaults" or
+/// "custom" with `config`), in parallel on all cores with the GIL released. Returns columns
+/// scenario, seed, method, rmse, uwb_ls_rmse, ratio, finite, outage_max_error (NaN without
+/// outage); a failing run raises.
+#[pyfunction]
+#[pyo3(signature = (methods, scenarios, seeds, start, settings, config = None))]
+fn sim_zoo_matrix<'py>(
+    py: Python<'py>,
+    methods: Vec<String>,
+    scenarios: Vec<String>,
+    seeds: Vec<u64>,
+    start: &str,
+    settings: &str,
+    config: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use rayon::prelude::*;
+    let start = match start {
+        "given" => Start::Given,
+        "self" => Start::SelfInit,
+        _ => return Err(Error::UnknownOption { kind: "start", got: start.into(), allowed: "given, self".into() }.into()),
+    };
+    let custom = read_config(config)?;
+    let settings = match settings {
+        "matched" => Settings::Matched,
+        "defaults" => Settings::Defaults,
+        "custom" => Settings::Custom(&custom),
+        _ => return Err(Error::UnknownOption { kind: "settings", got: settings.into(), allowed: "matched, defaults, custom".into() }.into()),
+    };
+    let methods = methods.iter().map(|m| Method::parse(m)).collect::<Result<Vec<_>, Error>>()?;
+    if let Some(bad) = methods.iter().find(|m| **m == Method::UwbLs) {
+        return Err(Error::InvalidCall(format!("{} is the baseline of the matrix, not a cell", bad.name())).into());
+    }
+    for s in &scenarios {
+        if !sim::ZOO_NAMES.contains(&s.as_str()) {
+            return Err(Error::UnknownOption { kind: "zoo scenario", got: s.clone(), allowed: sim::ZOO_NAMES.join(", ") }.into());
+        }
+    }
+    let mut cells: Vec<Cell<'_>> = Vec::with_capacity(scenarios.len() * seeds.len() * methods.len());
+    for scenario in &scenarios {
+        for &seed in &seeds {
+            cells.extend(methods.iter().map(|&method| Cell { scenario, seed, method, start, settings }));
+        }
+    }
+    let results = py.detach(|| cells.par_iter().map(run_cell).collect::<Vec<_>>());
+    let results = results.into_iter().collect::<Result<Vec<CellResult>, Error>>()?;
+    let d = PyDict::new(py);
+    d.set_item("scenario", cells.iter().map(|c| c.scenario).collect::<Vec<_>>())?;
+    d.set_item("seed", cells.iter().map(|c| c.seed).collect::<Vec<_>>())?;
+    d.set_item("method", cells.iter().map(|c| c.method.name()).collect::<Vec<_>>())?;
+    d.set_item("rmse", results.iter().map(|r| r.rmse_m).collect::<Vec<_>>().into_pyarray(py))?;
+    d.set_item("uwb_ls_rmse", results.iter().map(|r| r.uwb_ls_rmse_m).collect::<Vec<_>>().into_pyarray(py))?;
+    d.set_item("ratio", results.iter().map(CellResult::ratio).collect::<Vec<_>>().into_pyarray(py))?;
+    d.set_item("finite", results.iter().map(|r| r.finite).collect::<Vec<_>>())?;
+    d.set_item(
+        "outage_max_error",
+        results.iter().map(|r| r.outage_max_error_m.unwrap_or(f64::NAN)).collect::<Vec<_>>().into_pyarray(py),
+    )?;
+    Ok(d)
 }
 
 /// Simulates `trajectory` with anchors (K, 3), the default configuration (100 Hz consumer-MEMS
@@ -269,7 +352,7 @@ fn simulate<'py>(
         })?;
     }
     apply(&mut cfg, &collect_overrides([overrides, kwargs])?)?;
-    run(py, cfg)
+    run(py, cfg, None)
 }
 
 /// Adds the simulator's classes, functions and constants to the native module.
@@ -277,6 +360,9 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTrajectory>()?;
     m.add_function(wrap_pyfunction!(sim_preset, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_zoo, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_zoo_matrix, m)?)?;
+    m.add("SIM_ZOO_NAMES", sim::ZOO_NAMES.to_vec())?;
     m.add("SIM_PRESET_NAMES", sim::PRESET_NAMES.to_vec())?;
     m.add("SIM_OVERRIDE_KEYS", sim::OVERRIDE_KEYS.to_vec())?;
     Ok(())

@@ -64,18 +64,24 @@ pub struct Scenario {
 
 impl Scenario {
     /// The true state at the first IMU sample of `data` (a run of this scenario) as the filter
-    /// sees it: the orientation of the filter's body frame (the IMU frame turned by
-    /// `config.imu_rotation`), biases unknown (zero, with the configured uncertainty).
+    /// sees it ([`true_initial`]).
     pub fn true_initial(&self, data: &SimData) -> Result<InitialState> {
-        let t0 = data.truth.first().ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
-        let body_from_filter_body = self.sim.imu_rotation * self.config.imu_rotation.inverse();
-        Ok(InitialState {
-            position: t0.position,
-            velocity: t0.velocity,
-            orientation: t0.orientation * body_from_filter_body,
-            ..InitialState::default()
-        })
+        true_initial(&self.sim, &self.config, data)
     }
+}
+
+/// The true state at the first IMU sample of `data` (a run of `sim`) as a filter configured by
+/// `config` sees it: the orientation of the filter's body frame (the IMU frame turned by
+/// `config.imu_rotation`), biases unknown (zero, with the configured uncertainty).
+pub fn true_initial(sim: &SimConfig, config: &FilterConfig, data: &SimData) -> Result<InitialState> {
+    let t0 = data.truth.first().ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
+    let body_from_filter_body = sim.imu_rotation * config.imu_rotation.inverse();
+    Ok(InitialState {
+        position: t0.position,
+        velocity: t0.velocity,
+        orientation: t0.orientation * body_from_filter_body,
+        ..InitialState::default()
+    })
 }
 
 /// The filter configuration matched to a simulator configuration: range σ (Gaussian and uniform

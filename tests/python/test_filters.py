@@ -236,7 +236,7 @@ def test_constraint_switches_and_still_column(filter_config):
     from uwbimu_rs import sim
 
     run = sim.preset("seed000_los", seed=0)
-    cfg = uwbimu_rs.FilterConfig(**filter_config, zupt=True)
+    cfg = uwbimu_rs.FilterConfig(**{**filter_config, "zupt": True})
     assert cfg.to_dict()["zupt"] is True
     df = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, config=cfg)
     assert df["still"].dtype == pl.Boolean

@@ -1,0 +1,92 @@
+//! The generality matrix: every filter of `FILTERS` on every scenario of the zoo, with the
+//! initial state given and self-initialised, with matched settings and with the defaults, over
+//! three seeds. Every output must be finite and each method's horizontal RMSE at most 1.2× that
+//! of `uwb_ls` on the same run (1.5× self-initialised, after its first 10 s); the documented
+//! exceptions below have their own measured bound. The README's matrix comes from
+//! `python examples/zoo_matrix.py` (the same cells).
+
+#![allow(clippy::unwrap_used)]
+
+use rayon::prelude::*;
+use uwbimu_rs::generality::{run_cell, Cell, Settings, Start};
+use uwbimu_rs::methods::Method;
+use uwbimu_rs::sim::ZOO_NAMES;
+
+const SEEDS: [u64; 3] = [0, 1, 2];
+
+/// Cells that miss the bound, with the cause and a bound a margin above the worst ratio measured
+/// over seeds 0–5 (README, "Generality").
+const EXCEPTIONS: &[(&str, &str, Start, f64)] = &[
+    // Two of four anchors biased by 0.6–0.9 m for 30 s: CRIEKF's plane constraint leaves the
+    // horizontal position to absorb the whole bias, where the other filters and uwb_ls let part
+    // of it into the height (RIEKF without constraints: 0.98×). Worst 1.23× (seeds 0–5).
+    ("criekf", "nlos_two", Start::Given, 1.3),
+];
+
+fn bound(method: &str, scenario: &str, start: Start) -> f64 {
+    EXCEPTIONS.iter().find(|e| e.0 == method && e.1 == scenario && e.2 == start).map_or(
+        match start {
+            Start::Given => 1.2,
+            Start::SelfInit => 1.5,
+        },
+        |e| e.3,
+    )
+}
+
+fn check(start: Start, settings: Settings<'static>) {
+    let cells: Vec<Cell<'static>> = ZOO_NAMES
+        .iter()
+        .flat_map(|s| Method::NAMES[1..].iter().flat_map(move |m| SEEDS.iter().map(move |&seed| (*s, *m, seed))))
+        .map(|(scenario, m, seed)| Cell { scenario, seed, method: Method::parse(m).unwrap(), start, settings })
+        .collect();
+    let failures: Vec<String> = cells
+        .par_iter()
+        .filter_map(|cell| {
+            let name = cell.method.name();
+            match run_cell(cell) {
+                Ok(r) if r.finite && r.ratio() <= bound(name, cell.scenario, start) => None,
+                Ok(r) => Some(format!(
+                    "{name} on {} seed {}: {:.3} m vs uwb_ls {:.3} m ({:.2}×, finite {})",
+                    cell.scenario,
+                    cell.seed,
+                    r.rmse_m,
+                    r.uwb_ls_rmse_m,
+                    r.ratio(),
+                    r.finite
+                )),
+                Err(e) => Some(format!("{name} on {} seed {}: {e}", cell.scenario, cell.seed)),
+            }
+        })
+        .collect();
+    assert!(failures.is_empty(), "{start:?} {settings:?}: {} cells fail:\n{}", failures.len(), failures.join("\n"));
+}
+
+#[test]
+fn every_filter_holds_up_on_the_zoo_with_the_initial_state_given() {
+    check(Start::Given, Settings::Matched);
+}
+
+#[test]
+fn every_filter_holds_up_on_the_zoo_self_initialised() {
+    check(Start::SelfInit, Settings::Matched);
+}
+
+#[test]
+fn every_filter_holds_up_on_the_zoo_with_the_defaults() {
+    // The zoo's sensors are those the defaults describe (consumer MEMS IMU, σ ≈ 0.1 m ranges).
+    check(Start::Given, Settings::Defaults);
+    check(Start::SelfInit, Settings::Defaults);
+}
+
+#[test]
+fn a_ten_second_outage_is_bridged_and_recovered() {
+    // Inside the outage the filters dead-reckon: their worst error stays in metres (no
+    // divergence), and the RMSE after it is within the matrix bound (checked above).
+    for method in ["ekf", "riekf", "arckf", "eskf", "ukf"] {
+        let cell = Cell { scenario: "outage", seed: 0, method: Method::parse(method).unwrap(), start: Start::Given, settings: Settings::Defaults };
+        let r = run_cell(&cell).unwrap();
+        let worst = r.outage_max_error_m.unwrap();
+        println!("{method}: worst error in the 10 s outage {worst:.2} m");
+        assert!(worst.is_finite() && worst < 5.0, "{method}: {worst} m");
+    }
+}
