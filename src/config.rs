@@ -5,7 +5,6 @@ use crate::error::{Error, Result};
 use crate::math::{quat_from_wxyz, Quat, Vec3};
 use crate::ranging::calibration::RangeCalibration;
 use crate::robust::sage_husa::SageHusaConfig;
-use crate::robust::NoiseBounds;
 use crate::validate::{self, invalid};
 
 /// Smallest state dimension an unscented filter uses (`ukf2d`); bounds `ukf_lambda`.
@@ -437,23 +436,9 @@ impl FilterConfig {
             "sh_window" => self.sage_husa.window_len = bounded_count(key, value, 1, crate::robust::sage_husa::MAX_WINDOW)?,
             "sh_fading_rate" => self.sage_husa.fading_rate = positive(key, value)?,
             "sh_outlier_threshold" => self.sage_husa.outlier_threshold = positive(key, value)?,
-            "sh_bounds" => {
-                let on = flag(key, value)?;
-                self.sage_husa.bounds = match (on, self.sage_husa.bounds) {
-                    (false, _) => None,
-                    (true, Some(b)) => Some(b),
-                    (true, None) => SageHusaConfig::default().bounds,
-                };
-            }
-            "sh_min_ratio" | "sh_max_ratio" => {
-                let v = positive(key, value)?;
-                let b = self.sage_husa.bounds.get_or_insert(NoiseBounds { min_ratio: 1.0, max_ratio: 4.0 });
-                if key == "sh_min_ratio" {
-                    b.min_ratio = v;
-                } else {
-                    b.max_ratio = v;
-                }
-            }
+            "sh_bounds" => self.sage_husa.bounded = flag(key, value)?,
+            "sh_min_ratio" => self.sage_husa.bounds.min_ratio = positive(key, value)?,
+            "sh_max_ratio" => self.sage_husa.bounds.max_ratio = positive(key, value)?,
             "aiding_reference_s" => self.aiding.reference_s = positive(key, value)?,
             "aiding_gravity_std" => self.aiding.gravity_std = positive(key, value)?,
             "aiding_mag_std" => self.aiding.mag_std = positive(key, value)?,
@@ -551,13 +536,9 @@ impl FilterConfig {
             ("sh_window", ConfigValue::Scalar(sh.window_len as f64)),
             ("sh_fading_rate", ConfigValue::Scalar(sh.fading_rate)),
             ("sh_outlier_threshold", ConfigValue::Scalar(sh.outlier_threshold)),
-            ("sh_bounds", ConfigValue::Flag(sh.bounds.is_some())),
-        ]);
-        if let Some(b) = sh.bounds {
-            entries
-                .extend([("sh_min_ratio", ConfigValue::Scalar(b.min_ratio)), ("sh_max_ratio", ConfigValue::Scalar(b.max_ratio))]);
-        }
-        entries.extend([
+            ("sh_bounds", ConfigValue::Flag(sh.bounded)),
+            ("sh_min_ratio", ConfigValue::Scalar(sh.bounds.min_ratio)),
+            ("sh_max_ratio", ConfigValue::Scalar(sh.bounds.max_ratio)),
             ("ukf_alpha", ConfigValue::Scalar(self.ukf_alpha)),
             ("ukf_beta", ConfigValue::Scalar(self.ukf_beta)),
             ("ukf_lambda", ConfigValue::Scalar(self.ukf_lambda)),

@@ -73,7 +73,8 @@ fn adaptive_weighting_halves_the_gyro_bias_error_under_magnetic_disturbance() {
         adaptive += a;
         fixed += f;
     }
-    assert!(adaptive <= 0.5 * fixed, "adaptive {adaptive} vs fixed {fixed}");
+    // Measured: 0.0013 / 0.0009 / 0.0016 rad/s adaptive against 0.044 fixed (about 30×).
+    assert!(adaptive <= 0.1 * fixed && adaptive / 3.0 < 0.002, "adaptive {adaptive} vs fixed {fixed}");
 }
 
 #[test]
@@ -87,7 +88,8 @@ fn ackf_positions_like_ckf_without_disturbance() {
         let ckf_trace = run(&mut ckf, &data.imu, &data.ranges).expect("ckf");
         let (a, c) = (rms(&horizontal_errors(&trace.steps, &data)), rms(&horizontal_errors(&ckf_trace.steps, &data)));
         println!("seed {seed}: horizontal RMSE ackf {a:.3} m, ckf {c:.3} m");
-        assert!(a < 0.15, "ackf {a}");
+        // Measured 0.111 / 0.089 m (CKF 0.092 / 0.099 m).
+        assert!(a < 0.13, "ackf {a}");
         (sum_a, sum_c) = (sum_a + a, sum_c + c);
         assert!(ckf.update_magnetometer(1.0, &Vec3::new(20.0, 0.0, -40.0)).is_err());
     }

@@ -42,6 +42,9 @@ fn table6_arckf_resists_range_outliers_on_beacons_2_and_4() {
         println!("{:>3.0} % outliers: CKF {c:.3} m, ARCKF {a:.3} m", p * 100.0);
     }
     let ((c3, a3), (c10, a10)) = (rmse[0], rmse[3]);
+    // Measured (seeds 0–2): ARCKF 0.101–0.105 m at every level, CKF 0.758 → 1.219 m.
+    assert!(rmse.iter().all(|(_, a)| *a < 0.13), "{rmse:?}");
+    assert!(c10 < 1.45, "CKF at 10 %: {c10}");
     assert!(a10 <= 0.7 * c10, "ARCKF {a10} not 30 % below CKF {c10} at 10 %");
     assert!(c10 - c3 > 0.2, "CKF should degrade with more outliers: {c3} → {c10}");
     assert!(a10 - a3 < 0.25 * (c10 - c3), "ARCKF grows {a3} → {a10}, CKF {c3} → {c10}");
@@ -49,10 +52,11 @@ fn table6_arckf_resists_range_outliers_on_beacons_2_and_4() {
 
 #[test]
 fn table4_arckf_below_ckf_with_acceleration_outliers() {
-    for count in 1..=4 {
+    // Measured (seeds 0–2) ARCKF 0.348 / 0.291 / 0.356 / 0.675 m for 1–4 outliers.
+    for (count, bound) in [(1, 0.42), (2, 0.35), (3, 0.43), (4, 0.8)] {
         let (c, a) = mean_rmse("seed002_rectangle", "accel_outlier_count", count as f64);
         println!("{count} acceleration outlier(s): CKF {c:.3} m, ARCKF {a:.3} m");
-        assert!(a < c, "{count} outliers: ARCKF {a} vs CKF {c}");
+        assert!(a < c && a < bound, "{count} outliers: ARCKF {a} vs CKF {c}");
     }
 }
 

@@ -80,7 +80,8 @@ fn zupt_lowers_error_during_long_stops() {
     let without = stop_error(&ekf_trace(&data, base.clone()));
     let with = stop_error(&ekf_trace(&data, FilterConfig { zupt: true, ..base }));
     println!("horizontal RMSE during stops: {without:.3} m without ZUPT, {with:.3} m with");
-    assert!(with < 0.8 * without, "with {with} vs without {without}");
+    // Measured 0.386 → 0.103 m.
+    assert!(with < 0.35 * without, "with {with} vs without {without}");
 }
 
 #[test]
@@ -102,7 +103,8 @@ fn plane_constraint_lowers_error_with_coplanar_anchors() {
     let without = error_3d(&ekf_trace(&data, base.clone()));
     let with = error_3d(&ekf_trace(&data, FilterConfig { plane: true, ..base }));
     println!("3-D RMSE with coplanar anchors: {without:.3} m without plane, {with:.3} m with");
-    assert!(with < 0.8 * without, "with {with} vs without {without}");
+    // Measured 0.640 → 0.104 m.
+    assert!(with < 0.22 * without, "with {with} vs without {without}");
 }
 
 #[test]
@@ -134,5 +136,8 @@ fn pseudo_velocity_lowers_error_in_a_uwb_outage_at_constant_speed() {
     let paper = outage_error(FilterConfig { pseudo_velocity: true, ..base.clone() });
     let with = outage_error(FilterConfig { pseudo_velocity: true, pseudo_velocity_var: 0.05, ..base });
     println!("horizontal RMSE in a 10 s outage: {without:.3} m without pseudo-velocity, {paper:.3} m with var 6, {with:.3} m with var 0.05");
-    assert!(with < 0.8 * without, "with {with} vs without {without}");
+    // Measured 0.771 → 0.432 m with variance 0.05; the paper's 6 m²/s² is too weak to matter
+    // (0.753 m: within 5 % of no constraint).
+    assert!(with < 0.65 * without, "with {with} vs without {without}");
+    assert!((paper - without).abs() < 0.05 * without && paper <= without, "paper variance {paper} vs without {without}");
 }

@@ -28,7 +28,8 @@ fn mechanization_on_noise_free_data_stays_within_1cm_over_60s() {
     }
     assert!(data.imu.last().expect("samples").t_s >= 60.0);
     println!("pure strapdown, 60 s: max position error {worst:.2e} m");
-    assert!(worst < 0.01, "max position error of pure strapdown over 60 s: {worst} m");
+    // Measured 6.35e-5 m.
+    assert!(worst < 1e-4, "max position error of pure strapdown over 60 s: {worst} m");
 }
 
 #[test]
@@ -49,7 +50,8 @@ fn ekf_beats_uwb_only_on_seed000_without_nlos() {
         let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
         let ls = evaluate(&ft, &fp, &truth_t, &truth_p, false).expect("evaluate");
         println!("seed {seed}: ekf horizontal RMSE {ekf_rmse:.4} m, uwb_ls {:.4} m", ls.horizontal.rmse);
-        assert!(ekf_rmse < 0.10, "seed {seed}: ekf horizontal RMSE {ekf_rmse} m");
+        // Measured 0.073–0.078 m (README).
+        assert!(ekf_rmse < 0.09, "seed {seed}: ekf horizontal RMSE {ekf_rmse} m");
         assert!(ekf_rmse < ls.horizontal.rmse, "seed {seed}: ekf {ekf_rmse} vs uwb_ls {}", ls.horizontal.rmse);
     }
 }

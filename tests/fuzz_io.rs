@@ -5,7 +5,8 @@
 #![allow(clippy::unwrap_used)]
 
 use std::io::Cursor;
-use std::sync::OnceLock;
+use std::sync::{mpsc, OnceLock};
+use std::time::Duration;
 
 use proptest::prelude::*;
 
@@ -45,9 +46,25 @@ fn valid_file() -> &'static [u8] {
     })
 }
 
+/// Longest a single read of a fuzzed file may take before the test fails as hung (a real read
+/// of these few-kilobyte files takes microseconds).
+const READ_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Reads `bytes` as a recording on a worker thread; a read that does not end within
+/// [`READ_TIMEOUT`] fails the test (a hang must fail, not stall the suite).
 fn read(bytes: &[u8]) {
-    let mapping = Mapping { uwb: UwbMapping { topics: vec!["/uwb".into()], ..UwbMapping::default() }, ..Mapping::default() };
-    let _ = read_recording(Cursor::new(bytes), bytes.len() as u64, "fuzz", &mapping, |_| {});
+    let owned = bytes.to_vec();
+    let (done, finished) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mapping = Mapping { uwb: UwbMapping { topics: vec!["/uwb".into()], ..UwbMapping::default() }, ..Mapping::default() };
+        let _ = read_recording(Cursor::new(&owned), owned.len() as u64, "fuzz", &mapping, |_| {});
+        let _ = done.send(());
+    });
+    match finished.recv_timeout(READ_TIMEOUT) {
+        Ok(()) => {}
+        Err(mpsc::RecvTimeoutError::Timeout) => panic!("reading a {}-byte fuzzed file hung for {READ_TIMEOUT:?}", bytes.len()),
+        Err(mpsc::RecvTimeoutError::Disconnected) => panic!("reading a {}-byte fuzzed file panicked", bytes.len()),
+    }
 }
 
 proptest! {

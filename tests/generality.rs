@@ -83,7 +83,13 @@ fn a_ten_second_outage_is_bridged_and_recovered() {
     // Inside the outage the filters dead-reckon: their worst error stays in metres (no
     // divergence), and the RMSE after it is within the matrix bound (checked above).
     for method in ["ekf", "riekf", "arckf", "eskf", "ukf"] {
-        let cell = Cell { scenario: "outage", seed: 0, method: Method::parse(method).unwrap(), start: Start::Given, settings: Settings::Defaults };
+        let cell = Cell {
+            scenario: "outage",
+            seed: 0,
+            method: Method::parse(method).unwrap(),
+            start: Start::Given,
+            settings: Settings::Defaults,
+        };
         let r = run_cell(&cell).unwrap();
         let worst = r.outage_max_error_m.unwrap();
         println!("{method}: worst error in the 10 s outage {worst:.2} m");

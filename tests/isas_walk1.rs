@@ -4,6 +4,8 @@
 
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::path::PathBuf;
 
 use uwbimu_rs::io::mapping::AnchorMapping;
@@ -16,22 +18,23 @@ fn repo(path: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
 }
 
-fn data(name: &str) -> PathBuf {
-    repo("../shared/data/isas-walk1").join(name)
-}
-
 fn config() -> ReplayConfig {
     ReplayConfig::read(&repo("examples/isas-walk1.toml")).unwrap()
 }
 
-fn recording(cfg: &ReplayConfig) -> Recording {
-    read_recording_file(&data("isas-walk1.mcap"), &cfg.mapping, |_| {}).unwrap()
+/// The recording with the checked-in mapping, its anchor file and ground truth; None (the test
+/// is skipped, with a message) without `../shared/data`.
+fn isas(cfg: &ReplayConfig) -> Option<(Recording, PathBuf, Vec<(f64, uwbimu_rs::math::Vec3)>)> {
+    let mcap = common::isas_walk1("isas-walk1.mcap")?;
+    let rec = read_recording_file(&mcap, &cfg.mapping, |_| {}).unwrap();
+    let truth = read_truth_csv(&common::isas_walk1("gt_anchor_frame.csv")?).unwrap();
+    Some((rec, mcap, truth))
 }
 
 #[test]
 fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     let cfg = config();
-    let rec = recording(&cfg);
+    let Some((rec, mcap, _)) = isas(&cfg) else { return };
     // README: 4839 IMU messages, 970 RTLSStick messages with one range per anchor (5 anchors).
     assert_eq!(rec.imu.len(), 4839);
     let counts = &rec.stats.per_anchor;
@@ -44,7 +47,7 @@ fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     assert!(rec.imu.windows(2).all(|w| w[1].t_s > w[0].t_s));
     assert!(rec.ranges.windows(2).all(|w| w[1].t_s >= w[0].t_s));
     // Anchor positions carried by the messages agree with anchors.csv (float32 in the message).
-    let file = uwbimu_rs::io::anchors::read_anchor_file(&data("anchors.csv")).unwrap();
+    let file = uwbimu_rs::io::anchors::read_anchor_file(&common::isas_walk1("anchors.csv").unwrap()).unwrap();
     assert_eq!(rec.anchor_ids.len(), 5);
     for (id, p) in rec.anchor_ids.iter().zip(&rec.anchors) {
         assert!((file[id] - p).norm() < 1e-6, "anchor {id}: {p:?} vs {:?}", file[id]);
@@ -52,7 +55,7 @@ fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     // The same anchors through the /anchor_list topic.
     let mut by_topic = cfg.clone();
     by_topic.mapping.anchors = AnchorMapping { topic: Some("/anchor_list".into()), ..AnchorMapping::default() };
-    let rec2 = read_recording_file(&data("isas-walk1.mcap"), &by_topic.mapping, |_| {}).unwrap();
+    let rec2 = read_recording_file(&mcap, &by_topic.mapping, |_| {}).unwrap();
     assert_eq!(rec2.stats.anchor_source, "anchor topic");
     for (id, p) in rec2.anchor_ids.iter().zip(&rec2.anchors) {
         assert!((file[id] - p).norm() < 1e-6, "anchor {id} from /anchor_list");
@@ -62,8 +65,7 @@ fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
 #[test]
 fn riekf_follows_the_walk_within_a_quarter_metre() {
     let cfg = config();
-    let rec = recording(&cfg);
-    let truth = read_truth_csv(&data("gt_anchor_frame.csv")).unwrap();
+    let Some((rec, _, truth)) = isas(&cfg) else { return };
     let method = Method::parse(cfg.method.as_deref().unwrap_or("riekf")).unwrap();
     let r = replay(&rec, method, &cfg.config, false).unwrap();
     let (raw, aligned) = compare_with_truth(&r.trajectory(), &truth).unwrap();
@@ -83,12 +85,50 @@ fn plain_ekf_is_hurt_by_the_gross_outliers() {
     // The ~24 m outliers pass into the non-robust EKF: its worst error is metres, the robust
     // filter's stays below 0.5 m (measured 6.1 m vs 0.35 m).
     let cfg = config();
-    let rec = recording(&cfg);
-    let truth = read_truth_csv(&data("gt_anchor_frame.csv")).unwrap();
+    let Some((rec, _, truth)) = isas(&cfg) else { return };
     let max_err = |m: &str| {
         let r = replay(&rec, Method::parse(m).unwrap(), &cfg.config, false).unwrap();
         compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal.max
     };
     let (ekf, riekf) = (max_err("ekf"), max_err("riekf"));
     assert!(ekf > 2.0 && riekf < 0.5, "max error ekf {ekf} m, riekf {riekf} m");
+}
+
+#[test]
+fn every_method_holds_up_with_the_defaults() {
+    // `config=None` on a real handheld log, self-initialised: within 2× uwb_ls after rigid
+    // alignment (the bar; uwb_ls suffers from the ~24 m outliers) and within a margin of
+    // what each method measured (README, "Defaults on real logs").
+    let cfg = config();
+    let Some((rec, _, truth)) = isas(&cfg) else { return };
+    let defaults = uwbimu_rs::config::FilterConfig::default();
+    let aligned = |m: &str| {
+        let r = replay(&rec, Method::parse(m).unwrap(), &defaults, false).unwrap();
+        compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal
+    };
+    let ls = aligned("uwb_ls").rmse;
+    // (method, bound m): measured aligned horizontal RMSE × ~1.15.
+    let bounds = [
+        ("ekf", 0.31),
+        ("iekf", 0.29),
+        ("rekf", 0.145),
+        ("riekf", 0.145),
+        ("criekf", 0.16),
+        ("ckf", 0.31),
+        ("arckf", 0.15),
+        ("ackf", 0.23),
+        ("eskf", 0.16),
+        ("shaf", 0.18),
+        ("shfaf", 0.19),
+        ("ukf", 0.31),
+        ("ekf2d", 0.37),
+        ("ukf2d", 0.37),
+        ("cekf2d", 0.47),
+    ];
+    assert_eq!(bounds.len() + 1, Method::NAMES.len());
+    for (m, bound) in bounds {
+        let h = aligned(m);
+        println!("{m}: aligned {:.3} m (max {:.2} m), uwb_ls {ls:.3} m", h.rmse, h.max);
+        assert!(h.rmse.is_finite() && h.rmse < 2.0 * ls && h.rmse < bound, "{m}: {} m (bound {bound}, uwb_ls {ls})", h.rmse);
+    }
 }

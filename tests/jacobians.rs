@@ -3,7 +3,7 @@
 
 use uwbimu_rs::config::FilterConfig;
 use uwbimu_rs::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
-use uwbimu_rs::math::{quat_exp, Quat, Vec3};
+use uwbimu_rs::math::{quat_exp, skew, Quat, Vec3};
 use uwbimu_rs::models::range::predict_range;
 use uwbimu_rs::state::{ErrCov, ErrVec, NominalState, ATT, BA, BG, ERR_DIM, VEL};
 use uwbimu_rs::update::{inject_and_reset, scalar_step};
@@ -120,18 +120,69 @@ fn joseph_update_equals_definition() {
     let mut dx = ErrVec::zeros();
     let s = scalar_step(&mut dx, &mut p, &h, innov, r).expect("update");
     inject_and_reset(&mut x, &mut p, &dx);
-    // Reference: dense Joseph form, then the same injection and reset.
+    // Reference, written out independently: dense Joseph form, injection by the error-state
+    // definitions, reset G·P·Gᵀ with G = I − [½δθ]× on the attitude block.
     let k = p0 * h / s;
     let ikh = ErrCov::identity() - k * h.transpose();
-    let mut reference = ikh * p0 * ikh.transpose() + k * k.transpose() * r;
-    let mut xr = x0;
-    inject_and_reset(&mut xr, &mut reference, &(k * innov));
-    assert!((p - reference).abs().max() < 1e-12);
-    assert!((x.position - xr.position).norm() < 1e-15);
+    let joseph = ikh * p0 * ikh.transpose() + k * k.transpose() * r;
+    let dxr = k * innov;
+    let dtheta = Vec3::new(dxr[ATT], dxr[ATT + 1], dxr[ATT + 2]);
+    let mut g = ErrCov::identity();
+    g.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&(nalgebra::Matrix3::identity() - skew(&(0.5 * dtheta))));
+    let reference = g * joseph * g.transpose();
+    assert!((dx - dxr).norm() < 1e-15);
+    assert!((p - reference).abs().max() < 1e-12, "{}", (p - reference).abs().max());
+    assert!((x.position - (x0.position + Vec3::new(dxr[0], dxr[1], dxr[2]))).norm() < 1e-15);
+    assert!((x.velocity - (x0.velocity + Vec3::new(dxr[VEL], dxr[VEL + 1], dxr[VEL + 2]))).norm() < 1e-15);
+    assert!(x.orientation.angle_to(&(x0.orientation * quat_exp(&dtheta))) < 1e-14);
+    assert!((x.accel_bias - (x0.accel_bias + Vec3::new(dxr[BA], dxr[BA + 1], dxr[BA + 2]))).norm() < 1e-15);
+    assert!((x.gyro_bias - (x0.gyro_bias + Vec3::new(dxr[BG], dxr[BG + 1], dxr[BG + 2]))).norm() < 1e-15);
     // Posterior variance along h shrinks: h P⁺ hᵀ = h P⁻ hᵀ · r / S (before the tiny reset).
     assert!(h.dot(&(p * h)) < h.dot(&(p0 * h)));
     let q: Quat = x.orientation;
     assert!((q.norm() - 1.0).abs() < 1e-12);
+}
+
+/// The reset Jacobian: for a true state `x₀ ⊞ e`, the error about the corrected state
+/// `x⁺ = x₀ ⊞ δx` is `(x₀ ⊞ e) ⊖ x⁺`; its derivative in `e` at `e = δx` must be `G = I − [½δθ]×` on
+/// the attitude block (seed 000 eq. (19)) to first order in δθ.
+#[test]
+fn reset_jacobian_matches_finite_differences() {
+    let x0 = example_state();
+    let mut dx = ErrVec::from_fn(|i, _| 0.02 * ((i % 5) as f64 - 2.0));
+    dx.fixed_rows_mut::<3>(ATT).copy_from(&Vec3::new(0.1, -0.05, 0.08));
+    let mut xp = x0;
+    xp.inject(&dx);
+    let err_after = |e: &ErrVec| {
+        let mut t = x0;
+        t.inject(e);
+        t.boxminus(&xp)
+    };
+    let h = 1e-6;
+    let mut numeric = ErrCov::zeros();
+    for j in 0..ERR_DIM {
+        let mut step = ErrVec::zeros();
+        step[j] = h;
+        numeric.set_column(j, &((err_after(&(dx + step)) - err_after(&(dx - step))) / (2.0 * h)));
+    }
+    let dtheta = Vec3::new(dx[ATT], dx[ATT + 1], dx[ATT + 2]);
+    let g = nalgebra::Matrix3::identity() - skew(&(0.5 * dtheta));
+    let att = numeric.fixed_view::<3, 3>(ATT, ATT).into_owned();
+    // G is exact to O(|δθ|²) (|δθ| = 0.14 here): the identity alone would be off by |½δθ| ≈ 0.05.
+    assert!((att - g).abs().max() < 3e-3, "{att} vs {g}");
+    assert!((att - nalgebra::Matrix3::identity()).abs().max() > 0.03);
+    let mut rest = numeric;
+    rest.fixed_view_mut::<3, 3>(ATT, ATT).fill(0.0);
+    assert!(
+        (rest - {
+            let mut i = ErrCov::identity();
+            i.fixed_view_mut::<3, 3>(ATT, ATT).fill(0.0);
+            i
+        })
+        .abs()
+        .max()
+            < 1e-8
+    );
 }
 
 #[test]

@@ -31,16 +31,15 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
         let settled = trace.steps.iter().zip(&errors).rev().find(|(_, e)| **e >= 0.2).map_or(0.0, |(s, _)| s.t_s);
         let eskf_rmse = rms(&errors);
         println!("seed {seed}: eskf RMSE {eskf_rmse:.3} m (below 0.2 m from {settled:.1} s), uwb_ls {ls:.3} m");
-        assert!(eskf_rmse < ls, "eskf {eskf_rmse} vs uwb_ls {ls}");
+        // Measured: eskf 0.123–0.139 m against uwb_ls 0.149–0.154 m.
+        assert!(eskf_rmse < 0.95 * ls, "eskf {eskf_rmse} vs uwb_ls {ls}");
         assert!(trace.updates.iter().all(|u| u.report.accepted));
         assert!(eskf.core().covariance().cholesky().is_some());
     }
 }
 
-/// Horizontal RMSE of uwb_ls, eskf, shaf, shfaf on one seed of a seed-004 preset, and the time
-/// after which each inertial filter's error stays below 0.2 m.
 /// One seed-004 run of the three loose filters and `uwb_ls`: RMSEs `[uwb_ls, eskf, shaf, shfaf]`
-/// and the time each filter first gets below 0.2 m. `paper`: the filters as printed (plain
+/// and the time after which each filter's error stays below 0.2 m. `paper`: the filters as printed (plain
 /// least-squares fix covariance, unbounded Sage–Husa); else this crate's defaults.
 fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, paper: bool) -> ([f64; 4], [f64; 3]) {
     use uwbimu_rs::filters::{Shaf, Shfaf};
@@ -51,7 +50,7 @@ fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, pape
     fc.loose_noise_scale = noise_scale;
     if paper {
         fc.loose_variance_factor = false;
-        fc.sage_husa.bounds = None;
+        fc.sage_husa.bounded = false;
     }
     let initial = truth_initial(&data, start_offset);
     let a = data.anchors.clone();
@@ -70,7 +69,7 @@ fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, pape
     for (k, t) in traces.iter().enumerate() {
         let e = horizontal_errors(&t.steps, &data);
         rmse[k + 1] = rms(&e);
-        settle[k] = t.steps.iter().zip(&e).find(|(_, e)| **e < 0.2).map_or(f64::INFINITY, |(s, _)| s.t_s - t.steps[0].t_s);
+        settle[k] = t.steps.iter().zip(&e).rev().find(|(_, e)| **e >= 0.2).map_or(0.0, |(s, _)| s.t_s - t.steps[0].t_s);
     }
     (rmse, settle)
 }
@@ -108,12 +107,22 @@ fn seed004_scenario1_convergence() {
     for seed in 0..3 {
         // A large initial R (σ ×5): the fixed-R ESKF trusts the fixes little, the adaptive
         // filters learn the real noise.
-        let (_, settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, true);
+        let (rmse, settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, true);
         println!(
-            "seed {seed}: first below 0.2 m after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s",
-            settle[0], settle[1], settle[2]
+            "seed {seed}: settled below 0.2 m after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s; RMSE uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}",
+            settle[0], settle[1], settle[2], rmse[0], rmse[1], rmse[2], rmse[3]
         );
-        // All converge; the paper's "SHFAF faster than ESKF" does not reproduce (README).
-        assert!(settle.iter().all(|s| *s < 10.0), "{settle:?}");
+        let (ours, ours_settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, false);
+        println!(
+            "   ours: settled after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s; RMSE eskf {:.3} shaf {:.3} shfaf {:.3}",
+            ours_settle[0], ours_settle[1], ours_settle[2], ours[1], ours[2], ours[3]
+        );
+        // The paper's claim holds with a settling time that means it (the error stays below
+        // 0.2 m after it): the adaptive filters settle no later than the fixed-R ESKF, as printed
+        // and ours (measured 0.6–16 s). As printed, the unbounded estimator can still wander
+        // (SHAF 0.76 m RMSE on seed 1); ours stays at 0.12–0.15 m.
+        assert!(settle[2] <= settle[0] && ours_settle[2] <= ours_settle[0], "{settle:?} {ours_settle:?}");
+        assert!(ours_settle.iter().all(|s| *s < 20.0), "{ours_settle:?}");
+        assert!(ours[2] < 0.17 && ours[3] < 0.17 && rmse[1] < 0.25, "{ours:?} {rmse:?}");
     }
 }

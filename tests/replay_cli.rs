@@ -5,6 +5,8 @@
 
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -71,9 +73,10 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
     for needle in ["/imu", "sensor_msgs/msg/Imu", "uwbimu.UwbRange", "metadata uwbimu.anchors", "mean NIS", "A0", "RMSE"] {
         assert!(stdout.contains(needle), "`{needle}` missing in:\n{stdout}");
     }
-    // The RMSE line: the simulated LOS run is tracked to well under a metre.
+    // The RMSE line: with the defaults (made for real logs) the simulated LOS run is tracked to
+    // 0.118 m (measured).
     let rmse: f64 = stdout.split("horizontal ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
-    assert!(rmse < 0.5, "{stdout}");
+    assert!(rmse < 0.14, "{stdout}");
     let csv = std::fs::read_to_string(&out_csv).unwrap();
     assert!(csv.starts_with("t,x,y,z,vx,vy,vz,qw,qx,qy,qz,std_x,std_y,std_z,still\n"));
     assert_eq!(csv.lines().count(), data.imu.len() + 1);
@@ -147,7 +150,11 @@ fn mappings_that_do_not_fit_are_reported() {
     fails_with(&replay(&[f, "--imu-topic", "/nope"]), "topic `/nope` not found");
     fails_with(&replay(&[f, "--uwb-topic", "/uwb2"]), "topic `/uwb2` not found");
     fails_with(&replay(&[f, "--method", "kalman"]), "allowed: uwb_ls, ekf");
-    let isas = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/isas-walk1/isas-walk1.mcap");
+}
+
+#[test]
+fn mappings_that_do_not_fit_the_real_log_are_reported() {
+    let Some(isas) = common::isas_walk1("isas-walk1.mcap") else { return };
     let config = write(
         "misfit.toml",
         b"[mapping]\nimu_topic = \"/waveshare_sense_hat_b\"\n[mapping.uwb]\ntopics = [\"/rtls_flares\"]\nrange = \"ranges[].rng\"\nanchor_id = \"ranges[].id\"\n",

@@ -33,19 +33,41 @@ fn axis_errors(steps: &[StepRecord], data: &SimData) -> [f64; 4] {
 
 const PLANAR: [Method; 3] = [Method::Ekf2d, Method::Ukf2d, Method::Cekf2d];
 
+/// Mean horizontal error of `uwb_ls` on the same run, against the true tag position.
+fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::sim::SimConfig, config: &FilterConfig) -> f64 {
+    let input = BatchInput {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        anchors: &data.anchors,
+        initial: None,
+        config,
+        smooth: false,
+        mag: &[],
+    };
+    let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &input).expect("uwb_ls") else { unreachable!("uwb_ls") };
+    let e: Vec<f64> = fixes
+        .iter()
+        .map(|(t, f)| {
+            let k = sim.trajectory.sample(*t);
+            (f.position - (k.position + k.orientation * sim.lever_arm_m)).xy().norm()
+        })
+        .collect();
+    mean(&e)
+}
+
 #[test]
-fn planar_filters_below_20_cm_on_the_los_preset() {
+fn planar_filters_halve_the_uwb_only_error_on_the_los_preset() {
     for seed in 0..3 {
         let sim = preset("seed001", seed).expect("preset");
         let data = simulate(&sim).expect("sim");
         let config = config_for(&sim);
+        let ls = uwb_ls_mean(&data, &sim, &config);
         for method in PLANAR.into_iter().chain([Method::Ekf, Method::Ukf]) {
             let s = steps(method, &data, None, &config);
             let e = horizontal_errors(&s, &data);
             let ax = axis_errors(&s, &data);
-            // Measured (seeds 0–2): planar means 0.019–0.022 m, ekf/ukf 0.011 m.
             println!(
-                "seed {seed} {:7} mean {:.4} x {:.4}/{:.4} y {:.4}/{:.4}",
+                "seed {seed} {:7} mean {:.4} (uwb_ls {ls:.4}) x {:.4}/{:.4} y {:.4}/{:.4}",
                 method.name(),
                 mean(&e),
                 ax[0],
@@ -53,7 +75,9 @@ fn planar_filters_below_20_cm_on_the_los_preset() {
                 ax[2],
                 ax[3]
             );
-            assert!(mean(&e) < 0.2, "{} seed {seed}: mean {}", method.name(), mean(&e));
+            // Measured (seeds 0–2): planar 0.43–0.46 of uwb_ls's mean error, ekf/ukf 0.25–0.26.
+            let bound = if PLANAR.contains(&method) { 0.55 } else { 0.32 };
+            assert!(mean(&e) < bound * ls, "{} seed {seed}: mean {} vs uwb_ls {ls}", method.name(), mean(&e));
             if PLANAR.contains(&method) {
                 // z is the configured plane height (here the initial height) throughout.
                 assert!(s.iter().all(|r| (r.state.position.z - s[0].state.position.z).abs() < 1e-12));
@@ -63,16 +87,26 @@ fn planar_filters_below_20_cm_on_the_los_preset() {
 }
 
 #[test]
-fn planar_filters_on_the_nlos_preset() {
+fn planar_filters_stay_below_uwb_only_on_the_nlos_preset() {
     for seed in 0..3 {
         let sim = preset("seed001_nlos", seed).expect("preset");
         let data = simulate(&sim).expect("sim");
         let config = config_for(&sim);
+        let ls = uwb_ls_mean(&data, &sim, &config);
         for method in PLANAR {
             let s = steps(method, &data, None, &config);
             let ax = axis_errors(&s, &data);
-            println!("nlos seed {seed} {:7} x {:.4}/{:.4} y {:.4}/{:.4}", method.name(), ax[0], ax[1], ax[2], ax[3]);
-            assert!(mean(&horizontal_errors(&s, &data)) < 0.3, "{} seed {seed}", method.name());
+            let e = mean(&horizontal_errors(&s, &data));
+            println!(
+                "nlos seed {seed} {:7} mean {e:.4} (uwb_ls {ls:.4}) x {:.4}/{:.4} y {:.4}/{:.4}",
+                method.name(),
+                ax[0],
+                ax[1],
+                ax[2],
+                ax[3]
+            );
+            // Measured (seeds 0–2): 0.80–0.89 of uwb_ls's mean error.
+            assert!(e < 0.95 * ls, "{} seed {seed}: mean {e} vs uwb_ls {ls}", method.name());
         }
     }
 }
@@ -104,7 +138,8 @@ fn ukf2d_agrees_with_ekf2d_for_far_anchors() {
     let (a, b) = (steps(Method::Ekf2d, &near, Some(&initial), &config), steps(Method::Ukf2d, &near, Some(&initial), &config));
     let near_diff = a.iter().zip(&b).map(|(a, b)| (a.state.position - b.state.position).norm()).fold(0.0, f64::max);
     println!("seed-001 anchors: max |ekf2d − ukf2d| {near_diff:.2e} m");
-    assert!(near_diff > diff);
+    // README: the two differ by less than 3 mm on the seed-001 anchors, more than far away.
+    assert!(near_diff > diff && near_diff < 3e-3, "{near_diff}");
 }
 
 /// With a window of one range the errors-complementary form with feedback is the EKF.
@@ -131,7 +166,8 @@ fn ukf_agrees_with_ekf_on_clean_runs() {
         let e_ekf = rms(&horizontal_errors(&steps(Method::Ekf, &data, Some(&initial), &config), &data));
         let e_ukf = rms(&horizontal_errors(&steps(Method::Ukf, &data, Some(&initial), &config), &data));
         println!("{name} seed {seed}: rmse ekf {e_ekf:.4} ukf {e_ukf:.4}");
-        assert!((e_ukf - e_ekf).abs() <= 0.2 * e_ekf, "{name} seed {seed}: {e_ukf} vs {e_ekf}");
+        // README: within 0.2 % (measured); asserted within 1 %.
+        assert!((e_ukf - e_ekf).abs() <= 0.01 * e_ekf, "{name} seed {seed}: {e_ukf} vs {e_ekf}");
     }
 }
 

@@ -20,6 +20,9 @@ fn smoothing_lowers_error_and_covariance() {
             (rms(&horizontal_errors(&trace.steps, &data)), rms(&horizontal_errors(&smoothed, &data)));
         println!("{name}: horizontal RMSE filtered {filtered_rmse:.4} m, smoothed {smoothed_rmse:.4} m");
         assert!(smoothed_rmse < filtered_rmse, "{name}: {smoothed_rmse} vs {filtered_rmse}");
+        // Measured: seed000_los 0.079 → 0.032 m, seed000 (NLOS) 0.567 → 0.359 m.
+        let bound = if name == "seed000_los" { 0.04 } else { 0.43 };
+        assert!(smoothed_rmse < bound, "{name}: smoothed {smoothed_rmse}");
         for (f, s) in trace.steps.iter().zip(&smoothed) {
             assert_eq!(f.t_s, s.t_s);
             assert!(

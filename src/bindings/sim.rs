@@ -10,8 +10,8 @@ use crate::bindings::filters::{config_dict, initial_dict, read_config};
 use crate::config::FilterConfig;
 use crate::error::Error;
 use crate::generality::{run_cell, Cell, CellResult, Settings, Start};
-use crate::methods::Method;
 use crate::math::{quat_from_wxyz, quat_to_wxyz, Vec3};
+use crate::methods::Method;
 use crate::sim::{self, DriveOptions, KinematicSample, OverrideValue, SimConfig, SimData, Trajectory};
 
 /// Array-like float input (lists, tuples or arrays).
@@ -280,7 +280,14 @@ fn sim_zoo_matrix<'py>(
         "matched" => Settings::Matched,
         "defaults" => Settings::Defaults,
         "custom" => Settings::Custom(&custom),
-        _ => return Err(Error::UnknownOption { kind: "settings", got: settings.into(), allowed: "matched, defaults, custom".into() }.into()),
+        _ => {
+            return Err(Error::UnknownOption {
+                kind: "settings",
+                got: settings.into(),
+                allowed: "matched, defaults, custom".into(),
+            }
+            .into())
+        }
     };
     let methods = methods.iter().map(|m| Method::parse(m)).collect::<Result<Vec<_>, Error>>()?;
     if let Some(bad) = methods.iter().find(|m| **m == Method::UwbLs) {

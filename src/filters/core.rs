@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::math::Vec3;
 use crate::robust::fade_position_velocity;
-use crate::state::{ErrCov, NominalState};
+use crate::state::{ErrCov, NominalState, POS, VEL};
 
 /// Nominal state + 15×15 error covariance + time bookkeeping (seed 000 §2.1).
 #[derive(Debug, Clone)]
@@ -38,6 +38,9 @@ pub struct Segment {
     /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
     /// the end of this segment (seed 002 eq. (42), [`InertialCore::fade_prior`]); 1 if none.
     pub prior_fading: f64,
+    /// Position outer product and velocity variance added to that predicted covariance after the
+    /// fading ([`InertialCore::widen_prior`], re-acquisition after divergence); zero if none.
+    pub prior_widening: (Vec3, f64),
 }
 
 fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
@@ -136,7 +139,14 @@ impl InertialCore {
 
     fn propagate(&mut self, imu: &ImuInterval) {
         if let (Some(rec), Some(t_s)) = (self.recording.as_mut(), self.time_s) {
-            rec.push(Segment { t_s, state: self.state, covariance: self.covariance, interval: *imu, prior_fading: 1.0 });
+            rec.push(Segment {
+                t_s,
+                state: self.state,
+                covariance: self.covariance,
+                interval: *imu,
+                prior_fading: 1.0,
+                prior_widening: (Vec3::zeros(), 0.0),
+            });
         }
         let phi = Transition::new(&self.state, imu, &self.config);
         self.state = propagate_nominal(&self.state, imu, &self.config);
@@ -151,6 +161,21 @@ impl InertialCore {
         fade_position_velocity(&mut self.covariance, lambda);
         if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
             last.prior_fading *= lambda;
+        }
+    }
+
+    /// Widens the current (prior) covariance: `d·dᵀ` on the position block and `velocity_var·I` on
+    /// the velocity block (re-acquisition after a divergence, [`crate::filters::reacquire`]), and
+    /// notes it on the last recorded segment for the RTS pass. Several widenings at one time add.
+    pub fn widen_prior(&mut self, d: &Vec3, velocity_var: f64) {
+        widen_position_velocity(&mut self.covariance, d, velocity_var);
+        if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
+            // d₁d₁ᵀ + d₂d₂ᵀ is not an outer product; keep the larger discrepancy (widenings at one
+            // time do not happen in practice: one per epoch at most).
+            if d.norm() > last.prior_widening.0.norm() {
+                last.prior_widening.0 = *d;
+            }
+            last.prior_widening.1 += velocity_var;
         }
     }
 
@@ -202,4 +227,12 @@ impl InertialCore {
     pub fn state_and_covariance_mut(&mut self) -> (&mut NominalState, &mut ErrCov) {
         (&mut self.state, &mut self.covariance)
     }
+}
+
+/// Adds `d·dᵀ` to the position block and `velocity_var·I` to the velocity block of `p`.
+pub fn widen_position_velocity(p: &mut ErrCov, d: &Vec3, velocity_var: f64) {
+    let mut pos = p.fixed_view_mut::<3, 3>(POS, POS);
+    pos += d * d.transpose();
+    let mut vel = p.fixed_view_mut::<3, 3>(VEL, VEL);
+    vel += crate::math::Mat3::identity() * velocity_var;
 }

@@ -116,7 +116,7 @@ impl InertialFilter for Eskf {
         // Fixes whose ranges disagree beyond their noise (an outlier, NLOS) count as less precise.
         let precision = if config.loose_variance_factor { fix.variance_factor(config.range_std).max(1.0) } else { 1.0 };
         let tag = TagFix { t_s, position: fix.position, covariance: fix.covariance * (config.loose_noise_scale * precision) };
-        let sage_husa = self.core.config().sage_husa;
+        let (sage_husa, noise_scale) = (config.sage_husa, config.loose_noise_scale);
         let (x, p) = self.core.state_and_covariance_mut();
         let mut dx = ErrVec::zeros();
         let (residual, h) = position_measurement(x, &tag, &lever_arm);
@@ -125,20 +125,20 @@ impl InertialFilter for Eskf {
             let config = SageHusaConfig { variant, ..sage_husa };
             let (nis, fr) = match (planar, &mut self.estimator) {
                 (true, Some(LooseEstimator::Planar(est))) => {
-                    adaptive_step::<4, 2>(est, &mut dx, p, (&residual, &h, &tag.covariance), v)?
+                    adaptive_step::<4, 2>(est, &mut dx, p, (&residual, &h, &tag.covariance), v, noise_scale)?
                 }
                 (false, Some(LooseEstimator::Spatial(est))) => {
-                    adaptive_step::<6, 3>(est, &mut dx, p, (&residual, &h, &tag.covariance), v)?
+                    adaptive_step::<6, 3>(est, &mut dx, p, (&residual, &h, &tag.covariance), v, noise_scale)?
                 }
                 (true, _) => {
                     let mut est = AdaptiveNoise::new(config, stacked::<4, 2>(&tag.covariance, &v.2))?;
-                    let out = adaptive_step::<4, 2>(&mut est, &mut dx, p, (&residual, &h, &tag.covariance), v)?;
+                    let out = adaptive_step::<4, 2>(&mut est, &mut dx, p, (&residual, &h, &tag.covariance), v, noise_scale)?;
                     self.estimator = Some(LooseEstimator::Planar(est));
                     out
                 }
                 (false, _) => {
                     let mut est = AdaptiveNoise::new(config, stacked::<6, 3>(&tag.covariance, &v.2))?;
-                    let out = adaptive_step::<6, 3>(&mut est, &mut dx, p, (&residual, &h, &tag.covariance), v)?;
+                    let out = adaptive_step::<6, 3>(&mut est, &mut dx, p, (&residual, &h, &tag.covariance), v, noise_scale)?;
                     self.estimator = Some(LooseEstimator::Spatial(est));
                     out
                 }
@@ -197,7 +197,8 @@ fn stacked<const M: usize, const N: usize>(position: &Mat3, velocity: &Mat3) -> 
 /// One adaptive loose update: stacks the first `N` axes of position and velocity (`M = 2N`), lets
 /// the Sage–Husa estimator correct outliers and set `R_k` (seed 004 eqs. (26)–(36), kept within
 /// the configured bounds of the least-squares covariance), and applies the corrected innovation
-/// with `R_k`. With the bounds on (ours; default), when the raw innovation has exceeded the `χ²_M`
+/// with `R_k` (bounds relative to the unscaled least-squares covariance). With the bounds on
+/// (ours; default), when the raw innovation has exceeded the `χ²_M`
 /// bound against the nominal covariance for
 /// [`DIVERGENCE_EPOCHS`] epochs in a row, the filter has drifted away (the outlier correction of
 /// eq. (35) then scales every innovation down and locks the UWB out): the estimator restarts at
@@ -210,6 +211,7 @@ fn adaptive_step<const M: usize, const N: usize>(
     p: &mut ErrCov,
     position: (&SVector<f64, 3>, &SMatrix<f64, 3, ERR_DIM>, &Mat3),
     velocity: &(SVector<f64, 3>, SMatrix<f64, 3, ERR_DIM>, Mat3),
+    noise_scale: f64,
 ) -> Result<(f64, f64)> {
     let mut z = SVector::<f64, M>::zeros();
     let mut h = SMatrix::<f64, M, ERR_DIM>::zeros();
@@ -217,10 +219,12 @@ fn adaptive_step<const M: usize, const N: usize>(
     z.fixed_rows_mut::<N>(N).copy_from(&velocity.0.fixed_rows::<N>(0));
     h.fixed_rows_mut::<N>(0).copy_from(&position.1.fixed_rows::<N>(0));
     h.fixed_rows_mut::<N>(N).copy_from(&velocity.1.fixed_rows::<N>(0));
-    let nominal = stacked::<M, N>(position.2, &velocity.2);
+    // The bounds and the divergence test refer to the least-squares covariance itself, not to
+    // its `loose_noise_scale` (a start from a deliberately large R must be able to learn down).
+    let nominal = stacked::<M, N>(position.2, &velocity.2) / noise_scale;
     let mut hph = h * *p * h.transpose();
     let raw_nis = (hph + nominal).cholesky().map_or(f64::INFINITY, |c| z.dot(&c.solve(&z)));
-    if est.sage_husa.config().bounds.is_some() && est.divergence.observe(raw_nis) {
+    if est.sage_husa.config().bounded && est.divergence.observe(raw_nis) {
         est.sage_husa.restart(&nominal);
         widen(p, POS, position.0);
         widen(p, VEL, &velocity.0);

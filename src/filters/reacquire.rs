@@ -30,7 +30,7 @@ use crate::filters::InertialCore;
 use crate::math::Vec3;
 use crate::models::loose::{position_measurement, TagFix};
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
-use crate::state::{ErrVec, POS, VEL};
+use crate::state::{ErrVec, POS};
 use crate::update::{inject_and_reset, leading_rows_step};
 
 /// The prior must be at least this much less precise than the fix (ratio of horizontal
@@ -157,13 +157,9 @@ pub fn reacquire(
 }
 
 /// Widens the position and velocity covariance of a diverged filter by its discrepancy `d` to
-/// `fix`: position by `d·dᵀ`, velocity by `(|d|·1 (m/s)/m)²·I`.
+/// `fix`: position by `d·dᵀ`, velocity by `(|d|·1 (m/s)/m)²·I` (recorded for the RTS pass).
 fn widen(core: &mut InertialCore, fix: &Fix) {
     let tag = crate::models::range::tag_position(core.state(), &core.config().lever_arm);
     let d = fix.position - tag;
-    let (_, p) = core.state_and_covariance_mut();
-    let mut pos = p.fixed_view_mut::<3, 3>(POS, POS);
-    pos += d * d.transpose();
-    let mut vel = p.fixed_view_mut::<3, 3>(VEL, VEL);
-    vel += crate::math::Mat3::identity() * (d.norm() * DIVERGED_VELOCITY_PER_M).powi(2);
+    core.widen_prior(&d, (d.norm() * DIVERGED_VELOCITY_PER_M).powi(2));
 }

@@ -77,7 +77,7 @@ impl TightFilter {
         let constraints = Constraints::new(&config, initial.position.z);
         let range_noise = if config.adaptive_range_noise {
             let initial_r = SMatrix::<f64, 1, 1>::new(config.range_std.powi(2));
-            let sage_husa = SageHusaConfig { bounds: config.sage_husa.bounds.map(|_| RANGE_NOISE_BOUNDS), ..config.sage_husa };
+            let sage_husa = SageHusaConfig { bounds: RANGE_NOISE_BOUNDS, ..config.sage_husa };
             (0..anchors.len()).map(|_| SageHusa::new(sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
         } else {
             Vec::new()

@@ -43,3 +43,15 @@ pub fn horizontal_errors(steps: &[StepRecord], data: &SimData) -> Vec<f64> {
 pub fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
+
+/// The real recording `../shared/data/isas-walk1/<name>` beside the repository, or None (with a
+/// message) when it is not there: a user's clone has no `../shared`; CI has it beside the clone.
+pub fn isas_walk1(name: &str) -> Option<std::path::PathBuf> {
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/isas-walk1").join(name);
+    if path.exists() {
+        Some(path)
+    } else {
+        eprintln!("skipped: {} is not present (real-log tests need ../shared/data beside the clone)", path.display());
+        None
+    }
+}
