@@ -5,10 +5,11 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Riekf, Ukf};
+use uwbimu_rs::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
 use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::Estimator;
+use uwbimu_rs::pipeline::{Estimator, Stream};
 use uwbimu_rs::planar::{PlanarFilter, PlanarKind};
+use uwbimu_rs::records::RangeMeasurement;
 use uwbimu_rs::update::UpdateReport;
 
 fn anchors() -> Vec<Vec3> {
@@ -65,6 +66,25 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
             BatchSize::SmallInput,
         )
     });
+    // The same epoch through the event loop, staggered 1 ms per anchor: grouping by the epoch
+    // rule, alignment to the reference time, then the joint update.
+    let staggered: Vec<RangeMeasurement> = epoch
+        .iter()
+        .enumerate()
+        .map(|(k, &(anchor, range_m))| RangeMeasurement { t_s: 0.001 * (k + 1) as f64, anchor, range_m })
+        .collect();
+    group.bench_function("stream_epoch_4", |b| {
+        b.iter_batched_ref(
+            || (Stream::new(setup(build)).expect("stream"), Vec::with_capacity(4)),
+            |(stream, applied)| {
+                for r in &staggered {
+                    stream.range(black_box(r)).expect("range");
+                }
+                stream.take_applied(applied);
+            },
+            BatchSize::SmallInput,
+        )
+    });
     group.finish();
 }
 
@@ -76,6 +96,7 @@ fn bench_all(c: &mut Criterion) {
     bench_filter(c, "arckf", Box::new(Arckf::new));
     bench_filter(c, "ackf", Box::new(Ackf::new));
     bench_filter(c, "ukf", Box::new(Ukf::new));
+    bench_filter(c, "eskf", Box::new(Eskf::new));
     for (name, kind) in [("ekf2d", PlanarKind::Ekf), ("ukf2d", PlanarKind::Ukf), ("cekf2d", PlanarKind::Cekf)] {
         bench_filter(c, name, Box::new(move |a, i, cfg| PlanarFilter::new(kind, a, i, &cfg)));
     }

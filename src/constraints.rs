@@ -25,9 +25,9 @@ use crate::update::{inject_and_reset, scalar_step};
 /// Largest pseudo-velocity history, steps.
 pub const MAX_SPEED_HISTORY: usize = 256;
 
-/// Threshold of the plane and pseudo-velocity constraints' own innovation test: `γ = r²/(h·P·hᵀ
-/// + R)` above it (`χ²₁` at α = 10⁻⁴) means the constraint does not hold now (a climb, a wrong
-/// plane height) and it is not applied.
+/// Threshold of the plane and pseudo-velocity constraints' own innovation test,
+/// `γ = r²/(h·P·hᵀ + R)`: above it (`χ²₁` at α = 10⁻⁴) the constraint does not hold now (a
+/// climb, a wrong plane height) and it is not applied.
 const CONSTRAINT_GATE: f64 = 15.136_705_226_623_606;
 
 /// Speed below which the pseudo-velocity direction `v/‖v‖` is undefined, m/s.

@@ -93,12 +93,14 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));
     };
     let start_fixes: Vec<&Fix> = fixes.iter().filter(|(t, _)| still && *t <= t0 + config.init_still_s).map(|(_, f)| f).collect();
-    let (tag0, tag0_cov, count) = if start_fixes.is_empty() {
-        (first_fix.position, first_fix.covariance, 1.0)
+    // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
+    // errors (anchor survey, multipath, NLOS) are the same in every fix.
+    let (tag0, tag0_cov) = if start_fixes.is_empty() {
+        (first_fix.position, first_fix.covariance)
     } else {
         let k = start_fixes.len() as f64;
         let median = Vec3::from_fn(|i, _| median(start_fixes.iter().map(|f| f.position[i]).collect()));
-        (median, start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k, k)
+        (median, start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k)
     };
 
     // 3. Heading from dead reckoning against UWB displacement.
@@ -108,7 +110,7 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         None => (0.0, std::f64::consts::PI, HeadingSource::Fallback),
     };
     let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
-    let mut position_std = Vec3::from_fn(|i, _| (tag0_cov[(i, i)] / count).sqrt().max(0.05));
+    let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
     if first_fix.planar {
         position_std.z = 1.0;
     }

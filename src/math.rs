@@ -46,7 +46,7 @@ pub fn symmetric_eigen<const N: usize>(m: &Cov<N>) -> (SVector<f64, N>, Cov<N>) 
     for _ in 0..50 {
         let off: f64 =
             (0..N).flat_map(|i| (0..N).filter(move |j| *j != i).map(move |j| (i, j))).map(|(i, j)| a[(i, j)].powi(2)).sum();
-        if !(off > 1e-30 * scale) {
+        if off.partial_cmp(&(1e-30 * scale)) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         for p in 0..N {

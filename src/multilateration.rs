@@ -34,6 +34,9 @@ const RANK_RCOND: f64 = 1e-10;
 const MAX_LINEAR_CONDITION: f64 = 300.0;
 /// Relative eigenvalue threshold below which `JᵀJ` counts as singular.
 const NORMAL_RCOND: f64 = 1e-12;
+/// `χ²₁` quantile at α = 0.05: two heights whose sums of squared range residuals differ by less
+/// (in units of σ²) fit equally well.
+const MIRROR_TIE_CHI2: f64 = 3.841_458_820_694_124;
 /// `χ²₁` quantile at α = 0.001: the drop of the sum of squared range residuals (in units of σ²)
 /// that an extra unknown must bring to be kept.
 const EXTRA_UNKNOWN_CHI2: f64 = 10.827_566_170_662_733;
@@ -108,7 +111,7 @@ impl Fix {
     /// far above 1 when one of them is an outlier. 1 without redundancy (`n ≤ u`).
     pub fn variance_factor(&self, range_std_m: f64) -> f64 {
         let redundancy = self.redundancy();
-        if redundancy == 0 || !(range_std_m > 0.0) {
+        if redundancy == 0 || range_std_m.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return 1.0;
         }
         let n = self.ranges_used as f64;
@@ -340,7 +343,10 @@ pub fn gauss_newton_fix(
 /// ill-conditioned, condition number above 300, i.e. near-coplanar anchors) and from the planar
 /// linear solution at the mean anchor height, then once more from the better result reflected
 /// through that height (near-coplanar anchors fit the mirror image almost as well); the fix with
-/// the smallest residual RMS is kept.
+/// the smallest residual RMS is kept. Last, Gauss–Newton runs from below every anchor; its fix
+/// replaces the kept one when it is lower and fits about as well (sum of squares within 3.84·σ²
+/// of it): anchors are mounted above the tag (near one anchor of a hall the fixes flipped between
+/// two heights 1.5 m apart, which spoiled self-initialisation on the zoo's `forklift`).
 ///
 /// Returns `None` on degenerate input (too few ranges, collinear anchors, unknown anchor index,
 /// negative or non-finite values).
@@ -366,20 +372,36 @@ pub fn solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], cfg: &LsConfig) -> Op
             Some((start, cond)) if cond <= MAX_LINEAR_CONDITION => gauss_newton_fix(anchors, obs, start, None, cfg),
             _ => None,
         };
-        let planar = linear_fix(anchors, obs, Some(z_mean)).and_then(|start| gauss_newton_fix(anchors, obs, start, None, cfg));
+        let xy = linear_fix(anchors, obs, Some(z_mean));
+        let planar = xy.and_then(|start| gauss_newton_fix(anchors, obs, start, None, cfg));
         let best = better(linear, planar)?;
         let mut mirrored = best.position;
         mirrored.z = 2.0 * z_mean - mirrored.z;
-        better(Some(best), gauss_newton_fix(anchors, obs, mirrored, None, cfg))
+        let best = better(Some(best), gauss_newton_fix(anchors, obs, mirrored, None, cfg))?;
+        // A start below every anchor finds the lower of two local minima (the upper one is where
+        // the seeds at the mean height lead); when both fit about equally (sums of squares within
+        // the χ²₁ quantile at α = 0.05), the lower one is taken: anchors are mounted above the tag.
+        let low = xy.map(|mut p| {
+            p.z = 2.0 * z_min - z_mean;
+            p
+        });
+        match low.and_then(|start| gauss_newton_fix(anchors, obs, start, None, cfg)) {
+            Some(l)
+                if l.position.z < best.position.z
+                    && ssr(&l, obs) < ssr(&best, obs) + MIRROR_TIE_CHI2 * cfg.range_std_m.powi(2) =>
+            {
+                Some(l)
+            }
+            _ => Some(best),
+        }
     } else {
         let start = linear_fix(anchors, obs, Some(z_mean))?;
         let planar = gauss_newton_fix(anchors, obs, start, Some(z_mean), cfg);
         let below = below_coplanar_anchors(anchors, obs, &start, z_mean, cfg);
         // The extra unknown must pay for itself: the sum of squares must drop by more than the
         // χ²₁ quantile at α = 0.001 (in units of σ²), else an outlier or noise chose it.
-        let ssr = |f: &Fix| f.residual_rms_m.powi(2) * obs.len() as f64;
         match (below, planar) {
-            (Some(b), Some(p)) if ssr(&p) - ssr(&b) > EXTRA_UNKNOWN_CHI2 * cfg.range_std_m.powi(2) => Some(b),
+            (Some(b), Some(p)) if ssr(&p, obs) - ssr(&b, obs) > EXTRA_UNKNOWN_CHI2 * cfg.range_std_m.powi(2) => Some(b),
             (Some(b), None) => Some(b),
             (_, p) => p,
         }
@@ -390,8 +412,9 @@ pub fn solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], cfg: &LsConfig) -> Op
 ///
 /// With every anchor at one height `h`, differencing squared ranges cancels the tag's height, so
 /// the linear x, y are right wherever the tag is; the height offset shows only in
-/// `Δz² = mean(rᵢ² − dᵢ²)` (`dᵢ` the horizontal distance to anchor i). When `Δz²` exceeds three
-/// standard deviations of its noise (`≈ 2σ·√Σrᵢ²/n`), Gauss–Newton runs in 3-D from
+/// `Δz² = mean(rᵢ² − dᵢ²)` (`dᵢ` the horizontal distance to anchor i, weights `1/(4·rᵢ²·σ²)`).
+/// When `Δz²` exceeds three standard deviations of its noise (`1/√Σwᵢ`), Gauss–Newton runs in 3-D
+/// from
 /// `(x, y, h − √Δz²)`: the tag is taken **below** the anchors (they are mounted on walls and
 /// ceilings; the mirror image above fits equally well). A fix that ends above the plane, no
 /// significant offset, or (in [`solve_epoch`]) a fit hardly better than the planar one leaves the
@@ -400,20 +423,26 @@ fn below_coplanar_anchors(anchors: &[Vec3], obs: &[(usize, f64)], xy: &Vec3, h: 
     if obs.len() < 3 {
         return None;
     }
-    let n = obs.len() as f64;
-    let (mut dz2, mut r2) = (0.0, 0.0);
+    // Weighted by the inverse variance of rᵢ² (≈ 4·rᵢ²·σ²): near anchors tell the height, far
+    // ones hardly (in a 40 m corridor the unweighted mean missed a tag 2 m below).
+    let (mut sum, mut weights) = (0.0, 0.0);
     for &(a, r) in obs {
         let d = anchors[a] - xy;
-        dz2 += r * r - d.x * d.x - d.y * d.y - (anchors[a].z - h).powi(2);
-        r2 += r * r;
+        let w = 1.0 / (4.0 * (r * r).max(1e-6) * cfg.range_std_m.powi(2));
+        sum += w * (r * r - d.x * d.x - d.y * d.y - (anchors[a].z - h).powi(2));
+        weights += w;
     }
-    dz2 /= n;
-    let noise = 2.0 * cfg.range_std_m * r2.sqrt() / n;
-    if dz2 <= 3.0 * noise {
+    let dz2 = sum / weights;
+    if dz2 <= 3.0 / weights.sqrt() {
         return None;
     }
     let start = Vec3::new(xy.x, xy.y, h - dz2.sqrt());
     gauss_newton_fix(anchors, obs, start, None, cfg).filter(|f| f.position.z < h)
+}
+
+/// Sum of squared range residuals of a fix of `obs`, m².
+fn ssr(fix: &Fix, obs: &[(usize, f64)]) -> f64 {
+    fix.residual_rms_m.powi(2) * obs.len() as f64
 }
 
 /// The fix with the smaller residual RMS.
@@ -699,5 +728,30 @@ mod tests {
             assert!((t - (k as f64 * 0.1 + 0.005)).abs() < 1e-12);
             assert!((f.position - p).norm() < 1e-6);
         }
+    }
+
+    #[test]
+    fn of_two_equal_fits_the_lower_one_is_taken() {
+        // The seed-000 hall (anchors 0.8–2.2 m high), a tag at 0.45 m on a 0.5 m grid over the
+        // hall, σ 0.1 m, seeds 0–4: near an anchor the fixes flip between two heights that fit
+        // about equally. Measured: height within 0.75 m in 94.8 % of 1785 epochs with the
+        // low-fix rule, 89.2 % without it.
+        let anchors =
+            vec![Vec3::new(0.0, 0.0, 0.8), Vec3::new(10.0, 0.0, 2.2), Vec3::new(10.0, 8.0, 1.2), Vec3::new(0.0, 8.0, 1.8)];
+        let cfg = LsConfig { range_std_m: 0.1, ..LsConfig::default() };
+        let (mut right, mut total) = (0, 0);
+        for seed in 0..5 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            for i in 0..21 {
+                for j in 0..17 {
+                    let p = Vec3::new(-0.5 + 0.5 * f64::from(i), -0.5 + 0.5 * f64::from(j), 0.45);
+                    let fix = solve_epoch(&anchors, &noisy_obs(&anchors, &p, 0.1, &mut rng), &cfg).expect("fix");
+                    total += 1;
+                    right += usize::from((fix.position.z - p.z).abs() < 0.75);
+                }
+            }
+        }
+        let share = right as f64 / total as f64;
+        assert!(share > 0.93, "height right in {right} of {total} epochs");
     }
 }

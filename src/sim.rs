@@ -178,6 +178,9 @@ pub const OVERRIDE_KEYS: &[&str] = &[
     "mag_noise_std",
     "accel_outlier_count",
     "accel_outlier_std_mps2",
+    "stagger_s",
+    "jitter_s",
+    "start_s",
 ];
 
 fn probability(field: &str, v: f64) -> Result<()> {
@@ -388,6 +391,9 @@ impl SimConfig {
             "accel_bias_walk" => Ok(&mut self.imu_noise.accel_bias_walk),
             "gyro_bias_walk" => Ok(&mut self.imu_noise.gyro_bias_walk),
             "accel_outlier_std_mps2" => Ok(&mut self.accel_outliers.std_mps2),
+            "stagger_s" => Ok(&mut self.uwb.stagger_s),
+            "jitter_s" => Ok(&mut self.uwb.jitter_s),
+            "start_s" => Ok(&mut self.start_s),
             _ => Err(unknown_override(key)),
         }
     }

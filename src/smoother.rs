@@ -13,10 +13,9 @@
 
 use crate::config::FilterConfig;
 use crate::error::{Error, Result};
-use crate::filters::core::widen_position_velocity;
 use crate::filters::Segment;
 use crate::ins::{propagate_nominal, ProcessNoise, Transition};
-use crate::math::{symmetrize, Vec3};
+use crate::math::symmetrize;
 use crate::robust::fade_position_velocity;
 use crate::state::{ErrCov, NominalState};
 
@@ -44,8 +43,8 @@ pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, config: &FilterConfi
         if seg.prior_fading != 1.0 {
             fade_position_velocity(&mut p_pred, seg.prior_fading);
         }
-        if seg.prior_widening != (Vec3::zeros(), 0.0) {
-            widen_position_velocity(&mut p_pred, &seg.prior_widening.0, seg.prior_widening.1);
+        if let Some(widening) = &seg.prior_widening {
+            widening.apply(&mut p_pred);
         }
         let chol = p_pred.cholesky().ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
         // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.

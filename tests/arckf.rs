@@ -52,8 +52,9 @@ fn table6_arckf_resists_range_outliers_on_beacons_2_and_4() {
 
 #[test]
 fn table4_arckf_below_ckf_with_acceleration_outliers() {
-    // Measured (seeds 0–2) ARCKF 0.348 / 0.291 / 0.356 / 0.675 m for 1–4 outliers.
-    for (count, bound) in [(1, 0.42), (2, 0.35), (3, 0.43), (4, 0.8)] {
+    // Measured (seeds 0–2) ARCKF 0.348 / 0.289 / 0.343 / 0.516 m for 1–4 outliers (CKF 0.400 /
+    // 0.379 / 0.427 / 0.682 m).
+    for (count, bound) in [(1, 0.42), (2, 0.35), (3, 0.42), (4, 0.62)] {
         let (c, a) = mean_rmse("seed002_rectangle", "accel_outlier_count", count as f64);
         println!("{count} acceleration outlier(s): CKF {c:.3} m, ARCKF {a:.3} m");
         assert!(a < c && a < bound, "{count} outliers: ARCKF {a} vs CKF {c}");

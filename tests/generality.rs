@@ -17,10 +17,12 @@ const SEEDS: [u64; 3] = [0, 1, 2];
 /// Cells that miss the bound, with the cause and a bound a margin above the worst ratio measured
 /// over seeds 0–5 (README, "Generality").
 const EXCEPTIONS: &[(&str, &str, Start, f64)] = &[
-    // Two of four anchors biased by 0.6–0.9 m for 30 s: CRIEKF's plane constraint leaves the
+    // Two anchors biased by 0.4–0.9 m for 20–30 s at once: CRIEKF's plane constraint leaves the
     // horizontal position to absorb the whole bias, where the other filters and uwb_ls let part
-    // of it into the height (RIEKF without constraints: 0.98×). Worst 1.23× (seeds 0–5).
+    // of it into the height (RIEKF without constraints: 0.98–1.00×). Worst over seeds 0–5: 1.25×
+    // and 1.23×; with the defaults (range σ 0.15 m) 1.06× and 0.91×.
     ("criekf", "nlos_two", Start::Given, 1.3),
+    ("criekf", "walk_nlos", Start::Given, 1.3),
 ];
 
 fn bound(method: &str, scenario: &str, start: Start) -> f64 {

@@ -22,9 +22,12 @@ fn config() -> ReplayConfig {
     ReplayConfig::read(&repo("examples/isas-walk1.toml")).unwrap()
 }
 
-/// The recording with the checked-in mapping, its anchor file and ground truth; None (the test
-/// is skipped, with a message) without `../shared/data`.
-fn isas(cfg: &ReplayConfig) -> Option<(Recording, PathBuf, Vec<(f64, uwbimu_rs::math::Vec3)>)> {
+/// Ground truth: (time s, position m).
+type Truth = Vec<(f64, uwbimu_rs::math::Vec3)>;
+
+/// The recording with the checked-in mapping, its file and the ground truth; None (the test is
+/// skipped, with a message) without `../shared/data`.
+fn isas(cfg: &ReplayConfig) -> Option<(Recording, PathBuf, Truth)> {
     let mcap = common::isas_walk1("isas-walk1.mcap")?;
     let rec = read_recording_file(&mcap, &cfg.mapping, |_| {}).unwrap();
     let truth = read_truth_csv(&common::isas_walk1("gt_anchor_frame.csv")?).unwrap();
@@ -98,7 +101,7 @@ fn plain_ekf_is_hurt_by_the_gross_outliers() {
 fn every_method_holds_up_with_the_defaults() {
     // `config=None` on a real handheld log, self-initialised: within 2× uwb_ls after rigid
     // alignment (the bar; uwb_ls suffers from the ~24 m outliers) and within a margin of
-    // what each method measured (README, "Defaults on real logs").
+    // what each method measured (README, "Defaults on a real log").
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = uwbimu_rs::config::FilterConfig::default();

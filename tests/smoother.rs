@@ -71,3 +71,32 @@ fn smoothing_an_arckf_run_uses_its_faded_priors() {
         }
     }
 }
+
+#[test]
+fn smoothing_bridges_a_range_outage() {
+    // The zoo's 10 s outage (40–50 s): the first epoch after it re-acquires, with a prior that
+    // already covers the discrepancy and is therefore not widened, so the backward pass carries
+    // the re-acquired position through the gap. Measured (seeds 0–2) over the gap and the second
+    // after it: filtered 0.19 / 0.32 / 0.57 m, smoothed 0.046 / 0.019 / 0.065 m.
+    use uwbimu_rs::sim::zoo;
+    for seed in 0..3 {
+        let scenario = zoo("outage", seed).expect("zoo");
+        let data = simulate(&scenario.sim).expect("sim");
+        let initial = scenario.true_initial(&data).expect("initial");
+        let mut ekf = Ekf::new(data.anchors.clone(), &initial, scenario.config.clone()).expect("filter");
+        let (trace, smoothed) = run_smoothed(&mut ekf, &data.imu, &data.ranges).expect("run");
+        let in_gap = |steps: &[uwbimu_rs::pipeline::StepRecord]| {
+            let errors: Vec<f64> = steps
+                .iter()
+                .zip(&data.truth)
+                .filter(|(s, _)| s.t_s > 40.0 && s.t_s < 51.0)
+                .map(|(s, g)| (s.state.position - g.position).xy().norm())
+                .collect();
+            rms(&errors)
+        };
+        let (filtered, smoothed) = (in_gap(&trace.steps), in_gap(&smoothed));
+        println!("seed {seed}: outage RMSE filtered {filtered:.3} m, smoothed {smoothed:.3} m");
+        assert!(trace.updates.iter().any(|u| u.report.reacquired && u.t_s > 50.0), "seed {seed}: no re-acquisition");
+        assert!(smoothed < 0.08 && smoothed < 0.5 * filtered, "seed {seed}: {smoothed} vs {filtered}");
+    }
+}

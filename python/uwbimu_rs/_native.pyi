@@ -233,6 +233,11 @@ class UpdateReport:
     def prior_fading(self) -> float:
         """Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42), ARCKF); 1 if not."""
 
+    @property
+    def reacquired(self) -> bool:
+        """Whether the epoch was applied as its UWB-only fix (re-acquisition after an outage, a
+        poor start or a divergence)."""
+
 @final
 class Ekf:
     """The tightly coupled error-state EKF (seed 000), fed sample by sample.

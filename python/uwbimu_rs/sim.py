@@ -57,6 +57,9 @@ ZooName = Literal[
     "outage",
     "survey_error",
     "far_start",
+    "corridor",
+    "walk_nlos",
+    "forklift",
 ]
 """Names accepted by :func:`zoo`."""
 
@@ -155,7 +158,10 @@ def preset(name: PresetName, *, seed: int = 0, **overrides: float | bool) -> Sim
         Seed of all random draws; the same seed gives identical output.
     **overrides : float or bool
         Any of :data:`OVERRIDE_KEYS`, e.g. ``nlos=False``, ``outlier_prob=0.05``,
-        ``range_std_m=0.2``, ``uwb_rate_hz=5.0``, ``magnetometer=True``, ``imu_noise=False``.
+        ``range_std_m=0.2``, ``uwb_rate_hz=5.0``, ``magnetometer=True``, ``imu_noise=False``,
+        ``stagger_s=0.003`` (anchor k's range ``k·stagger_s`` after the sweep starts),
+        ``jitter_s=0.002`` (plus U(0, jitter) per range), ``start_s=10.0`` (the log starts 10 s in,
+        already moving).
 
     Returns
     -------
@@ -223,7 +229,8 @@ def simulate(
     imu_rotation : array_like, shape (4,), optional
         Mounting rotation IMU frame → body, ``[w, x, y, z]``; identity by default.
     **overrides : float or bool
-        Further keys from :data:`OVERRIDE_KEYS` (e.g. ``accel_noise_density``, ``nlos_bias_max_m``).
+        Further keys from :data:`OVERRIDE_KEYS` (e.g. ``accel_noise_density``, ``nlos_bias_max_m``,
+        ``stagger_s``, ``jitter_s``, ``start_s``).
 
     Returns
     -------

@@ -175,6 +175,9 @@ pub struct PyUpdateReport {
     iterations: u32,
     /// Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42)); 1 if not.
     prior_fading: f64,
+    /// Whether the epoch was applied as its UWB-only fix (re-acquisition,
+    /// `crate::filters::reacquire`).
+    reacquired: bool,
 }
 
 impl From<UpdateRecord> for PyUpdateReport {
@@ -193,6 +196,7 @@ impl From<UpdateRecord> for PyUpdateReport {
             down_weighted: r.down_weighted,
             iterations: r.iterations,
             prior_fading: r.prior_fading,
+            reacquired: r.reacquired,
         }
     }
 }
@@ -201,8 +205,20 @@ impl From<UpdateRecord> for PyUpdateReport {
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
         format!(
-            "UpdateReport(t={}, epoch_t={}, anchor={}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={})",
-            self.t, self.epoch_t, self.anchor, self.range, self.innovation, self.nis, self.accepted, self.weight, self.inflation, self.down_weighted, self.iterations, self.prior_fading
+            "UpdateReport(t={}, epoch_t={}, anchor={}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={}, reacquired={})",
+            self.t,
+            self.epoch_t,
+            self.anchor,
+            self.range,
+            self.innovation,
+            self.nis,
+            self.accepted,
+            self.weight,
+            self.inflation,
+            self.down_weighted,
+            self.iterations,
+            self.prior_fading,
+            self.reacquired
         )
     }
 }

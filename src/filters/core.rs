@@ -38,9 +38,9 @@ pub struct Segment {
     /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
     /// the end of this segment (seed 002 eq. (42), [`InertialCore::fade_prior`]); 1 if none.
     pub prior_fading: f64,
-    /// Position outer product and velocity variance added to that predicted covariance after the
-    /// fading ([`InertialCore::widen_prior`], re-acquisition after divergence); zero if none.
-    pub prior_widening: (Vec3, f64),
+    /// The re-acquisition widening of that predicted covariance, after the fading
+    /// ([`InertialCore::widen_prior`], [`crate::filters::reacquire`]); None if none.
+    pub prior_widening: Option<ReacquisitionWidening>,
 }
 
 fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
@@ -145,7 +145,7 @@ impl InertialCore {
                 covariance: self.covariance,
                 interval: *imu,
                 prior_fading: 1.0,
-                prior_widening: (Vec3::zeros(), 0.0),
+                prior_widening: None,
             });
         }
         let phi = Transition::new(&self.state, imu, &self.config);
@@ -164,18 +164,14 @@ impl InertialCore {
         }
     }
 
-    /// Widens the current (prior) covariance: `d·dᵀ` on the position block and `velocity_var·I` on
-    /// the velocity block (re-acquisition after a divergence, [`crate::filters::reacquire`]), and
-    /// notes it on the last recorded segment for the RTS pass. Several widenings at one time add.
-    pub fn widen_prior(&mut self, d: &Vec3, velocity_var: f64) {
-        widen_position_velocity(&mut self.covariance, d, velocity_var);
+    /// Widens the current (prior) covariance for a re-acquisition
+    /// ([`ReacquisitionWidening::apply`], [`crate::filters::reacquire`]) and notes it on the last
+    /// recorded segment for the RTS pass (one per segment: a later one at the same time replaces
+    /// the note).
+    pub fn widen_prior(&mut self, widening: &ReacquisitionWidening) {
+        widening.apply(&mut self.covariance);
         if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
-            // d₁d₁ᵀ + d₂d₂ᵀ is not an outer product; keep the larger discrepancy (widenings at one
-            // time do not happen in practice: one per epoch at most).
-            if d.norm() > last.prior_widening.0.norm() {
-                last.prior_widening.0 = *d;
-            }
-            last.prior_widening.1 += velocity_var;
+            last.prior_widening = Some(*widening);
         }
     }
 
@@ -229,10 +225,87 @@ impl InertialCore {
     }
 }
 
-/// Adds `d·dᵀ` to the position block and `velocity_var·I` to the velocity block of `p`.
-pub fn widen_position_velocity(p: &mut ErrCov, d: &Vec3, velocity_var: f64) {
-    let mut pos = p.fixed_view_mut::<3, 3>(POS, POS);
-    pos += d * d.transpose();
-    let mut vel = p.fixed_view_mut::<3, 3>(VEL, VEL);
-    vel += crate::math::Mat3::identity() * velocity_var;
+/// The widening of a prior before a re-acquisition (ours, [`crate::filters::reacquire`]): the
+/// filter's position is `discrepancy` (m) away from a trusted fix, an error that built up over
+/// `horizon_s` (since its last good epoch; infinite when not read as a velocity error).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReacquisitionWidening {
+    /// Fix minus the filter's tag position, m (zero height component for a horizontal re-acquisition).
+    pub discrepancy: Vec3,
+    /// Time the discrepancy built up over, s; `f64::INFINITY` for a position-only widening.
+    pub horizon_s: f64,
+}
+
+impl ReacquisitionWidening {
+    /// Widens `p` into the re-acquisition prior: the discrepancy `d` is explained as a velocity
+    /// error `d/T` held over `T = max(horizon_s, 0.5 s)`: `w·wᵀ` with `w = [d; d/T]` is added on
+    /// the position–velocity block (so the fix corrects the velocity too: widening position and
+    /// velocity independently left ARCKF re-diverging after each re-acquisition), plus
+    /// `(|d|/T)²·I` on the velocity block for other causes. With an infinite horizon only the
+    /// position is widened, by `d·dᵀ`: enough for the fix to move it all the way (unwidened, a fix
+    /// 6 m from ARCKF's faded prior moved it two thirds of the way and, through the prior's
+    /// correlations, tilted it by 5°). A zero `d` leaves `p` unchanged.
+    pub fn apply(&self, p: &mut ErrCov) {
+        let v = self.discrepancy / self.horizon_s.max(MIN_RESET_HORIZON_S);
+        let mut w = crate::state::ErrVec::zeros();
+        w.fixed_rows_mut::<3>(POS).copy_from(&self.discrepancy);
+        w.fixed_rows_mut::<3>(VEL).copy_from(&v);
+        *p += w * w.transpose();
+        let mut vel = p.fixed_view_mut::<3, 3>(VEL, VEL);
+        vel += crate::math::Mat3::identity() * v.norm_squared();
+    }
+}
+
+/// Shortest horizon a re-acquisition assumes, s (a discrepancy never implies more than
+/// |d|/0.5 s of velocity error).
+const MIN_RESET_HORIZON_S: f64 = 0.5;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Mat3;
+    use crate::state::ErrVec;
+    use crate::update::leading_rows_step;
+
+    /// A tight prior widened for a discrepancy `d`, then a precise fix at `d` (linear position
+    /// measurement): returns the error-state correction and the posterior covariance.
+    fn fix_after_widening(d: Vec3, horizon_s: f64) -> (ErrVec, ErrCov) {
+        let mut p = ErrCov::identity() * 1e-4;
+        ReacquisitionWidening { discrepancy: d, horizon_s }.apply(&mut p);
+        let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
+        h.fixed_view_mut::<3, 3>(0, POS).copy_from(&Mat3::identity());
+        let mut dx = ErrVec::zeros();
+        leading_rows_step::<3>(&mut dx, &mut p, &d, &h, &(Mat3::identity() * 1e-6)).expect("update");
+        (dx, p)
+    }
+
+    #[test]
+    fn a_fix_after_a_divergence_widening_corrects_position_and_velocity() {
+        let d = Vec3::new(2.0, -1.0, 0.0);
+        let (dx, p) = fix_after_widening(d, 2.0);
+        // The tight prior resisted nothing: position moves by d, velocity by d/T.
+        assert!((dx.fixed_rows::<3>(POS) - d).norm() < 1e-2, "{dx}");
+        assert!((dx.fixed_rows::<3>(VEL) - d / 2.0).norm() < 1e-2, "{dx}");
+        assert!(dx.rows(6, 9).norm() < 1e-9, "attitude and biases untouched: {dx}");
+        assert!(p.cholesky().is_some() && (p - p.transpose()).norm() < 1e-12);
+        // The horizon is floored at 0.5 s: no more than |d|/0.5 s of velocity.
+        let (dx, _) = fix_after_widening(d, 0.01);
+        assert!((dx.fixed_rows::<3>(VEL) - d / 0.5).norm() < 1e-2, "{dx}");
+    }
+
+    #[test]
+    fn a_position_only_widening_leaves_the_velocity() {
+        let d = Vec3::new(-3.0, 0.5, 1.0);
+        let (dx, p) = fix_after_widening(d, f64::INFINITY);
+        assert!((dx.fixed_rows::<3>(POS) - d).norm() < 1e-2, "{dx}");
+        assert!(dx.fixed_rows::<3>(VEL).norm() < 1e-9, "{dx}");
+        assert!(p.cholesky().is_some());
+        // Without the widening the tight prior holds the position back.
+        let mut q = ErrCov::identity() * 1e-4;
+        let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
+        h.fixed_view_mut::<3, 3>(0, POS).copy_from(&Mat3::identity());
+        let mut dq = ErrVec::zeros();
+        leading_rows_step::<3>(&mut dq, &mut q, &d, &h, &(Mat3::identity() * 1e-2)).expect("update");
+        assert!(dq.fixed_rows::<3>(POS).norm() < 0.05 * d.norm());
+    }
 }

@@ -58,6 +58,24 @@ def test_overrides_switch_nlos_off():
     assert r.ranges.shape[0] == 4 * int(np.floor(duration * 4.0 + 1e-9))
 
 
+def test_stagger_jitter_and_late_start_overrides():
+    plain = sim.preset("seed000_los", seed=1)
+    r = sim.preset("seed000_los", seed=1, stagger_s=0.004, jitter_s=0.001, start_s=10.0)
+    # The log starts 10 s into the trajectory, already moving.
+    assert r.imu[0, 0] >= 10.0 and plain.imu[0, 0] < 1.0
+    first = r.truth.row(0, named=True)
+    assert np.hypot(first["vx"], first["vy"]) > 0.1
+    # Within a sweep anchor k comes k·4 ms (plus up to 1 ms) after anchor 0.
+    t, a = r.ranges[:, 0], r.ranges[:, 1].astype(int)
+    sweep = np.round((t - 10.0) * 2.0) / 2.0  # 2 Hz sweeps
+    delay = t - sweep - 10.0
+    for k in range(4):
+        d = delay[a == k] - 0.004 * k
+        assert d.min() >= -1e-9 and d.max() <= 0.001 + 1e-9, (k, d.min(), d.max())
+    with pytest.raises(ValueError, match="stagger_s"):
+        sim.preset("seed000_los", stagger_s=-0.001)
+
+
 def test_unknown_preset_raises_value_error():
     with pytest.raises(ValueError, match="seed000_los"):
         sim.preset("seed003", seed=0)

@@ -141,3 +141,20 @@ def test_add_range_groups_a_staggered_sweep_into_one_epoch():
         f.add_range(0.2, 7, 5.0)
     with pytest.raises(ValueError, match="range must be finite"):
         f.add_range(0.2, 0, float("nan"))
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf"])
+def test_streaming_reports_the_reacquisition_after_an_outage(method):
+    # The zoo's 10 s outage (40–50 s): the first epoch after it is applied as its UWB-only fix,
+    # in streaming as in batch, and the reports say so.
+    run = sim.zoo("outage", seed=1)
+    imu = run.imu[run.imu[:, 0] <= 55.0]
+    ranges = run.ranges[run.ranges[:, 0] <= imu[-1, 0]]
+    f = CLASSES[method](run.anchors, initial=run.initial, config=run.config)
+    _, reports = stream(f, imu, ranges)
+    _, upd = uwbimu_rs.run_filter(method, imu, ranges, run.anchors, initial=run.initial, config=run.config, updates=True)
+    np.testing.assert_array_equal([r.reacquired for r in reports], upd["reacquired"].to_numpy().astype(bool))
+    reacquired = [r for r in reports if r.reacquired]
+    assert reacquired, "no re-acquisition after the outage"
+    assert 50.0 <= min(r.t for r in reacquired) < 50.5
+    assert all(r.t > 50.0 for r in reacquired)
