@@ -30,7 +30,7 @@ pub const DEFAULT_RANGE_STD_M: f64 = 0.15;
 /// platform — vibration, scale-factor and axis errors, IMU–UWB time offsets, handheld motion. On
 /// isas-walk1 (handheld, self-initialised) the robust filters reach 0.13 m aligned with it and
 /// 3.4 m with the datasheet value; on the scenario zoo, whose IMU does match the datasheet, it
-/// costs 0.05–0.2 of the UWB-only error against matched noise.
+/// costs up to 0.35 (most scenarios 0.05–0.2) of the UWB-only error against matched noise.
 pub const DEFAULT_ACCEL_NOISE_DENSITY: f64 = 0.3;
 
 /// Default gyroscope white-noise density, rad/s/√Hz (a datasheet says ≈ 5e-4; see

@@ -28,7 +28,7 @@ pub const MAX_SPEED_HISTORY: usize = 256;
 /// Threshold of the plane and pseudo-velocity constraints' own innovation test,
 /// `γ = r²/(h·P·hᵀ + R)`: above it (`χ²₁` at α = 10⁻⁴) the constraint does not hold now (a
 /// climb, a wrong plane height) and it is not applied.
-const CONSTRAINT_GATE: f64 = 15.136_705_226_623_606;
+const CONSTRAINT_GATE: f64 = crate::robust::CHI2_1DOF_ALPHA_1E4;
 
 /// Speed below which the pseudo-velocity direction `v/‖v‖` is undefined, m/s.
 const MIN_PSEUDO_SPEED: f64 = 1e-3;
@@ -46,7 +46,6 @@ pub struct Constraints {
     speed_head: usize,
     next_t_s: Option<f64>,
     still: bool,
-    gate: f64,
 }
 
 impl Constraints {
@@ -64,7 +63,6 @@ impl Constraints {
             speed_head: 0,
             next_t_s: None,
             still: false,
-            gate: CONSTRAINT_GATE,
         }
     }
 
@@ -111,13 +109,13 @@ impl Constraints {
             if let Some(target) = mean_speed {
                 let mut h = ErrVec::zeros();
                 h.fixed_rows_mut::<3>(VEL).copy_from(&(velocity / speed));
-                gated_step(&mut dx, p, &h, target - speed, pseudo_var, self.gate)?;
+                gated_step(&mut dx, p, &h, target - speed, pseudo_var)?;
             }
         }
         if let Some(height) = self.plane_height {
             let mut h = ErrVec::zeros();
             h[POS + 2] = 1.0;
-            gated_step(&mut dx, p, &h, height - z, plane_var, self.gate)?;
+            gated_step(&mut dx, p, &h, height - z, plane_var)?;
         }
         inject_and_reset(x, p, &dx);
         self.push_speed(x.velocity.norm());
@@ -138,11 +136,11 @@ impl Constraints {
     }
 }
 
-/// A scalar step applied only when the innovation's `γ = r²/(h·(P + dx-free)·hᵀ + R)` is at most
-/// `gate` (the state before this constraint's step).
-fn gated_step(dx: &mut ErrVec, p: &mut crate::state::ErrCov, h: &ErrVec, residual: f64, r_var: f64, gate: f64) -> Result<()> {
+/// A scalar step applied only when the innovation's `γ = r²/(h·P·hᵀ + R)` (against the state
+/// before this constraint's step) is at most [`CONSTRAINT_GATE`].
+fn gated_step(dx: &mut ErrVec, p: &mut crate::state::ErrCov, h: &ErrVec, residual: f64, r_var: f64) -> Result<()> {
     let r = residual - h.dot(dx);
-    if r * r / (h.dot(&(*p * h)) + r_var) > gate {
+    if r * r / (h.dot(&(*p * h)) + r_var) > CONSTRAINT_GATE {
         return Ok(());
     }
     scalar_step(dx, p, h, residual, r_var).map(|_| ())

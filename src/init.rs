@@ -21,6 +21,7 @@ use crate::epoch::group_epochs;
 use crate::error::{Error, Result};
 use crate::ins::{propagate_nominal, ImuInterval};
 use crate::math::{Quat, Vec3};
+use crate::metrics::percentile;
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
 use crate::records::{ImuSample, RangeMeasurement};
 use crate::state::NominalState;
@@ -99,7 +100,11 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         (first_fix.position, first_fix.covariance)
     } else {
         let k = start_fixes.len() as f64;
-        let median = Vec3::from_fn(|i, _| median(start_fixes.iter().map(|f| f.position[i]).collect()));
+        let median = Vec3::from_fn(|i, _| {
+            let mut axis: Vec<f64> = start_fixes.iter().map(|f| f.position[i]).collect();
+            axis.sort_by(f64::total_cmp);
+            percentile(&axis, 50.0)
+        });
         (median, start_fixes.iter().map(|f| f.covariance).sum::<crate::math::Mat3>() / k)
     };
 
@@ -131,17 +136,6 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         still,
         heading,
     })
-}
-
-/// Median of a non-empty list (mean of the middle two for an even count).
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag

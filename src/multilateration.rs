@@ -736,8 +736,7 @@ mod tests {
         // hall, σ 0.1 m, seeds 0–4: near an anchor the fixes flip between two heights that fit
         // about equally. Measured: height within 0.75 m in 94.8 % of 1785 epochs with the
         // low-fix rule, 89.2 % without it.
-        let anchors =
-            vec![Vec3::new(0.0, 0.0, 0.8), Vec3::new(10.0, 0.0, 2.2), Vec3::new(10.0, 8.0, 1.2), Vec3::new(0.0, 8.0, 1.8)];
+        let anchors = crate::sim::hall_anchors();
         let cfg = LsConfig { range_std_m: 0.1, ..LsConfig::default() };
         let (mut right, mut total) = (0, 0);
         for seed in 0..5 {

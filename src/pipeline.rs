@@ -335,20 +335,18 @@ pub fn run_with_magnetometer<F: Estimator>(
         loop {
             let range_t = ranges.get(next).map(|r| r.t_s).filter(|t| due(*t));
             let mag_t = mag.get(next_mag).map(|m| m.t_s).filter(|t| due(*t));
-            match (range_t, mag_t) {
-                (Some(tr), Some(tm)) if tm <= tr => {
-                    pipeline.magnetometer(filter, &mag[next_mag])?;
-                    next_mag += 1;
-                }
-                (Some(_), _) => {
-                    pipeline.range(filter, &ranges[next])?;
-                    next += 1;
-                }
-                (None, Some(_)) => {
-                    pipeline.magnetometer(filter, &mag[next_mag])?;
-                    next_mag += 1;
-                }
+            // At equal times the magnetometer sample goes first.
+            let mag_first = match (range_t, mag_t) {
                 (None, None) => return Ok(()),
+                (Some(tr), Some(tm)) => tm <= tr,
+                (range_t, _) => range_t.is_none(),
+            };
+            if mag_first {
+                pipeline.magnetometer(filter, &mag[next_mag])?;
+                next_mag += 1;
+            } else {
+                pipeline.range(filter, &ranges[next])?;
+                next += 1;
             }
         }
     };

@@ -21,7 +21,7 @@ pub mod ekf;
 pub mod model;
 pub mod ukf;
 
-use nalgebra::{Matrix2, UnitQuaternion, Vector2};
+use nalgebra::{Matrix2, SMatrix, UnitQuaternion, Vector2};
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
@@ -32,7 +32,7 @@ use crate::math::{Mat3, Vec3};
 use crate::multilateration::LsConfig;
 use crate::pipeline::{Estimator, StepRecord};
 use crate::state::NominalState;
-use crate::update::{scalar_step, UpdateReport};
+use crate::update::{vector_step, UpdateReport};
 
 pub use cekf::MovingAverage;
 pub use model::{PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
@@ -175,15 +175,7 @@ impl PlanarFilter {
 
     /// Propagates to a measurement time `t_s` ≥ the filter time with the held sample.
     pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
-        let Some(t0) = self.time_s else {
-            return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
-        };
-        if !t_s.is_finite() {
-            return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
-        }
-        if t_s < t0 {
-            return Err(Error::NonMonotonicTime { name: "measurement", row: 0, prev_s: t0, got_s: t_s });
-        }
+        let t0 = crate::validate::measurement_time(self.time_s, t_s, 0)?;
         if t_s > t0 {
             self.propagate(t_s - t0, self.held_accel, self.held_rate_z);
             self.time_s = Some(t_s);
@@ -199,32 +191,25 @@ impl PlanarFilter {
     }
 
     /// Re-acquisition ([`crate::filters::reacquire`]): when the prior is far less precise than
-    /// the epoch's UWB-only fix at the plane height, applies the fix (body x, y = tag fix minus
-    /// the yaw-turned lever arm) as a linear update and returns its innovation norm and NIS.
+    /// the epoch's UWB-only fix at the plane height, applies the fix (of the tag position) as a
+    /// linear update of x, y and returns its innovation norm and NIS; None when the fix cannot
+    /// be applied (covariances not positive definite).
     fn reacquire(&mut self, ranges: &[(usize, f64)]) -> Result<Option<(f64, f64)>> {
         let prior_xy = self.covariance[(X, X)] + self.covariance[(Y, Y)];
-        let tag_height = self.geometry.height_m + self.geometry.lever_arm.z;
-        let ls = LsConfig { range_std_m: self.range_var.sqrt(), planar_height_m: Some(tag_height), ..LsConfig::default() };
+        let tag = self.geometry.tag_position(&self.state, self.yaw_rad);
+        let ls = LsConfig { range_std_m: self.range_var.sqrt(), planar_height_m: Some(tag.z), ..LsConfig::default() };
         let Some(fix) = reacquisition_fix(prior_xy, &self.anchors, ranges, &ls) else {
             return Ok(None);
         };
-        let lever = model::yaw_rotation(self.yaw_rad) * self.geometry.lever_arm.xy();
-        let residual = fix.position.xy() - lever - Vector2::new(self.state[X], self.state[Y]);
+        let residual = (fix.position - tag).xy();
         let cov: Matrix2<f64> = fix.covariance.fixed_view::<2, 2>(0, 0).into_owned();
-        let innovation_cov = self.covariance.fixed_view::<2, 2>(X, X) + cov;
-        let (Some(l), Some(s)) = (cov.cholesky(), innovation_cov.cholesky()) else {
-            return Ok(None);
-        };
-        let Some(l_inv) = l.l().solve_lower_triangular(&Matrix2::identity()) else {
-            return Ok(None);
-        };
-        let nis = residual.dot(&s.solve(&residual));
-        let whitened = l_inv * residual;
+        let h = SMatrix::<f64, 2, PLANAR_DIM>::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
         let mut dx = PlanarState::zeros();
-        for i in 0..2 {
-            let h = PlanarState::new(l_inv[(i, 0)], l_inv[(i, 1)], 0.0, 0.0);
-            scalar_step(&mut dx, &mut self.covariance, &h, whitened[i], 1.0)?;
-        }
+        let nis = match vector_step(&mut dx, &mut self.covariance, &h, &residual, &cov) {
+            Ok(nis) => nis,
+            Err(Error::NotPositiveDefinite { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        };
         self.state += dx;
         Ok(Some((residual.norm(), nis)))
     }
@@ -284,9 +269,7 @@ impl Estimator for PlanarFilter {
     /// Tag at the plane height (lever arm turned by the yaw); velocity in the plane.
     fn tag_motion(&self) -> (Vec3, Vec3) {
         let x = &self.state;
-        let body = Vec3::new(x[X], x[Y], self.geometry.height_m);
-        let tag = body + UnitQuaternion::from_euler_angles(0.0, 0.0, self.yaw_rad) * self.geometry.lever_arm;
-        (tag, Vec3::new(x[VX], x[VY], 0.0))
+        (self.geometry.tag_position(x, self.yaw_rad), Vec3::new(x[VX], x[VY], 0.0))
     }
 
     fn anchors(&self) -> &[Vec3] {

@@ -9,7 +9,7 @@ pub mod policy;
 pub mod robustness;
 pub mod sage_husa;
 
-pub use chi2::{chi2_quantile, chi2_quantile_1dof};
+pub use chi2::{chi2_quantile, chi2_quantile_1dof, CHI2_1DOF_ALPHA_1E4};
 pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
 pub use policy::RangeNoisePolicy;
 pub use robustness::{

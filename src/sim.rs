@@ -37,6 +37,7 @@ use rand_chacha::ChaCha8Rng;
 pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
 pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
 pub use overlay::{Overlay, Sinusoid};
+pub(crate) use presets::hall_anchors;
 pub use presets::{preset, PRESET_NAMES};
 pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Trajectory};
 pub use uwb::{

@@ -114,12 +114,13 @@ pub fn inject_and_reset(x: &mut NominalState, p: &mut ErrCov, dx: &ErrVec) {
 /// Vector measurement step for `residual ≈ H·δx + v`, `v ~ N(0, R)` with a full `M×M` noise
 /// covariance: whitened by the Cholesky factor `R = L·Lᵀ` (`H' = L⁻¹H`, `r' = L⁻¹r`, `R' = I`)
 /// and applied as `M` [`scalar_step`]s, which equals the joint Joseph update (seed 004 eqs.
-/// (37)–(39)). Returns the normalised innovation squared `rᵀ(H·P·Hᵀ + R)⁻¹r` against the
-/// covariance before the step. Fails if `R` or the innovation covariance is not positive definite.
-pub fn vector_step<const M: usize>(
-    dx: &mut ErrVec,
-    p: &mut ErrCov,
-    h: &nalgebra::SMatrix<f64, M, ERR_DIM>,
+/// (37)–(39)). Generic over the state dimension N like [`scalar_step`]. Returns the normalised
+/// innovation squared `rᵀ(H·P·Hᵀ + R)⁻¹r` against the covariance before the step. Fails if `R` or
+/// the innovation covariance is not positive definite (before changing anything).
+pub fn vector_step<const M: usize, const N: usize>(
+    dx: &mut SVector<f64, N>,
+    p: &mut Cov<N>,
+    h: &nalgebra::SMatrix<f64, M, N>,
     residual: &nalgebra::SVector<f64, M>,
     r: &nalgebra::SMatrix<f64, M, M>,
 ) -> Result<f64> {

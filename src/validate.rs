@@ -30,6 +30,22 @@ pub fn non_negative(field: &str, v: f64) -> Result<f64> {
     }
 }
 
+/// Checks the time `t_s` of a measurement against a filter's time `filter_t_s` (None before its
+/// first IMU sample): it must be finite and not earlier. Returns the filter time. `row` goes into
+/// the ordering error (e.g. the IMU sample count).
+pub fn measurement_time(filter_t_s: Option<f64>, t_s: f64, row: usize) -> Result<f64> {
+    let Some(t0) = filter_t_s else {
+        return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
+    };
+    if !t_s.is_finite() {
+        return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
+    }
+    if t_s < t0 {
+        return Err(Error::NonMonotonicTime { name: "measurement", row, prev_s: t0, got_s: t_s });
+    }
+    Ok(t0)
+}
+
 fn check_finite<const C: usize>(name: &'static str, rows: &[[f64; C]]) -> Result<()> {
     for (row, r) in rows.iter().enumerate() {
         if let Some(col) = r.iter().position(|v| !v.is_finite()) {

@@ -115,15 +115,7 @@ impl InertialCore {
     /// Propagates to a measurement time `t_s` ≥ the filter time with the held IMU sample
     /// (zero-order hold), so a measurement between IMU samples is applied at its own time.
     pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
-        let Some(t0) = self.time_s else {
-            return Err(Error::InvalidCall("a measurement arrived before the first IMU sample: call predict first".into()));
-        };
-        if !t_s.is_finite() {
-            return Err(Error::NonFinite { name: "measurement t", row: 0, col: 0, value: t_s });
-        }
-        if t_s < t0 {
-            return Err(Error::NonMonotonicTime { name: "measurement", row: self.imu_count, prev_s: t0, got_s: t_s });
-        }
+        let t0 = crate::validate::measurement_time(self.time_s, t_s, self.imu_count)?;
         if t_s > t0 {
             self.propagate(&ImuInterval {
                 dt_s: t_s - t0,
@@ -246,7 +238,7 @@ impl ReacquisitionWidening {
     /// 6 m from ARCKF's faded prior moved it two thirds of the way and, through the prior's
     /// correlations, tilted it by 5°). A zero `d` leaves `p` unchanged.
     pub fn apply(&self, p: &mut ErrCov) {
-        let v = self.discrepancy / self.horizon_s.max(MIN_RESET_HORIZON_S);
+        let v = self.discrepancy / self.horizon_s.max(MIN_WIDENING_HORIZON_S);
         let mut w = crate::state::ErrVec::zeros();
         w.fixed_rows_mut::<3>(POS).copy_from(&self.discrepancy);
         w.fixed_rows_mut::<3>(VEL).copy_from(&v);
@@ -258,7 +250,7 @@ impl ReacquisitionWidening {
 
 /// Shortest horizon a re-acquisition assumes, s (a discrepancy never implies more than
 /// |d|/0.5 s of velocity error).
-const MIN_RESET_HORIZON_S: f64 = 0.5;
+const MIN_WIDENING_HORIZON_S: f64 = 0.5;
 
 #[cfg(test)]
 mod tests {

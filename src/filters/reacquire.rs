@@ -49,7 +49,7 @@ pub const REACQUIRE_MIN_STD_M: f64 = 0.5;
 pub const DIVERGED_SHARE: f64 = 0.75;
 
 /// `χ²₁` quantile at α = 10⁻⁴: a range beyond it at the prior fails.
-pub const RANGE_FAIL_NIS: f64 = 15.136_705_226_623_606;
+pub const RANGE_FAIL_NIS: f64 = crate::robust::CHI2_1DOF_ALPHA_1E4;
 
 /// Distance between the filter's tag position and a consistent UWB-only fix that counts as
 /// divergence (with the `χ²` test at α = 1e-6), m.
@@ -84,17 +84,22 @@ pub struct DivergenceWatch {
 
 impl DivergenceWatch {
     /// Takes one epoch (`failed`: how many of its ranges fail their `χ²₁` test at the prior,
-    /// [`RANGE_FAIL_NIS`]); returns the fix to re-acquire on once the filter has diverged.
-    fn check(&mut self, core: &InertialCore, anchors: &[Vec3], ranges: &[(usize, f64)], failed: usize) -> Option<Fix> {
-        if failed < 3 || (failed as f64) < DIVERGED_SHARE * ranges.len() as f64 {
-            self.epochs = 0;
-            self.last_good_s = core.time_s();
-            return None;
-        }
-        let config = core.config();
-        let ls = LsConfig::from_filter_config(config);
-        let fix = solve_epoch(anchors, ranges, &ls).filter(|f| f.is_consistent(config.range_std, FIX_CONSISTENCY_ALPHA));
-        let Some(fix) = fix.filter(|f| disagrees(core, f)) else {
+    /// [`RANGE_FAIL_NIS`]; `ls`: the filter's least-squares settings); returns the fix to
+    /// re-acquire on once the filter has diverged.
+    fn check(
+        &mut self,
+        core: &InertialCore,
+        anchors: &[Vec3],
+        ranges: &[(usize, f64)],
+        failed: usize,
+        ls: &LsConfig,
+    ) -> Option<Fix> {
+        let most_fail = failed >= 3 && (failed as f64) >= DIVERGED_SHARE * ranges.len() as f64;
+        let diverged_fix = most_fail
+            .then(|| solve_epoch(anchors, ranges, ls))
+            .flatten()
+            .filter(|f| f.is_consistent(ls.range_std_m, FIX_CONSISTENCY_ALPHA) && disagrees(core, f));
+        let Some(fix) = diverged_fix else {
             self.epochs = 0;
             self.last_good_s = core.time_s();
             return None;
@@ -148,9 +153,10 @@ pub fn reacquire(
 ) -> Result<Option<(f64, f64)>> {
     let p_xy = core.covariance().fixed_view::<2, 2>(POS, POS).trace();
     let now = core.time_s();
-    let (fix, diverged) = match reacquisition_fix(p_xy, anchors, ranges, &LsConfig::from_filter_config(core.config())) {
+    let ls = LsConfig::from_filter_config(core.config());
+    let (fix, diverged) = match reacquisition_fix(p_xy, anchors, ranges, &ls) {
         Some(fix) => (fix, false),
-        None => match watch.check(core, anchors, ranges, failed) {
+        None => match watch.check(core, anchors, ranges, failed, &ls) {
             Some(fix) => (fix, true),
             None => return Ok(None),
         },

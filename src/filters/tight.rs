@@ -126,33 +126,30 @@ impl TightFilter {
         robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.range_std)
     }
 
+    /// γ of one range against the prior with range noise variance `r_var` (seed 000 eq. (37));
+    /// None when the tag sits on the anchor.
+    fn nis_at_prior(&self, anchor: usize, range_m: f64, r_var: f64) -> Option<f64> {
+        let (x, p) = (self.core.state(), self.core.covariance());
+        let pred = predict_range(x, &self.anchors[anchor], &self.core.config().lever_arm)?;
+        Some((range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
+    }
+
     /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
     /// noise (for the divergence watch, [`crate::filters::reacquire`]).
     fn failed_at_prior(&self, ranges: &[(usize, f64)]) -> usize {
-        let (x, p) = (self.core.state(), self.core.covariance());
-        let config = self.core.config();
-        let r_var = config.range_std * config.range_std;
+        let r_var = self.core.config().range_std.powi(2);
         ranges
             .iter()
-            .filter(|&&(anchor, range_m)| {
-                predict_range(x, &self.anchors[anchor], &config.lever_arm).is_some_and(|pred| {
-                    (range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var) > RANGE_FAIL_NIS
-                })
-            })
+            .filter(|&&(anchor, range_m)| self.nis_at_prior(anchor, range_m, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS))
             .count()
     }
 
     /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
     /// range's γ against the prior with `R_i = σ²·Cu_i`.
     fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
-        let (x, p) = (self.core.state(), self.core.covariance());
-        let config = self.core.config();
+        let range_std = self.core.config().range_std;
         let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
-            let nis = predict_range(x, &self.anchors[anchor], &config.lever_arm).map_or(f64::NAN, |pred| {
-                let hph = pred.jacobian.dot(&(p * pred.jacobian));
-                (range_m - pred.range_m).powi(2) / (hph + f.range_var_m2(config.range_std))
-            });
-            (*f, nis)
+            (*f, self.nis_at_prior(anchor, range_m, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
         });
         prior_fading(nis, threshold)
     }

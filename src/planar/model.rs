@@ -78,9 +78,14 @@ impl PlanarGeometry {
         (r > 1e-9).then(|| (r, PlanarState::new(d.x / r, d.y / r, 0.0, 0.0)))
     }
 
-    fn offset(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Vec3 {
+    /// The tag (UWB antenna) position of state `x` at yaw ψ: `(p + T(ψ)·l_xy, h + l_z)`, m.
+    pub fn tag_position(&self, x: &PlanarState, yaw_rad: f64) -> Vec3 {
         let lever = yaw_rotation(yaw_rad) * self.lever_arm.xy();
-        Vec3::new(x[X] + lever.x - anchor.x, x[Y] + lever.y - anchor.y, self.height_m + self.lever_arm.z - anchor.z)
+        Vec3::new(x[X] + lever.x, x[Y] + lever.y, self.height_m + self.lever_arm.z)
+    }
+
+    fn offset(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Vec3 {
+        self.tag_position(x, yaw_rad) - anchor
     }
 }
 

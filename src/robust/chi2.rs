@@ -46,6 +46,11 @@ pub fn normal_quantile(p: f64) -> f64 {
     }
 }
 
+/// `χ²₁` quantile at α = 10⁻⁴ (exact; [`chi2_quantile_1dof`]`(1e-4)` to 1e-7): the test of a
+/// single innovation that only a gross error fails (the constraints' own gate, a range failing at
+/// the prior in the divergence watch).
+pub const CHI2_1DOF_ALPHA_1E4: f64 = 15.136_705_226_623_606;
+
 /// χ² quantile with 1 degree of freedom exceeded with probability `alpha` (seed 000 eq. (38)).
 /// Fails unless `0 < alpha < 1`.
 pub fn chi2_quantile_1dof(alpha: f64) -> Result<f64> {
@@ -149,6 +154,12 @@ pub fn chi2_quantile(dof: usize, alpha: f64) -> Result<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn named_quantile_matches_the_function() {
+        // The constant is the exact quantile; the function is within its approximation's error.
+        assert!((CHI2_1DOF_ALPHA_1E4 - chi2_quantile_1dof(1e-4).unwrap()).abs() < 1e-7 * CHI2_1DOF_ALPHA_1E4);
+    }
 
     #[test]
     fn multi_dof_quantiles_match_tables() {

@@ -34,7 +34,8 @@ use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
 use crate::sim::{
-    DriveOptions, ImuNoise, NlosConfig, NlosWindow, Outage, Overlay, SimConfig, SimData, Sinusoid, Trajectory, UwbConfig,
+    hall_anchors, DriveOptions, ImuNoise, NlosConfig, NlosWindow, Outage, Overlay, SimConfig, SimData, Sinusoid, Trajectory,
+    UwbConfig,
 };
 
 /// Names accepted by [`zoo`], in the order of the table above.
@@ -112,11 +113,6 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
         gravity: sim.gravity_nav_mps2,
         ..FilterConfig::default()
     }
-}
-
-/// Four anchors of a 10 m × 8 m hall at 0.8–2.2 m (the `seed000` hall).
-fn hall4() -> Vec<Vec3> {
-    crate::sim::presets::hall_anchors()
 }
 
 /// Four anchors on the walls of a 12 m × 8 m room, all at `height_m` (coplanar).
@@ -257,7 +253,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
         "imu_20hz" => SimConfig {
             trajectory: hall_figure_eight(30.0, 2)?,
             imu_rate_hz: 20.0,
-            anchors: hall4(),
+            anchors: hall_anchors(),
             uwb: staggered(5.0, 0.1, 4.0),
             ..base
         },
@@ -267,7 +263,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
             SimConfig {
                 trajectory: Trajectory::rectangle(Vec3::new(2.0, 2.0, 0.4), 6.0, 4.0, 2, &opts)?,
                 imu_rotation: Quat::from_axis_angle(&Vec3::x_axis(), PI),
-                anchors: hall4(),
+                anchors: hall_anchors(),
                 uwb: staggered(4.0, 0.1, 3.0),
                 ..base
             }
@@ -287,7 +283,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
         },
         "nlos_two" => SimConfig {
             trajectory: hall_figure_eight(37.0, 3)?,
-            anchors: hall4(),
+            anchors: hall_anchors(),
             uwb: UwbConfig { nlos: Some(sustained_nlos(&[0, 1], (0.6, 0.9), 40.0, 70.0)), ..staggered(5.0, 0.1, 2.0) },
             ..base
         },
@@ -299,7 +295,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
         },
         "outage" => SimConfig {
             trajectory: hall_figure_eight(37.0, 2)?,
-            anchors: hall4(),
+            anchors: hall_anchors(),
             uwb: UwbConfig { outages: vec![Outage { start_s: 40.0, end_s: 50.0 }], ..staggered(10.0, 0.1, 4.0) },
             ..base
         },
@@ -322,7 +318,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
             let opts = DriveOptions { speed_mps: 1.0, ..DriveOptions::default() };
             SimConfig {
                 trajectory: Trajectory::waypoints(&points, &opts)?,
-                anchors: hall4(),
+                anchors: hall_anchors(),
                 uwb: staggered(10.0, 0.1, 5.0),
                 ..base
             }
@@ -360,7 +356,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
             SimConfig {
                 trajectory: Trajectory::waypoints(&points, &opts)?,
                 imu_rotation: Quat::from_axis_angle(&Vec3::x_axis(), PI),
-                anchors: hall4(),
+                anchors: hall_anchors(),
                 anchor_survey_errors: vec![(0, Vec3::new(0.15, 0.1, -0.08)), (2, Vec3::new(-0.1, 0.15, 0.1))],
                 uwb: UwbConfig { outages: vec![Outage { start_s: 20.0, end_s: 25.0 }], ..staggered(8.0, 0.1, 5.0) },
                 ..base

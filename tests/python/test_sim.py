@@ -1,5 +1,7 @@
 """Tests of the Python simulator API: shapes, dtypes, reproducibility, errors."""
 
+from typing import get_args
+
 import numpy as np
 import polars as pl
 import pytest
@@ -74,6 +76,12 @@ def test_stagger_jitter_and_late_start_overrides():
         assert d.min() >= -1e-9 and d.max() <= 0.001 + 1e-9, (k, d.min(), d.max())
     with pytest.raises(ValueError, match="stagger_s"):
         sim.preset("seed000_los", stagger_s=-0.001)
+
+
+def test_name_literals_match_the_native_lists():
+    # The type hints spell the names out; the native module is the source.
+    assert get_args(sim.PresetName) == sim.PRESET_NAMES
+    assert get_args(sim.ZooName) == sim.ZOO_NAMES
 
 
 def test_unknown_preset_raises_value_error():
