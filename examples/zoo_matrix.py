@@ -34,7 +34,8 @@ def matrix(
 
     def wide(values: str) -> pl.DataFrame:
         table = per_method.pivot(on="method", index="scenario", values=values)
-        return order.join(base, on="scenario").join(table, on="scenario").sort("k").drop("k")
+        columns = [m for m in uwbimu_rs.FILTERS if m in table.columns]  # the order of FILTERS
+        return order.join(base, on="scenario").join(table.select("scenario", *columns), on="scenario").sort("k").drop("k")
 
     return wide("ratio"), wide("rmse")
 

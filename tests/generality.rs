@@ -98,3 +98,31 @@ fn a_ten_second_outage_is_bridged_and_recovered() {
         assert!(worst.is_finite() && worst < 5.0, "{method}: {worst} m");
     }
 }
+
+#[test]
+fn a_diverged_filter_re_acquires_when_most_epochs_hold_two_ranges() {
+    // `mixed_rates` (anchors at 20/20/10/10/5 Hz: most epochs hold the two fast anchors) with
+    // three acceleration outliers of seed 002 (single samples, σ 316 m/s²): each leaves RIEKF
+    // with a velocity error of 2–5 m/s and, confident, it down-weights every range. The
+    // divergence watch must not be reset by the two-range epochs, which it cannot judge:
+    // with that reset RIEKF's RMSE was 4.9 m (seeds 0–4); measured now 0.370 / 0.285 / 0.167 m,
+    // worst error 2.93 / 1.95 / 1.99 m.
+    use uwbimu_rs::filters::Riekf;
+    use uwbimu_rs::pipeline::run;
+    use uwbimu_rs::sim::{simulate, zoo, AccelOutliers};
+    for seed in 0..3 {
+        let mut scenario = zoo("mixed_rates", seed).unwrap();
+        scenario.sim.accel_outliers = AccelOutliers { count: 3, ..AccelOutliers::default() };
+        let data = simulate(&scenario.sim).unwrap();
+        let initial = scenario.true_initial(&data).unwrap();
+        let mut riekf = Riekf::new(data.anchors.clone(), &initial, scenario.config.clone()).unwrap();
+        let trace = run(&mut riekf, &data.imu, &data.ranges).unwrap();
+        let errors: Vec<f64> =
+            trace.steps.iter().zip(&data.truth).map(|(s, g)| (s.state.position - g.position).xy().norm()).collect();
+        let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+        let worst = errors.iter().copied().fold(0.0, f64::max);
+        println!("seed {seed}: RIEKF RMSE {rmse:.3} m, worst {worst:.2} m");
+        assert!(trace.updates.iter().any(|u| u.report.reacquired), "seed {seed}: never re-acquired");
+        assert!(rmse < 0.45 && worst < 3.5, "seed {seed}: RMSE {rmse} m, worst {worst} m");
+    }
+}
