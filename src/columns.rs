@@ -40,15 +40,17 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
     cols
 }
 
-/// One row per range update: `t, epoch_t, anchor, range, innovation, nis, accepted, weight,
-/// inflation, down_weighted, iterations, prior_fading, reacquired` (`epoch_t`: when its epoch was
-/// applied; `reacquired`: applied as its UWB-only fix).
+/// One row per range or TDoA update: `t, epoch_t, anchor, anchor_j, range, innovation, nis,
+/// accepted, weight, inflation, down_weighted, iterations, prior_fading, reacquired` (`epoch_t`:
+/// when its epoch was applied; `anchor_j`: a TDoA's anchor j, −1 for a range; `range`: a TDoA's
+/// `d_ij`; `reacquired`: applied as its UWB-only fix).
 pub fn update_columns(trace: &Trace) -> Columns {
     let u = &trace.updates;
     vec![
         ("t", u.iter().map(|r| r.t_s).collect()),
         ("epoch_t", u.iter().map(|r| r.epoch_t_s).collect()),
         ("anchor", u.iter().map(|r| r.anchor as f64).collect()),
+        ("anchor_j", u.iter().map(|r| r.anchor_j.map_or(-1.0, |j| j as f64)).collect()),
         ("range", u.iter().map(|r| r.range_m).collect()),
         ("innovation", u.iter().map(|r| r.report.innovation).collect()),
         ("nis", u.iter().map(|r| r.report.nis).collect()),

@@ -25,6 +25,10 @@ pub enum ConfigValue {
 /// of ±0.2 m (isas-walk1); 0.15 m covers both without a calibration.
 pub const DEFAULT_RANGE_STD_M: f64 = 0.15;
 
+/// Default TDoA noise σ, m: a difference of two arrival times, each scattering like a range
+/// (Loco Positioning TDoA reports 0.1–0.2 m indoors).
+pub const DEFAULT_TDOA_STD_M: f64 = 0.1;
+
 /// Default accelerometer white-noise density, m/s²/√Hz. Far above a consumer MEMS datasheet
 /// (≈ 0.003): the process noise must also cover what the white-noise model leaves out on a real
 /// platform — vibration, scale-factor and axis errors, IMU–UWB time offsets, handheld motion. On
@@ -45,6 +49,8 @@ pub const DEFAULT_GYRO_NOISE_DENSITY: f64 = 0.01;
 pub struct FilterConfig {
     /// UWB range noise standard deviation, m (seed 000 eq. (33), R = range_std²).
     pub range_std: f64,
+    /// TDoA noise standard deviation of one difference `d_ij`, m (R = tdoa_std²).
+    pub tdoa_std: f64,
     /// Window of the epoch rule, s: ranges within this time of an epoch's first range, one per
     /// anchor, form one epoch ([`crate::epoch`]); 0 = only equal timestamps.
     pub epoch_window_s: f64,
@@ -188,6 +194,7 @@ impl Default for FilterConfig {
     fn default() -> Self {
         Self {
             range_std: DEFAULT_RANGE_STD_M,
+            tdoa_std: DEFAULT_TDOA_STD_M,
             epoch_window_s: crate::epoch::DEFAULT_EPOCH_WINDOW_S,
             accel_noise_density: DEFAULT_ACCEL_NOISE_DENSITY,
             gyro_noise_density: DEFAULT_GYRO_NOISE_DENSITY,
@@ -315,8 +322,9 @@ fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
 
 impl FilterConfig {
     /// Every key accepted by [`FilterConfig::set`].
-    pub const KEYS: [&'static str; 58] = [
+    pub const KEYS: [&'static str; 59] = [
         "range_std",
+        "tdoa_std",
         "epoch_window_s",
         "accel_noise_density",
         "gyro_noise_density",
@@ -381,6 +389,7 @@ impl FilterConfig {
     pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
         match key {
             "range_std" => self.range_std = positive(key, value)?,
+            "tdoa_std" => self.tdoa_std = positive(key, value)?,
             "epoch_window_s" => self.epoch_window_s = crate::epoch::check_window(scalar(key, value)?)?,
             "accel_noise_density" => self.accel_noise_density = positive(key, value)?,
             "gyro_noise_density" => self.gyro_noise_density = positive(key, value)?,
@@ -486,6 +495,7 @@ impl FilterConfig {
         let q = &self.imu_rotation;
         let mut entries = vec![
             ("range_std", ConfigValue::Scalar(self.range_std)),
+            ("tdoa_std", ConfigValue::Scalar(self.tdoa_std)),
             ("epoch_window_s", ConfigValue::Scalar(self.epoch_window_s)),
             ("accel_noise_density", ConfigValue::Scalar(self.accel_noise_density)),
             ("gyro_noise_density", ConfigValue::Scalar(self.gyro_noise_density)),

@@ -23,6 +23,13 @@ macro_rules! delegate_filter {
                 self.0.update_ranges(t_s, ranges, reports)
             }
 
+            fn observe(
+                &mut self,
+                observation: &crate::records::Observation,
+            ) -> crate::error::Result<crate::update::UpdateReport> {
+                self.0.observe(observation)
+            }
+
             fn core(&self) -> &crate::filters::InertialCore {
                 self.0.core()
             }
@@ -48,13 +55,14 @@ pub mod tight;
 
 use crate::error::Result;
 use crate::math::Vec3;
+use crate::records::{MagSample, Observation, TdoaMeasurement};
 use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
 pub use self::core::{InertialCore, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::{Arckf, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf};
-pub use self::tight::TightFilter;
+pub use self::tight::{Composition, TightFilter, UpdateStrategy};
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming
 /// classes and the batch API all go through these two calls.
@@ -81,12 +89,22 @@ pub trait InertialFilter {
     /// Mutable access to the INS core (e.g. to start recording for smoothing).
     fn core_mut(&mut self) -> &mut InertialCore;
 
-    /// Applies one magnetometer sample (IMU frame, any unit) measured at `t_s` ≥ the filter time.
-    /// Only filters with geomagnetic aiding use it ([`Ackf`], seed 003); the others return
-    /// [`crate::error::Error::InvalidCall`].
-    fn update_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
-        let _ = (t_s, field);
-        Err(crate::error::Error::InvalidCall("this filter does not use a magnetometer (use ackf)".into()))
+    /// Applies one observation (a magnetometer sample, a TDoA, …) measured at its time ≥ the
+    /// filter time, and reports what was done with it. A filter refuses the kinds it does not
+    /// take with [`crate::error::Error::InvalidCall`]: the magnetometer is [`Ackf`]'s (seed 003),
+    /// TDoA are taken by the tightly coupled filters ([`TightFilter`] and those built on it).
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        Err(self::tight::not_taken(observation))
+    }
+
+    /// Applies one magnetometer sample (IMU frame, any unit) measured at `t_s` ([`Self::observe`]).
+    fn update_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<UpdateReport> {
+        self.observe(&Observation::Magnetometer(MagSample { t_s, field: *field }))
+    }
+
+    /// Applies one TDoA `d_ij = ‖p − a_j‖ − ‖p − a_i‖` (m) measured at `t_s` ([`Self::observe`]).
+    fn update_tdoa(&mut self, t_s: f64, anchor_i: usize, anchor_j: usize, tdoa_m: f64) -> Result<UpdateReport> {
+        self.observe(&Observation::Tdoa(TdoaMeasurement { t_s, anchor_i, anchor_j, tdoa_m }))
     }
 
     /// Whether the still detector reported the platform still at the last constraint step

@@ -118,6 +118,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
         config: &config,
         smooth: false,
         mag: &[],
+        tdoa: &[],
     };
     let (t0, t1) = match (data.imu.first(), data.imu.last()) {
         (Some(a), Some(b)) => (a.t_s, b.t_s),

@@ -6,9 +6,9 @@ use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, 
 use crate::init::{initialize, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
-use crate::pipeline::{run, run_with_magnetometer, smoothed_steps, StepRecord, Trace};
+use crate::pipeline::{run, run_streams, smoothed_steps, StepRecord, Streams, Trace};
 use crate::planar::{PlanarFilter, PlanarKind};
-use crate::records::{ImuSample, MagSample, RangeMeasurement};
+use crate::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
 
 /// A method name accepted by the batch API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -57,6 +57,12 @@ impl Method {
     /// The method's name (the variants are declared in the order of [`Method::NAMES`]).
     pub fn name(self) -> &'static str {
         Self::NAMES[self as usize]
+    }
+
+    /// Whether the method takes TDoA: the tightly coupled inertial filters (the loosely coupled
+    /// ones fuse a per-epoch fix from ranges, the planar ones and `uwb_ls` take ranges only).
+    pub fn takes_tdoa(self) -> bool {
+        !matches!(self, Self::UwbLs | Self::Eskf | Self::Shaf | Self::Shfaf | Self::Ekf2d | Self::Ukf2d | Self::Cekf2d)
     }
 
     /// Parses a method name; the error lists the allowed names.
@@ -117,7 +123,12 @@ pub struct BatchInput<'a> {
     pub smooth: bool,
     /// Magnetometer samples, validated and time-ordered (used by `ackf`; empty if none).
     pub mag: &'a [MagSample],
+    /// TDoA, validated and time-ordered (tightly coupled inertial methods; empty if none).
+    pub tdoa: &'a [TdoaMeasurement],
 }
+
+/// Names of the methods that take TDoA.
+const TDOA_METHODS: &str = "ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, ukf";
 
 /// Names of the methods that can be RTS-smoothed (the inertial 15-state filters).
 const SMOOTHABLE: &str = "ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf, ukf";
@@ -127,6 +138,12 @@ const SMOOTHABLE: &str = "ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     if !input.mag.is_empty() && method != Method::Ackf {
         return Err(Error::InvalidCall("magnetometer data given, but only ackf uses a magnetometer".into()));
+    }
+    if !input.tdoa.is_empty() && !method.takes_tdoa() {
+        return Err(Error::InvalidCall(format!(
+            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {TDOA_METHODS})",
+            method.name()
+        )));
     }
     if !input.config.range_calibration.is_empty() {
         let calibrated = input.config.range_calibration.apply(input.ranges, input.anchors.len())?;
@@ -188,13 +205,13 @@ fn run_inertial<F: InertialFilter>(
     build: impl FnOnce(&InitialState) -> Result<F>,
     input: &BatchInput<'_>,
 ) -> Result<BatchOutput> {
-    let BatchInput { imu, ranges, smooth, mag, .. } = *input;
+    let BatchInput { imu, ranges, smooth, mag, tdoa, .. } = *input;
     let (initial, init) = initial_state(input)?;
     let mut filter = build(&initial)?;
     if smooth {
-        filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len());
+        filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
     }
-    let trace = run_with_magnetometer(&mut filter, imu, ranges, mag)?;
+    let trace = run_streams(&mut filter, &Streams { imu, ranges, mag, tdoa })?;
     let smoothed = if smooth { Some(smoothed_steps(&trace, filter.core())?) } else { None };
     Ok(BatchOutput::Inertial { trace, init, smoothed })
 }

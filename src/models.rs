@@ -3,3 +3,4 @@
 pub mod attitude;
 pub mod loose;
 pub mod range;
+pub mod scalar;

@@ -1,23 +1,25 @@
-//! The one time-ordered loop over IMU samples, range epochs and magnetometer samples, shared by
-//! the batch API, the CLI and the streaming classes (which drive the same [`Pipeline`] call for
-//! call, so streaming equals batch bit for bit).
+//! The one time-ordered loop over [`Event`]s — IMU samples, ranges and observations (magnetometer
+//! samples, TDoA) — shared by the batch API, the CLI and the streaming classes (which drive the
+//! same [`Pipeline`] call for call, so streaming equals batch bit for bit).
 //!
-//! Events are taken in time order. An IMU sample is predicted at once; a magnetometer sample is
-//! applied at its own time. Ranges are gathered into epochs by the epoch rule of
+//! Events are taken in time order. An IMU sample is predicted at once; an observation is applied
+//! at its own time ([`crate::filters::InertialFilter::observe`]). Ranges are gathered into epochs
+//! by the epoch rule of
 //! [`crate::epoch`]; an epoch is applied jointly when it closes — when it holds every anchor, when
 //! a range does not fit it, or when an IMU sample passes its window — at the reference time
 //! `max(time of its last range, filter time)`, each range first aligned to that time along its
-//! predicted rate ([`crate::epoch::align_to_reference`]). The batch order at equal times is IMU
-//! sample first, then magnetometer samples, then ranges; a step is recorded after every IMU
-//! sample and the events at its time. Ranges before the first IMU sample are counted and skipped
-//! (the filter has no time yet); ranges after the last IMU sample are not applied.
+//! predicted rate ([`crate::epoch::align_to_reference`]). The batch merges its streams by time
+//! ([`run_streams`]); at equal times the IMU sample goes first, then magnetometer samples, TDoA,
+//! and ranges; a step is recorded after every IMU sample and the events at its time. Ranges
+//! before the first IMU sample are counted and skipped, observations before it skipped (the
+//! filter has no time yet); events after the last IMU sample are not applied.
 
 use crate::epoch::{align_to_reference, EpochAssembler};
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::{Mat3, Vec3};
 use crate::models::range::tag_position;
-use crate::records::{ImuSample, MagSample, RangeMeasurement};
+use crate::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::state::{NominalState, POS};
 use crate::update::UpdateReport;
@@ -35,16 +37,18 @@ pub struct StepRecord {
     pub still: bool,
 }
 
-/// One applied range and what the filter did with it.
+/// One applied range or TDoA and what the filter did with it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UpdateRecord {
     /// Measurement time, s.
     pub t_s: f64,
-    /// Time at which its epoch was applied (the epoch's reference time), s.
+    /// Time at which it was applied (a range epoch's reference time; a TDoA's own time), s.
     pub epoch_t_s: f64,
-    /// Anchor index.
+    /// Anchor index (a TDoA's anchor i).
     pub anchor: usize,
-    /// Measured range, m (before the alignment to the reference time).
+    /// A TDoA's anchor j; None for a range.
+    pub anchor_j: Option<usize>,
+    /// Measured range (before the alignment to the reference time) or TDoA `d_ij`, m.
     pub range_m: f64,
     /// The filter's report.
     pub report: UpdateReport,
@@ -71,11 +75,10 @@ pub trait Estimator {
     fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
     /// The estimate to record at IMU time `t_s`.
     fn record(&self, t_s: f64) -> StepRecord;
-    /// Applies one magnetometer sample (IMU frame) measured at `t_s`; only filters with
-    /// geomagnetic aiding take one ([`crate::filters::Ackf`]).
-    fn feed_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
-        let _ = (t_s, field);
-        Err(Error::InvalidCall("this filter does not use a magnetometer (use ackf)".into()))
+    /// Applies one observation at its own time; a filter refuses the kinds it does not take
+    /// (the planar filters take ranges only).
+    fn feed_observation(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        Err(crate::filters::tight::not_taken(observation))
     }
     /// The filter time, s (None before the first IMU sample).
     fn time_s(&self) -> Option<f64>;
@@ -98,8 +101,8 @@ impl<F: InertialFilter> Estimator for F {
         self.update_ranges(t_s, ranges, reports)
     }
 
-    fn feed_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
-        self.update_magnetometer(t_s, field)
+    fn feed_observation(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        self.observe(observation)
     }
 
     fn record(&self, t_s: f64) -> StepRecord {
@@ -134,6 +137,28 @@ impl<F: InertialFilter> Estimator for F {
 
     fn epoch_window_s(&self) -> f64 {
         self.core().config().epoch_window_s
+    }
+}
+
+/// One input of the loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Event {
+    /// An IMU sample (predicts).
+    Imu(ImuSample),
+    /// A range (joins a range epoch).
+    Range(RangeMeasurement),
+    /// A magnetometer sample, a TDoA, … (applied at its own time).
+    Observation(Observation),
+}
+
+impl Event {
+    /// Event time, s.
+    pub fn t_s(&self) -> f64 {
+        match self {
+            Self::Imu(s) => s.t_s,
+            Self::Range(r) => r.t_s,
+            Self::Observation(o) => o.t_s(),
+        }
     }
 }
 
@@ -205,13 +230,34 @@ impl Pipeline {
         Ok(())
     }
 
-    /// Takes a magnetometer sample, applied at its own time.
-    pub fn magnetometer<E: Estimator>(&mut self, est: &mut E, m: &MagSample) -> Result<()> {
+    /// Takes an observation, applied at its own time (skipped before the first IMU sample); a
+    /// TDoA's report is kept for [`Pipeline::take_applied`].
+    pub fn observation<E: Estimator>(&mut self, est: &mut E, o: &Observation) -> Result<()> {
         if est.time_s().is_none() {
             return Ok(());
         }
-        self.check_order("magnetometer", m.t_s)?;
-        est.feed_magnetometer(m.t_s, &m.field)
+        self.check_order(o.stream(), o.t_s())?;
+        let report = est.feed_observation(o)?;
+        if let Observation::Tdoa(m) = o {
+            self.applied.push(UpdateRecord {
+                t_s: m.t_s,
+                epoch_t_s: m.t_s,
+                anchor: m.anchor_i,
+                anchor_j: Some(m.anchor_j),
+                range_m: m.tdoa_m,
+                report,
+            });
+        }
+        Ok(())
+    }
+
+    /// Takes any event ([`Pipeline::imu`], [`Pipeline::range`], [`Pipeline::observation`]).
+    pub fn event<E: Estimator>(&mut self, est: &mut E, event: &Event) -> Result<()> {
+        match event {
+            Event::Imu(s) => self.imu(est, s),
+            Event::Range(r) => self.range(est, r),
+            Event::Observation(o) => self.observation(est, o),
+        }
     }
 
     /// Applies the open epoch (if any) at `max(time of its last range, filter time)`, its ranges
@@ -233,6 +279,7 @@ impl Pipeline {
             t_s: r.t_s,
             epoch_t_s: t_ref,
             anchor: r.anchor,
+            anchor_j: None,
             range_m: r.range_m,
             report: *report,
         }));
@@ -295,9 +342,9 @@ impl<E: Estimator> Stream<E> {
         self.pipeline.range(&mut self.estimator, r)
     }
 
-    /// [`Pipeline::magnetometer`].
-    pub fn magnetometer(&mut self, m: &MagSample) -> Result<()> {
-        self.pipeline.magnetometer(&mut self.estimator, m)
+    /// [`Pipeline::observation`].
+    pub fn observation(&mut self, o: &Observation) -> Result<()> {
+        self.pipeline.observation(&mut self.estimator, o)
     }
 
     /// [`Pipeline::flush`].
@@ -314,48 +361,79 @@ impl<E: Estimator> Stream<E> {
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
 /// event order).
 pub fn run<F: Estimator>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
-    run_with_magnetometer(filter, imu, ranges, &[])
+    run_streams(filter, &Streams { imu, ranges, ..Streams::default() })
 }
 
-/// [`run`] with magnetometer samples as a third time-ordered stream, merged with the ranges by
-/// time (samples before the first IMU sample are skipped).
-pub fn run_with_magnetometer<F: Estimator>(
-    filter: &mut F,
-    imu: &[ImuSample],
-    ranges: &[RangeMeasurement],
-    mag: &[MagSample],
-) -> Result<Trace> {
+/// The time-ordered, validated input streams of one run.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Streams<'a> {
+    /// IMU samples.
+    pub imu: &'a [ImuSample],
+    /// Ranges.
+    pub ranges: &'a [RangeMeasurement],
+    /// Magnetometer samples (IMU frame).
+    pub mag: &'a [MagSample],
+    /// TDoA.
+    pub tdoa: &'a [TdoaMeasurement],
+}
+
+impl Streams<'_> {
+    /// The events of all streams merged by time; at equal times IMU, magnetometer, TDoA, range
+    /// (each stream keeps its own order).
+    pub fn events(&self) -> impl Iterator<Item = Event> + '_ {
+        let mut next = [0usize; 4];
+        std::iter::from_fn(move || {
+            let heads = [
+                self.imu.get(next[0]).map(|s| Event::Imu(*s)),
+                self.mag.get(next[1]).map(|m| Event::Observation(Observation::Magnetometer(*m))),
+                self.tdoa.get(next[2]).map(|m| Event::Observation(Observation::Tdoa(*m))),
+                self.ranges.get(next[3]).map(|r| Event::Range(*r)),
+            ];
+            // The earliest head; the lower stream rank wins ties.
+            let (k, event) = heads.into_iter().enumerate().filter_map(|(k, e)| e.map(|e| (k, e))).reduce(|best, cand| {
+                if cand.1.t_s() < best.1.t_s() {
+                    cand
+                } else {
+                    best
+                }
+            })?;
+            next[k] += 1;
+            Some(event)
+        })
+    }
+}
+
+/// Runs `filter` over all streams merged by time ([`Streams::events`]; see the module doc).
+pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Result<Trace> {
     let mut pipeline = Pipeline::new(filter.epoch_window_s(), filter.anchors().len())?;
-    let mut trace =
-        Trace { steps: Vec::with_capacity(imu.len()), updates: Vec::with_capacity(ranges.len()), ranges_before_start: 0 };
-    let (mut next, mut next_mag) = (0, 0);
-    // Feeds the ranges and magnetometer samples up to `t_s` (inclusive when `inclusive`), by time.
-    let mut feed_until = |filter: &mut F, pipeline: &mut Pipeline, t_s: f64, inclusive: bool| -> Result<()> {
-        let due = |t: f64| t < t_s || (inclusive && t == t_s);
-        loop {
-            let range_t = ranges.get(next).map(|r| r.t_s).filter(|t| due(*t));
-            let mag_t = mag.get(next_mag).map(|m| m.t_s).filter(|t| due(*t));
-            // At equal times the magnetometer sample goes first.
-            let mag_first = match (range_t, mag_t) {
-                (None, None) => return Ok(()),
-                (Some(tr), Some(tm)) => tm <= tr,
-                (range_t, _) => range_t.is_none(),
-            };
-            if mag_first {
-                pipeline.magnetometer(filter, &mag[next_mag])?;
-                next_mag += 1;
-            } else {
-                pipeline.range(filter, &ranges[next])?;
-                next += 1;
-            }
-        }
+    let mut trace = Trace {
+        steps: Vec::with_capacity(streams.imu.len()),
+        updates: Vec::with_capacity(streams.ranges.len() + streams.tdoa.len()),
+        ranges_before_start: 0,
     };
-    for sample in imu {
-        feed_until(filter, &mut pipeline, sample.t_s, false)?;
-        pipeline.imu(filter, sample)?;
-        feed_until(filter, &mut pipeline, sample.t_s, true)?;
+    let Some(last_imu_s) = streams.imu.last().map(|s| s.t_s) else {
+        return Ok(trace);
+    };
+    // The IMU time whose step is recorded once the events at that time are in.
+    let mut pending_step: Option<f64> = None;
+    for event in streams.events() {
+        let t_s = event.t_s();
+        if t_s > last_imu_s {
+            break;
+        }
+        if let Some(step_s) = pending_step.filter(|&step_s| t_s > step_s) {
+            pipeline.take_applied(&mut trace.updates);
+            trace.steps.push(filter.record(step_s));
+            pending_step = None;
+        }
+        pipeline.event(filter, &event)?;
+        if let Event::Imu(_) = event {
+            pending_step = Some(t_s);
+        }
+    }
+    if let Some(step_s) = pending_step {
         pipeline.take_applied(&mut trace.updates);
-        trace.steps.push(filter.record(sample.t_s));
+        trace.steps.push(filter.record(step_s));
     }
     pipeline.flush(filter)?;
     pipeline.take_applied(&mut trace.updates);

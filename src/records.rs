@@ -45,3 +45,46 @@ pub struct MagSample {
     /// Magnetic field, body frame.
     pub field: Vec3,
 }
+
+/// One time difference of arrival (Loco Positioning TDoA2/TDoA3): the tag's distance to anchor
+/// `anchor_j` minus its distance to anchor `anchor_i`, `d_ij = ‖p − a_j‖ − ‖p − a_i‖`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TdoaMeasurement {
+    /// Time, s.
+    pub t_s: f64,
+    /// Index of anchor i (subtracted).
+    pub anchor_i: usize,
+    /// Index of anchor j.
+    pub anchor_j: usize,
+    /// `d_ij`, m.
+    pub tdoa_m: f64,
+}
+
+/// A measurement applied on its own at its own time (not gathered into range epochs): what the
+/// pipeline hands to [`crate::filters::InertialFilter::observe`]. Adding a sensor adds a variant
+/// here, its measurement model and the filters that take it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Observation {
+    /// A magnetometer sample (geomagnetic aiding of seed 003, [`crate::filters::Ackf`]).
+    Magnetometer(MagSample),
+    /// A time difference of arrival ([`crate::models::scalar::ScalarMeasurement::Tdoa`]).
+    Tdoa(TdoaMeasurement),
+}
+
+impl Observation {
+    /// Measurement time, s.
+    pub fn t_s(&self) -> f64 {
+        match self {
+            Self::Magnetometer(m) => m.t_s,
+            Self::Tdoa(m) => m.t_s,
+        }
+    }
+
+    /// The stream's name in messages ("magnetometer", "tdoa").
+    pub fn stream(&self) -> &'static str {
+        match self {
+            Self::Magnetometer(_) => "magnetometer",
+            Self::Tdoa(_) => "tdoa",
+        }
+    }
+}

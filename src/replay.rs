@@ -63,7 +63,16 @@ pub fn replay(rec: &Recording, method: Method, config: &FilterConfig, smooth: bo
             rec.ranges.len()
         )));
     }
-    let input = BatchInput { imu: &rec.imu, ranges: &rec.ranges, anchors: &rec.anchors, initial: None, config, smooth, mag: &[] };
+    let input = BatchInput {
+        imu: &rec.imu,
+        ranges: &rec.ranges,
+        anchors: &rec.anchors,
+        initial: None,
+        config,
+        smooth,
+        mag: &[],
+        tdoa: &[],
+    };
     let output = run_method(method, &input)?;
     let mut anchors: Vec<AnchorUpdateStats> =
         rec.anchor_ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect();

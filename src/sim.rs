@@ -27,6 +27,7 @@ mod imu;
 mod outliers;
 mod overlay;
 mod presets;
+mod tdoa;
 mod trajectory;
 mod uwb;
 mod zoo;
@@ -39,6 +40,7 @@ pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
 pub use overlay::{Overlay, Sinusoid};
 pub(crate) use presets::hall_anchors;
 pub use presets::{preset, PRESET_NAMES};
+pub use tdoa::TdoaConfig;
 pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Trajectory};
 pub use uwb::{
     NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
@@ -47,7 +49,7 @@ pub use zoo::{matched_config, true_initial, zoo, Scenario, ZOO_NAMES};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
-use crate::records::{ImuSample, MagSample, RangeMeasurement, TruthSample};
+use crate::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement, TruthSample};
 use crate::validate::{invalid, non_negative, positive};
 
 /// ChaCha stream of the IMU noise.
@@ -58,6 +60,8 @@ const STREAM_UWB: u64 = 2;
 const STREAM_MAG: u64 = 3;
 /// ChaCha stream of the accelerometer outliers.
 const STREAM_ACCEL_OUTLIERS: u64 = 4;
+/// ChaCha stream of the TDoA noise.
+const STREAM_TDOA: u64 = 5;
 
 /// Everything the simulator needs.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,6 +84,8 @@ pub struct SimConfig {
     pub uwb: UwbConfig,
     /// Magnetometer model (`None` = no magnetometer).
     pub magnetometer: Option<MagConfig>,
+    /// TDoA model (`None` = no TDoA); independent of the ranges.
+    pub tdoa: Option<TdoaConfig>,
     /// Abnormal accelerometer samples (seed 002 §4.1); none by default.
     pub accel_outliers: AccelOutliers,
     /// Seed of all random draws.
@@ -107,6 +113,7 @@ impl Default for SimConfig {
             anchors: presets::hall_anchors(),
             uwb: UwbConfig::default(),
             magnetometer: None,
+            tdoa: None,
             accel_outliers: AccelOutliers::default(),
             seed: 0,
             start_s: 0.0,
@@ -133,6 +140,10 @@ pub struct SimData {
     pub truth: Vec<TruthSample>,
     /// Magnetometer samples at the IMU times (empty without a magnetometer).
     pub mag: Vec<MagSample>,
+    /// TDoA in time order (empty without the TDoA model).
+    pub tdoa: Vec<TdoaMeasurement>,
+    /// Per TDoA: [`LABEL_LOS`] or [`LABEL_OUTLIER`].
+    pub tdoa_labels: Vec<u8>,
     /// True accelerometer bias (IMU frame) at each IMU time, m/s².
     pub accel_bias: Vec<Vec3>,
     /// True gyroscope bias (IMU frame) at each IMU time, rad/s.
@@ -157,6 +168,10 @@ pub enum OverrideValue {
 pub const OVERRIDE_KEYS: &[&str] = &[
     "nlos",
     "magnetometer",
+    "tdoa",
+    "tdoa_rate_hz",
+    "tdoa_std_m",
+    "tdoa_outlier_prob",
     "imu_noise",
     "imu_rate_hz",
     "uwb_rate_hz",
@@ -297,6 +312,20 @@ impl SimConfig {
                 positive("uwb.nlos.random.duration_max_s", r.duration_max_s)?;
             }
         }
+        if let Some(d) = &self.tdoa {
+            if self.anchors.len() < 2 {
+                return Err(invalid("tdoa", "needs at least two anchors"));
+            }
+            positive("tdoa.rate_hz", d.rate_hz)?;
+            non_negative("tdoa.std_m", d.std_m)?;
+            probability("tdoa.outlier_prob", d.outlier_prob)?;
+            non_negative("tdoa.outlier_min_m", d.outlier_min_m)?;
+            ordered("tdoa.outlier_max_m", d.outlier_min_m, d.outlier_max_m)?;
+            non_negative("tdoa.jitter_s", d.jitter_s)?;
+            if d.jitter_s >= 1.0 / (d.rate_hz * self.anchors.len() as f64) {
+                return Err(invalid("tdoa.jitter_s", "must be shorter than the time between two packets"));
+            }
+        }
         if let Some(m) = &self.magnetometer {
             finite_vec("magnetometer.field_nav", &m.field_nav)?;
             non_negative("magnetometer.noise_std", m.noise_std)?;
@@ -326,7 +355,7 @@ impl SimConfig {
         if !OVERRIDE_KEYS.contains(&key) {
             return Err(unknown_override(key));
         }
-        let is_flag = matches!(key, "nlos" | "magnetometer" | "imu_noise");
+        let is_flag = matches!(key, "nlos" | "magnetometer" | "imu_noise" | "tdoa");
         match value {
             OverrideValue::Flag(_) if !is_flag => Err(invalid(key, "expects a number, got a bool")),
             OverrideValue::Number(_) if is_flag => Err(invalid(key, "expects a bool, got a number")),
@@ -339,6 +368,10 @@ impl SimConfig {
                     ("magnetometer", false) => self.magnetometer = None,
                     ("magnetometer", true) => {
                         self.magnetometer.get_or_insert_with(MagConfig::default);
+                    }
+                    ("tdoa", false) => self.tdoa = None,
+                    ("tdoa", true) => {
+                        self.tdoa.get_or_insert_with(TdoaConfig::default);
                     }
                     ("imu_noise", false) => self.imu_noise = ImuNoise::none(),
                     ("imu_noise", true) => {}
@@ -369,6 +402,15 @@ impl SimConfig {
                 "bias_max_m" => Ok(&mut nlos.bias_max_m),
                 "extra_std_m" => Ok(&mut nlos.extra_std_m),
                 "dropout_prob" => Ok(&mut nlos.dropout_prob),
+                _ => Err(unknown_override(key)),
+            };
+        }
+        if let Some(field) = key.strip_prefix("tdoa_") {
+            let tdoa = self.tdoa.as_mut().ok_or_else(|| invalid(key, "TDoA is off; set tdoa=True"))?;
+            return match field {
+                "rate_hz" => Ok(&mut tdoa.rate_hz),
+                "std_m" => Ok(&mut tdoa.std_m),
+                "outlier_prob" => Ok(&mut tdoa.outlier_prob),
                 _ => Err(unknown_override(key)),
             };
         }
@@ -424,6 +466,13 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
     let mut imu_out = imu::synthesise(cfg, &mut imu_rng, &mut mag_rng);
     let accel_outlier_times = outliers::inject(&mut imu_out.imu, &cfg.accel_outliers, &mut stream(STREAM_ACCEL_OUTLIERS));
     let mut uwb_out = uwb::synthesise(cfg, &mut uwb_rng);
+    let (mut tdoa, mut tdoa_labels) = match &cfg.tdoa {
+        Some(t) => tdoa::synthesise(cfg, t, &mut stream(STREAM_TDOA)),
+        None => (Vec::new(), Vec::new()),
+    };
+    let delivered_tdoa = tdoa.partition_point(|m| m.t_s < cfg.start_s);
+    tdoa.drain(..delivered_tdoa);
+    tdoa_labels.drain(..delivered_tdoa);
     let delivered = uwb_out.ranges.partition_point(|r| r.t_s < cfg.start_s);
     uwb_out.ranges.drain(..delivered);
     uwb_out.labels.drain(..delivered);
@@ -439,6 +488,8 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
         true_anchors: cfg.anchors.clone(),
         truth: imu_out.truth,
         mag: imu_out.mag,
+        tdoa,
+        tdoa_labels,
         accel_bias: imu_out.accel_bias,
         gyro_bias: imu_out.gyro_bias,
         nlos_windows: uwb_out.windows,

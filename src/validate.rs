@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::Vec3;
-use crate::records::{ImuSample, MagSample, RangeMeasurement};
+use crate::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
 
 /// An [`Error::InvalidConfig`] for `field`.
 pub fn invalid(field: &str, reason: impl Into<String>) -> Error {
@@ -110,6 +110,30 @@ pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasure
             return Err(Error::InvalidValue { name: "ranges", row, value: r[2], reason: "range must be >= 0 m" });
         }
         out.push(RangeMeasurement { t_s: r[0], anchor: a as usize, range_m: r[2] });
+    }
+    Ok(out)
+}
+
+/// Validates TDoA rows `t, anchor i, anchor j, d_ij`: finite, time non-decreasing, both anchors
+/// known and distinct.
+pub fn tdoa(rows: &[[f64; 4]], anchor_count: usize) -> Result<Vec<TdoaMeasurement>> {
+    check_finite("tdoa", rows)?;
+    let mut out = Vec::with_capacity(rows.len());
+    let mut prev = f64::NEG_INFINITY;
+    for (row, r) in rows.iter().enumerate() {
+        if r[0] < prev {
+            return Err(Error::NonMonotonicTime { name: "tdoa", row, prev_s: prev, got_s: r[0] });
+        }
+        prev = r[0];
+        for a in [r[1], r[2]] {
+            if a < 0.0 || a.fract() != 0.0 || a >= anchor_count as f64 {
+                return Err(Error::UnknownAnchor { name: "tdoa", row, anchor: a, count: anchor_count });
+            }
+        }
+        if r[1] == r[2] {
+            return Err(Error::InvalidValue { name: "tdoa", row, value: r[1], reason: "anchor i and anchor j must differ" });
+        }
+        out.push(TdoaMeasurement { t_s: r[0], anchor_i: r[1] as usize, anchor_j: r[2] as usize, tdoa_m: r[3] });
     }
     Ok(out)
 }

@@ -5,7 +5,7 @@ mod common;
 use common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::filters::{Ackf, Ckf, InertialFilter};
 use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{run, run_with_magnetometer, Trace};
+use uwbimu_rs::pipeline::{run, run_streams, Streams, Trace};
 use uwbimu_rs::sim::{preset, simulate, DriveOptions, MagConfig, MagDisturbance, SimConfig, SimData, Trajectory};
 
 /// The seed 002 garage with a 6 s still start (the reference period), two rectangle laps and a
@@ -31,7 +31,8 @@ fn run_ackf(data: &SimData, cfg: &SimConfig, adaptive: bool) -> (Ackf, Trace) {
     fc.aiding.adaptive = adaptive;
     fc.aiding.reference_s = 5.0;
     let mut ackf = Ackf::new(data.anchors.clone(), &truth_initial(data, Vec3::zeros()), fc).expect("ackf");
-    let trace = run_with_magnetometer(&mut ackf, &data.imu, &data.ranges, &data.mag).expect("run");
+    let trace = run_streams(&mut ackf, &Streams { imu: &data.imu, ranges: &data.ranges, mag: &data.mag, ..Streams::default() })
+        .expect("run");
     (ackf, trace)
 }
 

@@ -12,8 +12,16 @@ use uwbimu_rs::pipeline::{run, StepRecord};
 use uwbimu_rs::sim::{preset, simulate, SimData};
 
 fn steps(method: Method, data: &SimData, initial: Option<&InitialState>, config: &FilterConfig) -> Vec<StepRecord> {
-    let input =
-        BatchInput { imu: &data.imu, ranges: &data.ranges, anchors: &data.anchors, initial, config, smooth: false, mag: &[] };
+    let input = BatchInput {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        anchors: &data.anchors,
+        initial,
+        config,
+        smooth: false,
+        mag: &[],
+        tdoa: &[],
+    };
     match run_method(method, &input).expect("run") {
         BatchOutput::Inertial { trace, .. } => trace.steps,
         BatchOutput::Multilateration(_) => unreachable!("inertial method"),
@@ -43,6 +51,7 @@ fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::sim::SimConfig, config: &FilterC
         config,
         smooth: false,
         mag: &[],
+        tdoa: &[],
     };
     let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &input).expect("uwb_ls") else { unreachable!("uwb_ls") };
     let e: Vec<f64> = fixes

@@ -81,6 +81,7 @@ def run_filter(
     updates: bool = False,
     smooth: bool = False,
     mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
 ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
@@ -111,10 +112,20 @@ def run_filter(
     mag : numpy.ndarray, shape (N, 4), optional
         Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
         only ``ackf`` uses them (seed 003 geomagnetic aiding), other methods raise ValueError.
+    tdoa : numpy.ndarray, shape (M, 4), optional
+        Time differences of arrival ``t, i, j, d_ij`` with ``d_ij = |p − a_j| − |p − a_i|`` [m]
+        (Loco Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time,
+        noise σ = ``tdoa_std``. Alone (``ranges`` an empty ``(0, 3)`` array; give ``initial``,
+        self-initialisation needs ranges) or with ranges. Taken by the tightly coupled inertial
+        methods (``ekf``, ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``,
+        ``ackf``, ``ukf``) through their own noise policy (the robust ones down-weight TDoA
+        outliers by χ² inflation); the others raise ValueError.
     updates : bool
-        Also return a DataFrame with one row per range update
-        (t, anchor, range, innovation, nis, accepted, weight, inflation, down_weighted,
-        iterations, prior_fading). Ranges sharing a timestamp are one epoch, updated jointly.
+        Also return a DataFrame with one row per range or TDoA update
+        (t, epoch_t, anchor, anchor_j, range, innovation, nis, accepted, weight, inflation,
+        down_weighted, iterations, prior_fading, reacquired); a TDoA row has ``anchor`` = i,
+        ``anchor_j`` = j and ``range`` = d_ij, a range row ``anchor_j`` = −1. Ranges within the
+        epoch window (``epoch_window_s``) form one epoch, updated jointly.
 
     Returns
     -------
@@ -143,13 +154,14 @@ def run_filter(
         updates=updates,
         smooth=smooth,
         mag=mag,
+        tdoa=tdoa,
     )
     frame = _frame(cols)
     if updates:
         if upd is None:
             raise ValueError(f"method {method!r} has no range updates to report")
         u = pl.DataFrame(upd).with_columns(
-            pl.col("anchor", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
+            pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
         )
         return frame, u
     return frame

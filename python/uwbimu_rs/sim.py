@@ -87,6 +87,12 @@ class SimResult:
     mag : numpy.ndarray of shape (N, 4) or None
         ``t`` (s), ``mx, my, mz`` (IMU frame, unit of the configured field, e.g. µT); ``None``
         without a magnetometer.
+    tdoa : numpy.ndarray of shape (M, 4) or None
+        ``t`` (s), anchor ``i``, anchor ``j`` (as float), ``d_ij = |p − a_j| − |p − a_i|`` (m)
+        with ``i`` the anchor that sent before ``j``; ``None`` without TDoA (override
+        ``tdoa=True``, with ``tdoa_rate_hz``, ``tdoa_std_m``, ``tdoa_outlier_prob``).
+    tdoa_labels : numpy.ndarray, shape (M,), uint8
+        0 = clean, 2 = gross outlier (random sign).
     accel_bias : numpy.ndarray, shape (N, 3), float64
         True accelerometer bias at each IMU sample, IMU frame, m/s².
     gyro_bias : numpy.ndarray, shape (N, 3), float64
@@ -114,6 +120,8 @@ class SimResult:
     anchors: np.ndarray
     truth: pl.DataFrame
     mag: np.ndarray | None
+    tdoa: np.ndarray | None
+    tdoa_labels: np.ndarray
     accel_bias: np.ndarray
     gyro_bias: np.ndarray
     nlos_windows: np.ndarray
@@ -131,6 +139,8 @@ def _result(d: dict) -> SimResult:
         anchors=d["anchors"],
         truth=pl.DataFrame(d["truth"]),
         mag=d["mag"],
+        tdoa=d["tdoa"],
+        tdoa_labels=d["tdoa_labels"],
         accel_bias=d["accel_bias"],
         gyro_bias=d["gyro_bias"],
         nlos_windows=d["nlos_windows"],
@@ -274,7 +284,7 @@ def write_mcap(run: SimResult, path: str | os.PathLike[str], *, range_std: float
     _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std)
 
 
-def zoo(name: ZooName, *, seed: int = 0) -> SimResult:
+def zoo(name: ZooName, *, seed: int = 0, **overrides: float | bool) -> SimResult:
     """Simulate a scenario of the zoo: deployment-like runs built to check that a method holds up
     on data it was not tuned on (staggered and jittered range times, anchors at different rates,
     4–8 coplanar or cuboid anchors, IMUs at 20–1000 Hz, an upside-down mounting, vehicle, walking
@@ -286,6 +296,9 @@ def zoo(name: ZooName, *, seed: int = 0) -> SimResult:
         One of :data:`ZOO_NAMES` (the README's "Generality" section describes each).
     seed : int, default 0
         Seed of all random draws.
+    **overrides : float or bool
+        As for :func:`preset`, applied to the scenario (e.g. ``tdoa=True, tdoa_rate_hz=10.0,
+        tdoa_std_m=0.05, tdoa_outlier_prob=0.03`` adds TDoA; ``config["tdoa_std"]`` follows).
 
     Returns
     -------
@@ -298,7 +311,7 @@ def zoo(name: ZooName, *, seed: int = 0) -> SimResult:
     ValueError
         (``uwbimu_rs.ConfigError``) for an unknown name (the message lists the allowed ones).
     """
-    return _result(_native.sim_zoo(name, seed))
+    return _result(_native.sim_zoo(name, seed, overrides))
 
 
 def zoo_matrix(

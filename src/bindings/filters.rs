@@ -13,13 +13,14 @@ use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
-use crate::records::{ImuSample, MagSample, RangeMeasurement};
+use crate::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
 use crate::validate;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
 const MAG_LAYOUT: &str = "(N, 4) = t, mx, my, mz";
+const TDOA_LAYOUT: &str = "(M, 4) = t, anchor i, anchor j, d_ij";
 const RANGES_LAYOUT: &str = "(M, 3) = t, anchor index, range";
 const ANCHORS_LAYOUT: &str = "(K, 3) = x, y, z";
 
@@ -155,9 +156,11 @@ pub struct PyUpdateReport {
     t: f64,
     /// Time at which its epoch was applied, s.
     epoch_t: f64,
-    /// Anchor index.
+    /// Anchor index (a TDoA's anchor i).
     anchor: usize,
-    /// The range as measured, m.
+    /// A TDoA's anchor j; None for a range.
+    anchor_j: Option<usize>,
+    /// The range as measured (a TDoA's d_ij), m.
     range: f64,
     /// Innovation z − h(x_op), m.
     innovation: f64,
@@ -187,6 +190,7 @@ impl From<UpdateRecord> for PyUpdateReport {
             t: u.t_s,
             epoch_t: u.epoch_t_s,
             anchor: u.anchor,
+            anchor_j: u.anchor_j,
             range: u.range_m,
             innovation: r.innovation,
             nis: r.nis,
@@ -205,10 +209,11 @@ impl From<UpdateRecord> for PyUpdateReport {
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
         format!(
-            "UpdateReport(t={}, epoch_t={}, anchor={}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={}, reacquired={})",
+            "UpdateReport(t={}, epoch_t={}, anchor={}, anchor_j={:?}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={}, reacquired={})",
             self.t,
             self.epoch_t,
             self.anchor,
+            self.anchor_j,
             self.range,
             self.innovation,
             self.nis,
@@ -329,7 +334,18 @@ macro_rules! py_filter {
             /// uses one (seed 003), the others raise ValueError.
             fn update_magnetometer(&mut self, t: f64, field: &Bound<'_, PyAny>) -> PyResult<()> {
                 let field = vec3_arg(field, "field")?;
-                Ok(self.0.magnetometer(&MagSample { t_s: t, field })?)
+                Ok(self.0.observation(&Observation::Magnetometer(MagSample { t_s: t, field }))?)
+            }
+
+            /// Applies a TDoA `d_ij = |p - a_j| - |p - a_i|` (m) between anchor indices `i` and
+            /// `j` measured at `t` (s), at its own time; returns its report (none before the
+            /// first IMU sample). The loosely coupled and planar filters raise ValueError.
+            fn update_tdoa(&mut self, t: f64, i: i64, j: i64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
+                let count = InertialFilter::anchors(self.0.estimator()).len();
+                let m = TdoaMeasurement { t_s: t, anchor_i: anchor_index(i, count)?, anchor_j: anchor_index(j, count)?, tdoa_m: d_ij };
+                crate::filters::tight::check_tdoa(InertialFilter::anchors(self.0.estimator()), &m)?;
+                self.0.observation(&Observation::Tdoa(m))?;
+                Ok(applied_reports(&mut self.0))
             }
 
             /// Applies the ranges of one epoch, all measured at `t` (s), at once: anchor
@@ -347,7 +363,7 @@ macro_rules! py_filter {
                 let epoch_t = self.0.estimator().core().time_s().unwrap_or(t);
                 let mut out = applied_reports(&mut self.0);
                 out.extend(obs.iter().zip(reports).map(|(&(anchor, range_m), report)| {
-                    PyUpdateReport::from(UpdateRecord { t_s: t, epoch_t_s: epoch_t, anchor, range_m, report })
+                    PyUpdateReport::from(UpdateRecord { t_s: t, epoch_t_s: epoch_t, anchor, anchor_j: None, range_m, report })
                 }));
                 Ok(out)
             }
@@ -445,7 +461,7 @@ type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<
 /// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
 /// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
 #[pyfunction]
-#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=false, mag=None))]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=false, mag=None, tdoa=None))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -459,11 +475,16 @@ fn run_filter<'py>(
     updates: bool,
     smooth: bool,
     mag: Option<&Bound<'py, PyAny>>,
+    tdoa: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
     let inputs = read_inputs(imu, ranges, anchors)?;
     let mag = match mag {
         Some(m) if !m.is_none() => validate::magnetometer(&table::<4>(&array(m, "mag")?, "mag", MAG_LAYOUT)?)?,
+        _ => Vec::new(),
+    };
+    let tdoa = match tdoa {
+        Some(d) if !d.is_none() => validate::tdoa(&table::<4>(&array(d, "tdoa")?, "tdoa", TDOA_LAYOUT)?, inputs.anchors.len())?,
         _ => Vec::new(),
     };
     let config = read_config(config)?;
@@ -479,6 +500,7 @@ fn run_filter<'py>(
         config: &config,
         smooth,
         mag: &mag,
+        tdoa: &tdoa,
     };
     let output = py.detach(|| run_method(method, &input))?;
     output_columns(py, output, covariance, updates)
@@ -555,6 +577,7 @@ fn run_filters<'py>(
                     config: &config,
                     smooth,
                     mag: &[],
+                    tdoa: &[],
                 };
                 run_method(method, &input)
             })

@@ -214,6 +214,13 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
         let mag: Vec<f64> = data.mag.iter().flat_map(|m| [m.t_s, m.field.x, m.field.y, m.field.z]).collect();
         d.set_item("mag", mag.into_pyarray(py).reshape([data.mag.len(), 4])?)?;
     }
+    if data.tdoa.is_empty() {
+        d.set_item("tdoa", py.None())?;
+    } else {
+        let tdoa: Vec<f64> = data.tdoa.iter().flat_map(|m| [m.t_s, m.anchor_i as f64, m.anchor_j as f64, m.tdoa_m]).collect();
+        d.set_item("tdoa", tdoa.into_pyarray(py).reshape([data.tdoa.len(), 4])?)?;
+    }
+    d.set_item("tdoa_labels", data.tdoa_labels.clone().into_pyarray(py))?;
     d.set_item("accel_bias", vec3_rows(py, &data.accel_bias)?)?;
     d.set_item("gyro_bias", vec3_rows(py, &data.gyro_bias)?)?;
     let windows: Vec<f64> =
@@ -225,7 +232,7 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
 
 /// Simulates a named preset with optional overrides (a dict and/or keyword arguments); returns a
 /// dict of arrays (imu (N,7), ranges (M,3), range_labels (M,), anchors (K,3), truth columns,
-/// mag (N,4) or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
+/// mag (N,4) or None, tdoa (M,4) = t, i, j, d_ij or None, tdoa_labels (M,), accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
 /// accel_outlier_times (P,) s).
 #[pyfunction]
 #[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]
@@ -241,13 +248,22 @@ fn sim_preset<'py>(
     run(py, cfg, None)
 }
 
-/// Simulates a scenario of the zoo (`sim::zoo`); returns the dict of `sim_preset` with the
-/// scenario's filter configuration and `default_sensors` (whether its sensors are those the
-/// library defaults describe).
+/// Simulates a scenario of the zoo (`sim::zoo`) with optional overrides (as `sim_preset`); returns
+/// the dict of `sim_preset` with the scenario's filter configuration (its `tdoa_std` matched to
+/// an overridden TDoA model) and `default_sensors` (whether its sensors are those the library
+/// defaults describe).
 #[pyfunction]
-#[pyo3(signature = (name, seed = 0))]
-fn sim_zoo<'py>(py: Python<'py>, name: &str, seed: u64) -> PyResult<Bound<'py, PyDict>> {
-    let scenario = sim::zoo(name, seed)?;
+#[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]
+fn sim_zoo<'py>(
+    py: Python<'py>,
+    name: &str,
+    seed: u64,
+    overrides: Option<&Bound<'py, PyDict>>,
+    kwargs: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut scenario = sim::zoo(name, seed)?;
+    apply(&mut scenario.sim, &collect_overrides([overrides, kwargs])?)?;
+    scenario.config.tdoa_std = sim::matched_config(&scenario.sim).tdoa_std;
     let d = run(py, scenario.sim, Some(scenario.config))?;
     d.set_item("default_sensors", scenario.default_sensors)?;
     Ok(d)

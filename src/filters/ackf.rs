@@ -5,9 +5,10 @@
 use crate::config::{AidingConfig, FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::filters::named::complementary;
-use crate::filters::{InertialCore, InertialFilter, TightFilter};
+use crate::filters::{Composition, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
 use crate::math::Vec3;
 use crate::models::attitude::{predict_vector, VectorSensor};
+use crate::records::Observation;
 use crate::robust::aiding::AidingUncertainty;
 use crate::robust::RangeNoisePolicy;
 use crate::state::ErrVec;
@@ -70,7 +71,8 @@ impl Ackf {
     pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut config: FilterConfig) -> Result<Self> {
         complementary(&mut config);
         let (aiding, gravity) = (config.aiding, -config.gravity);
-        let inner = TightFilter::new(anchors, initial, config, RangeNoisePolicy::ResidualWeighted, 1)?;
+        let composition = Composition { policy: RangeNoisePolicy::ResidualWeighted, strategy: UpdateStrategy::Single };
+        let inner = TightFilter::new(anchors, initial, config, composition)?;
         Ok(Self { inner, aiding, start_s: None, gravity, field: Reference::default() })
     }
 
@@ -87,8 +89,9 @@ impl Ackf {
     }
 
     /// One vector observation (seed 003 §2.2.2): `reading` in the body frame against the
-    /// navigation-frame `reference`, base std `std`.
-    fn vector_update(&mut self, reading: &Vec3, reference: &Vec3, sensor: VectorSensor, std: f64) -> Result<()> {
+    /// navigation-frame `reference`, base std `std`. Reports the residual's norm, its NIS (the sum
+    /// of the sequential scalar NIS, equal to the joint one) and the inflation `U`.
+    fn vector_update(&mut self, reading: &Vec3, reference: &Vec3, sensor: VectorSensor, std: f64) -> Result<UpdateReport> {
         let uncertainty = AidingUncertainty { scale: self.aiding.uncertainty_scale, max: self.aiding.uncertainty_max };
         let adaptive = self.aiding.adaptive;
         let (x, p) = self.inner.core_mut().state_and_covariance_mut();
@@ -104,12 +107,14 @@ impl Ackf {
         };
         let residual = reading - pred.reading;
         let mut dx = ErrVec::zeros();
+        let mut nis = 0.0;
         for axis in 0..3 {
             let h: ErrVec = pred.jacobian.row(axis).transpose();
-            scalar_step(&mut dx, p, &h, residual[axis], std * std * u)?;
+            let innovation = residual[axis] - h.dot(&dx);
+            nis += innovation * innovation / scalar_step(&mut dx, p, &h, residual[axis], std * std * u)?;
         }
         inject_and_reset(x, p, &dx);
-        Ok(())
+        Ok(UpdateReport::applied(residual.norm(), nis, u, 1))
     }
 }
 
@@ -127,14 +132,20 @@ impl InertialFilter for Ackf {
         let x = self.inner.core().state();
         // Specific force expected in steady motion: −g_n plus the centripetal term ω × v.
         let expected = self.gravity + (x.orientation * (w_body - x.gyro_bias)).cross(&x.velocity);
-        self.vector_update(&f_body, &expected, VectorSensor::Accelerometer, self.aiding.gravity_std)
+        self.vector_update(&f_body, &expected, VectorSensor::Accelerometer, self.aiding.gravity_std).map(|_| ())
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         self.inner.update_ranges(t_s, ranges, reports)
     }
 
-    fn update_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<()> {
+    /// A magnetometer sample: part of the field reference during the reference period (reported
+    /// as not applied), a vector observation after it; a TDoA: the inner filter's.
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        let Observation::Magnetometer(sample) = observation else {
+            return self.inner.observe(observation);
+        };
+        let (t_s, field) = (sample.t_s, sample.field);
         if let Some(col) = field.iter().position(|v| !v.is_finite()) {
             return Err(Error::NonFinite { name: "magnetometer", row: 0, col, value: field[col] });
         }
@@ -142,12 +153,12 @@ impl InertialFilter for Ackf {
         let body = self.inner.core().config().imu_rotation * field;
         if self.in_reference_period(t_s) {
             self.field.add(self.inner.core().state().orientation * body);
-            return Ok(());
+            return Ok(UpdateReport::skipped());
         }
         self.field.fix();
         match self.field.fixed {
             Some(m) => self.vector_update(&body, &m, VectorSensor::Magnetometer, self.aiding.mag_std),
-            None => Ok(()),
+            None => Ok(UpdateReport::skipped()),
         }
     }
 

@@ -4,6 +4,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::config::{FilterConfig, InitialState};
+use crate::constraints::Constraints;
 use crate::error::{Error, Result};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Mat3;
@@ -29,9 +30,13 @@ use crate::update::{inject_and_reset, leading_rows_step, vector_step, UpdateRepo
 /// ranges) is skipped. An epoch that cannot be solved (too few ranges, degenerate
 /// geometry) is skipped: its reports say `accepted = false`. The reports describe the epoch: every
 /// range of it carries the position residual norm (m) as `innovation` and the position NIS.
+/// The motion constraints of seed 000 §2.2 ([`Constraints`]) run after each prediction when
+/// switched on in the configuration, as in the tightly coupled filters. TDoA are refused (the
+/// filter fuses a per-epoch fix from ranges; TDoA need a tightly coupled method).
 #[derive(Debug, Clone)]
 pub struct Eskf {
     core: InertialCore,
+    constraints: Constraints,
     anchors: Vec<Vec3>,
     previous: Option<TagFix>,
     coplanar: bool,
@@ -74,7 +79,16 @@ impl Eskf {
         let heights = anchors.iter().map(|a| a.z);
         let span = heights.clone().fold(f64::NEG_INFINITY, f64::max) - heights.fold(f64::INFINITY, f64::min);
         let coplanar = span < LsConfig::default().min_vertical_span_m;
-        Ok(Self { core: InertialCore::new(initial, config)?, anchors, previous: None, coplanar, adaptive: None, estimator: None })
+        let constraints = Constraints::new(&config, initial.position.z);
+        Ok(Self {
+            core: InertialCore::new(initial, config)?,
+            constraints,
+            anchors,
+            previous: None,
+            coplanar,
+            adaptive: None,
+            estimator: None,
+        })
     }
 
     /// The same filter with the measurement noise estimated on line (seed 004 eqs. (26)–(36)):
@@ -94,7 +108,15 @@ impl InertialFilter for Eskf {
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.core.predict(t_s, accel, gyro)
+        self.core.predict(t_s, accel, gyro)?;
+        if self.constraints.any() {
+            self.constraints.after_predict(&mut self.core)?;
+        }
+        Ok(())
+    }
+
+    fn still(&self) -> bool {
+        self.constraints.still()
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {

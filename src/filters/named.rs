@@ -1,8 +1,24 @@
-//! The named filters of seed 000, each a [`TightFilter`] with its policy and strategy.
+//! The named tightly coupled filters, each a declared composition of pieces — a row of this table
+//! (the INS core and the scalar measurement models are shared by all):
+//!
+//! | filter | noise policy | update strategy | also |
+//! |---|---|---|---|
+//! | [`Ekf`] | fixed | single | |
+//! | [`Iekf`] | fixed | iterated | |
+//! | [`Rekf`] | χ² inflation | single | |
+//! | [`Riekf`] | χ² inflation | iterated | |
+//! | [`Criekf`] | χ² inflation | iterated | zero-velocity, pseudo-velocity, plane constraints |
+//! | [`Ckf`] | fixed | single | Markov biases, trapezoidal `Q` (seed 002) |
+//! | [`Arckf`] | adaptive-robust (L1 `Cu`, prior fading, χ²) | single | as `Ckf` |
+//! | [`Ukf`] | fixed | unscented | |
+//! | [`crate::filters::Ackf`] | residual-weighted (L1 `Cu`) | single | as `Ckf`, gravity and magnetometer aiding |
+//!
+//! Other rows can be composed with [`TightFilter::new`] and a [`Composition`]; every policy works
+//! with every strategy.
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::Result;
-use crate::filters::TightFilter;
+use crate::filters::{Composition, TightFilter, UpdateStrategy};
 use crate::math::Vec3;
 use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 
@@ -16,8 +32,8 @@ macro_rules! named_filter {
             /// Builds the filter; anchors in the navigation frame, m.
             #[allow(unused_mut)]
             pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut $config: FilterConfig) -> Result<Self> {
-                let (policy, iterations): (RangeNoisePolicy, u32) = $setup;
-                Ok(Self(TightFilter::new(anchors, initial, $config, policy, iterations)?))
+                let (policy, strategy): (RangeNoisePolicy, UpdateStrategy) = $setup;
+                Ok(Self(TightFilter::new(anchors, initial, $config, Composition { policy, strategy })?))
             }
 
         }
@@ -40,21 +56,21 @@ named_filter!(
     /// # Ok::<(), uwbimu_rs::Error>(())
     /// ```
     Ekf,
-    |config| (RangeNoisePolicy::Fixed, 1)
+    |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Single)
 );
 
 named_filter!(
     /// Iterated EKF: the EKF with the update iterated at the operating point (seed 000
     /// Algorithm 1 without the covariance re-weighting), up to `max_iterations`.
     Iekf,
-    |config| (RangeNoisePolicy::Fixed, config.max_iterations)
+    |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Iterated)
 );
 
 named_filter!(
     /// Robust EKF (seed 000 eqs. (37)–(38), (40)): each range's γ against the prior; beyond the
     /// χ²₁ quantile of significance `alpha`, `R' = (γ/χ²)·R`.
     Rekf,
-    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, 1)
+    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Single)
 );
 
 named_filter!(
@@ -62,7 +78,7 @@ named_filter!(
     /// range at each operating point from the current posterior, until the step is below
     /// `iteration_tolerance` or `max_iterations` is reached.
     Riekf,
-    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, config.max_iterations)
+    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Iterated)
 );
 
 named_filter!(
@@ -71,7 +87,7 @@ named_filter!(
     Criekf,
     |config| {
         (config.zupt, config.pseudo_velocity, config.plane) = (true, true, true);
-        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, config.max_iterations)
+        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Iterated)
     }
 );
 
@@ -94,7 +110,7 @@ named_filter!(
     Ckf,
     |config| {
         complementary(&mut config);
-        (RangeNoisePolicy::Fixed, 1)
+        (RangeNoisePolicy::Fixed, UpdateStrategy::Single)
     }
 );
 
@@ -108,32 +124,25 @@ named_filter!(
     Arckf,
     |config| {
         complementary(&mut config);
-        (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.alpha)? }, 1)
+        (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Single)
     }
 );
 
-/// 15-state error-state unscented Kalman filter: the shared INS core and tightly coupled range
-/// model with the sigma-point update of seed 001 eqs. (11)–(14) over the error state (our
-/// extension of the paper's planar UKF to 3-D; [`TightFilter::unscented`]), fixed range noise.
-///
-/// ```
-/// use uwbimu_rs::{config::{FilterConfig, InitialState}, filters::{InertialFilter, Ukf}, math::Vec3};
-/// let anchors = vec![Vec3::new(0., 0., 2.), Vec3::new(8., 0., 1.), Vec3::new(8., 6., 2.), Vec3::new(0., 6., 1.)];
-/// let mut ukf = Ukf::new(anchors, &InitialState::default(), FilterConfig::default())?;
-/// ukf.predict(0.0, &Vec3::new(0., 0., 9.80665), &Vec3::zeros())?;
-/// let report = ukf.update_range(0.005, 0, 2.0)?;
-/// assert!(report.accepted);
-/// # Ok::<(), uwbimu_rs::Error>(())
-/// ```
-#[derive(Debug, Clone)]
-pub struct Ukf(TightFilter);
-
-impl Ukf {
-    /// Builds the filter; anchors in the navigation frame, m. Fails on an invalid configuration
-    /// (including `n + λ ≤ 0`).
-    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
-        Ok(Self(TightFilter::unscented(anchors, initial, config, RangeNoisePolicy::Fixed)?))
-    }
-}
-
-delegate_filter!(Ukf);
+named_filter!(
+    /// 15-state error-state unscented Kalman filter: the shared INS core and tightly coupled range
+    /// model with the sigma-point update of seed 001 eqs. (11)–(14) over the error state (our
+    /// extension of the paper's planar UKF to 3-D; [`UpdateStrategy::Unscented`]), fixed range
+    /// noise. Fails on an invalid configuration (including `n + λ ≤ 0`).
+    ///
+    /// ```
+    /// use uwbimu_rs::{config::{FilterConfig, InitialState}, filters::{InertialFilter, Ukf}, math::Vec3};
+    /// let anchors = vec![Vec3::new(0., 0., 2.), Vec3::new(8., 0., 1.), Vec3::new(8., 6., 2.), Vec3::new(0., 6., 1.)];
+    /// let mut ukf = Ukf::new(anchors, &InitialState::default(), FilterConfig::default())?;
+    /// ukf.predict(0.0, &Vec3::new(0., 0., 9.80665), &Vec3::zeros())?;
+    /// let report = ukf.update_range(0.005, 0, 2.0)?;
+    /// assert!(report.accepted);
+    /// # Ok::<(), uwbimu_rs::Error>(())
+    /// ```
+    Ukf,
+    |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Unscented)
+);

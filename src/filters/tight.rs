@@ -1,16 +1,19 @@
-//! The tightly coupled range filter every seed-000 method is built from: INS core + range model
-//! (seed 000 eqs. (33)–(36)) + a noise policy + an update strategy (single step or iterated,
-//! seed 000 Algorithm 1).
+//! The tightly coupled filter every seed-000 method is built from: INS core + scalar measurement
+//! models (ranges, seed 000 eqs. (33)–(36); TDoA, [`crate::models::scalar`]) + a noise policy
+//! ([`RangeNoisePolicy`]) + an update strategy ([`UpdateStrategy`]: single step, iterated as in
+//! seed 000 Algorithm 1, or unscented).
 
 use crate::config::{FilterConfig, InitialState};
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
-use crate::filters::reacquire::{reacquire, DivergenceWatch, RANGE_FAIL_NIS};
+use crate::filters::reacquire::{reacquire, widen_after_lockout, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
 use crate::models::range::{predict_range, tag_position};
+use crate::models::scalar::ScalarMeasurement;
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
+use crate::records::{Observation, TdoaMeasurement};
 use crate::robust::sage_husa::{SageHusa, SageHusaConfig};
 use crate::robust::NoiseBounds;
 use crate::robust::{
@@ -44,12 +47,44 @@ pub struct TightFilter {
     core: InertialCore,
     anchors: Vec<Vec3>,
     policy: RangeNoisePolicy,
-    max_iterations: u32,
-    tolerance: f64,
+    strategy: Strategy,
     constraints: Constraints,
     range_noise: Vec<SageHusa<1>>,
-    unscented: Option<UnscentedWeights>,
     divergence: DivergenceWatch,
+    tdoa_watch: TdoaWatch,
+    /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
+    epoch: Vec<ScalarMeasurement>,
+}
+
+/// How the linearised problem of an epoch is solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UpdateStrategy {
+    /// One Kalman step at the prior (EKF).
+    Single,
+    /// Iterated at the operating point up to `max_iterations`, until the step is below
+    /// `iteration_tolerance` (seed 000 Algorithm 1).
+    Iterated,
+    /// Sigma-point update over the error state (our extension of seed 001 eqs. (11)–(14)), weights
+    /// from `ukf_alpha`, `ukf_beta`, `ukf_lambda`.
+    Unscented,
+}
+
+/// A named filter as a row of pieces: which noise policy and which update strategy.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Composition {
+    /// Noise policy of every scalar measurement.
+    pub policy: RangeNoisePolicy,
+    /// Update strategy.
+    pub strategy: UpdateStrategy,
+}
+
+/// The strategy with its settings resolved from the configuration.
+#[derive(Debug, Clone, Copy)]
+enum Strategy {
+    /// Gauss–Newton iterations (1 = the single step).
+    Iterated { max_iterations: u32, tolerance: f64 },
+    /// Unscented update.
+    Unscented(UnscentedWeights),
 }
 
 /// Bounds of each anchor's adaptive range variance relative to `range_std²` (when the Sage–Husa
@@ -62,18 +97,23 @@ const RANGE_NOISE_BOUNDS: NoiseBounds = NoiseBounds { min_ratio: 0.25, max_ratio
 pub const SIGMA_POINTS: usize = 2 * ERR_DIM + 1;
 
 impl TightFilter {
-    /// Builds the filter. `max_iterations = 1` gives the single-step filters (EKF, REKF).
-    pub fn new(
-        anchors: Vec<Vec3>,
-        initial: &InitialState,
-        config: FilterConfig,
-        policy: RangeNoisePolicy,
-        max_iterations: u32,
-    ) -> Result<Self> {
+    /// Builds the filter from its composition (the rows of [`crate::filters::named`]). Every
+    /// combination of policy and strategy works: the unscented strategy applies the same
+    /// robustness factors, prior fading and inflation as the Kalman steps. Fails on an invalid
+    /// configuration (including `n + λ ≤ 0` for the unscented strategy).
+    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig, composition: Composition) -> Result<Self> {
         if anchors.is_empty() {
             return Err(Error::InsufficientData("at least one anchor is required".into()));
         }
-        let tolerance = config.iteration_tolerance;
+        let strategy = match composition.strategy {
+            UpdateStrategy::Single => Strategy::Iterated { max_iterations: 1, tolerance: config.iteration_tolerance },
+            UpdateStrategy::Iterated => {
+                Strategy::Iterated { max_iterations: config.max_iterations.max(1), tolerance: config.iteration_tolerance }
+            }
+            UpdateStrategy::Unscented => {
+                Strategy::Unscented(UnscentedWeights::new(ERR_DIM, config.ukf_alpha, config.ukf_beta, config.ukf_lambda)?)
+            }
+        };
         let constraints = Constraints::new(&config, initial.position.z);
         let range_noise = if config.adaptive_range_noise {
             let initial_r = SMatrix::<f64, 1, 1>::new(config.range_std.powi(2));
@@ -84,29 +124,15 @@ impl TightFilter {
         };
         Ok(Self {
             core: InertialCore::new(initial, config)?,
+            epoch: Vec::with_capacity(anchors.len()),
             anchors,
-            policy,
-            max_iterations: max_iterations.max(1),
-            tolerance,
+            policy: composition.policy,
+            strategy,
             constraints,
             range_noise,
-            unscented: None,
             divergence: DivergenceWatch::default(),
+            tdoa_watch: TdoaWatch::default(),
         })
-    }
-
-    /// Builds the filter with the unscented update strategy (our extension of seed 001 eqs.
-    /// (11)–(14) to the 15-state error state): per range, the [`SIGMA_POINTS`] sigma points of the
-    /// error state about the prior are injected into the nominal state (`x ⊞ χᵢ`), the tag range
-    /// is predicted for each, and the scalar unscented step updates the error mean and covariance;
-    /// the ranges of an epoch are applied in turn (sigma points redrawn from the updated error
-    /// estimate), then the error is injected and reset as in the EKF. Weights from
-    /// `ukf_alpha`, `ukf_beta`, `ukf_lambda`. Prediction is the shared INS core's.
-    pub fn unscented(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig, policy: RangeNoisePolicy) -> Result<Self> {
-        let weights = UnscentedWeights::new(ERR_DIM, config.ukf_alpha, config.ukf_beta, config.ukf_lambda)?;
-        let mut filter = Self::new(anchors, initial, config, policy, 1)?;
-        filter.unscented = Some(weights);
-        Ok(filter)
     }
 
     /// Robustness factors `Cu_i` of one epoch (seed 002 eqs. (33)–(37)) from the L1 fit of its
@@ -181,12 +207,6 @@ impl InertialFilter for TightFilter {
                 .for_each(|r| *r = UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
             return Ok(());
         }
-        if let Some(weights) = self.unscented {
-            return self.update_unscented(&weights, ranges, reports);
-        }
-        let lever_arm = self.core.config().lever_arm;
-        let range_std = self.core.config().range_std;
-        let r_var = range_std * range_std;
         // ARCKF (seed 002 Algorithm 1): robustness factors and the fading of the prior.
         let (factors, fading) = match self.policy {
             RangeNoisePolicy::AdaptiveRobust { threshold } => {
@@ -200,59 +220,42 @@ impl InertialFilter for TightFilter {
             RangeNoisePolicy::ResidualWeighted => (Some(self.robustness(ranges)), 1.0),
             _ => (None, 1.0),
         };
-        let (x, p_out) = self.core.state_and_covariance_mut();
-        let (prior, p_prior) = (*x, *p_out);
-        let (mut op, mut p_post) = (prior, p_prior);
-        let mut iterations = 0;
-        // The previous iterate (operating point, covariance, step), to fall back on when the
-        // iteration stops contracting.
-        let mut previous: Option<(NominalState, ErrCov, ErrVec)> = None;
-        loop {
-            iterations += 1;
-            let mut dx = prior.boxminus(&op);
-            let mut p = p_prior;
-            for (k, (report, &(anchor, range_m))) in reports.iter_mut().zip(ranges).enumerate() {
-                let Some(pred) = predict_range(&op, &self.anchors[anchor], &lever_arm) else {
-                    *report = UpdateReport::skipped();
-                    continue;
-                };
-                let h = pred.jacobian;
-                let mut residual = range_m - pred.range_m;
-                let hph = h.dot(&(p_post * h));
-                let base_var = range_noise(&mut self.range_noise, anchor, &mut residual, hph, iterations == 1, r_var)
-                    * factors.as_ref().map_or(1.0, |f| f[k].cu);
-                let nis = residual * residual / (hph + base_var);
-                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
-                // adaptive branch); only capped ones are inflated (robust branch).
-                let trusted_in_faded = fading > 1.0 && factors.as_ref().is_some_and(|f| !f[k].is_capped());
-                let inflation = if trusted_in_faded { 1.0 } else { self.policy.inflation(nis) };
-                scalar_step(&mut dx, &mut p, &h, residual, base_var * inflation)?;
-                *report = UpdateReport::applied(residual, nis, base_var * inflation / r_var, iterations);
+        let mut epoch = std::mem::take(&mut self.epoch);
+        epoch.clear();
+        epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
+        let solved = self.solve(&epoch, reports, factors.as_deref(), fading);
+        self.epoch = epoch;
+        solved
+    }
+
+    /// Applies a TDoA through the filter's own strategy and policy (χ² inflation for the robust
+    /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
+    /// adaptive per-anchor range noise is for ranges only), after the TDoA lock-out watch of the
+    /// χ²-gated policies ([`TdoaWatch`]; a filter without a gate cannot lock its TDoA out);
+    /// other observations are refused.
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        match observation {
+            Observation::Tdoa(m) => {
+                check_tdoa(&self.anchors, m)?;
+                self.core.advance_to(m.t_s)?;
+                let mut report = [UpdateReport::skipped()];
+                let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+                let config = self.core.config();
+                let (x, p) = (self.core.state(), self.core.covariance());
+                let gated =
+                    matches!(self.policy, RangeNoisePolicy::ChiSquareInflation { .. } | RangeNoisePolicy::AdaptiveRobust { .. });
+                if let Some(pred) = tdoa.predict(x, &self.anchors, &config.lever_arm).filter(|_| gated) {
+                    let innovation = m.tdoa_m - pred.value;
+                    let nis = innovation * innovation / (pred.jacobian.dot(&(p * pred.jacobian)) + config.tdoa_std.powi(2));
+                    if let Some(std_m) = self.tdoa_watch.check(m.t_s, innovation, nis) {
+                        widen_after_lockout(&mut self.core, std_m);
+                    }
+                }
+                self.solve(&[tdoa], &mut report, None, 1.0)?;
+                Ok(report[0])
             }
-            let step = dx.norm();
-            if let Some((mut op_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, d)| step > d.norm()) {
-                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
-                // to thousands of radians): keep the previous iterate.
-                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
-                *x = op_prev;
-                *p_out = p_prev;
-                break;
-            }
-            if iterations >= self.max_iterations || step < self.tolerance {
-                inject_and_reset(&mut op, &mut p, &dx);
-                *x = op;
-                *p_out = p;
-                break;
-            }
-            previous = Some((op, p, dx));
-            op.inject(&dx);
-            p_post = p;
+            other => Err(not_taken(other)),
         }
-        for r in reports.iter_mut().filter(|r| r.accepted) {
-            r.iterations = iterations;
-            r.prior_fading = fading;
-        }
-        Ok(())
     }
 
     fn core(&self) -> &InertialCore {
@@ -269,42 +272,207 @@ impl InertialFilter for TightFilter {
 }
 
 impl TightFilter {
-    /// The unscented epoch update (see [`TightFilter::unscented`]).
-    fn update_unscented(
+    /// Solves one epoch of scalar measurements with the filter's strategy; `factors` are the
+    /// robustness factors `Cu_k` (seed 002 eq. (38)) of the measurements, `fading` the prior's
+    /// fading factor already applied (seed 002 eq. (42)).
+    fn solve(
+        &mut self,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        factors: Option<&[RobustnessFactor]>,
+        fading: f64,
+    ) -> Result<()> {
+        match self.strategy {
+            Strategy::Iterated { max_iterations, tolerance } => {
+                self.solve_iterated(measurements, reports, factors, fading, max_iterations, tolerance)?;
+            }
+            Strategy::Unscented(weights) => self.solve_unscented(&weights, measurements, reports, factors, fading)?,
+        }
+        for r in reports.iter_mut().filter(|r| r.accepted) {
+            r.prior_fading = fading;
+        }
+        Ok(())
+    }
+
+    /// The Kalman strategy (see [`TightFilter`]): Gauss–Newton iterations of sequential scalar
+    /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step.
+    fn solve_iterated(
+        &mut self,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        factors: Option<&[RobustnessFactor]>,
+        fading: f64,
+        max_iterations: u32,
+        tolerance: f64,
+    ) -> Result<()> {
+        let config = self.core.config();
+        let (lever_arm, nominal) = (config.lever_arm, NominalNoise::of(config));
+        let (x, p_out) = self.core.state_and_covariance_mut();
+        let (prior, p_prior) = (*x, *p_out);
+        let (mut op, mut p_post) = (prior, p_prior);
+        let mut iterations = 0;
+        // The previous iterate (operating point, covariance, step), to fall back on when the
+        // iteration stops contracting.
+        let mut previous: Option<(NominalState, ErrCov, ErrVec)> = None;
+        loop {
+            iterations += 1;
+            let mut dx = prior.boxminus(&op);
+            let mut p = p_prior;
+            for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
+                let Some(pred) = m.predict(&op, &self.anchors, &lever_arm) else {
+                    *report = UpdateReport::skipped();
+                    continue;
+                };
+                let h = pred.jacobian;
+                let mut residual = m.value() - pred.value;
+                let hph = h.dot(&(p_post * h));
+                let (var, nominal_var) = nominal.variance(&mut self.range_noise, m, &mut residual, hph, iterations == 1);
+                let base_var = var * factors.map_or(1.0, |f| f[k].cu);
+                let nis = residual * residual / (hph + base_var);
+                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
+                // adaptive branch); only capped ones are inflated (robust branch).
+                let trusted_in_faded = fading > 1.0 && factors.is_some_and(|f| !f[k].is_capped());
+                let inflation = if trusted_in_faded {
+                    1.0
+                } else if iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. }) {
+                    // A lone TDoA fits itself after one iteration, so its γ at the next operating
+                    // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
+                    report.inflation
+                } else {
+                    self.policy.inflation(nis)
+                };
+                scalar_step(&mut dx, &mut p, &h, residual, base_var * inflation)?;
+                *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, iterations);
+            }
+            let step = dx.norm();
+            if let Some((mut op_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, d)| step > d.norm()) {
+                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
+                // to thousands of radians): keep the previous iterate.
+                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
+                *x = op_prev;
+                *p_out = p_prev;
+                break;
+            }
+            if iterations >= max_iterations || step < tolerance {
+                inject_and_reset(&mut op, &mut p, &dx);
+                *x = op;
+                *p_out = p;
+                break;
+            }
+            previous = Some((op, p, dx));
+            op.inject(&dx);
+            p_post = p;
+        }
+        for r in reports.iter_mut().filter(|r| r.accepted) {
+            r.iterations = iterations;
+        }
+        Ok(())
+    }
+
+    /// The unscented strategy (see [`UpdateStrategy::Unscented`]): per measurement, the
+    /// [`SIGMA_POINTS`] sigma points of the error state about the prior are injected into the
+    /// nominal state (`x ⊞ χᵢ`), the measurement is predicted for each, and the scalar unscented
+    /// step updates the error mean and covariance; the measurements of an epoch are applied in
+    /// turn (sigma points redrawn from the updated error estimate), with the same noise policy as
+    /// the Kalman strategy, then the error is injected and reset.
+    fn solve_unscented(
         &mut self,
         weights: &UnscentedWeights,
-        ranges: &[(usize, f64)],
+        measurements: &[ScalarMeasurement],
         reports: &mut [UpdateReport],
+        factors: Option<&[RobustnessFactor]>,
+        fading: f64,
     ) -> Result<()> {
-        let lever_arm = self.core.config().lever_arm;
-        let r_var = self.core.config().range_std.powi(2);
+        let config = self.core.config();
+        let (lever_arm, nominal) = (config.lever_arm, NominalNoise::of(config));
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
         let mut dx = ErrVec::zeros();
         let mut p = *p_out;
-        for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
-            let a = self.anchors[anchor];
+        for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
+            let anchors = &self.anchors;
             let measure = |d: &ErrVec| {
                 let mut s = prior;
                 s.inject(d);
-                let r = (tag_position(&s, &lever_arm) - a).norm();
-                (r > 1e-9).then_some(r)
+                m.predict(&s, anchors, &lever_arm).map(|pred| pred.value)
             };
-            let Some(m) = scalar_moments::<ERR_DIM, SIGMA_POINTS>(&dx, &p, weights, measure)? else {
+            let Some(moments) = scalar_moments::<ERR_DIM, SIGMA_POINTS>(&dx, &p, weights, measure)? else {
                 *report = UpdateReport::skipped();
                 continue;
             };
-            let mut residual = range_m - m.predicted;
-            let base_var = range_noise(&mut self.range_noise, anchor, &mut residual, m.variance, true, r_var);
-            let nis = residual * residual / (m.variance + base_var);
-            let inflation = self.policy.inflation(nis);
-            apply_scalar(&mut dx, &mut p, &m, m.predicted + residual, base_var * inflation)?;
-            *report = UpdateReport::applied(residual, nis, base_var * inflation / r_var, 1);
+            let mut residual = m.value() - moments.predicted;
+            let (var, nominal_var) = nominal.variance(&mut self.range_noise, m, &mut residual, moments.variance, true);
+            let base_var = var * factors.map_or(1.0, |f| f[k].cu);
+            let nis = residual * residual / (moments.variance + base_var);
+            let trusted_in_faded = fading > 1.0 && factors.is_some_and(|f| !f[k].is_capped());
+            let inflation = if trusted_in_faded { 1.0 } else { self.policy.inflation(nis) };
+            apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
+            *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);
         }
         inject_and_reset(x, &mut p, &dx);
         *p_out = p;
         Ok(())
     }
+}
+
+/// The configured (nominal) noise variances of the scalar measurements, m².
+#[derive(Debug, Clone, Copy)]
+struct NominalNoise {
+    range_var: f64,
+    tdoa_var: f64,
+}
+
+impl NominalNoise {
+    fn of(config: &FilterConfig) -> Self {
+        Self { range_var: config.range_std * config.range_std, tdoa_var: config.tdoa_std * config.tdoa_std }
+    }
+
+    /// `(variance to use, nominal variance)` of one measurement: a range's from
+    /// [`range_noise`] (adaptive per anchor when configured), a TDoA's `tdoa_std²`.
+    fn variance(
+        &self,
+        estimators: &mut [SageHusa<1>],
+        m: &ScalarMeasurement,
+        residual: &mut f64,
+        hph: f64,
+        step: bool,
+    ) -> (f64, f64) {
+        match *m {
+            ScalarMeasurement::Range { anchor, .. } => {
+                (range_noise(estimators, anchor, residual, hph, step, self.range_var), self.range_var)
+            }
+            ScalarMeasurement::Tdoa { .. } => (self.tdoa_var, self.tdoa_var),
+        }
+    }
+}
+
+/// The error for an observation a filter does not take.
+pub(crate) fn not_taken(observation: &Observation) -> Error {
+    Error::InvalidCall(match observation {
+        Observation::Magnetometer(_) => "this filter does not use a magnetometer (use ackf)".into(),
+        Observation::Tdoa(_) => "this filter does not take TDoA measurements (the tightly coupled inertial methods do: ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, ukf)".into(),
+    })
+}
+
+/// Checks a TDoA's anchor indices (known, distinct) and value (finite).
+pub(crate) fn check_tdoa(anchors: &[Vec3], m: &TdoaMeasurement) -> Result<()> {
+    for anchor in [m.anchor_i, m.anchor_j] {
+        if anchor >= anchors.len() {
+            return Err(Error::UnknownAnchor { name: "update_tdoa", row: 0, anchor: anchor as f64, count: anchors.len() });
+        }
+    }
+    if m.anchor_i == m.anchor_j {
+        return Err(Error::InvalidValue {
+            name: "update_tdoa",
+            row: 0,
+            value: m.anchor_i as f64,
+            reason: "anchor i and anchor j must differ",
+        });
+    }
+    if !m.tdoa_m.is_finite() {
+        return Err(Error::NonFinite { name: "update_tdoa", row: 0, col: 3, value: m.tdoa_m });
+    }
+    Ok(())
 }
 
 /// The range noise variance for one range: per-anchor Sage–Husa (seed 004 eqs. (26)–(36) on the

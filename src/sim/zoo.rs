@@ -102,6 +102,7 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     let n = &sim.imu_noise;
     FilterConfig {
         range_std: (u.range_std_m.powi(2) + u.uniform_noise_m.powi(2) / 3.0).sqrt(),
+        tdoa_std: sim.tdoa.as_ref().map_or(crate::config::DEFAULT_TDOA_STD_M, |t| t.std_m.max(1e-3)),
         accel_noise_density: n.accel_noise_density.max(1e-4),
         gyro_noise_density: n.gyro_noise_density.max(1e-5),
         accel_bias_walk: n.accel_bias_walk.max(1e-6),
