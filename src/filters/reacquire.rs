@@ -35,7 +35,7 @@ use crate::filters::InertialCore;
 use crate::math::Vec3;
 use crate::models::loose::{position_measurement, TagFix};
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
-use crate::state::{ErrVec, POS, VEL};
+use crate::state::{ErrVec, POS};
 use crate::update::{inject_and_reset, leading_rows_step};
 
 /// The prior must be at least this much less precise than the fix (ratio of horizontal
@@ -195,60 +195,4 @@ pub fn reacquire(
     inject_and_reset(x, p, &dx);
     let innovation = if horizontal_only { residual.xy().norm() } else { residual.norm() };
     Ok(Some((innovation, nis)))
-}
-
-/// Consecutive TDoA failing their `χ²₁` test at the prior ([`RANGE_FAIL_NIS`]) before a filter
-/// counts as locked out of its TDoA ([`TdoaWatch`]); ten gross outliers in a row at 3 % have a
-/// probability of 6·10⁻¹⁶.
-pub const TDOA_LOCKOUT_COUNT: u32 = 10;
-
-/// ... and for at least this long, s.
-pub const TDOA_LOCKOUT_S: f64 = 0.5;
-
-/// Smallest position standard deviation the prior is widened to on a TDoA lock-out, m.
-pub const TDOA_WIDEN_MIN_STD_M: f64 = 0.5;
-
-/// The TDoA counterpart of [`DivergenceWatch`] (ours): a TDoA carries no UWB-only fix to
-/// re-acquire on, so when every TDoA for [`TDOA_LOCKOUT_COUNT`] in a row and
-/// [`TDOA_LOCKOUT_S`] fails its `χ²₁` test at the prior (a χ²-gated filter that has locked its
-/// TDoA out after an outage or an acceleration spike, or any filter gone wrong and confident), the
-/// prior is widened in position by `σ = max(TDOA_WIDEN_MIN_STD_M, 2·rms innovation)` (a TDoA's
-/// gradient has norm ≤ 2, so the position error is at least half the innovation) and in velocity
-/// by `σ` per second, and the next TDoA pull the filter back like a fresh start.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct TdoaWatch {
-    first_fail_s: Option<f64>,
-    count: u32,
-    sum_sq_innovation: f64,
-}
-
-impl TdoaWatch {
-    /// Records one TDoA at `t_s` with innovation `innovation` (m) and its NIS at the prior;
-    /// returns the position σ (m) to widen the prior by when the filter is locked out (and starts
-    /// counting afresh).
-    pub fn check(&mut self, t_s: f64, innovation: f64, nis: f64) -> Option<f64> {
-        if nis <= RANGE_FAIL_NIS {
-            *self = Self::default();
-            return None;
-        }
-        let first = *self.first_fail_s.get_or_insert(t_s);
-        self.count += 1;
-        self.sum_sq_innovation += innovation * innovation;
-        if self.count < TDOA_LOCKOUT_COUNT || t_s - first < TDOA_LOCKOUT_S {
-            return None;
-        }
-        let rms = (self.sum_sq_innovation / f64::from(self.count)).sqrt();
-        *self = Self::default();
-        Some(TDOA_WIDEN_MIN_STD_M.max(2.0 * rms))
-    }
-}
-
-/// Widens the prior of `core` after a TDoA lock-out: `σ²` added to each position variance and
-/// `(σ/1 s)²` to each velocity variance ([`TdoaWatch`]).
-pub fn widen_after_lockout(core: &mut InertialCore, std_m: f64) {
-    let (_, p) = core.state_and_covariance_mut();
-    for i in 0..3 {
-        p[(POS + i, POS + i)] += std_m * std_m;
-        p[(VEL + i, VEL + i)] += std_m * std_m;
-    }
 }

@@ -6,7 +6,7 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
-use crate::filters::reacquire::{reacquire, widen_after_lockout, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
+use crate::filters::reacquire::{reacquire, DivergenceWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
@@ -51,7 +51,6 @@ pub struct TightFilter {
     constraints: Constraints,
     range_noise: Vec<SageHusa<1>>,
     divergence: DivergenceWatch,
-    tdoa_watch: TdoaWatch,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
     epoch: Vec<ScalarMeasurement>,
 }
@@ -131,7 +130,6 @@ impl TightFilter {
             constraints,
             range_noise,
             divergence: DivergenceWatch::default(),
-            tdoa_watch: TdoaWatch::default(),
         })
     }
 
@@ -230,9 +228,8 @@ impl InertialFilter for TightFilter {
 
     /// Applies a TDoA through the filter's own strategy and policy (χ² inflation for the robust
     /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
-    /// adaptive per-anchor range noise is for ranges only), after the TDoA lock-out watch of the
-    /// χ²-gated policies ([`TdoaWatch`]; a filter without a gate cannot lock its TDoA out);
-    /// other observations are refused.
+    /// adaptive per-anchor range noise and the divergence watch are for ranges only); other
+    /// observations are refused.
     fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
         match observation {
             Observation::Tdoa(m) => {
@@ -240,17 +237,6 @@ impl InertialFilter for TightFilter {
                 self.core.advance_to(m.t_s)?;
                 let mut report = [UpdateReport::skipped()];
                 let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
-                let config = self.core.config();
-                let (x, p) = (self.core.state(), self.core.covariance());
-                let gated =
-                    matches!(self.policy, RangeNoisePolicy::ChiSquareInflation { .. } | RangeNoisePolicy::AdaptiveRobust { .. });
-                if let Some(pred) = tdoa.predict(x, &self.anchors, &config.lever_arm).filter(|_| gated) {
-                    let innovation = m.tdoa_m - pred.value;
-                    let nis = innovation * innovation / (pred.jacobian.dot(&(p * pred.jacobian)) + config.tdoa_std.powi(2));
-                    if let Some(std_m) = self.tdoa_watch.check(m.t_s, innovation, nis) {
-                        widen_after_lockout(&mut self.core, std_m);
-                    }
-                }
                 self.solve(&[tdoa], &mut report, None, 1.0)?;
                 Ok(report[0])
             }
