@@ -45,3 +45,6 @@ pub struct MagSample {
     /// Magnetic field, body frame.
     pub field: Vec3,
 }
+
+/// One trajectory point: time s, position m, orientation (None for `uwb_ls`).
+pub type PosePoint = (f64, Vec3, Option<Quat>);
