@@ -10,6 +10,15 @@ use crate::validate::{self, invalid};
 /// Smallest state dimension an unscented filter uses (`ukf2d`); bounds `ukf_lambda`.
 const MIN_UNSCENTED_DIM: usize = 4;
 
+/// Largest window the still detector holds (bounds `zupt_window`), IMU samples.
+pub const MAX_ZUPT_WINDOW: usize = 128;
+
+/// Largest pseudo-velocity history (bounds `pseudo_velocity_window`), steps.
+pub const MAX_SPEED_HISTORY: usize = 256;
+
+/// Largest moving-average window of `cekf2d` (bounds `cekf_window`), ranges per anchor.
+pub const MAX_CEKF_WINDOW: usize = 64;
+
 /// A configuration value as it arrives from a dict: a scalar or a vector.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ConfigValue {
@@ -422,16 +431,14 @@ impl FilterConfig {
             "zupt" => self.zupt = flag(key, value)?,
             "pseudo_velocity" => self.pseudo_velocity = flag(key, value)?,
             "plane" => self.plane = flag(key, value)?,
-            "zupt_window" => self.zupt_window = bounded_count(key, value, 2, crate::constraints::still::MAX_WINDOW)?,
+            "zupt_window" => self.zupt_window = bounded_count(key, value, 2, MAX_ZUPT_WINDOW)?,
             "zupt_threshold" => self.zupt_threshold = positive(key, value)?,
             "zupt_accel_std" => self.zupt_accel_std = positive(key, value)?,
             "zupt_gyro_std" => self.zupt_gyro_std = positive(key, value)?,
             "zupt_max_speed" => self.zupt_max_speed = positive(key, value)?,
             "zupt_velocity_std" => self.zupt_velocity_std = positive(key, value)?,
             "pseudo_velocity_var" => self.pseudo_velocity_var = positive(key, value)?,
-            "pseudo_velocity_window" => {
-                self.pseudo_velocity_window = bounded_count(key, value, 1, crate::constraints::MAX_SPEED_HISTORY)?
-            }
+            "pseudo_velocity_window" => self.pseudo_velocity_window = bounded_count(key, value, 1, MAX_SPEED_HISTORY)?,
             "plane_height" => self.plane_height = Some(scalar(key, value)?),
             "plane_std" => self.plane_std = positive(key, value)?,
             "constraint_interval_s" => self.constraint_interval_s = non_negative(key, value)?,
@@ -472,7 +479,7 @@ impl FilterConfig {
                 }
                 self.ukf_lambda = l;
             }
-            "cekf_window" => self.cekf_window = bounded_count(key, value, 1, crate::planar::MAX_CEKF_WINDOW)?,
+            "cekf_window" => self.cekf_window = bounded_count(key, value, 1, MAX_CEKF_WINDOW)?,
             "planar_accel_density" => self.planar_accel_density = positive(key, value)?,
             _ => return Err(unknown_key("config", key, &Self::KEYS)),
         }
@@ -620,7 +627,7 @@ impl InitialState {
     pub fn covariance(&self, config: &FilterConfig) -> crate::state::ErrCov {
         let ba = Vec3::repeat(self.accel_bias_std.unwrap_or(config.accel_bias_std));
         let bg = Vec3::repeat(self.gyro_bias_std.unwrap_or(config.gyro_bias_std));
-        crate::ins::diagonal_covariance([self.position_std, self.velocity_std, self.orientation_std, ba, bg])
+        crate::state::diagonal_covariance([self.position_std, self.velocity_std, self.orientation_std, ba, bg])
     }
 
     /// Every key accepted by [`InitialState::set`].

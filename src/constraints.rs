@@ -16,14 +16,11 @@ pub mod still;
 
 pub use still::StillDetector;
 
-use crate::config::FilterConfig;
+use crate::config::{FilterConfig, MAX_SPEED_HISTORY};
 use crate::error::Result;
 use crate::filters::InertialCore;
 use crate::state::{ErrVec, POS, VEL};
 use crate::update::{inject_and_reset, scalar_step};
-
-/// Largest pseudo-velocity history, steps.
-pub const MAX_SPEED_HISTORY: usize = 256;
 
 /// Threshold of the plane and pseudo-velocity constraints' own innovation test,
 /// `γ = r²/(h·P·hᵀ + R)`: above it (`χ²₁` at α = 10⁻⁴) the constraint does not hold now (a

@@ -16,7 +16,7 @@
 use crate::config::FilterConfig;
 use crate::math::{quat_exp, skew, Mat3, Quat, Vec3};
 use crate::records::ImuSample;
-use crate::state::{ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
+use crate::state::{diagonal_covariance, ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
 
 /// Bias-uncorrected IMU readings in the body frame at the two ends of one integration interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -241,16 +241,4 @@ impl ProcessNoise {
             v(self.gyro_bias_var.sqrt()),
         ])
     }
-}
-
-/// Initial diagonal covariance with per-slot standard deviations.
-pub fn diagonal_covariance(std: [Vec3; 5]) -> ErrCov {
-    let mut p = ErrCov::zeros();
-    for (block, s) in std.iter().enumerate() {
-        for i in 0..3 {
-            p[(3 * block + i, 3 * block + i)] = s[i] * s[i];
-        }
-    }
-    debug_assert_eq!(5 * 3, ERR_DIM);
-    p
 }

@@ -7,9 +7,11 @@ pub mod crlb;
 pub mod epoch;
 pub mod error;
 pub mod filters;
+#[cfg(feature = "sim")]
 pub mod generality;
 pub mod init;
 pub mod ins;
+#[cfg(feature = "io")]
 pub mod io;
 pub mod math;
 pub mod methods;
@@ -20,8 +22,10 @@ pub mod pipeline;
 pub mod planar;
 pub mod ranging;
 pub mod records;
+#[cfg(feature = "io")]
 pub mod replay;
 pub mod robust;
+#[cfg(feature = "sim")]
 pub mod sim;
 pub mod smoother;
 pub mod state;

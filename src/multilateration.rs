@@ -731,6 +731,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "sim")]
     fn of_two_equal_fits_the_lower_one_is_taken() {
         // The seed-000 hall (anchors 0.8–2.2 m high), a tag at 0.45 m on a 0.5 m grid over the
         // hall, σ 0.1 m, seeds 0–4: near an anchor the fixes flip between two heights that fit

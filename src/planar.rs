@@ -37,9 +37,6 @@ use crate::update::{vector_step, UpdateReport};
 pub use cekf::MovingAverage;
 pub use model::{PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
 
-/// Largest moving-average window of `cekf2d`, ranges per anchor.
-pub const MAX_CEKF_WINDOW: usize = 64;
-
 /// Which planar update (seed 001 §3.1–§3.3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlanarKind {

@@ -88,3 +88,6 @@ impl Observation {
         }
     }
 }
+
+/// One trajectory point: time s, position m, orientation (None for `uwb_ls`).
+pub type PosePoint = (f64, Vec3, Option<Quat>);

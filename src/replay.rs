@@ -5,9 +5,10 @@
 use crate::config::FilterConfig;
 use crate::error::{Error, Result};
 use crate::io::Recording;
-use crate::math::{Quat, Vec3};
+use crate::math::Vec3;
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::{evaluate, Evaluation};
+use crate::records::PosePoint;
 
 /// What the filter did with one anchor's ranges.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -32,9 +33,6 @@ pub struct Replay {
     /// Mean NIS of the applied ranges (None when there were none).
     pub mean_nis: Option<f64>,
 }
-
-/// One trajectory point: time s, position m, orientation (None for `uwb_ls`).
-pub type PosePoint = (f64, Vec3, Option<Quat>);
 
 impl Replay {
     /// The estimated trajectory (filtered or smoothed records; `uwb_ls` fixes).

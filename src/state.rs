@@ -24,6 +24,18 @@ pub type ErrVec = nalgebra::SVector<f64, ERR_DIM>;
 /// 15×15 error-state covariance.
 pub type ErrCov = Cov<ERR_DIM>;
 
+/// Initial diagonal covariance with per-slot standard deviations.
+pub fn diagonal_covariance(std: [Vec3; 5]) -> ErrCov {
+    let mut p = ErrCov::zeros();
+    for (block, s) in std.iter().enumerate() {
+        for i in 0..3 {
+            p[(3 * block + i, 3 * block + i)] = s[i] * s[i];
+        }
+    }
+    debug_assert_eq!(5 * 3, ERR_DIM);
+    p
+}
+
 /// Nominal state of the strapdown INS (seed 000 eq. (1), seed 004 eq. (4)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NominalState {

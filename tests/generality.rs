@@ -7,6 +7,7 @@
 
 #![allow(clippy::unwrap_used)]
 
+#[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use uwbimu_rs::generality::{run_cell, Cell, Settings, Start};
 use uwbimu_rs::methods::Method;
@@ -35,31 +36,35 @@ fn bound(method: &str, scenario: &str, start: Start) -> f64 {
     )
 }
 
+/// Why `cell` fails its bound, or None when it holds.
+fn failure(cell: &Cell<'static>, start: Start) -> Option<String> {
+    let name = cell.method.name();
+    match run_cell(cell) {
+        Ok(r) if r.finite && r.ratio() <= bound(name, cell.scenario, start) => None,
+        Ok(r) => Some(format!(
+            "{name} on {} seed {}: {:.3} m vs uwb_ls {:.3} m ({:.2}×, finite {})",
+            cell.scenario,
+            cell.seed,
+            r.rmse_m,
+            r.uwb_ls_rmse_m,
+            r.ratio(),
+            r.finite
+        )),
+        Err(e) => Some(format!("{name} on {} seed {}: {e}", cell.scenario, cell.seed)),
+    }
+}
+
 fn check(start: Start, settings: Settings<'static>) {
     let cells: Vec<Cell<'static>> = ZOO_NAMES
         .iter()
         .flat_map(|s| Method::NAMES[1..].iter().flat_map(move |m| SEEDS.iter().map(move |&seed| (*s, *m, seed))))
         .map(|(scenario, m, seed)| Cell { scenario, seed, method: Method::parse(m).unwrap(), start, settings })
         .collect();
-    let failures: Vec<String> = cells
-        .par_iter()
-        .filter_map(|cell| {
-            let name = cell.method.name();
-            match run_cell(cell) {
-                Ok(r) if r.finite && r.ratio() <= bound(name, cell.scenario, start) => None,
-                Ok(r) => Some(format!(
-                    "{name} on {} seed {}: {:.3} m vs uwb_ls {:.3} m ({:.2}×, finite {})",
-                    cell.scenario,
-                    cell.seed,
-                    r.rmse_m,
-                    r.uwb_ls_rmse_m,
-                    r.ratio(),
-                    r.finite
-                )),
-                Err(e) => Some(format!("{name} on {} seed {}: {e}", cell.scenario, cell.seed)),
-            }
-        })
-        .collect();
+    // On all cores with `parallel`, else one after the other (the same cells, the same order).
+    #[cfg(feature = "parallel")]
+    let failures: Vec<String> = cells.par_iter().filter_map(|cell| failure(cell, start)).collect();
+    #[cfg(not(feature = "parallel"))]
+    let failures: Vec<String> = cells.iter().filter_map(|cell| failure(cell, start)).collect();
     assert!(failures.is_empty(), "{start:?} {settings:?}: {} cells fail:\n{}", failures.len(), failures.join("\n"));
 }
 

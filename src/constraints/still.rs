@@ -2,10 +2,8 @@
 //! a trailing window of IMU samples, with the gravity direction taken from the filter's attitude,
 //! gated by the estimated speed.
 
+use crate::config::MAX_ZUPT_WINDOW;
 use crate::math::Vec3;
-
-/// Largest window the detector holds, samples.
-pub const MAX_WINDOW: usize = 128;
 
 /// GLRT still detector on a trailing window of `W` samples:
 ///
@@ -20,8 +18,8 @@ pub const MAX_WINDOW: usize = 128;
 /// any IMU test). The window is causal (Fischer's is centred), so detection lags by `W/2` samples.
 #[derive(Debug, Clone)]
 pub struct StillDetector {
-    accel: [Vec3; MAX_WINDOW],
-    gyro: [Vec3; MAX_WINDOW],
+    accel: [Vec3; MAX_ZUPT_WINDOW],
+    gyro: [Vec3; MAX_ZUPT_WINDOW],
     window: usize,
     len: usize,
     head: usize,
@@ -30,13 +28,13 @@ pub struct StillDetector {
 }
 
 impl StillDetector {
-    /// A detector over `window` samples (clamped to 2..=[`MAX_WINDOW`]) with GLRT `threshold`
+    /// A detector over `window` samples (clamped to 2..=[`MAX_ZUPT_WINDOW`]) with GLRT `threshold`
     /// and speed gate `max_speed` (m/s).
     pub fn new(window: usize, threshold: f64, max_speed: f64) -> Self {
         Self {
-            accel: [Vec3::zeros(); MAX_WINDOW],
-            gyro: [Vec3::zeros(); MAX_WINDOW],
-            window: window.clamp(2, MAX_WINDOW),
+            accel: [Vec3::zeros(); MAX_ZUPT_WINDOW],
+            gyro: [Vec3::zeros(); MAX_ZUPT_WINDOW],
+            window: window.clamp(2, MAX_ZUPT_WINDOW),
             len: 0,
             head: 0,
             threshold,

@@ -24,10 +24,10 @@
 //! a state that is still jumping only slows the re-convergence (after the zoo's 10 s outage it
 //! took 3 s instead of 1).
 
+use crate::config::MAX_CEKF_WINDOW;
 use crate::error::{Error, Result};
 use crate::planar::ekf::{linearised_update, Epoch};
 use crate::planar::model::{PlanarCov, PlanarState};
-use crate::planar::MAX_CEKF_WINDOW;
 use crate::update::UpdateReport;
 
 /// Oldest range the prefilter averages, s: the range rate is taken as constant over this span
