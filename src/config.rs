@@ -116,7 +116,7 @@ pub struct FilterConfig {
     /// Still detector window, IMU samples.
     pub zupt_window: usize,
     /// Still detector threshold on its statistic, dimensionless (see
-    /// [`crate::constraints::StillDetector`]).
+    /// [`crate::filters::constraints::StillDetector`]).
     pub zupt_threshold: f64,
     /// Still detector: std of the specific force about its value at rest, m/s² (sensor noise
     /// plus attitude and bias errors).

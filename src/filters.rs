@@ -46,6 +46,7 @@ macro_rules! delegate_filter {
 }
 
 pub mod ackf;
+pub mod constraints;
 pub mod core;
 pub mod loose;
 pub mod named;

@@ -2,7 +2,6 @@
 
 pub mod columns;
 pub mod config;
-pub mod constraints;
 pub mod crlb;
 pub mod epoch;
 pub mod error;

@@ -11,7 +11,7 @@ NumPy array (``range_labels``: uint8) owned by the caller.
 """
 
 from collections.abc import Sequence
-from typing import Any, final
+from typing import Any, TypeVar, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -80,6 +80,8 @@ _Override = float | bool
 # Exceptions (src/bindings/errors.rs)
 # --------------------------------------------------------------------------------------------
 
+_S = TypeVar("_S", bound="_StreamingFilter")
+
 class UwbImuError(ValueError):
     """Base class of uwbimu_rs errors (a ValueError).
 
@@ -107,7 +109,9 @@ class FormatError(OSError):
 # --------------------------------------------------------------------------------------------
 
 FILTERS: list[str]
-"""Method names accepted by :func:`run_filter`: ``["uwb_ls", "ekf"]``."""
+"""Method names accepted by :func:`run_filter`: ``uwb_ls``, the 15-state filters ``ekf``, ``iekf``,
+``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``, ``ackf``, ``eskf``, ``shaf``, ``shfaf``, ``ukf``
+and the planar ``ekf2d``, ``ukf2d``, ``cekf2d``."""
 
 @final
 class FilterConfig:
@@ -195,11 +199,16 @@ class UpdateReport:
 
     @property
     def anchor(self) -> int:
-        """Anchor index."""
+        """Anchor index (a TDoA's anchor i)."""
+
+    @property
+    def anchor_j(self) -> int | None:
+        """A TDoA's anchor j; None for a range."""
 
     @property
     def range(self) -> float:
-        """The range as measured, m (before alignment to the epoch's reference time)."""
+        """The range as measured, m (before alignment to the epoch's reference time); a TDoA's
+        ``d_ij``."""
 
     @property
     def innovation(self) -> float:
@@ -238,11 +247,12 @@ class UpdateReport:
         """Whether the epoch was applied as its UWB-only fix (re-acquisition after an outage, a
         poor start or a divergence)."""
 
-@final
-class Ekf:
-    """The tightly coupled error-state EKF (seed 000), fed sample by sample.
+class _StreamingFilter:
+    """Streaming API shared by the 15-state filter classes (documented once here; each class below
+    is one named composition of the shared pieces). Constructed as ``Cls(anchors, *, initial,
+    config=None, record=False)``.
 
-    Parameters
+        Parameters
     ----------
     anchors : array_like, shape (K, 3)
         Anchor positions in the navigation frame, m (finite).
@@ -264,8 +274,8 @@ class Ekf:
     """
 
     def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Ekf: ...
+        cls: type[_S], anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+    ) -> _S: ...
     def smooth(self) -> dict[str, _F64]:
         """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
         qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
@@ -348,6 +358,14 @@ class Ekf:
         """Apply one magnetometer sample (3,) in the IMU frame measured at ``t`` (s). Only
         :class:`Ackf` uses a magnetometer (seed 003); the others raise ``UwbImuError``."""
 
+    def update_tdoa(self, t: float, i: int, j: int, d_ij: float) -> list[UpdateReport]:
+        """Apply one TDoA ``d_ij = |p − a_j| − |p − a_i|`` (m) between anchor indices ``i`` and ``j``
+        measured at ``t`` (s), at its own time, through the filter's noise policy (σ =
+        ``tdoa_std``). Returns its report (``anchor`` = i, ``anchor_j`` = j, ``range`` = d_ij), or
+        an empty list before the first :meth:`predict`. The loosely coupled filters
+        (:class:`Eskf`, :class:`Shaf`, :class:`Shfaf`) raise ``UwbImuError``; so do an unknown
+        or repeated anchor and a non-finite value."""
+
     def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]:
         """Apply the ranges of one epoch (all measured at ``t``) jointly, at once (after the open
         epoch, if any).
@@ -384,292 +402,55 @@ class Ekf:
         """Error-state covariance, shape (15, 15), order δp, δv, δθ, δb_a, δb_g (a copy)."""
 
 
-@final
-class Iekf:
-    """The iterated EKF (seed 000 Algorithm 1 without re-weighting), fed sample by sample; API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Iekf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
 
 @final
-class Rekf:
-    """The robust EKF of seed 000 (eqs. (37)–(40)), fed sample by sample; API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Rekf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Ekf(_StreamingFilter):
+    """The tightly coupled error-state EKF (seed 000), fed sample by sample."""
 
 @final
-class Riekf:
-    """The robust iterated EKF of seed 000 (Algorithm 1), fed sample by sample; API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Riekf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Iekf(_StreamingFilter):
+    """The iterated EKF (seed 000 Algorithm 1 without re-weighting), fed sample by sample; API of :class:`_StreamingFilter`."""
 
 @final
-class Criekf:
-    """RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF); API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Criekf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Rekf(_StreamingFilter):
+    """The robust EKF of seed 000 (eqs. (37)–(40)), fed sample by sample; API of :class:`_StreamingFilter`."""
 
 @final
-class Ckf:
-    """The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)); API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Ckf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Riekf(_StreamingFilter):
+    """The robust iterated EKF of seed 000 (Algorithm 1), fed sample by sample; API of :class:`_StreamingFilter`."""
 
 @final
-class Arckf:
-    """The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1); API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Arckf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Criekf(_StreamingFilter):
+    """RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF); API of :class:`_StreamingFilter`."""
 
 @final
-class Ackf:
-    """The adaptive complementary Kalman filter of seed 003 (gravity and geomagnetic aiding); API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Ackf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Ckf(_StreamingFilter):
+    """The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)); API of :class:`_StreamingFilter`."""
 
 @final
-class Eskf:
-    """The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity); API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Eskf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Arckf(_StreamingFilter):
+    """The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1); API of :class:`_StreamingFilter`."""
 
 @final
-class Shaf:
-    """The Sage–Husa adaptive ESKF of seed 004; API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Shaf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Ackf(_StreamingFilter):
+    """The adaptive complementary Kalman filter of seed 003 (gravity and geomagnetic aiding); API of :class:`_StreamingFilter`."""
 
 @final
-class Shfaf:
-    """The Sage–Husa fuzzy adaptive ESKF of seed 004; API as :class:`Ekf`."""
-
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Shfaf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
-
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+class Eskf(_StreamingFilter):
+    """The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity); API of :class:`_StreamingFilter`."""
 
 @final
-class Ukf:
-    """The 15-state error-state UKF (seed 001 eqs. (11)–(14) over the INS error state); API as
-    :class:`Ekf`."""
+class Shaf(_StreamingFilter):
+    """The Sage–Husa adaptive ESKF of seed 004; API of :class:`_StreamingFilter`."""
 
-    def __new__(
-        cls, anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
-    ) -> Ukf: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+@final
+class Shfaf(_StreamingFilter):
+    """The Sage–Husa fuzzy adaptive ESKF of seed 004; API of :class:`_StreamingFilter`."""
 
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]: ...
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]: ...
-    def flush(self) -> list[UpdateReport]: ...
-    @property
-    def pending(self) -> int: ...
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport: ...
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None: ...
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]: ...
-    @property
-    def time(self) -> float | None: ...
-    @property
-    def state(self) -> dict[str, _F64]: ...
-    @property
-    def covariance(self) -> _F64: ...
+@final
+class Ukf(_StreamingFilter):
+    """The 15-state error-state UKF (seed 001 eqs. (11)–(14) over the INS error state), fed sample by
+    sample; API of :class:`_StreamingFilter`."""
 
 # --------------------------------------------------------------------------------------------
 # Ranging (src/bindings/ranging.rs): seed 001 §2
@@ -742,6 +523,7 @@ def run_filter(
     updates: bool = False,
     smooth: bool = False,
     mag: ArrayLike | None = None,
+    tdoa: ArrayLike | None = None,
 ) -> tuple[dict[str, _F64], dict[str, _F64] | None, dict[str, Any]]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
@@ -930,9 +712,13 @@ SIM_OVERRIDE_KEYS: list[str]
 SIM_ZOO_NAMES: list[str]
 """Scenario names accepted by :func:`sim_zoo` (``"agv_loop"``, ``"stop_and_go"``, ...)."""
 
-def sim_zoo(name: str, seed: int = 0) -> dict[str, Any]:
-    """Simulate a scenario of the zoo: the dict of :func:`sim_preset` with the scenario's filter
-    ``config`` and ``default_sensors`` (bool). Raises ``ConfigError`` for an unknown name."""
+def sim_zoo(
+    name: str, seed: int = 0, overrides: dict[str, _Override] | None = None, **kwargs: _Override
+) -> dict[str, Any]:
+    """Simulate a scenario of the zoo with optional overrides (as :func:`sim_preset`): the dict of
+    :func:`sim_preset` with the scenario's filter ``config`` (its ``tdoa_std`` matched to an
+    overridden TDoA model) and ``default_sensors`` (bool). Raises ``ConfigError`` for an unknown
+    name or override."""
 
 def sim_zoo_matrix(
     methods: Sequence[str],

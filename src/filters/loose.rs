@@ -4,8 +4,8 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::config::{FilterConfig, InitialState};
-use crate::constraints::Constraints;
 use crate::error::{Error, Result};
+use crate::filters::constraints::Constraints;
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Mat3;
 use crate::math::Vec3;

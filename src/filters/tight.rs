@@ -4,8 +4,8 @@
 //! seed 000 Algorithm 1, or unscented).
 
 use crate::config::{FilterConfig, InitialState};
-use crate::constraints::Constraints;
 use crate::error::{Error, Result};
+use crate::filters::constraints::Constraints;
 use crate::filters::reacquire::{reacquire, DivergenceWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};

@@ -31,9 +31,11 @@ def test_stub_matches_runtime():
 
 def test_stub_class_bases_match_runtime():
     tree = ast.parse(STUB.read_text(encoding="utf-8"))
-    classes = {node.name: node for node in tree.body if isinstance(node, ast.ClassDef)}
+    # A private stub class (``_StreamingFilter``) documents an API shared by several classes once;
+    # it is a base in the stub only, with no runtime counterpart.
+    classes = {node.name: node for node in tree.body if isinstance(node, ast.ClassDef) and not node.name.startswith("_")}
     assert classes, f"no classes found in {STUB}"
     for name, node in classes.items():
-        stub_bases = tuple(ast.unparse(b) for b in node.bases) or ("object",)
+        stub_bases = tuple(b for b in (ast.unparse(b) for b in node.bases) if not b.startswith("_")) or ("object",)
         runtime_bases = tuple(b.__name__ for b in getattr(_native, name).__bases__)
         assert stub_bases == runtime_bases, f"{name}: stub bases {stub_bases}, runtime {runtime_bases}"
