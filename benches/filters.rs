@@ -21,7 +21,11 @@ type Build<F> = Box<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs:
 
 fn setup<F: Estimator>(build: &Build<F>) -> F {
     let initial = InitialState { position: Vec3::new(4.0, 3.0, 0.3), ..InitialState::default() };
-    let config = FilterConfig { lever_arm: Vec3::new(0.0, 0.0, 0.05), ..FilterConfig::default() };
+    let config = {
+        let mut c = FilterConfig::default();
+        c.mounting.lever_arm = Vec3::new(0.0, 0.0, 0.05);
+        c
+    };
     let mut f = build(anchors(), &initial, config).expect("valid filter");
     f.feed_imu(0.0, &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.1)).expect("first sample");
     f

@@ -34,14 +34,14 @@ pub fn posterior_crlb(
             got: truth.len().to_string(),
         });
     }
-    let r_var = config.range_std.powi(2);
+    let r_var = config.ranging.range_std.powi(2);
     let mut bound = *initial;
     let mut out = Vec::with_capacity(imu.len());
     let t_first = imu.first().map_or(f64::INFINITY, |s| s.t_s);
     let mut next = ranges.partition_point(|r| r.t_s < t_first);
     for k in 0..imu.len() {
         if k > 0 {
-            let interval = ImuInterval::between(&imu[k - 1], &imu[k], &config.imu_rotation);
+            let interval = ImuInterval::between(&imu[k - 1], &imu[k], &config.mounting.imu_rotation);
             bound = Transition::new(&truth[k - 1], &interval, config)
                 .propagate_covariance(&bound, &ProcessNoise::new(config, interval.dt_s));
         }
@@ -54,7 +54,7 @@ pub fn posterior_crlb(
                 anchor: r.anchor as f64,
                 count: anchors.len(),
             })?;
-            if let Some(pred) = predict_range(&truth[k], anchor, &config.lever_arm) {
+            if let Some(pred) = predict_range(&truth[k], anchor, &config.mounting.lever_arm) {
                 scalar_step(&mut dx, &mut bound, &pred.jacobian, 0.0, r_var)?;
             }
             next += 1;

@@ -102,11 +102,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
     let data = simulate(&scenario.sim)?;
     let config = match cell.settings {
         Settings::Matched => scenario.config.clone(),
-        Settings::Defaults => FilterConfig {
-            lever_arm: scenario.config.lever_arm,
-            imu_rotation: scenario.config.imu_rotation,
-            ..FilterConfig::default()
-        },
+        Settings::Defaults => FilterConfig { mounting: scenario.config.mounting, ..FilterConfig::default() },
         Settings::Custom(c) => c.clone(),
     };
     let initial = scenario.true_initial(&data)?;

@@ -65,10 +65,10 @@ pub struct SelfInit {
 pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
     let first = imu.first().ok_or_else(|| Error::InsufficientData("self-initialisation needs IMU samples".into()))?;
     let t0 = first.t_s;
-    let body = |s: &ImuSample| (config.imu_rotation * s.accel, config.imu_rotation * s.gyro);
+    let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
 
     // 1. Roll, pitch, gyro bias from the start window.
-    let window: Vec<(Vec3, Vec3)> = imu.iter().take_while(|s| s.t_s < t0 + config.init_still_s).map(body).collect();
+    let window: Vec<(Vec3, Vec3)> = imu.iter().take_while(|s| s.t_s < t0 + config.init.still_s).map(body).collect();
     let n = window.len() as f64;
     let f_mean = window.iter().map(|w| w.0).sum::<Vec3>() / n;
     let w_mean = window.iter().map(|w| w.1).sum::<Vec3>() / n;
@@ -88,12 +88,12 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
         .collect();
     // Fixes whose ranges disagree (an outlier, NLOS) are left out when any others exist.
     let consistent: Vec<(f64, Fix)> =
-        all.iter().filter(|(_, f)| f.is_consistent(config.range_std, CONSISTENCY_ALPHA)).copied().collect();
+        all.iter().filter(|(_, f)| f.is_consistent(config.ranging.range_std, CONSISTENCY_ALPHA)).copied().collect();
     let fixes = if consistent.is_empty() { all } else { consistent };
     let Some((_, first_fix)) = fixes.first() else {
         return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));
     };
-    let start_fixes: Vec<&Fix> = fixes.iter().filter(|(t, _)| still && *t <= t0 + config.init_still_s).map(|(_, f)| f).collect();
+    let start_fixes: Vec<&Fix> = fixes.iter().filter(|(t, _)| still && *t <= t0 + config.init.still_s).map(|(_, f)| f).collect();
     // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
     // errors (anchor survey, multipath, NLOS) are the same in every fix.
     let (tag0, tag0_cov) = if start_fixes.is_empty() {
@@ -122,7 +122,7 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
     let tilt_std = if still { 0.02 } else { 0.1 };
     Ok(SelfInit {
         initial: InitialState {
-            position: tag0 - orientation * config.lever_arm,
+            position: tag0 - orientation * config.mounting.lever_arm,
             velocity: Vec3::zeros(),
             orientation,
             position_std,
@@ -156,7 +156,7 @@ fn heading_from_motion(
         accel_bias: Vec3::zeros(),
         gyro_bias,
     };
-    let tag_dr = |x: &NominalState| x.position + x.orientation * config.lever_arm;
+    let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm;
     let dr0 = tag_dr(&x);
     let (mut cross, mut dot, mut used) = (0.0, 0.0, 0usize);
     let mut k = 0;
@@ -165,13 +165,13 @@ fn heading_from_motion(
             break;
         }
         while k + 1 < imu.len() && imu[k + 1].t_s <= *t_fix {
-            let interval = ImuInterval::between(&imu[k], &imu[k + 1], &config.imu_rotation);
+            let interval = ImuInterval::between(&imu[k], &imu[k + 1], &config.mounting.imu_rotation);
             x = propagate_nominal(&x, &interval, config);
             k += 1;
         }
         let d_uwb = fix.position - tag0;
         let d_dr = tag_dr(&x) - dr0;
-        if d_uwb.xy().norm() >= config.init_heading_distance_m {
+        if d_uwb.xy().norm() >= config.init.heading_distance_m {
             cross += d_dr.x * d_uwb.y - d_dr.y * d_uwb.x;
             dot += d_dr.x * d_uwb.x + d_dr.y * d_uwb.y;
             used += 1;

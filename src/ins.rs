@@ -37,7 +37,7 @@ pub struct ImuInterval {
 /// for first-order Markov biases with time constants τ).
 fn bias_decay(config: &FilterConfig, dt_s: f64) -> (f64, f64) {
     let decay = |tau: Option<f64>| tau.map_or(1.0, |t| (-dt_s / t).exp());
-    (decay(config.accel_bias_tau), decay(config.gyro_bias_tau))
+    (decay(config.ins.accel_bias_tau), decay(config.ins.gyro_bias_tau))
 }
 
 impl ImuInterval {
@@ -59,7 +59,7 @@ impl ImuInterval {
 /// (seed 002 eqs. (17)–(18)).
 pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &FilterConfig) -> NominalState {
     let dt = imu.dt_s;
-    let gravity = &config.gravity;
+    let gravity = &config.ins.gravity;
     // Biases at the end of the interval (decayed for Markov biases); each sample is corrected by
     // the bias at its own time.
     let (decay_a, decay_g) = bias_decay(config, dt);
@@ -108,7 +108,7 @@ impl Transition {
         let c = r * skew(&f);
         let w = skew(&omega);
         let rate = |tau: Option<f64>| tau.map_or(0.0, |t| 1.0 / t);
-        let (ra, rg) = (rate(config.accel_bias_tau), rate(config.gyro_bias_tau));
+        let (ra, rg) = (rate(config.ins.accel_bias_tau), rate(config.ins.gyro_bias_tau));
         let (ba_ba, bg_bg) = bias_decay(config, dt);
         Self {
             p_v: dt,
@@ -222,11 +222,11 @@ impl ProcessNoise {
             None => walk * walk * dt_s,
         };
         Self {
-            vel_var: config.accel_noise_density.powi(2) * dt_s,
-            att_var: config.gyro_noise_density.powi(2) * dt_s,
-            accel_bias_var: bias_var(config.accel_bias_tau, config.accel_bias_std, config.accel_bias_walk),
-            gyro_bias_var: bias_var(config.gyro_bias_tau, config.gyro_bias_std, config.gyro_bias_walk),
-            trapezoid: config.trapezoidal_process_noise,
+            vel_var: config.ins.accel_noise_density.powi(2) * dt_s,
+            att_var: config.ins.gyro_noise_density.powi(2) * dt_s,
+            accel_bias_var: bias_var(config.ins.accel_bias_tau, config.ins.accel_bias_markov_std, config.ins.accel_bias_walk),
+            gyro_bias_var: bias_var(config.ins.gyro_bias_tau, config.ins.gyro_bias_markov_std, config.ins.gyro_bias_walk),
+            trapezoid: config.ins.trapezoidal_process_noise,
         }
     }
 

@@ -68,7 +68,7 @@ pub struct LsConfig {
 impl LsConfig {
     /// The defaults with the range σ and the epoch window of a filter configuration.
     pub fn from_filter_config(config: &FilterConfig) -> Self {
-        Self { range_std_m: config.range_std, epoch_window_s: config.epoch_window_s, ..Self::default() }
+        Self { range_std_m: config.ranging.range_std, epoch_window_s: config.ranging.epoch_window_s, ..Self::default() }
     }
 }
 

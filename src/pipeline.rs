@@ -126,7 +126,7 @@ impl<F: InertialFilter> Estimator for F {
     /// Tag position `p + R·l` and velocity `v + R·(ω × l)` (ω the last bias-corrected rate).
     fn tag_motion(&self) -> (Vec3, Vec3) {
         let core = self.core();
-        let (x, lever_arm) = (core.state(), &core.config().lever_arm);
+        let (x, lever_arm) = (core.state(), &core.config().mounting.lever_arm);
         let omega = core.last_imu_body().1 - x.gyro_bias;
         (tag_position(x, lever_arm), x.velocity + x.orientation * omega.cross(lever_arm))
     }
@@ -136,7 +136,7 @@ impl<F: InertialFilter> Estimator for F {
     }
 
     fn epoch_window_s(&self) -> f64 {
-        self.core().config().epoch_window_s
+        self.core().config().ranging.epoch_window_s
     }
 }
 

@@ -81,7 +81,7 @@ impl PlanarFilter {
         if anchors.is_empty() {
             return Err(Error::InsufficientData("at least one anchor is required".into()));
         }
-        let weights = UnscentedWeights::new(PLANAR_DIM, config.ukf_alpha, config.ukf_beta, config.ukf_lambda)?;
+        let weights = UnscentedWeights::new(PLANAR_DIM, config.unscented.alpha, config.unscented.beta, config.unscented.lambda)?;
         let (p, v) = (initial.position, initial.velocity);
         if let Some(col) = [p.x, p.y, p.z, v.x, v.y].iter().position(|x| !x.is_finite()) {
             return Err(Error::NonFinite { name: "initial state", row: 0, col, value: [p.x, p.y, p.z, v.x, v.y][col] });
@@ -92,14 +92,17 @@ impl PlanarFilter {
         {
             covariance[(i, i)] = s * s;
         }
-        let window = if kind == PlanarKind::Cekf { config.cekf_window } else { 1 };
+        let window = if kind == PlanarKind::Cekf { config.planar.cekf_window } else { 1 };
         // The initial roll and pitch level the body frame once and for all (e.g. an IMU mounted
         // upside down and not declared in `imu_rotation`).
         let (roll, pitch, yaw) = initial.orientation.euler_angles();
         let level = UnitQuaternion::from_euler_angles(roll, pitch, 0.0);
         Ok(Self {
             kind,
-            geometry: PlanarGeometry { height_m: config.plane_height.unwrap_or(p.z), lever_arm: level * config.lever_arm },
+            geometry: PlanarGeometry {
+                height_m: config.constraints.plane_height.unwrap_or(p.z),
+                lever_arm: level * config.mounting.lever_arm,
+            },
             prefilter: MovingAverage::new(anchors.len(), window)?,
             anchors,
             state: PlanarState::new(p.x, p.y, v.x, v.y),
@@ -108,11 +111,11 @@ impl PlanarFilter {
             gyro_bias_z: (level * initial.gyro_bias).z,
             accel_bias_xy: (level * initial.accel_bias).xy(),
             level,
-            imu_rotation: level * config.imu_rotation,
-            accel_density: config.planar_accel_density,
-            range_var: config.range_std.powi(2),
+            imu_rotation: level * config.mounting.imu_rotation,
+            accel_density: config.planar.accel_density,
+            range_var: config.ranging.range_std.powi(2),
             weights,
-            epoch_window_s: config.epoch_window_s,
+            epoch_window_s: config.ranging.epoch_window_s,
             time_s: None,
             held_accel: Vector2::zeros(),
             held_rate_z: 0.0,

@@ -41,7 +41,11 @@ fn stationary(data: &SimData) -> Vec<bool> {
 fn still_detector_precision_and_recall_above_90_percent() {
     let sim = stop_and_go(6.0, 1);
     let data = simulate(&sim).expect("sim");
-    let config = FilterConfig { zupt: true, ..config_for(&sim) };
+    let config = {
+        let mut c = config_for(&sim);
+        c.constraints.zupt = true;
+        c
+    };
     let trace = ekf_trace(&data, config);
     let truth = stationary(&data);
     let (mut tp, mut fp, mut fn_) = (0.0, 0.0, 0.0);
@@ -78,7 +82,11 @@ fn zupt_lowers_error_during_long_stops() {
         rms(&e)
     };
     let without = stop_error(&ekf_trace(&data, base.clone()));
-    let with = stop_error(&ekf_trace(&data, FilterConfig { zupt: true, ..base }));
+    let with = stop_error(&ekf_trace(&data, {
+        let mut c = base;
+        c.constraints.zupt = true;
+        c
+    }));
     println!("horizontal RMSE during stops: {without:.3} m without ZUPT, {with:.3} m with");
     // Measured 0.386 → 0.103 m.
     assert!(with < 0.35 * without, "with {with} vs without {without}");
@@ -101,7 +109,11 @@ fn plane_constraint_lowers_error_with_coplanar_anchors() {
         rms(&e)
     };
     let without = error_3d(&ekf_trace(&data, base.clone()));
-    let with = error_3d(&ekf_trace(&data, FilterConfig { plane: true, ..base }));
+    let with = error_3d(&ekf_trace(&data, {
+        let mut c = base;
+        c.constraints.plane = true;
+        c
+    }));
     println!("3-D RMSE with coplanar anchors: {without:.3} m without plane, {with:.3} m with");
     // Measured 0.640 → 0.104 m.
     assert!(with < 0.22 * without, "with {with} vs without {without}");
@@ -133,8 +145,17 @@ fn pseudo_velocity_lowers_error_in_a_uwb_outage_at_constant_speed() {
         rms(&e)
     };
     let without = outage_error(base.clone());
-    let paper = outage_error(FilterConfig { pseudo_velocity: true, ..base.clone() });
-    let with = outage_error(FilterConfig { pseudo_velocity: true, pseudo_velocity_var: 0.05, ..base });
+    let paper = outage_error({
+        let mut c = base.clone();
+        c.constraints.pseudo_velocity = true;
+        c
+    });
+    let with = outage_error({
+        let mut c = base;
+        c.constraints.pseudo_velocity = true;
+        c.constraints.pseudo_velocity_var = 0.05;
+        c
+    });
     println!("horizontal RMSE in a 10 s outage: {without:.3} m without pseudo-velocity, {paper:.3} m with var 6, {with:.3} m with var 0.05");
     // Measured 0.771 → 0.432 m with variance 0.05; the paper's 6 m²/s² is too weak to matter
     // (0.753 m: within 5 % of no constraint).

@@ -3,7 +3,6 @@
 mod common;
 
 use common::{config_for, truth_initial};
-use uwbimu_rs::config::FilterConfig;
 use uwbimu_rs::crlb::posterior_crlb;
 use uwbimu_rs::filters::{Ekf, InertialFilter};
 use uwbimu_rs::math::Vec3;
@@ -33,7 +32,11 @@ fn crlb_equals_the_covariance_of_a_filter_linearised_at_the_truth() {
     cfg.imu_noise = ImuNoise::none();
     cfg.uwb.range_std_m = 0.0;
     let data = simulate(&cfg).expect("sim");
-    let config = FilterConfig { range_std: 0.1, ..config_for(&cfg) };
+    let config = {
+        let mut c = config_for(&cfg);
+        c.ranging.range_std = 0.1;
+        c
+    };
     let mut ekf = Ekf::new(data.anchors.clone(), &truth_initial(&data, Vec3::zeros()), config.clone()).expect("filter");
     let p0: ErrCov = *ekf.core().covariance();
     let bound = posterior_crlb(&truth_states(&data), &data.imu, &data.ranges, &data.anchors, &p0, &config).expect("crlb");

@@ -44,7 +44,7 @@ fn ekf_beats_uwb_only_on_seed000_without_nlos() {
         let trace = run(&mut ekf, &data.imu, &data.ranges).expect("run");
         let ekf_rmse = rms(&horizontal_errors(&trace.steps, &data));
 
-        let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.range_std, ..LsConfig::default() });
+        let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.ranging.range_std, ..LsConfig::default() });
         let truth_t: Vec<f64> = data.truth.iter().map(|t| t.t_s).collect();
         let truth_p: Vec<Vec3> = data.truth.iter().map(|t| t.position + t.orientation * cfg.lever_arm_m).collect();
         let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
@@ -116,7 +116,7 @@ fn upside_down_imu_needs_and_honours_imu_rotation() {
     };
     let right = rmse_with(config_for(&cfg)).expect("run with the right mounting");
     let mut wrong_cfg = config_for(&cfg);
-    wrong_cfg.imu_rotation = uwbimu_rs::math::Quat::identity();
+    wrong_cfg.mounting.imu_rotation = uwbimu_rs::math::Quat::identity();
     // Without the mounting the filter diverges: a huge error, or a clear numerical error.
     let wrong = rmse_with(wrong_cfg).unwrap_or(f64::INFINITY);
     println!("upside-down IMU: RMSE {right:.3} m with imu_rotation, {wrong:.3} m without");

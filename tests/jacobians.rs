@@ -1,7 +1,7 @@
 //! Laws of the INS core and the range model: analytic Jacobians against central differences,
 //! block-structured propagation against the dense product, Joseph update against its definition.
 
-use uwbimu_rs::config::FilterConfig;
+use uwbimu_rs::config::{FilterConfig, InsConfig};
 use uwbimu_rs::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use uwbimu_rs::math::{quat_exp, skew, Quat, Vec3};
 use uwbimu_rs::models::range::predict_range;
@@ -39,9 +39,13 @@ fn perturbed(x: &NominalState, j: usize, eps: f64) -> NominalState {
 #[test]
 fn transition_matches_finite_differences_of_mechanization() {
     // Random-walk biases, and first-order Markov biases (seed 002) with short time constants.
-    for config in
-        [FilterConfig::default(), FilterConfig { accel_bias_tau: Some(2.0), gyro_bias_tau: Some(0.5), ..FilterConfig::default() }]
-    {
+    for config in [
+        FilterConfig::default(),
+        FilterConfig {
+            ins: InsConfig { accel_bias_tau: Some(2.0), gyro_bias_tau: Some(0.5), ..InsConfig::default() },
+            ..FilterConfig::default()
+        },
+    ] {
         check_transition(&config);
     }
 }
@@ -69,7 +73,10 @@ fn check_transition(config: &FilterConfig) {
 fn block_propagation_equals_dense_product() {
     let x0 = example_state();
     let imu = example_imu();
-    let cfg = FilterConfig { accel_bias_tau: Some(30.0), gyro_bias_tau: Some(100.0), ..FilterConfig::default() };
+    let cfg = FilterConfig {
+        ins: InsConfig { accel_bias_tau: Some(30.0), gyro_bias_tau: Some(100.0), ..InsConfig::default() },
+        ..FilterConfig::default()
+    };
     let t = Transition::new(&x0, &imu, &cfg);
     let a = ErrCov::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.01 + if i == j { 1.0 } else { 0.0 });
     let p = a * a.transpose();

@@ -17,12 +17,12 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
         let data = simulate(&cfg).expect("sim");
         let mut fc = config_for(&cfg);
         // U(−0.2, 0.2) added to σ 0.1: total std √(0.1² + 0.4²/12) ≈ 0.15 m.
-        fc.range_std = (0.1f64.powi(2) + 0.4f64.powi(2) / 12.0).sqrt();
+        fc.ranging.range_std = (0.1f64.powi(2) + 0.4f64.powi(2) / 12.0).sqrt();
         let mut eskf =
             Eskf::new(data.anchors.clone(), &truth_initial(&data, Vec3::new(0.57, 0.0, 0.0)), fc.clone()).expect("eskf");
         let trace = run(&mut eskf, &data.imu, &data.ranges).expect("run");
         let errors = horizontal_errors(&trace.steps, &data);
-        let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.range_std, ..LsConfig::default() });
+        let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.ranging.range_std, ..LsConfig::default() });
         let truth_t: Vec<f64> = data.truth.iter().map(|t| t.t_s).collect();
         let truth_p: Vec<Vec3> = data.truth.iter().map(|t| t.position).collect();
         let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
@@ -46,10 +46,10 @@ fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, pape
     let cfg = preset(name, seed).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let mut fc = config_for(&cfg);
-    fc.range_std = (0.1f64.powi(2) + 0.4f64.powi(2) / 12.0).sqrt();
-    fc.loose_noise_scale = noise_scale;
+    fc.ranging.range_std = (0.1f64.powi(2) + 0.4f64.powi(2) / 12.0).sqrt();
+    fc.adaptive.loose_noise_scale = noise_scale;
     if paper {
-        fc.loose_variance_factor = false;
+        fc.adaptive.loose_variance_factor = false;
         fc.sage_husa.bounded = false;
     }
     let initial = truth_initial(&data, start_offset);
@@ -59,7 +59,7 @@ fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, pape
         run(&mut Shaf::new(a.clone(), &initial, fc.clone()).expect("shaf"), &data.imu, &data.ranges).expect("run"),
         run(&mut Shfaf::new(a.clone(), &initial, fc.clone()).expect("shfaf"), &data.imu, &data.ranges).expect("run"),
     ];
-    let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.range_std, ..LsConfig::default() });
+    let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc.ranging.range_std, ..LsConfig::default() });
     let truth_t: Vec<f64> = data.truth.iter().map(|t| t.t_s).collect();
     let truth_p: Vec<Vec3> = data.truth.iter().map(|t| t.position).collect();
     let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();

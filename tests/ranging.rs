@@ -151,7 +151,11 @@ fn per_anchor_fit_and_batch_preprocessing() {
             trace.steps.iter().zip(&data.truth).map(|(s, t)| (s.state.position - t.position).xy().norm_squared()).collect();
         (e.iter().sum::<f64>() / e.len() as f64).sqrt()
     };
-    let base = FilterConfig { range_std: 0.0514, ..FilterConfig::default() };
+    let base = {
+        let mut c = FilterConfig::default();
+        c.ranging.range_std = 0.0514;
+        c
+    };
     let raw = horizontal_rmse(&data.ranges, &base);
     let corrected = horizontal_rmse(&data.ranges, &FilterConfig { range_calibration: cal, ..base.clone() });
     let reference = horizontal_rmse(&clean, &base);

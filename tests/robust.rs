@@ -24,7 +24,11 @@ fn nlos_data(seed: u64) -> (SimData, FilterConfig) {
 fn riekf_with_one_iteration_equals_rekf() {
     let (data, config) = nlos_data(4);
     let initial = truth_initial(&data, Vec3::zeros());
-    let one = FilterConfig { max_iterations: 1, ..config.clone() };
+    let one = {
+        let mut c = config.clone();
+        c.robust.max_iterations = 1;
+        c
+    };
     let a = trace(&mut Riekf::new(data.anchors.clone(), &initial, one).expect("riekf"), &data);
     let b = trace(&mut Rekf::new(data.anchors.clone(), &initial, config).expect("rekf"), &data);
     assert_eq!(a.steps, b.steps);
@@ -47,7 +51,7 @@ fn without_outliers_riekf_is_the_iterated_ekf() {
     assert!(max_diff < 0.05, "{max_diff}");
     // The iterations converge: mean iterations well below the cap.
     let mean_iter = i.updates.iter().map(|u| f64::from(u.report.iterations)).sum::<f64>() / i.updates.len() as f64;
-    assert!(mean_iter > 1.0 && mean_iter < f64::from(config.max_iterations), "{mean_iter}");
+    assert!(mean_iter > 1.0 && mean_iter < f64::from(config.robust.max_iterations), "{mean_iter}");
     // and match the single-step EKF closely on clean data.
     let e = trace(&mut Ekf::new(data.anchors.clone(), &initial, config).expect("ekf"), &data);
     let (re, ri) = (rms(&horizontal_errors(&e.steps, &data)), rms(&horizontal_errors(&i.steps, &data)));
@@ -57,7 +61,7 @@ fn without_outliers_riekf_is_the_iterated_ekf() {
 #[test]
 fn reports_expose_gamma_inflation_and_down_weighting() {
     let (data, config) = nlos_data(2);
-    let threshold = chi2_quantile_1dof(config.alpha).expect("alpha");
+    let threshold = chi2_quantile_1dof(config.robust.significance).expect("alpha");
     let initial = truth_initial(&data, Vec3::zeros());
     let t = trace(&mut Rekf::new(data.anchors.clone(), &initial, config).expect("rekf"), &data);
     let mut down = 0;
@@ -123,7 +127,8 @@ fn seed000_nlos_table_over_five_seeds() {
             go(Riekf::new(a.clone(), &init, config.clone()), &data),
             go(Criekf::new(a.clone(), &init, config.clone()), &data),
         ];
-        let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: config.range_std, ..LsConfig::default() });
+        let fixes =
+            uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: config.ranging.range_std, ..LsConfig::default() });
         let truth_t: Vec<f64> = data.truth.iter().map(|t| t.t_s).collect();
         let truth_p: Vec<Vec3> = data.truth.iter().map(|t| t.position).collect();
         let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
@@ -175,7 +180,11 @@ fn adaptive_range_noise_learns_a_noisy_anchor() {
     let data = simulate(&cfg).expect("sim");
     let initial = truth_initial(&data, Vec3::zeros());
     let fixed = config_for(&cfg);
-    let adaptive = FilterConfig { adaptive_range_noise: true, ..fixed.clone() };
+    let adaptive = {
+        let mut c = fixed.clone();
+        c.adaptive.range_noise = true;
+        c
+    };
     let t_fixed = trace(&mut Ekf::new(data.anchors.clone(), &initial, fixed).expect("ekf"), &data);
     let t_adaptive = trace(&mut Ekf::new(data.anchors.clone(), &initial, adaptive).expect("ekf"), &data);
     let (e_fixed, e_adaptive) =

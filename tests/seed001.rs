@@ -156,7 +156,11 @@ fn ukf2d_agrees_with_ekf2d_for_far_anchors() {
 fn cekf2d_with_window_one_is_ekf2d() {
     let sim = preset("seed001_nlos", 1).expect("preset");
     let data = simulate(&sim).expect("sim");
-    let config = FilterConfig { cekf_window: 1, ..config_for(&sim) };
+    let config = {
+        let mut c = config_for(&sim);
+        c.planar.cekf_window = 1;
+        c
+    };
     let ekf = steps(Method::Ekf2d, &data, None, &config);
     let cekf = steps(Method::Cekf2d, &data, None, &config);
     let diff = ekf.iter().zip(&cekf).map(|(a, b)| (a.state.position - b.state.position).norm()).fold(0.0, f64::max);
@@ -198,6 +202,6 @@ fn bad_unscented_settings_are_config_errors() {
     let mut config = FilterConfig::default();
     assert!(config.set("ukf_lambda", &uwbimu_rs::config::ConfigValue::Scalar(-4.0)).is_err());
     assert!(config.set("cekf_window", &uwbimu_rs::config::ConfigValue::Scalar(0.0)).is_err());
-    config.ukf_lambda = -20.0;
+    config.unscented.lambda = -20.0;
     assert!(Ukf::new(data.anchors.clone(), &InitialState::default(), config).is_err());
 }

@@ -18,7 +18,7 @@ use uwbimu_rs::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
 fn tdoa_scenario(name: &str, seed: u64) -> (Scenario, SimData) {
     let mut s = sim::zoo(name, seed).expect("zoo");
     s.sim.tdoa = Some(TdoaConfig { rate_hz: 10.0, std_m: 0.05, outlier_prob: 0.03, ..TdoaConfig::default() });
-    s.config.tdoa_std = 0.05;
+    s.config.ranging.tdoa_std = 0.05;
     let data = sim::simulate(&s.sim).expect("simulate");
     (s, data)
 }
@@ -91,7 +91,7 @@ fn iterated_robust_filters_keep_the_prior_gamma_of_a_lone_tdoa() {
 fn every_policy_works_with_the_unscented_strategy() {
     let (s, data) = tdoa_scenario("nlos_two", 2);
     let initial = s.true_initial(&data).expect("initial");
-    let threshold = chi2_quantile_1dof(s.config.alpha).expect("chi2");
+    let threshold = chi2_quantile_1dof(s.config.robust.significance).expect("chi2");
     let run = |policy| {
         let composition = Composition { policy, strategy: UpdateStrategy::Unscented };
         let mut f = TightFilter::new(data.anchors.clone(), &initial, s.config.clone(), composition).expect("filter");

@@ -298,7 +298,7 @@ def zoo(name: ZooName, *, seed: int = 0, **overrides: float | bool) -> SimResult
         Seed of all random draws.
     **overrides : float or bool
         As for :func:`preset`, applied to the scenario (e.g. ``tdoa=True, tdoa_rate_hz=10.0,
-        tdoa_std_m=0.05, tdoa_outlier_prob=0.03`` adds TDoA; ``config["tdoa_std"]`` follows).
+        tdoa_std_m=0.05, tdoa_outlier_prob=0.03`` adds TDoA; ``config["ranging"]["tdoa_std"]`` follows).
 
     Returns
     -------

@@ -107,6 +107,31 @@ pub fn apply_dict(
     Ok(())
 }
 
+/// Calls `set(key, value)` for every entry of a configuration dict, a sub-dict `{section:
+/// {field: value}}` giving the keys `section.field` (`range_calibration`, itself a dict, is passed
+/// whole).
+pub fn apply_nested_dict(
+    dict: &Bound<'_, PyAny>,
+    what: &str,
+    mut set: impl FnMut(&str, &Bound<'_, PyAny>) -> PyResult<()>,
+) -> PyResult<()> {
+    let dict =
+        dict.cast::<PyDict>().map_err(|_| PyValueError::new_err(format!("{what} must be a dict, got {}", type_name(dict))))?;
+    for (k, v) in dict.iter() {
+        let key: String = k.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
+        match v.cast::<PyDict>() {
+            Ok(section) if key != "range_calibration" => {
+                for (f, fv) in section.iter() {
+                    let field: String = f.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
+                    set(&format!("{key}.{field}"), &fv)?;
+                }
+            }
+            _ => set(&key, &v)?,
+        }
+    }
+    Ok(())
+}
+
 /// Converts a [`ConfigValue`] back to a Python float or list.
 pub fn config_value_to_py<'py>(py: Python<'py>, v: &ConfigValue) -> PyResult<Bound<'py, PyAny>> {
     match v {

@@ -5,7 +5,7 @@ use numpy::{IntoPyArray, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::convert::{apply_dict, array, columns, config_value_to_py, table, vec3};
+use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table, vec3};
 use crate::columns::{fix_columns, step_columns, update_columns};
 use crate::config::{FilterConfig, InitialState};
 use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
@@ -40,13 +40,13 @@ impl PyFilterConfig {
         }))
     }
 
-    /// The accepted keys.
+    /// The accepted keys, `section.field` (the flat keys of earlier versions are accepted too).
     #[staticmethod]
-    fn keys() -> Vec<&'static str> {
-        FilterConfig::KEYS.to_vec()
+    fn keys() -> Vec<String> {
+        FilterConfig::keys()
     }
 
-    /// The configuration as a plain dict.
+    /// The configuration as a dict of sections, `{section: {field: value}}`.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         config_dict(py, &self.0)
     }
@@ -57,11 +57,21 @@ impl PyFilterConfig {
     }
 }
 
-/// A configuration as a plain dict of its keys (`range_calibration` as `{anchor: [c0..c3]}`).
+/// A configuration as a dict of sections `{section: {field: value}}` (`range_calibration` as
+/// `{anchor: [c0..c3]}`).
 pub(super) fn config_dict<'py>(py: Python<'py>, config: &FilterConfig) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for (k, v) in config.entries() {
-        d.set_item(k, config_value_to_py(py, &v)?)?;
+    for (key, v) in config.entries() {
+        let (section, field) = key.split_once('.').unwrap_or(("", &key));
+        let sub = match d.get_item(section)? {
+            Some(sub) => sub.cast_into::<PyDict>()?,
+            None => {
+                let sub = PyDict::new(py);
+                d.set_item(section, &sub)?;
+                sub
+            }
+        };
+        sub.set_item(field, config_value_to_py(py, &v)?)?;
     }
     let cal = PyDict::new(py);
     for (anchor, c) in config.range_calibration.coefficients() {
@@ -108,22 +118,18 @@ pub(super) fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterC
     }
 }
 
-/// A configuration from a dict of `FilterConfig` keys; `range_calibration` is a dict
+/// A configuration from a dict: `section.field` keys or `{section: {field: value}}` sub-dicts
+/// (and the flat keys of earlier versions); `range_calibration` is a dict
 /// `{anchor index: [c0, c1, c2, c3]}`, every other value a number, bool or sequence.
 fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
     let mut c = FilterConfig::default();
-    let rest = match obj.cast::<PyDict>() {
-        Ok(d) if d.contains("range_calibration")? => {
-            let rest = d.copy()?;
-            if let Some(cal) = rest.get_item("range_calibration")? {
-                c.range_calibration = super::ranging::read_calibration(&cal)?;
-            }
-            rest.del_item("range_calibration")?;
-            rest.into_any()
+    apply_nested_dict(obj, "config", |key, v| {
+        if key == "range_calibration" {
+            c.range_calibration = super::ranging::read_calibration(v)?;
+            return Ok(());
         }
-        _ => obj.clone(),
-    };
-    apply_dict(&rest, "config", |key, v| c.set(key, v))?;
+        Ok(c.set(key, &config_value(v, key)?)?)
+    })?;
     Ok(c)
 }
 

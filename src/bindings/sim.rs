@@ -263,7 +263,7 @@ fn sim_zoo<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut scenario = sim::zoo(name, seed)?;
     apply(&mut scenario.sim, &collect_overrides([overrides, kwargs])?)?;
-    scenario.config.tdoa_std = sim::matched_config(&scenario.sim).tdoa_std;
+    scenario.config.ranging.tdoa_std = sim::matched_config(&scenario.sim).ranging.tdoa_std;
     let d = run(py, scenario.sim, Some(scenario.config))?;
     d.set_item("default_sensors", scenario.default_sensors)?;
     Ok(d)

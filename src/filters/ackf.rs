@@ -70,7 +70,7 @@ impl Ackf {
     /// Builds the filter; anchors in the navigation frame, m.
     pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut config: FilterConfig) -> Result<Self> {
         complementary(&mut config);
-        let (aiding, gravity) = (config.aiding, -config.gravity);
+        let (aiding, gravity) = (config.aiding, -config.ins.gravity);
         let composition = Composition { policy: RangeNoisePolicy::ResidualWeighted, strategy: UpdateStrategy::Single };
         let inner = TightFilter::new(anchors, initial, config, composition)?;
         Ok(Self { inner, aiding, start_s: None, gravity, field: Reference::default() })
@@ -150,7 +150,7 @@ impl InertialFilter for Ackf {
             return Err(Error::NonFinite { name: "magnetometer", row: 0, col, value: field[col] });
         }
         self.inner.core_mut().advance_to(t_s)?;
-        let body = self.inner.core().config().imu_rotation * field;
+        let body = self.inner.core().config().mounting.imu_rotation * field;
         if self.in_reference_period(t_s) {
             self.field.add(self.inner.core().state().orientation * body);
             return Ok(UpdateReport::skipped());

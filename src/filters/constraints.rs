@@ -50,12 +50,16 @@ impl Constraints {
     /// `config.plane_height` is not set.
     pub fn new(config: &FilterConfig, initial_height: f64) -> Self {
         Self {
-            zupt: config.zupt,
-            pseudo_velocity: config.pseudo_velocity,
-            plane_height: config.plane.then(|| config.plane_height.unwrap_or(initial_height)),
-            detector: StillDetector::new(config.zupt_window, config.zupt_threshold, config.zupt_max_speed),
+            zupt: config.constraints.zupt,
+            pseudo_velocity: config.constraints.pseudo_velocity,
+            plane_height: config.constraints.plane.then(|| config.constraints.plane_height.unwrap_or(initial_height)),
+            detector: StillDetector::new(
+                config.constraints.zupt_window,
+                config.constraints.zupt_threshold,
+                config.constraints.zupt_max_speed,
+            ),
             speeds: [0.0; MAX_SPEED_HISTORY],
-            speed_window: config.pseudo_velocity_window.clamp(1, MAX_SPEED_HISTORY),
+            speed_window: config.constraints.pseudo_velocity_window.clamp(1, MAX_SPEED_HISTORY),
             speed_len: 0,
             speed_head: 0,
             next_t_s: None,
@@ -86,10 +90,12 @@ impl Constraints {
             return Ok(());
         }
         let speed = x.velocity.norm();
-        let rest_accel = x.orientation.inverse() * (-cfg.gravity);
-        self.still = self.zupt && self.detector.is_still(&rest_accel, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
-        let (zupt_var, pseudo_var, plane_var) = (cfg.zupt_velocity_std.powi(2), cfg.pseudo_velocity_var, cfg.plane_std.powi(2));
-        self.next_t_s = Some(t + cfg.constraint_interval_s);
+        let rest_accel = x.orientation.inverse() * (-cfg.ins.gravity);
+        self.still = self.zupt
+            && self.detector.is_still(&rest_accel, cfg.constraints.zupt_accel_std, cfg.constraints.zupt_gyro_std, speed);
+        let (zupt_var, pseudo_var, plane_var) =
+            (cfg.constraints.zupt_velocity_std.powi(2), cfg.constraints.pseudo_velocity_var, cfg.constraints.plane_std.powi(2));
+        self.next_t_s = Some(t + cfg.constraints.interval_s);
         let velocity = x.velocity;
         let z = x.position.z;
         let mean_speed = self.mean_speed();

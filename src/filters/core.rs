@@ -89,8 +89,8 @@ impl InertialCore {
         }
         check_finite3("predict accel", row, accel)?;
         check_finite3("predict gyro", row, gyro)?;
-        let accel = self.config.imu_rotation * accel;
-        let gyro = self.config.imu_rotation * gyro;
+        let accel = self.config.mounting.imu_rotation * accel;
+        let gyro = self.config.mounting.imu_rotation * gyro;
         if let Some(t0) = self.time_s {
             if t_s <= t0 {
                 return Err(Error::NonMonotonicTime { name: "predict", row, prev_s: t0, got_s: t_s });

@@ -126,7 +126,7 @@ impl InertialFilter for Eskf {
         crate::filters::tight::check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
         let config = self.core.config();
-        let lever_arm = config.lever_arm;
+        let lever_arm = config.mounting.lever_arm;
         let ls = LsConfig::from_filter_config(config);
         // Coplanar anchors give x, y (their fixes' height is weak or fixed); otherwise a planar
         // fallback fix (fewer than four ranges) has a made-up height and is not used.
@@ -136,9 +136,11 @@ impl InertialFilter for Eskf {
             return Ok(());
         };
         // Fixes whose ranges disagree beyond their noise (an outlier, NLOS) count as less precise.
-        let precision = if config.loose_variance_factor { fix.variance_factor(config.range_std).max(1.0) } else { 1.0 };
-        let tag = TagFix { t_s, position: fix.position, covariance: fix.covariance * (config.loose_noise_scale * precision) };
-        let (sage_husa, noise_scale) = (config.sage_husa, config.loose_noise_scale);
+        let precision =
+            if config.adaptive.loose_variance_factor { fix.variance_factor(config.ranging.range_std).max(1.0) } else { 1.0 };
+        let tag =
+            TagFix { t_s, position: fix.position, covariance: fix.covariance * (config.adaptive.loose_noise_scale * precision) };
+        let (sage_husa, noise_scale) = (config.sage_husa, config.adaptive.loose_noise_scale);
         let (x, p) = self.core.state_and_covariance_mut();
         let mut dx = ErrVec::zeros();
         let (residual, h) = position_measurement(x, &tag, &lever_arm);

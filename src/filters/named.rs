@@ -70,7 +70,7 @@ named_filter!(
     /// Robust EKF (seed 000 eqs. (37)–(38), (40)): each range's γ against the prior; beyond the
     /// χ²₁ quantile of significance `alpha`, `R' = (γ/χ²)·R`.
     Rekf,
-    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Single)
+    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Single)
 );
 
 named_filter!(
@@ -78,7 +78,7 @@ named_filter!(
     /// range at each operating point from the current posterior, until the step is below
     /// `iteration_tolerance` or `max_iterations` is reached.
     Riekf,
-    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Iterated)
+    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
 );
 
 named_filter!(
@@ -86,8 +86,8 @@ named_filter!(
     /// pseudo-velocity and plane constraints all switched on.
     Criekf,
     |config| {
-        (config.zupt, config.pseudo_velocity, config.plane) = (true, true, true);
-        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Iterated)
+        (config.constraints.zupt, config.constraints.pseudo_velocity, config.constraints.plane) = (true, true, true);
+        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
     }
 );
 
@@ -98,9 +98,9 @@ pub const DEFAULT_BIAS_TAU_S: f64 = 300.0;
 /// The complementary-filter settings of seed 002: Markov biases (eqs. (17)–(18)) and the
 /// process noise of eq. (28).
 pub(crate) fn complementary(config: &mut FilterConfig) {
-    config.accel_bias_tau = config.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
-    config.gyro_bias_tau = config.gyro_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
-    config.trapezoidal_process_noise = true;
+    config.ins.accel_bias_tau = config.ins.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
+    config.ins.gyro_bias_tau = config.ins.gyro_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
+    config.ins.trapezoidal_process_noise = true;
 }
 
 named_filter!(
@@ -124,7 +124,7 @@ named_filter!(
     Arckf,
     |config| {
         complementary(&mut config);
-        (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.alpha)? }, UpdateStrategy::Single)
+        (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Single)
     }
 );
 

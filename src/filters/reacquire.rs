@@ -123,7 +123,7 @@ impl DivergenceWatch {
 /// the `χ²` bound (α = 1e-6) of their joint horizontal covariance.
 fn disagrees(core: &InertialCore, fix: &Fix) -> bool {
     let x = core.state();
-    let tag = crate::models::range::tag_position(x, &core.config().lever_arm);
+    let tag = crate::models::range::tag_position(x, &core.config().mounting.lever_arm);
     let d = (fix.position - tag).xy();
     let s = core.covariance().fixed_view::<2, 2>(POS, POS) + fix.covariance.fixed_view::<2, 2>(0, 0);
     let nis = s.cholesky().map_or(f64::INFINITY, |c| d.dot(&c.solve(&d)));
@@ -169,7 +169,7 @@ pub fn reacquire(
         },
     };
     let horizontal_only = fix.planar || (!diverged && fix.covariance[(2, 2)] > core.covariance()[(POS + 2, POS + 2)]);
-    let tag = crate::models::range::tag_position(core.state(), &core.config().lever_arm);
+    let tag = crate::models::range::tag_position(core.state(), &core.config().mounting.lever_arm);
     let mut discrepancy = fix.position - tag;
     if horizontal_only {
         discrepancy.z = 0.0;
@@ -182,7 +182,7 @@ pub fn reacquire(
         core.widen_prior(&ReacquisitionWidening { discrepancy, horizon_s });
     }
     watch.last_good_s = now;
-    let lever_arm = core.config().lever_arm;
+    let lever_arm = core.config().mounting.lever_arm;
     let tag = TagFix { t_s: now.unwrap_or(0.0), position: fix.position, covariance: fix.covariance };
     let (x, p) = core.state_and_covariance_mut();
     let (residual, h) = position_measurement(x, &tag, &lever_arm);

@@ -105,17 +105,21 @@ impl TightFilter {
             return Err(Error::InsufficientData("at least one anchor is required".into()));
         }
         let strategy = match composition.strategy {
-            UpdateStrategy::Single => Strategy::Iterated { max_iterations: 1, tolerance: config.iteration_tolerance },
-            UpdateStrategy::Iterated => {
-                Strategy::Iterated { max_iterations: config.max_iterations.max(1), tolerance: config.iteration_tolerance }
-            }
-            UpdateStrategy::Unscented => {
-                Strategy::Unscented(UnscentedWeights::new(ERR_DIM, config.ukf_alpha, config.ukf_beta, config.ukf_lambda)?)
-            }
+            UpdateStrategy::Single => Strategy::Iterated { max_iterations: 1, tolerance: config.robust.iteration_tolerance },
+            UpdateStrategy::Iterated => Strategy::Iterated {
+                max_iterations: config.robust.max_iterations.max(1),
+                tolerance: config.robust.iteration_tolerance,
+            },
+            UpdateStrategy::Unscented => Strategy::Unscented(UnscentedWeights::new(
+                ERR_DIM,
+                config.unscented.alpha,
+                config.unscented.beta,
+                config.unscented.lambda,
+            )?),
         };
         let constraints = Constraints::new(&config, initial.position.z);
-        let range_noise = if config.adaptive_range_noise {
-            let initial_r = SMatrix::<f64, 1, 1>::new(config.range_std.powi(2));
+        let range_noise = if config.adaptive.range_noise {
+            let initial_r = SMatrix::<f64, 1, 1>::new(config.ranging.range_std.powi(2));
             let sage_husa = SageHusaConfig { bounds: RANGE_NOISE_BOUNDS, ..config.sage_husa };
             (0..anchors.len()).map(|_| SageHusa::new(sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
         } else {
@@ -142,26 +146,29 @@ impl TightFilter {
         let config = self.core.config();
         if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
             let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
-            return vec![robustness_factor(r1, res[0], config.range_std), robustness_factor(r2, res[1], config.range_std)];
+            return vec![
+                robustness_factor(r1, res[0], config.ranging.range_std),
+                robustness_factor(r2, res[1], config.ranging.range_std),
+            ];
         }
-        let tag = tag_position(self.core.state(), &config.lever_arm);
-        let ls = LsConfig { range_std_m: config.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
+        let tag = tag_position(self.core.state(), &config.mounting.lever_arm);
+        let ls = LsConfig { range_std_m: config.ranging.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
         let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
-        robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.range_std)
+        robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.ranging.range_std)
     }
 
     /// γ of one range against the prior with range noise variance `r_var` (seed 000 eq. (37));
     /// None when the tag sits on the anchor.
     fn nis_at_prior(&self, anchor: usize, range_m: f64, r_var: f64) -> Option<f64> {
         let (x, p) = (self.core.state(), self.core.covariance());
-        let pred = predict_range(x, &self.anchors[anchor], &self.core.config().lever_arm)?;
+        let pred = predict_range(x, &self.anchors[anchor], &self.core.config().mounting.lever_arm)?;
         Some((range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
     }
 
     /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
     /// noise (for the divergence watch, [`crate::filters::reacquire`]).
     fn failed_at_prior(&self, ranges: &[(usize, f64)]) -> usize {
-        let r_var = self.core.config().range_std.powi(2);
+        let r_var = self.core.config().ranging.range_std.powi(2);
         ranges
             .iter()
             .filter(|&&(anchor, range_m)| self.nis_at_prior(anchor, range_m, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS))
@@ -171,7 +178,7 @@ impl TightFilter {
     /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
     /// range's γ against the prior with `R_i = σ²·Cu_i`.
     fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
-        let range_std = self.core.config().range_std;
+        let range_std = self.core.config().ranging.range_std;
         let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
             (*f, self.nis_at_prior(anchor, range_m, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
         });
@@ -292,7 +299,7 @@ impl TightFilter {
         tolerance: f64,
     ) -> Result<()> {
         let config = self.core.config();
-        let (lever_arm, nominal) = (config.lever_arm, NominalNoise::of(config));
+        let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
         let (x, p_out) = self.core.state_and_covariance_mut();
         let (prior, p_prior) = (*x, *p_out);
         let (mut op, mut p_post) = (prior, p_prior);
@@ -370,7 +377,7 @@ impl TightFilter {
         fading: f64,
     ) -> Result<()> {
         let config = self.core.config();
-        let (lever_arm, nominal) = (config.lever_arm, NominalNoise::of(config));
+        let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
         let mut dx = ErrVec::zeros();
@@ -410,7 +417,10 @@ struct NominalNoise {
 
 impl NominalNoise {
     fn of(config: &FilterConfig) -> Self {
-        Self { range_var: config.range_std * config.range_std, tdoa_var: config.tdoa_std * config.tdoa_std }
+        Self {
+            range_var: config.ranging.range_std * config.ranging.range_std,
+            tdoa_var: config.ranging.tdoa_std * config.ranging.tdoa_std,
+        }
     }
 
     /// `(variance to use, nominal variance)` of one measurement: a range's from

@@ -1,4 +1,5 @@
-//! The replay TOML file: `method = "..."`, a `[config]` table of [`FilterConfig`] keys and a
+//! The replay TOML file: `method = "..."`, a `[config]` table of [`FilterConfig`] keys (section
+//! tables such as `[config.ranging]`, dotted keys, or the flat keys of earlier versions) and a
 //! `[mapping]` table ([`Mapping`]). Relative file paths in the mapping are resolved against the
 //! directory of the TOML file.
 
@@ -54,7 +55,16 @@ impl ReplayConfig {
                 "config" => {
                     let t = value.as_table().ok_or_else(|| config_error("`config` must be a table"))?;
                     for (k, v) in t {
-                        out.config.set(k, &config_value(k, v)?)?;
+                        match v.as_table() {
+                            // A section table `[config.ranging]`: its keys are `ranging.<field>`.
+                            Some(section) => {
+                                for (field, fv) in section {
+                                    let key = format!("{k}.{field}");
+                                    out.config.set(&key, &config_value(&key, fv)?)?;
+                                }
+                            }
+                            None => out.config.set(k, &config_value(k, v)?)?,
+                        }
                     }
                 }
                 "mapping" => {
@@ -101,8 +111,8 @@ mod tests {
                     [mapping]\nimu_topic = \"/imu\"\n[mapping.uwb]\ntopics = [\"/uwb\"]\nscale = 0.001\n[mapping.anchors]\nfile = \"a.csv\"\n";
         let c = ReplayConfig::from_toml(text, Path::new("/data")).unwrap();
         assert_eq!(c.method.as_deref(), Some("riekf"));
-        assert_eq!(c.config.range_std, 0.2);
-        assert!(c.config.zupt);
+        assert_eq!(c.config.ranging.range_std, 0.2);
+        assert!(c.config.constraints.zupt);
         assert_eq!(c.mapping.uwb.scale, Some(0.001));
         assert_eq!(c.mapping.anchors.file.as_deref(), Some(Path::new("/data/a.csv")));
         assert!(ReplayConfig::from_toml("[mapping]\nimu_topik = \"x\"\n", Path::new(".")).is_err());

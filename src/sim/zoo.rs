@@ -85,7 +85,7 @@ impl Scenario {
 /// `config.imu_rotation`), biases unknown (zero, with the configured uncertainty).
 pub fn true_initial(sim: &SimConfig, config: &FilterConfig, data: &SimData) -> Result<InitialState> {
     let t0 = data.truth.first().ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
-    let body_from_filter_body = sim.imu_rotation * config.imu_rotation.inverse();
+    let body_from_filter_body = sim.imu_rotation * config.mounting.imu_rotation.inverse();
     Ok(InitialState {
         position: t0.position,
         velocity: t0.velocity,
@@ -100,20 +100,18 @@ pub fn true_initial(sim: &SimConfig, config: &FilterConfig, data: &SimData) -> R
 pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     let u = &sim.uwb;
     let n = &sim.imu_noise;
-    FilterConfig {
-        range_std: (u.range_std_m.powi(2) + u.uniform_noise_m.powi(2) / 3.0).sqrt(),
-        tdoa_std: sim.tdoa.as_ref().map_or(crate::config::DEFAULT_TDOA_STD_M, |t| t.std_m.max(1e-3)),
-        accel_noise_density: n.accel_noise_density.max(1e-4),
-        gyro_noise_density: n.gyro_noise_density.max(1e-5),
-        accel_bias_walk: n.accel_bias_walk.max(1e-6),
-        gyro_bias_walk: n.gyro_bias_walk.max(1e-7),
-        accel_bias_std: n.accel_bias_std.max(1e-3),
-        gyro_bias_std: n.gyro_bias_std.max(1e-4),
-        lever_arm: sim.lever_arm_m,
-        imu_rotation: sim.imu_rotation,
-        gravity: sim.gravity_nav_mps2,
-        ..FilterConfig::default()
-    }
+    let mut c = FilterConfig::default();
+    c.ranging.range_std = (u.range_std_m.powi(2) + u.uniform_noise_m.powi(2) / 3.0).sqrt();
+    c.ranging.tdoa_std = sim.tdoa.as_ref().map_or(crate::config::DEFAULT_TDOA_STD_M, |t| t.std_m.max(1e-3));
+    c.ins.accel_noise_density = n.accel_noise_density.max(1e-4);
+    c.ins.gyro_noise_density = n.gyro_noise_density.max(1e-5);
+    c.ins.accel_bias_walk = n.accel_bias_walk.max(1e-6);
+    c.ins.gyro_bias_walk = n.gyro_bias_walk.max(1e-7);
+    (c.init.accel_bias_std, c.ins.accel_bias_markov_std) = (n.accel_bias_std.max(1e-3), n.accel_bias_std.max(1e-3));
+    (c.init.gyro_bias_std, c.ins.gyro_bias_markov_std) = (n.gyro_bias_std.max(1e-4), n.gyro_bias_std.max(1e-4));
+    c.mounting = crate::config::MountingConfig { lever_arm: sim.lever_arm_m, imu_rotation: sim.imu_rotation };
+    c.ins.gravity = sim.gravity_nav_mps2;
+    c
 }
 
 /// Four anchors on the walls of a 12 m × 8 m room, all at `height_m` (coplanar).
@@ -371,8 +369,8 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
     let mut config = matched_config(&sim);
     if !tell_mounting {
         // The user takes the IMU frame as the body frame: lever arm in IMU axes, no rotation.
-        config.lever_arm = sim.imu_rotation.inverse_transform_vector(&sim.lever_arm_m);
-        config.imu_rotation = Quat::identity();
+        config.mounting.lever_arm = sim.imu_rotation.inverse_transform_vector(&sim.lever_arm_m);
+        config.mounting.imu_rotation = Quat::identity();
     }
     let name = ZOO_NAMES.iter().copied().find(|n| *n == name).unwrap_or("unknown");
     Ok(Scenario { name, sim, config, default_sensors })

@@ -8,19 +8,19 @@ use uwbimu_rs::sim::{SimConfig, SimData};
 
 /// Filter noise matched to the simulator's sensor model.
 pub fn config_for(sim: &SimConfig) -> FilterConfig {
-    FilterConfig {
-        range_std: sim.uwb.range_std_m,
-        accel_noise_density: sim.imu_noise.accel_noise_density.max(1e-4),
-        gyro_noise_density: sim.imu_noise.gyro_noise_density.max(1e-5),
-        accel_bias_walk: sim.imu_noise.accel_bias_walk.max(1e-6),
-        gyro_bias_walk: sim.imu_noise.gyro_bias_walk.max(1e-7),
-        lever_arm: sim.lever_arm_m,
-        imu_rotation: sim.imu_rotation,
-        gravity: sim.gravity_nav_mps2,
-        accel_bias_std: sim.imu_noise.accel_bias_std.max(1e-3),
-        gyro_bias_std: sim.imu_noise.gyro_bias_std.max(1e-4),
-        ..FilterConfig::default()
-    }
+    let n = &sim.imu_noise;
+    let mut c = FilterConfig::default();
+    c.ranging.range_std = sim.uwb.range_std_m;
+    c.ins.accel_noise_density = n.accel_noise_density.max(1e-4);
+    c.ins.gyro_noise_density = n.gyro_noise_density.max(1e-5);
+    c.ins.accel_bias_walk = n.accel_bias_walk.max(1e-6);
+    c.ins.gyro_bias_walk = n.gyro_bias_walk.max(1e-7);
+    c.mounting.lever_arm = sim.lever_arm_m;
+    c.mounting.imu_rotation = sim.imu_rotation;
+    c.ins.gravity = sim.gravity_nav_mps2;
+    (c.init.accel_bias_std, c.ins.accel_bias_markov_std) = (n.accel_bias_std.max(1e-3), n.accel_bias_std.max(1e-3));
+    (c.init.gyro_bias_std, c.ins.gyro_bias_markov_std) = (n.gyro_bias_std.max(1e-4), n.gyro_bias_std.max(1e-4));
+    c
 }
 
 /// The true state at the first IMU sample, with the given position offset.

@@ -137,7 +137,7 @@ def test_unknown_method_lists_allowed(small):
 
 def test_unknown_config_key_lists_allowed(small):
     imu, ranges, anchors, initial = small
-    with pytest.raises(uwbimu_rs.ConfigError, match=r"unknown config `range_sigma`; allowed: range_std, "):
+    with pytest.raises(uwbimu_rs.ConfigError, match=r"unknown config `range_sigma`; allowed: ranging.range_std, "):
         uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"range_sigma": 0.1})
     with pytest.raises(ValueError, match=r"unknown config `foo`"):
         uwbimu_rs.FilterConfig(foo=1.0)
@@ -146,11 +146,11 @@ def test_unknown_config_key_lists_allowed(small):
 @pytest.mark.parametrize(
     ("config", "pattern"),
     [
-        ({"range_std": -0.1}, r"config `range_std`: must be finite and > 0"),
-        ({"lever_arm": [0.0, 0.1]}, r"config `lever_arm`: expected 3 numbers, got 2"),
-        ({"imu_rotation": [0, 0, 0, 0]}, r"config `imu_rotation`: quaternion"),
+        ({"range_std": -0.1}, r"config `ranging.range_std`: must be finite and > 0"),
+        ({"lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers, got 2"),
+        ({"imu_rotation": [0, 0, 0, 0]}, r"config `mounting.imu_rotation`: quaternion"),
         ({"range_std": "big"}, r"`range_std`: expected a number"),
-        ({"gravity": float("nan")}, r"config `gravity`: must be finite"),
+        ({"gravity": float("nan")}, r"config `ins.gravity`: must be finite"),
     ],
 )
 def test_bad_config_values(small, config, pattern):
@@ -167,19 +167,24 @@ def test_bad_initial_key(small):
 
 def test_config_object_and_dict_agree(small):
     imu, ranges, anchors, initial = small
+    # Flat keys of earlier versions, section keys and section dicts all say the same.
     cfg = uwbimu_rs.FilterConfig(range_std=0.2, lever_arm=[0, 0, 0.05])
     d = cfg.to_dict()
     # The given keys are kept, the others are the defaults, and the keys are the allowed ones.
-    assert d["range_std"] == 0.2 and list(d["lever_arm"]) == [0, 0, 0.05]
-    assert d["accel_noise_density"] == uwbimu_rs.FilterConfig().to_dict()["accel_noise_density"] == 0.3
-    assert set(d) <= set(uwbimu_rs.FilterConfig.keys())
+    assert d["ranging"]["range_std"] == 0.2 and list(d["mounting"]["lever_arm"]) == [0, 0, 0.05]
+    assert d["ins"]["accel_noise_density"] == uwbimu_rs.FilterConfig().to_dict()["ins"]["accel_noise_density"] == 0.3
+    keys = set(uwbimu_rs.FilterConfig.keys())
+    assert {f"{s}.{k}" for s, fields in d.items() if s != "range_calibration" for k in fields} <= keys
     a = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=cfg)
     b = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"range_std": 0.2, "lever_arm": [0, 0, 0.05]})
     c = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=d)
+    e = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"ranging.range_std": 0.2, "mounting": {"lever_arm": [0, 0, 0.05]}})
     defaults = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial)
-    assert a.equals(b) and a.equals(c)
+    assert a.equals(b) and a.equals(c) and a.equals(e)
     assert not a.equals(defaults)
-    assert set(uwbimu_rs.FilterConfig.keys()) >= {"range_std", "accel_noise_density", "gyro_noise_density", "accel_bias_walk", "gyro_bias_walk", "lever_arm", "imu_rotation", "gravity"}
+    assert keys >= {"ranging.range_std", "ranging.tdoa_std", "ins.accel_noise_density", "ins.gravity", "mounting.lever_arm", "mounting.imu_rotation", "robust.significance", "unscented.alpha", "sage_husa.alpha"}
+    with pytest.raises(ValueError, match="robust.significance"):
+        uwbimu_rs.FilterConfig(robust={"alpha": 0.05})
 
 
 def test_self_init_without_uwb_fails_clearly(small):
@@ -209,14 +214,14 @@ def test_constraint_switches_and_still_column(filter_config):
 
     run = sim.preset("seed000_los", seed=0)
     cfg = uwbimu_rs.FilterConfig(**{**filter_config, "zupt": True})
-    assert cfg.to_dict()["zupt"] is True
+    assert cfg.to_dict()["constraints"]["zupt"] is True
     df = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, config=cfg)
     assert df["still"].dtype == pl.Boolean
     # The preset starts with 2 s still: the detector fires there and not while driving.
     early = df.filter(pl.col("t") < 2.0)["still"].mean()
     late = df.filter(pl.col("t") > 10.0)["still"].mean()
     assert early > 0.5 and late < 0.02
-    with pytest.raises(ValueError, match=r"config `zupt`: expected True or False"):
+    with pytest.raises(ValueError, match=r"config `constraints.zupt`: expected True or False"):
         uwbimu_rs.FilterConfig(zupt=1.0)
 
 

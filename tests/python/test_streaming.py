@@ -86,7 +86,7 @@ def test_streaming_equals_batch_for_every_class(staggered, method):
         np.testing.assert_array_equal([getattr(r, column) for r in reports], upd[column].to_numpy())
     # The epochs of staggered ranges are applied together, at the time of their last range or
     # later (never before a range was taken).
-    assert (upd["epoch_t"] >= upd["t"]).all() and (upd["epoch_t"] - upd["t"]).max() <= run.config["epoch_window_s"] + 0.01
+    assert (upd["epoch_t"] >= upd["t"]).all() and (upd["epoch_t"] - upd["t"]).max() <= run.config["ranging"]["epoch_window_s"] + 0.01
     assert f.pending == 0
     # The final flush applied the last epoch after the last recorded row: the position is no less
     # certain than there.

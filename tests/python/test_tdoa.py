@@ -28,7 +28,7 @@ def _hrmse(df, r) -> float:
 
 def test_tdoa_only_robust_beats_ekf_and_reports_each_tdoa():
     r = _run()
-    assert r.tdoa is not None and r.tdoa.shape[1] == 4 and r.config["tdoa_std"] == pytest.approx(0.05)
+    assert r.tdoa is not None and r.tdoa.shape[1] == 4 and r.config["ranging"]["tdoa_std"] == pytest.approx(0.05)
     ekf = _hrmse(uwbimu_rs.run_filter("ekf", r.imu, EMPTY, r.anchors, initial=r.initial, config=r.config, tdoa=r.tdoa), r)
     rekf, upd = uwbimu_rs.run_filter(
         "rekf", r.imu, EMPTY, r.anchors, initial=r.initial, config=r.config, tdoa=r.tdoa, updates=True
