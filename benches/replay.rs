@@ -8,7 +8,7 @@ use std::io::Cursor;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::io::recording_out::write_recording_mcap;
+use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{read_recording, Mapping};
 use uwbimu_rs::math::Vec3;
 use uwbimu_rs::methods::Method;
@@ -40,7 +40,8 @@ fn recording() -> Vec<u8> {
         })
         .collect();
     let mut buf = Cursor::new(Vec::new());
-    write_recording_mcap(&mut buf, "bench", &imu, &ranges, &anchors, Some(0.1), true).expect("write");
+    let streams = RecordingStreams { imu: &imu, ranges: &ranges, tdoa: &[], anchors: &anchors };
+    write_recording_mcap(&mut buf, "bench", &streams, Some(0.1), true).expect("write");
     buf.into_inner()
 }
 
@@ -60,7 +61,7 @@ fn bench_replay(c: &mut Criterion) {
     group.bench_function("decode_and_replay_riekf", |b| {
         b.iter(|| {
             let rec = read(black_box(&bytes));
-            black_box(replay(&rec, Method::Riekf, &config, false).expect("replay"))
+            black_box(replay(&rec, Method::Riekf, &config, None, false).expect("replay"))
         })
     });
     group.finish();

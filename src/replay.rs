@@ -2,7 +2,7 @@
 //! per-anchor update statistics and the comparison with ground truth that the `uwbimu-replay`
 //! binary and `uwbimu_rs.replay` report.
 
-use crate::config::FilterConfig;
+use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::io::Recording;
 use crate::math::Vec3;
@@ -10,16 +10,16 @@ use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::{evaluate, Evaluation};
 use crate::records::PosePoint;
 
-/// What the filter did with one anchor's ranges.
+/// What the filter did with one anchor's ranges (or with the TDoA).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct AnchorUpdateStats {
-    /// Anchor id.
+    /// Anchor id (`tdoa` for the TDoA).
     pub id: String,
-    /// Ranges applied at full weight.
+    /// Measurements applied at full weight.
     pub accepted: usize,
-    /// Ranges applied with inflated noise (robust methods).
+    /// Measurements applied with inflated noise (robust methods).
     pub down_weighted: usize,
-    /// Ranges not applied (gated out or unusable).
+    /// Measurements not applied (gated out or unusable).
     pub rejected: usize,
 }
 
@@ -28,9 +28,11 @@ pub struct AnchorUpdateStats {
 pub struct Replay {
     /// The method's output.
     pub output: BatchOutput,
-    /// Per anchor, in anchor-index order (inertial methods; empty for `uwb_ls`).
+    /// Ranges per anchor, in anchor-index order (inertial methods; empty for `uwb_ls`).
     pub anchors: Vec<AnchorUpdateStats>,
-    /// Mean NIS of the applied ranges (None when there were none).
+    /// The TDoA (id `tdoa`), when the recording has any.
+    pub tdoa: Option<AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and TDoA (None when there were none).
     pub mean_nis: Option<f64>,
 }
 
@@ -49,35 +51,54 @@ impl Replay {
     }
 }
 
-/// Runs `method` over `rec` (self-initialising) and gathers per-anchor statistics.
+/// Runs `method` over the ranges and TDoA of `rec`, from `initial` (None: self-initialisation,
+/// which needs ranges) and gathers per-anchor statistics. A recording with TDoA needs a method
+/// that takes them ([`Method::takes_tdoa`]).
 ///
 /// # Errors
-/// As [`run_method`]; [`Error::InsufficientData`] if the recording has no IMU samples or ranges.
-pub fn replay(rec: &Recording, method: Method, config: &FilterConfig, smooth: bool) -> Result<Replay> {
-    if rec.imu.is_empty() || rec.ranges.is_empty() {
+/// As [`run_method`]; [`Error::InsufficientData`] if the recording has no IMU samples, no
+/// ranges and no TDoA, or TDoA only and no `initial`.
+pub fn replay(
+    rec: &Recording,
+    method: Method,
+    config: &FilterConfig,
+    initial: Option<&InitialState>,
+    smooth: bool,
+) -> Result<Replay> {
+    if rec.imu.is_empty() || (rec.ranges.is_empty() && rec.tdoa.is_empty()) {
         return Err(Error::InsufficientData(format!(
-            "the recording has {} IMU samples and {} usable ranges",
+            "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
             rec.imu.len(),
-            rec.ranges.len()
+            rec.ranges.len(),
+            rec.tdoa.len()
+        )));
+    }
+    if rec.ranges.is_empty() && initial.is_none() {
+        return Err(Error::InsufficientData(format!(
+            "the recording has TDoA ({}) but no ranges, and self-initialisation needs ranges: give the initial state \
+             (the replay file's [initial] table, or initial= in Python)",
+            rec.tdoa.len()
         )));
     }
     let input = BatchInput {
         imu: &rec.imu,
         ranges: &rec.ranges,
         anchors: &rec.anchors,
-        initial: None,
+        initial,
         config,
         smooth,
         mag: &[],
-        tdoa: &[],
+        tdoa: &rec.tdoa,
     };
     let output = run_method(method, &input)?;
     let mut anchors: Vec<AnchorUpdateStats> =
         rec.anchor_ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect();
+    let mut tdoa = (!rec.tdoa.is_empty()).then(|| AnchorUpdateStats { id: "tdoa".into(), ..AnchorUpdateStats::default() });
     let (mut nis_sum, mut nis_n) = (0.0, 0usize);
     if let BatchOutput::Inertial { trace, .. } = &output {
         for u in &trace.updates {
-            let Some(a) = anchors.get_mut(u.anchor) else { continue };
+            let counts = if u.anchor_j.is_some() { tdoa.as_mut() } else { anchors.get_mut(u.anchor) };
+            let Some(a) = counts else { continue };
             match (u.report.accepted, u.report.down_weighted) {
                 (true, false) => a.accepted += 1,
                 (true, true) => a.down_weighted += 1,
@@ -89,7 +110,7 @@ pub fn replay(rec: &Recording, method: Method, config: &FilterConfig, smooth: bo
             }
         }
     }
-    Ok(Replay { output, anchors, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
+    Ok(Replay { output, anchors, tdoa, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
 }
 
 /// Errors of a trajectory against ground truth: directly and after the least-squares rigid

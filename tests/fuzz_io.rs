@@ -14,7 +14,7 @@ use uwbimu_rs::io::cdr::decode;
 use uwbimu_rs::io::mapping::{Mapping, UwbMapping};
 use uwbimu_rs::io::msg_schema::MsgSchema;
 use uwbimu_rs::io::read_recording;
-use uwbimu_rs::io::recording_out::{imu_cdr, write_recording_mcap, IMU_MSG};
+use uwbimu_rs::io::recording_out::{imu_cdr, write_recording_mcap, RecordingStreams, IMU_MSG};
 use uwbimu_rs::math::Vec3;
 use uwbimu_rs::records::{ImuSample, RangeMeasurement};
 
@@ -41,7 +41,8 @@ fn valid_file() -> &'static [u8] {
             (0..12).map(|k| RangeMeasurement { t_s: 1.0 + k as f64 * 0.03, anchor: k % 3, range_m: 2.0 }).collect();
         let anchors = [Vec3::zeros(), Vec3::x() * 4.0, Vec3::y() * 4.0];
         let mut buf = Cursor::new(Vec::new());
-        write_recording_mcap(&mut buf, "fuzz", &imu, &ranges, &anchors, None, true).unwrap();
+        let streams = RecordingStreams { imu: &imu, ranges: &ranges, tdoa: &[], anchors: &anchors };
+        write_recording_mcap(&mut buf, "fuzz", &streams, None, true).unwrap();
         buf.into_inner()
     })
 }

@@ -70,7 +70,7 @@ fn riekf_follows_the_walk_within_a_quarter_metre() {
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let method = Method::parse(cfg.method.as_deref().unwrap_or("riekf")).unwrap();
-    let r = replay(&rec, method, &cfg.config, false).unwrap();
+    let r = replay(&rec, method, &cfg.config, None, false).unwrap();
     let (raw, aligned) = compare_with_truth(&r.trajectory(), &truth).unwrap();
     // Measured: raw 0.160 m, aligned 0.121 m (see README "MCAP replay").
     assert!(aligned.horizontal.rmse < 0.25, "aligned horizontal RMSE {} m", aligned.horizontal.rmse);
@@ -90,7 +90,7 @@ fn plain_ekf_is_hurt_by_the_gross_outliers() {
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let max_err = |m: &str| {
-        let r = replay(&rec, Method::parse(m).unwrap(), &cfg.config, false).unwrap();
+        let r = replay(&rec, Method::parse(m).unwrap(), &cfg.config, None, false).unwrap();
         compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal.max
     };
     let (ekf, riekf) = (max_err("ekf"), max_err("riekf"));
@@ -106,7 +106,7 @@ fn every_method_holds_up_with_the_defaults() {
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = uwbimu_rs::config::FilterConfig::default();
     let aligned = |m: &str| {
-        let r = replay(&rec, Method::parse(m).unwrap(), &defaults, false).unwrap();
+        let r = replay(&rec, Method::parse(m).unwrap(), &defaults, None, false).unwrap();
         compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal
     };
     let ls = aligned("uwb_ls").rmse;

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use uwbimu_rs::io::mcap_read::{read_mcap, McapEvent};
-use uwbimu_rs::io::recording_out::{write_recording_mcap, IMU_MSG};
+use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
 use uwbimu_rs::sim::{preset, simulate, SimData};
 
 fn scratch(name: &str) -> PathBuf {
@@ -29,7 +29,8 @@ fn sim() -> SimData {
 /// The simulated run as MCAP bytes (zstd or uncompressed chunks).
 fn sim_mcap(data: &SimData, compress: bool) -> Vec<u8> {
     let mut buf = Cursor::new(Vec::new());
-    write_recording_mcap(&mut buf, "sim", &data.imu, &data.ranges, &data.anchors, Some(0.1), compress).unwrap();
+    let streams = RecordingStreams { imu: &data.imu, ranges: &data.ranges, tdoa: &data.tdoa, anchors: &data.anchors };
+    write_recording_mcap(&mut buf, "sim", &streams, Some(0.1), compress).unwrap();
     buf.into_inner()
 }
 

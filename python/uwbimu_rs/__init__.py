@@ -240,7 +240,7 @@ def read_mcap(
     mapping: Mapping[str, Any] | None = None,
     config_file: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
-    """Read an MCAP recording (IMU + UWB ranges) into polars DataFrames.
+    """Read an MCAP recording (IMU + UWB ranges and/or TDoA) into polars DataFrames.
 
     Parameters
     ----------
@@ -249,7 +249,9 @@ def read_mcap(
     mapping : dict, optional
         The ``[mapping]`` table of a replay file as a dict (see the README, "MCAP replay"), e.g.
         ``{"imu_topic": "/imu", "uwb": {"topics": ["/uwb"], "range": "ranges[].range",
-        "anchor_id": "ranges[].id", "valid": "ranges[].ra == 1"}}``; replaces the file's mapping.
+        "anchor_id": "ranges[].id", "valid": "ranges[].ra == 1"}}``, or for TDoA
+        ``{"tdoa": {"topics": ["/tdoa"], "anchor_i": "idA", "anchor_j": "idB", "tdoa": "distanceDiff"}}``
+        (those field names are the defaults); replaces the file's mapping.
     config_file : str or path, optional
         A replay TOML file whose ``[mapping]`` is used.
 
@@ -258,9 +260,12 @@ def read_mcap(
     dict
         ``imu``: DataFrame t, ax, ay, az, gx, gy, gz (s, m/s², rad/s); ``ranges``: t, anchor
         (index into ``anchors``), range (m), variance (m², NaN when not in the message);
-        ``anchors``: id, x, y, z (m); ``ground_truth``: t, x, y, z (empty when not mapped);
+        ``tdoa``: t, i, j (indices into ``anchors``), d_ij = |p − a_j| − |p − a_i| (m) —
+        ``frames["tdoa"].to_numpy()`` is the ``(M, 4)`` array :func:`run_filter` takes as
+        ``tdoa``; ``anchors``: id, x, y, z (m); ``ground_truth``: t, x, y, z (empty when not mapped);
         ``stats``: dict (topics with schema, count and role; duration_s; reordered;
-        late_dropped; invalid_per_anchor; anchor_source; ...).
+        late_dropped; invalid_per_anchor; anchor_source; tdoa_unknown_anchor and
+        tdoa_unknown_ids (TDoA dropped for an anchor without a position); tdoa_bad_value; ...).
 
     Raises
     ------
@@ -274,10 +279,12 @@ def read_mcap(
         os.fspath(path), mapping=_mapping_json(mapping), config_file=None if config_file is None else os.fspath(config_file)
     )
     ranges = pl.DataFrame(out["ranges"]).with_columns(pl.col("anchor").cast(pl.Int64))
+    tdoa = pl.DataFrame(out["tdoa"]).with_columns(pl.col("i", "j").cast(pl.Int64))
     anchors = pl.DataFrame(out["anchors"]).insert_column(0, pl.Series("id", out["anchor_ids"], dtype=pl.String))
     return {
         "imu": pl.DataFrame(out["imu"]),
         "ranges": ranges,
+        "tdoa": tdoa,
         "anchors": anchors,
         "ground_truth": pl.DataFrame(out["ground_truth"]),
         "stats": out["stats"],
@@ -291,6 +298,7 @@ def replay(
     mapping: Mapping[str, Any] | None = None,
     config_file: str | os.PathLike[str] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
+    initial: Mapping[str, Any] | None = None,
     smooth: bool = False,
 ) -> tuple[pl.DataFrame, dict[str, Any]]:
     """Replay an MCAP recording through one method (the core of the ``uwbimu-replay`` binary).
@@ -302,9 +310,16 @@ def replay(
     method : str, optional
         One of ``FILTERS``; None: the config file's ``method``, else ``"riekf"``.
     mapping, config_file
-        As for :func:`read_mcap`; the config file also supplies ``method`` and ``[config]``.
+        As for :func:`read_mcap`; the config file also supplies ``method``, ``[config]`` and
+        ``[initial]``.
     config : FilterConfig or dict, optional
         Filter settings; replaces the config file's ``[config]``.
+    initial : dict, optional
+        Initial state as for :func:`run_filter`; replaces the config file's ``[initial]``. None
+        and no ``[initial]``: self-initialisation, which needs ranges (a recording with TDoA
+        only needs ``initial``). TDoA are taken by the tightly coupled methods (``ekf``,
+        ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``, ``ackf``, ``ukf``); the
+        others raise ValueError on a recording with TDoA.
     smooth : bool
         Return RTS-smoothed estimates (inertial methods).
 
@@ -312,7 +327,8 @@ def replay(
     -------
     (polars.DataFrame, dict)
         The trajectory with the :func:`run_filter` columns, and ``info``: ``method``,
-        ``anchors`` (per anchor: id, accepted, down_weighted, rejected), ``mean_nis``,
+        ``anchors`` (per anchor: id, accepted, down_weighted, rejected, for the ranges),
+        ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis``,
         ``stats`` (as :func:`read_mcap`) and, when ground truth is mapped,
         ``rmse_horizontal_m``, ``rmse_horizontal_aligned_m``, ``rmse_3d_m``,
         ``rmse_3d_aligned_m`` (rigid SE(3) alignment).
@@ -328,6 +344,7 @@ def replay(
         mapping=_mapping_json(mapping),
         config_file=None if config_file is None else os.fspath(config_file),
         config=_as_dict(config),
+        initial=_as_dict(initial),
         smooth=smooth,
     )
     return _frame(cols), info

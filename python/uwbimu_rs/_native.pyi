@@ -963,8 +963,9 @@ def simulate(
 
 def read_mcap(path: str, *, mapping: str | None = None, config_file: str | None = None) -> dict[str, Any]:
     """Read an MCAP file through a mapping (JSON text of the ``[mapping]`` table) and/or a replay
-    TOML file. Returns ``imu``, ``ranges``, ``anchors``, ``ground_truth`` (dicts of float64
-    columns), ``anchor_ids`` (list of str) and ``stats`` (dict). Raises OSError (``FormatError``)
+    TOML file. Returns ``imu``, ``ranges``, ``tdoa`` (``t, i, j, d_ij``: anchor indices i, j and
+    d_ij = |p − a_j| − |p − a_i| in m), ``anchors``, ``ground_truth`` (dicts of float64 columns),
+    ``anchor_ids`` (list of str) and ``stats`` (dict). Raises OSError (``FormatError``)
     for unreadable or corrupt files and ``MappingError`` for a mapping that does not fit."""
 
 def replay(
@@ -974,15 +975,25 @@ def replay(
     mapping: str | None = None,
     config_file: str | None = None,
     config: _ConfigArg = None,
+    initial: dict[str, Any] | None = None,
     smooth: bool = False,
 ) -> tuple[dict[str, _F64], dict[str, Any]]:
-    """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core). Returns
-    ``(columns, info)``: the run_filter columns and per-anchor statistics, mean NIS, read
-    statistics and RMSE against ground truth when mapped."""
+    """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core) from
+    ``initial`` (None: the config file's ``[initial]``, else self-initialisation, which needs
+    ranges). Returns ``(columns, info)``: the run_filter columns and per-anchor statistics,
+    ``tdoa`` counts when the recording has TDoA, mean NIS, read statistics and RMSE against
+    ground truth when mapped."""
 
 def write_mcap(
-    path: str, imu: ArrayLike, ranges: ArrayLike, anchors: ArrayLike, *, range_std: float | None = None
+    path: str,
+    imu: ArrayLike,
+    ranges: ArrayLike,
+    anchors: ArrayLike,
+    *,
+    range_std: float | None = None,
+    tdoa: ArrayLike | None = None,
 ) -> None:
     """Write a recording as MCAP: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON
-    ``uwbimu.UwbRange`` on ``/uwb`` (anchor ids ``A0``, ``A1``, ...), anchor positions in the
-    ``uwbimu.anchors`` metadata record; zstd chunks."""
+    ``uwbimu.UwbRange`` on ``/uwb`` (anchor ids ``A0``, ``A1``, ...), TDoA ``(M, 4) = t, i, j,
+    d_ij`` (when given) as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (``idA``, ``idB``,
+    ``distanceDiff``), anchor positions in the ``uwbimu.anchors`` metadata record; zstd chunks."""

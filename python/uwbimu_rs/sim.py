@@ -279,9 +279,11 @@ def simulate(
 def write_mcap(run: SimResult, path: str | os.PathLike[str], *, range_std: float | None = None) -> None:
     """Write a simulated run as an MCAP recording that ``uwbimu-replay`` and :func:`uwbimu_rs.replay`
     read without a mapping: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON ``uwbimu.UwbRange`` on
-    ``/uwb`` (anchor ids ``A0``, ``A1``, ...; ``variance = range_std²`` when given) and the anchor
-    positions in the ``uwbimu.anchors`` metadata record."""
-    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std)
+    ``/uwb`` (anchor ids ``A0``, ``A1``, ...; ``variance = range_std²`` when given), the run's
+    TDoA (if any) as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (fields ``idA``, ``idB``,
+    ``distanceDiff``, the ``[mapping.tdoa]`` defaults; no ``/uwb`` when the run has TDoA and no
+    ranges) and the anchor positions in the ``uwbimu.anchors`` metadata record."""
+    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std, tdoa=run.tdoa)
 
 
 def zoo(name: ZooName, *, seed: int = 0, **overrides: float | bool) -> SimResult:

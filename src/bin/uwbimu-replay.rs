@@ -1,4 +1,4 @@
-//! `uwbimu-replay`: replays an MCAP recording (IMU + UWB ranges) through one of the filters,
+//! `uwbimu-replay`: replays an MCAP recording (IMU + UWB ranges and/or TDoA) through one of the filters,
 //! prints what it found and the end statistics, and writes the trajectory as Foxglove MCAP and/or
 //! CSV. Any error prints one message on stderr and exits with code 2.
 
@@ -12,23 +12,25 @@ use clap::Parser;
 use uwbimu_rs::columns::output_columns;
 use uwbimu_rs::io::csv_out::write_columns_csv;
 use uwbimu_rs::io::foxglove_out::write_trajectory_mcap;
-use uwbimu_rs::io::mapping::AnchorMapping;
+use uwbimu_rs::io::mapping::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_rs::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
 use uwbimu_rs::methods::Method;
 use uwbimu_rs::replay::{compare_with_truth, replay, Replay};
 use uwbimu_rs::{Error, Result};
 
-/// Replay an MCAP recording of IMU and UWB ranges through a uwbimu_rs filter.
+/// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter.
 #[derive(Debug, Parser)]
 #[command(name = "uwbimu-replay", version)]
 struct Args {
     /// The MCAP file to replay.
     file: PathBuf,
-    /// Method (uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf); default: the
-    /// config file's, else riekf.
+    /// Method (one of uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, eskf, shaf, shfaf,
+    /// ukf, ekf2d, ukf2d, cekf2d; with TDoA one of ekf, iekf, rekf, riekf, criekf, ckf, arckf,
+    /// ackf, ukf); default: the config file's, else riekf.
     #[arg(long)]
     method: Option<String>,
-    /// Replay TOML: `method`, `[config]` filter settings and the `[mapping]` of topics and fields.
+    /// Replay TOML: `method`, `[config]` filter settings, the `[initial]` state (TDoA without
+    /// ranges) and the `[mapping]` of topics and fields.
     #[arg(long)]
     config: Option<PathBuf>,
     /// IMU topic (default: the only sensor_msgs/msg/Imu topic).
@@ -145,10 +147,21 @@ fn print_found(args: &Args, cfg: &ReplayConfig, rec: &Recording) {
         u.anchor_position.as_deref().unwrap_or("-"),
         u.scale.unwrap_or(1.0)
     );
+    if !rec.tdoa.is_empty() {
+        let t = &m.tdoa;
+        println!(
+            "mapping: tdoa anchor i `{}`, anchor j `{}`, d_ij `{}`, scale {}",
+            t.anchor_i.as_deref().unwrap_or(TDOA_ANCHOR_I_DEFAULT),
+            t.anchor_j.as_deref().unwrap_or(TDOA_ANCHOR_J_DEFAULT),
+            t.tdoa.as_deref().unwrap_or(TDOA_DEFAULT),
+            t.scale.unwrap_or(1.0)
+        );
+    }
     println!(
-        "read: {} IMU samples, {} ranges, {} anchors (from {}), {} ground-truth samples",
+        "read: {} IMU samples, {} ranges, {} TDoA, {} anchors (from {}), {} ground-truth samples",
         rec.imu.len(),
         rec.ranges.len(),
+        rec.tdoa.len(),
         rec.anchors.len(),
         s.anchor_source,
         rec.ground_truth.len()
@@ -160,15 +173,28 @@ fn print_found(args: &Args, cfg: &ReplayConfig, rec: &Recording) {
     if s.unknown_anchor > 0 {
         println!("dropped: {} ranges to anchors without a position", s.unknown_anchor);
     }
+    if s.tdoa_unknown_anchor > 0 {
+        let ids: Vec<&str> = s.tdoa_unknown_ids.iter().map(String::as_str).collect();
+        println!("dropped: {} TDoA with anchors without a position ({})", s.tdoa_unknown_anchor, ids.join(", "));
+    }
+    if s.tdoa_bad_value > 0 {
+        println!("dropped: {} TDoA not finite or between an anchor and itself", s.tdoa_bad_value);
+    }
 }
 
 fn print_stats(rec: &Recording, result: &Replay) {
     println!("{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}", "anchor", "invalid", "accepted", "down-weighted", "rejected", "bad");
-    for a in &result.anchors {
+    for a in result.anchors.iter().filter(|_| !rec.ranges.is_empty()) {
         let read = rec.stats.per_anchor.get(&a.id).copied().unwrap_or_default();
         println!(
             "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
             a.id, read.invalid, a.accepted, a.down_weighted, a.rejected, read.bad_value
+        );
+    }
+    if let Some(t) = &result.tdoa {
+        println!(
+            "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
+            t.id, "-", t.accepted, t.down_weighted, t.rejected, rec.stats.tdoa_bad_value
         );
     }
     match result.mean_nis {
@@ -192,7 +218,12 @@ fn run(args: &Args) -> Result<()> {
     let read_s = start.elapsed().as_secs_f64();
     print_found(args, &cfg, &rec);
     let start = Instant::now();
-    let result = replay(&rec, method, &cfg.config, args.smooth)?;
+    let result = replay(&rec, method, &cfg.config, cfg.initial.as_ref(), args.smooth).map_err(|e| match e {
+        Error::InvalidCall(reason) if !rec.tdoa.is_empty() && !method.takes_tdoa() => {
+            Error::InvalidCall(format!("the recording has TDoA: {reason}; choose one with --method"))
+        }
+        other => other,
+    })?;
     println!(
         "method: {method_name}{}; read {read_s:.2} s, filter {:.2} s",
         if args.smooth { " (smoothed)" } else { "" },

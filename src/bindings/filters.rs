@@ -141,6 +141,22 @@ fn read_initial(initial: &Bound<'_, PyAny>) -> PyResult<InitialState> {
     Ok(s)
 }
 
+/// Reads an optional `initial` dict (None or Python None: self-initialisation).
+pub(super) fn read_optional_initial(initial: Option<&Bound<'_, PyAny>>) -> PyResult<Option<InitialState>> {
+    match initial {
+        Some(obj) if !obj.is_none() => Ok(Some(read_initial(obj)?)),
+        _ => Ok(None),
+    }
+}
+
+/// Reads and validates an optional `tdoa` array `(M, 4) = t, i, j, d_ij` (None: no TDoA).
+pub(super) fn read_tdoa(tdoa: Option<&Bound<'_, PyAny>>, anchor_count: usize) -> PyResult<Vec<TdoaMeasurement>> {
+    match tdoa {
+        Some(d) if !d.is_none() => Ok(validate::tdoa(&table::<4>(&array(d, "tdoa")?, "tdoa", TDOA_LAYOUT)?, anchor_count)?),
+        _ => Ok(Vec::new()),
+    }
+}
+
 /// Validated arrays of one batch call.
 pub(super) struct Inputs {
     pub(super) imu: Vec<ImuSample>,
@@ -489,15 +505,9 @@ fn run_filter<'py>(
         Some(m) if !m.is_none() => validate::magnetometer(&table::<4>(&array(m, "mag")?, "mag", MAG_LAYOUT)?)?,
         _ => Vec::new(),
     };
-    let tdoa = match tdoa {
-        Some(d) if !d.is_none() => validate::tdoa(&table::<4>(&array(d, "tdoa")?, "tdoa", TDOA_LAYOUT)?, inputs.anchors.len())?,
-        _ => Vec::new(),
-    };
+    let tdoa = read_tdoa(tdoa, inputs.anchors.len())?;
     let config = read_config(config)?;
-    let initial = match initial {
-        Some(obj) if !obj.is_none() => Some(read_initial(obj)?),
-        _ => None,
-    };
+    let initial = read_optional_initial(initial)?;
     let input = BatchInput {
         imu: &inputs.imu,
         ranges: &inputs.ranges,

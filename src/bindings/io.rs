@@ -1,5 +1,5 @@
-//! Bindings of the MCAP reader and replay: `read_mcap` (columns of IMU, ranges, anchors, ground
-//! truth) and `replay` (the `uwbimu-replay` core: read, self-initialise, filter, statistics).
+//! Bindings of the MCAP reader and replay: `read_mcap` (columns of IMU, ranges, TDoA, anchors,
+//! ground truth) and `replay` (the `uwbimu-replay` core: read, self-initialise, filter, statistics).
 
 use std::path::{Path, PathBuf};
 
@@ -8,13 +8,13 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use super::convert::columns;
-use super::filters::{read_config, read_inputs};
+use super::filters::{read_config, read_inputs, read_optional_initial, read_tdoa};
 use crate::columns::output_columns;
 use crate::error::Error;
-use crate::io::recording_out::write_recording_mcap;
+use crate::io::recording_out::{write_recording_mcap, RecordingStreams};
 use crate::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
 use crate::methods::Method;
-use crate::replay::{compare_with_truth, replay as replay_recording};
+use crate::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
 
 /// The replay settings from an optional TOML file and an optional mapping (JSON text).
 fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<ReplayConfig> {
@@ -53,6 +53,9 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict
     d.set_item("reordered", s.reordered)?;
     d.set_item("imu_duplicates", s.imu_duplicates)?;
     d.set_item("unknown_anchor", s.unknown_anchor)?;
+    d.set_item("tdoa_unknown_anchor", s.tdoa_unknown_anchor)?;
+    d.set_item("tdoa_unknown_ids", s.tdoa_unknown_ids.iter().collect::<Vec<_>>())?;
+    d.set_item("tdoa_bad_value", s.tdoa_bad_value)?;
     d.set_item("anchor_source", s.anchor_source)?;
     d.set_item("log_time_stamps", s.log_time_stamps)?;
     let invalid = PyDict::new(py);
@@ -64,7 +67,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict
 }
 
 /// Reads an MCAP file through a mapping (JSON text of the `[mapping]` table) and/or a replay TOML
-/// file. Returns a dict: `imu`, `ranges`, `anchors`, `ground_truth` (dicts of columns),
+/// file. Returns a dict: `imu`, `ranges`, `tdoa`, `anchors`, `ground_truth` (dicts of columns),
 /// `anchor_ids` (list of str) and `stats` (dict).
 #[pyfunction]
 #[pyo3(signature = (path, *, mapping=None, config_file=None))]
@@ -78,7 +81,7 @@ fn read_mcap<'py>(
     let rec = read(py, &path, &cfg.mapping)?;
     let out = PyDict::new(py);
     let col = |f: &dyn Fn(usize) -> f64, n: usize| (0..n).map(f).collect::<Vec<f64>>();
-    let (imu, ranges, gt) = (&rec.imu, &rec.ranges, &rec.ground_truth);
+    let (imu, ranges, tdoa, gt) = (&rec.imu, &rec.ranges, &rec.tdoa, &rec.ground_truth);
     out.set_item(
         "imu",
         columns(
@@ -106,6 +109,18 @@ fn read_mcap<'py>(
             ],
         )?,
     )?;
+    out.set_item(
+        "tdoa",
+        columns(
+            py,
+            vec![
+                ("t", col(&|k| tdoa[k].t_s, tdoa.len())),
+                ("i", col(&|k| tdoa[k].anchor_i as f64, tdoa.len())),
+                ("j", col(&|k| tdoa[k].anchor_j as f64, tdoa.len())),
+                ("d_ij", col(&|k| tdoa[k].tdoa_m, tdoa.len())),
+            ],
+        )?,
+    )?;
     let a = &rec.anchors;
     out.set_item(
         "anchors",
@@ -128,10 +143,22 @@ fn read_mcap<'py>(
     Ok(out)
 }
 
-/// Reads an MCAP file and replays it through `method` (None: the config file's, else `riekf`);
-/// the same core as the `uwbimu-replay` binary. Returns `(columns, info)`.
+/// Update counts as a dict (id, accepted, down_weighted, rejected).
+fn update_stats_dict<'py>(py: Python<'py>, a: &AnchorUpdateStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("id", &a.id)?;
+    d.set_item("accepted", a.accepted)?;
+    d.set_item("down_weighted", a.down_weighted)?;
+    d.set_item("rejected", a.rejected)?;
+    Ok(d)
+}
+
+/// Reads an MCAP file and replays it through `method` (None: the config file's, else `riekf`)
+/// from `initial` (None: the config file's `[initial]`, else self-initialisation); the same core
+/// as the `uwbimu-replay` binary. Returns `(columns, info)`.
 #[pyfunction]
-#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, smooth=false))]
+#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, initial=None, smooth=false))]
+#[allow(clippy::too_many_arguments)] // the Python keyword arguments
 fn replay<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -139,30 +166,32 @@ fn replay<'py>(
     mapping: Option<&str>,
     config_file: Option<PathBuf>,
     config: Option<&Bound<'py, PyAny>>,
+    initial: Option<&Bound<'py, PyAny>>,
     smooth: bool,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let mut cfg = settings(config_file.as_deref(), mapping)?;
     if config.is_some_and(|c| !c.is_none()) {
         cfg.config = read_config(config)?;
     }
+    if let Some(i) = read_optional_initial(initial)? {
+        cfg.initial = Some(i);
+    }
     let name = method.or(cfg.method.as_deref()).unwrap_or("riekf").to_string();
     let method = Method::parse(&name)?;
     let rec = read(py, &path, &cfg.mapping)?;
-    let result = py.detach(|| replay_recording(&rec, method, &cfg.config, smooth))?;
+    let result = py.detach(|| replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth))?;
     let info = PyDict::new(py);
     info.set_item("method", name)?;
     info.set_item("stats", stats_dict(py, &rec.stats)?)?;
     info.set_item("mean_nis", result.mean_nis)?;
     let anchors = PyList::empty(py);
     for a in &result.anchors {
-        let d = PyDict::new(py);
-        d.set_item("id", &a.id)?;
-        d.set_item("accepted", a.accepted)?;
-        d.set_item("down_weighted", a.down_weighted)?;
-        d.set_item("rejected", a.rejected)?;
-        anchors.append(d)?;
+        anchors.append(update_stats_dict(py, a)?)?;
     }
     info.set_item("anchors", anchors)?;
+    if let Some(t) = &result.tdoa {
+        info.set_item("tdoa", update_stats_dict(py, t)?)?;
+    }
     if !rec.ground_truth.is_empty() {
         let (raw, aligned) = compare_with_truth(&result.trajectory(), &rec.ground_truth)?;
         info.set_item("rmse_horizontal_m", raw.horizontal.rmse)?;
@@ -174,10 +203,10 @@ fn replay<'py>(
 }
 
 /// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
-/// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...), anchors in the `uwbimu.anchors`
-/// metadata record; zstd chunks.
+/// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...), TDoA (when given) as CDR
+/// `uwbimu_msgs/msg/Tdoa` on `/tdoa`, anchors in the `uwbimu.anchors` metadata record; zstd chunks.
 #[pyfunction]
-#[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None))]
+#[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None, tdoa=None))]
 fn write_mcap(
     py: Python<'_>,
     path: PathBuf,
@@ -185,13 +214,16 @@ fn write_mcap(
     ranges: &Bound<'_, PyAny>,
     anchors: &Bound<'_, PyAny>,
     range_std: Option<f64>,
+    tdoa: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
     let inputs = read_inputs(imu, ranges, anchors)?;
+    let tdoa = read_tdoa(tdoa, inputs.anchors.len())?;
     let label = path.display().to_string();
     py.detach(|| {
         let file = std::fs::File::create(&path).map_err(|e| Error::Io { path: label.clone(), reason: e.to_string() })?;
         let sink = std::io::BufWriter::new(file);
-        write_recording_mcap(sink, &label, &inputs.imu, &inputs.ranges, &inputs.anchors, range_std, true)
+        let streams = RecordingStreams { imu: &inputs.imu, ranges: &inputs.ranges, tdoa: &tdoa, anchors: &inputs.anchors };
+        write_recording_mcap(sink, &label, &streams, range_std, true)
     })?;
     Ok(())
 }

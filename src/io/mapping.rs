@@ -71,6 +71,36 @@ pub struct UwbMapping {
     pub anchor_from: AnchorFrom,
 }
 
+/// Default path of a TDoA's anchor i: the Crazyflie estimator's `estTDOA` event field.
+pub const TDOA_ANCHOR_I_DEFAULT: &str = "idA";
+/// Default path of a TDoA's anchor j: the Crazyflie estimator's `estTDOA` event field.
+pub const TDOA_ANCHOR_J_DEFAULT: &str = "idB";
+/// Default path of a TDoA's distance difference: the Crazyflie estimator's `estTDOA` event field.
+pub const TDOA_DEFAULT: &str = "distanceDiff";
+
+/// How TDoA messages are read (section `[mapping.tdoa]`). A message (or each element of an
+/// array, with paths such as `tdoa[].idA`) gives anchor ids i and j and `d_ij = ‖p − a_j‖ −
+/// ‖p − a_i‖` — the Crazyflie convention: `distanceDiff` is the distance to anchor `idB` minus
+/// the distance to anchor `idA`. The defaults are the field names of the Crazyflie `estTDOA`
+/// event (`idA`, `idB`, `distanceDiff`), which the recordings we write also use.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TdoaMapping {
+    /// TDoA topics (empty: every channel with our `uwbimu_msgs/msg/Tdoa` schema).
+    #[serde(default)]
+    pub topics: Vec<String>,
+    /// Path of the id of anchor i; default [`TDOA_ANCHOR_I_DEFAULT`].
+    pub anchor_i: Option<String>,
+    /// Path of the id of anchor j; default [`TDOA_ANCHOR_J_DEFAULT`].
+    pub anchor_j: Option<String>,
+    /// Path of `d_ij`; default [`TDOA_DEFAULT`].
+    pub tdoa: Option<String>,
+    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
+    pub stamp: Option<String>,
+    /// Factor from the message's unit to metres (0.001 for mm).
+    pub scale: Option<f64>,
+}
+
 /// Where anchor positions come from (first match wins: `positions`, `file`, the MCAP metadata
 /// record `uwbimu.anchors`, the `topic`, positions carried by range messages).
 #[derive(Debug, Clone, PartialEq, Default, Deserialize)]
@@ -118,6 +148,9 @@ pub struct Mapping {
     /// UWB range messages.
     #[serde(default)]
     pub uwb: UwbMapping,
+    /// TDoA messages.
+    #[serde(default)]
+    pub tdoa: TdoaMapping,
     /// Anchor positions.
     #[serde(default)]
     pub anchors: AnchorMapping,
@@ -137,6 +170,7 @@ impl Default for Mapping {
             reorder_window_s: default_window(),
             imu_topic: None,
             uwb: UwbMapping::default(),
+            tdoa: TdoaMapping::default(),
             anchors: AnchorMapping::default(),
             ground_truth: GroundTruthMapping::default(),
         }
@@ -165,9 +199,11 @@ impl Mapping {
                 reason: format!("must be >= 0, got {}", self.reorder_window_s),
             });
         }
-        if let Some(s) = self.uwb.scale {
-            if !(s.is_finite() && s > 0.0) {
-                return Err(Error::Mapping { field: "uwb.scale".into(), reason: format!("must be > 0, got {s}") });
+        for (field, scale) in [("uwb.scale", self.uwb.scale), ("tdoa.scale", self.tdoa.scale)] {
+            if let Some(s) = scale {
+                if !(s.is_finite() && s > 0.0) {
+                    return Err(Error::Mapping { field: field.into(), reason: format!("must be > 0, got {s}") });
+                }
             }
         }
         Ok(self)

@@ -1,9 +1,9 @@
-//! Reads one MCAP file through a [`Mapping`] into time-ordered IMU samples, ranges (anchor ids
-//! turned into anchor indices), anchor positions and ground truth, with statistics of what was
+//! Reads one MCAP file through a [`Mapping`] into time-ordered IMU samples, ranges and TDoA
+//! (anchor ids turned into anchor indices), anchor positions and ground truth, with statistics of what was
 //! found, dropped and reordered. Messages are decoded as they stream past; only the small decoded
 //! records are kept.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -11,10 +11,10 @@ use crate::io::anchors::{parse_anchor_metadata, read_anchor_file, AnchorTable, A
 use crate::io::mapping::{Mapping, TimeSource};
 use crate::io::mcap_read::{read_mcap, ChannelInfo, McapEvent};
 use crate::io::reorder::ReorderBuffer;
-use crate::io::topics::{AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawRange};
+use crate::io::topics::{AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawRange, RawTdoa, TdoaDecoder};
 use crate::io::truth_file::read_truth_csv;
 use crate::math::Vec3;
-use crate::records::{ImuSample, RangeMeasurement};
+use crate::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 
 /// What a topic was used for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,6 +23,8 @@ pub enum TopicRole {
     Imu,
     /// UWB ranges.
     Uwb,
+    /// TDoA.
+    Tdoa,
     /// Anchor list.
     Anchors,
     /// Ground truth.
@@ -37,6 +39,7 @@ impl TopicRole {
         match self {
             Self::Imu => "imu",
             Self::Uwb => "uwb",
+            Self::Tdoa => "tdoa",
             Self::Anchors => "anchors",
             Self::GroundTruth => "ground truth",
             Self::Ignored => "-",
@@ -87,6 +90,12 @@ pub struct ReadStats {
     pub per_anchor: BTreeMap<String, AnchorReadCounts>,
     /// Ranges whose anchor has no known position (dropped).
     pub unknown_anchor: usize,
+    /// TDoA with an anchor that has no known position (dropped).
+    pub tdoa_unknown_anchor: usize,
+    /// The anchor ids of those TDoA that have no known position.
+    pub tdoa_unknown_ids: BTreeSet<String>,
+    /// TDoA whose value was not finite or whose two anchors were the same (dropped).
+    pub tdoa_bad_value: usize,
     /// Where the anchor positions came from.
     pub anchor_source: &'static str,
     /// Messages whose stamp came from the MCAP log time.
@@ -109,6 +118,8 @@ pub struct Recording {
     pub ranges: Vec<RangeMeasurement>,
     /// Variance per range when the message had one, m² (NaN otherwise).
     pub range_variances: Vec<f64>,
+    /// TDoA, non-decreasing time; `anchor_i`, `anchor_j` index [`Recording::anchors`].
+    pub tdoa: Vec<TdoaMeasurement>,
     /// Anchor ids, one per anchor index.
     pub anchor_ids: Vec<String>,
     /// Anchor positions, m.
@@ -123,6 +134,7 @@ pub struct Recording {
 enum Item {
     Imu(Vec3, Vec3),
     Range(RawRange),
+    Tdoa(RawTdoa),
     Truth(Vec3),
 }
 
@@ -130,6 +142,7 @@ enum Item {
 enum Role {
     Imu(Box<ImuDecoder>),
     Uwb(Box<RangeDecoder>),
+    Tdoa(Box<TdoaDecoder>),
     Anchors(Box<AnchorListDecoder>),
     Truth(Box<PoseDecoder>),
     Ignored,
@@ -140,21 +153,34 @@ struct Reader<'m> {
     roles: BTreeMap<u16, Role>,
     stats: ReadStats,
     buffer: ReorderBuffer<Item>,
-    imu: Vec<(i64, Vec3, Vec3)>,
-    ranges: Vec<(i64, RawRange)>,
-    truth: Vec<(f64, Vec3)>,
+    released: Released,
     metadata_anchors: Option<BTreeMap<String, Vec3>>,
     topic_anchors: BTreeMap<String, Vec3>,
     /// Why a candidate UWB channel was not used (when no topic was named).
     uwb_misfit: Option<Error>,
-    scratch: Vec<RawRange>,
+    /// The items of the message being read.
+    items: Vec<Item>,
+    range_scratch: Vec<RawRange>,
+    tdoa_scratch: Vec<RawTdoa>,
 }
 
-fn emit(imu: &mut Vec<(i64, Vec3, Vec3)>, ranges: &mut Vec<(i64, RawRange)>, truth: &mut Vec<(f64, Vec3)>, t: i64, item: Item) {
-    match item {
-        Item::Imu(a, g) => imu.push((t, a, g)),
-        Item::Range(r) => ranges.push((t, r)),
-        Item::Truth(p) => truth.push((t as f64 * 1e-9, p)),
+/// The decoded items in time order, as the reorder buffer releases them.
+#[derive(Default)]
+struct Released {
+    imu: Vec<(i64, Vec3, Vec3)>,
+    ranges: Vec<(i64, RawRange)>,
+    tdoa: Vec<(i64, RawTdoa)>,
+    truth: Vec<(f64, Vec3)>,
+}
+
+impl Released {
+    fn push(&mut self, t: i64, item: Item) {
+        match item {
+            Item::Imu(a, g) => self.imu.push((t, a, g)),
+            Item::Range(r) => self.ranges.push((t, r)),
+            Item::Tdoa(m) => self.tdoa.push((t, m)),
+            Item::Truth(p) => self.truth.push((t as f64 * 1e-9, p)),
+        }
     }
 }
 
@@ -179,6 +205,9 @@ impl Reader<'_> {
         if m.uwb.topics.iter().any(|t| t == topic) {
             return Ok(Role::Uwb(Box::new(RangeDecoder::new(channel, &m.uwb)?)));
         }
+        if m.tdoa.topics.iter().any(|t| t == topic) || (m.tdoa.topics.is_empty() && TdoaDecoder::recognises(channel)) {
+            return Ok(Role::Tdoa(Box::new(TdoaDecoder::new(channel, &m.tdoa)?)));
+        }
         if m.anchors.topic.as_deref() == Some(topic) {
             return Ok(Role::Anchors(Box::new(AnchorListDecoder::new(channel, &m.anchors)?)));
         }
@@ -201,6 +230,7 @@ impl Reader<'_> {
                 let role_tag = match role {
                     Role::Imu(_) => TopicRole::Imu,
                     Role::Uwb(_) => TopicRole::Uwb,
+                    Role::Tdoa(_) => TopicRole::Tdoa,
                     Role::Anchors(_) => TopicRole::Anchors,
                     Role::Truth(_) => TopicRole::GroundTruth,
                     Role::Ignored => TopicRole::Ignored,
@@ -233,14 +263,17 @@ impl Reader<'_> {
                     other => other,
                 };
                 let log_ns = i64::try_from(log_time_ns).unwrap_or(i64::MAX);
-                let (stamp, item) = match self.roles.get(&channel.id) {
+                self.items.clear();
+                let stamp = match self.roles.get(&channel.id) {
                     Some(Role::Imu(d)) => {
                         let (s, a, g) = d.decode(data).map_err(in_topic)?;
-                        (s, Item::Imu(a, g))
+                        self.items.push(Item::Imu(a, g));
+                        s
                     }
                     Some(Role::Truth(d)) => {
                         let (s, p) = d.decode(data).map_err(in_topic)?;
-                        (s, Item::Truth(p))
+                        self.items.push(Item::Truth(p));
+                        s
                     }
                     Some(Role::Anchors(d)) => {
                         for (id, p) in d.decode(data).map_err(in_topic)? {
@@ -249,20 +282,21 @@ impl Reader<'_> {
                         return Ok(());
                     }
                     Some(Role::Uwb(d)) => {
-                        self.scratch.clear();
-                        let s = d.decode(data, &mut self.scratch).map_err(in_topic)?;
-                        let t = self.stamp(s, log_ns);
-                        for r in self.scratch.drain(..) {
-                            let (imu, ranges, truth) = (&mut self.imu, &mut self.ranges, &mut self.truth);
-                            self.buffer.push(t, Item::Range(r), |t, i| emit(imu, ranges, truth, t, i));
-                        }
-                        return Ok(());
+                        let s = d.decode(data, &mut self.range_scratch).map_err(in_topic)?;
+                        self.items.extend(self.range_scratch.drain(..).map(Item::Range));
+                        s
+                    }
+                    Some(Role::Tdoa(d)) => {
+                        let s = d.decode(data, &mut self.tdoa_scratch).map_err(in_topic)?;
+                        self.items.extend(self.tdoa_scratch.drain(..).map(Item::Tdoa));
+                        s
                     }
                     Some(Role::Ignored) | None => return Ok(()),
                 };
                 let t = self.stamp(stamp, log_ns);
-                let (imu, ranges, truth) = (&mut self.imu, &mut self.ranges, &mut self.truth);
-                self.buffer.push(t, item, |t, i| emit(imu, ranges, truth, t, i));
+                for item in self.items.drain(..) {
+                    self.buffer.push(t, item, |t, i| self.released.push(t, i));
+                }
             }
         }
         Ok(())
@@ -299,17 +333,16 @@ pub fn read_recording<R: std::io::Read>(
         roles: BTreeMap::new(),
         stats: ReadStats::default(),
         buffer: ReorderBuffer::new(window_ns),
-        imu: Vec::new(),
-        ranges: Vec::new(),
-        truth: Vec::new(),
+        released: Released::default(),
         metadata_anchors: None,
         topic_anchors: BTreeMap::new(),
         uwb_misfit: None,
-        scratch: Vec::new(),
+        items: Vec::new(),
+        range_scratch: Vec::new(),
+        tdoa_scratch: Vec::new(),
     };
     read_mcap(source, size, label, |e| r.on_event(e), progress)?;
-    let (imu, ranges, truth) = (&mut r.imu, &mut r.ranges, &mut r.truth);
-    r.buffer.finish(|t, i| emit(imu, ranges, truth, t, i));
+    r.buffer.finish(|t, i| r.released.push(t, i));
     r.stats.late_dropped = r.buffer.late;
     r.stats.reordered = r.buffer.reordered;
     check_topics(&r)?;
@@ -350,15 +383,20 @@ fn check_topics(r: &Reader<'_>) -> Result<()> {
             None => missing("imu_topic", "no sensor_msgs/msg/Imu topic".into()),
         });
     }
-    for t in &m.uwb.topics {
-        if !r.stats.topics.iter().any(|s| &s.topic == t) {
-            return Err(missing("uwb.topics", format!("topic `{t}` not found")));
+    for (field, topics) in [("uwb.topics", &m.uwb.topics), ("tdoa.topics", &m.tdoa.topics)] {
+        for t in topics {
+            if !r.stats.topics.iter().any(|s| &s.topic == t) {
+                return Err(missing(field, format!("topic `{t}` not found")));
+            }
         }
     }
-    if !has(TopicRole::Uwb) {
+    if !has(TopicRole::Uwb) && !has(TopicRole::Tdoa) {
         return Err(match &r.uwb_misfit {
             Some(e) => e.clone(),
-            None => missing("uwb.topics", "no UWB range topic (name one, or give field paths such as uwb.range)".into()),
+            None => missing(
+                "uwb.topics",
+                "no UWB range or TDoA topic (name one in uwb.topics / tdoa.topics, or give field paths such as uwb.range)".into(),
+            ),
         });
     }
     for (field, topic) in [("anchors.topic", &m.anchors.topic), ("ground_truth.topic", &m.ground_truth.topic)] {
@@ -391,7 +429,7 @@ fn anchor_table(r: &Reader<'_>) -> Result<(AnchorTable, &'static str)> {
             table.set_if_unknown(&id, p);
         }
     } else {
-        for (_, raw) in &r.ranges {
+        for (_, raw) in &r.released.ranges {
             if let Some(p) = raw.anchor_position {
                 if p.iter().all(|v| v.is_finite()) {
                     table.set_if_unknown(&raw.anchor_id, p);
@@ -427,7 +465,7 @@ fn assemble(r: Reader<'_>) -> Result<Recording> {
         table.ids().iter().enumerate().filter_map(|(i, id)| Some((id.as_str(), filter_index[i]?))).collect();
     let mut span: Option<(i64, i64)> = None;
     let mut widen = |t: i64| span = Some(span.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
-    for (t, raw) in &r.ranges {
+    for (t, raw) in &r.released.ranges {
         let counts = rec.stats.per_anchor.entry(raw.anchor_id.clone()).or_default();
         if !raw.valid {
             counts.invalid += 1;
@@ -446,8 +484,26 @@ fn assemble(r: Reader<'_>) -> Result<Recording> {
         rec.ranges.push(RangeMeasurement { t_s: *t as f64 * 1e-9, anchor, range_m: raw.range_m });
         rec.range_variances.push(raw.variance_m2.unwrap_or(f64::NAN));
     }
+    for (t, raw) in &r.released.tdoa {
+        if !raw.tdoa_m.is_finite() || raw.anchor_i == raw.anchor_j {
+            rec.stats.tdoa_bad_value += 1;
+            continue;
+        }
+        let (Some(&anchor_i), Some(&anchor_j)) = (index_of.get(raw.anchor_i.as_str()), index_of.get(raw.anchor_j.as_str()))
+        else {
+            rec.stats.tdoa_unknown_anchor += 1;
+            for id in [&raw.anchor_i, &raw.anchor_j] {
+                if !index_of.contains_key(id.as_str()) {
+                    rec.stats.tdoa_unknown_ids.insert(id.clone());
+                }
+            }
+            continue;
+        };
+        widen(*t);
+        rec.tdoa.push(TdoaMeasurement { t_s: *t as f64 * 1e-9, anchor_i, anchor_j, tdoa_m: raw.tdoa_m });
+    }
     let mut last: Option<i64> = None;
-    for (t, accel, gyro) in &r.imu {
+    for (t, accel, gyro) in &r.released.imu {
         if last == Some(*t) {
             rec.stats.imu_duplicates += 1;
             continue;
@@ -462,7 +518,7 @@ fn assemble(r: Reader<'_>) -> Result<Recording> {
     rec.stats.span_ns = span;
     rec.ground_truth = match &r.mapping.ground_truth.file {
         Some(f) => read_truth_csv(f)?,
-        None => r.truth,
+        None => r.released.truth,
     };
     Ok(rec)
 }

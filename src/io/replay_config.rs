@@ -1,11 +1,12 @@
 //! The replay TOML file: `method = "..."`, a `[config]` table of [`FilterConfig`] keys (section
-//! tables such as `[config.ranging]`, dotted keys, or the flat keys of earlier versions) and a
-//! `[mapping]` table ([`Mapping`]). Relative file paths in the mapping are resolved against the
-//! directory of the TOML file.
+//! tables such as `[config.ranging]`, dotted keys, or the flat keys of earlier versions), an
+//! optional `[initial]` table of [`InitialState`] keys (needed when the recording has TDoA and no
+//! ranges, as self-initialisation needs ranges) and a `[mapping]` table ([`Mapping`]). Relative
+//! file paths in the mapping are resolved against the directory of the TOML file.
 
 use std::path::Path;
 
-use crate::config::{ConfigValue, FilterConfig};
+use crate::config::{ConfigValue, FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::io::mapping::Mapping;
 
@@ -16,6 +17,8 @@ pub struct ReplayConfig {
     pub method: Option<String>,
     /// Filter settings (defaults plus the `[config]` table).
     pub config: FilterConfig,
+    /// Initial state (defaults plus the `[initial]` table; None without one: self-initialisation).
+    pub initial: Option<InitialState>,
     /// Topic and field mapping.
     pub mapping: Mapping,
 }
@@ -46,7 +49,7 @@ impl ReplayConfig {
     /// top-level keys, [`Error::Mapping`] for a bad mapping table.
     pub fn from_toml(text: &str, base_dir: &Path) -> Result<Self> {
         let table: toml::Table = toml::from_str(text).map_err(|e| config_error(e.to_string()))?;
-        let mut out = Self { method: None, config: FilterConfig::default(), mapping: Mapping::default() };
+        let mut out = Self { method: None, config: FilterConfig::default(), initial: None, mapping: Mapping::default() };
         for (key, value) in table {
             match key.as_str() {
                 "method" => {
@@ -67,6 +70,13 @@ impl ReplayConfig {
                         }
                     }
                 }
+                "initial" => {
+                    let t = value.as_table().ok_or_else(|| config_error("`initial` must be a table"))?;
+                    let initial = out.initial.get_or_insert_with(InitialState::default);
+                    for (k, v) in t {
+                        initial.set(k, &config_value(k, v)?)?;
+                    }
+                }
                 "mapping" => {
                     out.mapping = value
                         .try_into()
@@ -76,7 +86,7 @@ impl ReplayConfig {
                     return Err(Error::UnknownOption {
                         kind: "replay file key",
                         got: other.into(),
-                        allowed: "method, config, mapping".into(),
+                        allowed: "method, config, initial, mapping".into(),
                     })
                 }
             }
@@ -118,5 +128,10 @@ mod tests {
         assert!(ReplayConfig::from_toml("[mapping]\nimu_topik = \"x\"\n", Path::new(".")).is_err());
         assert!(ReplayConfig::from_toml("[config]\nrange_sdt = 1\n", Path::new(".")).is_err());
         assert!(ReplayConfig::from_toml("metod = 1\n", Path::new(".")).is_err());
+        let with_initial = "[initial]\nposition = [1, 2, 0.5]\norientation = [1, 0, 0, 0]\nposition_std = 0.2\n";
+        let initial = ReplayConfig::from_toml(with_initial, Path::new(".")).unwrap().initial.unwrap();
+        assert_eq!((initial.position.y, initial.position_std.z), (2.0, 0.2));
+        assert!(c.initial.is_none());
+        assert!(ReplayConfig::from_toml("[initial]\npositon = [1, 2, 3]\n", Path::new(".")).is_err());
     }
 }

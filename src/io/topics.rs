@@ -1,6 +1,6 @@
 //! Per-channel decoders: IMU (`sensor_msgs/msg/Imu` or anything with the same fields), UWB ranges
 //! (vendor messages through the field mapping, `sensor_msgs/msg/Range`, our JSON
-//! `uwbimu.UwbRange`), anchor lists and ground-truth poses. Each decoder is built once per
+//! `uwbimu.UwbRange`), TDoA (through the field mapping), anchor lists and ground-truth poses. Each decoder is built once per
 //! channel from its schema, so a mapping that does not fit fails before the first message.
 
 use serde::Deserialize;
@@ -9,7 +9,10 @@ use crate::error::{Error, Result};
 use crate::io::anchors::json_id;
 use crate::io::cdr::{decode, Value};
 use crate::io::field_path::{Condition, FieldPath, PointPath};
-use crate::io::mapping::{AnchorFrom, AnchorMapping, GroundTruthMapping, UwbMapping};
+use crate::io::mapping::{
+    AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
+    TDOA_DEFAULT,
+};
 use crate::io::mcap_read::ChannelInfo;
 use crate::io::msg_schema::MsgSchema;
 use crate::math::Vec3;
@@ -30,6 +33,21 @@ pub struct RawRange {
     pub anchor_position: Option<Vec3>,
     /// Whether the validity condition held.
     pub valid: bool,
+}
+
+/// Schema name of the TDoA message the recordings we write carry (CDR; `idA`, `idB`,
+/// `distanceDiff` as in the Crazyflie `estTDOA` event, see [`crate::io::recording_out::TDOA_MSG`]).
+pub const TDOA_MSG_NAME: &str = "uwbimu_msgs/msg/Tdoa";
+
+/// One decoded TDoA before anchor ids become indices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawTdoa {
+    /// Id of anchor i as text.
+    pub anchor_i: String,
+    /// Id of anchor j as text.
+    pub anchor_j: String,
+    /// `d_ij = ‖p − a_j‖ − ‖p − a_i‖`, m.
+    pub tdoa_m: f64,
 }
 
 /// Parses the channel's `ros2msg` schema (CDR channels only).
@@ -325,6 +343,80 @@ impl CdrRangeDecoder {
     }
 }
 
+/// Decodes TDoA messages through the `[mapping.tdoa]` field paths.
+#[derive(Debug, Clone)]
+pub struct TdoaDecoder {
+    schema: MsgSchema,
+    stamp: Option<FieldPath>,
+    anchor_i: FieldPath,
+    anchor_j: FieldPath,
+    tdoa: FieldPath,
+    scale: f64,
+}
+
+impl TdoaDecoder {
+    /// Whether a channel carries our TDoA message ([`TDOA_MSG_NAME`]).
+    pub fn recognises(channel: &ChannelInfo) -> bool {
+        channel.schema.as_ref().is_some_and(|s| s.name == TDOA_MSG_NAME)
+    }
+
+    /// Builds the decoder for a CDR channel.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] if a path does not fit the schema (names the `tdoa.*` key),
+    /// [`Error::Format`] for an unknown encoding or schema.
+    pub fn new(channel: &ChannelInfo, m: &TdoaMapping) -> Result<Self> {
+        let schema = cdr_schema(channel)?;
+        let id = |key: &str, path: &Option<String>, default: &str| {
+            FieldPath::resolve(&schema, key, path.as_deref().unwrap_or(default))?.require_id(key)
+        };
+        let anchor_i = id("tdoa.anchor_i", &m.anchor_i, TDOA_ANCHOR_I_DEFAULT)?;
+        let anchor_j = id("tdoa.anchor_j", &m.anchor_j, TDOA_ANCHOR_J_DEFAULT)?;
+        let tdoa =
+            FieldPath::resolve(&schema, "tdoa.tdoa", m.tdoa.as_deref().unwrap_or(TDOA_DEFAULT))?.require_numeric("tdoa.tdoa")?;
+        let stamp = match m.stamp.as_deref() {
+            Some(p) => Some(FieldPath::resolve(&schema, "tdoa.stamp", p)?),
+            None => default_stamp(&schema, "tdoa.stamp")?,
+        };
+        Ok(Self { schema, stamp, anchor_i, anchor_j, tdoa, scale: m.scale.unwrap_or(1.0) })
+    }
+
+    /// Decodes one message: (stamp ns if any); its TDoA are pushed to `out`.
+    ///
+    /// # Errors
+    /// [`Error::Format`] for a payload that does not decode, [`Error::Mapping`] if the mapped
+    /// paths select different numbers of values.
+    pub fn decode(&self, data: &[u8], out: &mut Vec<RawTdoa>) -> Result<Option<i64>> {
+        let v = decode(&self.schema, data)?;
+        let (mut ids_i, mut ids_j, mut values) = (Vec::new(), Vec::new(), Vec::new());
+        self.anchor_i.collect(&v, &mut ids_i)?;
+        self.anchor_j.collect(&v, &mut ids_j)?;
+        self.tdoa.collect(&v, &mut values)?;
+        if ids_i.len() != values.len() || ids_j.len() != values.len() {
+            return Err(Error::Mapping {
+                field: "tdoa".into(),
+                reason: format!(
+                    "`{}`, `{}` and `{}` select {}, {} and {} values",
+                    self.anchor_i.text,
+                    self.anchor_j.text,
+                    self.tdoa.text,
+                    ids_i.len(),
+                    ids_j.len(),
+                    values.len()
+                ),
+            });
+        }
+        for ((i, j), d) in ids_i.iter().zip(&ids_j).zip(&values) {
+            out.push(RawTdoa {
+                anchor_i: i.as_id().unwrap_or_default(),
+                anchor_j: j.as_id().unwrap_or_default(),
+                tdoa_m: d.as_f64().unwrap_or(f64::NAN) * self.scale,
+            });
+        }
+        stamp_ns(self.stamp.as_ref(), &v)
+    }
+}
+
 /// Decodes anchor-list messages (id and position per entry).
 #[derive(Debug, Clone)]
 pub struct AnchorListDecoder {
@@ -445,6 +537,46 @@ mod tests {
         let ch = channel("/uwb/b2", true);
         let d = RangeDecoder::new(&ch, &UwbMapping::default()).unwrap();
         assert!(matches!(d.decode(&payload(false), &mut Vec::new()), Err(Error::Format { .. })));
+    }
+
+    /// A Crazyflie-style message without header: `Tdoa[] tdoa` of `{uint8 idA, uint8 idB,
+    /// float32 distanceDiff}` (mm), two entries: (3, 5, 1250) and (5, 0, −500).
+    fn cf_tdoa() -> (ChannelInfo, Vec<u8>) {
+        let text = "Tdoa[] tdoa\n===\nMSG: cf/Tdoa\nuint8 idA\nuint8 idB\nfloat32 distanceDiff\n";
+        let schema = SchemaInfo { name: "cf/msg/TdoaArray".into(), encoding: "ros2msg".into(), data: text.into() };
+        let ch = ChannelInfo { id: 2, topic: "/cf/tdoa".into(), message_encoding: "cdr".into(), schema: Some(Arc::new(schema)) };
+        let mut b = vec![0, 1, 0, 0];
+        b.extend_from_slice(&2u32.to_le_bytes());
+        for (i, j, d) in [(3u8, 5u8, 1250.0f32), (5, 0, -500.0)] {
+            b.extend_from_slice(&[i, j, 0, 0]);
+            b.extend_from_slice(&d.to_le_bytes());
+        }
+        (ch, b)
+    }
+
+    #[test]
+    fn tdoa_arrays_with_integer_ids_decode_through_the_mapping() {
+        let (ch, payload) = cf_tdoa();
+        let m = TdoaMapping {
+            anchor_i: Some("tdoa[].idA".into()),
+            anchor_j: Some("tdoa[].idB".into()),
+            tdoa: Some("tdoa[].distanceDiff".into()),
+            scale: Some(0.001),
+            ..TdoaMapping::default()
+        };
+        assert!(!TdoaDecoder::recognises(&ch));
+        let mut out = Vec::new();
+        assert_eq!(TdoaDecoder::new(&ch, &m).unwrap().decode(&payload, &mut out).unwrap(), None);
+        let got: Vec<(&str, &str, f64)> = out.iter().map(|t| (t.anchor_i.as_str(), t.anchor_j.as_str(), t.tdoa_m)).collect();
+        assert_eq!(got, [("3", "5", 1.25), ("5", "0", -0.5)]);
+        // Paths selecting different numbers of values, a non-id anchor, a missing field.
+        let one = TdoaMapping { anchor_j: Some("tdoa[0].idB".into()), ..m.clone() };
+        let e = TdoaDecoder::new(&ch, &one).unwrap().decode(&payload, &mut out).unwrap_err().to_string();
+        assert!(e.contains("select 2, 1 and 2 values"), "{e}");
+        let not_id = TdoaMapping { anchor_i: Some("tdoa[].distanceDiff".into()), ..m.clone() };
+        assert!(matches!(TdoaDecoder::new(&ch, &not_id), Err(Error::Mapping { field, .. }) if field == "tdoa.anchor_i"));
+        let e = TdoaDecoder::new(&ch, &TdoaMapping::default()).unwrap_err().to_string();
+        assert!(e.contains("tdoa.anchor_i") && e.contains("has no field `idA`"), "{e}");
     }
 
     #[test]

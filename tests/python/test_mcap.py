@@ -148,3 +148,26 @@ def test_simulator_recording_round_trip(tmp_path):
     direct = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, config={"lever_arm": [0, 0, 0.05]})
     replayed, _ = uwbimu_rs.replay(path, "ekf", config={"lever_arm": [0, 0, 0.05]})
     np.testing.assert_allclose(replayed.select("x", "y", "z").to_numpy(), direct.select("x", "y", "z").to_numpy(), atol=1e-6)
+
+
+def test_simulator_tdoa_round_trip_and_replay(tmp_path):
+    run = uwbimu_rs.sim.zoo("agv_loop", seed=7, tdoa=True)
+    path = tmp_path / "tdoa.mcap"
+    uwbimu_rs.sim.write_mcap(run, path)
+    data = uwbimu_rs.read_mcap(path)
+    tdoa = data["tdoa"]
+    assert tdoa.columns == ["t", "i", "j", "d_ij"] and tdoa["i"].dtype == pl.Int64
+    # Times rounded to whole nanoseconds in the file; anchor indices and d_ij exact.
+    np.testing.assert_allclose(tdoa.to_numpy(), run.tdoa, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(tdoa.select("i", "j", "d_ij").to_numpy(), run.tdoa[:, 1:])
+    direct = uwbimu_rs.run_filter("rekf", run.imu, run.ranges, run.anchors, config=run.config, tdoa=run.tdoa)
+    replayed, info = uwbimu_rs.replay(path, "rekf", config=run.config)
+    np.testing.assert_allclose(replayed.select("x", "y", "z").to_numpy(), direct.select("x", "y", "z").to_numpy(), atol=1e-6)
+    counts = info["tdoa"]
+    assert counts["id"] == "tdoa" and counts["accepted"] + counts["down_weighted"] + counts["rejected"] == len(run.tdoa)
+    with pytest.raises(ValueError, match="eskf does not take TDoA"):
+        uwbimu_rs.replay(path, "eskf", config=run.config)
+    with pytest.raises(uwbimu_rs.MappingError, match="has no field `distDiff`"):
+        uwbimu_rs.read_mcap(path, mapping={"tdoa": {"tdoa": "distDiff"}})
+    with pytest.raises(ValueError, match="unknown field `anchor`"):
+        uwbimu_rs.read_mcap(path, mapping={"tdoa": {"anchor": "idA"}})
