@@ -6,7 +6,8 @@
 //!    roll and pitch still come from the mean specific force, the gyro bias is left at zero and
 //!    the attitude and velocity uncertainties are widened).
 //! 2. **Position** from UWB-only multilateration: the median of the fixes inside the still
-//!    window, or the first fix after the start. Fixes whose ranges fail the least-squares
+//!    window, or the first fix after the start. Without ranges, the fixes come from the TDoA
+//!    ([`crate::multilateration::tdoa`]). Fixes whose ranges fail the least-squares
 //!    consistency test ([`Fix::is_consistent`], α = 0.01: an outlier or NLOS range) are left out
 //!    here and in step 3 unless no fix passes.
 //! 3. **Heading from the first metres of motion against UWB**: the IMU is dead-reckoned from the
@@ -22,8 +23,9 @@ use crate::error::{Error, Result};
 use crate::ins::{propagate_nominal, ImuInterval};
 use crate::math::{Quat, Vec3};
 use crate::metrics::percentile;
+use crate::multilateration::tdoa::tdoa_fixes;
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
-use crate::records::{ImuSample, RangeMeasurement};
+use crate::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 use crate::state::NominalState;
 
 /// Accelerometer standard deviation below which the start window counts as still, m/s².
@@ -63,6 +65,18 @@ pub struct SelfInit {
 /// Initialises from the data (see the module doc). `imu` and `ranges` must be validated and
 /// time-ordered. Fails if there is no IMU sample or no solvable UWB epoch.
 pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
+    initialize_with_tdoa(imu, ranges, &[], anchors, config)
+}
+
+/// [`initialize`] that also takes TDoA (validated, time-ordered): their fixes serve when the
+/// ranges give none (a TDoA-only run).
+pub fn initialize_with_tdoa(
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    tdoa: &[TdoaMeasurement],
+    anchors: &[Vec3],
+    config: &FilterConfig,
+) -> Result<SelfInit> {
     let first = imu.first().ok_or_else(|| Error::InsufficientData("self-initialisation needs IMU samples".into()))?;
     let t0 = first.t_s;
     let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
@@ -81,14 +95,19 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
 
     // 2. Tag position from UWB fixes.
     let ls = LsConfig::from_filter_config(config);
-    let all: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
+    let mut all: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
         .into_iter()
         .filter(|e| e.t_s >= t0 - 0.5)
         .filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f)))
         .collect();
-    // Fixes whose ranges disagree (an outlier, NLOS) are left out when any others exist.
-    let consistent: Vec<(f64, Fix)> =
-        all.iter().filter(|(_, f)| f.is_consistent(config.ranging.range_std, CONSISTENCY_ALPHA)).copied().collect();
+    let mut std_m = config.ranging.range_std;
+    if all.is_empty() && !tdoa.is_empty() {
+        std_m = config.ranging.tdoa_std;
+        let from = tdoa.partition_point(|m| m.t_s < t0 - 0.5);
+        all = tdoa_fixes(anchors, &tdoa[from..], &LsConfig { range_std_m: std_m, ..ls });
+    }
+    // Fixes whose measurements disagree (an outlier, NLOS) are left out when any others exist.
+    let consistent: Vec<(f64, Fix)> = all.iter().filter(|(_, f)| f.is_consistent(std_m, CONSISTENCY_ALPHA)).copied().collect();
     let fixes = if consistent.is_empty() { all } else { consistent };
     let Some((_, first_fix)) = fixes.first() else {
         return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));

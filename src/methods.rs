@@ -3,7 +3,7 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
-use crate::init::{initialize, SelfInit};
+use crate::init::{initialize_with_tdoa, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
 use crate::pipeline::{run, run_streams, smoothed_steps, StepRecord, Streams, Trace};
@@ -182,11 +182,11 @@ fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 
 /// The given initial state, or the self-initialisation's.
 fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<SelfInit>>)> {
-    let BatchInput { imu, ranges, anchors, initial, config, .. } = *input;
+    let BatchInput { imu, ranges, anchors, initial, config, tdoa, .. } = *input;
     Ok(match initial {
         Some(i) => (i.clone(), None),
         None => {
-            let s = initialize(imu, ranges, anchors, config)?;
+            let s = initialize_with_tdoa(imu, ranges, tdoa, anchors, config)?;
             (s.initial.clone(), Some(Box::new(s)))
         }
     })

@@ -14,6 +14,7 @@
 //! not the filters' hot path.
 
 pub mod l1;
+pub mod tdoa;
 
 pub use l1::{l1_fix, l1_solve_epoch, L1Config, L1Fix};
 

@@ -52,12 +52,12 @@ impl Replay {
 }
 
 /// Runs `method` over the ranges and TDoA of `rec`, from `initial` (None: self-initialisation,
-/// which needs ranges) and gathers per-anchor statistics. A recording with TDoA needs a method
-/// that takes them ([`Method::takes_tdoa`]).
+/// from the ranges or else the TDoA) and gathers per-anchor statistics. A recording with TDoA
+/// needs a method that takes them ([`Method::takes_tdoa`]).
 ///
 /// # Errors
 /// As [`run_method`]; [`Error::InsufficientData`] if the recording has no IMU samples, no
-/// ranges and no TDoA, or TDoA only and no `initial`.
+/// ranges and no TDoA.
 pub fn replay(
     rec: &Recording,
     method: Method,
@@ -70,13 +70,6 @@ pub fn replay(
             "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
             rec.imu.len(),
             rec.ranges.len(),
-            rec.tdoa.len()
-        )));
-    }
-    if rec.ranges.is_empty() && initial.is_none() {
-        return Err(Error::InsufficientData(format!(
-            "the recording has TDoA ({}) but no ranges, and self-initialisation needs ranges: give the initial state \
-             (the replay file's [initial] table, or initial= in Python)",
             rec.tdoa.len()
         )));
     }

@@ -115,8 +115,8 @@ def run_filter(
     tdoa : numpy.ndarray, shape (M, 4), optional
         Time differences of arrival ``t, i, j, d_ij`` with ``d_ij = |p − a_j| − |p − a_i|`` [m]
         (Loco Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time,
-        noise σ = ``tdoa_std``. Alone (``ranges`` an empty ``(0, 3)`` array; give ``initial``,
-        self-initialisation needs ranges) or with ranges. Taken by the tightly coupled inertial
+        noise σ = ``tdoa_std``. Alone (``ranges`` an empty ``(0, 3)`` array; without ``initial`` the
+        filter initialises itself from TDoA fixes) or with ranges. Taken by the tightly coupled inertial
         methods (``ekf``, ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``,
         ``ackf``, ``ukf``) through their own noise policy (the robust ones down-weight TDoA
         outliers by χ² inflation); the others raise ValueError.
@@ -316,8 +316,8 @@ def replay(
         Filter settings; replaces the config file's ``[config]``.
     initial : dict, optional
         Initial state as for :func:`run_filter`; replaces the config file's ``[initial]``. None
-        and no ``[initial]``: self-initialisation, which needs ranges (a recording with TDoA
-        only needs ``initial``). TDoA are taken by the tightly coupled methods (``ekf``,
+        and no ``[initial]``: self-initialisation (from the ranges, or from the TDoA of a
+        recording without ranges). TDoA are taken by the tightly coupled methods (``ekf``,
         ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``, ``ackf``, ``ukf``); the
         others raise ValueError on a recording with TDoA.
     smooth : bool

@@ -979,8 +979,8 @@ def replay(
     smooth: bool = False,
 ) -> tuple[dict[str, _F64], dict[str, Any]]:
     """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core) from
-    ``initial`` (None: the config file's ``[initial]``, else self-initialisation, which needs
-    ranges). Returns ``(columns, info)``: the run_filter columns and per-anchor statistics,
+    ``initial`` (None: the config file's ``[initial]``, else self-initialisation from the
+    ranges or, without ranges, the TDoA). Returns ``(columns, info)``: the run_filter columns and per-anchor statistics,
     ``tdoa`` counts when the recording has TDoA, mean NIS, read statistics and RMSE against
     ground truth when mapped."""
 

@@ -29,8 +29,8 @@ struct Args {
     /// ackf, ukf); default: the config file's, else riekf.
     #[arg(long)]
     method: Option<String>,
-    /// Replay TOML: `method`, `[config]` filter settings, the `[initial]` state (TDoA without
-    /// ranges) and the `[mapping]` of topics and fields.
+    /// Replay TOML: `method`, `[config]` filter settings, an optional `[initial]` state and the
+    /// `[mapping]` of topics and fields.
     #[arg(long)]
     config: Option<PathBuf>,
     /// IMU topic (default: the only sensor_msgs/msg/Imu topic).

@@ -1,7 +1,7 @@
 //! The replay TOML file: `method = "..."`, a `[config]` table of [`FilterConfig`] keys (section
 //! tables such as `[config.ranging]`, dotted keys, or the flat keys of earlier versions), an
-//! optional `[initial]` table of [`InitialState`] keys (needed when the recording has TDoA and no
-//! ranges, as self-initialisation needs ranges) and a `[mapping]` table ([`Mapping`]). Relative
+//! optional `[initial]` table of [`InitialState`] keys (without it the filter initialises itself)
+//! and a `[mapping]` table ([`Mapping`]). Relative
 //! file paths in the mapping are resolved against the directory of the TOML file.
 
 use std::path::Path;
