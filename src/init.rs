@@ -185,7 +185,7 @@ fn heading_from_motion(
         }
         while k + 1 < imu.len() && imu[k + 1].t_s <= *t_fix {
             let interval = ImuInterval::between(&imu[k], &imu[k + 1], &config.mounting.imu_rotation);
-            x = propagate_nominal(&x, &interval, config);
+            x = propagate_nominal(&x, &interval, &config.ins);
             k += 1;
         }
         let d_uwb = fix.position - tag0;

@@ -13,7 +13,7 @@
 //! writes the first-order terms of the same matrix for a navigation-frame attitude error.
 //! Process noise is G·Q·Gᵀ with Q from noise densities (seed 004 eqs. (20)–(21)).
 
-use crate::config::FilterConfig;
+use crate::config::InsConfig;
 use crate::math::{quat_exp, skew, Mat3, Quat, Vec3};
 use crate::records::ImuSample;
 use crate::state::{diagonal_covariance, ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
@@ -35,9 +35,9 @@ pub struct ImuInterval {
 
 /// Bias decay factors `e^{−Δt/τ}` over `dt_s` (1 for random-walk biases; seed 002 eqs. (17)–(18)
 /// for first-order Markov biases with time constants τ).
-fn bias_decay(config: &FilterConfig, dt_s: f64) -> (f64, f64) {
+fn bias_decay(config: &InsConfig, dt_s: f64) -> (f64, f64) {
     let decay = |tau: Option<f64>| tau.map_or(1.0, |t| (-dt_s / t).exp());
-    (decay(config.ins.accel_bias_tau), decay(config.ins.gyro_bias_tau))
+    (decay(config.accel_bias_tau), decay(config.gyro_bias_tau))
 }
 
 impl ImuInterval {
@@ -57,9 +57,9 @@ impl ImuInterval {
 /// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)). Biases are constant
 /// (random walk) or decay as first-order Markov processes when `config` gives time constants
 /// (seed 002 eqs. (17)–(18)).
-pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &FilterConfig) -> NominalState {
+pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &InsConfig) -> NominalState {
     let dt = imu.dt_s;
-    let gravity = &config.ins.gravity;
+    let gravity = &config.gravity;
     // Biases at the end of the interval (decayed for Markov biases); each sample is corrected by
     // the bias at its own time.
     let (decay_a, decay_g) = bias_decay(config, dt);
@@ -99,7 +99,7 @@ impl Transition {
     /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`. With Markov biases (seed 002 eq. (24))
     /// `A_ba,ba = −I/τ_a`, `A_bg,bg = −I/τ_g`: their blocks of Φ are `e^{−Δt/τ}·I` and the
     /// second-order terms gain `R/τ_a` (δv, δb_a) and `I/τ_g` (δθ, δb_g).
-    pub fn new(x: &NominalState, imu: &ImuInterval, config: &FilterConfig) -> Self {
+    pub fn new(x: &NominalState, imu: &ImuInterval, config: &InsConfig) -> Self {
         let dt = imu.dt_s;
         let h = 0.5 * dt * dt;
         let r = x.orientation.to_rotation_matrix().into_inner();
@@ -108,7 +108,7 @@ impl Transition {
         let c = r * skew(&f);
         let w = skew(&omega);
         let rate = |tau: Option<f64>| tau.map_or(0.0, |t| 1.0 / t);
-        let (ra, rg) = (rate(config.ins.accel_bias_tau), rate(config.ins.gyro_bias_tau));
+        let (ra, rg) = (rate(config.accel_bias_tau), rate(config.gyro_bias_tau));
         let (ba_ba, bg_bg) = bias_decay(config, dt);
         Self {
             p_v: dt,
@@ -216,17 +216,17 @@ impl ProcessNoise {
     /// (time constant τ given) is driven so that its steady-state std is the configured bias std
     /// (`accel_bias_std`, `gyro_bias_std`: the bias instability): variance `σ²·(1 − e^{−2Δt/τ})`
     /// per step; a random-walk bias gets `walk²·Δt`.
-    pub fn new(config: &FilterConfig, dt_s: f64) -> Self {
+    pub fn new(config: &InsConfig, dt_s: f64) -> Self {
         let bias_var = |tau: Option<f64>, std: f64, walk: f64| match tau {
             Some(t) => std * std * (1.0 - (-2.0 * dt_s / t).exp()),
             None => walk * walk * dt_s,
         };
         Self {
-            vel_var: config.ins.accel_noise_density.powi(2) * dt_s,
-            att_var: config.ins.gyro_noise_density.powi(2) * dt_s,
-            accel_bias_var: bias_var(config.ins.accel_bias_tau, config.ins.accel_bias_markov_std, config.ins.accel_bias_walk),
-            gyro_bias_var: bias_var(config.ins.gyro_bias_tau, config.ins.gyro_bias_markov_std, config.ins.gyro_bias_walk),
-            trapezoid: config.ins.trapezoidal_process_noise,
+            vel_var: config.accel_noise_density.powi(2) * dt_s,
+            att_var: config.gyro_noise_density.powi(2) * dt_s,
+            accel_bias_var: bias_var(config.accel_bias_tau, config.accel_bias_markov_std, config.accel_bias_walk),
+            gyro_bias_var: bias_var(config.gyro_bias_tau, config.gyro_bias_markov_std, config.gyro_bias_walk),
+            trapezoid: config.trapezoidal_process_noise,
         }
     }
 

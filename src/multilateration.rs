@@ -136,6 +136,24 @@ impl Fix {
     }
 }
 
+/// Step halving of Gauss–Newton: `step` halved until the sum of squares `ssr_at(step)` (None:
+/// undefined there) is below `ssr`, or zero after [`MAX_STEP_HALVINGS`] halvings — so an outlier or
+/// a poorly conditioned height cannot send the iteration away (undamped, it reached kilometres on
+/// near-coplanar anchors).
+pub(crate) fn halved_until_lower(mut step: Vec3, ssr_at: impl Fn(&Vec3) -> Option<f64>, ssr: f64) -> Vec3 {
+    for _ in 0..MAX_STEP_HALVINGS {
+        if ssr_at(&step).is_some_and(|s| s <= ssr) {
+            return step;
+        }
+        step *= 0.5;
+    }
+    if ssr_at(&step).is_some_and(|s| s <= ssr) {
+        step
+    } else {
+        Vec3::zeros()
+    }
+}
+
 /// Checks that every observation names an existing anchor with finite coordinates and has a
 /// finite, non-negative range.
 fn obs_valid(anchors: &[Vec3], obs: &[(usize, f64)]) -> bool {
@@ -290,7 +308,7 @@ pub fn gauss_newton_fix(
     let mut iterations = 0;
     while iterations < cfg.max_iterations {
         let (jtj, jte, sse) = normal_equations(anchors, obs, &p)?;
-        let mut step = if planar {
+        let step = if planar {
             let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
             let v = Vector2::new(-jte.x, -jte.y);
             let d = Cholesky::new(m)?.solve(&v);
@@ -301,18 +319,7 @@ pub fn gauss_newton_fix(
         if !step.iter().all(|v| v.is_finite()) {
             return None;
         }
-        // Step halving: accept only steps that lower the sum of squares, so an outlier or a
-        // poorly conditioned height cannot send the iteration away (undamped, it reached
-        // kilometres on near-coplanar anchors).
-        let mut halvings = 0;
-        while normal_equations(anchors, obs, &(p + step)).map_or(true, |(_, _, s)| s > sse) {
-            halvings += 1;
-            if halvings > MAX_STEP_HALVINGS {
-                step = Vec3::zeros();
-                break;
-            }
-            step *= 0.5;
-        }
+        let step = halved_until_lower(step, |s| normal_equations(anchors, obs, &(p + s)).map(|(_, _, x)| x), sse);
         p += step;
         iterations += 1;
         if step.norm() < cfg.tolerance_m {

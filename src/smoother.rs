@@ -36,9 +36,9 @@ pub struct SmoothedNode {
 pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, config: &FilterConfig) -> Result<Vec<SmoothedNode>> {
     let mut out = vec![last; segments.len() + 1];
     for (i, seg) in segments.iter().enumerate().rev() {
-        let phi = Transition::new(&seg.state, &seg.interval, config);
-        let q = ProcessNoise::new(config, seg.interval.dt_s);
-        let x_pred = propagate_nominal(&seg.state, &seg.interval, config);
+        let phi = Transition::new(&seg.state, &seg.interval, &config.ins);
+        let q = ProcessNoise::new(&config.ins, seg.interval.dt_s);
+        let x_pred = propagate_nominal(&seg.state, &seg.interval, &config.ins);
         let mut p_pred = phi.propagate_covariance(&seg.covariance, &q);
         if seg.prior_fading != 1.0 {
             fade_position_velocity(&mut p_pred, seg.prior_fading);

@@ -53,13 +53,13 @@ fn transition_matches_finite_differences_of_mechanization() {
 fn check_transition(config: &FilterConfig) {
     let x0 = example_state();
     let imu = example_imu();
-    let x1 = propagate_nominal(&x0, &imu, config);
-    let phi = Transition::new(&x0, &imu, config).to_dense();
+    let x1 = propagate_nominal(&x0, &imu, &config.ins);
+    let phi = Transition::new(&x0, &imu, &config.ins).to_dense();
     let eps = 1e-6;
     let mut fd = ErrCov::zeros();
     for j in 0..ERR_DIM {
-        let plus = propagate_nominal(&perturbed(&x0, j, eps), &imu, config).boxminus(&x1);
-        let minus = propagate_nominal(&perturbed(&x0, j, -eps), &imu, config).boxminus(&x1);
+        let plus = propagate_nominal(&perturbed(&x0, j, eps), &imu, &config.ins).boxminus(&x1);
+        let minus = propagate_nominal(&perturbed(&x0, j, -eps), &imu, &config.ins).boxminus(&x1);
         fd.set_column(j, &((plus - minus) / (2.0 * eps)));
     }
     let err = (phi - fd).abs().max();
@@ -77,10 +77,10 @@ fn block_propagation_equals_dense_product() {
         ins: InsConfig { accel_bias_tau: Some(30.0), gyro_bias_tau: Some(100.0), ..InsConfig::default() },
         ..FilterConfig::default()
     };
-    let t = Transition::new(&x0, &imu, &cfg);
+    let t = Transition::new(&x0, &imu, &cfg.ins);
     let a = ErrCov::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.01 + if i == j { 1.0 } else { 0.0 });
     let p = a * a.transpose();
-    let q = ProcessNoise::new(&cfg, imu.dt_s);
+    let q = ProcessNoise::new(&cfg.ins, imu.dt_s);
     let phi = t.to_dense();
     let mut dense = phi * p * phi.transpose();
     for (off, var) in [(VEL, q.vel_var), (ATT, q.att_var), (BA, q.accel_bias_var), (BG, q.gyro_bias_var)] {

@@ -16,7 +16,7 @@ pub mod still;
 
 pub use still::StillDetector;
 
-use crate::config::{FilterConfig, MAX_SPEED_HISTORY};
+use crate::config::{ConstraintsConfig, MAX_SPEED_HISTORY};
 use crate::error::Result;
 use crate::filters::InertialCore;
 use crate::state::{ErrVec, POS, VEL};
@@ -48,18 +48,14 @@ pub struct Constraints {
 impl Constraints {
     /// Constraint state from the configuration; `initial_height` is the plane height when
     /// `config.plane_height` is not set.
-    pub fn new(config: &FilterConfig, initial_height: f64) -> Self {
+    pub fn new(config: &ConstraintsConfig, initial_height: f64) -> Self {
         Self {
-            zupt: config.constraints.zupt,
-            pseudo_velocity: config.constraints.pseudo_velocity,
-            plane_height: config.constraints.plane.then(|| config.constraints.plane_height.unwrap_or(initial_height)),
-            detector: StillDetector::new(
-                config.constraints.zupt_window,
-                config.constraints.zupt_threshold,
-                config.constraints.zupt_max_speed,
-            ),
+            zupt: config.zupt,
+            pseudo_velocity: config.pseudo_velocity,
+            plane_height: config.plane.then(|| config.plane_height.unwrap_or(initial_height)),
+            detector: StillDetector::new(config.zupt_window, config.zupt_threshold, config.zupt_max_speed),
             speeds: [0.0; MAX_SPEED_HISTORY],
-            speed_window: config.constraints.pseudo_velocity_window.clamp(1, MAX_SPEED_HISTORY),
+            speed_window: config.pseudo_velocity_window.clamp(1, MAX_SPEED_HISTORY),
             speed_len: 0,
             speed_head: 0,
             next_t_s: None,

@@ -140,9 +140,9 @@ impl InertialCore {
                 prior_widening: None,
             });
         }
-        let phi = Transition::new(&self.state, imu, &self.config);
-        self.state = propagate_nominal(&self.state, imu, &self.config);
-        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config, imu.dt_s));
+        let phi = Transition::new(&self.state, imu, &self.config.ins);
+        self.state = propagate_nominal(&self.state, imu, &self.config.ins);
+        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config.ins, imu.dt_s));
     }
 
     /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (seed 002

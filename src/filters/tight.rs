@@ -117,7 +117,7 @@ impl TightFilter {
                 config.unscented.lambda,
             )?),
         };
-        let constraints = Constraints::new(&config, initial.position.z);
+        let constraints = Constraints::new(&config.constraints, initial.position.z);
         let range_noise = if config.adaptive.range_noise {
             let initial_r = SMatrix::<f64, 1, 1>::new(config.ranging.range_std.powi(2));
             let sage_husa = SageHusaConfig { bounds: RANGE_NOISE_BOUNDS, ..config.sage_husa };

@@ -13,14 +13,11 @@
 use nalgebra::{Cholesky, Matrix2, Vector2};
 
 use crate::math::{Mat3, Vec3};
-use crate::multilateration::{Fix, LsConfig};
+use crate::multilateration::{halved_until_lower, Fix, LsConfig};
 use crate::records::TdoaMeasurement;
 
 /// Longest window of TDoA solved as one fix, s (a round of 4–8 anchors at 10 Hz).
 pub const TDOA_FIX_WINDOW_S: f64 = 0.2;
-
-/// Step halvings before Gauss–Newton gives up on a step.
-const MAX_HALVINGS: usize = 20;
 
 /// Sum of squared residuals, `JᵀJ` and `Jᵀr` of the TDoA at `p`; None when `p` sits on an anchor.
 fn normal_equations(anchors: &[Vec3], obs: &[TdoaMeasurement], p: &Vec3) -> Option<(Mat3, Vec3, f64)> {
@@ -45,22 +42,14 @@ fn gauss_newton(anchors: &[Vec3], obs: &[TdoaMeasurement], start: Vec3, planar: 
     let mut p = start;
     for _ in 0..cfg.max_iterations {
         let (jtj, jtr, ssr) = normal_equations(anchors, obs, &p)?;
-        let mut step = if planar {
+        let step = if planar {
             let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
             let d = Cholesky::new(m)?.solve(&Vector2::new(jtr.x, jtr.y));
             Vec3::new(d.x, d.y, 0.0)
         } else {
             Cholesky::new(jtj)?.solve(&jtr)
         };
-        let mut halvings = 0;
-        while normal_equations(anchors, obs, &(p + step)).is_none_or(|(_, _, s)| s > ssr) {
-            halvings += 1;
-            if halvings > MAX_HALVINGS {
-                step = Vec3::zeros();
-                break;
-            }
-            step *= 0.5;
-        }
+        let step = halved_until_lower(step, |s| normal_equations(anchors, obs, &(p + s)).map(|(_, _, x)| x), ssr);
         p += step;
         if step.norm() < cfg.tolerance_m {
             break;
