@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
-"""Reports import cycles between the crate's top-level modules.
+"""Reports import cycles between the crate's modules, and uses of a higher layer.
 
-The graph has one node per top-level module of ``src/`` (``src/NAME.rs`` together with
-everything under ``src/NAME/``) and an edge A → B when a file of A names ``crate::B`` — in a
+The graph has one node per module: a top-level module of ``src/`` (``src/NAME.rs`` together with
+everything under ``src/NAME/``), or, inside the layer folders ``src/vocabulary``,
+``src/estimation`` and ``src/app`` (lowest first; their modules are re-exported at the crate
+root), a module of the layer (``src/LAYER/NAME.rs`` and ``src/LAYER/NAME/``). There is an edge
+A → B when a file of A names ``crate::B`` (or ``crate::LAYER::B``) — in a
 ``use crate::B::...`` line, a grouped ``use crate::{B, ...}`` or an inline path such as
 ``crate::B::f()``. Comments (so doc links) do not count, nor do ``#[cfg(test)]`` blocks and
 files (tests may use anything). ``src/bindings`` and ``src/bin`` sit on top of the library and
@@ -11,6 +14,9 @@ are left out, as is ``src/lib.rs``.
 An edge of ``PENDING`` (a known cycle whose fix needs an edit that has to wait) is left out of
 the search and reported as pending; ``--strict`` keeps it in. A pending edge that no longer exists
 is an error too, so the list cannot go stale.
+
+A use of a higher layer's module by a lower layer's (``UPWARD_ALLOWED`` lists the accepted ones,
+with the reason) is reported and fails the check, as does a stale accepted entry.
 
 Usage: ``python scripts/module_cycles.py [--graph] [--strict] [SRC_DIR]`` (default: the ``src``
 beside this script's folder). ``--graph`` also prints every module's dependencies. Prints each
@@ -117,12 +123,40 @@ def test_module_files(path: Path, text: str) -> set[Path]:
     return files
 
 
+#: The layer folders, lowest first.
+LAYERS = ("vocabulary", "estimation", "app")
+
+#: Uses of a higher layer that are accepted, with the reason.
+UPWARD_ALLOWED: dict[tuple[str, str], str] = {
+    ("config", "robust"): "the configuration embeds the Sage–Husa settings type",
+    ("config", "ranging"): "the configuration embeds the range calibration table",
+    ("config", "epoch"): "the epoch window's default and check live with the epoch rule",
+    ("init", "metrics"): "the self-initialisation's median is metrics::percentile",
+}
+
+
 def top_module(src: Path, path: Path) -> str | None:
-    """The top-level module that the file at ``path`` belongs to (``None`` for ``lib.rs``)."""
+    """The module that the file at ``path`` belongs to (``None`` for ``lib.rs`` and the layer
+    files themselves)."""
     parts = path.relative_to(src).parts
+    if parts[0] in LAYERS:
+        parts = parts[1:]
+        if not parts:
+            return None
+    elif len(parts) == 1 and parts[0][: -len(".rs")] in LAYERS:
+        return None
     if len(parts) == 1:
         return None if parts[0] in ("lib.rs", "main.rs") else parts[0][: -len(".rs")]
     return parts[0]
+
+
+def layer_of(src: Path) -> dict[str, int]:
+    """The layer index of every module inside a layer folder."""
+    out: dict[str, int] = {}
+    for k, layer in enumerate(LAYERS):
+        for p in (src / layer).glob("*.rs") if (src / layer).is_dir() else []:
+            out[p.stem] = k
+    return out
 
 
 def module_graph(src: Path) -> dict[str, dict[str, set[str]]]:
@@ -139,6 +173,7 @@ def module_graph(src: Path) -> dict[str, dict[str, set[str]]]:
             continue
         graph.setdefault(module, {})
         code = strip_test_blocks(strip_comments_and_strings(texts[p]))
+        code = re.sub(r"crate::(?:" + "|".join(LAYERS) + r")::", "crate::", code)
         for m in _CRATE_PATH.finditer(code):
             target = m.group(1)
             # In a grouped `crate::{a::x, b}` each path's first segment is a module.
@@ -246,7 +281,20 @@ def main(argv: list[str]) -> int:
             print("    " + edge)
     if not cycles:
         print(f"no cycles among {len(graph)} modules")
-    return 1 if cycles or stale else 0
+    layers = layer_of(src)
+    upward = False
+    for a in sorted(graph):
+        for b in sorted(graph[a]):
+            if a in layers and b in layers and layers[b] > layers[a] and (a, b) not in UPWARD_ALLOWED:
+                print(f"upward: {a} ({LAYERS[layers[a]]}) -> {b} ({LAYERS[layers[b]]}): {', '.join(sorted(graph[a][b]))}")
+                upward = True
+    for (a, b) in UPWARD_ALLOWED:
+        if layers and b not in graph.get(a, {}):
+            print(f"stale: {a} -> {b} is listed in UPWARD_ALLOWED but no longer in the code; remove it")
+            stale = True
+    if layers and not upward:
+        print(f"no upward use between the layers {' < '.join(LAYERS)}")
+    return 1 if cycles or stale or upward else 0
 
 
 if __name__ == "__main__":

@@ -1,35 +1,18 @@
 #![doc = include_str!("../README.md")]
 
-pub mod columns;
-pub mod config;
-pub mod crlb;
-pub mod epoch;
-pub mod error;
-pub mod filters;
+pub mod app;
+pub mod estimation;
+pub mod vocabulary;
+
+pub use app::{columns, methods, metrics};
 #[cfg(feature = "sim")]
-pub mod generality;
-pub mod init;
-pub mod ins;
+pub use app::{generality, sim};
 #[cfg(feature = "io")]
-pub mod io;
-pub mod math;
-pub mod methods;
-pub mod metrics;
-pub mod models;
-pub mod multilateration;
-pub mod pipeline;
-pub mod planar;
-pub mod ranging;
-pub mod records;
-#[cfg(feature = "io")]
-pub mod replay;
-pub mod robust;
-#[cfg(feature = "sim")]
-pub mod sim;
-pub mod smoother;
-pub mod state;
-pub mod update;
-pub mod validate;
+pub use app::{io, replay};
+pub use estimation::{
+    crlb, epoch, filters, init, ins, models, multilateration, pipeline, planar, ranging, robust, smoother, update,
+};
+pub use vocabulary::{config, error, math, records, state, validate};
 
 #[cfg(feature = "python")]
 mod bindings;

@@ -11,7 +11,7 @@ use crate::config::{FilterConfig, InitialState};
 use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
 use crate::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
 use crate::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
@@ -86,15 +86,17 @@ pub(super) fn config_dict<'py>(py: Python<'py>, config: &FilterConfig) -> PyResu
 /// (and the bias stds when set).
 pub(super) fn initial_dict<'py>(py: Python<'py>, i: &InitialState) -> PyResult<Bound<'py, PyDict>> {
     let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>().into_pyarray(py);
-    let d = PyDict::new(py);
-    d.set_item("position", v(&i.position))?;
-    d.set_item("velocity", v(&i.velocity))?;
-    d.set_item("orientation", quat_to_wxyz(&i.orientation).to_vec().into_pyarray(py))?;
+    let x = NominalState {
+        position: i.position,
+        velocity: i.velocity,
+        orientation: i.orientation,
+        accel_bias: i.accel_bias,
+        gyro_bias: i.gyro_bias,
+    };
+    let d = state_dict(py, &x)?;
     d.set_item("position_std", v(&i.position_std))?;
     d.set_item("velocity_std", v(&i.velocity_std))?;
     d.set_item("orientation_std", v(&i.orientation_std))?;
-    d.set_item("accel_bias", v(&i.accel_bias))?;
-    d.set_item("gyro_bias", v(&i.gyro_bias))?;
     if let Some(s) = i.accel_bias_std {
         d.set_item("accel_bias_std", s)?;
     }
@@ -461,14 +463,16 @@ py_filter!(
     PyUkf, "Ukf", Ukf
 );
 
+/// A nominal state as a dict: `position`, `velocity`, `orientation` (w, x, y, z), `accel_bias`,
+/// `gyro_bias` (the keys `initial=` takes).
 fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyDict>> {
-    let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>();
+    let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>().into_pyarray(py);
     let d = PyDict::new(py);
-    d.set_item("position", v(&x.position).into_pyarray(py))?;
-    d.set_item("velocity", v(&x.velocity).into_pyarray(py))?;
+    d.set_item("position", v(&x.position))?;
+    d.set_item("velocity", v(&x.velocity))?;
     d.set_item("orientation", quat_to_wxyz(&x.orientation).to_vec().into_pyarray(py))?;
-    d.set_item("accel_bias", v(&x.accel_bias).into_pyarray(py))?;
-    d.set_item("gyro_bias", v(&x.gyro_bias).into_pyarray(py))?;
+    d.set_item("accel_bias", v(&x.accel_bias))?;
+    d.set_item("gyro_bias", v(&x.gyro_bias))?;
     Ok(d)
 }
 
@@ -555,7 +559,6 @@ fn run_filters<'py>(
     covariance: bool,
     smooth: bool,
 ) -> PyResult<Vec<BatchColumns<'py>>> {
-    use rayon::prelude::*;
     let method = Method::parse(method)?;
     let config = read_config(config)?;
     let mut inputs = Vec::new();
@@ -580,25 +583,21 @@ fn run_filters<'py>(
         }
         _ => vec![None; inputs.len()],
     };
-    let outputs = py.detach(|| {
-        inputs
-            .par_iter()
-            .zip(initials.par_iter())
-            .map(|(inp, init)| {
-                let input = BatchInput {
-                    imu: &inp.imu,
-                    ranges: &inp.ranges,
-                    anchors: &inp.anchors,
-                    initial: init.as_ref(),
-                    config: &config,
-                    smooth,
-                    mag: &[],
-                    tdoa: &[],
-                };
-                run_method(method, &input)
-            })
-            .collect::<Vec<_>>()
-    });
+    let batch: Vec<BatchInput<'_>> = inputs
+        .iter()
+        .zip(&initials)
+        .map(|(inp, init)| BatchInput {
+            imu: &inp.imu,
+            ranges: &inp.ranges,
+            anchors: &inp.anchors,
+            initial: init.as_ref(),
+            config: &config,
+            smooth,
+            mag: &[],
+            tdoa: &[],
+        })
+        .collect();
+    let outputs = py.detach(|| run_many(method, &batch));
     outputs.into_iter().map(|o| output_columns(py, o?, covariance, false)).collect()
 }
 
@@ -645,37 +644,10 @@ fn posterior_crlb<'py>(
     config.validate()?;
     let truth = table::<11>(&array(truth, "truth")?, "truth", "(N, 11) = t, x, y, z, vx, vy, vz, qw, qx, qy, qz")?;
     let biases = match biases {
-        Some(b) if !b.is_none() => table::<6>(&array(b, "biases")?, "biases", "(N, 6) = bax, bay, baz, bgx, bgy, bgz")?,
-        _ => vec![[0.0; 6]; truth.len()],
+        Some(b) if !b.is_none() => Some(table::<6>(&array(b, "biases")?, "biases", "(N, 6) = bax, bay, baz, bgx, bgy, bgz")?),
+        _ => None,
     };
-    if biases.len() != truth.len() {
-        return Err(crate::Error::Shape {
-            name: "biases",
-            expected: format!("({}, 6)", truth.len()),
-            got: format!("({}, 6)", biases.len()),
-        }
-        .into());
-    }
-    let states = truth
-        .iter()
-        .zip(&biases)
-        .enumerate()
-        .map(|(row, (t, b))| {
-            let orientation = crate::math::quat_from_wxyz([t[7], t[8], t[9], t[10]]).ok_or(crate::Error::InvalidValue {
-                name: "truth",
-                row,
-                value: 0.0,
-                reason: "quaternion has zero norm",
-            })?;
-            Ok(NominalState {
-                position: Vec3::new(t[1], t[2], t[3]),
-                velocity: Vec3::new(t[4], t[5], t[6]),
-                orientation,
-                accel_bias: Vec3::new(b[0], b[1], b[2]),
-                gyro_bias: Vec3::new(b[3], b[4], b[5]),
-            })
-        })
-        .collect::<Result<Vec<NominalState>, crate::Error>>()?;
+    let states = crate::crlb::truth_states(&truth, biases.as_deref())?;
     let initial = match initial {
         Some(obj) if !obj.is_none() => read_initial(obj)?,
         _ => InitialState::default(),

@@ -37,3 +37,17 @@ def test_a_cycle_is_reported_with_its_files(tmp_path):
     # Comments, strings and test blocks make no edge.
     graph = dict(line.split(":", 1) for line in result.stdout.splitlines()[:3])
     assert graph == {"a": " b", "b": " a", "c": " "}
+
+
+def test_a_lower_layer_using_a_higher_one_is_reported(tmp_path):
+    src = tmp_path / "src"
+    for layer in ("vocabulary", "estimation", "app"):
+        (src / layer).mkdir(parents=True)
+    (src / "lib.rs").write_text("pub mod app;\npub mod estimation;\npub mod vocabulary;\n")
+    (src / "vocabulary" / "math.rs").write_text("pub fn f() { crate::app::methods::g() }\n")
+    (src / "estimation" / "filters.rs").write_text("use crate::math::f;\n")
+    (src / "app" / "methods.rs").write_text("pub fn g() { crate::filters::h() }\n")
+    result = run(str(src))
+    assert result.returncode == 1, result.stdout
+    assert "upward: math (vocabulary) -> methods (app): vocabulary/math.rs" in result.stdout
+    assert "filters" not in result.stdout.split("upward:")[1]

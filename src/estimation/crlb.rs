@@ -16,6 +16,35 @@ use crate::records::{ImuSample, RangeMeasurement};
 use crate::state::{ErrCov, ErrVec, NominalState};
 use crate::update::scalar_step;
 
+/// True nominal states from truth rows `t, x, y, z, vx, vy, vz, qw, qx, qy, qz` and bias rows
+/// `bax, bay, baz, bgx, bgy, bgz` (None: zero biases); fails on mismatched lengths or a zero
+/// quaternion (naming the row).
+pub fn truth_states(truth: &[[f64; 11]], biases: Option<&[[f64; 6]]>) -> Result<Vec<NominalState>> {
+    if let Some(b) = biases.filter(|b| b.len() != truth.len()) {
+        return Err(Error::Shape { name: "biases", expected: format!("({}, 6)", truth.len()), got: format!("({}, 6)", b.len()) });
+    }
+    truth
+        .iter()
+        .enumerate()
+        .map(|(row, t)| {
+            let b = biases.map_or([0.0; 6], |b| b[row]);
+            let orientation = crate::math::quat_from_wxyz([t[7], t[8], t[9], t[10]]).ok_or(Error::InvalidValue {
+                name: "truth",
+                row,
+                value: 0.0,
+                reason: "quaternion has zero norm",
+            })?;
+            Ok(NominalState {
+                position: Vec3::new(t[1], t[2], t[3]),
+                velocity: Vec3::new(t[4], t[5], t[6]),
+                orientation,
+                accel_bias: Vec3::new(b[0], b[1], b[2]),
+                gyro_bias: Vec3::new(b[3], b[4], b[5]),
+            })
+        })
+        .collect()
+}
+
 /// The bound `J_k⁻¹` (15×15, error-state order) at every IMU sample, starting from `initial`
 /// (= `J_0⁻¹`, the prior covariance). `truth` holds the true nominal state (biases included) at
 /// each IMU sample. Fails on mismatched lengths or a non-positive information update.

@@ -265,7 +265,7 @@ pub(super) mod tests {
     }
 
     /// A 1 × 1 covariance.
-    pub(in crate::robust::sage_husa) fn m1(v: f64) -> Cov<1> {
+    pub(in crate::estimation::robust::sage_husa) fn m1(v: f64) -> Cov<1> {
         Cov::<1>::new(v)
     }
 

@@ -1,0 +1,15 @@
+//! Applications of the estimators: the named methods and their batch runner, MCAP recordings and
+//! replay, output columns, metrics, the simulator and the generality matrix. (Each module is also
+//! reachable at the crate root.)
+
+pub mod columns;
+#[cfg(feature = "sim")]
+pub mod generality;
+#[cfg(feature = "io")]
+pub mod io;
+pub mod methods;
+pub mod metrics;
+#[cfg(feature = "io")]
+pub mod replay;
+#[cfg(feature = "sim")]
+pub mod sim;
