@@ -1,4 +1,4 @@
-//! Criterion benches of the hot path: IMU prediction and range updates of the named filters.
+//! Criterion benches of the hot path: IMU prediction, range and TDoA updates of the named filters.
 #![allow(missing_docs)]
 
 use std::hint::black_box;
@@ -9,7 +9,7 @@ use uwbimu_rs::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
 use uwbimu_rs::math::Vec3;
 use uwbimu_rs::pipeline::{Estimator, Stream};
 use uwbimu_rs::planar::{PlanarFilter, PlanarKind};
-use uwbimu_rs::records::RangeMeasurement;
+use uwbimu_rs::records::{Observation, RangeMeasurement, TdoaMeasurement};
 use uwbimu_rs::update::UpdateReport;
 
 fn anchors() -> Vec<Vec3> {
@@ -92,6 +92,17 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
     group.finish();
 }
 
+/// One TDoA applied at its own time (the filters that take TDoA).
+fn bench_tdoa<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
+    let mut group = c.benchmark_group(name);
+    group.throughput(Throughput::Elements(1));
+    let tdoa = Observation::Tdoa(TdoaMeasurement { t_s: 0.0, anchor_i: 0, anchor_j: 1, tdoa_m: 1.2 });
+    group.bench_function("update_tdoa", |b| {
+        b.iter_batched_ref(|| setup(&build), |f| f.feed_observation(black_box(&tdoa)).expect("tdoa"), BatchSize::SmallInput)
+    });
+    group.finish();
+}
+
 fn bench_all(c: &mut Criterion) {
     bench_filter(c, "ekf", Box::new(Ekf::new));
     bench_filter(c, "riekf", Box::new(Riekf::new));
@@ -101,6 +112,10 @@ fn bench_all(c: &mut Criterion) {
     bench_filter(c, "ackf", Box::new(Ackf::new));
     bench_filter(c, "ukf", Box::new(Ukf::new));
     bench_filter(c, "eskf", Box::new(Eskf::new));
+    bench_tdoa(c, "ekf", Box::new(Ekf::new));
+    bench_tdoa(c, "riekf", Box::new(Riekf::new));
+    bench_tdoa(c, "arckf", Box::new(Arckf::new));
+    bench_tdoa(c, "ukf", Box::new(Ukf::new));
     for (name, kind) in [("ekf2d", PlanarKind::Ekf), ("ukf2d", PlanarKind::Ukf), ("cekf2d", PlanarKind::Cekf)] {
         bench_filter(c, name, Box::new(move |a, i, cfg| PlanarFilter::new(kind, a, i, &cfg)));
     }

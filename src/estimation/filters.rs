@@ -30,6 +30,10 @@ macro_rules! delegate_filter {
                 self.0.observe(observation)
             }
 
+            fn config(&self) -> &crate::config::FilterConfig {
+                self.0.config()
+            }
+
             fn core(&self) -> &crate::filters::InertialCore {
                 self.0.core()
             }
@@ -54,6 +58,7 @@ pub mod reacquire;
 pub mod sigma_points;
 pub mod tight;
 
+use crate::config::FilterConfig;
 use crate::error::Result;
 use crate::math::Vec3;
 use crate::records::{MagSample, Observation, TdoaMeasurement};
@@ -77,6 +82,9 @@ pub trait InertialFilter {
 
     /// The anchors, navigation frame, m.
     fn anchors(&self) -> &[Vec3];
+
+    /// The configuration the filter was built with (it hands each piece its section).
+    fn config(&self) -> &FilterConfig;
 
     /// Applies one range: an epoch of one.
     fn update_range(&mut self, t_s: f64, anchor: usize, range_m: f64) -> Result<UpdateReport> {

@@ -126,7 +126,7 @@ impl<F: InertialFilter> Estimator for F {
     /// Tag position `p + R·l` and velocity `v + R·(ω × l)` (ω the last bias-corrected rate).
     fn tag_motion(&self) -> (Vec3, Vec3) {
         let core = self.core();
-        let (x, lever_arm) = (core.state(), &core.config().mounting.lever_arm);
+        let (x, lever_arm) = (core.state(), &core.mounting().lever_arm);
         let omega = core.last_imu_body().1 - x.gyro_bias;
         (tag_position(x, lever_arm), x.velocity + x.orientation * omega.cross(lever_arm))
     }
@@ -136,7 +136,7 @@ impl<F: InertialFilter> Estimator for F {
     }
 
     fn epoch_window_s(&self) -> f64 {
-        self.core().config().ranging.epoch_window_s
+        self.config().ranging.epoch_window_s
     }
 }
 
@@ -480,5 +480,5 @@ pub fn smooth_recording(core: &InertialCore) -> Result<Vec<SmoothedNode>> {
         return Err(Error::InvalidCall("nothing to smooth: the filter has not started".into()));
     };
     let last = SmoothedNode { t_s, state: *core.state(), covariance: *core.covariance() };
-    rts_smooth(core.segments(), last, core.config())
+    rts_smooth(core.segments(), last, core.ins())
 }

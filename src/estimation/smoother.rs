@@ -11,7 +11,7 @@
 //! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
 //! uses dense 15×15 products.
 
-use crate::config::FilterConfig;
+use crate::config::InsConfig;
 use crate::error::{Error, Result};
 use crate::filters::Segment;
 use crate::ins::{propagate_nominal, ProcessNoise, Transition};
@@ -33,12 +33,12 @@ pub struct SmoothedNode {
 /// Smooths a recording: node `i < n` is the posterior at the start of `segments[i]`, node `n` is
 /// `last` (the final posterior). Returns the `n + 1` smoothed nodes in time order. Fails if a
 /// predicted covariance is not positive definite.
-pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, config: &FilterConfig) -> Result<Vec<SmoothedNode>> {
+pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, ins: &InsConfig) -> Result<Vec<SmoothedNode>> {
     let mut out = vec![last; segments.len() + 1];
     for (i, seg) in segments.iter().enumerate().rev() {
-        let phi = Transition::new(&seg.state, &seg.interval, &config.ins);
-        let q = ProcessNoise::new(&config.ins, seg.interval.dt_s);
-        let x_pred = propagate_nominal(&seg.state, &seg.interval, &config.ins);
+        let phi = Transition::new(&seg.state, &seg.interval, ins);
+        let q = ProcessNoise::new(ins, seg.interval.dt_s);
+        let x_pred = propagate_nominal(&seg.state, &seg.interval, ins);
         let mut p_pred = phi.propagate_covariance(&seg.covariance, &q);
         if seg.prior_fading != 1.0 {
             fade_position_velocity(&mut p_pred, seg.prior_fading);

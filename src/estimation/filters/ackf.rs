@@ -150,7 +150,7 @@ impl InertialFilter for Ackf {
             return Err(Error::NonFinite { name: "magnetometer", row: 0, col, value: field[col] });
         }
         self.inner.core_mut().advance_to(t_s)?;
-        let body = self.inner.core().config().mounting.imu_rotation * field;
+        let body = self.inner.core().mounting().imu_rotation * field;
         if self.in_reference_period(t_s) {
             self.field.add(self.inner.core().state().orientation * body);
             return Ok(UpdateReport::skipped());
@@ -160,6 +160,10 @@ impl InertialFilter for Ackf {
             Some(m) => self.vector_update(&body, &m, VectorSensor::Magnetometer, self.aiding.mag_std),
             None => Ok(UpdateReport::skipped()),
         }
+    }
+
+    fn config(&self) -> &FilterConfig {
+        self.inner.config()
     }
 
     fn core(&self) -> &InertialCore {

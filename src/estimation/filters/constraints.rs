@@ -33,6 +33,7 @@ const MIN_PSEUDO_SPEED: f64 = 1e-3;
 /// Constraint state of one filter: which constraints are on, the detector, the speed history.
 #[derive(Debug, Clone)]
 pub struct Constraints {
+    config: ConstraintsConfig,
     zupt: bool,
     pseudo_velocity: bool,
     plane_height: Option<f64>,
@@ -50,6 +51,7 @@ impl Constraints {
     /// `config.plane_height` is not set.
     pub fn new(config: &ConstraintsConfig, initial_height: f64) -> Self {
         Self {
+            config: *config,
             zupt: config.zupt,
             pseudo_velocity: config.pseudo_velocity,
             plane_height: config.plane.then(|| config.plane_height.unwrap_or(initial_height)),
@@ -76,7 +78,7 @@ impl Constraints {
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
     pub fn after_predict(&mut self, core: &mut InertialCore) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
-        let cfg = core.config();
+        let (cfg, gravity) = (self.config, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();
         let x = core.state();
         if self.zupt {
@@ -86,12 +88,10 @@ impl Constraints {
             return Ok(());
         }
         let speed = x.velocity.norm();
-        let rest_accel = x.orientation.inverse() * (-cfg.ins.gravity);
-        self.still = self.zupt
-            && self.detector.is_still(&rest_accel, cfg.constraints.zupt_accel_std, cfg.constraints.zupt_gyro_std, speed);
-        let (zupt_var, pseudo_var, plane_var) =
-            (cfg.constraints.zupt_velocity_std.powi(2), cfg.constraints.pseudo_velocity_var, cfg.constraints.plane_std.powi(2));
-        self.next_t_s = Some(t + cfg.constraints.interval_s);
+        let rest_accel = x.orientation.inverse() * (-gravity);
+        self.still = self.zupt && self.detector.is_still(&rest_accel, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
+        let (zupt_var, pseudo_var, plane_var) = (cfg.zupt_velocity_std.powi(2), cfg.pseudo_velocity_var, cfg.plane_std.powi(2));
+        self.next_t_s = Some(t + cfg.interval_s);
         let velocity = x.velocity;
         let z = x.position.z;
         let mean_speed = self.mean_speed();

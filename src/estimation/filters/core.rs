@@ -1,7 +1,7 @@
 //! The INS core every inertial filter owns: nominal state, error covariance, filter time and
 //! the held IMU sample, with prediction at IMU rate and propagation to measurement times.
 
-use crate::config::{FilterConfig, InitialState};
+use crate::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
 use crate::error::{Error, Result};
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::math::Vec3;
@@ -11,7 +11,8 @@ use crate::state::{ErrCov, NominalState, POS, VEL};
 /// Nominal state + 15×15 error covariance + time bookkeeping (seed 000 §2.1).
 #[derive(Debug, Clone)]
 pub struct InertialCore {
-    config: FilterConfig,
+    ins: InsConfig,
+    mounting: MountingConfig,
     state: NominalState,
     covariance: ErrCov,
     time_s: Option<f64>,
@@ -52,15 +53,18 @@ fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
 
 impl InertialCore {
     /// Starts from `initial` (diagonal covariance from its standard deviations); the filter
-    /// time is set by the first [`InertialCore::predict`]. Fails on an invalid configuration.
-    pub fn new(initial: &InitialState, config: FilterConfig) -> Result<Self> {
+    /// time is set by the first [`InertialCore::predict`]. Validates the whole configuration and
+    /// keeps its own sections, `ins` and `mounting` (`init` gives the bias uncertainties the
+    /// initial state leaves out). Fails on an invalid configuration.
+    pub fn new(initial: &InitialState, config: &FilterConfig) -> Result<Self> {
         config.validate()?;
         for (name, v) in [("initial.position", &initial.position), ("initial.velocity", &initial.velocity)] {
             check_finite3(name, 0, v)?;
         }
-        let covariance = initial.covariance(&config);
+        let covariance = initial.covariance(config);
         Ok(Self {
-            config,
+            ins: config.ins,
+            mounting: config.mounting,
             state: NominalState {
                 position: initial.position,
                 velocity: initial.velocity,
@@ -89,8 +93,8 @@ impl InertialCore {
         }
         check_finite3("predict accel", row, accel)?;
         check_finite3("predict gyro", row, gyro)?;
-        let accel = self.config.mounting.imu_rotation * accel;
-        let gyro = self.config.mounting.imu_rotation * gyro;
+        let accel = self.mounting.imu_rotation * accel;
+        let gyro = self.mounting.imu_rotation * gyro;
         if let Some(t0) = self.time_s {
             if t_s <= t0 {
                 return Err(Error::NonMonotonicTime { name: "predict", row, prev_s: t0, got_s: t_s });
@@ -140,9 +144,9 @@ impl InertialCore {
                 prior_widening: None,
             });
         }
-        let phi = Transition::new(&self.state, imu, &self.config.ins);
-        self.state = propagate_nominal(&self.state, imu, &self.config.ins);
-        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.config.ins, imu.dt_s));
+        let phi = Transition::new(&self.state, imu, &self.ins);
+        self.state = propagate_nominal(&self.state, imu, &self.ins);
+        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
     }
 
     /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (seed 002
@@ -191,9 +195,14 @@ impl InertialCore {
         self.recording.as_deref().unwrap_or(&[])
     }
 
-    /// The configuration.
-    pub fn config(&self) -> &FilterConfig {
-        &self.config
+    /// The process model section it was built with.
+    pub fn ins(&self) -> &InsConfig {
+        &self.ins
+    }
+
+    /// The mounting section (lever arm, IMU rotation) it was built with.
+    pub fn mounting(&self) -> &MountingConfig {
+        &self.mounting
     }
 
     /// The nominal state.

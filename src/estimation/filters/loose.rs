@@ -36,6 +36,7 @@ use crate::update::{inject_and_reset, leading_rows_step, vector_step, UpdateRepo
 #[derive(Debug, Clone)]
 pub struct Eskf {
     core: InertialCore,
+    config: FilterConfig,
     constraints: Constraints,
     anchors: Vec<Vec3>,
     previous: Option<TagFix>,
@@ -81,7 +82,8 @@ impl Eskf {
         let coplanar = span < LsConfig::default().min_vertical_span_m;
         let constraints = Constraints::new(&config.constraints, initial.position.z);
         Ok(Self {
-            core: InertialCore::new(initial, config)?,
+            core: InertialCore::new(initial, &config)?,
+            config,
             constraints,
             anchors,
             previous: None,
@@ -125,7 +127,7 @@ impl InertialFilter for Eskf {
         }
         crate::filters::tight::check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
-        let config = self.core.config();
+        let config = &self.config;
         let lever_arm = config.mounting.lever_arm;
         let ls = LsConfig::from_filter_config(config);
         // Coplanar anchors give x, y (their fixes' height is weak or fixed); otherwise a planar
@@ -190,6 +192,10 @@ impl InertialFilter for Eskf {
         let innovation = if planar { residual.xy().norm() } else { residual.norm() };
         reports.iter_mut().for_each(|r| *r = UpdateReport::applied(innovation, nis, 1.0, 1));
         Ok(())
+    }
+
+    fn config(&self) -> &FilterConfig {
+        &self.config
     }
 
     fn core(&self) -> &InertialCore {

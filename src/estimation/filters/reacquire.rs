@@ -29,6 +29,7 @@
 //!
 //! Either way the prior is first widened by the discrepancy to the fix ([`reacquire`]).
 
+use crate::config::FilterConfig;
 use crate::error::Result;
 use crate::filters::core::ReacquisitionWidening;
 use crate::filters::InertialCore;
@@ -123,7 +124,7 @@ impl DivergenceWatch {
 /// the `χ²` bound (α = 1e-6) of their joint horizontal covariance.
 fn disagrees(core: &InertialCore, fix: &Fix) -> bool {
     let x = core.state();
-    let tag = crate::models::range::tag_position(x, &core.config().mounting.lever_arm);
+    let tag = crate::models::range::tag_position(x, &core.mounting().lever_arm);
     let d = (fix.position - tag).xy();
     let s = core.covariance().fixed_view::<2, 2>(POS, POS) + fix.covariance.fixed_view::<2, 2>(0, 0);
     let nis = s.cholesky().map_or(f64::INFINITY, |c| d.dot(&c.solve(&d)));
@@ -137,7 +138,7 @@ const DIVERGED_NIS_BOUND: f64 = 27.631_021_115_928_547;
 /// diverged by `watch` — applies the epoch `ranges` as its UWB-only fix and returns the position
 /// innovation norm (m) and its normalised innovation squared; otherwise leaves the filter
 /// unchanged and returns None. `failed` counts the epoch's ranges that fail their `χ²₁` test at
-/// the prior ([`RANGE_FAIL_NIS`]).
+/// the prior ([`RANGE_FAIL_NIS`]); `config` gives the least-squares settings.
 ///
 /// A prior that does not cover the discrepancy to the fix ([`disagrees`]) is first widened by it
 /// ([`crate::filters::core::ReacquisitionWidening`]): after a divergence, as built up by a
@@ -153,6 +154,7 @@ const DIVERGED_NIS_BOUND: f64 = 27.631_021_115_928_547;
 /// raised RIEKF's RMSE on a seed-000 NLOS run from 0.57 to 1.01 m).
 pub fn reacquire(
     core: &mut InertialCore,
+    config: &FilterConfig,
     watch: &mut DivergenceWatch,
     anchors: &[Vec3],
     ranges: &[(usize, f64)],
@@ -160,7 +162,7 @@ pub fn reacquire(
 ) -> Result<Option<(f64, f64)>> {
     let p_xy = core.covariance().fixed_view::<2, 2>(POS, POS).trace();
     let now = core.time_s();
-    let ls = LsConfig::from_filter_config(core.config());
+    let ls = LsConfig::from_filter_config(config);
     let (fix, diverged) = match reacquisition_fix(p_xy, anchors, ranges, &ls) {
         Some(fix) => (fix, false),
         None => match watch.check(core, anchors, ranges, failed, &ls) {
@@ -169,7 +171,7 @@ pub fn reacquire(
         },
     };
     let horizontal_only = fix.planar || (!diverged && fix.covariance[(2, 2)] > core.covariance()[(POS + 2, POS + 2)]);
-    let tag = crate::models::range::tag_position(core.state(), &core.config().mounting.lever_arm);
+    let tag = crate::models::range::tag_position(core.state(), &core.mounting().lever_arm);
     let mut discrepancy = fix.position - tag;
     if horizontal_only {
         discrepancy.z = 0.0;
@@ -182,7 +184,7 @@ pub fn reacquire(
         core.widen_prior(&ReacquisitionWidening { discrepancy, horizon_s });
     }
     watch.last_good_s = now;
-    let lever_arm = core.config().mounting.lever_arm;
+    let lever_arm = core.mounting().lever_arm;
     let tag = TagFix { t_s: now.unwrap_or(0.0), position: fix.position, covariance: fix.covariance };
     let (x, p) = core.state_and_covariance_mut();
     let (residual, h) = position_measurement(x, &tag, &lever_arm);

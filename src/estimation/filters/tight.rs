@@ -45,6 +45,7 @@ use nalgebra::{SMatrix, SVector};
 #[derive(Debug, Clone)]
 pub struct TightFilter {
     core: InertialCore,
+    config: FilterConfig,
     anchors: Vec<Vec3>,
     policy: RangeNoisePolicy,
     strategy: Strategy,
@@ -126,7 +127,8 @@ impl TightFilter {
             Vec::new()
         };
         Ok(Self {
-            core: InertialCore::new(initial, config)?,
+            core: InertialCore::new(initial, &config)?,
+            config,
             epoch: Vec::with_capacity(anchors.len()),
             anchors,
             policy: composition.policy,
@@ -143,7 +145,7 @@ impl TightFilter {
     /// rule of seed 003 instead. Allocates (the L1 fit does); UWB epochs are far rarer than
     /// IMU samples.
     fn robustness(&self, ranges: &[(usize, f64)]) -> Vec<RobustnessFactor> {
-        let config = self.core.config();
+        let config = &self.config;
         if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
             let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
             return vec![
@@ -161,14 +163,14 @@ impl TightFilter {
     /// None when the tag sits on the anchor.
     fn nis_at_prior(&self, anchor: usize, range_m: f64, r_var: f64) -> Option<f64> {
         let (x, p) = (self.core.state(), self.core.covariance());
-        let pred = predict_range(x, &self.anchors[anchor], &self.core.config().mounting.lever_arm)?;
+        let pred = predict_range(x, &self.anchors[anchor], &self.config.mounting.lever_arm)?;
         Some((range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
     }
 
     /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
     /// noise (for the divergence watch, [`crate::filters::reacquire`]).
     fn failed_at_prior(&self, ranges: &[(usize, f64)]) -> usize {
-        let r_var = self.core.config().ranging.range_std.powi(2);
+        let r_var = self.config.ranging.range_std.powi(2);
         ranges
             .iter()
             .filter(|&&(anchor, range_m)| self.nis_at_prior(anchor, range_m, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS))
@@ -178,7 +180,7 @@ impl TightFilter {
     /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
     /// range's γ against the prior with `R_i = σ²·Cu_i`.
     fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
-        let range_std = self.core.config().ranging.range_std;
+        let range_std = self.config.ranging.range_std;
         let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
             (*f, self.nis_at_prior(anchor, range_m, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
         });
@@ -206,7 +208,9 @@ impl InertialFilter for TightFilter {
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
         let failed = self.failed_at_prior(ranges);
-        if let Some((innovation, nis)) = reacquire(&mut self.core, &mut self.divergence, &self.anchors, ranges, failed)? {
+        if let Some((innovation, nis)) =
+            reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
+        {
             reports
                 .iter_mut()
                 .for_each(|r| *r = UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
@@ -249,6 +253,10 @@ impl InertialFilter for TightFilter {
             }
             other => Err(not_taken(other)),
         }
+    }
+
+    fn config(&self) -> &FilterConfig {
+        &self.config
     }
 
     fn core(&self) -> &InertialCore {
@@ -298,7 +306,7 @@ impl TightFilter {
         max_iterations: u32,
         tolerance: f64,
     ) -> Result<()> {
-        let config = self.core.config();
+        let config = &self.config;
         let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
         let (x, p_out) = self.core.state_and_covariance_mut();
         let (prior, p_prior) = (*x, *p_out);
@@ -376,7 +384,7 @@ impl TightFilter {
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
     ) -> Result<()> {
-        let config = self.core.config();
+        let config = &self.config;
         let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
