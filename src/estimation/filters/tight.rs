@@ -395,7 +395,7 @@ impl TightFilter {
             let measure = |d: &ErrVec| {
                 let mut s = prior;
                 s.inject(d);
-                m.predict(&s, anchors, &lever_arm).map(|pred| pred.value)
+                m.value_at(&s, anchors, &lever_arm)
             };
             let Some(moments) = scalar_moments::<ERR_DIM, SIGMA_POINTS>(&dx, &p, weights, measure)? else {
                 *report = UpdateReport::skipped();

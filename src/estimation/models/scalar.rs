@@ -4,7 +4,7 @@
 //! state and the 1×15 Jacobian row on the error state (order δp, δv, δθ, δb_a, δb_g).
 
 use crate::math::Vec3;
-use crate::models::range::predict_range;
+use crate::models::range::{predict_range, tag_position};
 use crate::state::{ErrVec, NominalState};
 
 /// Predicted value of a scalar measurement and its Jacobian row.
@@ -43,6 +43,17 @@ impl ScalarMeasurement {
         match *self {
             Self::Range { range_m, .. } => range_m,
             Self::Tdoa { tdoa_m, .. } => tdoa_m,
+        }
+    }
+
+    /// The predicted value alone (no Jacobian: the unscented strategy evaluates it at every sigma
+    /// point); None where [`ScalarMeasurement::predict`] is None.
+    pub fn value_at(&self, x: &NominalState, anchors: &[Vec3], lever_arm: &Vec3) -> Option<f64> {
+        let tag = tag_position(x, lever_arm);
+        let distance = |a: &Vec3| Some((tag - a).norm()).filter(|d| *d >= 1e-9);
+        match *self {
+            Self::Range { anchor, .. } => distance(&anchors[anchor]),
+            Self::Tdoa { anchor_i, anchor_j, .. } => Some(distance(&anchors[anchor_j])? - distance(&anchors[anchor_i])?),
         }
     }
 
@@ -86,6 +97,7 @@ mod tests {
             ScalarMeasurement::Range { anchor: 1, range_m: 0.0 },
         ] {
             let pred = m.predict(&x, &anchors, &lever_arm).expect("defined");
+            assert_eq!(m.value_at(&x, &anchors, &lever_arm), Some(pred.value));
             let h = 1e-6;
             for j in 0..crate::state::ERR_DIM {
                 let mut dx = ErrVec::zeros();
