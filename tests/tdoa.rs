@@ -110,6 +110,55 @@ fn iterated_robust_filters_keep_the_prior_gamma_of_a_lone_tdoa() {
 }
 
 #[test]
+fn a_confident_wrong_start_reacquires_on_a_tdoa_fix() {
+    // 3.4 m off with a 2 cm position σ: every TDoA fails the χ² test at the prior, the watch
+    // solves the recent TDoA as one fix and re-acquires on it. Before the watch, rekf settled on
+    // a wrong crossing of the hyperbolae 40 m away (imu_z_down seed 1).
+    for (name, seed) in [("imu_z_down", 1), ("nlos_two", 0), ("agv_loop", 1)] {
+        let (s, data) = tdoa_scenario(name, seed);
+        let mut initial = s.true_initial(&data).expect("initial");
+        initial.position += Vec3::new(3.0, -1.5, 0.0);
+        initial.position_std = Vec3::repeat(0.02);
+        for method in [Method::Rekf, Method::Riekf, Method::Arckf] {
+            let input = BatchInput {
+                imu: &data.imu,
+                ranges: &[],
+                anchors: &data.anchors,
+                initial: Some(&initial),
+                config: &s.config,
+                smooth: false,
+                mag: &[],
+                tdoa: &data.tdoa,
+            };
+            let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &input) else { panic!("{method:?}") };
+            let errors = horizontal_errors(&trace.steps, &data);
+            let after = data.truth.iter().position(|t| t.t_s >= data.imu[0].t_s + 5.0).expect("5 s");
+            let reacquired = trace.updates.iter().filter(|u| u.report.reacquired).count();
+            let e = rms(&errors[after..]);
+            println!("{name} {method:?}: RMSE after 5 s {e:.3} m, {reacquired} re-acquisitions");
+            // Measured ≤ 0.021 m, one re-acquisition each.
+            assert!(reacquired >= 1 && e < 0.03, "{name} {method:?}: {e} m, {reacquired}");
+        }
+    }
+}
+
+#[test]
+fn filters_without_a_gate_no_longer_diverge_on_tdoa_outliers() {
+    // far_start: outside the anchors' hull the hyperbolae are nearly parallel, and the ungated
+    // filters, taking 1–2 gross outliers a second at full weight, ran away to 700 m (worst 2.1 km)
+    // until the TDoA watch re-acquired them on a consistent TDoA fix.
+    for seed in 0..3 {
+        let (s, data) = tdoa_scenario("far_start", seed);
+        for method in [Method::Ekf, Method::Ukf] {
+            let e = tdoa_only_rmse(method, &s, &data);
+            println!("far_start seed {seed} {method:?}: {e:.3} m");
+            // Measured worst 2.35 m (ekf): not good, but bounded (use a gated method for TDoA).
+            assert!(e < 3.0, "{method:?} seed {seed}: {e}");
+        }
+    }
+}
+
+#[test]
 fn every_policy_works_with_the_unscented_strategy() {
     let (s, data) = tdoa_scenario("nlos_two", 2);
     let initial = s.true_initial(&data).expect("initial");

@@ -35,7 +35,9 @@ use crate::filters::core::ReacquisitionWidening;
 use crate::filters::InertialCore;
 use crate::math::Vec3;
 use crate::models::loose::{position_measurement, TagFix};
+use crate::multilateration::tdoa::solve_tdoa;
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
+use crate::records::TdoaMeasurement;
 use crate::state::{ErrVec, POS};
 use crate::update::{inject_and_reset, leading_rows_step};
 
@@ -161,7 +163,6 @@ pub fn reacquire(
     failed: usize,
 ) -> Result<Option<(f64, f64)>> {
     let p_xy = core.covariance().fixed_view::<2, 2>(POS, POS).trace();
-    let now = core.time_s();
     let ls = LsConfig::from_filter_config(config);
     let (fix, diverged) = match reacquisition_fix(p_xy, anchors, ranges, &ls) {
         Some(fix) => (fix, false),
@@ -170,20 +171,29 @@ pub fn reacquire(
             None => return Ok(None),
         },
     };
+    apply_fix(core, &mut watch.last_good_s, &fix, diverged).map(Some)
+}
+
+/// Re-acquires on `fix`: widens the prior where it does not cover the fix (after a divergence,
+/// as a velocity error built up since `last_good_s`), then applies the fix as a tag-position
+/// measurement (horizontal only for a planar fix, or when the prior knows the height better);
+/// returns the position innovation norm (m) and its NIS.
+fn apply_fix(core: &mut InertialCore, last_good_s: &mut Option<f64>, fix: &Fix, diverged: bool) -> Result<(f64, f64)> {
+    let now = core.time_s();
     let horizontal_only = fix.planar || (!diverged && fix.covariance[(2, 2)] > core.covariance()[(POS + 2, POS + 2)]);
     let tag = crate::models::range::tag_position(core.state(), &core.mounting().lever_arm);
     let mut discrepancy = fix.position - tag;
     if horizontal_only {
         discrepancy.z = 0.0;
     }
-    let horizon_s = match (now, watch.last_good_s) {
+    let horizon_s = match (now, *last_good_s) {
         (Some(now), Some(good)) if diverged => now - good,
         _ => f64::INFINITY,
     };
-    if diverged || disagrees(core, &fix) {
+    if diverged || disagrees(core, fix) {
         core.widen_prior(&ReacquisitionWidening { discrepancy, horizon_s });
     }
-    watch.last_good_s = now;
+    *last_good_s = now;
     let lever_arm = core.mounting().lever_arm;
     let tag = TagFix { t_s: now.unwrap_or(0.0), position: fix.position, covariance: fix.covariance };
     let (x, p) = core.state_and_covariance_mut();
@@ -196,5 +206,103 @@ pub fn reacquire(
     };
     inject_and_reset(x, p, &dx);
     let innovation = if horizontal_only { residual.xy().norm() } else { residual.norm() };
-    Ok(Some((innovation, nis)))
+    Ok((innovation, nis))
+}
+
+/// TDoA kept for a re-acquisition fix (the last round or two of transmissions).
+const TDOA_RECENT: usize = 16;
+
+/// Consecutive TDoA failing their `χ²₁` test at the prior ([`RANGE_FAIL_NIS`]) before the filter
+/// is checked against a TDoA fix (ten gross outliers in a row at 3 % have a probability of
+/// 6·10⁻¹⁶).
+pub const TDOA_DIVERGED_COUNT: u32 = 10;
+
+/// The TDoA counterpart of [`DivergenceWatch`] and of the wide-prior rule (ours): a TDoA carries no
+/// fix of its own, so the last [`TDOA_RECENT`] are kept (a fixed ring, no allocation) and, when
+/// the prior is wide or [`TDOA_DIVERGED_COUNT`] TDoA in a row fail their test at the prior, solved
+/// as one fix ([`crate::multilateration::tdoa::solve_tdoa`]: the newest of each pair within
+/// [`crate::multilateration::tdoa::TDOA_FIX_WINDOW_S`]). The filter re-acquires on a consistent
+/// fix as on a range epoch's ([`reacquire_tdoa`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TdoaWatch {
+    recent: [TdoaMeasurement; TDOA_RECENT],
+    len: usize,
+    head: usize,
+    failures: u32,
+    last_good_s: Option<f64>,
+}
+
+impl Default for TdoaWatch {
+    fn default() -> Self {
+        let empty = TdoaMeasurement { t_s: 0.0, anchor_i: 0, anchor_j: 0, tdoa_m: 0.0 };
+        Self { recent: [empty; TDOA_RECENT], len: 0, head: 0, failures: 0, last_good_s: None }
+    }
+}
+
+impl TdoaWatch {
+    fn push(&mut self, m: &TdoaMeasurement, failed: bool, now: Option<f64>) {
+        self.recent[self.head] = *m;
+        self.head = (self.head + 1) % TDOA_RECENT;
+        self.len = (self.len + 1).min(TDOA_RECENT);
+        if failed {
+            self.failures += 1;
+        } else {
+            self.failures = 0;
+            self.last_good_s = now;
+        }
+    }
+
+    /// The newest TDoA of each pair within the fix window of the newest one, in time order.
+    fn window(&self) -> Vec<TdoaMeasurement> {
+        let newest = (0..self.len).map(|k| self.recent[(self.head + TDOA_RECENT - 1 - k) % TDOA_RECENT]);
+        let t_last = self.recent[(self.head + TDOA_RECENT - 1) % TDOA_RECENT].t_s;
+        let mut out: Vec<TdoaMeasurement> = Vec::with_capacity(self.len);
+        for m in newest.take_while(|m| t_last - m.t_s <= crate::multilateration::tdoa::TDOA_FIX_WINDOW_S) {
+            if !out.iter().any(|o| (o.anchor_i, o.anchor_j) == (m.anchor_i, m.anchor_j)) {
+                out.push(m);
+            }
+        }
+        out.reverse();
+        out
+    }
+}
+
+/// Takes one TDoA `m` (`failed`: whether it fails its `χ²₁` test at the prior) and, if the prior
+/// calls for it — far less precise than the recent TDoA's fix (as [`reacquisition_fix`]), or
+/// diverged from a consistent fix after [`TDOA_DIVERGED_COUNT`] failures in a row (as
+/// [`DivergenceWatch`]) — re-acquires on that fix and returns its innovation norm (m) and NIS;
+/// otherwise returns None and the TDoA is applied as usual.
+pub fn reacquire_tdoa(
+    core: &mut InertialCore,
+    config: &FilterConfig,
+    watch: &mut TdoaWatch,
+    anchors: &[Vec3],
+    m: &TdoaMeasurement,
+    failed: bool,
+) -> Result<Option<(f64, f64)>> {
+    watch.push(m, failed, core.time_s());
+    let p_xy = core.covariance().fixed_view::<2, 2>(POS, POS).trace();
+    let wide = p_xy >= 2.0 * REACQUIRE_MIN_STD_M.powi(2);
+    let suspect = watch.failures >= TDOA_DIVERGED_COUNT;
+    if !wide && !suspect {
+        return Ok(None);
+    }
+    // A planar fix (coplanar anchors) is solved at the filter's tag height: the hyperbolae's
+    // horizontal crossing moves with the height, and the anchors' own height is far from the tag's.
+    let tag_z = crate::models::range::tag_position(core.state(), &core.mounting().lever_arm).z;
+    let ls =
+        LsConfig { range_std_m: config.ranging.tdoa_std, planar_height_m: Some(tag_z), ..LsConfig::from_filter_config(config) };
+    let Some(fix) = solve_tdoa(anchors, &watch.window(), &ls).filter(|f| f.is_consistent(ls.range_std_m, FIX_CONSISTENCY_ALPHA))
+    else {
+        return Ok(None);
+    };
+    let diverged = if wide && p_xy >= REACQUIRE_RATIO * fix.covariance.fixed_view::<2, 2>(0, 0).trace() {
+        false
+    } else if suspect && disagrees(core, &fix) {
+        true
+    } else {
+        return Ok(None);
+    };
+    watch.failures = 0;
+    apply_fix(core, &mut watch.last_good_s, &fix, diverged).map(Some)
 }

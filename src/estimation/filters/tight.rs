@@ -6,7 +6,7 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::filters::constraints::Constraints;
-use crate::filters::reacquire::{reacquire, DivergenceWatch, RANGE_FAIL_NIS};
+use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
@@ -52,6 +52,7 @@ pub struct TightFilter {
     constraints: Constraints,
     range_noise: Vec<SageHusa<1>>,
     divergence: DivergenceWatch,
+    tdoa_watch: Box<TdoaWatch>,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
     epoch: Vec<ScalarMeasurement>,
 }
@@ -136,6 +137,7 @@ impl TightFilter {
             constraints,
             range_noise,
             divergence: DivergenceWatch::default(),
+            tdoa_watch: Box::default(),
         })
     }
 
@@ -165,6 +167,16 @@ impl TightFilter {
         let (x, p) = (self.core.state(), self.core.covariance());
         let pred = predict_range(x, &self.anchors[anchor], &self.config.mounting.lever_arm)?;
         Some((range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
+    }
+
+    /// Whether one scalar measurement fails its `χ²₁` test at the prior with noise variance
+    /// `r_var` (the divergence watches, [`crate::filters::reacquire`]).
+    fn fails_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> bool {
+        let (x, p) = (self.core.state(), self.core.covariance());
+        m.predict(x, &self.anchors, &self.config.mounting.lever_arm).is_some_and(|pred| {
+            let residual = m.value() - pred.value;
+            residual * residual / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var) > RANGE_FAIL_NIS
+        })
     }
 
     /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
@@ -239,15 +251,20 @@ impl InertialFilter for TightFilter {
 
     /// Applies a TDoA through the filter's own strategy and policy (χ² inflation for the robust
     /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
-    /// adaptive per-anchor range noise and the divergence watch are for ranges only); other
-    /// observations are refused.
+    /// adaptive per-anchor range noise is for ranges only), after the TDoA re-acquisition rule
+    /// ([`crate::filters::reacquire::TdoaWatch`]); other observations are refused.
     fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
         match observation {
             Observation::Tdoa(m) => {
                 check_tdoa(&self.anchors, m)?;
                 self.core.advance_to(m.t_s)?;
-                let mut report = [UpdateReport::skipped()];
                 let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+                let failed = self.fails_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2));
+                let watch = &mut self.tdoa_watch;
+                if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
+                    return Ok(UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
+                }
+                let mut report = [UpdateReport::skipped()];
                 self.solve(&[tdoa], &mut report, None, 1.0)?;
                 Ok(report[0])
             }
