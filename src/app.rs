@@ -1,7 +1,8 @@
-//! Applications of the estimators: the named methods and their batch runner, MCAP recordings and
-//! replay, output columns, metrics, the simulator and the generality matrix. (Each module is also
+//! Applications of the estimators: the named methods and their batch runner, range-bias
+//! calibration from a log, MCAP recordings and replay, output columns, metrics, the simulator and the generality matrix. (Each module is also
 //! reachable at the crate root.)
 
+pub mod calibrate;
 pub mod columns;
 #[cfg(feature = "sim")]
 pub mod generality;

@@ -4,7 +4,7 @@ pub mod app;
 pub mod estimation;
 pub mod vocabulary;
 
-pub use app::{columns, methods, metrics};
+pub use app::{calibrate, columns, methods, metrics};
 #[cfg(feature = "sim")]
 pub use app::{generality, sim};
 #[cfg(feature = "io")]

@@ -59,6 +59,7 @@ __all__ = [
     "Ukf",
     "UpdateReport",
     "UwbImuError",
+    "calibrate",
     "crlb",
     "initialize",
     "ranging",
@@ -67,6 +68,58 @@ __all__ = [
     "run_filter",
     "run_filters",
 ]
+
+
+def calibrate(
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    truth: np.ndarray | None = None,
+    method: str = "riekf",
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    iterations: int = 8,
+) -> dict[str, Any]:
+    """Estimate a constant range bias per anchor (measured − true) from a log.
+
+    With ``truth`` the residuals are taken against the true tag track; without it against the
+    Rauch–Tung–Striebel smoothed track of ``method``, refined by expectation–maximisation over
+    ``iterations`` passes (the ranges corrected by the current biases, filtered and smoothed
+    again). Each anchor's bias is the mean of its residuals within 3 robust σ of their median.
+
+    Parameters
+    ----------
+    imu, ranges, anchors, initial, config
+        As for :func:`run_filter`.
+    truth : numpy.ndarray, shape (N, 4), optional
+        ``t, x, y, z`` of the tag (UWB antenna) in the navigation frame [s, m], time increasing.
+    method : str
+        A smoothable inertial method for the no-truth estimate.
+    iterations : int
+        EM passes without truth.
+
+    Returns
+    -------
+    dict
+        ``biases``: polars DataFrame ``anchor, bias, std, used, ranges`` (m; ``std`` is the
+        statistical σ/√n: without truth the part the smoothed track absorbs is larger — on
+        isas-walk1 each bias lands within 0.052 m of the truth-based one); ``common_offset``,
+        ``common_std`` (m); ``iterations``; ``range_calibration`` ``{anchor: [−b, 1, 0, 0]}`` to
+        pass as ``config["range_calibration"]``.
+    """
+    out = _native.calibrate_biases(
+        imu,
+        ranges,
+        anchors,
+        truth=truth,
+        method=method,
+        initial=_as_dict(initial),
+        config=_as_dict(config),
+        iterations=iterations,
+    )
+    out["biases"] = pl.DataFrame(out["biases"]).with_columns(pl.col("anchor", "used", "ranges").cast(pl.Int64))
+    return out
 
 
 def run_filter(

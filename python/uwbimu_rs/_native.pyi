@@ -53,6 +53,7 @@ __all__ = [
     "run_filter",
     "initialize_state",
     "FILTERS",
+    "calibrate_biases",
     "evaluate",
     "nees",
     "cdf",
@@ -510,6 +511,22 @@ def run_filters(
 ) -> list[tuple[dict[str, _F64], None, dict[str, Any]]]:
     """Run one method over many ``(imu, ranges, anchors)`` recordings in parallel (rayon, GIL
     released); one ``(columns, None, info)`` per run, in order."""
+
+def calibrate_biases(
+    imu: ArrayLike,
+    ranges: ArrayLike,
+    anchors: ArrayLike,
+    *,
+    truth: ArrayLike | None = None,
+    method: str = "riekf",
+    initial: dict[str, Any] | None = None,
+    config: _ConfigArg = None,
+    iterations: int = 8,
+) -> dict[str, Any]:
+    """Estimate a constant range bias per anchor from a log (with the tag's truth (N, 4) = t, x, y,
+    z, else by EM over the smoothed track of ``method``); the GIL is released. Returns columns
+    ``biases`` (anchor, bias, std, used, ranges), ``common_offset``, ``common_std``, ``iterations``,
+    ``range_calibration``."""
 
 def run_filter(
     method: str,

@@ -13,6 +13,7 @@ use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
 use crate::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
+use crate::ranging::calibration::RangeCalibration;
 use crate::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
 use crate::state::{ErrCov, NominalState, ERR_DIM};
 use crate::update::UpdateReport;
@@ -73,11 +74,16 @@ pub(super) fn config_dict<'py>(py: Python<'py>, config: &FilterConfig) -> PyResu
         };
         sub.set_item(field, config_value_to_py(py, &v)?)?;
     }
-    let cal = PyDict::new(py);
-    for (anchor, c) in config.range_calibration.coefficients() {
-        cal.set_item(anchor, c.to_vec())?;
+    d.set_item("range_calibration", calibration_dict(py, &config.range_calibration)?)?;
+    Ok(d)
+}
+
+/// A range calibration as the dict `range_calibration` takes, `{anchor: [c0, c1, c2, c3]}`.
+pub(super) fn calibration_dict<'py>(py: Python<'py>, cal: &RangeCalibration) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (anchor, c) in cal.coefficients() {
+        d.set_item(anchor, c.to_vec())?;
     }
-    d.set_item("range_calibration", cal)?;
     Ok(d)
 }
 

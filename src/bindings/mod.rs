@@ -1,6 +1,7 @@
 //! PyO3 bindings: the private extension module `uwbimu_rs._native`. Only this module uses pyo3;
 //! it converts and checks arrays, calls the core, maps errors and releases the GIL.
 
+mod calibrate;
 mod convert;
 mod errors;
 mod filters;
@@ -19,6 +20,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NumericalError", m.py().get_type::<errors::NumericalError>())?;
     m.add("MappingError", m.py().get_type::<errors::MappingError>())?;
     m.add("FormatError", m.py().get_type::<errors::FormatError>())?;
+    calibrate::register(m)?;
     filters::register(m)?;
     io::register(m)?;
     metrics::register(m)?;

@@ -1,0 +1,157 @@
+//! Range-bias calibration from a log (ours): a constant bias per anchor, `r_meas = ‖p_tag − a‖ +
+//! b_a + noise`, estimated from the range residuals against a reference trajectory.
+//!
+//! * **With ground truth** the reference is the true tag (UWB antenna) track, positions
+//!   interpolated to each range time.
+//! * **Without** it is the RTS-smoothed track of a filter (`method`, default riekf) run over the
+//!   log, and the estimate is refined by expectation–maximisation: the ranges are corrected by the
+//!   current biases, the log is filtered and smoothed again, and the mean residual of each anchor
+//!   is added to its bias, `iterations` times. A bias common to all anchors is only weakly
+//!   observable this way (the track moves to absorb part of it); the per-anchor differences are.
+//!
+//! Each anchor's bias is the mean of its residuals after dropping those more than 3 robust σ
+//! (1.4826·MAD) from their median (NLOS spikes, outliers); its uncertainty is `σ/√n`. The
+//! common offset is the mean of the anchors' biases. The result feeds the filters as
+//! `range_calibration` (`c0 = −b`, `c1 = 1`).
+
+use std::collections::BTreeMap;
+
+use crate::config::FilterConfig;
+use crate::error::{Error, Result};
+use crate::math::Vec3;
+use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::metrics::percentile;
+use crate::pipeline::StepRecord;
+use crate::ranging::calibration::RangeCalibration;
+use crate::records::RangeMeasurement;
+
+/// Robust σ per median absolute deviation of a Gaussian.
+const MAD_TO_SIGMA: f64 = 1.4826;
+
+/// Residuals beyond this many robust σ from the median are left out.
+const OUTLIER_SIGMAS: f64 = 3.0;
+
+/// One anchor's estimated bias.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnchorBias {
+    /// Anchor index.
+    pub anchor: usize,
+    /// Bias `b` (measured − true), m.
+    pub bias_m: f64,
+    /// Its standard deviation, m.
+    pub std_m: f64,
+    /// Residuals used (after the outlier cut).
+    pub used: usize,
+    /// Ranges of the anchor.
+    pub ranges: usize,
+}
+
+/// The calibration of a log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BiasCalibration {
+    /// One entry per anchor with ranges.
+    pub anchors: Vec<AnchorBias>,
+    /// Mean of the anchors' biases, m.
+    pub common_offset_m: f64,
+    /// Its standard deviation, m (from the per-anchor σ).
+    pub common_std_m: f64,
+    /// Refinement passes run (0 with ground truth).
+    pub iterations: usize,
+}
+
+impl BiasCalibration {
+    /// The biases as a range calibration for the filters (`true = m − b`).
+    pub fn range_calibration(&self) -> Result<RangeCalibration> {
+        RangeCalibration::new(self.anchors.iter().map(|a| (a.anchor, [-a.bias_m, 1.0, 0.0, 0.0])).collect())
+    }
+}
+
+/// Calibrates the ranges of `input` against ground truth: `truth` holds time-ordered `(t s, tag
+/// position m)`.
+pub fn calibrate_with_truth(input: &BatchInput<'_>, truth: &[(f64, Vec3)]) -> Result<BiasCalibration> {
+    if truth.len() < 2 || truth.windows(2).any(|w| w[1].0.partial_cmp(&w[0].0) != Some(std::cmp::Ordering::Greater)) {
+        return Err(Error::InsufficientData("calibration needs two or more truth samples with increasing times".into()));
+    }
+    let tag_at = |t: f64| {
+        let k = truth.partition_point(|s| s.0 <= t).clamp(1, truth.len() - 1);
+        let (a, b) = (&truth[k - 1], &truth[k]);
+        let w = ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0);
+        a.1 + (b.1 - a.1) * w
+    };
+    let within = |r: &&RangeMeasurement| r.t_s >= truth[0].0 && r.t_s <= truth[truth.len() - 1].0;
+    let residuals =
+        input.ranges.iter().filter(within).map(|r| (r.anchor, r.range_m - (tag_at(r.t_s) - input.anchors[r.anchor]).norm()));
+    Ok(summarise(residuals, BTreeMap::new(), 0))
+}
+
+/// Calibrates the ranges of `input` without ground truth by EM over the smoothed track of `method`
+/// (module doc); `input.smooth` and a `range_calibration` in `input.config` are overridden.
+pub fn calibrate_without_truth(input: &BatchInput<'_>, method: Method, iterations: usize) -> Result<BiasCalibration> {
+    let mut biases: BTreeMap<usize, f64> = BTreeMap::new();
+    let mut result = None;
+    for pass in 0..iterations.max(1) {
+        let calibration = RangeCalibration::new(biases.iter().map(|(&a, &b)| (a, [-b, 1.0, 0.0, 0.0])).collect())?;
+        let config = FilterConfig { range_calibration: calibration, ..input.config.clone() };
+        let batch = BatchInput { config: &config, smooth: true, ..*input };
+        let BatchOutput::Inertial { smoothed: Some(steps), .. } = run_method(method, &batch)? else {
+            return Err(Error::InvalidCall(format!("{} cannot be smoothed; calibrate with an inertial method", method.name())));
+        };
+        let residuals = track_residuals(&steps, input, &config);
+        let step = summarise(residuals, biases.clone(), pass + 1);
+        for a in &step.anchors {
+            *biases.entry(a.anchor).or_insert(0.0) = a.bias_m;
+        }
+        result = Some(step);
+    }
+    result.ok_or_else(|| Error::InsufficientData("no calibration pass ran".into()))
+}
+
+/// Residuals of the (already calibrated, with `config`) ranges against the smoothed tag track.
+fn track_residuals<'a>(
+    steps: &'a [StepRecord],
+    input: &'a BatchInput<'_>,
+    config: &'a FilterConfig,
+) -> impl Iterator<Item = (usize, f64)> + 'a {
+    let lever_arm = config.mounting.lever_arm;
+    input.ranges.iter().filter_map(move |r| {
+        let k = steps.partition_point(|s| s.t_s <= r.t_s);
+        let (a, b) = (steps.get(k.checked_sub(1)?)?, steps.get(k)?);
+        let w = (r.t_s - a.t_s) / (b.t_s - a.t_s);
+        let tag = a.state.position + (b.state.position - a.state.position) * w + a.state.orientation * lever_arm;
+        let corrected = config.range_calibration.correct(r.anchor, r.range_m);
+        Some((r.anchor, corrected - (tag - input.anchors[r.anchor]).norm()))
+    })
+}
+
+/// Per-anchor robust means of `residuals`, added to `prior` biases.
+fn summarise(residuals: impl Iterator<Item = (usize, f64)>, prior: BTreeMap<usize, f64>, iterations: usize) -> BiasCalibration {
+    let mut by_anchor: BTreeMap<usize, Vec<f64>> = BTreeMap::new();
+    for (anchor, res) in residuals.filter(|(_, r)| r.is_finite()) {
+        by_anchor.entry(anchor).or_default().push(res);
+    }
+    let anchors: Vec<AnchorBias> = by_anchor
+        .into_iter()
+        .map(|(anchor, mut res)| {
+            res.sort_by(f64::total_cmp);
+            let median = percentile(&res, 50.0);
+            let mut dev: Vec<f64> = res.iter().map(|r| (r - median).abs()).collect();
+            dev.sort_by(f64::total_cmp);
+            let sigma = (MAD_TO_SIGMA * percentile(&dev, 50.0)).max(1e-6);
+            let kept: Vec<f64> = res.iter().copied().filter(|r| (r - median).abs() <= OUTLIER_SIGMAS * sigma).collect();
+            let n = kept.len().max(1) as f64;
+            let mean = kept.iter().sum::<f64>() / n;
+            let std = (kept.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+            AnchorBias {
+                anchor,
+                bias_m: prior.get(&anchor).copied().unwrap_or(0.0) + mean,
+                std_m: std / n.sqrt(),
+                used: kept.len(),
+                ranges: res.len(),
+            }
+        })
+        .collect();
+    let k = anchors.len().max(1) as f64;
+    let common_offset_m = anchors.iter().map(|a| a.bias_m).sum::<f64>() / k;
+    let common_std_m = anchors.iter().map(|a| a.std_m.powi(2)).sum::<f64>().sqrt() / k;
+    BiasCalibration { anchors, common_offset_m, common_std_m, iterations }
+}
