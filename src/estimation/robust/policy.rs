@@ -23,6 +23,15 @@ pub enum RangeNoisePolicy {
     /// §2.2.1, ACKF): the L1 residual of eqs. (33)–(35) of seed 002 with three or more ranges,
     /// [`crate::robust::two_range_residuals`] with two.
     ResidualWeighted,
+    /// Heavy-tailed Student-t weights (ours): `R' = R·(ν + γ)/(ν + 1)` for `γ` above 1, the
+    /// inverse of the weight `(ν + 1)/(ν + γ)` of a Student-t likelihood with `dof` = ν degrees of
+    /// freedom — no threshold to lock out behind, a smooth down-weighting that grows with γ. With
+    /// the iterated strategy, γ is recomputed at each operating point, which makes the update an
+    /// iteratively reweighted M-estimator.
+    StudentT {
+        /// Degrees of freedom ν (> 0; 1 = Cauchy).
+        dof: f64,
+    },
 }
 
 impl RangeNoisePolicy {
@@ -32,6 +41,7 @@ impl RangeNoisePolicy {
         match *self {
             Self::Fixed => 1.0,
             Self::ChiSquareInflation { threshold } | Self::AdaptiveRobust { threshold } if nis >= threshold => nis / threshold,
+            Self::StudentT { dof } => ((dof + nis) / (dof + 1.0)).max(1.0),
             Self::ChiSquareInflation { .. } | Self::AdaptiveRobust { .. } | Self::ResidualWeighted => 1.0,
         }
     }
@@ -47,5 +57,8 @@ mod tests {
         assert_eq!(p.inflation(1.0), 1.0);
         assert!((p.inflation(13.27) - 2.0).abs() < 1e-3);
         assert_eq!(RangeNoisePolicy::Fixed.inflation(100.0), 1.0);
+        let t = RangeNoisePolicy::StudentT { dof: 4.0 };
+        assert_eq!(t.inflation(0.5), 1.0);
+        assert!((t.inflation(96.0) - 20.0).abs() < 1e-12);
     }
 }
