@@ -136,6 +136,18 @@ impl Fix {
     }
 }
 
+/// The Gauss–Newton step `d` of `JᵀJ·d = rhs` over the free coordinates (x, y, z, or x, y with
+/// `d.z = 0` in planar mode); None if `JᵀJ` is not positive definite.
+pub(crate) fn normal_step(jtj: &Mat3, rhs: &Vec3, planar: bool) -> Option<Vec3> {
+    if planar {
+        let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
+        let d = Cholesky::new(m)?.solve(&Vector2::new(rhs.x, rhs.y));
+        Some(Vec3::new(d.x, d.y, 0.0))
+    } else {
+        Some(Cholesky::new(*jtj)?.solve(rhs))
+    }
+}
+
 /// Step halving of Gauss–Newton: `step` halved until the sum of squares `ssr_at(step)` (None:
 /// undefined there) is below `ssr`, or zero after [`MAX_STEP_HALVINGS`] halvings — so an outlier or
 /// a poorly conditioned height cannot send the iteration away (undamped, it reached kilometres on
@@ -258,7 +270,7 @@ fn normal_equations(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> Option<
 /// Inverts the normal matrix of the free coordinates (x, y, z, or x, y in planar mode); `None`
 /// if it is singular (relative eigenvalue below `NORMAL_RCOND`) or not positive definite. The
 /// planar result has zero z row and column.
-fn invert_normal(jtj: &Mat3, planar: bool) -> Option<Mat3> {
+pub(crate) fn invert_normal(jtj: &Mat3, planar: bool) -> Option<Mat3> {
     if planar {
         let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
         let eig = SymmetricEigen::new(m).eigenvalues;
@@ -308,14 +320,7 @@ pub fn gauss_newton_fix(
     let mut iterations = 0;
     while iterations < cfg.max_iterations {
         let (jtj, jte, sse) = normal_equations(anchors, obs, &p)?;
-        let step = if planar {
-            let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
-            let v = Vector2::new(-jte.x, -jte.y);
-            let d = Cholesky::new(m)?.solve(&v);
-            Vec3::new(d.x, d.y, 0.0)
-        } else {
-            Cholesky::new(jtj)?.solve(&(-jte))
-        };
+        let step = normal_step(&jtj, &(-jte), planar)?;
         if !step.iter().all(|v| v.is_finite()) {
             return None;
         }

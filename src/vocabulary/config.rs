@@ -126,57 +126,36 @@ pub const LEGACY_KEYS: &[(&str, &[&str])] = &[
     ("planar_accel_density", &["planar.accel_density"]),
 ];
 
-/// Calls `$body` with `$s` bound to each section of `$config` (mutably when `$config` is).
+/// Calls `$body` with `$s` bound to each section of `$config` in declaration order (`mut`:
+/// mutably); the one list of the sections.
 macro_rules! for_each_section {
-    ($config:expr, |$s:ident| $body:expr) => {{
+    ($config:expr, |$s:ident| $body:expr) => {
+        for_each_section!(@ [&] $config, |$s| $body)
+    };
+    (mut $config:expr, |$s:ident| $body:expr) => {
+        for_each_section!(@ [&mut] $config, |$s| $body)
+    };
+    (@ [$($r:tt)+] $config:expr, |$s:ident| $body:expr) => {{
         let c = $config;
         [
-            {
-                let $s = &c.ranging;
-                $body
-            },
-            {
-                let $s = &c.ins;
-                $body
-            },
-            {
-                let $s = &c.mounting;
-                $body
-            },
-            {
-                let $s = &c.init;
-                $body
-            },
-            {
-                let $s = &c.robust;
-                $body
-            },
-            {
-                let $s = &c.constraints;
-                $body
-            },
-            {
-                let $s = &c.adaptive;
-                $body
-            },
-            {
-                let $s = &c.sage_husa;
-                $body
-            },
-            {
-                let $s = &c.unscented;
-                $body
-            },
-            {
-                let $s = &c.planar;
-                $body
-            },
-            {
-                let $s = &c.aiding;
-                $body
-            },
+            { let $s = $($r)+ c.ranging; $body },
+            { let $s = $($r)+ c.ins; $body },
+            { let $s = $($r)+ c.mounting; $body },
+            { let $s = $($r)+ c.init; $body },
+            { let $s = $($r)+ c.robust; $body },
+            { let $s = $($r)+ c.constraints; $body },
+            { let $s = $($r)+ c.adaptive; $body },
+            { let $s = $($r)+ c.sage_husa; $body },
+            { let $s = $($r)+ c.unscented; $body },
+            { let $s = $($r)+ c.planar; $body },
+            { let $s = $($r)+ c.aiding; $body },
         ]
     }};
+}
+
+/// Sets `field` of `s` when `s` is the section named `section`; None when it is another.
+fn set_in<S: Section>(s: &mut S, section: &str, field: &str, value: &ConfigValue) -> Option<Result<()>> {
+    (S::NAME == section).then(|| s.set(field, value))
 }
 
 /// `(section name, its field names)` for a section type.
@@ -203,20 +182,8 @@ impl FilterConfig {
     /// allowed ones.
     pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
         if let Some((section, field)) = key.split_once('.') {
-            return match section {
-                "ranging" => self.ranging.set(field, value),
-                "ins" => self.ins.set(field, value),
-                "mounting" => self.mounting.set(field, value),
-                "init" => self.init.set(field, value),
-                "robust" => self.robust.set(field, value),
-                "constraints" => self.constraints.set(field, value),
-                "adaptive" => self.adaptive.set(field, value),
-                "sage_husa" => self.sage_husa.set(field, value),
-                "unscented" => self.unscented.set(field, value),
-                "planar" => self.planar.set(field, value),
-                "aiding" => self.aiding.set(field, value),
-                _ => Err(self.unknown(key)),
-            };
+            let set = for_each_section!(mut self, |s| set_in(s, section, field, value));
+            return set.into_iter().flatten().next().unwrap_or_else(|| Err(Self::unknown(key)));
         }
         if key == "range_calibration" {
             return Err(crate::validate::invalid(
@@ -226,11 +193,11 @@ impl FilterConfig {
         }
         match LEGACY_KEYS.iter().find(|(old, _)| *old == key) {
             Some((_, new)) => new.iter().try_for_each(|k| self.set(k, value)),
-            None => Err(self.unknown(key)),
+            None => Err(Self::unknown(key)),
         }
     }
 
-    fn unknown(&self, key: &str) -> Error {
+    fn unknown(key: &str) -> Error {
         Error::UnknownOption { kind: "config", got: key.to_string(), allowed: Self::keys().join(", ") }
     }
 

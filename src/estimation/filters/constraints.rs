@@ -19,6 +19,7 @@ pub use still::StillDetector;
 use crate::config::{ConstraintsConfig, MAX_SPEED_HISTORY};
 use crate::error::Result;
 use crate::filters::InertialCore;
+use crate::math::Vec3;
 use crate::state::{ErrVec, POS, VEL};
 use crate::update::{inject_and_reset, scalar_step};
 
@@ -75,8 +76,19 @@ impl Constraints {
         self.still
     }
 
+    /// Predicts `core` with the IMU sample at `t_s` ([`InertialCore::predict`]), then applies the
+    /// constraints due ([`Constraints::after_predict`], when any is on): the prediction step of
+    /// every filter that carries constraints.
+    pub fn predict(&mut self, core: &mut InertialCore, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        core.predict(t_s, accel, gyro)?;
+        if self.any() {
+            self.after_predict(core)?;
+        }
+        Ok(())
+    }
+
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
-    pub fn after_predict(&mut self, core: &mut InertialCore) -> Result<()> {
+    fn after_predict(&mut self, core: &mut InertialCore) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
         let (cfg, gravity) = (self.config, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();

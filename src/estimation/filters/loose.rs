@@ -110,11 +110,7 @@ impl InertialFilter for Eskf {
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.core.predict(t_s, accel, gyro)?;
-        if self.constraints.any() {
-            self.constraints.after_predict(&mut self.core)?;
-        }
-        Ok(())
+        self.constraints.predict(&mut self.core, t_s, accel, gyro)
     }
 
     fn still(&self) -> bool {

@@ -10,7 +10,7 @@ use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, Tdoa
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
 use crate::math::Vec3;
-use crate::models::range::{predict_range, tag_position};
+use crate::models::range::tag_position;
 use crate::models::scalar::ScalarMeasurement;
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
 use crate::records::{Observation, TdoaMeasurement};
@@ -52,7 +52,7 @@ pub struct TightFilter {
     constraints: Constraints,
     range_noise: Vec<SageHusa<1>>,
     divergence: DivergenceWatch,
-    tdoa_watch: Box<TdoaWatch>,
+    tdoa_watch: TdoaWatch,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
     epoch: Vec<ScalarMeasurement>,
 }
@@ -137,7 +137,7 @@ impl TightFilter {
             constraints,
             range_noise,
             divergence: DivergenceWatch::default(),
-            tdoa_watch: Box::default(),
+            tdoa_watch: TdoaWatch::default(),
         })
     }
 
@@ -161,22 +161,12 @@ impl TightFilter {
         robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.ranging.range_std)
     }
 
-    /// γ of one range against the prior with range noise variance `r_var` (seed 000 eq. (37));
-    /// None when the tag sits on the anchor.
-    fn nis_at_prior(&self, anchor: usize, range_m: f64, r_var: f64) -> Option<f64> {
+    /// γ of one measurement against the prior with noise variance `r_var` (seed 000 eq. (37));
+    /// None when the tag sits on an anchor.
+    fn nis_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> Option<f64> {
         let (x, p) = (self.core.state(), self.core.covariance());
-        let pred = predict_range(x, &self.anchors[anchor], &self.config.mounting.lever_arm)?;
-        Some((range_m - pred.range_m).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
-    }
-
-    /// Whether one scalar measurement fails its `χ²₁` test at the prior with noise variance
-    /// `r_var` (the divergence watches, [`crate::filters::reacquire`]).
-    fn fails_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> bool {
-        let (x, p) = (self.core.state(), self.core.covariance());
-        m.predict(x, &self.anchors, &self.config.mounting.lever_arm).is_some_and(|pred| {
-            let residual = m.value() - pred.value;
-            residual * residual / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var) > RANGE_FAIL_NIS
-        })
+        let pred = m.predict(x, &self.anchors, &self.config.mounting.lever_arm)?;
+        Some((m.value() - pred.value).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
     }
 
     /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
@@ -185,7 +175,9 @@ impl TightFilter {
         let r_var = self.config.ranging.range_std.powi(2);
         ranges
             .iter()
-            .filter(|&&(anchor, range_m)| self.nis_at_prior(anchor, range_m, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS))
+            .filter(|&&(anchor, range_m)| {
+                self.nis_at_prior(&ScalarMeasurement::Range { anchor, range_m }, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS)
+            })
             .count()
     }
 
@@ -194,7 +186,8 @@ impl TightFilter {
     fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
         let range_std = self.config.ranging.range_std;
         let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
-            (*f, self.nis_at_prior(anchor, range_m, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
+            let range = ScalarMeasurement::Range { anchor, range_m };
+            (*f, self.nis_at_prior(&range, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
         });
         prior_fading(nis, threshold)
     }
@@ -206,11 +199,7 @@ impl InertialFilter for TightFilter {
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.core.predict(t_s, accel, gyro)?;
-        if self.constraints.any() {
-            self.constraints.after_predict(&mut self.core)?;
-        }
-        Ok(())
+        self.constraints.predict(&mut self.core, t_s, accel, gyro)
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
@@ -259,7 +248,8 @@ impl InertialFilter for TightFilter {
                 check_tdoa(&self.anchors, m)?;
                 self.core.advance_to(m.t_s)?;
                 let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
-                let failed = self.fails_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2));
+                let failed =
+                    self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
                 let watch = &mut self.tdoa_watch;
                 if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
                     return Ok(UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });

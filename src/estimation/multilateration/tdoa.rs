@@ -8,12 +8,11 @@
 //! `min_vertical_span_m` in height and give three or more differences, else in the plane of the
 //! anchors' mean height. A difference is a hyperbola, so the solution depends on the start: the
 //! iteration starts from the anchors' centroid and from each anchor pulled halfway to it, and the
-//! smallest sum of squares wins. The covariance is `σ²·(JᵀJ)⁻¹` with σ = `tdoa_std`.
-
-use nalgebra::{Cholesky, Matrix2, Vector2};
+//! smallest sum of squares wins. The covariance is `σ²·(JᵀJ)⁻¹` with σ = `tdoa_std` (no fix when
+//! `JᵀJ` is ill-conditioned, as for ranges).
 
 use crate::math::{Mat3, Vec3};
-use crate::multilateration::{halved_until_lower, Fix, LsConfig};
+use crate::multilateration::{halved_until_lower, invert_normal, normal_step, Fix, LsConfig};
 use crate::records::TdoaMeasurement;
 
 /// Longest window of TDoA solved as one fix, s (a round of 4–8 anchors at 10 Hz).
@@ -42,13 +41,7 @@ fn gauss_newton(anchors: &[Vec3], obs: &[TdoaMeasurement], start: Vec3, planar: 
     let mut p = start;
     for _ in 0..cfg.max_iterations {
         let (jtj, jtr, ssr) = normal_equations(anchors, obs, &p)?;
-        let step = if planar {
-            let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
-            let d = Cholesky::new(m)?.solve(&Vector2::new(jtr.x, jtr.y));
-            Vec3::new(d.x, d.y, 0.0)
-        } else {
-            Cholesky::new(jtj)?.solve(&jtr)
-        };
+        let step = normal_step(&jtj, &jtr, planar)?;
         let step = halved_until_lower(step, |s| normal_equations(anchors, obs, &(p + s)).map(|(_, _, x)| x), ssr);
         p += step;
         if step.norm() < cfg.tolerance_m {
@@ -83,16 +76,7 @@ pub fn solve_tdoa(anchors: &[Vec3], obs: &[TdoaMeasurement], cfg: &LsConfig) -> 
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
     let (jtj, _, _) = normal_equations(anchors, obs, &position)?;
-    let var = cfg.range_std_m * cfg.range_std_m;
-    let covariance = if planar {
-        let m: Matrix2<f64> = jtj.fixed_view::<2, 2>(0, 0).into_owned();
-        let inv = m.try_inverse()? * var;
-        let mut c = Mat3::zeros();
-        c.fixed_view_mut::<2, 2>(0, 0).copy_from(&inv);
-        c
-    } else {
-        jtj.try_inverse()? * var
-    };
+    let covariance = invert_normal(&jtj, planar)? * (cfg.range_std_m * cfg.range_std_m);
     Some(Fix {
         position,
         covariance,
