@@ -81,27 +81,24 @@ pub fn calibrate_with_truth(input: &BatchInput<'_>, truth: &[(f64, Vec3)]) -> Re
     let within = |r: &&RangeMeasurement| r.t_s >= truth[0].0 && r.t_s <= truth[truth.len() - 1].0;
     let residuals =
         input.ranges.iter().filter(within).map(|r| (r.anchor, r.range_m - (tag_at(r.t_s) - input.anchors[r.anchor]).norm()));
-    Ok(summarise(residuals, BTreeMap::new(), 0))
+    Ok(summarise(residuals, None, 0))
 }
 
 /// Calibrates the ranges of `input` without ground truth by EM over the smoothed track of `method`
 /// (module doc); `input.smooth` and a `range_calibration` in `input.config` are overridden.
 pub fn calibrate_without_truth(input: &BatchInput<'_>, method: Method, iterations: usize) -> Result<BiasCalibration> {
-    let mut biases: BTreeMap<usize, f64> = BTreeMap::new();
-    let mut result = None;
-    for pass in 0..iterations.max(1) {
-        let calibration = RangeCalibration::new(biases.iter().map(|(&a, &b)| (a, [-b, 1.0, 0.0, 0.0])).collect())?;
-        let config = FilterConfig { range_calibration: calibration, ..input.config.clone() };
+    let mut result: Option<BiasCalibration> = None;
+    for pass in 1..=iterations.max(1) {
+        let range_calibration = match &result {
+            Some(r) => r.range_calibration()?,
+            None => RangeCalibration::default(),
+        };
+        let config = FilterConfig { range_calibration, ..input.config.clone() };
         let batch = BatchInput { config: &config, smooth: true, ..*input };
         let BatchOutput::Inertial { smoothed: Some(steps), .. } = run_method(method, &batch)? else {
             return Err(Error::InvalidCall(format!("{} cannot be smoothed; calibrate with an inertial method", method.name())));
         };
-        let residuals = track_residuals(&steps, input, &config);
-        let step = summarise(residuals, biases.clone(), pass + 1);
-        for a in &step.anchors {
-            *biases.entry(a.anchor).or_insert(0.0) = a.bias_m;
-        }
-        result = Some(step);
+        result = Some(summarise(track_residuals(&steps, input, &config), result.as_ref(), pass));
     }
     result.ok_or_else(|| Error::InsufficientData("no calibration pass ran".into()))
 }
@@ -123,8 +120,12 @@ fn track_residuals<'a>(
     })
 }
 
-/// Per-anchor robust means of `residuals`, added to `prior` biases.
-fn summarise(residuals: impl Iterator<Item = (usize, f64)>, prior: BTreeMap<usize, f64>, iterations: usize) -> BiasCalibration {
+/// Per-anchor robust means of `residuals`, added to the biases of `prior` (the previous pass).
+fn summarise(
+    residuals: impl Iterator<Item = (usize, f64)>,
+    prior: Option<&BiasCalibration>,
+    iterations: usize,
+) -> BiasCalibration {
     let mut by_anchor: BTreeMap<usize, Vec<f64>> = BTreeMap::new();
     for (anchor, res) in residuals.filter(|(_, r)| r.is_finite()) {
         by_anchor.entry(anchor).or_default().push(res);
@@ -143,7 +144,7 @@ fn summarise(residuals: impl Iterator<Item = (usize, f64)>, prior: BTreeMap<usiz
             let std = (kept.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
             AnchorBias {
                 anchor,
-                bias_m: prior.get(&anchor).copied().unwrap_or(0.0) + mean,
+                bias_m: prior.and_then(|p| p.anchors.iter().find(|a| a.anchor == anchor)).map_or(0.0, |a| a.bias_m) + mean,
                 std_m: std / n.sqrt(),
                 used: kept.len(),
                 ranges: res.len(),

@@ -127,9 +127,6 @@ pub struct BatchInput<'a> {
     pub tdoa: &'a [TdoaMeasurement],
 }
 
-/// Names of the methods that take TDoA.
-const TDOA_METHODS: &str = "ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, ukf";
-
 /// Names of the methods that can be RTS-smoothed (the inertial 15-state filters).
 const SMOOTHABLE: &str = "ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf, ukf";
 
@@ -141,8 +138,14 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
     }
     if !input.tdoa.is_empty() && !method.takes_tdoa() {
         return Err(Error::InvalidCall(format!(
-            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {TDOA_METHODS})",
-            method.name()
+            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {})",
+            method.name(),
+            Method::NAMES
+                .iter()
+                .filter(|n| Method::parse(n).is_ok_and(Method::takes_tdoa))
+                .copied()
+                .collect::<Vec<_>>()
+                .join(", ")
         )));
     }
     if !input.config.range_calibration.is_empty() {

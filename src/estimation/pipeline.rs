@@ -59,7 +59,7 @@ pub struct UpdateRecord {
 pub struct Trace {
     /// One record per IMU sample.
     pub steps: Vec<StepRecord>,
-    /// One record per range applied.
+    /// One record per range or TDoA applied.
     pub updates: Vec<UpdateRecord>,
     /// Ranges skipped because they came before the first IMU sample.
     pub ranges_before_start: usize,

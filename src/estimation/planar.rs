@@ -223,9 +223,7 @@ impl PlanarFilter {
         check_ranges(&self.anchors, ranges)?;
         self.advance_to(t_s)?;
         if let Some((innovation, nis)) = self.reacquire(ranges)? {
-            reports
-                .iter_mut()
-                .for_each(|r| *r = UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
+            reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
             return Ok(());
         }
         let epoch = ekf::Epoch {

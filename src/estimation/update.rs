@@ -49,6 +49,12 @@ impl UpdateReport {
         }
     }
 
+    /// Report of a measurement applied as part of a UWB-only fix to re-acquire the solution
+    /// ([`crate::filters::reacquire`]): the fix's innovation norm and NIS, full weight.
+    pub fn reacquired(innovation: f64, nis: f64) -> Self {
+        Self { reacquired: true, ..Self::applied(innovation, nis, 1.0, 1) }
+    }
+
     /// Report of a measurement applied with `inflation = R_used / R`.
     pub fn applied(innovation: f64, nis: f64, inflation: f64, iterations: u32) -> Self {
         Self {

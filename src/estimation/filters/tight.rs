@@ -212,9 +212,7 @@ impl InertialFilter for TightFilter {
         if let Some((innovation, nis)) =
             reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
         {
-            reports
-                .iter_mut()
-                .for_each(|r| *r = UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
+            reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
             return Ok(());
         }
         // ARCKF (seed 002 Algorithm 1): robustness factors and the fading of the prior.
@@ -252,7 +250,7 @@ impl InertialFilter for TightFilter {
                     self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
                 let watch = &mut self.tdoa_watch;
                 if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
-                    return Ok(UpdateReport { reacquired: true, ..UpdateReport::applied(innovation, nis, 1.0, 1) });
+                    return Ok(UpdateReport::reacquired(innovation, nis));
                 }
                 let mut report = [UpdateReport::skipped()];
                 self.solve(&[tdoa], &mut report, None, 1.0)?;
