@@ -14,3 +14,4 @@ pub mod metrics;
 pub mod replay;
 #[cfg(feature = "sim")]
 pub mod sim;
+pub mod tune;

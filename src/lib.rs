@@ -4,7 +4,7 @@ pub mod app;
 pub mod estimation;
 pub mod vocabulary;
 
-pub use app::{calibrate, columns, methods, metrics};
+pub use app::{calibrate, columns, methods, metrics, tune};
 #[cfg(feature = "sim")]
 pub use app::{generality, sim};
 #[cfg(feature = "io")]

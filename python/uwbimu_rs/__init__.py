@@ -67,6 +67,7 @@ __all__ = [
     "replay",
     "run_filter",
     "run_filters",
+    "tune",
 ]
 
 
@@ -122,6 +123,61 @@ def calibrate(
     return out
 
 
+def tune(
+    method: str,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    truth: np.ndarray | None = None,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    smooth: bool | None = None,
+    rounds: int = 2,
+) -> dict[str, Any]:
+    """Pick the noise settings of ``method`` for a log.
+
+    Coordinate search on a log scale over ``ins.accel_noise_density``,
+    ``ins.gyro_noise_density`` and ``ranging.range_std`` (``rounds`` passes: factors 1/4 … 4,
+    then 0.6 … 1.6), each candidate a whole run, the candidates of a step in parallel on all
+    cores. Without ``truth`` it maximises the likelihood of the innovations at the prior under a
+    Student-t law (ν = 4: an NLOS spike costs only its logarithm, so it does not inflate
+    ``range_std``); with ``truth`` it minimises the
+    horizontal RMSE of the tag track (smoothed when ``smooth``; the first 10 s left out when
+    self-initialised).
+
+    Parameters
+    ----------
+    method, imu, ranges, anchors, initial, config, smooth
+        As for :func:`run_filter` (``config`` is the starting point; its other settings are kept).
+    truth : numpy.ndarray, shape (N, 4), optional
+        ``t, x, y, z`` of the tag in the navigation frame [s, m].
+    rounds : int
+        Passes over the three settings.
+
+    Returns
+    -------
+    dict
+        ``config`` (the tuned configuration, nested dict, to pass as ``config=``), ``objective``
+        (``"innovation_likelihood"`` or ``"truth_rmse"``), ``initial_score`` and ``score`` (lower
+        is better: mean negative log-likelihood per range, or RMSE m), ``trials`` (polars
+        DataFrame: the three settings and ``score`` of every candidate).
+    """
+    out = _native.tune_noise(
+        method,
+        imu,
+        ranges,
+        anchors,
+        truth=truth,
+        initial=_as_dict(initial),
+        config=_as_dict(config),
+        smooth=smooth,
+        rounds=rounds,
+    )
+    out["trials"] = pl.DataFrame(out["trials"])
+    return out
+
+
 def run_filter(
     method: str,
     imu: np.ndarray,
@@ -132,7 +188,7 @@ def run_filter(
     config: FilterConfig | Mapping[str, Any] | None = None,
     covariance: bool = False,
     updates: bool = False,
-    smooth: bool = False,
+    smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
 ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
@@ -142,7 +198,8 @@ def run_filter(
     ----------
     method : str
         One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"ackf"``, ``"eskf"``,
-        ``"shaf"``, ``"shfaf"``, ``"ukf"``, and the planar ``"ekf2d"``, ``"ukf2d"``, ``"cekf2d"`` of seed 001).
+        ``"shaf"``, ``"shfaf"``, ``"ukf"``, the planar ``"ekf2d"``, ``"ukf2d"``, ``"cekf2d"`` of seed 001,
+        and ``"best"``, the recommended method for real logs (README "Choosing ``best``")).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)
@@ -159,9 +216,9 @@ def run_filter(
         ``range_calibration={anchor: [c0, c1, c2, c3]}`` calibrates the ranges first (seed 001).
     covariance : bool
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
-    smooth : bool
+    smooth : bool, optional
         Return the Rauch–Tung–Striebel smoothed estimates (same columns) instead of the filtered
-        ones (inertial methods only; the updates frame stays the forward pass's).
+        ones (None: only for ``"best"``) (inertial methods only; the updates frame stays the forward pass's).
     mag : numpy.ndarray, shape (N, 4), optional
         Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
         only ``ackf`` uses them (seed 003 geomagnetic aiding), other methods raise ValueError.
@@ -176,7 +233,8 @@ def run_filter(
     updates : bool
         Also return a DataFrame with one row per range or TDoA update
         (t, epoch_t, anchor, anchor_j, range, innovation, nis, accepted, weight, inflation,
-        down_weighted, iterations, prior_fading, reacquired); a TDoA row has ``anchor`` = i,
+        down_weighted, iterations, prior_fading, reacquired, bias, bias_std); ``bias``, ``bias_std``:
+        the anchor's range bias estimate after the update with ``range_bias.states`` (NaN without); a TDoA row has ``anchor`` = i,
         ``anchor_j`` = j and ``range`` = d_ij, a range row ``anchor_j`` = −1. Ranges within the
         epoch window (``epoch_window_s``) form one epoch, updated jointly.
 
@@ -227,7 +285,7 @@ def run_filters(
     initial: Sequence[Mapping[str, Any] | None] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
     covariance: bool = False,
-    smooth: bool = False,
+    smooth: bool | None = None,
 ) -> list[pl.DataFrame]:
     """Run one method over many recordings in parallel on all cores (GIL released).
 
@@ -352,7 +410,7 @@ def replay(
     config_file: str | os.PathLike[str] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
     initial: Mapping[str, Any] | None = None,
-    smooth: bool = False,
+    smooth: bool | None = None,
 ) -> tuple[pl.DataFrame, dict[str, Any]]:
     """Replay an MCAP recording through one method (the core of the ``uwbimu-replay`` binary).
 
@@ -361,7 +419,7 @@ def replay(
     path : str or path
         The MCAP file.
     method : str, optional
-        One of ``FILTERS``; None: the config file's ``method``, else ``"riekf"``.
+        One of ``FILTERS``; None: the config file's ``method``, else ``"best"``.
     mapping, config_file
         As for :func:`read_mcap`; the config file also supplies ``method``, ``[config]`` and
         ``[initial]``.
@@ -373,8 +431,8 @@ def replay(
         recording without ranges). TDoA are taken by the tightly coupled methods (``ekf``,
         ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``, ``ackf``, ``ukf``); the
         others raise ValueError on a recording with TDoA.
-    smooth : bool
-        Return RTS-smoothed estimates (inertial methods).
+    smooth : bool, optional
+        Return RTS-smoothed estimates (inertial methods; None: only for ``"best"``).
 
     Returns
     -------

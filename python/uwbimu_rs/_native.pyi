@@ -54,6 +54,7 @@ __all__ = [
     "initialize_state",
     "FILTERS",
     "calibrate_biases",
+    "tune_noise",
     "evaluate",
     "nees",
     "cdf",
@@ -247,6 +248,15 @@ class UpdateReport:
     def reacquired(self) -> bool:
         """Whether the epoch was applied as its UWB-only fix (re-acquisition after an outage, a
         poor start or a divergence)."""
+
+    @property
+    def bias(self) -> float:
+        """The anchor's estimated range bias b_a + b_c after the update, m (NaN without
+        ``range_bias.states``)."""
+
+    @property
+    def bias_std(self) -> float:
+        """Its standard deviation, m (NaN without ``range_bias.states``)."""
 
 class _StreamingFilter:
     """Streaming API shared by the 15-state filter classes (documented once here; each class below
@@ -507,7 +517,7 @@ def run_filters(
     initial: Sequence[dict[str, Any] | None] | None = None,
     config: _ConfigArg = None,
     covariance: bool = False,
-    smooth: bool = False,
+    smooth: bool | None = None,
 ) -> list[tuple[dict[str, _F64], None, dict[str, Any]]]:
     """Run one method over many ``(imu, ranges, anchors)`` recordings in parallel (rayon, GIL
     released); one ``(columns, None, info)`` per run, in order."""
@@ -528,6 +538,22 @@ def calibrate_biases(
     ``biases`` (anchor, bias, std, used, ranges), ``common_offset``, ``common_std``, ``iterations``,
     ``range_calibration``."""
 
+def tune_noise(
+    method: str,
+    imu: ArrayLike,
+    ranges: ArrayLike,
+    anchors: ArrayLike,
+    *,
+    truth: ArrayLike | None = None,
+    initial: dict[str, Any] | None = None,
+    config: _ConfigArg = None,
+    smooth: bool | None = None,
+    rounds: int = 2,
+) -> dict[str, Any]:
+    """Tune the noise settings of ``method`` on a log by the innovation likelihood (or the RMSE
+    against the tag's truth (N, 4)); the GIL is released. Returns ``config``, ``objective``,
+    ``initial_score``, ``score``, ``keys``, ``trials`` columns."""
+
 def run_filter(
     method: str,
     imu: ArrayLike,
@@ -538,7 +564,7 @@ def run_filter(
     config: _ConfigArg = None,
     covariance: bool = False,
     updates: bool = False,
-    smooth: bool = False,
+    smooth: bool | None = None,
     mag: ArrayLike | None = None,
     tdoa: ArrayLike | None = None,
 ) -> tuple[dict[str, _F64], dict[str, _F64] | None, dict[str, Any]]:
@@ -993,7 +1019,7 @@ def replay(
     config_file: str | None = None,
     config: _ConfigArg = None,
     initial: dict[str, Any] | None = None,
-    smooth: bool = False,
+    smooth: bool | None = None,
 ) -> tuple[dict[str, _F64], dict[str, Any]]:
     """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core) from
     ``initial`` (None: the config file's ``[initial]``, else self-initialisation from the

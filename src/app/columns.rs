@@ -41,9 +41,10 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
 }
 
 /// One row per range or TDoA update: `t, epoch_t, anchor, anchor_j, range, innovation, nis,
-/// accepted, weight, inflation, down_weighted, iterations, prior_fading, reacquired` (`epoch_t`:
-/// when its epoch was applied; `anchor_j`: a TDoA's anchor j, −1 for a range; `range`: a TDoA's
-/// `d_ij`; `reacquired`: applied as its UWB-only fix).
+/// accepted, weight, inflation, down_weighted, iterations, prior_fading, reacquired, bias, bias_std`
+/// (`epoch_t`: when its epoch was applied; `anchor_j`: a TDoA's anchor j, −1 for a range;
+/// `range`: a TDoA's `d_ij`; `reacquired`: applied as its UWB-only fix; `bias`, `bias_std`: the
+/// anchor's estimated range bias after the update with `range_bias.states`, else NaN).
 pub fn update_columns(trace: &Trace) -> Columns {
     let u = &trace.updates;
     vec![
@@ -61,6 +62,8 @@ pub fn update_columns(trace: &Trace) -> Columns {
         ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
         ("prior_fading", u.iter().map(|r| r.report.prior_fading).collect()),
         ("reacquired", u.iter().map(|r| f64::from(u8::from(r.report.reacquired))).collect()),
+        ("bias", u.iter().map(|r| r.report.bias_m).collect()),
+        ("bias_std", u.iter().map(|r| r.report.bias_std_m).collect()),
     ]
 }
 

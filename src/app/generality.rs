@@ -112,7 +112,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
         anchors: &data.anchors,
         initial: (cell.start == Start::Given).then_some(&initial),
         config: &config,
-        smooth: false,
+        smooth: cell.method.smooths_by_default(),
         mag: &[],
         tdoa: &[],
     };
@@ -125,7 +125,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
     let in_gap = |t: f64| gaps.iter().any(|&(a, b)| a < t && t < b);
     let counted = |t: f64| t >= from && !in_gap(t);
 
-    let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &input)? else {
+    let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &BatchInput { smooth: false, ..input })? else {
         return Err(Error::InvalidCall("uwb_ls returned no fixes".into()));
     };
     let lever = scenario.sim.lever_arm_m;
@@ -136,13 +136,15 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
     let ls_errors: Vec<f64> =
         fixes.iter().filter(|(t, _)| counted(*t)).map(|(t, f)| (f.position - tag_truth(*t)).xy().norm()).collect();
 
-    let BatchOutput::Inertial { trace, .. } = run_method(cell.method, &input)? else {
+    let BatchOutput::Inertial { trace, smoothed, .. } = run_method(cell.method, &input)? else {
         return Err(Error::InvalidCall(format!("{} is not a filter", cell.method.name())));
     };
+    // `best` is scored on its smoothed track, what it returns by default.
+    let steps = smoothed.as_deref().unwrap_or(&trace.steps);
     let mut finite = true;
-    let mut errors = Vec::with_capacity(trace.steps.len());
+    let mut errors = Vec::with_capacity(steps.len());
     let mut outage_max: Option<f64> = None;
-    for (step, truth) in trace.steps.iter().zip(&data.truth) {
+    for (step, truth) in steps.iter().zip(&data.truth) {
         let e = (step.state.position - truth.position).xy().norm();
         finite &= e.is_finite() && step.position_cov.iter().all(|v| v.is_finite());
         let e = if e.is_finite() { e } else { f64::INFINITY };

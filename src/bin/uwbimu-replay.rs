@@ -14,7 +14,7 @@ use uwbimu_rs::io::csv_out::write_columns_csv;
 use uwbimu_rs::io::foxglove_out::write_trajectory_mcap;
 use uwbimu_rs::io::mapping::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_rs::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
-use uwbimu_rs::methods::Method;
+use uwbimu_rs::methods::{Method, DEFAULT_METHOD};
 use uwbimu_rs::replay::{compare_with_truth, replay, Replay};
 use uwbimu_rs::{Error, Result};
 
@@ -25,8 +25,8 @@ struct Args {
     /// The MCAP file to replay.
     file: PathBuf,
     /// Method (one of uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, eskf, shaf, shfaf,
-    /// ukf, ekf2d, ukf2d, cekf2d; with TDoA one of ekf, iekf, rekf, riekf, criekf, ckf, arckf,
-    /// ackf, ukf); default: the config file's, else riekf.
+    /// ukf, ekf2d, ukf2d, cekf2d, best; with TDoA one of ekf, iekf, rekf, riekf, criekf, ckf,
+    /// arckf, ackf, ukf, best); default: the config file's, else best (smoothed).
     #[arg(long)]
     method: Option<String>,
     /// Replay TOML: `method`, `[config]` filter settings, an optional `[initial]` state and the
@@ -57,9 +57,12 @@ struct Args {
     /// Write the trajectory as CSV (the run_filter columns) here.
     #[arg(long)]
     csv: Option<PathBuf>,
-    /// RTS-smooth the run (inertial methods).
-    #[arg(long)]
+    /// RTS-smooth the run (inertial methods; `best` smooths without it).
+    #[arg(long, conflicts_with = "forward")]
     smooth: bool,
+    /// Forward pass only, no smoothing (for `best`, which smooths by default).
+    #[arg(long)]
+    forward: bool,
     /// No progress bar even on a terminal.
     #[arg(long)]
     no_progress: bool,
@@ -123,7 +126,7 @@ fn settings(args: &Args) -> Result<(ReplayConfig, Method, String)> {
     if let Some(f) = &args.ground_truth {
         m.ground_truth.file = Some(f.clone());
     }
-    let name = args.method.as_deref().or(cfg.method.as_deref()).unwrap_or("riekf").to_string();
+    let name = args.method.as_deref().or(cfg.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()).to_string();
     Ok((cfg, Method::parse(&name)?, name))
 }
 
@@ -218,7 +221,8 @@ fn run(args: &Args) -> Result<()> {
     let read_s = start.elapsed().as_secs_f64();
     print_found(args, &cfg, &rec);
     let start = Instant::now();
-    let result = replay(&rec, method, &cfg.config, cfg.initial.as_ref(), args.smooth).map_err(|e| match e {
+    let smooth = args.smooth || (method.smooths_by_default() && !args.forward);
+    let result = replay(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth).map_err(|e| match e {
         Error::InvalidCall(reason) if !rec.tdoa.is_empty() && !method.takes_tdoa() => {
             Error::InvalidCall(format!("the recording has TDoA: {reason}; choose one with --method"))
         }
@@ -226,7 +230,7 @@ fn run(args: &Args) -> Result<()> {
     })?;
     println!(
         "method: {method_name}{}; read {read_s:.2} s, filter {:.2} s",
-        if args.smooth { " (smoothed)" } else { "" },
+        if smooth { " (smoothed)" } else { "" },
         start.elapsed().as_secs_f64()
     );
     print_stats(&rec, &result);

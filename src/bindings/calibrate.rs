@@ -1,13 +1,28 @@
-//! Python function for the range-bias calibration of a log (`crate::calibrate`).
+//! Python functions that learn settings from a log: the range-bias calibration
+//! (`crate::calibrate`) and the noise tuning (`crate::tune`).
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::convert::{array, columns, table};
-use super::filters::{calibration_dict, read_config, read_inputs, read_optional_initial};
+use super::filters::{calibration_dict, config_dict, read_config, read_inputs, read_optional_initial};
 use crate::calibrate::{calibrate_with_truth, calibrate_without_truth};
 use crate::math::Vec3;
 use crate::methods::{BatchInput, Method};
+use crate::tune::{tune, Objective, TUNED_KEYS};
+
+/// The tag's ground truth `(N, 4)` = t, x, y, z, when given.
+fn read_truth(truth: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<(f64, Vec3)>>> {
+    Ok(match truth {
+        Some(t) if !t.is_none() => Some(
+            table::<4>(&array(t, "truth")?, "truth", "(N, 4) = t, x, y, z")?
+                .iter()
+                .map(|r| (r[0], Vec3::new(r[1], r[2], r[3])))
+                .collect(),
+        ),
+        _ => None,
+    })
+}
 
 /// Estimates a constant range bias per anchor (measured − true, m) from a log, with the tag's
 /// ground truth `truth` (N, 4) = t, x, y, z when given, else by EM over the smoothed track of
@@ -32,15 +47,7 @@ fn calibrate_biases<'py>(
     let inputs = read_inputs(imu, ranges, anchors)?;
     let config = read_config(config)?;
     let initial = read_optional_initial(initial)?;
-    let truth: Option<Vec<(f64, Vec3)>> = match truth {
-        Some(t) if !t.is_none() => Some(
-            table::<4>(&array(t, "truth")?, "truth", "(N, 4) = t, x, y, z")?
-                .iter()
-                .map(|r| (r[0], Vec3::new(r[1], r[2], r[3])))
-                .collect(),
-        ),
-        _ => None,
-    };
+    let truth = read_truth(truth)?;
     let input = BatchInput {
         imu: &inputs.imu,
         ranges: &inputs.ranges,
@@ -77,7 +84,58 @@ fn calibrate_biases<'py>(
     Ok(d)
 }
 
-/// Adds the calibration function to the module.
+/// Tunes the noise settings of `method` on a log (`crate::tune`): by the innovation likelihood,
+/// or by the horizontal RMSE against `truth` (N, 4) = t, x, y, z when given. Returns a dict:
+/// `config` (the tuned configuration as a nested dict), `objective`, `initial_score`, `score`,
+/// `keys` and `trials` columns (one per tuned key, and `score`). The GIL is released; the
+/// candidates of each step run on all cores.
+#[pyfunction]
+#[pyo3(signature = (method, imu, ranges, anchors, *, truth=None, initial=None, config=None, smooth=None, rounds=2))]
+#[allow(clippy::too_many_arguments)]
+fn tune_noise<'py>(
+    py: Python<'py>,
+    method: &str,
+    imu: &Bound<'py, PyAny>,
+    ranges: &Bound<'py, PyAny>,
+    anchors: &Bound<'py, PyAny>,
+    truth: Option<&Bound<'py, PyAny>>,
+    initial: Option<&Bound<'py, PyAny>>,
+    config: Option<&Bound<'py, PyAny>>,
+    smooth: Option<bool>,
+    rounds: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method = Method::parse(method)?;
+    let inputs = read_inputs(imu, ranges, anchors)?;
+    let config = read_config(config)?;
+    let initial = read_optional_initial(initial)?;
+    let truth = read_truth(truth)?;
+    let input = BatchInput {
+        imu: &inputs.imu,
+        ranges: &inputs.ranges,
+        anchors: &inputs.anchors,
+        initial: initial.as_ref(),
+        config: &config,
+        smooth: smooth.unwrap_or(method.smooths_by_default()),
+        mag: &[],
+        tdoa: &[],
+    };
+    let objective = truth.as_deref().map_or(Objective::InnovationLikelihood, Objective::TruthRmse);
+    let result = py.detach(|| tune(method, &input, objective, rounds))?;
+    let d = PyDict::new(py);
+    d.set_item("config", config_dict(py, &result.config)?)?;
+    d.set_item("objective", if truth.is_some() { "truth_rmse" } else { "innovation_likelihood" })?;
+    d.set_item("initial_score", result.initial_score)?;
+    d.set_item("score", result.score)?;
+    d.set_item("keys", TUNED_KEYS.to_vec())?;
+    let mut cols: Vec<(&'static str, Vec<f64>)> =
+        TUNED_KEYS.iter().enumerate().map(|(k, key)| (*key, result.trials.iter().map(|t| t.values[k]).collect())).collect();
+    cols.push(("score", result.trials.iter().map(|t| t.score).collect()));
+    d.set_item("trials", columns(py, cols)?)?;
+    Ok(d)
+}
+
+/// Adds the calibration and tuning functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(calibrate_biases, m)?)
+    m.add_function(wrap_pyfunction!(calibrate_biases, m)?)?;
+    m.add_function(wrap_pyfunction!(tune_noise, m)?)
 }

@@ -211,6 +211,10 @@ pub struct PyUpdateReport {
     /// Whether the epoch was applied as its UWB-only fix (re-acquisition,
     /// `crate::filters::reacquire`).
     reacquired: bool,
+    /// The anchor's estimated range bias after the update, m (NaN without `range_bias.states`).
+    bias: f64,
+    /// Its standard deviation, m (NaN without `range_bias.states`).
+    bias_std: f64,
 }
 
 impl From<UpdateRecord> for PyUpdateReport {
@@ -231,6 +235,8 @@ impl From<UpdateRecord> for PyUpdateReport {
             iterations: r.iterations,
             prior_fading: r.prior_fading,
             reacquired: r.reacquired,
+            bias: r.bias_m,
+            bias_std: r.bias_std_m,
         }
     }
 }
@@ -239,7 +245,7 @@ impl From<UpdateRecord> for PyUpdateReport {
 impl PyUpdateReport {
     fn __repr__(&self) -> String {
         format!(
-            "UpdateReport(t={}, epoch_t={}, anchor={}, anchor_j={:?}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={}, reacquired={})",
+            "UpdateReport(t={}, epoch_t={}, anchor={}, anchor_j={:?}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={}, reacquired={}, bias={}, bias_std={})",
             self.t,
             self.epoch_t,
             self.anchor,
@@ -253,7 +259,9 @@ impl PyUpdateReport {
             self.down_weighted,
             self.iterations,
             self.prior_fading,
-            self.reacquired
+            self.reacquired,
+            self.bias,
+            self.bias_std
         )
     }
 }
@@ -493,7 +501,7 @@ type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<
 /// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
 /// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
 #[pyfunction]
-#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=false, mag=None, tdoa=None))]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=None, mag=None, tdoa=None))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -505,7 +513,7 @@ fn run_filter<'py>(
     config: Option<&Bound<'py, PyAny>>,
     covariance: bool,
     updates: bool,
-    smooth: bool,
+    smooth: Option<bool>,
     mag: Option<&Bound<'py, PyAny>>,
     tdoa: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<BatchColumns<'py>> {
@@ -524,7 +532,7 @@ fn run_filter<'py>(
         anchors: &inputs.anchors,
         initial: initial.as_ref(),
         config: &config,
-        smooth,
+        smooth: smooth.unwrap_or(method.smooths_by_default()),
         mag: &mag,
         tdoa: &tdoa,
     };
@@ -555,7 +563,7 @@ fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, u
 /// length (each item a dict or None). Returns one `(columns, None, info)` per run, in order; the
 /// first failing run's error is raised.
 #[pyfunction]
-#[pyo3(signature = (method, runs, *, initial=None, config=None, covariance=false, smooth=false))]
+#[pyo3(signature = (method, runs, *, initial=None, config=None, covariance=false, smooth=None))]
 fn run_filters<'py>(
     py: Python<'py>,
     method: &str,
@@ -563,9 +571,10 @@ fn run_filters<'py>(
     initial: Option<&Bound<'py, PyAny>>,
     config: Option<&Bound<'py, PyAny>>,
     covariance: bool,
-    smooth: bool,
+    smooth: Option<bool>,
 ) -> PyResult<Vec<BatchColumns<'py>>> {
     let method = Method::parse(method)?;
+    let smooth = smooth.unwrap_or(method.smooths_by_default());
     let config = read_config(config)?;
     let mut inputs = Vec::new();
     for (k, run) in runs.try_iter()?.enumerate() {

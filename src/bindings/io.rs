@@ -13,7 +13,7 @@ use crate::columns::output_columns;
 use crate::error::Error;
 use crate::io::recording_out::{write_recording_mcap, RecordingStreams};
 use crate::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
-use crate::methods::Method;
+use crate::methods::{Method, DEFAULT_METHOD};
 use crate::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
 
 /// The replay settings from an optional TOML file and an optional mapping (JSON text).
@@ -157,7 +157,7 @@ fn update_stats_dict<'py>(py: Python<'py>, a: &AnchorUpdateStats) -> PyResult<Bo
 /// from `initial` (None: the config file's `[initial]`, else self-initialisation); the same core
 /// as the `uwbimu-replay` binary. Returns `(columns, info)`.
 #[pyfunction]
-#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, initial=None, smooth=false))]
+#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, initial=None, smooth=None))]
 #[allow(clippy::too_many_arguments)] // the Python keyword arguments
 fn replay<'py>(
     py: Python<'py>,
@@ -167,7 +167,7 @@ fn replay<'py>(
     config_file: Option<PathBuf>,
     config: Option<&Bound<'py, PyAny>>,
     initial: Option<&Bound<'py, PyAny>>,
-    smooth: bool,
+    smooth: Option<bool>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let mut cfg = settings(config_file.as_deref(), mapping)?;
     if config.is_some_and(|c| !c.is_none()) {
@@ -176,8 +176,9 @@ fn replay<'py>(
     if let Some(i) = read_optional_initial(initial)? {
         cfg.initial = Some(i);
     }
-    let name = method.or(cfg.method.as_deref()).unwrap_or("riekf").to_string();
+    let name = method.or(cfg.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()).to_string();
     let method = Method::parse(&name)?;
+    let smooth = smooth.unwrap_or(method.smooths_by_default());
     let rec = read(py, &path, &cfg.mapping)?;
     let result = py.detach(|| replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth))?;
     let info = PyDict::new(py);

@@ -54,6 +54,7 @@ pub mod constraints;
 pub mod core;
 pub mod loose;
 pub mod named;
+pub mod range_bias;
 pub mod reacquire;
 pub mod sigma_points;
 pub mod tight;

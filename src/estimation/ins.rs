@@ -17,6 +17,7 @@ use crate::config::InsConfig;
 use crate::math::{quat_exp, skew, Mat3, Quat, Vec3};
 use crate::records::ImuSample;
 use crate::state::{diagonal_covariance, ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
+use nalgebra::SMatrix;
 
 /// Bias-uncorrected IMU readings in the body frame at the two ends of one integration interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -124,8 +125,10 @@ impl Transition {
         }
     }
 
-    /// Computes `Φ·M` using only the non-trivial blocks (no dense 15×15 product).
-    fn apply_rows(&self, m: &ErrCov) -> ErrCov {
+    /// Computes `Φ·M` for any `15 × C` matrix (the covariance, or its cross-covariance with
+    /// parameter states, [`crate::filters::range_bias`]) using only the non-trivial blocks of Φ (no
+    /// dense 15×15 product).
+    pub fn apply_rows<const C: usize>(&self, m: &SMatrix<f64, ERR_DIM, C>) -> SMatrix<f64, ERR_DIM, C> {
         let row = |i: usize| m.fixed_rows::<3>(i);
         let mut out = *m;
         out.fixed_rows_mut::<3>(POS).copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));

@@ -31,6 +31,16 @@ pub struct UpdateReport {
     /// Whether the epoch was applied as its UWB-only fix to re-acquire the solution
     /// ([`crate::filters::reacquire`]); `innovation` and `nis` are then the fix's.
     pub reacquired: bool,
+    /// The range's anchor's total bias `b_a + b_c` after the update, m, with range bias states
+    /// ([`crate::filters::range_bias`]); NaN otherwise.
+    pub bias_m: f64,
+    /// Its standard deviation, m; NaN without range bias states.
+    pub bias_std_m: f64,
+    /// Innovation at the prior (the first iteration), for the innovation likelihood
+    /// ([`crate::tune`]); NaN when not applied by a Kalman step.
+    pub prior_innovation: f64,
+    /// Its predicted variance `H·P⁻·Hᵀ + R` (before any robust inflation), m²; NaN likewise.
+    pub prior_variance: f64,
 }
 
 impl UpdateReport {
@@ -46,6 +56,10 @@ impl UpdateReport {
             iterations: 0,
             prior_fading: 1.0,
             reacquired: false,
+            bias_m: f64::NAN,
+            bias_std_m: f64::NAN,
+            prior_innovation: f64::NAN,
+            prior_variance: f64::NAN,
         }
     }
 
@@ -67,6 +81,10 @@ impl UpdateReport {
             iterations,
             prior_fading: 1.0,
             reacquired: false,
+            bias_m: f64::NAN,
+            bias_std_m: f64::NAN,
+            prior_innovation: f64::NAN,
+            prior_variance: f64::NAN,
         }
     }
 }
@@ -87,12 +105,28 @@ pub fn scalar_step<const N: usize>(
     residual: f64,
     r_var: f64,
 ) -> Result<f64> {
+    schmidt_step(dx, p, h, residual, r_var, N)
+}
+
+/// [`scalar_step`] with the gain of the rows from `estimated` on set to zero: the Schmidt–Kalman
+/// (consider) step, whose last `N − estimated` states keep their value while their uncertainty
+/// enters the gain of the others and the (Joseph, valid for any gain) covariance. `estimated = N`
+/// is the Kalman step.
+pub fn schmidt_step<const N: usize>(
+    dx: &mut SVector<f64, N>,
+    p: &mut Cov<N>,
+    h: &SVector<f64, N>,
+    residual: f64,
+    r_var: f64,
+    estimated: usize,
+) -> Result<f64> {
     let c = *p * h;
     let s = h.dot(&c) + r_var;
     if !(s > 0.0 && s.is_finite()) {
         return Err(Error::NotPositiveDefinite { what: "scalar innovation covariance" });
     }
-    let k = c / s;
+    let mut k = c / s;
+    k.rows_mut(estimated, N - estimated).fill(0.0);
     *dx += k * (residual - h.dot(dx));
     for j in 0..N {
         for i in 0..=j {
@@ -107,8 +141,11 @@ pub fn scalar_step<const N: usize>(
 /// Injects δx into the nominal state (seed 000 eq. (19), seed 004 eq. (40)) and applies the reset
 /// Jacobian `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new
 /// nominal state (the error mean is reset to zero).
-pub fn inject_and_reset(x: &mut NominalState, p: &mut ErrCov, dx: &ErrVec) {
-    x.inject(dx);
+///
+/// Generic over the dimension: an augmented error state ([`crate::filters::range_bias`]) holds the
+/// 15 INS error states first; the parameter states past them are left to the caller.
+pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
+    x.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
     let g: Mat3 = Mat3::identity() - skew(&(0.5 * dx.fixed_rows::<3>(ATT).into_owned()));
     let rows = g * p.fixed_rows::<3>(ATT);
     p.fixed_rows_mut::<3>(ATT).copy_from(&rows);

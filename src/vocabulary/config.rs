@@ -16,9 +16,9 @@ use crate::ranging::calibration::RangeCalibration;
 use crate::robust::sage_husa::SageHusaConfig;
 use parse::{non_negative, quaternion, vec3, vec3_or_scalar};
 pub use sections::{
-    AdaptiveConfig, AidingConfig, ConstraintsConfig, InitConfig, InsConfig, MountingConfig, PlanarConfig, RangingConfig,
-    RobustConfig, Section, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M,
-    DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
+    AdaptiveConfig, AidingConfig, ConstraintsConfig, InitConfig, InsConfig, MountingConfig, PlanarConfig, RangeBiasConfig,
+    RangingConfig, RobustConfig, Section, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_GYRO_NOISE_DENSITY,
+    DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
@@ -49,6 +49,8 @@ pub struct FilterConfig {
     pub constraints: ConstraintsConfig,
     /// Adaptive measurement noise.
     pub adaptive: AdaptiveConfig,
+    /// Range bias states.
+    pub range_bias: RangeBiasConfig,
     /// Sage–Husa estimator settings (seed 004 eqs. (26)–(36)); the method chooses the variant.
     pub sage_husa: SageHusaConfig,
     /// Unscented transform.
@@ -145,6 +147,7 @@ macro_rules! for_each_section {
             { let $s = $($r)+ c.robust; $body },
             { let $s = $($r)+ c.constraints; $body },
             { let $s = $($r)+ c.adaptive; $body },
+            { let $s = $($r)+ c.range_bias; $body },
             { let $s = $($r)+ c.sage_husa; $body },
             { let $s = $($r)+ c.unscented; $body },
             { let $s = $($r)+ c.planar; $body },

@@ -15,7 +15,7 @@ COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x"
 def test_filters_listed():
     assert uwbimu_rs.FILTERS == [
         "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf", "ekf2d",
-        "ukf2d", "cekf2d",
+        "ukf2d", "cekf2d", "best",
     ]
 
 

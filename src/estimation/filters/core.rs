@@ -3,6 +3,7 @@
 
 use crate::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
 use crate::error::{Error, Result};
+use crate::filters::range_bias::BiasCross;
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::math::Vec3;
 use crate::robust::fade_position_velocity;
@@ -22,6 +23,9 @@ pub struct InertialCore {
     held_gyro: Vec3,
     imu_count: usize,
     recording: Option<Vec<Segment>>,
+    /// Cross-covariance of the error state with parameter states the owner keeps (range biases,
+    /// constant between measurements): propagated as `Φ·P_xb`.
+    cross: Option<BiasCross>,
 }
 
 /// One recorded propagation, for smoothing: the posterior at its start and the IMU interval
@@ -80,6 +84,7 @@ impl InertialCore {
             held_gyro: Vec3::zeros(),
             imu_count: 0,
             recording: None,
+            cross: None,
         })
     }
 
@@ -145,6 +150,9 @@ impl InertialCore {
             });
         }
         let phi = Transition::new(&self.state, imu, &self.ins);
+        if let Some(cross) = self.cross.as_mut() {
+            *cross = phi.apply_rows(cross);
+        }
         self.state = propagate_nominal(&self.state, imu, &self.ins);
         self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
     }
@@ -169,6 +177,18 @@ impl InertialCore {
         if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
             last.prior_widening = Some(*widening);
         }
+    }
+
+    /// Starts carrying the cross-covariance with parameter states ([`crate::filters::range_bias`]),
+    /// zero at first; the core propagates it with Φ at every prediction.
+    pub fn track_cross_covariance(&mut self) {
+        self.cross = Some(BiasCross::zeros());
+    }
+
+    /// The nominal state, the error covariance and the cross-covariance with parameter states
+    /// (None unless tracked), to update them jointly.
+    pub fn parts_mut(&mut self) -> (&mut NominalState, &mut ErrCov, Option<&mut BiasCross>) {
+        (&mut self.state, &mut self.covariance, self.cross.as_mut())
     }
 
     /// The last IMU sample in the body frame (after the mounting rotation): specific force m/s²,
@@ -220,8 +240,14 @@ impl InertialCore {
         self.time_s
     }
 
-    /// Mutable access to state and covariance for a measurement step.
+    /// Mutable access to state and covariance for a measurement step that does not involve the
+    /// parameter states (a constraint, a re-acquisition fix): their cross-covariance, when
+    /// tracked, is set to zero first, so the joint covariance stays positive semi-definite
+    /// whatever the step does to `P` (the correlation is forgotten, a conservative choice).
     pub fn state_and_covariance_mut(&mut self) -> (&mut NominalState, &mut ErrCov) {
+        if let Some(cross) = self.cross.as_mut() {
+            cross.fill(0.0);
+        }
         (&mut self.state, &mut self.covariance)
     }
 }

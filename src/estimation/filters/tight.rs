@@ -6,10 +6,11 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::filters::constraints::Constraints;
+use crate::filters::range_bias::{RangeBiasStates, AUG_DIM};
 use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
-use crate::math::Vec3;
+use crate::math::{Cov, Vec3};
 use crate::models::range::tag_position;
 use crate::models::scalar::ScalarMeasurement;
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
@@ -19,8 +20,8 @@ use crate::robust::NoiseBounds;
 use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
-use crate::state::{ErrCov, ErrVec, NominalState, ERR_DIM};
-use crate::update::{inject_and_reset, scalar_step, UpdateReport};
+use crate::state::{ErrVec, NominalState, ERR_DIM};
+use crate::update::{inject_and_reset, schmidt_step, UpdateReport};
 use nalgebra::{SMatrix, SVector};
 
 /// A tightly coupled UWB/IMU error-state filter.
@@ -53,6 +54,7 @@ pub struct TightFilter {
     range_noise: Vec<SageHusa<1>>,
     divergence: DivergenceWatch,
     tdoa_watch: TdoaWatch,
+    range_bias: Option<RangeBiasStates>,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
     epoch: Vec<ScalarMeasurement>,
 }
@@ -127,8 +129,20 @@ impl TightFilter {
         } else {
             Vec::new()
         };
+        let mut core = InertialCore::new(initial, &config)?;
+        let range_bias = if config.range_bias.states {
+            if matches!(strategy, Strategy::Unscented(_)) {
+                return Err(Error::InvalidCall(
+                    "range_bias.states needs a Kalman update strategy (single or iterated), not the unscented one".into(),
+                ));
+            }
+            core.track_cross_covariance();
+            Some(RangeBiasStates::new(config.range_bias, anchors.len())?)
+        } else {
+            None
+        };
         Ok(Self {
-            core: InertialCore::new(initial, &config)?,
+            core,
             config,
             epoch: Vec::with_capacity(anchors.len()),
             anchors,
@@ -138,6 +152,7 @@ impl TightFilter {
             range_noise,
             divergence: DivergenceWatch::default(),
             tdoa_watch: TdoaWatch::default(),
+            range_bias,
         })
     }
 
@@ -301,7 +316,8 @@ impl TightFilter {
     }
 
     /// The Kalman strategy (see [`TightFilter`]): Gauss–Newton iterations of sequential scalar
-    /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step.
+    /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step. With
+    /// range bias states, over the augmented error state ([`crate::filters::range_bias`]).
     fn solve_iterated(
         &mut self,
         measurements: &[ScalarMeasurement],
@@ -311,66 +327,41 @@ impl TightFilter {
         max_iterations: u32,
         tolerance: f64,
     ) -> Result<()> {
-        let config = &self.config;
-        let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
-        let (x, p_out) = self.core.state_and_covariance_mut();
-        let (prior, p_prior) = (*x, *p_out);
-        let (mut op, mut p_post) = (prior, p_prior);
-        let mut iterations = 0;
-        // The previous iterate (operating point, covariance, step), to fall back on when the
-        // iteration stops contracting.
-        let mut previous: Option<(NominalState, ErrCov, ErrVec)> = None;
-        loop {
-            iterations += 1;
-            let mut dx = prior.boxminus(&op);
-            let mut p = p_prior;
-            for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
-                let Some(pred) = m.predict(&op, &self.anchors, &lever_arm) else {
-                    *report = UpdateReport::skipped();
-                    continue;
-                };
-                let h = pred.jacobian;
-                let mut residual = m.value() - pred.value;
-                let hph = h.dot(&(p_post * h));
-                let (var, nominal_var) = nominal.variance(&mut self.range_noise, m, &mut residual, hph, iterations == 1);
-                let base_var = var * factors.map_or(1.0, |f| f[k].cu);
-                let nis = residual * residual / (hph + base_var);
-                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
-                // adaptive branch); only capped ones are inflated (robust branch).
-                let trusted_in_faded = fading > 1.0 && factors.is_some_and(|f| !f[k].is_capped());
-                let inflation = if trusted_in_faded {
-                    1.0
-                } else if iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. }) {
-                    // A lone TDoA fits itself after one iteration, so its γ at the next operating
-                    // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
-                    report.inflation
-                } else {
-                    self.policy.inflation(nis)
-                };
-                scalar_step(&mut dx, &mut p, &h, residual, base_var * inflation)?;
-                *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, iterations);
+        let time_s = self.core.time_s().unwrap_or(0.0);
+        let mut epoch = KalmanEpoch {
+            anchors: &self.anchors,
+            lever_arm: self.config.mounting.lever_arm,
+            nominal: NominalNoise::of(&self.config),
+            policy: self.policy,
+            range_noise: &mut self.range_noise,
+            factors,
+            fading,
+            max_iterations,
+            tolerance,
+        };
+        let (x, p, cross) = self.core.parts_mut();
+        let iterations = match (self.range_bias.as_mut(), cross) {
+            (Some(bias), Some(cross)) => {
+                bias.predict_to(time_s);
+                let mut joint = bias.joint_covariance(p, cross);
+                let mut params = bias.augmented_estimate();
+                let estimated = if bias.consider() { ERR_DIM } else { AUG_DIM };
+                let iterations =
+                    epoch.iterate(x, &mut joint, &mut params, measurements, reports, RangeBiasStates::jacobian, estimated)?;
+                bias.split(&params, &joint, p, cross);
+                iterations
             }
-            let step = dx.norm();
-            if let Some((mut op_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, d)| step > d.norm()) {
-                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
-                // to thousands of radians): keep the previous iterate.
-                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
-                *x = op_prev;
-                *p_out = p_prev;
-                break;
-            }
-            if iterations >= max_iterations || step < tolerance {
-                inject_and_reset(&mut op, &mut p, &dx);
-                *x = op;
-                *p_out = p;
-                break;
-            }
-            previous = Some((op, p, dx));
-            op.inject(&dx);
-            p_post = p;
-        }
+            _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_| ErrVec::zeros(), ERR_DIM)?,
+        };
         for r in reports.iter_mut().filter(|r| r.accepted) {
             r.iterations = iterations;
+        }
+        if let Some(bias) = &self.range_bias {
+            for (r, m) in reports.iter_mut().zip(measurements) {
+                if let ScalarMeasurement::Range { anchor, .. } = *m {
+                    (r.bias_m, r.bias_std_m) = bias.total(anchor).unwrap_or((f64::NAN, f64::NAN));
+                }
+            }
         }
         Ok(())
     }
@@ -414,11 +405,116 @@ impl TightFilter {
             let inflation = if trusted_in_faded { 1.0 } else { self.policy.inflation(nis) };
             apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
             *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);
+            (report.prior_innovation, report.prior_variance) = (residual, moments.variance + base_var);
         }
         inject_and_reset(x, &mut p, &dx);
         *p_out = p;
         Ok(())
     }
+}
+
+/// What the Kalman strategy needs from the filter for one epoch.
+struct KalmanEpoch<'a> {
+    anchors: &'a [Vec3],
+    lever_arm: Vec3,
+    nominal: NominalNoise,
+    policy: RangeNoisePolicy,
+    range_noise: &'a mut [SageHusa<1>],
+    factors: Option<&'a [RobustnessFactor]>,
+    fading: f64,
+    max_iterations: u32,
+    tolerance: f64,
+}
+
+impl KalmanEpoch<'_> {
+    /// The iterations of [`TightFilter::solve_iterated`] over an error state of dimension `N`:
+    /// the 15 INS error states, then parameters that enter the measurements linearly with
+    /// Jacobian `param_h(m)` (zero in the first 15 rows) and value `params` (updated in place);
+    /// only the first `estimated` states get a gain ([`schmidt_step`]). Returns the iterations.
+    #[allow(clippy::too_many_arguments)]
+    fn iterate<const N: usize>(
+        &mut self,
+        x: &mut NominalState,
+        p_out: &mut Cov<N>,
+        params: &mut SVector<f64, N>,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        param_h: impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        estimated: usize,
+    ) -> Result<u32> {
+        let (prior, p_prior, params_prior) = (*x, *p_out, *params);
+        let (mut op, mut p_post, mut params_op) = (prior, p_prior, params_prior);
+        let mut iterations = 0;
+        // The previous iterate (operating point, covariance, step), to fall back on when the
+        // iteration stops contracting.
+        let mut previous: Option<(NominalState, SVector<f64, N>, Cov<N>, SVector<f64, N>)> = None;
+        loop {
+            iterations += 1;
+            let mut dx = params_prior - params_op;
+            dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
+            let mut p = p_prior;
+            for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
+                let Some(pred) = m.predict(&op, self.anchors, &self.lever_arm) else {
+                    *report = UpdateReport::skipped();
+                    continue;
+                };
+                let mut residual = m.value() - pred.value;
+                let mut h = SVector::<f64, N>::zeros();
+                h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);
+                if N > ERR_DIM {
+                    let hb = param_h(m);
+                    residual -= hb.dot(&params_op);
+                    h += hb;
+                }
+                let hph = h.dot(&(p_post * h));
+                let (var, nominal_var) = self.nominal.variance(self.range_noise, m, &mut residual, hph, iterations == 1);
+                let base_var = var * self.factors.map_or(1.0, |f| f[k].cu);
+                let nis = residual * residual / (hph + base_var);
+                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
+                // adaptive branch); only capped ones are inflated (robust branch).
+                let trusted_in_faded = self.fading > 1.0 && self.factors.is_some_and(|f| !f[k].is_capped());
+                let inflation = if trusted_in_faded {
+                    1.0
+                } else if iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. }) {
+                    // A lone TDoA fits itself after one iteration, so its γ at the next operating
+                    // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
+                    report.inflation
+                } else {
+                    self.policy.inflation(nis)
+                };
+                let prior =
+                    if iterations == 1 { (residual, hph + base_var) } else { (report.prior_innovation, report.prior_variance) };
+                schmidt_step(&mut dx, &mut p, &h, residual, base_var * inflation, estimated)?;
+                *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, iterations);
+                (report.prior_innovation, report.prior_variance) = prior;
+            }
+            let step = dx.norm();
+            if let Some((mut op_prev, params_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, _, d)| step > d.norm()) {
+                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
+                // to thousands of radians): keep the previous iterate.
+                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
+                (*x, *p_out, *params) = (op_prev, p_prev, params_prev + parameter_rows(&dx_prev));
+                break;
+            }
+            if iterations >= self.max_iterations || step < self.tolerance {
+                inject_and_reset(&mut op, &mut p, &dx);
+                (*x, *p_out, *params) = (op, p, params_op + parameter_rows(&dx));
+                break;
+            }
+            previous = Some((op, params_op, p, dx));
+            op.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
+            params_op += parameter_rows(&dx);
+            p_post = p;
+        }
+        Ok(iterations)
+    }
+}
+
+/// The parameter rows (past the 15 INS error states) of an augmented vector, zero elsewhere.
+fn parameter_rows<const N: usize>(v: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = *v;
+    out.fixed_rows_mut::<ERR_DIM>(0).fill(0.0);
+    out
 }
 
 /// The configured (nominal) noise variances of the scalar measurements, m².

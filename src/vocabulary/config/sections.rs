@@ -241,6 +241,28 @@ section! {
 }
 
 section! {
+    /// Range bias states of the tightly coupled filters ([`crate::filters::range_bias`], ours): a
+    /// bias per anchor and one common to all, `r = ‖p_tag − a‖ + b_a + b_c + v`, each a random
+    /// walk, estimated in an augmented error state.
+    RangeBiasConfig = "range_bias" {
+        /// Estimate the biases (off: ranges are taken as unbiased, after `range_calibration`).
+        states: bool = false, flag;
+        /// Schmidt (consider) scheme instead of the augmented filter: the biases keep their
+        /// initial value (0, or the `range_calibration` already applied) and only their
+        /// uncertainty is carried into the gain and covariance of the navigation state.
+        consider: bool = false, flag;
+        /// Initial σ of each anchor's own bias, m.
+        anchor_std: f64 = 0.1, non_negative;
+        /// Initial σ of the common bias, m.
+        common_std: f64 = 0.1, non_negative;
+        /// Random walk of each anchor's bias, m/√s.
+        anchor_walk: f64 = 1e-3, non_negative;
+        /// Random walk of the common bias, m/√s.
+        common_walk: f64 = 1e-3, non_negative;
+    }
+}
+
+section! {
     /// The unscented transform (seed 001 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented
     /// composition.
     UnscentedConfig = "unscented" {

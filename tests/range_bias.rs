@@ -1,0 +1,138 @@
+//! Range bias states ([`uwbimu_rs::filters::range_bias`]) and noise tuning ([`uwbimu_rs::tune`]) on
+//! simulated runs whose truth is known; and `best` smooths by default.
+
+use uwbimu_rs::config::{ConfigValue, FilterConfig};
+use uwbimu_rs::math::Vec3;
+use uwbimu_rs::methods::{run_method, BatchInput, BatchOutput, Method};
+use uwbimu_rs::sim;
+use uwbimu_rs::tune::{tune, Objective};
+
+/// Horizontal RMSE of a run's steps after the first 10 s.
+fn rmse(output: &BatchOutput, data: &sim::SimData) -> f64 {
+    let BatchOutput::Inertial { trace, smoothed, .. } = output else { panic!("not inertial") };
+    let steps = smoothed.as_deref().unwrap_or(&trace.steps);
+    let t0 = steps[0].t_s;
+    let e: Vec<f64> = steps
+        .iter()
+        .zip(&data.truth)
+        .filter(|(s, _)| s.t_s >= t0 + 10.0)
+        .map(|(s, t)| (s.state.position - t.position).xy().norm_squared())
+        .collect();
+    (e.iter().sum::<f64>() / e.len() as f64).sqrt()
+}
+
+fn with(config: &FilterConfig, pairs: &[(&str, ConfigValue)]) -> FilterConfig {
+    let mut c = config.clone();
+    for (k, v) in pairs {
+        c.set(k, v).expect("key");
+    }
+    c
+}
+
+#[test]
+fn bias_states_recover_constant_anchor_biases_and_the_track() {
+    // Seeds and biases not used to choose any setting; biases up to 0.2 m (isas-walk1: −0.19 … +0.12).
+    let biases = [0.12, -0.18, 0.04, -0.07, 0.15];
+    for seed in [6, 7] {
+        let s = sim::zoo("handheld_walk", seed).expect("zoo");
+        let mut data = sim::simulate(&s.sim).expect("sim");
+        for r in &mut data.ranges {
+            r.range_m += biases[r.anchor];
+        }
+        let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
+        let run = |config: &FilterConfig| {
+            let input = BatchInput {
+                imu: &data.imu,
+                ranges: &data.ranges,
+                anchors: &data.anchors,
+                initial: None,
+                config,
+                smooth: false,
+                mag: &[],
+                tdoa: &[],
+            };
+            run_method(Method::Riekf, &input).expect("run")
+        };
+        let off = run(&base);
+        let on = run(&with(&base, &[("range_bias.states", ConfigValue::Flag(true))]));
+        let consider = run(&with(
+            &base,
+            &[("range_bias.states", ConfigValue::Flag(true)), ("range_bias.consider", ConfigValue::Flag(true))],
+        ));
+        let (e_off, e_on, e_consider) = (rmse(&off, &data), rmse(&on, &data), rmse(&consider, &data));
+        println!("seed {seed}: RMSE off {e_off:.3}, augmented {e_on:.3}, consider {e_consider:.3} m");
+        // Measured with the defaults, self-initialised: seed 6 0.165 → 0.110 m, seed 7 0.155 →
+        // 0.098 m (with the zoo's matched noise, seeds 3–4: 0.16 → 0.03 m).
+        assert!(e_on < 0.75 * e_off && e_on < 0.13, "augmented {e_on} vs off {e_off}");
+        let BatchOutput::Inertial { trace, .. } = &on else { unreachable!() };
+        let mut last = [f64::NAN; 5];
+        let mut last_std = [f64::NAN; 5];
+        for u in &trace.updates {
+            if u.report.bias_m.is_finite() {
+                last[u.anchor] = u.report.bias_m;
+                last_std[u.anchor] = u.report.bias_std_m;
+            }
+        }
+        for a in 0..5 {
+            let err = last[a] - biases[a];
+            println!("  anchor {a}: {:+.3} ± {:.3} (true {:+.3})", last[a], last_std[a], biases[a]);
+            // Measured: within 0.021 m (σ reported 0.013–0.017 m).
+            assert!(err.abs() < 0.03, "anchor {a}: error {err}");
+            assert!(last_std[a] > 0.0 && last_std[a] < 0.1);
+        }
+        // The consider scheme keeps the biases at zero and only widens the gain.
+        let BatchOutput::Inertial { trace, .. } = &consider else { unreachable!() };
+        assert!(trace.updates.iter().filter(|u| u.report.bias_m.is_finite()).all(|u| u.report.bias_m == 0.0));
+    }
+}
+
+#[test]
+fn bias_states_refuse_the_unscented_strategy_and_too_many_anchors() {
+    let anchors: Vec<Vec3> = (0..4).map(|i| Vec3::new(i as f64, 0.0, 1.0)).collect();
+    let config = with(&FilterConfig::default(), &[("range_bias.states", ConfigValue::Flag(true))]);
+    let init = uwbimu_rs::config::InitialState::default();
+    let err = uwbimu_rs::filters::Ukf::new(anchors, &init, config.clone()).expect_err("ukf");
+    assert!(err.to_string().contains("unscented"), "{err}");
+    let many: Vec<Vec3> = (0..17).map(|i| Vec3::new(i as f64, 0.0, 1.0)).collect();
+    let err = uwbimu_rs::filters::Riekf::new(many, &init, config).expect_err("17 anchors");
+    assert!(err.to_string().contains("16"), "{err}");
+}
+
+#[test]
+fn tuning_by_the_innovation_likelihood_finds_lower_noise_on_a_matched_imu() {
+    // The zoo's IMU matches a datasheet, far below the library's default process noise.
+    let s = sim::zoo("agv_loop", 9).expect("zoo");
+    let data = sim::simulate(&s.sim).expect("sim");
+    let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
+    let input = BatchInput {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        anchors: &data.anchors,
+        initial: None,
+        config: &base,
+        smooth: false,
+        mag: &[],
+        tdoa: &[],
+    };
+    let tuned = tune(Method::Riekf, &input, Objective::InnovationLikelihood, 2).expect("tune");
+    assert!(tuned.score < tuned.initial_score);
+    assert_eq!(tuned.trials.len(), 1 + 2 * 3 * 4);
+    let before = rmse(&run_method(Method::Riekf, &input).expect("run"), &data);
+    let after = rmse(&run_method(Method::Riekf, &BatchInput { config: &tuned.config, ..input }).expect("run"), &data);
+    println!("agv_loop seed 9: defaults {before:.3} m, tuned {after:.3} m; {:?}", tuned.trials.last());
+    // Measured on other scenarios while building: 0.049 → 0.039 (agv_loop seed 5).
+    assert!(after < 0.9 * before, "tuned {after} vs defaults {before}");
+    assert!(tuned.config.ins.accel_noise_density < base.ins.accel_noise_density);
+    // Against truth the score is the RMSE itself and cannot get worse than the start.
+    let tag: Vec<(f64, Vec3)> = data.truth.iter().map(|t| (t.t_s, t.position + t.orientation * s.sim.lever_arm_m)).collect();
+    let by_truth = tune(Method::Riekf, &input, Objective::TruthRmse(&tag), 1).expect("tune");
+    assert!(by_truth.score <= by_truth.initial_score && by_truth.score < 0.9 * before);
+    assert!(tune(Method::UwbLs, &input, Objective::InnovationLikelihood, 1).is_err());
+}
+
+#[test]
+fn best_smooths_by_default_and_names_itself() {
+    assert_eq!(Method::parse("best").map(Method::name), Ok("best"));
+    assert!(Method::Best.smooths_by_default() && !Method::Riekf.smooths_by_default());
+    assert!(Method::Best.takes_tdoa());
+}
