@@ -68,9 +68,8 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
         let mut last = [f64::NAN; 5];
         let mut last_std = [f64::NAN; 5];
         for u in &trace.updates {
-            if u.report.bias_m.is_finite() {
-                last[u.anchor] = u.report.bias_m;
-                last_std[u.anchor] = u.report.bias_std_m;
+            if let Some((bias, std)) = u.report.range_bias {
+                (last[u.anchor], last_std[u.anchor]) = (bias, std);
             }
         }
         for a in 0..5 {
@@ -82,7 +81,8 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
         }
         // The consider scheme keeps the biases at zero and only widens the gain.
         let BatchOutput::Inertial { trace, .. } = &consider else { unreachable!() };
-        assert!(trace.updates.iter().filter(|u| u.report.bias_m.is_finite()).all(|u| u.report.bias_m == 0.0));
+        assert!(trace.updates.iter().filter_map(|u| u.report.range_bias).all(|(bias, _)| bias == 0.0));
+        assert!(trace.updates.iter().any(|u| u.report.range_bias.is_some()));
     }
 }
 

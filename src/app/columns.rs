@@ -62,8 +62,8 @@ pub fn update_columns(trace: &Trace) -> Columns {
         ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
         ("prior_fading", u.iter().map(|r| r.report.prior_fading).collect()),
         ("reacquired", u.iter().map(|r| f64::from(u8::from(r.report.reacquired))).collect()),
-        ("bias", u.iter().map(|r| r.report.bias_m).collect()),
-        ("bias_std", u.iter().map(|r| r.report.bias_std_m).collect()),
+        ("bias", u.iter().map(|r| r.report.range_bias.map_or(f64::NAN, |b| b.0)).collect()),
+        ("bias_std", u.iter().map(|r| r.report.range_bias.map_or(f64::NAN, |b| b.1)).collect()),
     ]
 }
 

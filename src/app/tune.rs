@@ -141,9 +141,7 @@ fn score(method: Method, input: &BatchInput<'_>, config: &FilterConfig, objectiv
         return Err(Error::InvalidCall(format!("{} has no noise settings to tune", method.name())));
     };
     let s = match objective {
-        Objective::InnovationLikelihood => {
-            innovation_nll(trace.updates.iter().map(|u| (u.report.prior_innovation, u.report.prior_variance)))
-        }
+        Objective::InnovationLikelihood => innovation_nll(trace.updates.iter().filter_map(|u| u.report.prior)),
         Objective::TruthRmse(truth) => {
             let steps = smoothed.as_deref().unwrap_or(&trace.steps);
             let from = steps.first().map_or(0.0, |s| s.t_s) + if init.is_some() { SETTLE_S } else { 0.0 };

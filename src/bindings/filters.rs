@@ -235,8 +235,8 @@ impl From<UpdateRecord> for PyUpdateReport {
             iterations: r.iterations,
             prior_fading: r.prior_fading,
             reacquired: r.reacquired,
-            bias: r.bias_m,
-            bias_std: r.bias_std_m,
+            bias: r.range_bias.map_or(f64::NAN, |b| b.0),
+            bias_std: r.range_bias.map_or(f64::NAN, |b| b.1),
         }
     }
 }

@@ -31,16 +31,13 @@ pub struct UpdateReport {
     /// Whether the epoch was applied as its UWB-only fix to re-acquire the solution
     /// ([`crate::filters::reacquire`]); `innovation` and `nis` are then the fix's.
     pub reacquired: bool,
-    /// The range's anchor's total bias `b_a + b_c` after the update, m, with range bias states
-    /// ([`crate::filters::range_bias`]); NaN otherwise.
-    pub bias_m: f64,
-    /// Its standard deviation, m; NaN without range bias states.
-    pub bias_std_m: f64,
-    /// Innovation at the prior (the first iteration), for the innovation likelihood
-    /// ([`crate::tune`]); NaN when not applied by a Kalman step.
-    pub prior_innovation: f64,
-    /// Its predicted variance `H·P⁻·Hᵀ + R` (before any robust inflation), m²; NaN likewise.
-    pub prior_variance: f64,
+    /// The range's anchor's total bias `b_a + b_c` after the update and its standard deviation,
+    /// m, with range bias states ([`crate::filters::range_bias`]); None otherwise.
+    pub range_bias: Option<(f64, f64)>,
+    /// The innovation at the prior (the first iteration) and its predicted variance `H·P⁻·Hᵀ + R`
+    /// before any robust inflation (m, m²), for the innovation likelihood ([`crate::tune`]); None
+    /// when the measurement was not applied by a scalar Kalman or unscented step.
+    pub prior: Option<(f64, f64)>,
 }
 
 impl UpdateReport {
@@ -56,10 +53,8 @@ impl UpdateReport {
             iterations: 0,
             prior_fading: 1.0,
             reacquired: false,
-            bias_m: f64::NAN,
-            bias_std_m: f64::NAN,
-            prior_innovation: f64::NAN,
-            prior_variance: f64::NAN,
+            range_bias: None,
+            prior: None,
         }
     }
 
@@ -81,10 +76,8 @@ impl UpdateReport {
             iterations,
             prior_fading: 1.0,
             reacquired: false,
-            bias_m: f64::NAN,
-            bias_std_m: f64::NAN,
-            prior_innovation: f64::NAN,
-            prior_variance: f64::NAN,
+            range_bias: None,
+            prior: None,
         }
     }
 }

@@ -359,7 +359,7 @@ impl TightFilter {
         if let Some(bias) = &self.range_bias {
             for (r, m) in reports.iter_mut().zip(measurements) {
                 if let ScalarMeasurement::Range { anchor, .. } = *m {
-                    (r.bias_m, r.bias_std_m) = bias.total(anchor).unwrap_or((f64::NAN, f64::NAN));
+                    r.range_bias = bias.total(anchor);
                 }
             }
         }
@@ -405,7 +405,7 @@ impl TightFilter {
             let inflation = if trusted_in_faded { 1.0 } else { self.policy.inflation(nis) };
             apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
             *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);
-            (report.prior_innovation, report.prior_variance) = (residual, moments.variance + base_var);
+            report.prior = Some((residual, moments.variance + base_var));
         }
         inject_and_reset(x, &mut p, &dx);
         *p_out = p;
@@ -482,11 +482,10 @@ impl KalmanEpoch<'_> {
                 } else {
                     self.policy.inflation(nis)
                 };
-                let prior =
-                    if iterations == 1 { (residual, hph + base_var) } else { (report.prior_innovation, report.prior_variance) };
+                let prior = if iterations == 1 { Some((residual, hph + base_var)) } else { report.prior };
                 schmidt_step(&mut dx, &mut p, &h, residual, base_var * inflation, estimated)?;
                 *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, iterations);
-                (report.prior_innovation, report.prior_variance) = prior;
+                report.prior = prior;
             }
             let step = dx.norm();
             if let Some((mut op_prev, params_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, _, d)| step > d.norm()) {
