@@ -1,6 +1,8 @@
 //! Range bias states ([`uwbimu_rs::filters::range_bias`]) and noise tuning ([`uwbimu_rs::tune`]) on
 //! simulated runs whose truth is known; and `best` smooths by default.
 
+mod common;
+
 use uwbimu_rs::config::{ConfigValue, FilterConfig};
 use uwbimu_rs::math::Vec3;
 use uwbimu_rs::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -12,13 +14,9 @@ fn rmse(output: &BatchOutput, data: &sim::SimData) -> f64 {
     let BatchOutput::Inertial { trace, smoothed, .. } = output else { panic!("not inertial") };
     let steps = smoothed.as_deref().unwrap_or(&trace.steps);
     let t0 = steps[0].t_s;
-    let e: Vec<f64> = steps
-        .iter()
-        .zip(&data.truth)
-        .filter(|(s, _)| s.t_s >= t0 + 10.0)
-        .map(|(s, t)| (s.state.position - t.position).xy().norm_squared())
-        .collect();
-    (e.iter().sum::<f64>() / e.len() as f64).sqrt()
+    let errors = common::horizontal_errors(steps, data);
+    let kept: Vec<f64> = steps.iter().zip(errors).filter(|(s, _)| s.t_s >= t0 + 10.0).map(|(_, e)| e).collect();
+    common::rms(&kept)
 }
 
 fn with(config: &FilterConfig, pairs: &[(&str, ConfigValue)]) -> FilterConfig {
@@ -40,19 +38,7 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
             r.range_m += biases[r.anchor];
         }
         let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
-        let run = |config: &FilterConfig| {
-            let input = BatchInput {
-                imu: &data.imu,
-                ranges: &data.ranges,
-                anchors: &data.anchors,
-                initial: None,
-                config,
-                smooth: false,
-                mag: &[],
-                tdoa: &[],
-            };
-            run_method(Method::Riekf, &input).expect("run")
-        };
+        let run = |config: &FilterConfig| run_method(Method::Riekf, &common::batch(&data, None, config)).expect("run");
         let off = run(&base);
         let on = run(&with(&base, &[("range_bias.states", ConfigValue::Flag(true))]));
         let consider = run(&with(
@@ -104,16 +90,7 @@ fn tuning_by_the_innovation_likelihood_finds_lower_noise_on_a_matched_imu() {
     let s = sim::zoo("agv_loop", 9).expect("zoo");
     let data = sim::simulate(&s.sim).expect("sim");
     let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
-    let input = BatchInput {
-        imu: &data.imu,
-        ranges: &data.ranges,
-        anchors: &data.anchors,
-        initial: None,
-        config: &base,
-        smooth: false,
-        mag: &[],
-        tdoa: &[],
-    };
+    let input = common::batch(&data, None, &base);
     let tuned = tune(Method::Riekf, &input, Objective::InnovationLikelihood, 2).expect("tune");
     assert!(tuned.score < tuned.initial_score);
     assert_eq!(tuned.trials.len(), 1 + 2 * 3 * 4);

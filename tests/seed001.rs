@@ -7,21 +7,12 @@ use common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::config::{FilterConfig, InitialState};
 use uwbimu_rs::filters::{InertialFilter, Ukf};
 use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::{run_method, BatchInput, BatchOutput, Method};
+use uwbimu_rs::methods::{run_method, BatchOutput, Method};
 use uwbimu_rs::pipeline::{run, StepRecord};
 use uwbimu_rs::sim::{preset, simulate, SimData};
 
 fn steps(method: Method, data: &SimData, initial: Option<&InitialState>, config: &FilterConfig) -> Vec<StepRecord> {
-    let input = BatchInput {
-        imu: &data.imu,
-        ranges: &data.ranges,
-        anchors: &data.anchors,
-        initial,
-        config,
-        smooth: false,
-        mag: &[],
-        tdoa: &[],
-    };
+    let input = common::batch(data, initial, config);
     match run_method(method, &input).expect("run") {
         BatchOutput::Inertial { trace, .. } => trace.steps,
         BatchOutput::Multilateration(_) => unreachable!("inertial method"),
@@ -43,16 +34,7 @@ const PLANAR: [Method; 3] = [Method::Ekf2d, Method::Ukf2d, Method::Cekf2d];
 
 /// Mean horizontal error of `uwb_ls` on the same run, against the true tag position.
 fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::sim::SimConfig, config: &FilterConfig) -> f64 {
-    let input = BatchInput {
-        imu: &data.imu,
-        ranges: &data.ranges,
-        anchors: &data.anchors,
-        initial: None,
-        config,
-        smooth: false,
-        mag: &[],
-        tdoa: &[],
-    };
+    let input = common::batch(data, None, config);
     let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &input).expect("uwb_ls") else { unreachable!("uwb_ls") };
     let e: Vec<f64> = fixes
         .iter()

@@ -72,6 +72,16 @@ impl Method {
         self == Self::Best
     }
 
+    /// Whether to smooth: as `asked`, else the method's default ([`Method::smooths_by_default`]).
+    pub fn smooth(self, asked: Option<bool>) -> bool {
+        asked.unwrap_or(self.smooths_by_default())
+    }
+
+    /// The names of the methods for which `keep` holds, comma-separated (for error messages).
+    pub fn names_where(keep: fn(Self) -> bool) -> String {
+        Self::NAMES.iter().filter(|n| Self::parse(n).is_ok_and(keep)).copied().collect::<Vec<_>>().join(", ")
+    }
+
     /// Whether the method takes TDoA: the tightly coupled inertial filters and `best` (the loosely coupled
     /// ones fuse a per-epoch fix from ranges, the planar ones and `uwb_ls` take ranges only).
     pub fn takes_tdoa(self) -> bool {
@@ -157,12 +167,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         return Err(Error::InvalidCall(format!(
             "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {})",
             method.name(),
-            Method::NAMES
-                .iter()
-                .filter(|n| Method::parse(n).is_ok_and(Method::takes_tdoa))
-                .copied()
-                .collect::<Vec<_>>()
-                .join(", ")
+            Method::names_where(Method::takes_tdoa)
         )));
     }
     if !input.config.range_calibration.is_empty() {

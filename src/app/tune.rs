@@ -90,8 +90,9 @@ pub fn tune(method: Method, input: &BatchInput<'_>, objective: Objective<'_>, ro
     if !initial_score.is_finite() {
         return Err(Error::InvalidCall(format!(
             "{} reports no prior innovations with the input configuration (the likelihood needs a tightly coupled \
-             filter: ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, ukf, best); pass truth to tune it by RMSE",
-            method.name()
+             filter: {}); pass truth to tune it by RMSE",
+            method.name(),
+            Method::names_where(Method::takes_tdoa)
         )));
     }
     let mut best = initial_score;

@@ -14,7 +14,7 @@ use uwbimu_rs::io::csv_out::write_columns_csv;
 use uwbimu_rs::io::foxglove_out::write_trajectory_mcap;
 use uwbimu_rs::io::mapping::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_rs::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
-use uwbimu_rs::methods::{Method, DEFAULT_METHOD};
+use uwbimu_rs::methods::Method;
 use uwbimu_rs::replay::{compare_with_truth, replay, Replay};
 use uwbimu_rs::{Error, Result};
 
@@ -102,7 +102,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn settings(args: &Args) -> Result<(ReplayConfig, Method, String)> {
+fn settings(args: &Args) -> Result<(ReplayConfig, Method)> {
     let mut cfg = match &args.config {
         Some(p) => ReplayConfig::read(p)?,
         None => ReplayConfig::from_toml("", std::path::Path::new("."))?,
@@ -126,8 +126,8 @@ fn settings(args: &Args) -> Result<(ReplayConfig, Method, String)> {
     if let Some(f) = &args.ground_truth {
         m.ground_truth.file = Some(f.clone());
     }
-    let name = args.method.as_deref().or(cfg.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()).to_string();
-    Ok((cfg, Method::parse(&name)?, name))
+    let method = cfg.method_or(args.method.as_deref())?;
+    Ok((cfg, method))
 }
 
 fn print_found(args: &Args, cfg: &ReplayConfig, rec: &Recording) {
@@ -207,7 +207,7 @@ fn print_stats(rec: &Recording, result: &Replay) {
 }
 
 fn run(args: &Args) -> Result<()> {
-    let (cfg, method, method_name) = settings(args)?;
+    let (cfg, method) = settings(args)?;
     let size = std::fs::metadata(&args.file)
         .map_err(|e| Error::Io { path: args.file.display().to_string(), reason: e.to_string() })?
         .len();
@@ -221,7 +221,13 @@ fn run(args: &Args) -> Result<()> {
     let read_s = start.elapsed().as_secs_f64();
     print_found(args, &cfg, &rec);
     let start = Instant::now();
-    let smooth = args.smooth || (method.smooths_by_default() && !args.forward);
+    let smooth = method.smooth(if args.smooth {
+        Some(true)
+    } else if args.forward {
+        Some(false)
+    } else {
+        None
+    });
     let result = replay(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth).map_err(|e| match e {
         Error::InvalidCall(reason) if !rec.tdoa.is_empty() && !method.takes_tdoa() => {
             Error::InvalidCall(format!("the recording has TDoA: {reason}; choose one with --method"))
@@ -229,7 +235,8 @@ fn run(args: &Args) -> Result<()> {
         other => other,
     })?;
     println!(
-        "method: {method_name}{}; read {read_s:.2} s, filter {:.2} s",
+        "method: {}{}; read {read_s:.2} s, filter {:.2} s",
+        method.name(),
         if smooth { " (smoothed)" } else { "" },
         start.elapsed().as_secs_f64()
     );

@@ -5,10 +5,10 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::convert::{array, columns, table};
-use super::filters::{calibration_dict, config_dict, read_config, read_inputs, read_optional_initial};
+use super::filters::{calibration_dict, config_dict, Log};
 use crate::calibrate::{calibrate_with_truth, calibrate_without_truth};
 use crate::math::Vec3;
-use crate::methods::{BatchInput, Method};
+use crate::methods::Method;
 use crate::tune::{tune, Objective, TUNED_KEYS};
 
 /// The tag's ground truth `(N, 4)` = t, x, y, z, when given.
@@ -44,20 +44,9 @@ fn calibrate_biases<'py>(
     iterations: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method = Method::parse(method)?;
-    let inputs = read_inputs(imu, ranges, anchors)?;
-    let config = read_config(config)?;
-    let initial = read_optional_initial(initial)?;
+    let log = Log::read(imu, ranges, anchors, initial, config)?;
     let truth = read_truth(truth)?;
-    let input = BatchInput {
-        imu: &inputs.imu,
-        ranges: &inputs.ranges,
-        anchors: &inputs.anchors,
-        initial: initial.as_ref(),
-        config: &config,
-        smooth: true,
-        mag: &[],
-        tdoa: &[],
-    };
+    let input = log.batch(true);
     let result = py.detach(|| match &truth {
         Some(t) => calibrate_with_truth(&input, t),
         None => calibrate_without_truth(&input, method, iterations),
@@ -105,20 +94,9 @@ fn tune_noise<'py>(
     rounds: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method = Method::parse(method)?;
-    let inputs = read_inputs(imu, ranges, anchors)?;
-    let config = read_config(config)?;
-    let initial = read_optional_initial(initial)?;
+    let log = Log::read(imu, ranges, anchors, initial, config)?;
     let truth = read_truth(truth)?;
-    let input = BatchInput {
-        imu: &inputs.imu,
-        ranges: &inputs.ranges,
-        anchors: &inputs.anchors,
-        initial: initial.as_ref(),
-        config: &config,
-        smooth: smooth.unwrap_or(method.smooths_by_default()),
-        mag: &[],
-        tdoa: &[],
-    };
+    let input = log.batch(method.smooth(smooth));
     let objective = truth.as_deref().map_or(Objective::InnovationLikelihood, Objective::TruthRmse);
     let result = py.detach(|| tune(method, &input, objective, rounds))?;
     let d = PyDict::new(py);

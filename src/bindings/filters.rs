@@ -165,6 +165,41 @@ pub(super) fn read_tdoa(tdoa: Option<&Bound<'_, PyAny>>, anchor_count: usize) ->
     }
 }
 
+/// One log as the batch functions take it: validated arrays, configuration and initial state.
+pub(super) struct Log {
+    inputs: Inputs,
+    config: FilterConfig,
+    initial: Option<InitialState>,
+}
+
+impl Log {
+    /// Reads and validates the arrays, then the configuration and the optional initial state.
+    pub(super) fn read(
+        imu: &Bound<'_, PyAny>,
+        ranges: &Bound<'_, PyAny>,
+        anchors: &Bound<'_, PyAny>,
+        initial: Option<&Bound<'_, PyAny>>,
+        config: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let inputs = read_inputs(imu, ranges, anchors)?;
+        Ok(Self { inputs, config: read_config(config)?, initial: read_optional_initial(initial)? })
+    }
+
+    /// The batch input over the log (no magnetometer, no TDoA).
+    pub(super) fn batch(&self, smooth: bool) -> BatchInput<'_> {
+        BatchInput {
+            imu: &self.inputs.imu,
+            ranges: &self.inputs.ranges,
+            anchors: &self.inputs.anchors,
+            initial: self.initial.as_ref(),
+            config: &self.config,
+            smooth,
+            mag: &[],
+            tdoa: &[],
+        }
+    }
+}
+
 /// Validated arrays of one batch call.
 pub(super) struct Inputs {
     pub(super) imu: Vec<ImuSample>,
@@ -518,24 +553,13 @@ fn run_filter<'py>(
     tdoa: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
-    let inputs = read_inputs(imu, ranges, anchors)?;
+    let log = Log::read(imu, ranges, anchors, initial, config)?;
     let mag = match mag {
         Some(m) if !m.is_none() => validate::magnetometer(&table::<4>(&array(m, "mag")?, "mag", MAG_LAYOUT)?)?,
         _ => Vec::new(),
     };
-    let tdoa = read_tdoa(tdoa, inputs.anchors.len())?;
-    let config = read_config(config)?;
-    let initial = read_optional_initial(initial)?;
-    let input = BatchInput {
-        imu: &inputs.imu,
-        ranges: &inputs.ranges,
-        anchors: &inputs.anchors,
-        initial: initial.as_ref(),
-        config: &config,
-        smooth: smooth.unwrap_or(method.smooths_by_default()),
-        mag: &mag,
-        tdoa: &tdoa,
-    };
+    let tdoa = read_tdoa(tdoa, log.inputs.anchors.len())?;
+    let input = BatchInput { mag: &mag, tdoa: &tdoa, ..log.batch(method.smooth(smooth)) };
     let output = py.detach(|| run_method(method, &input))?;
     output_columns(py, output, covariance, updates)
 }
@@ -574,7 +598,7 @@ fn run_filters<'py>(
     smooth: Option<bool>,
 ) -> PyResult<Vec<BatchColumns<'py>>> {
     let method = Method::parse(method)?;
-    let smooth = smooth.unwrap_or(method.smooths_by_default());
+    let smooth = method.smooth(smooth);
     let config = read_config(config)?;
     let mut inputs = Vec::new();
     for (k, run) in runs.try_iter()?.enumerate() {

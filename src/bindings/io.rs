@@ -13,7 +13,6 @@ use crate::columns::output_columns;
 use crate::error::Error;
 use crate::io::recording_out::{write_recording_mcap, RecordingStreams};
 use crate::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
-use crate::methods::{Method, DEFAULT_METHOD};
 use crate::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
 
 /// The replay settings from an optional TOML file and an optional mapping (JSON text).
@@ -176,13 +175,12 @@ fn replay<'py>(
     if let Some(i) = read_optional_initial(initial)? {
         cfg.initial = Some(i);
     }
-    let name = method.or(cfg.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()).to_string();
-    let method = Method::parse(&name)?;
-    let smooth = smooth.unwrap_or(method.smooths_by_default());
+    let method = cfg.method_or(method)?;
+    let smooth = method.smooth(smooth);
     let rec = read(py, &path, &cfg.mapping)?;
     let result = py.detach(|| replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth))?;
     let info = PyDict::new(py);
-    info.set_item("method", name)?;
+    info.set_item("method", method.name())?;
     info.set_item("stats", stats_dict(py, &rec.stats)?)?;
     info.set_item("mean_nis", result.mean_nis)?;
     let anchors = PyList::empty(py);

@@ -74,10 +74,7 @@ impl UpdateReport {
             inflation,
             down_weighted: inflation > 1.0,
             iterations,
-            prior_fading: 1.0,
-            reacquired: false,
-            range_bias: None,
-            prior: None,
+            ..Self::skipped()
         }
     }
 }

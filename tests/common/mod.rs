@@ -3,8 +3,23 @@
 
 use uwbimu_rs::config::{FilterConfig, InitialState};
 use uwbimu_rs::math::Vec3;
+use uwbimu_rs::methods::BatchInput;
 use uwbimu_rs::pipeline::StepRecord;
 use uwbimu_rs::sim::{SimConfig, SimData};
+
+/// The batch input over a simulated run: ranges only, forward pass.
+pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &'a FilterConfig) -> BatchInput<'a> {
+    BatchInput {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        anchors: &data.anchors,
+        initial,
+        config,
+        smooth: false,
+        mag: &[],
+        tdoa: &[],
+    }
+}
 
 /// Filter noise matched to the simulator's sensor model.
 pub fn config_for(sim: &SimConfig) -> FilterConfig {

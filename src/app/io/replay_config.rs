@@ -9,6 +9,7 @@ use std::path::Path;
 use crate::config::{ConfigValue, FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::io::mapping::Mapping;
+use crate::methods::{Method, DEFAULT_METHOD};
 
 /// A parsed replay file.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,6 +43,12 @@ fn config_value(key: &str, v: &toml::Value) -> Result<ConfigValue> {
 }
 
 impl ReplayConfig {
+    /// The method to replay with: `given` (a command-line or call argument), else the file's
+    /// `method`, else [`DEFAULT_METHOD`]. Fails on an unknown name.
+    pub fn method_or(&self, given: Option<&str>) -> Result<Method> {
+        Method::parse(given.or(self.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()))
+    }
+
     /// Parses TOML text; `base_dir` resolves relative anchor / ground-truth file paths.
     ///
     /// # Errors
