@@ -10,6 +10,7 @@ pub mod generality;
 pub mod io;
 pub mod methods;
 pub mod metrics;
+pub mod offsets;
 #[cfg(feature = "io")]
 pub mod replay;
 #[cfg(feature = "sim")]

@@ -4,7 +4,7 @@ pub mod app;
 pub mod estimation;
 pub mod vocabulary;
 
-pub use app::{calibrate, columns, methods, metrics, tune};
+pub use app::{calibrate, columns, methods, metrics, offsets, tune};
 #[cfg(feature = "sim")]
 pub use app::{generality, sim};
 #[cfg(feature = "io")]

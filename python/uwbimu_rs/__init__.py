@@ -80,9 +80,11 @@ def calibrate(
     method: str = "riekf",
     initial: Mapping[str, Any] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
-    iterations: int = 8,
+    iterations: int | None = None,
+    offsets: bool = False,
 ) -> dict[str, Any]:
-    """Estimate a constant range bias per anchor (measured − true) from a log.
+    """Estimate a constant range bias per anchor (measured − true) from a log, and with
+    ``offsets=True`` also the UWB–IMU time offset and the lever arm.
 
     With ``truth`` the residuals are taken against the true tag track; without it against the
     Rauch–Tung–Striebel smoothed track of ``method``, refined by expectation–maximisation over
@@ -97,8 +99,16 @@ def calibrate(
         ``t, x, y, z`` of the tag (UWB antenna) in the navigation frame [s, m], time increasing.
     method : str
         A smoothable inertial method for the no-truth estimate.
-    iterations : int
-        EM passes without truth.
+    iterations : int, optional
+        EM passes without truth (default 8, with ``offsets`` 16).
+    offsets : bool
+        Also estimate, jointly with the biases (Gauss–Newton on
+        ``r = ‖p(t + τ) + R(t + τ)·l − a‖ + b_a``), the time offset ``τ`` (a range stamped ``t``
+        was measured at ``t + τ``) and, without truth, the lever arm ``l``; the result then also
+        has ``time_offset``, ``time_offset_std`` [s], ``lever_arm``, ``lever_arm_std`` [m] (None with
+        truth: the truth is already the tag), ``residual_rms`` [m] and ``config`` (the input
+        configuration with ``ranging.time_offset_s``, ``mounting.lever_arm`` and
+        ``range_calibration`` set: pass it as ``config=``).
 
     Returns
     -------
@@ -109,7 +119,7 @@ def calibrate(
         ``common_std`` (m); ``iterations``; ``range_calibration`` ``{anchor: [−b, 1, 0, 0]}`` to
         pass as ``config["range_calibration"]``.
     """
-    out = _native.calibrate_biases(
+    out = _native.calibrate_log(
         imu,
         ranges,
         anchors,
@@ -117,7 +127,8 @@ def calibrate(
         method=method,
         initial=_as_dict(initial),
         config=_as_dict(config),
-        iterations=iterations,
+        iterations=iterations if iterations is not None else (16 if offsets else 8),
+        offsets=offsets,
     )
     out["biases"] = pl.DataFrame(out["biases"]).with_columns(pl.col("anchor", "used", "ranges").cast(pl.Int64))
     return out

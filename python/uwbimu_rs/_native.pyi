@@ -53,7 +53,7 @@ __all__ = [
     "run_filter",
     "initialize_state",
     "FILTERS",
-    "calibrate_biases",
+    "calibrate_log",
     "tune_noise",
     "evaluate",
     "nees",
@@ -522,7 +522,7 @@ def run_filters(
     """Run one method over many ``(imu, ranges, anchors)`` recordings in parallel (rayon, GIL
     released); one ``(columns, None, info)`` per run, in order."""
 
-def calibrate_biases(
+def calibrate_log(
     imu: ArrayLike,
     ranges: ArrayLike,
     anchors: ArrayLike,
@@ -532,11 +532,14 @@ def calibrate_biases(
     initial: dict[str, Any] | None = None,
     config: _ConfigArg = None,
     iterations: int = 8,
+    offsets: bool = False,
 ) -> dict[str, Any]:
     """Estimate a constant range bias per anchor from a log (with the tag's truth (N, 4) = t, x, y,
-    z, else by EM over the smoothed track of ``method``); the GIL is released. Returns columns
-    ``biases`` (anchor, bias, std, used, ranges), ``common_offset``, ``common_std``, ``iterations``,
-    ``range_calibration``."""
+    z, else by EM over the smoothed track of ``method``), with ``offsets`` also the time offset
+    and the lever arm; the GIL is released. Returns ``biases`` (anchor, bias, std, used, ranges),
+    ``common_offset``, ``common_std``, ``iterations``, ``range_calibration``; with ``offsets`` also
+    ``time_offset``, ``time_offset_std``, ``lever_arm``, ``lever_arm_std``, ``residual_rms``,
+    ``config``."""
 
 def tune_noise(
     method: str,

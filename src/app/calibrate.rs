@@ -29,7 +29,15 @@ use crate::records::RangeMeasurement;
 const MAD_TO_SIGMA: f64 = 1.4826;
 
 /// Residuals beyond this many robust σ from the median are left out.
-const OUTLIER_SIGMAS: f64 = 3.0;
+pub(crate) const OUTLIER_SIGMAS: f64 = 3.0;
+
+/// Median and robust σ (1.4826·MAD, at least 1e-6) of residuals sorted in increasing order.
+pub(crate) fn median_and_robust_sigma(sorted: &[f64]) -> (f64, f64) {
+    let median = percentile(sorted, 50.0);
+    let mut dev: Vec<f64> = sorted.iter().map(|r| (r - median).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    (median, (MAD_TO_SIGMA * percentile(&dev, 50.0)).max(1e-6))
+}
 
 /// One anchor's estimated bias.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,6 +68,15 @@ pub struct BiasCalibration {
 }
 
 impl BiasCalibration {
+    /// The calibration of these anchors' biases: the common offset is their mean, its σ from
+    /// theirs.
+    pub fn from_anchors(anchors: Vec<AnchorBias>, iterations: usize) -> Self {
+        let k = anchors.len().max(1) as f64;
+        let common_offset_m = anchors.iter().map(|a| a.bias_m).sum::<f64>() / k;
+        let common_std_m = anchors.iter().map(|a| a.std_m.powi(2)).sum::<f64>().sqrt() / k;
+        Self { anchors, common_offset_m, common_std_m, iterations }
+    }
+
     /// The biases as a range calibration for the filters (`true = m − b`).
     pub fn range_calibration(&self) -> Result<RangeCalibration> {
         RangeCalibration::new(self.anchors.iter().map(|a| (a.anchor, [-a.bias_m, 1.0, 0.0, 0.0])).collect())
@@ -134,10 +151,7 @@ fn summarise(
         .into_iter()
         .map(|(anchor, mut res)| {
             res.sort_by(f64::total_cmp);
-            let median = percentile(&res, 50.0);
-            let mut dev: Vec<f64> = res.iter().map(|r| (r - median).abs()).collect();
-            dev.sort_by(f64::total_cmp);
-            let sigma = (MAD_TO_SIGMA * percentile(&dev, 50.0)).max(1e-6);
+            let (median, sigma) = median_and_robust_sigma(&res);
             let kept: Vec<f64> = res.iter().copied().filter(|r| (r - median).abs() <= OUTLIER_SIGMAS * sigma).collect();
             let n = kept.len().max(1) as f64;
             let mean = kept.iter().sum::<f64>() / n;
@@ -151,8 +165,5 @@ fn summarise(
             }
         })
         .collect();
-    let k = anchors.len().max(1) as f64;
-    let common_offset_m = anchors.iter().map(|a| a.bias_m).sum::<f64>() / k;
-    let common_std_m = anchors.iter().map(|a| a.std_m.powi(2)).sum::<f64>().sqrt() / k;
-    BiasCalibration { anchors, common_offset_m, common_std_m, iterations }
+    BiasCalibration::from_anchors(anchors, iterations)
 }

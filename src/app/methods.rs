@@ -157,8 +157,8 @@ pub struct BatchInput<'a> {
 /// Names of the methods that can be RTS-smoothed (the inertial 15-state filters).
 const SMOOTHABLE: &str = "ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf, ukf, best";
 
-/// Runs `method` over one recording. A non-empty `config.range_calibration` (seed 001 §2.2) is
-/// applied to the ranges first, for every method.
+/// Runs `method` over one recording. A non-empty `config.range_calibration` (seed 001 §2.2) and a
+/// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     if !input.mag.is_empty() && method != Method::Ackf {
         return Err(Error::InvalidCall("magnetometer data given, but only ackf uses a magnetometer".into()));
@@ -169,6 +169,16 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
             method.name(),
             Method::names_where(Method::takes_tdoa)
         )));
+    }
+    let offset = input.config.ranging.time_offset_s;
+    if offset != 0.0 {
+        let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
+        let shift = |t: f64| Some(t + offset).filter(|&t| span(t));
+        let ranges: Vec<_> = input.ranges.iter().filter_map(|r| shift(r.t_s).map(|t_s| RangeMeasurement { t_s, ..*r })).collect();
+        let tdoa: Vec<_> = input.tdoa.iter().filter_map(|m| shift(m.t_s).map(|t_s| TdoaMeasurement { t_s, ..*m })).collect();
+        let mut config = input.config.clone();
+        config.ranging.time_offset_s = 0.0;
+        return run_method(method, &BatchInput { ranges: &ranges, tdoa: &tdoa, config: &config, ..*input });
     }
     if !input.config.range_calibration.is_empty() {
         let calibrated = input.config.range_calibration.apply(input.ranges, input.anchors.len())?;

@@ -1,14 +1,16 @@
 //! Python functions that learn settings from a log: the range-bias calibration
-//! (`crate::calibrate`) and the noise tuning (`crate::tune`).
+//! (`crate::calibrate`), time offset and lever arm (`crate::offsets`) and the noise tuning
+//! (`crate::tune`).
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::convert::{array, columns, table};
 use super::filters::{calibration_dict, config_dict, Log};
-use crate::calibrate::{calibrate_with_truth, calibrate_without_truth};
+use crate::calibrate::{calibrate_with_truth, calibrate_without_truth, BiasCalibration};
 use crate::math::Vec3;
 use crate::methods::Method;
+use crate::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
 use crate::tune::{tune, Objective, TUNED_KEYS};
 
 /// The tag's ground truth `(N, 4)` = t, x, y, z, when given.
@@ -24,15 +26,18 @@ fn read_truth(truth: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<(f64, Vec
     })
 }
 
-/// Estimates a constant range bias per anchor (measured − true, m) from a log, with the tag's
-/// ground truth `truth` (N, 4) = t, x, y, z when given, else by EM over the smoothed track of
-/// `method` (`iterations` passes). Returns a dict: `anchor, bias, std, used, ranges` columns,
-/// `common_offset`, `common_std` (m), `iterations`, and `range_calibration`
-/// `{anchor: [c0, c1, c2, c3]}` for a filter configuration. The GIL is released.
+/// Calibrates a log (`crate::calibrate`, and with `offsets` `crate::offsets`): a constant range
+/// bias per anchor (measured − true, m), with `offsets` also the UWB–IMU time offset and (without
+/// truth) the lever arm; against the tag's ground truth `truth` (N, 4) = t, x, y, z when given,
+/// else by EM over the smoothed track of `method` (`iterations` passes). Returns a dict: `anchor,
+/// bias, std, used, ranges` columns, `common_offset`, `common_std` (m), `iterations`,
+/// `range_calibration` `{anchor: [c0, c1, c2, c3]}`; with `offsets` also `time_offset`,
+/// `time_offset_std` (s), `lever_arm`, `lever_arm_std` (m, None with truth), `residual_rms` (m) and
+/// `config` (the input configuration with the estimates in it). The GIL is released.
 #[pyfunction]
-#[pyo3(signature = (imu, ranges, anchors, *, truth=None, method="riekf", initial=None, config=None, iterations=8))]
+#[pyo3(signature = (imu, ranges, anchors, *, truth=None, method="riekf", initial=None, config=None, iterations=8, offsets=false))]
 #[allow(clippy::too_many_arguments)]
-fn calibrate_biases<'py>(
+fn calibrate_log<'py>(
     py: Python<'py>,
     imu: &Bound<'py, PyAny>,
     ranges: &Bound<'py, PyAny>,
@@ -42,15 +47,37 @@ fn calibrate_biases<'py>(
     initial: Option<&Bound<'py, PyAny>>,
     config: Option<&Bound<'py, PyAny>>,
     iterations: usize,
+    offsets: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method = Method::parse(method)?;
     let log = Log::read(imu, ranges, anchors, initial, config)?;
     let truth = read_truth(truth)?;
     let input = log.batch(true);
+    if !offsets {
+        let result = py.detach(|| match &truth {
+            Some(t) => calibrate_with_truth(&input, t),
+            None => calibrate_without_truth(&input, method, iterations),
+        })?;
+        return bias_dict(py, &result);
+    }
     let result = py.detach(|| match &truth {
-        Some(t) => calibrate_with_truth(&input, t),
-        None => calibrate_without_truth(&input, method, iterations),
+        Some(t) => calibrate_offsets_with_truth(&input, t),
+        None => calibrate_offsets_without_truth(&input, method, iterations),
     })?;
+    let d = bias_dict(py, &result.biases)?;
+    let config = result.apply_to(input.config)?;
+    d.set_item("time_offset", result.time_offset_s.0)?;
+    d.set_item("time_offset_std", result.time_offset_s.1)?;
+    d.set_item("lever_arm", result.lever_arm.map(|(l, _)| [l.x, l.y, l.z]))?;
+    d.set_item("lever_arm_std", result.lever_arm.map(|(_, s)| [s.x, s.y, s.z]))?;
+    d.set_item("residual_rms", result.residual_rms_m)?;
+    d.set_item("config", config_dict(py, &config)?)?;
+    Ok(d)
+}
+
+/// The dict of a bias calibration: `biases` columns, `common_offset`, `common_std`, `iterations`,
+/// `range_calibration`.
+fn bias_dict<'py>(py: Python<'py>, result: &BiasCalibration) -> PyResult<Bound<'py, PyDict>> {
     let a = &result.anchors;
     let d = PyDict::new(py);
     d.set_item(
@@ -114,6 +141,6 @@ fn tune_noise<'py>(
 
 /// Adds the calibration and tuning functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(calibrate_biases, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate_log, m)?)?;
     m.add_function(wrap_pyfunction!(tune_noise, m)?)
 }

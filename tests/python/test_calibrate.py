@@ -18,11 +18,10 @@ def _biased_run():
     return run, ranges, biases
 
 
-def test_known_biases_with_truth_and_the_calibration_helps():
-    run, ranges, biases = _biased_run()
+def _tag_truth(run):
+    """``t, x, y, z`` of the tag: body position + R(q)·lever arm."""
     q = run.truth.select("qw", "qx", "qy", "qz").to_numpy()
     lever = np.asarray(run.config["mounting"]["lever_arm"])
-    # Tag = body position + R(q)·lever arm.
     w, x, y, z = q.T
     rot = np.stack(
         [
@@ -33,7 +32,12 @@ def test_known_biases_with_truth_and_the_calibration_helps():
         1,
     )
     tag = run.truth.select("x", "y", "z").to_numpy() + rot @ lever
-    truth = np.column_stack([run.truth["t"].to_numpy(), tag])
+    return np.column_stack([run.truth["t"].to_numpy(), tag])
+
+
+def test_known_biases_with_truth_and_the_calibration_helps():
+    run, ranges, biases = _biased_run()
+    truth = _tag_truth(run)
     cal = uwbimu_rs.calibrate(run.imu, ranges, run.anchors, truth=truth, initial=run.initial, config=run.config)
     np.testing.assert_allclose(cal["biases"]["bias"].to_numpy(), biases, atol=0.015)
     assert cal["biases"]["anchor"].to_list() == [0, 1, 2, 3, 4]
@@ -62,3 +66,21 @@ def test_calibrate_errors():
         uwbimu_rs.calibrate(run.imu, ranges, run.anchors, truth=np.zeros((5, 3)))
     with pytest.raises(ValueError, match="uwb_ls"):
         uwbimu_rs.calibrate(run.imu, ranges, run.anchors, method="uwb_ls")
+
+
+def test_time_offset_and_lever_arm_feed_the_config():
+    run = sim.zoo("handheld_walk", seed=13)
+    lag = 0.05
+    ranges = run.ranges.copy()
+    ranges[:, 0] += lag
+    ranges = ranges[ranges[:, 0] <= run.imu[-1, 0]]
+    config = {"mounting": run.config["mounting"]}
+    tag = _tag_truth(run)
+    with_truth = uwbimu_rs.calibrate(run.imu, ranges, run.anchors, truth=tag, config=config, offsets=True)
+    assert abs(with_truth["time_offset"] + lag) < 0.01 and with_truth["lever_arm"] is None
+    own = uwbimu_rs.calibrate(run.imu, ranges, run.anchors, config=config, offsets=True)
+    assert own["iterations"] == 16 and len(own["lever_arm"]) == 3
+    assert abs(own["time_offset"] + lag) < 0.03, own["time_offset"]
+    assert own["config"]["ranging"]["time_offset_s"] == own["time_offset"]
+    df = uwbimu_rs.run_filter("riekf", run.imu, ranges, run.anchors, config=own["config"])
+    assert df.height == run.imu.shape[0]

@@ -114,6 +114,10 @@ section! {
         /// Window of the epoch rule, s: ranges within this time of an epoch's first range, one
         /// per anchor, form one epoch ([`crate::epoch`]); 0 = only equal timestamps.
         epoch_window_s: f64 = crate::epoch::DEFAULT_EPOCH_WINDOW_S, |f, v| crate::epoch::check_window(scalar(f, v)?);
+        /// UWB–IMU time offset, s: a range or TDoA stamped `t` was measured at `t + time_offset_s`
+        /// (negative when the UWB stamps lag). Every batch method applies it first, dropping what
+        /// falls outside the IMU's time span; `calibrate(..., offsets=True)` estimates it.
+        time_offset_s: f64 = 0.0, scalar;
     }
 }
 
