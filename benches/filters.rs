@@ -106,6 +106,14 @@ fn bench_tdoa<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
 fn bench_all(c: &mut Criterion) {
     bench_filter(c, "ekf", Box::new(Ekf::new));
     bench_filter(c, "riekf", Box::new(Riekf::new));
+    bench_filter(
+        c,
+        "riekf_bias",
+        Box::new(|anchors, initial, mut config: FilterConfig| {
+            config.range_bias.states = true;
+            Riekf::new(anchors, initial, config)
+        }),
+    );
     bench_filter(c, "criekf", Box::new(Criekf::new));
     bench_filter(c, "ckf", Box::new(Ckf::new));
     bench_filter(c, "arckf", Box::new(Arckf::new));

@@ -24,8 +24,9 @@ pub struct InertialCore {
     imu_count: usize,
     recording: Option<Vec<Segment>>,
     /// Cross-covariance of the error state with parameter states the owner keeps (range biases,
-    /// constant between measurements): propagated as `Φ·P_xb`.
-    cross: Option<BiasCross>,
+    /// constant between measurements): propagated as `Φ·P_xb`. Boxed: 2 kB that a filter
+    /// without parameter states should not carry inline.
+    cross: Option<Box<BiasCross>>,
 }
 
 /// One recorded propagation, for smoothing: the posterior at its start and the IMU interval
@@ -150,7 +151,7 @@ impl InertialCore {
             });
         }
         let phi = Transition::new(&self.state, imu, &self.ins);
-        if let Some(cross) = self.cross.as_mut() {
+        if let Some(cross) = self.cross.as_deref_mut() {
             *cross = phi.apply_rows(cross);
         }
         self.state = propagate_nominal(&self.state, imu, &self.ins);
@@ -182,13 +183,13 @@ impl InertialCore {
     /// Starts carrying the cross-covariance with parameter states ([`crate::filters::range_bias`]),
     /// zero at first; the core propagates it with Φ at every prediction.
     pub fn track_cross_covariance(&mut self) {
-        self.cross = Some(BiasCross::zeros());
+        self.cross = Some(Box::new(BiasCross::zeros()));
     }
 
     /// The nominal state, the error covariance and the cross-covariance with parameter states
     /// (None unless tracked), to update them jointly.
     pub fn parts_mut(&mut self) -> (&mut NominalState, &mut ErrCov, Option<&mut BiasCross>) {
-        (&mut self.state, &mut self.covariance, self.cross.as_mut())
+        (&mut self.state, &mut self.covariance, self.cross.as_deref_mut())
     }
 
     /// The last IMU sample in the body frame (after the mounting rotation): specific force m/s²,
