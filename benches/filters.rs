@@ -5,7 +5,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
+use uwbimu_rs::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
 use uwbimu_rs::math::Vec3;
 use uwbimu_rs::pipeline::{Estimator, Stream};
 use uwbimu_rs::planar::{PlanarFilter, PlanarKind};
@@ -115,6 +115,7 @@ fn bench_all(c: &mut Criterion) {
         }),
     );
     bench_filter(c, "criekf", Box::new(Criekf::new));
+    bench_filter(c, "best", Box::new(Best::new));
     bench_filter(c, "ckf", Box::new(Ckf::new));
     bench_filter(c, "arckf", Box::new(Arckf::new));
     bench_filter(c, "ackf", Box::new(Ackf::new));

@@ -127,7 +127,8 @@ fn every_method_holds_up_with_the_defaults() {
         ("ekf2d", 0.37),
         ("ukf2d", 0.37),
         ("cekf2d", 0.47),
-        // `best` forward is the riekf composition (smoothed: 0.083 m after the first 10 s, README).
+        // `best` forward is the riekf composition with the zero-velocity constraint (0.132 m;
+        // smoothed: 0.082 m after the first 10 s, README).
         ("best", 0.145),
     ];
     assert_eq!(bounds.len() + 1, Method::NAMES.len());

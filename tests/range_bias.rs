@@ -38,32 +38,36 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
             r.range_m += biases[r.anchor];
         }
         let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
-        let run = |config: &FilterConfig| run_method(Method::Riekf, &common::batch(&data, None, config)).expect("run");
-        let off = run(&base);
-        let on = run(&with(&base, &[("range_bias.states", ConfigValue::Flag(true))]));
-        let consider = run(&with(
-            &base,
-            &[("range_bias.states", ConfigValue::Flag(true)), ("range_bias.consider", ConfigValue::Flag(true))],
-        ));
-        let (e_off, e_on, e_consider) = (rmse(&off, &data), rmse(&on, &data), rmse(&consider, &data));
-        println!("seed {seed}: RMSE off {e_off:.3}, augmented {e_on:.3}, consider {e_consider:.3} m");
-        // Measured with the defaults, self-initialised: seed 6 0.165 → 0.110 m, seed 7 0.155 →
-        // 0.098 m (with the zoo's matched noise, seeds 3–4: 0.16 → 0.03 m).
-        assert!(e_on < 0.75 * e_off && e_on < 0.13, "augmented {e_on} vs off {e_off}");
-        let BatchOutput::Inertial { trace, .. } = &on else { unreachable!() };
-        let mut last = [f64::NAN; 5];
-        let mut last_std = [f64::NAN; 5];
-        for u in &trace.updates {
-            if let Some((bias, std)) = u.report.range_bias {
-                (last[u.anchor], last_std[u.anchor]) = (bias, std);
+        let run = |method: Method, config: &FilterConfig| run_method(method, &common::batch(&data, None, config)).expect("run");
+        let states = with(&base, &[("range_bias.states", ConfigValue::Flag(true))]);
+        let off = run(Method::Riekf, &base);
+        let consider = run(Method::Riekf, &with(&states, &[("range_bias.consider", ConfigValue::Flag(true))]));
+        // `best` carries the zero-velocity constraint: its steps update the joint covariance, so
+        // the biases come out as well as without it (when those steps forgot the cross-covariance,
+        // handheld_walk seed 6 with other biases, drawn from U(−0.2, 0.15) m, gave errors up to
+        // 0.110 m with a reported σ of 0.008 m).
+        for method in [Method::Riekf, Method::Best] {
+            let on = run(method, &states);
+            let (e_off, e_on, e_consider) = (rmse(&off, &data), rmse(&on, &data), rmse(&consider, &data));
+            println!("seed {seed} {}: RMSE off {e_off:.3}, augmented {e_on:.3}, consider {e_consider:.3} m", method.name());
+            // Measured with the defaults, self-initialised: seed 6 0.165 → 0.110 m (best 0.111),
+            // seed 7 0.155 → 0.098 m (with the zoo's matched noise, seeds 3–4: 0.16 → 0.03 m).
+            assert!(e_on < 0.75 * e_off && e_on < 0.13, "augmented {e_on} vs off {e_off}");
+            let BatchOutput::Inertial { trace, .. } = &on else { unreachable!() };
+            let mut last = [f64::NAN; 5];
+            let mut last_std = [f64::NAN; 5];
+            for u in &trace.updates {
+                if let Some((bias, std)) = u.report.range_bias {
+                    (last[u.anchor], last_std[u.anchor]) = (bias, std);
+                }
             }
-        }
-        for a in 0..5 {
-            let err = last[a] - biases[a];
-            println!("  anchor {a}: {:+.3} ± {:.3} (true {:+.3})", last[a], last_std[a], biases[a]);
-            // Measured: within 0.021 m (σ reported 0.013–0.017 m).
-            assert!(err.abs() < 0.03, "anchor {a}: error {err}");
-            assert!(last_std[a] > 0.0 && last_std[a] < 0.1);
+            for a in 0..5 {
+                let err = last[a] - biases[a];
+                println!("  anchor {a}: {:+.3} ± {:.3} (true {:+.3})", last[a], last_std[a], biases[a]);
+                // Measured: within 0.021 m, at most 1.6 reported σ (0.013–0.017 m).
+                assert!(err.abs() < 0.03 && err.abs() < 2.5 * last_std[a], "anchor {a}: error {err}, σ {}", last_std[a]);
+                assert!(last_std[a] > 0.0 && last_std[a] < 0.1);
+            }
         }
         // The consider scheme keeps the biases at zero and only widens the gain.
         let BatchOutput::Inertial { trace, .. } = &consider else { unreachable!() };

@@ -18,6 +18,7 @@ from uwbimu_rs._native import (
     FILTERS,
     Ackf,
     Arckf,
+    Best,
     Ckf,
     ConfigError,
     Criekf,
@@ -42,6 +43,7 @@ __all__ = [
     "FILTERS",
     "Ackf",
     "Arckf",
+    "Best",
     "Ckf",
     "ConfigError",
     "Criekf",
@@ -210,7 +212,7 @@ def run_filter(
     method : str
         One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"ackf"``, ``"eskf"``,
         ``"shaf"``, ``"shfaf"``, ``"ukf"``, the planar ``"ekf2d"``, ``"ukf2d"``, ``"cekf2d"`` of seed 001,
-        and ``"best"``, the recommended method for real logs (README "Choosing ``best``")).
+        and ``"best"``, the recommended method for real logs (README "``best`` and the isas-walk1 table")).
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)

@@ -36,6 +36,7 @@ __all__ = [
     "Ckf",
     "posterior_crlb",
     "Criekf",
+    "Best",
     "Iekf",
     "Rekf",
     "Riekf",
@@ -433,6 +434,10 @@ class Riekf(_StreamingFilter):
 @final
 class Criekf(_StreamingFilter):
     """RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF); API of :class:`_StreamingFilter`."""
+
+@final
+class Best(_StreamingFilter):
+    """``best`` (ours): RIEKF with the zero-velocity constraint while still; API of :class:`_StreamingFilter`."""
 
 @final
 class Ckf(_StreamingFilter):

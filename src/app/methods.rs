@@ -2,7 +2,7 @@
 
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
-use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
+use crate::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
 use crate::init::{initialize_with_tdoa, SelfInit};
 use crate::math::Vec3;
 use crate::multilateration::{uwb_ls, Fix, LsConfig};
@@ -46,12 +46,13 @@ pub enum Method {
     /// The planar errors-complementary EKF of seed 001 with moving-average ranges (eqs. (15)–(18)).
     Cekf2d,
     /// The recommended method for real logs: the composition that measured best across the
-    /// scenario zoo and isas-walk1 (README "Choosing `best`"): χ² inflation with the iterated
-    /// update (the RIEKF row), re-acquisition on divergence, self-initialisation when no initial
+    /// scenario zoo and isas-walk1 (README "`best` and the isas-walk1 table"), the filter
+    /// [`crate::filters::Best`] (χ² inflation with the iterated update, the zero-velocity
+    /// constraint while still), re-acquisition on divergence, self-initialisation when no initial
     /// state is given, and RTS smoothing unless a forward pass is asked for
-    /// ([`Method::smooths_by_default`]). Range bias states, adaptive range noise and the motion
-    /// constraints were measured as candidates and left out (each cost more on most scenarios
-    /// than it won on one).
+    /// ([`Method::smooths_by_default`]). Range bias states, adaptive range noise and the
+    /// pseudo-velocity and plane constraints were measured as candidates and left out (each cost
+    /// more on most scenarios than it won on one).
     Best,
 }
 
@@ -200,7 +201,8 @@ fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
         Method::Ekf => run_inertial(|i| Ekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Iekf => run_inertial(|i| Iekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Rekf => run_inertial(|i| Rekf::new(anchors.to_vec(), i, config.clone()), input),
-        Method::Riekf | Method::Best => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Riekf => run_inertial(|i| Riekf::new(anchors.to_vec(), i, config.clone()), input),
+        Method::Best => run_inertial(|i| Best::new(anchors.to_vec(), i, config.clone()), input),
         Method::Criekf => run_inertial(|i| Criekf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Ckf => run_inertial(|i| Ckf::new(anchors.to_vec(), i, config.clone()), input),
         Method::Arckf => run_inertial(|i| Arckf::new(anchors.to_vec(), i, config.clone()), input),

@@ -8,7 +8,7 @@ use pyo3::types::PyDict;
 use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table, vec3};
 use crate::columns::{fix_columns, step_columns, update_columns};
 use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ackf, Arckf, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
+use crate::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
 use crate::init::{initialize, HeadingSource};
 use crate::math::{quat_to_wxyz, Vec3};
 use crate::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
@@ -484,6 +484,10 @@ py_filter!(
     PyCriekf, "Criekf", Criekf
 );
 py_filter!(
+    /// `best` (ours): RIEKF with the zero-velocity constraint while still.
+    PyBest, "Best", Best
+);
+py_filter!(
     /// The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)).
     PyCkf, "Ckf", Ckf
 );
@@ -712,6 +716,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRekf>()?;
     m.add_class::<PyRiekf>()?;
     m.add_class::<PyCriekf>()?;
+    m.add_class::<PyBest>()?;
     m.add_class::<PyCkf>()?;
     m.add_class::<PyArckf>()?;
     m.add_class::<PyAckf>()?;

@@ -144,6 +144,14 @@ pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx
     symmetrize(p);
 }
 
+/// The parameter rows (past the 15 INS error states) of an augmented vector, zero elsewhere: the
+/// part of an augmented step that [`inject_and_reset`] leaves to the caller.
+pub fn parameter_rows<const N: usize>(v: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = *v;
+    out.fixed_rows_mut::<ERR_DIM>(0).fill(0.0);
+    out
+}
+
 /// Vector measurement step for `residual ≈ H·δx + v`, `v ~ N(0, R)` with a full `M×M` noise
 /// covariance: whitened by the Cholesky factor `R = L·Lᵀ` (`H' = L⁻¹H`, `r' = L⁻¹r`, `R' = I`)
 /// and applied as `M` [`scalar_step`]s, which equals the joint Joseph update (seed 004 eqs.

@@ -10,7 +10,10 @@
 //!   height) with std `plane_std`.
 //!
 //! All constraints due in one step form one linear update (sequential scalar Joseph steps, then
-//! one injection), like a joint update with diagonal noise.
+//! one injection), like a joint update with diagonal noise. With range bias states
+//! ([`RangeBiasStates`]) the update runs on the joint covariance: the constraints have no bias
+//! columns, but the biases correlated with the velocity and height move with them and their
+//! cross-covariance stays consistent.
 
 pub mod still;
 
@@ -18,10 +21,12 @@ pub use still::StillDetector;
 
 use crate::config::{ConstraintsConfig, MAX_SPEED_HISTORY};
 use crate::error::Result;
+use crate::filters::range_bias::{RangeBiasStates, AUG_DIM};
 use crate::filters::InertialCore;
-use crate::math::Vec3;
-use crate::state::{ErrVec, POS, VEL};
-use crate::update::{inject_and_reset, scalar_step};
+use crate::math::{Cov, Vec3};
+use crate::state::{ErrVec, NominalState, ERR_DIM, POS, VEL};
+use crate::update::{inject_and_reset, parameter_rows, schmidt_step};
+use nalgebra::SVector;
 
 /// Threshold of the plane and pseudo-velocity constraints' own innovation test,
 /// `γ = r²/(h·P·hᵀ + R)`: above it (`χ²₁` at α = 10⁻⁴) the constraint does not hold now (a
@@ -78,17 +83,25 @@ impl Constraints {
 
     /// Predicts `core` with the IMU sample at `t_s` ([`InertialCore::predict`]), then applies the
     /// constraints due ([`Constraints::after_predict`], when any is on): the prediction step of
-    /// every filter that carries constraints.
-    pub fn predict(&mut self, core: &mut InertialCore, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+    /// every filter that carries constraints. `bias`: the filter's range bias states, when it
+    /// carries them, for the joint update.
+    pub fn predict(
+        &mut self,
+        core: &mut InertialCore,
+        t_s: f64,
+        accel: &Vec3,
+        gyro: &Vec3,
+        bias: Option<&mut RangeBiasStates>,
+    ) -> Result<()> {
         core.predict(t_s, accel, gyro)?;
         if self.any() {
-            self.after_predict(core)?;
+            self.after_predict(core, bias)?;
         }
         Ok(())
     }
 
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
-    fn after_predict(&mut self, core: &mut InertialCore) -> Result<()> {
+    fn after_predict(&mut self, core: &mut InertialCore, bias: Option<&mut RangeBiasStates>) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
         let (cfg, gravity) = (self.config, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();
@@ -102,35 +115,50 @@ impl Constraints {
         let speed = x.velocity.norm();
         let rest_accel = x.orientation.inverse() * (-gravity);
         self.still = self.zupt && self.detector.is_still(&rest_accel, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
-        let (zupt_var, pseudo_var, plane_var) = (cfg.zupt_velocity_std.powi(2), cfg.pseudo_velocity_var, cfg.plane_std.powi(2));
         self.next_t_s = Some(t + cfg.interval_s);
-        let velocity = x.velocity;
-        let z = x.position.z;
-        let mean_speed = self.mean_speed();
+        let rows = self.rows_due(x, speed);
+        if rows.len > 0 {
+            let (x, p, cross) = core.parts_mut();
+            match (bias, cross) {
+                (Some(bias), Some(cross)) => {
+                    bias.predict_to(t);
+                    let mut joint = bias.joint_covariance(p, cross);
+                    let mut params = bias.augmented_estimate();
+                    let estimated = if bias.consider() { ERR_DIM } else { AUG_DIM };
+                    rows.apply(x, &mut joint, &mut params, estimated)?;
+                    bias.split(&params, &joint, p, cross);
+                }
+                _ => rows.apply(x, p, &mut ErrVec::zeros(), ERR_DIM)?,
+            }
+        }
+        self.push_speed(core.state().velocity.norm());
+        Ok(())
+    }
 
-        let (x, p) = core.state_and_covariance_mut();
-        let mut dx = ErrVec::zeros();
+    /// The constraint rows due now at the state `x` (speed `speed`): three for a ZUPT, else one
+    /// for the pseudo-velocity; one for the plane.
+    fn rows_due(&self, x: &NominalState, speed: f64) -> ConstraintRows {
+        let cfg = &self.config;
+        let mut rows = ConstraintRows::default();
         if self.still {
             for i in 0..3 {
                 let mut h = ErrVec::zeros();
                 h[VEL + i] = 1.0;
-                scalar_step(&mut dx, p, &h, -velocity[i], zupt_var)?;
+                rows.push(h, -x.velocity[i], cfg.zupt_velocity_std.powi(2), false);
             }
         } else if self.pseudo_velocity && speed > MIN_PSEUDO_SPEED {
-            if let Some(target) = mean_speed {
+            if let Some(target) = self.mean_speed() {
                 let mut h = ErrVec::zeros();
-                h.fixed_rows_mut::<3>(VEL).copy_from(&(velocity / speed));
-                gated_step(&mut dx, p, &h, target - speed, pseudo_var)?;
+                h.fixed_rows_mut::<3>(VEL).copy_from(&(x.velocity / speed));
+                rows.push(h, target - speed, cfg.pseudo_velocity_var, true);
             }
         }
         if let Some(height) = self.plane_height {
             let mut h = ErrVec::zeros();
             h[POS + 2] = 1.0;
-            gated_step(&mut dx, p, &h, height - z, plane_var)?;
+            rows.push(h, height - x.position.z, cfg.plane_std.powi(2), true);
         }
-        inject_and_reset(x, p, &dx);
-        self.push_speed(x.velocity.norm());
-        Ok(())
+        rows
     }
 
     /// Mean of the last `pseudo_velocity_window` speeds (None until that many were recorded:
@@ -147,12 +175,46 @@ impl Constraints {
     }
 }
 
-/// A scalar step applied only when the innovation's `γ = r²/(h·P·hᵀ + R)` (against the state
-/// before this constraint's step) is at most [`CONSTRAINT_GATE`].
-fn gated_step(dx: &mut ErrVec, p: &mut crate::state::ErrCov, h: &ErrVec, residual: f64, r_var: f64) -> Result<()> {
-    let r = residual - h.dot(dx);
-    if r * r / (h.dot(&(*p * h)) + r_var) > CONSTRAINT_GATE {
-        return Ok(());
+/// Most constraint rows due in one step (a ZUPT's three and the plane).
+const MAX_ROWS: usize = 4;
+
+/// The scalar constraint measurements due in one step, `residual ≈ h·δx + v`, `v ~ N(0, var)`,
+/// on the 15 INS error states; `gated` rows pass [`CONSTRAINT_GATE`] first. Fixed-size: the
+/// prediction path allocates nothing.
+#[derive(Debug, Clone, Copy, Default)]
+struct ConstraintRows {
+    rows: [(ErrVec, f64, f64, bool); MAX_ROWS],
+    len: usize,
+}
+
+impl ConstraintRows {
+    fn push(&mut self, h: ErrVec, residual: f64, var: f64, gated: bool) {
+        self.rows[self.len] = (h, residual, var, gated);
+        self.len += 1;
     }
-    scalar_step(dx, p, h, residual, r_var).map(|_| ())
+
+    /// Applies the rows as one update to `x` and an error state of dimension `N` (the 15 INS
+    /// states, then parameters with value `params`, updated in place): sequential scalar steps
+    /// with a gain on the first `estimated` states only ([`schmidt_step`]), then one injection.
+    fn apply<const N: usize>(
+        &self,
+        x: &mut NominalState,
+        p: &mut Cov<N>,
+        params: &mut SVector<f64, N>,
+        estimated: usize,
+    ) -> Result<()> {
+        let mut dx = SVector::<f64, N>::zeros();
+        for (h15, residual, var, gated) in &self.rows[..self.len] {
+            let mut h = SVector::<f64, N>::zeros();
+            h.fixed_rows_mut::<ERR_DIM>(0).copy_from(h15);
+            let r = residual - h.dot(&dx);
+            if *gated && r * r / (h.dot(&(*p * h)) + var) > CONSTRAINT_GATE {
+                continue;
+            }
+            schmidt_step(&mut dx, p, &h, *residual, *var, estimated)?;
+        }
+        inject_and_reset(x, p, &dx);
+        *params += parameter_rows(&dx);
+        Ok(())
+    }
 }

@@ -241,10 +241,11 @@ impl InertialCore {
         self.time_s
     }
 
-    /// Mutable access to state and covariance for a measurement step that does not involve the
-    /// parameter states (a constraint, a re-acquisition fix): their cross-covariance, when
+    /// Mutable access to state and covariance for a step that does not involve the parameter
+    /// states (a re-acquisition fix, an attitude aiding vector): their cross-covariance, when
     /// tracked, is set to zero first, so the joint covariance stays positive semi-definite
-    /// whatever the step does to `P` (the correlation is forgotten, a conservative choice).
+    /// whatever the step does to `P` (the correlation is forgotten, a conservative choice). The
+    /// motion constraints update the joint covariance instead ([`Self::parts_mut`]).
     pub fn state_and_covariance_mut(&mut self) -> (&mut NominalState, &mut ErrCov) {
         if let Some(cross) = self.cross.as_mut() {
             cross.fill(0.0);

@@ -110,7 +110,7 @@ impl InertialFilter for Eskf {
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.constraints.predict(&mut self.core, t_s, accel, gyro)
+        self.constraints.predict(&mut self.core, t_s, accel, gyro, None)
     }
 
     fn still(&self) -> bool {

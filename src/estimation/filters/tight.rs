@@ -21,7 +21,7 @@ use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
 use crate::state::{ErrVec, NominalState, ERR_DIM};
-use crate::update::{inject_and_reset, schmidt_step, UpdateReport};
+use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport};
 use nalgebra::{SMatrix, SVector};
 
 /// A tightly coupled UWB/IMU error-state filter.
@@ -214,7 +214,7 @@ impl InertialFilter for TightFilter {
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.constraints.predict(&mut self.core, t_s, accel, gyro)
+        self.constraints.predict(&mut self.core, t_s, accel, gyro, self.range_bias.as_mut())
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
@@ -507,13 +507,6 @@ impl KalmanEpoch<'_> {
         }
         Ok(iterations)
     }
-}
-
-/// The parameter rows (past the 15 INS error states) of an augmented vector, zero elsewhere.
-fn parameter_rows<const N: usize>(v: &SVector<f64, N>) -> SVector<f64, N> {
-    let mut out = *v;
-    out.fixed_rows_mut::<ERR_DIM>(0).fill(0.0);
-    out
 }
 
 /// The configured (nominal) noise variances of the scalar measurements, m².
