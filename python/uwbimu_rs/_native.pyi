@@ -437,7 +437,7 @@ class Criekf(_StreamingFilter):
 
 @final
 class Best(_StreamingFilter):
-    """``best`` (ours): RIEKF with the zero-velocity constraint while still; API of :class:`_StreamingFilter`."""
+    """``best`` (ours): RIEKF with its range test skewed against long ranges and the zero-velocity constraint while still; API of :class:`_StreamingFilter`."""
 
 @final
 class Ckf(_StreamingFilter):

@@ -47,8 +47,8 @@ pub enum Method {
     Cekf2d,
     /// The recommended method for real logs: the composition that measured best across the
     /// scenario zoo and isas-walk1 (README "`best` and the isas-walk1 table"), the filter
-    /// [`crate::filters::Best`] (χ² inflation with the iterated update, the zero-velocity
-    /// constraint while still), re-acquisition on divergence, self-initialisation when no initial
+    /// [`crate::filters::Best`] (χ² inflation skewed against long ranges with the iterated
+    /// update, the zero-velocity constraint while still), re-acquisition on divergence, self-initialisation when no initial
     /// state is given, and RTS smoothing unless a forward pass is asked for
     /// ([`Method::smooths_by_default`]). Range bias states, adaptive range noise and the
     /// pseudo-velocity and plane constraints were measured as candidates and left out (each cost

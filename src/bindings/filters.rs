@@ -484,7 +484,8 @@ py_filter!(
     PyCriekf, "Criekf", Criekf
 );
 py_filter!(
-    /// `best` (ours): RIEKF with the zero-velocity constraint while still.
+    /// `best` (ours): RIEKF with its range test skewed against long ranges and the zero-velocity
+    /// constraint while still.
     PyBest, "Best", Best
 );
 py_filter!(

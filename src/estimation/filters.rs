@@ -68,7 +68,7 @@ use crate::update::UpdateReport;
 pub use self::ackf::Ackf;
 pub use self::core::{InertialCore, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
-pub use self::named::{Arckf, Best, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf};
+pub use self::named::{Arckf, Best, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf, BEST_NLOS_SKEW};
 pub use self::tight::{Composition, TightFilter, UpdateStrategy};
 
 /// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming

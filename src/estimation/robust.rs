@@ -11,7 +11,7 @@ pub mod sage_husa;
 
 pub use chi2::{chi2_quantile, chi2_quantile_1dof, CHI2_1DOF_ALPHA_1E4};
 pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
-pub use policy::RangeNoisePolicy;
+pub use policy::{tested_nis, RangeNoisePolicy};
 pub use robustness::{
     fade_position_velocity, prior_fading, robustness_factor, robustness_factors, two_range_residuals, RobustnessFactor,
 };

@@ -185,6 +185,10 @@ def test_config_object_and_dict_agree(small):
     assert keys >= {"ranging.range_std", "ranging.tdoa_std", "ins.accel_noise_density", "ins.gravity", "mounting.lever_arm", "mounting.imu_rotation", "robust.significance", "unscented.alpha", "sage_husa.alpha"}
     with pytest.raises(ValueError, match="robust.significance"):
         uwbimu_rs.FilterConfig(robust={"alpha": 0.05})
+    # The NLOS skew is unset (the method's own) until given, and at least 1.
+    assert "nlos_skew" not in d["robust"] and uwbimu_rs.FilterConfig(robust={"nlos_skew": 2}).to_dict()["robust"]["nlos_skew"] == 2
+    with pytest.raises(ValueError, match=r"robust.nlos_skew.*>= 1"):
+        uwbimu_rs.FilterConfig(robust={"nlos_skew": 0.5})
 
 
 def test_self_init_without_uwb_fails_clearly(small):

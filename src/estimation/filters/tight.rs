@@ -18,7 +18,7 @@ use crate::records::{Observation, TdoaMeasurement};
 use crate::robust::sage_husa::{SageHusa, SageHusaConfig};
 use crate::robust::NoiseBounds;
 use crate::robust::{
-    prior_fading, robustness_factor, robustness_factors, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
+    prior_fading, robustness_factor, robustness_factors, tested_nis, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
 use crate::state::{ErrVec, NominalState, ERR_DIM};
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport};
@@ -29,7 +29,8 @@ use nalgebra::{SMatrix, SVector};
 /// All ranges of one epoch (one timestamp) are processed jointly, linearised at an operating
 /// point `X_op` (the prior at the first iteration). Per range, γ is computed at `X_op` against
 /// the latest posterior covariance (seed 000 eq. (37) at the first iteration, eq. (39) after) and
-/// the policy sets `R'` (eq. (40)); the linearised problem is then solved by sequential scalar
+/// the policy sets `R'` (eq. (40)), a long range tested with `robust.nlos_skew`·γ
+/// ([`tested_nis`]); the linearised problem is then solved by sequential scalar
 /// Joseph steps, which equals the joint update of Algorithm 1 lines 9–11 for diagonal `R`. The
 /// strategy iterates until the step `‖X⁺ ⊖ X_op‖` is below `tolerance` or `max_iterations` is
 /// reached (line 12); one iteration is the single EKF step. An iteration whose step is longer
@@ -333,6 +334,7 @@ impl TightFilter {
             lever_arm: self.config.mounting.lever_arm,
             nominal: NominalNoise::of(&self.config),
             policy: self.policy,
+            nlos_skew: self.config.robust.nlos_skew.unwrap_or(1.0),
             range_noise: &mut self.range_noise,
             factors,
             fading,
@@ -402,7 +404,11 @@ impl TightFilter {
             let base_var = var * factors.map_or(1.0, |f| f[k].cu);
             let nis = residual * residual / (moments.variance + base_var);
             let trusted_in_faded = fading > 1.0 && factors.is_some_and(|f| !f[k].is_capped());
-            let inflation = if trusted_in_faded { 1.0 } else { self.policy.inflation(nis) };
+            let inflation = if trusted_in_faded {
+                1.0
+            } else {
+                self.policy.inflation(tested_nis(nis, residual, m.is_range(), config.robust.nlos_skew.unwrap_or(1.0)))
+            };
             apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
             *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);
             report.prior = Some((residual, moments.variance + base_var));
@@ -419,6 +425,8 @@ struct KalmanEpoch<'a> {
     lever_arm: Vec3,
     nominal: NominalNoise,
     policy: RangeNoisePolicy,
+    /// `robust.nlos_skew` ([`tested_nis`]).
+    nlos_skew: f64,
     range_noise: &'a mut [SageHusa<1>],
     factors: Option<&'a [RobustnessFactor]>,
     fading: f64,
@@ -480,7 +488,7 @@ impl KalmanEpoch<'_> {
                     // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
                     report.inflation
                 } else {
-                    self.policy.inflation(nis)
+                    self.policy.inflation(tested_nis(nis, residual, m.is_range(), self.nlos_skew))
                 };
                 let prior = if iterations == 1 { Some((residual, hph + base_var)) } else { report.prior };
                 schmidt_step(&mut dx, &mut p, &h, residual, base_var * inflation, estimated)?;

@@ -46,6 +46,11 @@ impl ScalarMeasurement {
         }
     }
 
+    /// Whether this is a range (not a TDoA).
+    pub fn is_range(&self) -> bool {
+        matches!(self, Self::Range { .. })
+    }
+
     /// The predicted value alone (no Jacobian: the unscented strategy evaluates it at every sigma
     /// point); None where [`ScalarMeasurement::predict`] is None.
     pub fn value_at(&self, x: &NominalState, anchors: &[Vec3], lever_arm: &Vec3) -> Option<f64> {

@@ -47,6 +47,19 @@ impl RangeNoisePolicy {
     }
 }
 
+/// The γ a noise policy tests for a measurement whose innovation (measured − predicted) is
+/// `residual` (ours): a range longer than predicted counts `nlos_skew` (≥ 1) times — NLOS and
+/// multipath only delay the first path, so a long range is likelier an outlier than a short one.
+/// Short ranges and other measurements (a TDoA moves either way when one anchor's path is
+/// delayed) are tested as they are; `nlos_skew = 1` is the symmetric test of the papers.
+pub fn tested_nis(nis: f64, residual: f64, is_range: bool, nlos_skew: f64) -> f64 {
+    if is_range && residual > 0.0 {
+        nis * nlos_skew
+    } else {
+        nis
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -60,5 +73,16 @@ mod tests {
         let t = RangeNoisePolicy::StudentT { dof: 4.0 };
         assert_eq!(t.inflation(0.5), 1.0);
         assert!((t.inflation(96.0) - 20.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_nlos_skew_weighs_long_ranges_only() {
+        assert_eq!(tested_nis(2.0, 0.3, true, 4.0), 8.0);
+        assert_eq!(tested_nis(2.0, -0.3, true, 4.0), 2.0);
+        assert_eq!(tested_nis(2.0, 0.3, false, 4.0), 2.0);
+        assert_eq!(tested_nis(2.0, 0.3, true, 1.0), 2.0);
+        // With χ² inflation at 6.63, a long range of γ = 2 is inflated by 8/6.63, a short one not.
+        let p = RangeNoisePolicy::ChiSquareInflation { threshold: 6.635 };
+        assert!(p.inflation(tested_nis(2.0, 0.3, true, 4.0)) > 1.2 && p.inflation(tested_nis(2.0, -0.3, true, 4.0)) == 1.0);
     }
 }

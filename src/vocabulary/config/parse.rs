@@ -54,6 +54,11 @@ pub fn at_least_one(field: &str, v: &ConfigValue) -> Result<f64> {
     Ok(x)
 }
 
+/// A number ≥ 1 that makes an optional field set.
+pub fn some_at_least_one(field: &str, v: &ConfigValue) -> Result<Option<f64>> {
+    at_least_one(field, v).map(Some)
+}
+
 /// A whole number ≥ 1 (given as a float from Python).
 pub fn count(field: &str, v: &ConfigValue) -> Result<u32> {
     bounded_count(field, v, 1, u32::MAX as usize).map(|n| n as u32)

@@ -4,8 +4,8 @@
 //! be listed in one place and forgotten in another. Keys are written `section.field`.
 
 use crate::config::parse::{
-    at_least_one, bounded_count, count, flag, gravity, non_negative, positive, probability, quaternion, scalar, some_positive,
-    some_scalar, vec3, ToValue,
+    at_least_one, bounded_count, count, flag, gravity, non_negative, positive, probability, quaternion, scalar,
+    some_at_least_one, some_positive, some_scalar, vec3, ToValue,
 };
 use crate::config::ConfigValue;
 use crate::error::{Error, Result};
@@ -190,6 +190,11 @@ section! {
         /// The iterated update stops when the error-state step norm falls below this (mixed
         /// units: m, m/s, rad, m/s², rad/s).
         iteration_tolerance: f64 = 1e-4, positive;
+        /// NLOS skew of the range test (ours, [`crate::robust::tested_nis`]): a range longer than
+        /// predicted enters the test with `s·γ`, so it is inflated once `γ > χ²/s`; ≥ 1. Unset:
+        /// the method's own — 1 (the symmetric test of the papers), [`crate::filters::BEST_NLOS_SKEW`]
+        /// in `best`.
+        nlos_skew: Option<f64> = None, some_at_least_one;
     }
 }
 
