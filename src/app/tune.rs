@@ -23,8 +23,18 @@ use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::evaluate;
 use crate::pipeline::StepRecord;
 
-/// The settings the search tunes.
-pub const TUNED_KEYS: [&str; 3] = ["ins.accel_noise_density", "ins.gyro_noise_density", "ranging.range_std"];
+/// Reads one tuned setting from a configuration.
+type Read = fn(&FilterConfig) -> f64;
+
+/// The settings the search tunes: each key with the reader of its value.
+const TUNED: [(&str, Read); 3] = [
+    ("ins.accel_noise_density", |c| c.ins.accel_noise_density),
+    ("ins.gyro_noise_density", |c| c.ins.gyro_noise_density),
+    ("ranging.range_std", |c| c.ranging.range_std),
+];
+
+/// The keys of the settings the search tunes.
+pub const TUNED_KEYS: [&str; 3] = [TUNED[0].0, TUNED[1].0, TUNED[2].0];
 
 /// Factors tried around the current value of one setting, per round (coarse, then fine).
 const ROUND_FACTORS: [[f64; 4]; 2] = [[0.25, 0.5, 2.0, 4.0], [0.6, 0.8, 1.25, 1.6]];
@@ -67,7 +77,7 @@ pub struct Tuning {
 }
 
 fn values_of(c: &FilterConfig) -> [f64; 3] {
-    [c.ins.accel_noise_density, c.ins.gyro_noise_density, c.ranging.range_std]
+    TUNED.map(|(_, read)| read(c))
 }
 
 fn with_values(base: &FilterConfig, values: [f64; 3]) -> Result<FilterConfig> {
