@@ -166,7 +166,8 @@ def tune(
     truth : numpy.ndarray, shape (N, 4), optional
         ``t, x, y, z`` of the tag in the navigation frame [s, m].
     rounds : int
-        Passes over the three settings.
+        Passes over the three settings; 0 only scores ``config`` (e.g. to compare two model
+        choices, such as ``range_bias.states``, by their innovation likelihood).
 
     Returns
     -------
