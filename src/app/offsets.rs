@@ -2,8 +2,8 @@
 //! of each range stamped `t` from anchor `a` is
 //! `r = ‖p(t + τ) + R(t + τ)·l − a‖ + b_a + v`
 //! against a reference track (position `p`, attitude `R`), solved by Gauss–Newton over
-//! `θ = (τ, l, b)` with `∂r/∂τ = u·ṗ`, `∂r/∂l = uᵀR`, `∂r/∂b_a = 1` (`u` the unit vector from the
-//! anchor to the tag; the tag's velocity is taken as the body's, leaving out `R(ω × l)`).
+//! `θ = (τ, l, b)` with `∂r/∂τ = u·(ṗ + R(ω × l))`, `∂r/∂l = uᵀR`, `∂r/∂b_a = 1` (`u` the unit
+//! vector from the anchor to the tag, `ω` the body rate between the reference's attitudes).
 //!
 //! * **With ground truth** of the tag `(t, position)` the reference is the truth (velocity by
 //!   central differences); the lever arm is then not estimated (the truth is already the tag).
@@ -93,18 +93,28 @@ impl Reference {
         }
     }
 
-    /// Position and velocity interpolated at `t`, and the attitude of the sample before it;
-    /// None outside the track.
-    fn at(&self, t: f64) -> Option<(Vec3, Vec3, Option<Quat>)> {
+    /// Position and velocity interpolated at `t`, and the attitude of the sample before it with
+    /// the body rate to the next (`log(q_k−1⁻¹·q_k)/Δt`, rad/s); None outside the track.
+    fn at(&self, t: f64) -> Option<TrackPoint> {
         let (first, last) = (*self.t.first()?, *self.t.last()?);
         if !(first..=last).contains(&t) {
             return None;
         }
         let k = self.t.partition_point(|&x| x <= t).clamp(1, self.t.len() - 1);
-        let w = (t - self.t[k - 1]) / (self.t[k] - self.t[k - 1]);
+        let dt = self.t[k] - self.t[k - 1];
+        let w = (t - self.t[k - 1]) / dt;
         let lerp = |x: &[Vec3]| x[k - 1] + (x[k] - x[k - 1]) * w;
-        Some((lerp(&self.p), lerp(&self.v), self.q.as_ref().map(|q| q[k - 1])))
+        let attitude = self.q.as_ref().map(|q| (q[k - 1], (q[k - 1].inverse() * q[k]).scaled_axis() / dt));
+        Some(TrackPoint { position: lerp(&self.p), velocity: lerp(&self.v), attitude })
     }
+}
+
+/// The reference at one time ([`Reference::at`]).
+struct TrackPoint {
+    position: Vec3,
+    velocity: Vec3,
+    /// Attitude and body rate, rad/s (filter tracks only).
+    attitude: Option<(Quat, Vec3)>,
 }
 
 /// Calibrates time offset and biases against the tag's ground truth `(t s, position m)`.
@@ -142,14 +152,15 @@ struct Theta {
 impl Theta {
     /// Predicted range and its Jacobian row `(∂/∂τ, ∂/∂l)` for a range from `anchor` stamped `t`.
     fn predict(&self, reference: &Reference, anchor: &Vec3, t: f64) -> Option<(f64, f64, Vec3)> {
-        let (p, v, q) = reference.at(t + self.tau)?;
-        let arm = q.map_or(Vec3::zeros(), |q| q * self.lever);
+        let TrackPoint { position: p, velocity: v, attitude } = reference.at(t + self.tau)?;
+        let (arm, arm_rate) =
+            attitude.map_or((Vec3::zeros(), Vec3::zeros()), |(q, rate)| (q * self.lever, q * rate.cross(&self.lever)));
         let d = p + arm - anchor;
         let range = d.norm();
         (range > 1e-6).then(|| {
             let u = d / range;
-            let dl = q.map_or(Vec3::zeros(), |q| q.inverse() * u);
-            (range, u.dot(&v), dl)
+            let dl = attitude.map_or(Vec3::zeros(), |(q, _)| q.inverse() * u);
+            (range, u.dot(&(v + arm_rate)), dl)
         })
     }
 }
