@@ -254,3 +254,27 @@ fn solve(reference: &Reference, input: &BatchInput<'_>, tau0: f64, lever0: Vec3,
         residual_rms_m: (rss / used.max(1) as f64).sqrt(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_time_offset_derivative_carries_the_lever_arm_rotation() {
+        // A body turning at 1 rad/s about z, standing still, lever arm 0.5 m along body x: the
+        // tag moves at 0.5 m/s, which ∂r/∂τ must see (finite differences over ±0.05 s).
+        let t: Vec<f64> = (0..=200).map(|k| k as f64 * 0.01).collect();
+        let q = t.iter().map(|&s| Quat::from_scaled_axis(Vec3::new(0.0, 0.0, s))).collect();
+        let reference = Reference { p: vec![Vec3::zeros(); t.len()], v: vec![Vec3::zeros(); t.len()], q: Some(q), t };
+        let anchor = Vec3::new(3.0, 1.0, 0.0);
+        let theta = |tau| Theta { tau, lever: Vec3::new(0.5, 0.0, 0.0), bias: BTreeMap::new() };
+        // Mid-sample, so that ±h reaches as many attitude samples on either side.
+        let t_mid = 1.005;
+        let (_, d_tau, _) = theta(0.0).predict(&reference, &anchor, t_mid).expect("range");
+        let h = 0.05;
+        let range = |tau| theta(tau).predict(&reference, &anchor, t_mid).expect("range").0;
+        let numeric = (range(h) - range(-h)) / (2.0 * h);
+        assert!(d_tau.abs() > 0.1, "the rotation moves the tag: {d_tau}");
+        assert!((d_tau - numeric).abs() < 0.01 * d_tau.abs().max(0.1), "analytic {d_tau} vs numeric {numeric}");
+    }
+}
