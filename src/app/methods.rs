@@ -68,6 +68,12 @@ impl Method {
         Self::NAMES[self as usize]
     }
 
+    /// Whether the method's run can be RTS-smoothed: the inertial 15-state filters (not
+    /// `uwb_ls` and the planar filters).
+    pub fn smoothable(self) -> bool {
+        !matches!(self, Self::UwbLs | Self::Ekf2d | Self::Ukf2d | Self::Cekf2d)
+    }
+
     /// Whether the batch API smooths the method's run when the caller does not say (`best`).
     pub fn smooths_by_default(self) -> bool {
         self == Self::Best
@@ -155,9 +161,6 @@ pub struct BatchInput<'a> {
     pub tdoa: &'a [TdoaMeasurement],
 }
 
-/// Names of the methods that can be RTS-smoothed (the inertial 15-state filters).
-const SMOOTHABLE: &str = "ekf, iekf, rekf, riekf, criekf, ckf, eskf, shaf, shfaf, ukf, best";
-
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (seed 001 §2.2) and a
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
@@ -191,9 +194,11 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let BatchInput { ranges, anchors, config, .. } = *input;
     match method {
-        Method::UwbLs | Method::Ekf2d | Method::Ukf2d | Method::Cekf2d if input.smooth => {
-            Err(Error::UnknownOption { kind: "smoothing method", got: method.name().into(), allowed: SMOOTHABLE.into() })
-        }
+        _ if input.smooth && !method.smoothable() => Err(Error::UnknownOption {
+            kind: "smoothing method",
+            got: method.name().into(),
+            allowed: Method::names_where(Method::smoothable),
+        }),
         Method::UwbLs => {
             let ls = LsConfig::from_filter_config(config);
             Ok(BatchOutput::Multilateration(uwb_ls(ranges, anchors, &ls)))

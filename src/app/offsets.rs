@@ -233,8 +233,8 @@ fn solve(reference: &Reference, input: &BatchInput<'_>, tau0: f64, lever0: Vec3,
     let cov =
         normal.cholesky().ok_or(Error::NotPositiveDefinite { what: "offset calibration normal matrix" })?.inverse() * sigma2;
     let std = |i: usize| cov[(i, i)].max(0.0).sqrt();
-    let count = |anchor: usize, ranges: &[usize]| ranges.iter().filter(|&&k| input.ranges[k].anchor == anchor).count();
-    let all: Vec<usize> = (0..input.ranges.len()).collect();
+    let used_of = |anchor: usize| kept.iter().filter(|&&k| input.ranges[k].anchor == anchor).count();
+    let ranges_of = |anchor: usize| input.ranges.iter().filter(|r| r.anchor == anchor).count();
     Ok(OffsetCalibration {
         time_offset_s: (theta.tau, std(0)),
         lever_arm: with_lever.then(|| (theta.lever, Vec3::new(std(1), std(2), std(3)))),
@@ -245,8 +245,8 @@ fn solve(reference: &Reference, input: &BatchInput<'_>, tau0: f64, lever0: Vec3,
                     anchor,
                     bias_m: theta.bias[&anchor],
                     std_m: std(first_bias + col),
-                    used: count(anchor, &kept),
-                    ranges: count(anchor, &all),
+                    used: used_of(anchor),
+                    ranges: ranges_of(anchor),
                 })
                 .collect(),
             passes,

@@ -21,7 +21,7 @@ pub use still::StillDetector;
 
 use crate::config::{ConstraintsConfig, MAX_SPEED_HISTORY};
 use crate::error::Result;
-use crate::filters::range_bias::{RangeBiasStates, AUG_DIM};
+use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::InertialCore;
 use crate::math::{Cov, Vec3};
 use crate::state::{ErrVec, NominalState, ERR_DIM, POS, VEL};
@@ -121,12 +121,7 @@ impl Constraints {
             let (x, p, cross) = core.parts_mut();
             match (bias, cross) {
                 (Some(bias), Some(cross)) => {
-                    bias.predict_to(t);
-                    let mut joint = bias.joint_covariance(p, cross);
-                    let mut params = bias.augmented_estimate();
-                    let estimated = if bias.consider() { ERR_DIM } else { AUG_DIM };
-                    rows.apply(x, &mut joint, &mut params, estimated)?;
-                    bias.split(&params, &joint, p, cross);
+                    bias.joint_step(t, p, cross, |joint, params, estimated| rows.apply(x, joint, params, estimated))?
                 }
                 _ => rows.apply(x, p, &mut ErrVec::zeros(), ERR_DIM)?,
             }

@@ -23,7 +23,7 @@
 //! changing angles. A common bias is the hardest — it is a scale of all ranges, which the
 //! position cannot absorb only when the anchors surround the tag in 3-D; with four coplanar
 //! anchors (tag height from the INS) or a tag outside the anchors' hull it is barely observable
-//! and the filter keeps it near its prior (its σ stays near `common_std`, reported). TDoA do not
+//! and the filter keeps it near its prior (its σ stays near `common_std`). TDoA do not
 //! see range biases (their Jacobian in the bias slots is zero).
 
 use crate::config::RangeBiasConfig;
@@ -75,13 +75,8 @@ impl RangeBiasStates {
         Ok(Self { config, anchors, estimate: SVector::zeros(), covariance, time_s: None })
     }
 
-    /// Whether the biases are only considered (Schmidt), not estimated.
-    pub fn consider(&self) -> bool {
-        self.config.consider
-    }
-
     /// Random-walk prediction of the bias covariance to `t_s` (`+ walk²·Δt` on the diagonal).
-    pub fn predict_to(&mut self, t_s: f64) {
+    fn predict_to(&mut self, t_s: f64) {
         if let Some(t0) = self.time_s {
             let dt = (t_s - t0).max(0.0);
             for a in 0..self.anchors {
@@ -103,36 +98,33 @@ impl RangeBiasStates {
         h
     }
 
-    /// The bias estimates in the bias slots of an augmented vector (zero elsewhere).
-    pub fn augmented_estimate(&self) -> SVector<f64, AUG_DIM> {
-        let mut v = SVector::<f64, AUG_DIM>::zeros();
-        v.fixed_rows_mut::<BIAS_SLOTS>(ERR_DIM).copy_from(&self.estimate);
-        v
-    }
-
-    /// The joint covariance `[[P, P_xb], [P_xbᵀ, P_bb]]`.
-    pub fn joint_covariance(&self, p: &SMatrix<f64, ERR_DIM, ERR_DIM>, cross: &BiasCross) -> Cov<AUG_DIM> {
-        let mut j = Cov::<AUG_DIM>::zeros();
-        j.fixed_view_mut::<ERR_DIM, ERR_DIM>(0, 0).copy_from(p);
-        j.fixed_view_mut::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM).copy_from(cross);
-        j.fixed_view_mut::<BIAS_SLOTS, ERR_DIM>(ERR_DIM, 0).copy_from(&cross.transpose());
-        j.fixed_view_mut::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM).copy_from(&self.covariance);
-        j
-    }
-
-    /// Takes back the bias part of an updated augmented estimate (`estimate` holds the biases in
-    /// its bias slots) and joint covariance; writes the 15-state covariance and the cross part.
-    pub fn split(
+    /// One step over the augmented error state at `t_s`: the biases are predicted to `t_s`, the
+    /// joint covariance `[[P, P_xb], [P_xbᵀ, P_bb]]` and the bias estimates (in the bias slots of
+    /// an augmented vector, zero elsewhere) are handed to `step` with the number of states that
+    /// get a gain (all, or the 15 INS states in the consider scheme), and taken back into `p`,
+    /// `cross` and the biases.
+    pub fn joint_step<R>(
         &mut self,
-        estimate: &SVector<f64, AUG_DIM>,
-        joint: &Cov<AUG_DIM>,
+        t_s: f64,
         p: &mut SMatrix<f64, ERR_DIM, ERR_DIM>,
         cross: &mut BiasCross,
-    ) {
+        step: impl FnOnce(&mut Cov<AUG_DIM>, &mut SVector<f64, AUG_DIM>, usize) -> Result<R>,
+    ) -> Result<R> {
+        self.predict_to(t_s);
+        let mut joint = Cov::<AUG_DIM>::zeros();
+        joint.fixed_view_mut::<ERR_DIM, ERR_DIM>(0, 0).copy_from(p);
+        joint.fixed_view_mut::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM).copy_from(cross);
+        joint.fixed_view_mut::<BIAS_SLOTS, ERR_DIM>(ERR_DIM, 0).copy_from(&cross.transpose());
+        joint.fixed_view_mut::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM).copy_from(&self.covariance);
+        let mut estimate = SVector::<f64, AUG_DIM>::zeros();
+        estimate.fixed_rows_mut::<BIAS_SLOTS>(ERR_DIM).copy_from(&self.estimate);
+        let estimated = if self.config.consider { ERR_DIM } else { AUG_DIM };
+        let out = step(&mut joint, &mut estimate, estimated)?;
         self.estimate.copy_from(&estimate.fixed_rows::<BIAS_SLOTS>(ERR_DIM));
         p.copy_from(&joint.fixed_view::<ERR_DIM, ERR_DIM>(0, 0));
         cross.copy_from(&joint.fixed_view::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM));
         self.covariance.copy_from(&joint.fixed_view::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM));
+        Ok(out)
     }
 
     /// An anchor's total bias `b_a + b_c` and its σ, m (None for an anchor out of range).
@@ -142,10 +134,5 @@ impl RangeBiasStates {
             let var = c[(anchor, anchor)] + c[(COMMON, COMMON)] + 2.0 * c[(anchor, COMMON)];
             (self.estimate[anchor] + self.estimate[COMMON], var.max(0.0).sqrt())
         })
-    }
-
-    /// The common bias and its σ, m.
-    pub fn common(&self) -> (f64, f64) {
-        (self.estimate[COMMON], self.covariance[(COMMON, COMMON)].max(0.0).sqrt())
     }
 }

@@ -6,7 +6,7 @@
 use crate::config::{FilterConfig, InitialState};
 use crate::error::{Error, Result};
 use crate::filters::constraints::Constraints;
-use crate::filters::range_bias::{RangeBiasStates, AUG_DIM};
+use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{InertialCore, InertialFilter};
@@ -334,7 +334,7 @@ impl TightFilter {
             lever_arm: self.config.mounting.lever_arm,
             nominal: NominalNoise::of(&self.config),
             policy: self.policy,
-            nlos_skew: self.config.robust.nlos_skew.unwrap_or(1.0),
+            nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
             range_noise: &mut self.range_noise,
             factors,
             fading,
@@ -343,16 +343,9 @@ impl TightFilter {
         };
         let (x, p, cross) = self.core.parts_mut();
         let iterations = match (self.range_bias.as_mut(), cross) {
-            (Some(bias), Some(cross)) => {
-                bias.predict_to(time_s);
-                let mut joint = bias.joint_covariance(p, cross);
-                let mut params = bias.augmented_estimate();
-                let estimated = if bias.consider() { ERR_DIM } else { AUG_DIM };
-                let iterations =
-                    epoch.iterate(x, &mut joint, &mut params, measurements, reports, RangeBiasStates::jacobian, estimated)?;
-                bias.split(&params, &joint, p, cross);
-                iterations
-            }
+            (Some(bias), Some(cross)) => bias.joint_step(time_s, p, cross, |joint, params, estimated| {
+                epoch.iterate(x, joint, params, measurements, reports, RangeBiasStates::jacobian, estimated)
+            })?,
             _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_| ErrVec::zeros(), ERR_DIM)?,
         };
         for r in reports.iter_mut().filter(|r| r.accepted) {
@@ -407,7 +400,7 @@ impl TightFilter {
             let inflation = if trusted_in_faded {
                 1.0
             } else {
-                self.policy.inflation(tested_nis(nis, residual, m.is_range(), config.robust.nlos_skew.unwrap_or(1.0)))
+                self.policy.inflation(tested_nis(nis, residual, m.is_range(), config.robust.nlos_skew_or_symmetric()))
             };
             apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
             *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);

@@ -198,6 +198,13 @@ section! {
     }
 }
 
+impl RobustConfig {
+    /// The NLOS skew in force: `nlos_skew`, or 1 (the symmetric test) when unset.
+    pub fn nlos_skew_or_symmetric(&self) -> f64 {
+        self.nlos_skew.unwrap_or(1.0)
+    }
+}
+
 section! {
     /// The motion constraints of seed 000 §2.2 ([`crate::filters::constraints`]).
     ConstraintsConfig = "constraints" {
