@@ -4,20 +4,20 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{Estimator, Stream};
-use uwbimu_rs::planar::{PlanarFilter, PlanarKind};
-use uwbimu_rs::records::{Observation, RangeMeasurement, TdoaMeasurement};
-use uwbimu_rs::update::UpdateReport;
+use uwbimu_rs::estimation::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
+use uwbimu_rs::estimation::pipeline::{Estimator, Stream};
+use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_rs::estimation::update::UpdateReport;
+use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::records::{Observation, RangeMeasurement, TdoaMeasurement};
 
 fn anchors() -> Vec<Vec3> {
     vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, 0.0, 1.0), Vec3::new(10.0, 8.0, 2.2), Vec3::new(0.0, 8.0, 0.8)]
 }
 
 /// A filter constructor of the shape shared by the named filters.
-type Build<F> = Box<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::Result<F>>;
+type Build<F> = Box<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::vocabulary::error::Result<F>>;
 
 fn setup<F: Estimator>(build: &Build<F>) -> F {
     let initial = InitialState { position: Vec3::new(4.0, 3.0, 0.3), ..InitialState::default() };

@@ -7,13 +7,13 @@ use std::hint::black_box;
 use std::io::Cursor;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
-use uwbimu_rs::io::{read_recording, Mapping};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::Method;
-use uwbimu_rs::records::{ImuSample, RangeMeasurement};
-use uwbimu_rs::replay::replay;
+use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::app::io::{read_recording, Mapping};
+use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::replay::replay;
+use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::records::{ImuSample, RangeMeasurement};
 
 const IMU_MESSAGES: usize = 80_000;
 const RANGE_MESSAGES: usize = 20_000;

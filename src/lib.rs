@@ -1,20 +1,14 @@
 #![doc = include_str!("../README.md")]
 
-pub mod app;
-pub mod estimation;
-pub mod vocabulary;
+/// Layer 1, the vocabulary every layer above speaks (crate `uwbimu_vocabulary`).
+pub use uwbimu_vocabulary as vocabulary;
 
-pub use app::{calibrate, columns, methods, metrics, offsets, tune};
-#[cfg(feature = "sim")]
-pub use app::{generality, sim};
-#[cfg(feature = "io")]
-pub use app::{io, replay};
-pub use estimation::{
-    crlb, epoch, filters, init, ins, models, multilateration, pipeline, planar, ranging, robust, smoother, update,
-};
-pub use vocabulary::{config, error, math, records, state, validate};
+/// Layer 2, estimation: the pieces and the filters composed of them (crate `uwbimu_estimation`).
+pub use uwbimu_estimation as estimation;
+
+/// Layer 3, applications of the estimators: named methods, calibration, tuning, metrics, the
+/// simulator, MCAP I/O and replay (crate `uwbimu_app`).
+pub use uwbimu_app as app;
 
 #[cfg(feature = "python")]
 mod bindings;
-
-pub use error::{Error, Result};

@@ -3,10 +3,10 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::filters::{Ackf, Ckf, InertialFilter};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{run, run_streams, Streams, Trace};
-use uwbimu_rs::sim::{preset, simulate, DriveOptions, MagConfig, MagDisturbance, SimConfig, SimData, Trajectory};
+use uwbimu_rs::app::sim::{preset, simulate, DriveOptions, MagConfig, MagDisturbance, SimConfig, SimData, Trajectory};
+use uwbimu_rs::estimation::filters::{Ackf, Ckf, InertialFilter};
+use uwbimu_rs::estimation::pipeline::{run, run_streams, Streams, Trace};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 /// The seed 002 garage with a 6 s still start (the reference period), two rectangle laps and a
 /// magnetometer; `disturbed` adds two 20 s field disturbances of ~40 % of the field.

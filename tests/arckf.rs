@@ -3,10 +3,10 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::filters::{Arckf, Ckf};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{run, Trace};
-use uwbimu_rs::sim::{preset, simulate, OverrideValue, SimData, LABEL_OUTLIER};
+use uwbimu_rs::app::sim::{preset, simulate, OverrideValue, SimData, LABEL_OUTLIER};
+use uwbimu_rs::estimation::filters::{Arckf, Ckf};
+use uwbimu_rs::estimation::pipeline::{run, Trace};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 const SEEDS: u64 = 3;
 

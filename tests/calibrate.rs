@@ -1,12 +1,12 @@
-//! Range-bias calibration (`uwbimu_rs::calibrate`) on a simulated run with known per-anchor
+//! Range-bias calibration (`uwbimu_rs::app::calibrate`) on a simulated run with known per-anchor
 //! biases: recovered with ground truth, and without it up to what the smoothed track absorbs.
 
 mod common;
 
-use uwbimu_rs::calibrate::{calibrate_with_truth, calibrate_without_truth};
-use uwbimu_rs::methods::BatchInput;
-use uwbimu_rs::methods::Method;
-use uwbimu_rs::sim;
+use uwbimu_rs::app::calibrate::{calibrate_with_truth, calibrate_without_truth};
+use uwbimu_rs::app::methods::BatchInput;
+use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::sim;
 
 #[test]
 fn known_biases_are_recovered() {
@@ -18,7 +18,7 @@ fn known_biases_are_recovered() {
         for r in &mut data.ranges {
             r.range_m += biases[r.anchor];
         }
-        let tag: Vec<(f64, uwbimu_rs::math::Vec3)> =
+        let tag: Vec<(f64, uwbimu_rs::vocabulary::math::Vec3)> =
             data.truth.iter().map(|t| (t.t_s, t.position + t.orientation * s.sim.lever_arm_m)).collect();
         let initial = s.true_initial(&data).expect("initial");
         let input = BatchInput {

@@ -4,11 +4,11 @@
 mod common;
 
 use common::{config_for, rms, truth_initial};
-use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::filters::Ekf;
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{run, Trace};
-use uwbimu_rs::sim::{simulate, DriveOptions, NlosConfig, NlosWindow, SimConfig, SimData, Trajectory, UwbConfig};
+use uwbimu_rs::app::sim::{simulate, DriveOptions, NlosConfig, NlosWindow, SimConfig, SimData, Trajectory, UwbConfig};
+use uwbimu_rs::estimation::filters::Ekf;
+use uwbimu_rs::estimation::pipeline::{run, Trace};
+use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::math::Vec3;
 
 fn ekf_trace(data: &SimData, config: FilterConfig) -> Trace {
     let mut ekf = Ekf::new(data.anchors.clone(), &truth_initial(data, Vec3::zeros()), config).expect("filter");
@@ -165,13 +165,13 @@ fn pseudo_velocity_lowers_error_in_a_uwb_outage_at_constant_speed() {
 
 /// Horizontal RMSE after the first 10 s of a forward run of `method` on zoo scenario `name`,
 /// library defaults (the scenario's mounting only) but `nlos_skew`, self-initialised.
-fn zoo_forward_rmse(method: uwbimu_rs::methods::Method, name: &str, seed: u64, nlos_skew: Option<f64>) -> f64 {
-    use uwbimu_rs::methods::{run_method, BatchOutput};
-    let s = uwbimu_rs::sim::zoo(name, seed).expect("zoo");
+fn zoo_forward_rmse(method: uwbimu_rs::app::methods::Method, name: &str, seed: u64, nlos_skew: Option<f64>) -> f64 {
+    use uwbimu_rs::app::methods::{run_method, BatchOutput};
+    let s = uwbimu_rs::app::sim::zoo(name, seed).expect("zoo");
     let data = simulate(&s.sim).expect("sim");
     let mut config = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
     config.robust.nlos_skew = nlos_skew;
-    let input = uwbimu_rs::methods::BatchInput { smooth: false, ..common::batch(&data, None, &config) };
+    let input = uwbimu_rs::app::methods::BatchInput { smooth: false, ..common::batch(&data, None, &config) };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
     let errors = common::horizontal_errors(&trace.steps, &data);
     let t0 = trace.steps[0].t_s;
@@ -181,7 +181,7 @@ fn zoo_forward_rmse(method: uwbimu_rs::methods::Method, name: &str, seed: u64, n
 
 #[test]
 fn best_gains_from_its_zero_velocity_constraint_at_stops_and_changes_little_in_motion() {
-    use uwbimu_rs::methods::Method;
+    use uwbimu_rs::app::methods::Method;
     // Seeds 6–7 were not used to choose `best` (0–5 were). Measured: forklift 0.39–0.47×,
     // stop_and_go 0.80–0.85× riekf; drone_flight, agv_loop, handheld_walk within 0.5 % (the
     // NLOS skew's share; the constraint alone: 0.1 %).
@@ -203,7 +203,7 @@ fn best_gains_from_its_zero_velocity_constraint_at_stops_and_changes_little_in_m
 
 #[test]
 fn best_nlos_skew_holds_out_a_shielded_anchor_and_costs_little_where_ranges_are_short() {
-    use uwbimu_rs::methods::Method;
+    use uwbimu_rs::app::methods::Method;
     // Held-out seeds 6–7, `best` forward with its skew against the symmetric test (nlos_skew 1).
     // Measured: nlos_one 0.65–0.66×, walk_nlos 0.94–0.95×; survey_error (anchors surveyed
     // wrong: ranges too short as often as too long) 1.02–1.03×.

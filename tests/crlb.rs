@@ -3,12 +3,12 @@
 mod common;
 
 use common::{config_for, truth_initial};
-use uwbimu_rs::crlb::posterior_crlb;
-use uwbimu_rs::filters::{Ekf, InertialFilter};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::run;
-use uwbimu_rs::sim::{preset, simulate, ImuNoise, SimData};
-use uwbimu_rs::state::{ErrCov, NominalState};
+use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimData};
+use uwbimu_rs::estimation::crlb::posterior_crlb;
+use uwbimu_rs::estimation::filters::{Ekf, InertialFilter};
+use uwbimu_rs::estimation::pipeline::run;
+use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::state::{ErrCov, NominalState};
 
 fn truth_states(data: &SimData) -> Vec<NominalState> {
     data.truth

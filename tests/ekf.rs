@@ -4,13 +4,13 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::filters::{Ekf, InertialFilter};
-use uwbimu_rs::init::{initialize, HeadingSource};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::metrics::evaluate;
-use uwbimu_rs::multilateration::{uwb_ls, LsConfig};
-use uwbimu_rs::pipeline::run;
-use uwbimu_rs::sim::{preset, simulate, ImuNoise, SimConfig, Trajectory};
+use uwbimu_rs::app::metrics::evaluate;
+use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimConfig, Trajectory};
+use uwbimu_rs::estimation::filters::{Ekf, InertialFilter};
+use uwbimu_rs::estimation::init::{initialize, HeadingSource};
+use uwbimu_rs::estimation::multilateration::{uwb_ls, LsConfig};
+use uwbimu_rs::estimation::pipeline::run;
+use uwbimu_rs::vocabulary::math::Vec3;
 
 #[test]
 fn mechanization_on_noise_free_data_stays_within_1cm_over_60s() {
@@ -105,7 +105,7 @@ fn self_initialisation_recovers_pose_from_still_start_and_motion() {
 
 #[test]
 fn upside_down_imu_needs_and_honours_imu_rotation() {
-    let upside_down = uwbimu_rs::math::quat_exp(&Vec3::new(std::f64::consts::PI, 0.0, 0.0));
+    let upside_down = uwbimu_rs::vocabulary::math::quat_exp(&Vec3::new(std::f64::consts::PI, 0.0, 0.0));
     let mut cfg = preset("seed000_los", 3).expect("preset");
     cfg.imu_rotation = upside_down;
     let data = simulate(&cfg).expect("sim");
@@ -116,7 +116,7 @@ fn upside_down_imu_needs_and_honours_imu_rotation() {
     };
     let right = rmse_with(config_for(&cfg)).expect("run with the right mounting");
     let mut wrong_cfg = config_for(&cfg);
-    wrong_cfg.mounting.imu_rotation = uwbimu_rs::math::Quat::identity();
+    wrong_cfg.mounting.imu_rotation = uwbimu_rs::vocabulary::math::Quat::identity();
     // Without the mounting the filter diverges: a huge error, or a clear numerical error.
     let wrong = rmse_with(wrong_cfg).unwrap_or(f64::INFINITY);
     println!("upside-down IMU: RMSE {right:.3} m with imu_rotation, {wrong:.3} m without");
@@ -126,7 +126,7 @@ fn upside_down_imu_needs_and_honours_imu_rotation() {
 
 #[test]
 fn ckf_tracks_the_seed002_rectangle_with_markov_biases() {
-    use uwbimu_rs::filters::Ckf;
+    use uwbimu_rs::estimation::filters::Ckf;
     let cfg = preset("seed002_rectangle", 1).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let fc = config_for(&cfg);
@@ -134,7 +134,7 @@ fn ckf_tracks_the_seed002_rectangle_with_markov_biases() {
     let trace =
         run(&mut Ckf::new(data.anchors.clone(), &initial, fc.clone()).expect("ckf"), &data.imu, &data.ranges).expect("run");
     let ckf = rms(&horizontal_errors(&trace.steps, &data));
-    let fc_range_std = |c: &uwbimu_rs::sim::SimConfig| c.uwb.range_std_m;
+    let fc_range_std = |c: &uwbimu_rs::app::sim::SimConfig| c.uwb.range_std_m;
     let ekf = rms(&horizontal_errors(
         &run(&mut Ekf::new(data.anchors.clone(), &initial, fc).expect("ekf"), &data.imu, &data.ranges).expect("run").steps,
         &data,

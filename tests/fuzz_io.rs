@@ -9,14 +9,13 @@ use std::sync::{mpsc, OnceLock};
 use std::time::Duration;
 
 use proptest::prelude::*;
-
-use uwbimu_rs::io::cdr::decode;
-use uwbimu_rs::io::mapping::{Mapping, UwbMapping};
-use uwbimu_rs::io::msg_schema::MsgSchema;
-use uwbimu_rs::io::read_recording;
-use uwbimu_rs::io::recording_out::{imu_cdr, write_recording_mcap, RecordingStreams, IMU_MSG};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::records::{ImuSample, RangeMeasurement};
+use uwbimu_rs::app::io::cdr::decode;
+use uwbimu_rs::app::io::mapping::{Mapping, UwbMapping};
+use uwbimu_rs::app::io::msg_schema::MsgSchema;
+use uwbimu_rs::app::io::read_recording;
+use uwbimu_rs::app::io::recording_out::{imu_cdr, write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::records::{ImuSample, RangeMeasurement};
 
 const VENDOR_MSG: &str = "std_msgs/Header header\nRng[] ranges\nfloat32[4] fixed\nstring<=8 tag\nuint8[<=3] flags\nwstring w\n\
     ===\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n\

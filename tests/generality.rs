@@ -9,9 +9,9 @@
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
-use uwbimu_rs::generality::{run_cell, Cell, Settings, Start};
-use uwbimu_rs::methods::Method;
-use uwbimu_rs::sim::ZOO_NAMES;
+use uwbimu_rs::app::generality::{run_cell, Cell, Settings, Start};
+use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::sim::ZOO_NAMES;
 
 const SEEDS: [u64; 3] = [0, 1, 2];
 
@@ -57,8 +57,8 @@ fn failure(cell: &Cell<'static>, start: Start) -> Option<String> {
 fn check(start: Start, settings: Settings<'static>) {
     let cells: Vec<Cell<'static>> = ZOO_NAMES
         .iter()
-        .flat_map(|s| Method::NAMES[1..].iter().flat_map(move |m| SEEDS.iter().map(move |&seed| (*s, *m, seed))))
-        .map(|(scenario, m, seed)| Cell { scenario, seed, method: Method::parse(m).unwrap(), start, settings })
+        .flat_map(|s| Method::ALL[1..].iter().flat_map(move |m| SEEDS.iter().map(move |&seed| (*s, *m, seed))))
+        .map(|(scenario, method, seed)| Cell { scenario, seed, method, start, settings })
         .collect();
     // On all cores with `parallel`, else one after the other (the same cells, the same order).
     #[cfg(feature = "parallel")]
@@ -112,9 +112,9 @@ fn a_diverged_filter_re_acquires_when_most_epochs_hold_two_ranges() {
     // divergence watch must not be reset by the two-range epochs, which it cannot judge:
     // with that reset RIEKF's RMSE was 4.9 m (seeds 0–4); measured now 0.370 / 0.285 / 0.167 m,
     // worst error 2.93 / 1.95 / 1.99 m.
-    use uwbimu_rs::filters::Riekf;
-    use uwbimu_rs::pipeline::run;
-    use uwbimu_rs::sim::{simulate, zoo, AccelOutliers};
+    use uwbimu_rs::app::sim::{simulate, zoo, AccelOutliers};
+    use uwbimu_rs::estimation::filters::Riekf;
+    use uwbimu_rs::estimation::pipeline::run;
     for seed in 0..3 {
         let mut scenario = zoo("mixed_rates", seed).unwrap();
         scenario.sim.accel_outliers = AccelOutliers { count: 3, ..AccelOutliers::default() };

@@ -8,11 +8,11 @@ mod common;
 
 use std::path::PathBuf;
 
-use uwbimu_rs::io::mapping::AnchorMapping;
-use uwbimu_rs::io::truth_file::read_truth_csv;
-use uwbimu_rs::io::{read_recording_file, Recording, ReplayConfig};
-use uwbimu_rs::methods::Method;
-use uwbimu_rs::replay::{compare_with_truth, replay};
+use uwbimu_rs::app::io::mapping::AnchorMapping;
+use uwbimu_rs::app::io::truth_file::read_truth_csv;
+use uwbimu_rs::app::io::{read_recording_file, Recording, ReplayConfig};
+use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::replay::{compare_with_truth, replay};
 
 fn repo(path: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -23,7 +23,7 @@ fn config() -> ReplayConfig {
 }
 
 /// Ground truth: (time s, position m).
-type Truth = Vec<(f64, uwbimu_rs::math::Vec3)>;
+type Truth = Vec<(f64, uwbimu_rs::vocabulary::math::Vec3)>;
 
 /// The recording with the checked-in mapping, its file and the ground truth; None (the test is
 /// skipped, with a message) without `../shared/data`.
@@ -50,7 +50,7 @@ fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     assert!(rec.imu.windows(2).all(|w| w[1].t_s > w[0].t_s));
     assert!(rec.ranges.windows(2).all(|w| w[1].t_s >= w[0].t_s));
     // Anchor positions carried by the messages agree with anchors.csv (float32 in the message).
-    let file = uwbimu_rs::io::anchors::read_anchor_file(&common::isas_walk1("anchors.csv").unwrap()).unwrap();
+    let file = uwbimu_rs::app::io::anchors::read_anchor_file(&common::isas_walk1("anchors.csv").unwrap()).unwrap();
     assert_eq!(rec.anchor_ids.len(), 5);
     for (id, p) in rec.anchor_ids.iter().zip(&rec.anchors) {
         assert!((file[id] - p).norm() < 1e-6, "anchor {id}: {p:?} vs {:?}", file[id]);
@@ -104,7 +104,7 @@ fn every_method_holds_up_with_the_defaults() {
     // what each method measured (README, "Defaults on a real log").
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
-    let defaults = uwbimu_rs::config::FilterConfig::default();
+    let defaults = uwbimu_rs::vocabulary::config::FilterConfig::default();
     let aligned = |m: &str| {
         let r = replay(&rec, Method::parse(m).unwrap(), &defaults, None, false).unwrap();
         compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal
@@ -132,7 +132,7 @@ fn every_method_holds_up_with_the_defaults() {
         // 0.076 m smoothed, README).
         ("best", 0.14),
     ];
-    assert_eq!(bounds.len() + 1, Method::NAMES.len());
+    assert_eq!(bounds.len() + 1, Method::ALL.len());
     for (m, bound) in bounds {
         let h = aligned(m);
         println!("{m}: aligned {:.3} m (max {:.2} m), uwb_ls {ls:.3} m", h.rmse, h.max);
@@ -142,9 +142,9 @@ fn every_method_holds_up_with_the_defaults() {
 
 #[test]
 fn range_biases_from_the_log_with_and_without_ground_truth() {
-    use uwbimu_rs::calibrate::{calibrate_with_truth, calibrate_without_truth};
-    use uwbimu_rs::config::FilterConfig;
-    use uwbimu_rs::methods::BatchInput;
+    use uwbimu_rs::app::calibrate::{calibrate_with_truth, calibrate_without_truth};
+    use uwbimu_rs::app::methods::BatchInput;
+    use uwbimu_rs::vocabulary::config::FilterConfig;
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = FilterConfig::default();
@@ -169,7 +169,7 @@ fn range_biases_from_the_log_with_and_without_ground_truth() {
         worst = worst.max((a.bias_m - b.bias_m).abs());
     }
     // The recording's README: per-anchor biases from −0.19 to +0.12 m. Measured −0.194 … +0.117.
-    let spread = |c: &uwbimu_rs::calibrate::BiasCalibration| {
+    let spread = |c: &uwbimu_rs::app::calibrate::BiasCalibration| {
         let b = c.anchors.iter().map(|a| a.bias_m);
         b.clone().fold(f64::NEG_INFINITY, f64::max) - b.fold(f64::INFINITY, f64::min)
     };

@@ -1,12 +1,12 @@
 //! Laws of the INS core and the range model: analytic Jacobians against central differences,
 //! block-structured propagation against the dense product, Joseph update against its definition.
 
-use uwbimu_rs::config::{FilterConfig, InsConfig};
-use uwbimu_rs::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
-use uwbimu_rs::math::{quat_exp, skew, Quat, Vec3};
-use uwbimu_rs::models::range::predict_range;
-use uwbimu_rs::state::{ErrCov, ErrVec, NominalState, ATT, BA, BG, ERR_DIM, VEL};
-use uwbimu_rs::update::{inject_and_reset, scalar_step};
+use uwbimu_rs::estimation::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
+use uwbimu_rs::estimation::models::range::predict_range;
+use uwbimu_rs::estimation::update::{inject_and_reset, scalar_step};
+use uwbimu_rs::vocabulary::config::{FilterConfig, InsConfig};
+use uwbimu_rs::vocabulary::math::{quat_exp, skew, Quat, Vec3};
+use uwbimu_rs::vocabulary::state::{ErrCov, ErrVec, NominalState, ATT, BA, BG, ERR_DIM, VEL};
 
 fn example_state() -> NominalState {
     NominalState {

@@ -3,12 +3,12 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::filters::{Eskf, InertialFilter};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::metrics::evaluate;
-use uwbimu_rs::multilateration::{uwb_ls, LsConfig};
-use uwbimu_rs::pipeline::run;
-use uwbimu_rs::sim::{preset, simulate};
+use uwbimu_rs::app::metrics::evaluate;
+use uwbimu_rs::app::sim::{preset, simulate};
+use uwbimu_rs::estimation::filters::{Eskf, InertialFilter};
+use uwbimu_rs::estimation::multilateration::{uwb_ls, LsConfig};
+use uwbimu_rs::estimation::pipeline::run;
+use uwbimu_rs::vocabulary::math::Vec3;
 
 #[test]
 fn eskf_beats_uwb_only_on_seed004_scenario1() {
@@ -42,7 +42,7 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
 /// and the time after which each filter's error stays below 0.2 m. `paper`: the filters as printed (plain
 /// least-squares fix covariance, unbounded Sage–Husa); else this crate's defaults.
 fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, paper: bool) -> ([f64; 4], [f64; 3]) {
-    use uwbimu_rs::filters::{Shaf, Shfaf};
+    use uwbimu_rs::estimation::filters::{Shaf, Shfaf};
     let cfg = preset(name, seed).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let mut fc = config_for(&cfg);

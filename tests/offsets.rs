@@ -1,13 +1,13 @@
-//! Time offset and lever arm calibration ([`uwbimu_rs::offsets`]) on simulated runs with a known
+//! Time offset and lever arm calibration ([`uwbimu_rs::app::offsets`]) on simulated runs with a known
 //! lever arm, UWB stamps that lag the measurement, and per-anchor biases.
 
 mod common;
 
-use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::{run_method, BatchOutput, Method};
-use uwbimu_rs::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
-use uwbimu_rs::sim;
+use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
+use uwbimu_rs::app::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
+use uwbimu_rs::app::sim;
+use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::math::Vec3;
 
 /// UWB stamps lag the true measurement time by this much (τ = −LAG).
 const LAG_S: f64 = 0.08;

@@ -1,13 +1,13 @@
-//! Range bias states ([`uwbimu_rs::filters::range_bias`]) and noise tuning ([`uwbimu_rs::tune`]) on
+//! Range bias states ([`uwbimu_rs::estimation::filters::range_bias`]) and noise tuning ([`uwbimu_rs::app::tune`]) on
 //! simulated runs whose truth is known; and `best` smooths by default.
 
 mod common;
 
-use uwbimu_rs::config::{ConfigValue, FilterConfig};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::{run_method, BatchInput, BatchOutput, Method};
-use uwbimu_rs::sim;
-use uwbimu_rs::tune::{tune, Objective};
+use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
+use uwbimu_rs::app::sim;
+use uwbimu_rs::app::tune::{tune, Objective};
+use uwbimu_rs::vocabulary::config::{ConfigValue, FilterConfig};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 /// Horizontal RMSE of a run's steps after the first 10 s.
 fn rmse(output: &BatchOutput, data: &sim::SimData) -> f64 {
@@ -80,11 +80,11 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
 fn bias_states_refuse_the_unscented_strategy_and_too_many_anchors() {
     let anchors: Vec<Vec3> = (0..4).map(|i| Vec3::new(i as f64, 0.0, 1.0)).collect();
     let config = with(&FilterConfig::default(), &[("range_bias.states", ConfigValue::Flag(true))]);
-    let init = uwbimu_rs::config::InitialState::default();
-    let err = uwbimu_rs::filters::Ukf::new(anchors, &init, config.clone()).expect_err("ukf");
+    let init = uwbimu_rs::vocabulary::config::InitialState::default();
+    let err = uwbimu_rs::estimation::filters::Ukf::new(anchors, &init, config.clone()).expect_err("ukf");
     assert!(err.to_string().contains("unscented"), "{err}");
     let many: Vec<Vec3> = (0..17).map(|i| Vec3::new(i as f64, 0.0, 1.0)).collect();
-    let err = uwbimu_rs::filters::Riekf::new(many, &init, config).expect_err("17 anchors");
+    let err = uwbimu_rs::estimation::filters::Riekf::new(many, &init, config).expect_err("17 anchors");
     assert!(err.to_string().contains("16"), "{err}");
 }
 

@@ -4,12 +4,15 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
-use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::methods::{run_method, BatchInput, BatchOutput, Method};
-use uwbimu_rs::ranging::calibration::{eval_cubic, fit_cubic, RangeCalibration};
-use uwbimu_rs::ranging::{distance_m, dw1000_elapsed_s, sds_twr_tof_s, ss_twr_tof_s, DW1000_TICK_S, SPEED_OF_LIGHT_MPS};
-use uwbimu_rs::records::RangeMeasurement;
-use uwbimu_rs::Error;
+use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
+use uwbimu_rs::estimation::ranging::calibration::{fit_cubic, fit_range_calibration};
+use uwbimu_rs::estimation::ranging::{
+    distance_m, dw1000_elapsed_s, sds_twr_tof_s, ss_twr_tof_s, DW1000_TICK_S, SPEED_OF_LIGHT_MPS,
+};
+use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::config::{eval_cubic, RangeCalibration};
+use uwbimu_rs::vocabulary::error::Error;
+use uwbimu_rs::vocabulary::records::RangeMeasurement;
 
 /// The four intervals of one SDS-TWR exchange, each on its own device's clock (clock A runs at
 /// `1 + ea`, B at `1 + eb`): A polls, B replies after `reply_b_s`, A answers after `reply_a_s`.
@@ -121,8 +124,8 @@ fn calibration_errors() {
 
 #[test]
 fn per_anchor_fit_and_batch_preprocessing() {
-    let sim = uwbimu_rs::sim::preset("seed001", 3).expect("preset");
-    let mut data = uwbimu_rs::sim::simulate(&sim).expect("sim");
+    let sim = uwbimu_rs::app::sim::preset("seed001", 3).expect("preset");
+    let mut data = uwbimu_rs::app::sim::simulate(&sim).expect("sim");
     // Distort anchors 0 and 3 by the inverse of a known calibration (solved per range by
     // Newton), then undo it with that calibration as preprocessing.
     let cal = RangeCalibration::new([(0, DISTORTION), (3, DISTORTION)].into_iter().collect()).expect("finite");
@@ -169,7 +172,7 @@ fn per_anchor_fit_and_batch_preprocessing() {
     let (anchors, (measured, truth)): (Vec<usize>, (Vec<f64>, Vec<f64>)) = (0..60u32)
         .map(|i| (i as usize % 2, (0.3 + 0.08 * f64::from(i), eval_cubic(&DISTORTION, 0.3 + 0.08 * f64::from(i)))))
         .unzip();
-    let fitted = RangeCalibration::fit(&anchors, &measured, &truth).expect("fit");
+    let fitted = fit_range_calibration(&anchors, &measured, &truth).expect("fit");
     assert_eq!(fitted.coefficients().len(), 2);
     assert!((fitted.correct(1, 2.5) - eval_cubic(&DISTORTION, 2.5)).abs() < 1e-9);
 }

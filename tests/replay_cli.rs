@@ -12,9 +12,9 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use uwbimu_rs::io::mcap_read::{read_mcap, McapEvent};
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
-use uwbimu_rs::sim::{preset, simulate, SimData};
+use uwbimu_rs::app::io::mcap_read::{read_mcap, McapEvent};
+use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::app::sim::{preset, simulate, SimData};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("uwbimu_cli_{}", std::process::id()));
@@ -150,7 +150,7 @@ fn mappings_that_do_not_fit_are_reported() {
     let f = file.to_str().unwrap();
     fails_with(&replay(&[f, "--imu-topic", "/nope"]), "topic `/nope` not found");
     fails_with(&replay(&[f, "--uwb-topic", "/uwb2"]), "topic `/uwb2` not found");
-    fails_with(&replay(&[f, "--method", "kalman"]), "allowed: uwb_ls, ekf");
+    fails_with(&replay(&[f, "--method", "kalman"]), "possible values: uwb_ls, ekf");
 }
 
 #[test]

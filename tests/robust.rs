@@ -4,12 +4,12 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{run, Trace};
-use uwbimu_rs::robust::chi2_quantile_1dof;
-use uwbimu_rs::sim::{preset, simulate, SimData};
+use uwbimu_rs::app::sim::{preset, simulate, SimData};
+use uwbimu_rs::estimation::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
+use uwbimu_rs::estimation::pipeline::{run, Trace};
+use uwbimu_rs::estimation::robust::chi2_quantile_1dof;
+use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::math::Vec3;
 
 fn trace<F: InertialFilter>(filter: &mut F, data: &SimData) -> Trace {
     run(filter, &data.imu, &data.ranges).expect("run")
@@ -100,19 +100,22 @@ fn robust_filters_down_weight_nlos_ranges_more_than_los_ranges() {
 }
 
 /// Mean and max horizontal error of per-IMU-sample estimates.
-fn mean_max(steps: &[uwbimu_rs::pipeline::StepRecord], data: &SimData) -> (f64, f64) {
+fn mean_max(steps: &[uwbimu_rs::estimation::pipeline::StepRecord], data: &SimData) -> (f64, f64) {
     let e = horizontal_errors(steps, data);
     (e.iter().sum::<f64>() / e.len() as f64, e.iter().copied().fold(0.0, f64::max))
 }
 
 #[test]
 fn seed000_nlos_table_over_five_seeds() {
-    use uwbimu_rs::filters::Criekf;
-    use uwbimu_rs::init::initialize;
-    use uwbimu_rs::metrics::evaluate;
-    use uwbimu_rs::multilateration::{uwb_ls, LsConfig};
+    use uwbimu_rs::app::metrics::evaluate;
+    use uwbimu_rs::estimation::filters::Criekf;
+    use uwbimu_rs::estimation::init::initialize;
+    use uwbimu_rs::estimation::multilateration::{uwb_ls, LsConfig};
 
-    fn go<F: InertialFilter>(f: uwbimu_rs::Result<F>, data: &SimData) -> uwbimu_rs::Result<Trace> {
+    fn go<F: InertialFilter>(
+        f: uwbimu_rs::vocabulary::error::Result<F>,
+        data: &SimData,
+    ) -> uwbimu_rs::vocabulary::error::Result<Trace> {
         run(&mut f?, &data.imu, &data.ranges)
     }
     let seeds = 0..5u64;
@@ -165,7 +168,7 @@ fn seed000_nlos_table_over_five_seeds() {
 
 #[test]
 fn adaptive_range_noise_learns_a_noisy_anchor() {
-    use uwbimu_rs::sim::{NlosConfig, NlosWindow};
+    use uwbimu_rs::app::sim::{NlosConfig, NlosWindow};
     // Anchor 2 is five times noisier than configured for the whole run (no bias).
     let mut cfg = preset("seed000_los", 6).expect("preset");
     let end = cfg.trajectory.duration_s();
@@ -210,14 +213,14 @@ fn adaptive_range_noise_learns_a_noisy_anchor() {
 
 #[test]
 fn student_t_weights_down_weight_gross_outliers_without_a_threshold() {
-    use uwbimu_rs::filters::{Composition, TightFilter, UpdateStrategy};
-    use uwbimu_rs::robust::RangeNoisePolicy;
+    use uwbimu_rs::estimation::filters::{Composition, TightFilter, UpdateStrategy};
+    use uwbimu_rs::estimation::robust::RangeNoisePolicy;
     // The zoo's `outliers` scenario (8 coplanar anchors, 5–7 % gross range errors) and the
     // far start: the heavy-tailed policy with the iterated strategy against the EKF and RIEKF.
     for (name, seeds) in [("outliers", 0..3), ("far_start", 0..2)] {
         let (mut ekf_sum, mut riekf_sum, mut t_sum) = (0.0, 0.0, 0.0);
         for seed in seeds {
-            let s = uwbimu_rs::sim::zoo(name, seed).expect("zoo");
+            let s = uwbimu_rs::app::sim::zoo(name, seed).expect("zoo");
             let data = simulate(&s.sim).expect("sim");
             let initial = s.true_initial(&data).expect("initial");
             let rmse = |composition: Composition| {

@@ -4,12 +4,12 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::filters::{InertialFilter, Ukf};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::{run_method, BatchOutput, Method};
-use uwbimu_rs::pipeline::{run, StepRecord};
-use uwbimu_rs::sim::{preset, simulate, SimData};
+use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
+use uwbimu_rs::app::sim::{preset, simulate, SimData};
+use uwbimu_rs::estimation::filters::{InertialFilter, Ukf};
+use uwbimu_rs::estimation::pipeline::{run, StepRecord};
+use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 fn steps(method: Method, data: &SimData, initial: Option<&InitialState>, config: &FilterConfig) -> Vec<StepRecord> {
     let input = common::batch(data, initial, config);
@@ -33,7 +33,7 @@ fn axis_errors(steps: &[StepRecord], data: &SimData) -> [f64; 4] {
 const PLANAR: [Method; 3] = [Method::Ekf2d, Method::Ukf2d, Method::Cekf2d];
 
 /// Mean horizontal error of `uwb_ls` on the same run, against the true tag position.
-fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::sim::SimConfig, config: &FilterConfig) -> f64 {
+fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::app::sim::SimConfig, config: &FilterConfig) -> f64 {
     let input = common::batch(data, None, config);
     let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &input).expect("uwb_ls") else { unreachable!("uwb_ls") };
     let e: Vec<f64> = fixes
@@ -182,8 +182,8 @@ fn bad_unscented_settings_are_config_errors() {
     let sim = preset("seed001", 0).expect("preset");
     let data = simulate(&sim).expect("sim");
     let mut config = FilterConfig::default();
-    assert!(config.set("ukf_lambda", &uwbimu_rs::config::ConfigValue::Scalar(-4.0)).is_err());
-    assert!(config.set("cekf_window", &uwbimu_rs::config::ConfigValue::Scalar(0.0)).is_err());
+    assert!(config.set("ukf_lambda", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(-4.0)).is_err());
+    assert!(config.set("cekf_window", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(0.0)).is_err());
     config.unscented.lambda = -20.0;
     assert!(Ukf::new(data.anchors.clone(), &InitialState::default(), config).is_err());
 }

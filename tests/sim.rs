@@ -3,12 +3,12 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use uwbimu_rs::math::{quat_exp, Quat, Vec3};
-use uwbimu_rs::sim::{
+use uwbimu_rs::app::sim::{
     ideal_imu, preset, simulate, DriveOptions, ImuNoise, MagConfig, MagDisturbance, NlosConfig, NlosWindow, OverrideValue,
     SimConfig, Trajectory, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
 };
-use uwbimu_rs::Error;
+use uwbimu_rs::vocabulary::error::Error;
+use uwbimu_rs::vocabulary::math::{quat_exp, Quat, Vec3};
 
 const G: f64 = 9.80665;
 
@@ -335,7 +335,7 @@ fn invalid_config_is_rejected() {
 
 #[test]
 fn presets_run_and_unknown_names_are_rejected() {
-    for name in uwbimu_rs::sim::PRESET_NAMES {
+    for name in uwbimu_rs::app::sim::PRESET_NAMES {
         let cfg = preset(name, 1).expect("test setup");
         let data = simulate(&cfg).expect("test setup");
         assert_eq!(data.imu.len(), data.truth.len(), "{name}");

@@ -3,10 +3,10 @@
 mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
-use uwbimu_rs::filters::{Ekf, Riekf};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::pipeline::{run, run_smoothed};
-use uwbimu_rs::sim::{preset, simulate};
+use uwbimu_rs::app::sim::{preset, simulate};
+use uwbimu_rs::estimation::filters::{Ekf, Riekf};
+use uwbimu_rs::estimation::pipeline::{run, run_smoothed};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 #[test]
 fn smoothing_lowers_error_and_covariance() {
@@ -52,8 +52,8 @@ fn recording_does_not_change_the_filter() {
 
 #[test]
 fn smoothing_an_arckf_run_uses_its_faded_priors() {
-    use uwbimu_rs::filters::{Arckf, InertialFilter};
-    use uwbimu_rs::sim::OverrideValue;
+    use uwbimu_rs::app::sim::OverrideValue;
+    use uwbimu_rs::estimation::filters::{Arckf, InertialFilter};
     for seed in 0..3 {
         let mut cfg = preset("seed002_rectangle", seed).expect("preset");
         cfg.apply_overrides(&[("accel_outlier_count", OverrideValue::Number(2.0))]).expect("override");
@@ -78,14 +78,14 @@ fn smoothing_bridges_a_range_outage() {
     // already covers the discrepancy and is therefore not widened, so the backward pass carries
     // the re-acquired position through the gap. Measured (seeds 0–2) over the gap and the second
     // after it: filtered 0.19 / 0.32 / 0.57 m, smoothed 0.046 / 0.019 / 0.065 m.
-    use uwbimu_rs::sim::zoo;
+    use uwbimu_rs::app::sim::zoo;
     for seed in 0..3 {
         let scenario = zoo("outage", seed).expect("zoo");
         let data = simulate(&scenario.sim).expect("sim");
         let initial = scenario.true_initial(&data).expect("initial");
         let mut ekf = Ekf::new(data.anchors.clone(), &initial, scenario.config.clone()).expect("filter");
         let (trace, smoothed) = run_smoothed(&mut ekf, &data.imu, &data.ranges).expect("run");
-        let in_gap = |steps: &[uwbimu_rs::pipeline::StepRecord]| {
+        let in_gap = |steps: &[uwbimu_rs::estimation::pipeline::StepRecord]| {
             let errors: Vec<f64> = steps
                 .iter()
                 .zip(&data.truth)

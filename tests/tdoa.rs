@@ -5,14 +5,14 @@
 mod common;
 
 use common::{horizontal_errors, rms};
-use uwbimu_rs::config::FilterConfig;
-use uwbimu_rs::filters::{Ackf, Composition, InertialFilter, Rekf, TightFilter, UpdateStrategy};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::{run_method, BatchInput, BatchOutput, Method};
-use uwbimu_rs::pipeline::{run_streams, Event, Stream, Streams};
-use uwbimu_rs::records::MagSample;
-use uwbimu_rs::robust::{chi2_quantile_1dof, RangeNoisePolicy};
-use uwbimu_rs::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
+use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
+use uwbimu_rs::app::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
+use uwbimu_rs::estimation::filters::{Ackf, Composition, InertialFilter, Rekf, TightFilter, UpdateStrategy};
+use uwbimu_rs::estimation::pipeline::{run_streams, Event, Stream, Streams};
+use uwbimu_rs::estimation::robust::{chi2_quantile_1dof, RangeNoisePolicy};
+use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::records::MagSample;
 
 /// The TDoA setting: 10 rounds a second, σ 5 cm, 3 % gross errors of 1–5 m.
 fn tdoa_scenario(name: &str, seed: u64) -> (Scenario, SimData) {
@@ -30,7 +30,12 @@ fn tdoa_only_rmse(method: Method, s: &Scenario, data: &SimData) -> f64 {
 }
 
 /// Horizontal RMSE after the first 10 s of a TDoA-only run from `initial` (None: self-initialised).
-fn run_rmse(method: Method, data: &SimData, initial: Option<&uwbimu_rs::config::InitialState>, config: &FilterConfig) -> f64 {
+fn run_rmse(
+    method: Method,
+    data: &SimData,
+    initial: Option<&uwbimu_rs::vocabulary::config::InitialState>,
+    config: &FilterConfig,
+) -> f64 {
     let input = BatchInput {
         imu: &data.imu,
         ranges: &[],

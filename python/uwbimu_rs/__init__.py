@@ -16,6 +16,7 @@ import polars as pl
 
 from uwbimu_rs._native import (
     FILTERS,
+    METHODS,
     Ackf,
     Arckf,
     Best,
@@ -41,6 +42,7 @@ from uwbimu_rs import _native, ranging
 
 __all__ = [
     "FILTERS",
+    "METHODS",
     "Ackf",
     "Arckf",
     "Best",
@@ -211,9 +213,8 @@ def run_filter(
     Parameters
     ----------
     method : str
-        One of ``uwbimu_rs.FILTERS`` (``"uwb_ls"``, ``"ekf"``, ``"iekf"``, ``"rekf"``, ``"riekf"``, ``"criekf"``, ``"ckf"``, ``"arckf"``, ``"ackf"``, ``"eskf"``,
-        ``"shaf"``, ``"shfaf"``, ``"ukf"``, the planar ``"ekf2d"``, ``"ukf2d"``, ``"cekf2d"`` of seed 001,
-        and ``"best"``, the recommended method for real logs (README "``best`` and the isas-walk1 table")).
+        One of ``uwbimu_rs.FILTERS``; ``uwbimu_rs.METHODS[name]["summary"]`` says what each is.
+        ``"best"`` is the recommended method for real logs.
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3)
@@ -240,9 +241,8 @@ def run_filter(
         Time differences of arrival ``t, i, j, d_ij`` with ``d_ij = |p − a_j| − |p − a_i|`` [m]
         (Loco Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time,
         noise σ = ``tdoa_std``. Alone (``ranges`` an empty ``(0, 3)`` array; without ``initial`` the
-        filter initialises itself from TDoA fixes) or with ranges. Taken by the tightly coupled inertial
-        methods (``ekf``, ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``,
-        ``ackf``, ``ukf``) through their own noise policy (the robust ones down-weight TDoA
+        filter initialises itself from TDoA fixes) or with ranges. Taken by the methods whose
+        ``METHODS[name]["takes"]`` lists ``"tdoa"`` (the tightly coupled ones) through their own noise policy (the robust ones down-weight TDoA
         outliers by χ² inflation); the others raise ValueError.
     updates : bool
         Also return a DataFrame with one row per range or TDoA update
@@ -442,9 +442,9 @@ def replay(
     initial : dict, optional
         Initial state as for :func:`run_filter`; replaces the config file's ``[initial]``. None
         and no ``[initial]``: self-initialisation (from the ranges, or from the TDoA of a
-        recording without ranges). TDoA are taken by the tightly coupled methods (``ekf``,
-        ``iekf``, ``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``, ``ackf``, ``ukf``); the
-        others raise ValueError on a recording with TDoA.
+        recording without ranges). TDoA are taken by the methods whose
+        ``METHODS[name]["takes"]`` lists ``"tdoa"``; the others raise ValueError on a recording
+        with TDoA.
     smooth : bool, optional
         Return RTS-smoothed estimates (inertial methods; None: only for ``"best"``).
 

@@ -11,7 +11,7 @@ NumPy array (``range_labels``: uint8) owned by the caller.
 """
 
 from collections.abc import Sequence
-from typing import Any, TypeVar, final
+from typing import Any, Literal, TypedDict, TypeVar, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,6 +54,7 @@ __all__ = [
     "run_filter",
     "initialize_state",
     "FILTERS",
+    "METHODS",
     "calibrate_log",
     "tune_noise",
     "evaluate",
@@ -111,10 +112,31 @@ class FormatError(OSError):
 # Filters (src/bindings/filters.rs)
 # --------------------------------------------------------------------------------------------
 
-FILTERS: list[str]
-"""Method names accepted by :func:`run_filter`: ``uwb_ls``, the 15-state filters ``ekf``, ``iekf``,
-``rekf``, ``riekf``, ``criekf``, ``ckf``, ``arckf``, ``ackf``, ``eskf``, ``shaf``, ``shfaf``, ``ukf``
-and the planar ``ekf2d``, ``ukf2d``, ``cekf2d``."""
+_MethodName = Literal[
+    "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf",
+    "ekf2d", "ukf2d", "cekf2d", "best",
+]
+"""A method name: the rows of the registry (``crates/uwbimu-app/src/methods.rs``), in its order
+(tests/python/test_registry.py holds this list to :data:`FILTERS`)."""
+
+class _MethodRow(TypedDict):
+    """What the registry says of one method."""
+
+    takes: list[Literal["ranges", "tdoa", "magnetometer"]]
+    """The measurements it takes besides IMU samples."""
+    smoothing: Literal["never", "on_request", "by_default"]
+    """Whether and when :func:`run_filter` RTS-smooths its run."""
+    streaming_class: str | None
+    """The name of its streaming class in ``uwbimu_rs``, if it has one."""
+    summary: str
+    """One sentence: what it is and where it comes from."""
+
+FILTERS: list[_MethodName]
+"""Every method name accepted by :func:`run_filter`, :func:`replay` and the CLI, in registry order."""
+
+METHODS: dict[_MethodName, _MethodRow]
+"""The method registry, one row per name of :data:`FILTERS`: what each takes, its smoothing, its
+streaming class and its summary."""
 
 @final
 class FilterConfig:

@@ -8,15 +8,14 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-
-use uwbimu_rs::columns::output_columns;
-use uwbimu_rs::io::csv_out::write_columns_csv;
-use uwbimu_rs::io::foxglove_out::write_trajectory_mcap;
-use uwbimu_rs::io::mapping::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
-use uwbimu_rs::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
-use uwbimu_rs::methods::Method;
-use uwbimu_rs::replay::{compare_with_truth, replay, Replay};
-use uwbimu_rs::{Error, Result};
+use uwbimu_rs::app::columns::output_columns;
+use uwbimu_rs::app::io::csv_out::write_columns_csv;
+use uwbimu_rs::app::io::foxglove_out::write_trajectory_mcap;
+use uwbimu_rs::app::io::mapping::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
+use uwbimu_rs::app::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
+use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::replay::{compare_with_truth, replay, Replay};
+use uwbimu_rs::vocabulary::error::{Error, Result};
 
 /// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter.
 #[derive(Debug, Parser)]
@@ -24,10 +23,8 @@ use uwbimu_rs::{Error, Result};
 struct Args {
     /// The MCAP file to replay.
     file: PathBuf,
-    /// Method (one of uwb_ls, ekf, iekf, rekf, riekf, criekf, ckf, arckf, ackf, eskf, shaf, shfaf,
-    /// ukf, ekf2d, ukf2d, cekf2d, best; with TDoA one of ekf, iekf, rekf, riekf, criekf, ckf,
-    /// arckf, ackf, ukf, best); default: the config file's, else best (smoothed).
-    #[arg(long)]
+    /// Method (with TDoA, one that takes TDoA); default: the config file's, else best (smoothed).
+    #[arg(long, value_parser = method_names())]
     method: Option<String>,
     /// Replay TOML: `method`, `[config]` filter settings, an optional `[initial]` state and the
     /// `[mapping]` of topics and fields.
@@ -66,6 +63,14 @@ struct Args {
     /// No progress bar even on a terminal.
     #[arg(long)]
     no_progress: bool,
+}
+
+/// The method names of the registry, each with its summary (shown by `--help`).
+fn method_names() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(Method::ALL.iter().map(|m| {
+        let tdoa = if m.takes_tdoa() { " Takes TDoA." } else { "" };
+        clap::builder::PossibleValue::new(m.name()).help(format!("{}{tdoa}", m.summary()))
+    }))
 }
 
 /// A one-line progress bar on stderr, drawn only on a terminal.

@@ -1,17 +1,18 @@
 //! Python functions that learn settings from a log: the range-bias calibration
-//! (`crate::calibrate`), time offset and lever arm (`crate::offsets`) and the noise tuning
-//! (`crate::tune`).
+//! (`uwbimu_app::calibrate`), time offset and lever arm (`uwbimu_app::offsets`) and the noise tuning
+//! (`uwbimu_app::tune`).
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use uwbimu_app::calibrate::{calibrate_with_truth, calibrate_without_truth, BiasCalibration};
+use uwbimu_app::methods::Method;
+use uwbimu_app::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
+use uwbimu_app::tune::{tune, Objective, TUNED_KEYS};
+use uwbimu_vocabulary::math::Vec3;
 
 use super::convert::{array, columns, table};
+use super::errors::PyResult;
 use super::filters::{calibration_dict, config_dict, Log};
-use crate::calibrate::{calibrate_with_truth, calibrate_without_truth, BiasCalibration};
-use crate::math::Vec3;
-use crate::methods::Method;
-use crate::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
-use crate::tune::{tune, Objective, TUNED_KEYS};
 
 /// The tag's ground truth `(N, 4)` = t, x, y, z, when given.
 fn read_truth(truth: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<(f64, Vec3)>>> {
@@ -26,7 +27,7 @@ fn read_truth(truth: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<(f64, Vec
     })
 }
 
-/// Calibrates a log (`crate::calibrate`, and with `offsets` `crate::offsets`): a constant range
+/// Calibrates a log (`uwbimu_app::calibrate`, and with `offsets` `uwbimu_app::offsets`): a constant range
 /// bias per anchor (measured − true, m), with `offsets` also the UWB–IMU time offset and (without
 /// truth) the lever arm; against the tag's ground truth `truth` (N, 4) = t, x, y, z when given,
 /// else by EM over the smoothed track of `method` (`iterations` passes). Returns a dict: `anchor,
@@ -100,7 +101,7 @@ fn bias_dict<'py>(py: Python<'py>, result: &BiasCalibration) -> PyResult<Bound<'
     Ok(d)
 }
 
-/// Tunes the noise settings of `method` on a log (`crate::tune`): by the innovation likelihood,
+/// Tunes the noise settings of `method` on a log (`uwbimu_app::tune`): by the innovation likelihood,
 /// or by the horizontal RMSE against `truth` (N, 4) = t, x, y, z when given. Returns a dict:
 /// `config` (the tuned configuration as a nested dict), `objective`, `initial_score`, `score`,
 /// `keys` and `trials` columns (one per tuned key, and `score`). The GIL is released; the
@@ -142,5 +143,5 @@ fn tune_noise<'py>(
 /// Adds the calibration and tuning functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate_log, m)?)?;
-    m.add_function(wrap_pyfunction!(tune_noise, m)?)
+    Ok(m.add_function(wrap_pyfunction!(tune_noise, m)?)?)
 }

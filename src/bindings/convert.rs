@@ -5,10 +5,11 @@ use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict};
+use uwbimu_vocabulary::config::ConfigValue;
+use uwbimu_vocabulary::error::Error;
+use uwbimu_vocabulary::math::Vec3;
 
-use crate::config::ConfigValue;
-use crate::error::Error;
-use crate::math::Vec3;
+use super::errors::PyResult;
 
 /// Copies a float64 array that must be 2-D with `C` columns into rows; `layout` names the
 /// columns for the error message (e.g. `"(N, 7) = t, ax, ay, az, gx, gy, gz"`).
@@ -71,7 +72,7 @@ pub fn array<'py>(obj: &Bound<'py, PyAny>, name: &'static str) -> PyResult<PyRea
     let converted = np
         .call_method1("ascontiguousarray", (obj, "float64"))
         .map_err(|e| PyValueError::new_err(format!("{name}: cannot convert to a float64 array: {e}")))?;
-    converted.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
+    Ok(converted.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?)
 }
 
 /// Converts a Python bool, number or sequence into a [`ConfigValue`] (`name` is the key, for errors).
@@ -83,7 +84,7 @@ pub fn config_value(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<ConfigValue>
         return Ok(ConfigValue::Scalar(x));
     }
     obj.extract::<Vec<f64>>().map(ConfigValue::Vector).map_err(|_| {
-        PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got {}", type_name(obj)))
+        PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got {}", type_name(obj))).into()
     })
 }
 

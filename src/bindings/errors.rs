@@ -1,4 +1,4 @@
-//! The one mapping from [`crate::Error`] to Python exceptions.
+//! The one mapping from [`uwbimu_vocabulary::error::Error`] to Python exceptions.
 //!
 //! `UwbImuError` subclasses `ValueError`, so every input problem is catchable as `ValueError`;
 //! `ConfigError`, `NumericalError` and `MappingError` refine it. Unreadable or corrupt files raise
@@ -7,8 +7,7 @@
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::PyErr;
-
-use crate::error::Error;
+use uwbimu_vocabulary::error::Error;
 
 create_exception!(uwbimu_rs._native, UwbImuError, PyValueError, "Base class of uwbimu_rs errors (a ValueError).");
 create_exception!(uwbimu_rs._native, ConfigError, UwbImuError, "Invalid configuration, method or option.");
@@ -21,16 +20,56 @@ create_exception!(
     "A file that is not well-formed (an OSError): bad magic, truncation, CRC mismatch, unsupported encoding."
 );
 
-impl From<Error> for PyErr {
-    fn from(e: Error) -> PyErr {
-        let msg = e.to_string();
+/// What a binding returns on failure: a core error, mapped to its exception when it reaches
+/// Python ([`BindingError::into`]), or a Python exception raised on the way. (A core error
+/// cannot convert to `PyErr` directly: neither type is this crate's.)
+#[derive(Debug)]
+pub enum BindingError {
+    /// An error of the library's layers.
+    Core(Error),
+    /// A Python exception (a failed conversion, a callback that raised).
+    Python(PyErr),
+}
+
+/// The result of every binding.
+pub type PyResult<T> = std::result::Result<T, BindingError>;
+
+impl From<Error> for BindingError {
+    fn from(e: Error) -> Self {
+        Self::Core(e)
+    }
+}
+
+impl From<std::convert::Infallible> for BindingError {
+    fn from(e: std::convert::Infallible) -> Self {
+        match e {}
+    }
+}
+
+impl From<PyErr> for BindingError {
+    fn from(e: PyErr) -> Self {
+        Self::Python(e)
+    }
+}
+
+impl From<BindingError> for PyErr {
+    fn from(e: BindingError) -> PyErr {
         match e {
-            Error::InvalidConfig { .. } | Error::UnknownOption { .. } => ConfigError::new_err(msg),
-            Error::NotPositiveDefinite { .. } => NumericalError::new_err(msg),
-            Error::Mapping { .. } => MappingError::new_err(msg),
-            Error::Format { .. } => FormatError::new_err(msg),
-            Error::Io { .. } => PyOSError::new_err(msg),
-            _ => UwbImuError::new_err(msg),
+            BindingError::Core(e) => exception(e),
+            BindingError::Python(e) => e,
         }
+    }
+}
+
+/// The exception of a core error (the one mapping; see the module doc).
+fn exception(e: Error) -> PyErr {
+    let msg = e.to_string();
+    match e {
+        Error::InvalidConfig { .. } | Error::UnknownOption { .. } => ConfigError::new_err(msg),
+        Error::NotPositiveDefinite { .. } => NumericalError::new_err(msg),
+        Error::Mapping { .. } => MappingError::new_err(msg),
+        Error::Format { .. } => FormatError::new_err(msg),
+        Error::Io { .. } => PyOSError::new_err(msg),
+        _ => UwbImuError::new_err(msg),
     }
 }

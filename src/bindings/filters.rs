@@ -4,20 +4,21 @@
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
+use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Input, Method, Smoothing};
+use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_estimation::init::{initialize, HeadingSource};
+use uwbimu_estimation::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
+use uwbimu_estimation::update::UpdateReport;
+use uwbimu_vocabulary::config::RangeCalibration;
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::math::{quat_to_wxyz, Vec3};
+use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::state::{ErrCov, NominalState, ERR_DIM};
+use uwbimu_vocabulary::validate;
 
 use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table, vec3};
-use crate::columns::{fix_columns, step_columns, update_columns};
-use crate::config::{FilterConfig, InitialState};
-use crate::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf};
-use crate::init::{initialize, HeadingSource};
-use crate::math::{quat_to_wxyz, Vec3};
-use crate::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
-use crate::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
-use crate::ranging::calibration::RangeCalibration;
-use crate::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
-use crate::state::{ErrCov, NominalState, ERR_DIM};
-use crate::update::UpdateReport;
-use crate::validate;
+use super::errors::PyResult;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
 const MAG_LAYOUT: &str = "(N, 4) = t, mx, my, mz";
@@ -65,7 +66,7 @@ pub(super) fn config_dict<'py>(py: Python<'py>, config: &FilterConfig) -> PyResu
     for (key, v) in config.entries() {
         let (section, field) = key.split_once('.').unwrap_or(("", &key));
         let sub = match d.get_item(section)? {
-            Some(sub) => sub.cast_into::<PyDict>()?,
+            Some(sub) => sub.cast_into::<PyDict>().map_err(PyErr::from)?,
             None => {
                 let sub = PyDict::new(py);
                 d.set_item(section, &sub)?;
@@ -244,7 +245,7 @@ pub struct PyUpdateReport {
     /// Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42)); 1 if not.
     prior_fading: f64,
     /// Whether the epoch was applied as its UWB-only fix (re-acquisition,
-    /// `crate::filters::reacquire`).
+    /// `uwbimu_estimation::filters::reacquire`).
     reacquired: bool,
     /// The anchor's estimated range bias after the update, m (NaN without `range_bias.states`).
     bias: f64,
@@ -316,16 +317,17 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
 const RECORD_CAPACITY: usize = 1 << 16;
 
 fn anchor_index(anchor: i64, count: usize) -> PyResult<usize> {
-    usize::try_from(anchor)
-        .map_err(|_| crate::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into())
+    usize::try_from(anchor).map_err(|_| {
+        uwbimu_vocabulary::error::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into()
+    })
 }
 
 /// A Python class wrapping one named filter, with the streaming API: the filter driven by its own
 /// [`Stream`] (the batch API's event loop), so streaming in time order equals batch.
 macro_rules! py_filter {
-    ($(#[$doc:meta])* $py:ident, $name:literal, $core:ty) => {
+    ($(#[$doc:meta])* $py:ident, $core:ty) => {
         $(#[$doc])*
-        #[pyclass(name = $name, module = "uwbimu_rs._native")]
+        #[pyclass(module = "uwbimu_rs._native")]
         pub struct $py(Stream<$core>);
 
         #[pymethods]
@@ -348,7 +350,7 @@ macro_rules! py_filter {
             fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
                 let core = self.0.estimator().core();
                 if core.segments().is_empty() {
-                    return Err(crate::Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()).into());
+                    return Err(uwbimu_vocabulary::error::Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()).into());
                 }
                 let nodes = py.detach(|| smooth_recording(core))?;
                 let steps: Vec<StepRecord> = nodes
@@ -356,7 +358,7 @@ macro_rules! py_filter {
                     .map(|n| StepRecord {
                         t_s: n.t_s,
                         state: n.state,
-                        position_cov: n.covariance.fixed_view::<3, 3>(crate::state::POS, crate::state::POS).into_owned(),
+                        position_cov: n.covariance.fixed_view::<3, 3>(uwbimu_vocabulary::state::POS, uwbimu_vocabulary::state::POS).into_owned(),
                         still: false,
                     })
                     .collect();
@@ -379,7 +381,6 @@ macro_rules! py_filter {
             /// this call: the epoch it closed, if any.
             fn add_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
                 let anchor = anchor_index(anchor, InertialFilter::anchors(self.0.estimator()).len())?;
-                crate::filters::tight::check_ranges(InertialFilter::anchors(self.0.estimator()), &[(anchor, range)])?;
                 self.0.range(&RangeMeasurement { t_s: t, anchor, range_m: range })?;
                 Ok(applied_reports(&mut self.0))
             }
@@ -416,7 +417,6 @@ macro_rules! py_filter {
             fn update_tdoa(&mut self, t: f64, i: i64, j: i64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
                 let count = InertialFilter::anchors(self.0.estimator()).len();
                 let m = TdoaMeasurement { t_s: t, anchor_i: anchor_index(i, count)?, anchor_j: anchor_index(j, count)?, tdoa_m: d_ij };
-                crate::filters::tight::check_tdoa(InertialFilter::anchors(self.0.estimator()), &m)?;
                 self.0.observation(&Observation::Tdoa(m))?;
                 Ok(applied_reports(&mut self.0))
             }
@@ -426,7 +426,7 @@ macro_rules! py_filter {
             /// one report per range.
             fn update_ranges(&mut self, t: f64, anchors: Vec<i64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
                 if anchors.len() != ranges.len() {
-                    return Err(crate::Error::Shape { name: "update_ranges", expected: format!("ranges of length {}", anchors.len()), got: format!("{}", ranges.len()) }.into());
+                    return Err(uwbimu_vocabulary::error::Error::Shape { name: "update_ranges", expected: format!("ranges of length {}", anchors.len()), got: format!("{}", ranges.len()) }.into());
                 }
                 let count = InertialFilter::anchors(self.0.estimator()).len();
                 let obs = anchors.iter().zip(&ranges).map(|(a, r)| Ok((anchor_index(*a, count)?, *r))).collect::<PyResult<Vec<(usize, f64)>>>()?;
@@ -463,59 +463,28 @@ macro_rules! py_filter {
     };
 }
 
-py_filter!(
-    /// The tightly coupled EKF of seed 000, sample by sample.
-    PyEkf, "Ekf", Ekf
-);
-py_filter!(
-    /// The iterated EKF (seed 000 Algorithm 1 without re-weighting), sample by sample.
-    PyIekf, "Iekf", Iekf
-);
-py_filter!(
-    /// The robust EKF of seed 000 (eqs. (37)–(40)), sample by sample.
-    PyRekf, "Rekf", Rekf
-);
-py_filter!(
-    /// The robust iterated EKF of seed 000 (Algorithm 1), sample by sample.
-    PyRiekf, "Riekf", Riekf
-);
-py_filter!(
-    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF).
-    PyCriekf, "Criekf", Criekf
-);
-py_filter!(
-    /// `best` (ours): RIEKF with its range test skewed against long ranges and the zero-velocity
-    /// constraint while still.
-    PyBest, "Best", Best
-);
-py_filter!(
-    /// The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)).
-    PyCkf, "Ckf", Ckf
-);
-py_filter!(
-    /// The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1).
-    PyArckf, "Arckf", Arckf
-);
-py_filter!(
-    /// The adaptive complementary Kalman filter of seed 003 (gravity and geomagnetic aiding).
-    PyAckf, "Ackf", Ackf
-);
-py_filter!(
-    /// The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity).
-    PyEskf, "Eskf", Eskf
-);
-py_filter!(
-    /// The Sage–Husa adaptive ESKF of seed 004.
-    PyShaf, "Shaf", Shaf
-);
-py_filter!(
-    /// The Sage–Husa fuzzy adaptive ESKF of seed 004.
-    PyShfaf, "Shfaf", Shfaf
-);
-py_filter!(
-    /// The 15-state error-state UKF (seed 001 eqs. (11)–(14) over the INS error state).
-    PyUkf, "Ukf", Ukf
-);
+/// Declares the streaming class of a registry row that has one, named as its filter.
+macro_rules! streaming_class {
+    (none, [], $($doc:literal),+) => {};
+    ($ty:ident, [], $($doc:literal),+) => {
+        py_filter!($(#[doc = $doc])+ $ty, uwbimu_estimation::filters::$ty);
+    };
+}
+
+/// Adds the streaming class of a registry row that has one to the module `$m`.
+macro_rules! register_class {
+    (none, [$m:ident], $($doc:literal),+) => {};
+    ($ty:ident, [$m:ident], $($doc:literal),+) => {
+        $m.add_class::<classes::$ty>()?;
+    };
+}
+
+/// One streaming class per registry row with a streaming filter (`uwbimu_app::methods`).
+mod classes {
+    use super::*;
+
+    uwbimu_app::for_each_streaming_filter!(streaming_class);
+}
 
 /// A nominal state as a dict: `position`, `velocity`, `orientation` (w, x, y, z), `accel_bias`,
 /// `gyro_bias` (the keys `initial=` takes).
@@ -532,7 +501,7 @@ fn state_dict<'py>(py: Python<'py>, x: &NominalState) -> PyResult<Bound<'py, PyD
 
 fn covariance_array<'py>(py: Python<'py>, p: &ErrCov) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let rows: Vec<Vec<f64>> = (0..ERR_DIM).map(|i| (0..ERR_DIM).map(|j| p[(i, j)]).collect()).collect();
-    Ok(PyArray2::from_vec2(py, &rows)?)
+    Ok(PyArray2::from_vec2(py, &rows).map_err(PyErr::from)?)
 }
 
 /// `(columns, update columns or None, info)` of one batch run.
@@ -614,9 +583,9 @@ fn run_filters<'py>(
     }
     let initials: Vec<Option<InitialState>> = match initial {
         Some(obj) if !obj.is_none() => {
-            let items: Vec<Bound<'py, PyAny>> = obj.try_iter()?.collect::<PyResult<_>>()?;
+            let items: Vec<Bound<'py, PyAny>> = obj.try_iter()?.collect::<pyo3::PyResult<_>>()?;
             if items.len() != inputs.len() {
-                return Err(crate::Error::Shape {
+                return Err(uwbimu_vocabulary::error::Error::Shape {
                     name: "initial",
                     expected: format!("{} items (one per run)", inputs.len()),
                     got: items.len().to_string(),
@@ -691,13 +660,15 @@ fn posterior_crlb<'py>(
         Some(b) if !b.is_none() => Some(table::<6>(&array(b, "biases")?, "biases", "(N, 6) = bax, bay, baz, bgx, bgy, bgz")?),
         _ => None,
     };
-    let states = crate::crlb::truth_states(&truth, biases.as_deref())?;
+    let states = uwbimu_estimation::crlb::truth_states(&truth, biases.as_deref())?;
     let initial = match initial {
         Some(obj) if !obj.is_none() => read_initial(obj)?,
         _ => InitialState::default(),
     };
     let p0 = initial.covariance(&config);
-    let bound = py.detach(|| crate::crlb::posterior_crlb(&states, &inputs.imu, &inputs.ranges, &inputs.anchors, &p0, &config))?;
+    let bound = py.detach(|| {
+        uwbimu_estimation::crlb::posterior_crlb(&states, &inputs.imu, &inputs.ranges, &inputs.anchors, &p0, &config)
+    })?;
     columns(
         py,
         vec![
@@ -709,27 +680,47 @@ fn posterior_crlb<'py>(
     )
 }
 
+/// The registry as Python sees it: `{name: {"takes": [...], "smoothing": "never" | "on_request" |
+/// "by_default", "streaming_class": str | None, "summary": str}}`, in registry order (the summary
+/// is the first sentence of the row's doc).
+fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let table = PyDict::new(py);
+    for method in Method::ALL {
+        let info = method.info();
+        let row = PyDict::new(py);
+        let takes: Vec<&str> = info
+            .takes
+            .iter()
+            .map(|i| match i {
+                Input::Ranges => "ranges",
+                Input::Tdoa => "tdoa",
+                Input::Magnetometer => "magnetometer",
+            })
+            .collect();
+        row.set_item("takes", takes)?;
+        let smoothing = match info.smoothing {
+            Smoothing::Never => "never",
+            Smoothing::OnRequest => "on_request",
+            Smoothing::ByDefault => "by_default",
+        };
+        row.set_item("smoothing", smoothing)?;
+        row.set_item("streaming_class", info.streaming_class)?;
+        row.set_item("summary", method.summary())?;
+        table.set_item(info.name, row)?;
+    }
+    Ok(table)
+}
+
 /// Adds the filter classes and functions to the native module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFilterConfig>()?;
-    m.add_class::<PyEkf>()?;
-    m.add_class::<PyIekf>()?;
-    m.add_class::<PyRekf>()?;
-    m.add_class::<PyRiekf>()?;
-    m.add_class::<PyCriekf>()?;
-    m.add_class::<PyBest>()?;
-    m.add_class::<PyCkf>()?;
-    m.add_class::<PyArckf>()?;
-    m.add_class::<PyAckf>()?;
-    m.add_class::<PyEskf>()?;
-    m.add_class::<PyShaf>()?;
-    m.add_class::<PyShfaf>()?;
-    m.add_class::<PyUkf>()?;
+    uwbimu_app::for_each_streaming_filter!(register_class m);
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(run_filters, m)?)?;
     m.add_function(wrap_pyfunction!(initialize_state, m)?)?;
     m.add_function(wrap_pyfunction!(posterior_crlb, m)?)?;
-    m.add("FILTERS", Method::NAMES.to_vec())?;
+    m.add("FILTERS", Method::names().collect::<Vec<_>>())?;
+    m.add("METHODS", methods_table(m.py())?)?;
     Ok(())
 }

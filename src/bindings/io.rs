@@ -6,14 +6,15 @@ use std::path::{Path, PathBuf};
 use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
+use uwbimu_app::columns::output_columns;
+use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_app::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
+use uwbimu_app::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
+use uwbimu_vocabulary::error::Error;
 
 use super::convert::columns;
+use super::errors::PyResult;
 use super::filters::{read_config, read_inputs, read_optional_initial, read_tdoa};
-use crate::columns::output_columns;
-use crate::error::Error;
-use crate::io::recording_out::{write_recording_mcap, RecordingStreams};
-use crate::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
-use crate::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
 
 /// The replay settings from an optional TOML file and an optional mapping (JSON text).
 fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<ReplayConfig> {
@@ -29,7 +30,7 @@ fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<
 
 fn read(py: Python<'_>, path: &Path, mapping: &Mapping) -> PyResult<Recording> {
     if !path.exists() {
-        return Err(PyFileNotFoundError::new_err(format!("{}: no such file", path.display())));
+        return Err(PyFileNotFoundError::new_err(format!("{}: no such file", path.display())).into());
     }
     Ok(py.detach(|| read_recording_file(path, mapping, |_| {}))?)
 }

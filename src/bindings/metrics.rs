@@ -1,14 +1,15 @@
-//! Bindings of [`crate::metrics`]: `evaluate`, `nees`, `cdf`, `interpolate_positions`.
+//! Bindings of [`uwbimu_app::metrics`]: `evaluate`, `nees`, `cdf`, `interpolate_positions`.
 
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use uwbimu_app::metrics::{self, ErrorStats};
+use uwbimu_vocabulary::error::Error;
+use uwbimu_vocabulary::math::Mat3;
 
 use super::convert;
-use crate::error::Error;
-use crate::math::Mat3;
-use crate::metrics::{self, ErrorStats};
+use super::errors::PyResult;
 
 /// Registers the metrics functions on the native module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

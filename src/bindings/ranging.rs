@@ -8,11 +8,13 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntyp
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use uwbimu_estimation::ranging::calibration::{fit_cubic, fit_range_calibration};
+use uwbimu_estimation::ranging::{distance_m, dw1000_elapsed_s, sds_twr_tof_s, ss_twr_tof_s};
+use uwbimu_vocabulary::config::{Cubic, RangeCalibration};
+use uwbimu_vocabulary::error::Error;
 
 use super::convert::array;
-use crate::error::Error;
-use crate::ranging::calibration::{fit_cubic, Cubic, RangeCalibration};
-use crate::ranging::{distance_m, dw1000_elapsed_s, sds_twr_tof_s, ss_twr_tof_s};
+use super::errors::PyResult;
 
 /// The flat values of same-shaped arrays, with that shape.
 fn same_shape<const N: usize>(arrays: [(&Bound<'_, PyAny>, &'static str); N]) -> PyResult<([Vec<f64>; N], Vec<usize>)> {
@@ -44,7 +46,7 @@ fn at(row: usize, e: Error) -> Error {
 }
 
 fn shaped<'py>(py: Python<'py>, values: Vec<f64>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    values.into_pyarray(py).reshape(shape)
+    Ok(values.into_pyarray(py).reshape(shape)?)
 }
 
 /// SDS-TWR distances, m (seed 001 eqs. (1)–(2)), element-wise; intervals in s; `antenna_delay_s`
@@ -134,7 +136,7 @@ fn calibration_fit_anchors<'py>(
             }
         })
         .collect::<Result<Vec<usize>, Error>>()?;
-    let cal = RangeCalibration::fit(&ids, &m, &t)?;
+    let cal = fit_range_calibration(&ids, &m, &t)?;
     let d = PyDict::new(py);
     for (k, c) in cal.coefficients() {
         d.set_item(k, c.to_vec())?;
@@ -176,10 +178,10 @@ fn calibrate_ranges<'py>(
     anchor_count: usize,
 ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
     let rows = super::convert::table::<3>(&array(ranges, "ranges")?, "ranges", "(M, 3) = t, anchor index, range")?;
-    let ranges = crate::validate::ranges(&rows, anchor_count)?;
+    let ranges = uwbimu_vocabulary::validate::ranges(&rows, anchor_count)?;
     let out = read_calibration(calibration)?.apply(&ranges, anchor_count)?;
     let flat: Vec<f64> = out.iter().flat_map(|r| [r.t_s, r.anchor as f64, r.range_m]).collect();
-    flat.into_pyarray(py).reshape([out.len(), 3])
+    Ok(flat.into_pyarray(py).reshape([out.len(), 3])?)
 }
 
 /// Evaluates one cubic `[c0, c1, c2, c3]` at measured ranges (m), element-wise.
@@ -214,7 +216,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibration_fit_anchors, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(calibration_apply, m)?)?;
-    m.add("DW1000_TICK_S", crate::ranging::DW1000_TICK_S)?;
-    m.add("SPEED_OF_LIGHT_MPS", crate::ranging::SPEED_OF_LIGHT_MPS)?;
+    m.add("DW1000_TICK_S", uwbimu_estimation::ranging::DW1000_TICK_S)?;
+    m.add("SPEED_OF_LIGHT_MPS", uwbimu_estimation::ranging::SPEED_OF_LIGHT_MPS)?;
     Ok(())
 }

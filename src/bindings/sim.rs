@@ -4,15 +4,16 @@
 use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict};
+use uwbimu_app::generality::{run_cell, Cell, CellResult, Settings, Start};
+use uwbimu_app::methods::Method;
+use uwbimu_app::sim::{self, DriveOptions, KinematicSample, OverrideValue, SimConfig, SimData, Trajectory};
+use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::error::Error;
+use uwbimu_vocabulary::math::{quat_from_wxyz, quat_to_wxyz, Vec3};
 
+use super::errors::PyResult;
 use crate::bindings::convert;
 use crate::bindings::filters::{config_dict, initial_dict, read_config};
-use crate::config::FilterConfig;
-use crate::error::Error;
-use crate::generality::{run_cell, Cell, CellResult, Settings, Start};
-use crate::math::{quat_from_wxyz, quat_to_wxyz, Vec3};
-use crate::methods::Method;
-use crate::sim::{self, DriveOptions, KinematicSample, OverrideValue, SimConfig, SimData, Trajectory};
 
 /// Array-like float input (lists, tuples or arrays).
 type ArrayLike<'py> = PyArrayLikeDyn<'py, f64, AllowTypeChange>;
@@ -190,7 +191,7 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
     d.set_item("range_labels", data.range_labels.clone().into_pyarray(py))?;
     d.set_item("anchors", vec3_rows(py, &data.anchors)?)?;
     let truth = &data.truth;
-    let col = |f: &dyn Fn(&crate::records::TruthSample) -> f64| truth.iter().map(f).collect::<Vec<f64>>();
+    let col = |f: &dyn Fn(&uwbimu_vocabulary::records::TruthSample) -> f64| truth.iter().map(f).collect::<Vec<f64>>();
     let truth_cols = convert::columns(
         py,
         vec![
@@ -269,7 +270,7 @@ fn sim_zoo<'py>(
     Ok(d)
 }
 
-/// The generality matrix ([`crate::generality`]): every combination of `methods`, `scenarios`
+/// The generality matrix ([`uwbimu_app::generality`]): every combination of `methods`, `scenarios`
 /// and `seeds`, with `start` ("given" or "self") and `settings` ("matched", "defaults" or
 /// "custom" with `config`), in parallel on all cores with the GIL released. Returns columns
 /// scenario, seed, method, rmse, uwb_ls_rmse, ratio, finite, outage_max_error (NaN without
@@ -354,8 +355,12 @@ fn simulate<'py>(
     kwargs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rows = convert::table::<3>(&anchors, "anchors", "(K, 3) = x, y, z")?;
-    let mut cfg =
-        SimConfig { trajectory: trajectory.0.clone(), anchors: crate::validate::anchors(&rows)?, seed, ..SimConfig::default() };
+    let mut cfg = SimConfig {
+        trajectory: trajectory.0.clone(),
+        anchors: uwbimu_vocabulary::validate::anchors(&rows)?,
+        seed,
+        ..SimConfig::default()
+    };
     if let Some(l) = lever_arm_m {
         cfg.lever_arm_m = convert::vec3(&l, "lever_arm_m")?;
     }

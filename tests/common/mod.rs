@@ -1,11 +1,11 @@
 //! Helpers shared by the filter integration tests.
 #![allow(dead_code)]
 
-use uwbimu_rs::config::{FilterConfig, InitialState};
-use uwbimu_rs::math::Vec3;
-use uwbimu_rs::methods::BatchInput;
-use uwbimu_rs::pipeline::StepRecord;
-use uwbimu_rs::sim::{SimConfig, SimData};
+use uwbimu_rs::app::methods::BatchInput;
+use uwbimu_rs::app::sim::{SimConfig, SimData};
+use uwbimu_rs::estimation::pipeline::StepRecord;
+use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 /// The batch input over a simulated run: ranges only, forward pass.
 pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &'a FilterConfig) -> BatchInput<'a> {

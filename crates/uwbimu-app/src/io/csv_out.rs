@@ -1,0 +1,32 @@
+//! Writes named columns ([`crate::columns::Columns`]) as a CSV file with a header line.
+
+use std::io::Write;
+use std::path::Path;
+
+use uwbimu_vocabulary::error::{Error, Result};
+
+use crate::columns::Columns;
+
+/// Writes `cols` (all of one length) to `path`.
+///
+/// # Errors
+/// [`Error::Io`] if the file cannot be written.
+pub fn write_columns_csv(path: &Path, cols: &Columns) -> Result<()> {
+    let io = |e: std::io::Error| Error::Io { path: path.display().to_string(), reason: e.to_string() };
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
+    writeln!(out, "{}", names.join(",")).map_err(io)?;
+    let rows = cols.first().map_or(0, |c| c.1.len());
+    let mut line = String::new();
+    for r in 0..rows {
+        line.clear();
+        for (k, (_, values)) in cols.iter().enumerate() {
+            if k > 0 {
+                line.push(',');
+            }
+            line.push_str(&values[r].to_string());
+        }
+        writeln!(out, "{line}").map_err(io)?;
+    }
+    out.flush().map_err(io)
+}

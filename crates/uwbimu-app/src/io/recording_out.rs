@@ -1,0 +1,189 @@
+//! Writes a recording (e.g. the simulator's) as MCAP: IMU samples as CDR
+//! `sensor_msgs/msg/Imu` with the ros2msg schema embedded, ranges as our JSON `uwbimu.UwbRange`,
+//! TDoA as CDR `uwbimu_msgs/msg/Tdoa` ([`TDOA_MSG`]), anchor positions in the metadata record
+//! `uwbimu.anchors`. Zstd chunks; profile "" (JSON
+//! channels are present).
+
+use std::collections::BTreeMap;
+use std::io::{Seek, Write};
+
+use mcap::records::{MessageHeader, Metadata};
+use mcap::WriteOptions;
+use serde_json::json;
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
+
+use crate::io::anchors::ANCHORS_METADATA;
+use crate::io::topics::{TDOA_MSG_NAME, UWB_RANGE_JSON, UWB_RANGE_JSON_SCHEMA};
+
+/// The ros2msg text of a header's dependencies (`std_msgs/Header`, `builtin_interfaces/Time`),
+/// appended to the definitions that have a header.
+macro_rules! header_dependencies {
+    () => {
+        "================================================================================\nMSG: std_msgs/Header\n\
+builtin_interfaces/Time stamp\nstring frame_id\n\
+================================================================================\nMSG: builtin_interfaces/Time\n\
+int32 sec\nuint32 nanosec\n"
+    };
+}
+
+/// The ros2msg text of `sensor_msgs/msg/Imu` with its dependencies.
+pub const IMU_MSG: &str = concat!(
+    "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\nfloat64[9] orientation_covariance\n\
+geometry_msgs/Vector3 angular_velocity\nfloat64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\n\
+float64[9] linear_acceleration_covariance\n",
+    header_dependencies!(),
+    "================================================================================\nMSG: geometry_msgs/Quaternion\n\
+float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n\
+================================================================================\nMSG: geometry_msgs/Vector3\n\
+float64 x\nfloat64 y\nfloat64 z\n"
+);
+
+/// The ros2msg text of our TDoA message [`TDOA_MSG_NAME`]: the fields of the Crazyflie `estTDOA`
+/// event (`distanceDiff` = distance to anchor `idB` minus distance to anchor `idA`, m) with a
+/// header and the anchor ids as text.
+pub const TDOA_MSG: &str =
+    concat!("std_msgs/Header header\nstring idA\nstring idB\nfloat64 distanceDiff\n", header_dependencies!());
+
+/// Splits non-negative seconds into (sec, nanosec, total ns).
+fn split_time(t_s: f64) -> (u64, u64, u64) {
+    let ns = (t_s.max(0.0) * 1e9).round() as u64;
+    (ns / 1_000_000_000, ns % 1_000_000_000, ns)
+}
+
+/// Appends an XCDR1 little-endian string (aligned to 4 after the encapsulation header).
+fn push_cdr_string(b: &mut Vec<u8>, text: &str) {
+    while (b.len() - 4) % 4 != 0 {
+        b.push(0);
+    }
+    b.extend_from_slice(&(text.len() as u32 + 1).to_le_bytes());
+    b.extend_from_slice(text.as_bytes());
+    b.push(0);
+}
+
+/// Starts an XCDR1 little-endian message: the encapsulation header and a `std_msgs/Header`.
+fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<u8> {
+    let (sec, nsec, _) = split_time(t_s);
+    let mut b = Vec::with_capacity(capacity);
+    b.extend_from_slice(&[0, 1, 0, 0]);
+    b.extend_from_slice(&(sec as i32).to_le_bytes());
+    b.extend_from_slice(&(nsec as u32).to_le_bytes());
+    push_cdr_string(&mut b, frame_id);
+    b
+}
+
+/// Pads an XCDR1 message to the next 8-byte boundary (before a float64).
+fn align8(b: &mut Vec<u8>) {
+    while (b.len() - 4) % 8 != 0 {
+        b.push(0);
+    }
+}
+
+/// One IMU sample as XCDR1 little-endian `sensor_msgs/msg/Imu` (frame `imu_link`, identity
+/// orientation with `covariance[0] = −1` meaning "no orientation").
+pub fn imu_cdr(s: &ImuSample) -> Vec<u8> {
+    let mut b = cdr_with_header(s.t_s, "imu_link", 324);
+    align8(&mut b);
+    let mut doubles = [0.0f64; 37];
+    doubles[3] = 1.0; // orientation w
+    doubles[4] = -1.0; // orientation unknown
+    doubles[13..16].copy_from_slice(s.gyro.as_slice());
+    doubles[25..28].copy_from_slice(s.accel.as_slice());
+    for d in doubles {
+        b.extend_from_slice(&d.to_le_bytes());
+    }
+    b
+}
+
+/// One range as `uwbimu.UwbRange` JSON.
+pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f64>) -> Vec<u8> {
+    let (sec, nsec, _) = split_time(t_s);
+    let mut v = json!({"timestamp": {"sec": sec, "nsec": nsec}, "anchor_id": anchor_id, "range": range_m});
+    if let Some(var) = variance_m2 {
+        v["variance"] = json!(var);
+    }
+    v.to_string().into_bytes()
+}
+
+/// One TDoA as XCDR1 little-endian [`TDOA_MSG`], anchor ids `A{i}`, `A{j}`.
+pub fn tdoa_cdr(m: &TdoaMeasurement) -> Vec<u8> {
+    let mut b = cdr_with_header(m.t_s, "", 48);
+    push_cdr_string(&mut b, &format!("A{}", m.anchor_i));
+    push_cdr_string(&mut b, &format!("A{}", m.anchor_j));
+    align8(&mut b);
+    b.extend_from_slice(&m.tdoa_m.to_le_bytes());
+    b
+}
+
+/// The streams [`write_recording_mcap`] writes, each time-ordered; anchor `k` is written with
+/// the id `A{k}`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RecordingStreams<'a> {
+    /// IMU samples (topic `/imu`).
+    pub imu: &'a [ImuSample],
+    /// Ranges (topic `/uwb`, left out when there are TDoA and no ranges).
+    pub ranges: &'a [RangeMeasurement],
+    /// TDoA (topic `/tdoa`, only when there are any).
+    pub tdoa: &'a [TdoaMeasurement],
+    /// Anchor positions (the `uwbimu.anchors` metadata record), m.
+    pub anchors: &'a [Vec3],
+}
+
+/// Writes the IMU samples (topic `/imu`), ranges (topic `/uwb`, with variance
+/// `range_std_m²` when given) and TDoA (topic `/tdoa`) of `streams` in time order (at equal times
+/// IMU, range, TDoA) plus the anchor metadata, in zstd chunks when `compress`. `label` names the
+/// output in errors.
+///
+/// # Errors
+/// [`Error::Io`] if writing fails.
+pub fn write_recording_mcap<W: Write + Seek>(
+    sink: W,
+    label: &str,
+    streams: &RecordingStreams<'_>,
+    range_std_m: Option<f64>,
+    compress: bool,
+) -> Result<()> {
+    let RecordingStreams { imu, ranges, tdoa, anchors } = *streams;
+    let err = |e: mcap::McapError| Error::Io { path: label.to_string(), reason: e.to_string() };
+    let mut w =
+        WriteOptions::new().profile("").compression(compress.then_some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
+    let imu_schema = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", IMU_MSG.as_bytes()).map_err(err)?;
+    let imu_ch = w.add_channel(imu_schema, "/imu", "cdr", &BTreeMap::new()).map_err(err)?;
+    let mut uwb_ch = None;
+    if !ranges.is_empty() || tdoa.is_empty() {
+        let uwb_schema = w.add_schema(UWB_RANGE_JSON, "jsonschema", UWB_RANGE_JSON_SCHEMA.as_bytes()).map_err(err)?;
+        uwb_ch = Some(w.add_channel(uwb_schema, "/uwb", "json", &BTreeMap::new()).map_err(err)?);
+    }
+    let mut tdoa_ch = None;
+    if !tdoa.is_empty() {
+        let tdoa_schema = w.add_schema(TDOA_MSG_NAME, "ros2msg", TDOA_MSG.as_bytes()).map_err(err)?;
+        tdoa_ch = Some(w.add_channel(tdoa_schema, "/tdoa", "cdr", &BTreeMap::new()).map_err(err)?);
+    }
+    let metadata = anchors.iter().enumerate().map(|(i, a)| (format!("A{i}"), format!("[{}, {}, {}]", a.x, a.y, a.z))).collect();
+    w.write_metadata(&Metadata { name: ANCHORS_METADATA.into(), metadata }).map_err(err)?;
+    let variance = range_std_m.map(|s| s * s);
+    let channels = [Some(imu_ch), uwb_ch, tdoa_ch];
+    let (mut next, mut sequence) = ([0usize; 3], 0u32);
+    loop {
+        let times = [imu.get(next[0]).map(|s| s.t_s), ranges.get(next[1]).map(|r| r.t_s), tdoa.get(next[2]).map(|m| m.t_s)];
+        // The stream with the earliest next message; the first one wins ties.
+        let Some((stream, channel_id, t)) =
+            (0..3).filter_map(|k| Some((k, channels[k]?, times[k]?))).min_by(|a, b| a.2.total_cmp(&b.2))
+        else {
+            break;
+        };
+        let k = next[stream];
+        next[stream] += 1;
+        let data = match stream {
+            0 => imu_cdr(&imu[k]),
+            1 => range_json(t, &format!("A{}", ranges[k].anchor), ranges[k].range_m, variance),
+            _ => tdoa_cdr(&tdoa[k]),
+        };
+        sequence += 1;
+        let ns = split_time(t).2;
+        w.write_to_known_channel(&MessageHeader { channel_id, sequence, log_time: ns, publish_time: ns }, &data).map_err(err)?;
+    }
+    w.finish().map_err(err)?;
+    Ok(())
+}

@@ -1,0 +1,592 @@
+//! Per-channel decoders: IMU (`sensor_msgs/msg/Imu` or anything with the same fields), UWB ranges
+//! (vendor messages through the field mapping, `sensor_msgs/msg/Range`, our JSON
+//! `uwbimu.UwbRange`), TDoA (through the field mapping), anchor lists and ground-truth poses. Each decoder is built once per
+//! channel from its schema, so a mapping that does not fit fails before the first message.
+
+use serde::Deserialize;
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Vec3;
+
+use crate::io::anchors::json_id;
+use crate::io::cdr::{decode, Value};
+use crate::io::field_path::{Condition, FieldPath, PointPath};
+use crate::io::mapping::{
+    AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
+    TDOA_DEFAULT,
+};
+use crate::io::mcap_read::ChannelInfo;
+use crate::io::msg_schema::MsgSchema;
+
+/// Schema name of our JSON range message.
+pub const UWB_RANGE_JSON: &str = "uwbimu.UwbRange";
+
+/// One decoded range before anchor ids become indices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawRange {
+    /// Anchor id as text.
+    pub anchor_id: String,
+    /// Range, m.
+    pub range_m: f64,
+    /// Variance, m² (when the message carries one).
+    pub variance_m2: Option<f64>,
+    /// Anchor position carried by the message, m.
+    pub anchor_position: Option<Vec3>,
+    /// Whether the validity condition held.
+    pub valid: bool,
+}
+
+/// Schema name of the TDoA message the recordings we write carry (CDR; `idA`, `idB`,
+/// `distanceDiff` as in the Crazyflie `estTDOA` event, see [`crate::io::recording_out::TDOA_MSG`]).
+pub const TDOA_MSG_NAME: &str = "uwbimu_msgs/msg/Tdoa";
+
+/// One decoded TDoA before anchor ids become indices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawTdoa {
+    /// Id of anchor i as text.
+    pub anchor_i: String,
+    /// Id of anchor j as text.
+    pub anchor_j: String,
+    /// `d_ij = ‖p − a_j‖ − ‖p − a_i‖`, m.
+    pub tdoa_m: f64,
+}
+
+/// Parses the channel's `ros2msg` schema (CDR channels only).
+pub fn cdr_schema(channel: &ChannelInfo) -> Result<MsgSchema> {
+    let schema = channel.schema.as_ref().ok_or_else(|| Error::Format {
+        what: format!("topic `{}`", channel.topic),
+        reason: "no schema: cannot decode CDR without its message definition".into(),
+    })?;
+    if channel.message_encoding != "cdr" {
+        return Err(Error::Format {
+            what: format!("topic `{}`", channel.topic),
+            reason: format!(
+                "unknown message encoding `{}` (expected cdr, or json for {UWB_RANGE_JSON})",
+                channel.message_encoding
+            ),
+        });
+    }
+    if schema.encoding != "ros2msg" {
+        return Err(Error::Format {
+            what: format!("topic `{}`", channel.topic),
+            reason: format!("unknown schema encoding `{}` (expected ros2msg)", schema.encoding),
+        });
+    }
+    let text = std::str::from_utf8(&schema.data)
+        .map_err(|_| Error::Format { what: format!("schema `{}`", schema.name), reason: "not UTF-8 text".into() })?;
+    MsgSchema::parse(&schema.name, text)
+}
+
+/// The stamp path `header.stamp` when the schema has a header, else None.
+fn default_stamp(schema: &MsgSchema, key: &str) -> Result<Option<FieldPath>> {
+    if schema.has_field("header") {
+        Ok(Some(FieldPath::resolve(schema, key, "header.stamp")?))
+    } else {
+        Ok(None)
+    }
+}
+
+/// Reads a `sec`/`nanosec` stamp; None when zero (the caller falls back to log time).
+fn stamp_ns(stamp: Option<&FieldPath>, v: &Value) -> Result<Option<i64>> {
+    let Some(path) = stamp else { return Ok(None) };
+    let Value::Struct(parts) = path.get(v)? else { return Ok(None) };
+    let (sec, nsec) = match parts.as_slice() {
+        [s, n, ..] => (s.as_f64().unwrap_or(0.0) as i64, n.as_f64().unwrap_or(0.0) as i64),
+        _ => return Ok(None),
+    };
+    let ns = sec.saturating_mul(1_000_000_000).saturating_add(nsec);
+    Ok((ns != 0).then_some(ns))
+}
+
+/// Decodes IMU messages.
+#[derive(Debug, Clone)]
+pub struct ImuDecoder {
+    schema: MsgSchema,
+    stamp: Option<FieldPath>,
+    gyro: PointPath,
+    accel: PointPath,
+}
+
+impl ImuDecoder {
+    /// Builds the decoder for a channel; its schema needs `angular_velocity` and
+    /// `linear_acceleration` points.
+    pub fn new(channel: &ChannelInfo) -> Result<Self> {
+        let schema = cdr_schema(channel)?;
+        let gyro = PointPath::resolve(&schema, "imu_topic", "angular_velocity")?;
+        let accel = PointPath::resolve(&schema, "imu_topic", "linear_acceleration")?;
+        let stamp = default_stamp(&schema, "imu_topic")?;
+        Ok(Self { schema, stamp, gyro, accel })
+    }
+
+    /// (header stamp ns if non-zero, specific force m/s², angular rate rad/s).
+    pub fn decode(&self, data: &[u8]) -> Result<(Option<i64>, Vec3, Vec3)> {
+        let v = decode(&self.schema, data)?;
+        let point = |p: &PointPath| {
+            p.point(p.path.get(&v)?)
+                .ok_or_else(|| Error::Format { what: format!("field `{}`", p.path.text), reason: "not a point".into() })
+        };
+        Ok((stamp_ns(self.stamp.as_ref(), &v)?, point(&self.accel)?, point(&self.gyro)?))
+    }
+}
+
+/// Where a range's anchor id comes from.
+#[derive(Debug, Clone)]
+enum IdSource {
+    Path(FieldPath),
+    /// The array index of the range.
+    Index,
+    /// A constant (the topic name).
+    Constant(String),
+}
+
+/// A range decoder built from the mapping and the channel's schema.
+#[derive(Debug, Clone)]
+pub struct CdrRangeDecoder {
+    schema: MsgSchema,
+    stamp: Option<FieldPath>,
+    range: FieldPath,
+    id: IdSource,
+    valid: Option<Condition>,
+    position: Option<PointPath>,
+    variance: Option<FieldPath>,
+    scale: f64,
+}
+
+/// A UWB range decoder.
+#[derive(Debug, Clone)]
+pub enum RangeDecoder {
+    /// CDR message read through field paths.
+    Cdr(Box<CdrRangeDecoder>),
+    /// Our JSON message [`UWB_RANGE_JSON`].
+    Json,
+}
+
+/// `uwbimu.UwbRange` as JSON.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonRange {
+    timestamp: JsonTime,
+    anchor_id: serde_json::Value,
+    range: f64,
+    variance: Option<f64>,
+    anchor_position: Option<JsonPoint>,
+}
+
+#[derive(Debug, Deserialize)]
+struct JsonTime {
+    sec: i64,
+    nsec: i64,
+}
+
+#[derive(Debug, Deserialize)]
+struct JsonPoint {
+    x: f64,
+    y: f64,
+    z: f64,
+}
+
+/// The JSON Schema of `uwbimu.UwbRange`, written into MCAP files we produce.
+pub const UWB_RANGE_JSON_SCHEMA: &str = r#"{"title":"uwbimu.UwbRange","type":"object","required":["timestamp","anchor_id","range"],"properties":{"timestamp":{"type":"object","required":["sec","nsec"],"properties":{"sec":{"type":"integer"},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"anchor_id":{"type":"string"},"range":{"type":"number","description":"m"},"variance":{"type":"number","description":"m^2"},"anchor_position":{"type":"object","required":["x","y","z"],"properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}}}}"#;
+
+fn key(name: &str) -> String {
+    format!("uwb.{name}")
+}
+
+impl RangeDecoder {
+    /// Whether a channel looks like a range topic without any field mapping.
+    pub fn recognises(channel: &ChannelInfo) -> bool {
+        channel.schema.as_ref().is_some_and(|s| s.name == UWB_RANGE_JSON || s.name == "sensor_msgs/msg/Range")
+    }
+
+    /// Builds the decoder for a channel.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] if the mapping does not fit the schema, [`Error::Format`] for an
+    /// unknown encoding or schema.
+    pub fn new(channel: &ChannelInfo, m: &UwbMapping) -> Result<Self> {
+        if channel.message_encoding == "json" {
+            let name = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+            if name != UWB_RANGE_JSON {
+                return Err(Error::Mapping {
+                    field: "uwb.topics".into(),
+                    reason: format!("JSON topic `{}` has schema `{name}`; only {UWB_RANGE_JSON} is understood", channel.topic),
+                });
+            }
+            return Ok(Self::Json);
+        }
+        let schema = cdr_schema(channel)?;
+        let is_range_msg = schema.name() == "sensor_msgs/Range";
+        let range_text = m.range.as_deref().unwrap_or("range");
+        let range = FieldPath::resolve(&schema, &key("range"), range_text)?.require_numeric(&key("range"))?;
+        let id = match m.anchor_id.as_deref() {
+            Some("index") => {
+                if !range.iterates() {
+                    return Err(Error::Mapping {
+                        field: key("anchor_id"),
+                        reason: "`index` needs a range path with `[]`".into(),
+                    });
+                }
+                IdSource::Index
+            }
+            Some(p) => IdSource::Path(FieldPath::resolve(&schema, &key("anchor_id"), p)?.require_id(&key("anchor_id"))?),
+            None if is_range_msg && m.anchor_from == AnchorFrom::FrameId => {
+                IdSource::Path(FieldPath::resolve(&schema, &key("anchor_id"), "header.frame_id")?)
+            }
+            None if !range.iterates() => IdSource::Constant(channel.topic.clone()),
+            None => {
+                return Err(Error::Mapping {
+                    field: key("anchor_id"),
+                    reason: format!("topic `{}` ({}) needs `anchor_id` (a path or `index`)", channel.topic, schema.name()),
+                })
+            }
+        };
+        let valid = m.valid.as_deref().map(|c| Condition::resolve(&schema, &key("valid"), c)).transpose()?;
+        let position =
+            m.anchor_position.as_deref().map(|p| PointPath::resolve(&schema, &key("anchor_position"), p)).transpose()?;
+        let variance = match m.variance.as_deref() {
+            Some(p) => Some(FieldPath::resolve(&schema, &key("variance"), p)?.require_numeric(&key("variance"))?),
+            // sensor_msgs/Range gained `variance` after Humble: only when the schema has it.
+            None if is_range_msg && schema.has_field("variance") => {
+                Some(FieldPath::resolve(&schema, &key("variance"), "variance")?)
+            }
+            None => None,
+        };
+        let stamp = match m.stamp.as_deref() {
+            Some(p) => Some(FieldPath::resolve(&schema, &key("stamp"), p)?),
+            None => default_stamp(&schema, &key("stamp"))?,
+        };
+        Ok(Self::Cdr(Box::new(CdrRangeDecoder {
+            schema,
+            stamp,
+            range,
+            id,
+            valid,
+            position,
+            variance,
+            scale: m.scale.unwrap_or(1.0),
+        })))
+    }
+
+    /// Decodes one message: (stamp ns if any, ranges).
+    ///
+    /// # Errors
+    /// [`Error::Format`] for a payload that does not decode, [`Error::Mapping`] if the mapped
+    /// arrays have different lengths.
+    pub fn decode(&self, data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
+        match self {
+            Self::Json => decode_json(data, out),
+            Self::Cdr(d) => d.decode(data, out),
+        }
+    }
+}
+
+fn decode_json(data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
+    let m: JsonRange = serde_json::from_slice(data)
+        .map_err(|e| Error::Format { what: format!("{UWB_RANGE_JSON} message"), reason: e.to_string() })?;
+    out.push(RawRange {
+        anchor_id: json_id(&m.anchor_id),
+        range_m: m.range,
+        variance_m2: m.variance,
+        anchor_position: m.anchor_position.map(|p| Vec3::new(p.x, p.y, p.z)),
+        valid: true,
+    });
+    let ns = m.timestamp.sec.saturating_mul(1_000_000_000).saturating_add(m.timestamp.nsec);
+    Ok((ns != 0).then_some(ns))
+}
+
+impl CdrRangeDecoder {
+    fn decode(&self, data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
+        let v = decode(&self.schema, data)?;
+        let mut ranges = Vec::new();
+        self.range.collect(&v, &mut ranges)?;
+        let n = ranges.len();
+        let per_range = |path: &FieldPath, what: &str| -> Result<Vec<&Value>> {
+            let mut vals = Vec::with_capacity(n);
+            path.collect(&v, &mut vals)?;
+            if vals.len() == 1 && n != 1 && !path.iterates() {
+                vals = vec![vals[0]; n];
+            }
+            if vals.len() != n {
+                return Err(Error::Mapping {
+                    field: key(what),
+                    reason: format!("`{}` has {} values but `{}` has {n}", path.text, vals.len(), self.range.text),
+                });
+            }
+            Ok(vals)
+        };
+        let ids: Vec<String> = match &self.id {
+            IdSource::Path(p) => per_range(p, "anchor_id")?.iter().map(|x| x.as_id().unwrap_or_default()).collect(),
+            IdSource::Index => (0..n).map(|i| i.to_string()).collect(),
+            IdSource::Constant(s) => vec![s.clone(); n],
+        };
+        let valid: Vec<bool> = match &self.valid {
+            Some(c) => per_range(&c.path, "valid")?.iter().map(|x| c.holds(x)).collect(),
+            None => vec![true; n],
+        };
+        let positions: Vec<Option<Vec3>> = match &self.position {
+            Some(p) => per_range(&p.path, "anchor_position")?.iter().map(|x| p.point(x)).collect(),
+            None => vec![None; n],
+        };
+        let variances: Vec<Option<f64>> = match &self.variance {
+            Some(p) => per_range(p, "variance")?.iter().map(|x| x.as_f64().map(|s| s * self.scale * self.scale)).collect(),
+            None => vec![None; n],
+        };
+        for (i, r) in ranges.iter().enumerate() {
+            out.push(RawRange {
+                anchor_id: ids[i].clone(),
+                range_m: r.as_f64().unwrap_or(f64::NAN) * self.scale,
+                variance_m2: variances[i],
+                anchor_position: positions[i],
+                valid: valid[i],
+            });
+        }
+        stamp_ns(self.stamp.as_ref(), &v)
+    }
+}
+
+/// Decodes TDoA messages through the `[mapping.tdoa]` field paths.
+#[derive(Debug, Clone)]
+pub struct TdoaDecoder {
+    schema: MsgSchema,
+    stamp: Option<FieldPath>,
+    anchor_i: FieldPath,
+    anchor_j: FieldPath,
+    tdoa: FieldPath,
+    scale: f64,
+}
+
+impl TdoaDecoder {
+    /// Whether a channel carries our TDoA message ([`TDOA_MSG_NAME`]).
+    pub fn recognises(channel: &ChannelInfo) -> bool {
+        channel.schema.as_ref().is_some_and(|s| s.name == TDOA_MSG_NAME)
+    }
+
+    /// Builds the decoder for a CDR channel.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] if a path does not fit the schema (names the `tdoa.*` key),
+    /// [`Error::Format`] for an unknown encoding or schema.
+    pub fn new(channel: &ChannelInfo, m: &TdoaMapping) -> Result<Self> {
+        let schema = cdr_schema(channel)?;
+        let id = |key: &str, path: &Option<String>, default: &str| {
+            FieldPath::resolve(&schema, key, path.as_deref().unwrap_or(default))?.require_id(key)
+        };
+        let anchor_i = id("tdoa.anchor_i", &m.anchor_i, TDOA_ANCHOR_I_DEFAULT)?;
+        let anchor_j = id("tdoa.anchor_j", &m.anchor_j, TDOA_ANCHOR_J_DEFAULT)?;
+        let tdoa =
+            FieldPath::resolve(&schema, "tdoa.tdoa", m.tdoa.as_deref().unwrap_or(TDOA_DEFAULT))?.require_numeric("tdoa.tdoa")?;
+        let stamp = match m.stamp.as_deref() {
+            Some(p) => Some(FieldPath::resolve(&schema, "tdoa.stamp", p)?),
+            None => default_stamp(&schema, "tdoa.stamp")?,
+        };
+        Ok(Self { schema, stamp, anchor_i, anchor_j, tdoa, scale: m.scale.unwrap_or(1.0) })
+    }
+
+    /// Decodes one message: (stamp ns if any); its TDoA are pushed to `out`.
+    ///
+    /// # Errors
+    /// [`Error::Format`] for a payload that does not decode, [`Error::Mapping`] if the mapped
+    /// paths select different numbers of values.
+    pub fn decode(&self, data: &[u8], out: &mut Vec<RawTdoa>) -> Result<Option<i64>> {
+        let v = decode(&self.schema, data)?;
+        let (mut ids_i, mut ids_j, mut values) = (Vec::new(), Vec::new(), Vec::new());
+        self.anchor_i.collect(&v, &mut ids_i)?;
+        self.anchor_j.collect(&v, &mut ids_j)?;
+        self.tdoa.collect(&v, &mut values)?;
+        if ids_i.len() != values.len() || ids_j.len() != values.len() {
+            return Err(Error::Mapping {
+                field: "tdoa".into(),
+                reason: format!(
+                    "`{}`, `{}` and `{}` select {}, {} and {} values",
+                    self.anchor_i.text,
+                    self.anchor_j.text,
+                    self.tdoa.text,
+                    ids_i.len(),
+                    ids_j.len(),
+                    values.len()
+                ),
+            });
+        }
+        for ((i, j), d) in ids_i.iter().zip(&ids_j).zip(&values) {
+            out.push(RawTdoa {
+                anchor_i: i.as_id().unwrap_or_default(),
+                anchor_j: j.as_id().unwrap_or_default(),
+                tdoa_m: d.as_f64().unwrap_or(f64::NAN) * self.scale,
+            });
+        }
+        stamp_ns(self.stamp.as_ref(), &v)
+    }
+}
+
+/// Decodes anchor-list messages (id and position per entry).
+#[derive(Debug, Clone)]
+pub struct AnchorListDecoder {
+    schema: MsgSchema,
+    id: FieldPath,
+    position: PointPath,
+}
+
+impl AnchorListDecoder {
+    /// Builds the decoder from the `anchors` mapping (paths default to `anchor[].id` and
+    /// `anchor[].position`).
+    pub fn new(channel: &ChannelInfo, m: &AnchorMapping) -> Result<Self> {
+        let schema = cdr_schema(channel)?;
+        let id = FieldPath::resolve(&schema, "anchors.id", m.id.as_deref().unwrap_or("anchor[].id"))?.require_id("anchors.id")?;
+        let position = PointPath::resolve(&schema, "anchors.position", m.position.as_deref().unwrap_or("anchor[].position"))?;
+        Ok(Self { schema, id, position })
+    }
+
+    /// (id, position) pairs of one message.
+    pub fn decode(&self, data: &[u8]) -> Result<Vec<(String, Vec3)>> {
+        let v = decode(&self.schema, data)?;
+        let (mut ids, mut points) = (Vec::new(), Vec::new());
+        self.id.collect(&v, &mut ids)?;
+        self.position.path.collect(&v, &mut points)?;
+        Ok(ids.iter().zip(&points).filter_map(|(i, p)| Some((i.as_id()?, self.position.point(p)?))).collect())
+    }
+}
+
+/// Decodes ground-truth poses (position only).
+#[derive(Debug, Clone)]
+pub struct PoseDecoder {
+    schema: MsgSchema,
+    stamp: Option<FieldPath>,
+    position: PointPath,
+}
+
+impl PoseDecoder {
+    /// Builds the decoder; the position path defaults by schema (PoseStamped `pose.position`,
+    /// TransformStamped `transform.translation`, Odometry `pose.pose.position`).
+    pub fn new(channel: &ChannelInfo, m: &GroundTruthMapping) -> Result<Self> {
+        let schema = cdr_schema(channel)?;
+        let default = match schema.name() {
+            "geometry_msgs/TransformStamped" => "transform.translation",
+            "nav_msgs/Odometry" | "geometry_msgs/PoseWithCovarianceStamped" => "pose.pose.position",
+            _ => "pose.position",
+        };
+        let position = PointPath::resolve(&schema, "ground_truth.position", m.position.as_deref().unwrap_or(default))?;
+        let stamp = default_stamp(&schema, "ground_truth")?;
+        Ok(Self { schema, stamp, position })
+    }
+
+    /// (stamp ns if any, position).
+    pub fn decode(&self, data: &[u8]) -> Result<(Option<i64>, Vec3)> {
+        let v = decode(&self.schema, data)?;
+        let p = self.position.point(self.position.path.get(&v)?).ok_or_else(|| Error::Format {
+            what: format!("field `{}`", self.position.path.text),
+            reason: "not a point".into(),
+        })?;
+        Ok((stamp_ns(self.stamp.as_ref(), &v)?, p))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::io::mcap_read::SchemaInfo;
+
+    const HEADER: &str = "===\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n\
+                          ===\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n";
+
+    fn channel(topic: &str, with_variance: bool) -> ChannelInfo {
+        let body = format!(
+            "uint8 ULTRASOUND=0\nstd_msgs/Header header\nuint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\n\
+             float32 max_range\nfloat32 range\n{}{HEADER}",
+            if with_variance { "float32 variance\n" } else { "" }
+        );
+        let schema = SchemaInfo { name: "sensor_msgs/msg/Range".into(), encoding: "ros2msg".into(), data: body.into_bytes() };
+        ChannelInfo { id: 1, topic: topic.into(), message_encoding: "cdr".into(), schema: Some(Arc::new(schema)) }
+    }
+
+    /// XCDR1 LE `sensor_msgs/msg/Range` with frame "a7", range 3.5 m (and variance 0.04).
+    fn payload(with_variance: bool) -> Vec<u8> {
+        let mut b = vec![0, 1, 0, 0];
+        b.extend_from_slice(&5i32.to_le_bytes());
+        b.extend_from_slice(&250u32.to_le_bytes());
+        b.extend_from_slice(&3u32.to_le_bytes());
+        b.extend_from_slice(b"a7\0");
+        b.push(2); // radiation_type, then pad to 4
+        for v in [0.0f32, 0.1, 60.0, 3.5] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        if with_variance {
+            b.extend_from_slice(&0.04f32.to_le_bytes());
+        }
+        b
+    }
+
+    #[test]
+    fn sensor_msgs_range_takes_the_anchor_from_frame_or_topic_and_variance_only_when_defined() {
+        for with_variance in [true, false] {
+            let ch = channel("/uwb/b2", with_variance);
+            let d = RangeDecoder::new(&ch, &UwbMapping::default()).unwrap();
+            let mut out = Vec::new();
+            let t = d.decode(&payload(with_variance), &mut out).unwrap();
+            assert_eq!(t, Some(5_000_000_250));
+            assert_eq!(out.len(), 1);
+            assert_eq!(out[0].anchor_id, "a7");
+            assert!((out[0].range_m - 3.5).abs() < 1e-6);
+            assert_eq!(out[0].variance_m2.is_some(), with_variance);
+            let by_topic = UwbMapping { anchor_from: AnchorFrom::Topic, ..UwbMapping::default() };
+            let mut out = Vec::new();
+            RangeDecoder::new(&ch, &by_topic).unwrap().decode(&payload(with_variance), &mut out).unwrap();
+            assert_eq!(out[0].anchor_id, "/uwb/b2");
+        }
+        // A payload one float short is a format error, not a panic.
+        let ch = channel("/uwb/b2", true);
+        let d = RangeDecoder::new(&ch, &UwbMapping::default()).unwrap();
+        assert!(matches!(d.decode(&payload(false), &mut Vec::new()), Err(Error::Format { .. })));
+    }
+
+    /// A Crazyflie-style message without header: `Tdoa[] tdoa` of `{uint8 idA, uint8 idB,
+    /// float32 distanceDiff}` (mm), two entries: (3, 5, 1250) and (5, 0, −500).
+    fn cf_tdoa() -> (ChannelInfo, Vec<u8>) {
+        let text = "Tdoa[] tdoa\n===\nMSG: cf/Tdoa\nuint8 idA\nuint8 idB\nfloat32 distanceDiff\n";
+        let schema = SchemaInfo { name: "cf/msg/TdoaArray".into(), encoding: "ros2msg".into(), data: text.into() };
+        let ch = ChannelInfo { id: 2, topic: "/cf/tdoa".into(), message_encoding: "cdr".into(), schema: Some(Arc::new(schema)) };
+        let mut b = vec![0, 1, 0, 0];
+        b.extend_from_slice(&2u32.to_le_bytes());
+        for (i, j, d) in [(3u8, 5u8, 1250.0f32), (5, 0, -500.0)] {
+            b.extend_from_slice(&[i, j, 0, 0]);
+            b.extend_from_slice(&d.to_le_bytes());
+        }
+        (ch, b)
+    }
+
+    #[test]
+    fn tdoa_arrays_with_integer_ids_decode_through_the_mapping() {
+        let (ch, payload) = cf_tdoa();
+        let m = TdoaMapping {
+            anchor_i: Some("tdoa[].idA".into()),
+            anchor_j: Some("tdoa[].idB".into()),
+            tdoa: Some("tdoa[].distanceDiff".into()),
+            scale: Some(0.001),
+            ..TdoaMapping::default()
+        };
+        assert!(!TdoaDecoder::recognises(&ch));
+        let mut out = Vec::new();
+        assert_eq!(TdoaDecoder::new(&ch, &m).unwrap().decode(&payload, &mut out).unwrap(), None);
+        let got: Vec<(&str, &str, f64)> = out.iter().map(|t| (t.anchor_i.as_str(), t.anchor_j.as_str(), t.tdoa_m)).collect();
+        assert_eq!(got, [("3", "5", 1.25), ("5", "0", -0.5)]);
+        // Paths selecting different numbers of values, a non-id anchor, a missing field.
+        let one = TdoaMapping { anchor_j: Some("tdoa[0].idB".into()), ..m.clone() };
+        let e = TdoaDecoder::new(&ch, &one).unwrap().decode(&payload, &mut out).unwrap_err().to_string();
+        assert!(e.contains("select 2, 1 and 2 values"), "{e}");
+        let not_id = TdoaMapping { anchor_i: Some("tdoa[].distanceDiff".into()), ..m.clone() };
+        assert!(matches!(TdoaDecoder::new(&ch, &not_id), Err(Error::Mapping { field, .. }) if field == "tdoa.anchor_i"));
+        let e = TdoaDecoder::new(&ch, &TdoaMapping::default()).unwrap_err().to_string();
+        assert!(e.contains("tdoa.anchor_i") && e.contains("has no field `idA`"), "{e}");
+    }
+
+    #[test]
+    fn json_range_round_trips_and_rejects_unknown_keys() {
+        let mut out = Vec::new();
+        let bytes = crate::io::recording_out::range_json(12.25, "A3", 4.5, Some(0.01));
+        assert_eq!(decode_json(&bytes, &mut out).unwrap(), Some(12_250_000_000));
+        assert_eq!((out[0].anchor_id.as_str(), out[0].range_m, out[0].variance_m2), ("A3", 4.5, Some(0.01)));
+        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":"a","range":1,"rang":2}"#, &mut out).is_err());
+        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":5,"range":1}"#, &mut out).is_ok());
+        assert_eq!(out.last().map(|r| r.anchor_id.as_str()), Some("5"));
+    }
+}

@@ -1,0 +1,19 @@
+//! Layer 3 of uwbimu_rs, applications of the estimators: the named methods and their batch
+//! runner, range-bias calibration and noise tuning from a log, MCAP recordings and replay, output
+//! columns, metrics, the scenario simulator and the generality matrix. Depends on
+//! `uwbimu_vocabulary` and `uwbimu_estimation`; the compiler keeps it from being used by them.
+
+pub mod calibrate;
+pub mod columns;
+#[cfg(feature = "sim")]
+pub mod generality;
+#[cfg(feature = "io")]
+pub mod io;
+pub mod methods;
+pub mod metrics;
+pub mod offsets;
+#[cfg(feature = "io")]
+pub mod replay;
+#[cfg(feature = "sim")]
+pub mod sim;
+pub mod tune;

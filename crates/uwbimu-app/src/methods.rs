@@ -1,0 +1,396 @@
+//! The named methods of the batch API and the function that runs one of them over whole arrays.
+
+use uwbimu_estimation::filters::{
+    Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf,
+};
+use uwbimu_estimation::init::{initialize_with_tdoa, SelfInit};
+use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
+use uwbimu_estimation::pipeline::{run, run_streams, smoothed_steps, StepRecord, Streams, Trace};
+use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
+
+/// What a method takes besides IMU samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Input {
+    /// Ranges to anchors.
+    Ranges,
+    /// Range differences between two anchors (TDoA).
+    Tdoa,
+    /// Magnetometer samples.
+    Magnetometer,
+}
+
+/// Whether and when the batch API RTS-smooths a method's run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Smoothing {
+    /// Never: the method has no inertial 15-state record to smooth.
+    Never,
+    /// When asked (`smooth=True`, `--smooth`).
+    OnRequest,
+    /// Unless a forward pass is asked for.
+    ByDefault,
+}
+
+/// One row of the method registry (the `methods!` declaration in this module): everything the library says about a method
+/// besides how it runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MethodInfo {
+    /// The name the batch API, replay files and the CLI take.
+    pub name: &'static str,
+    /// The measurements it takes besides IMU samples.
+    pub takes: &'static [Input],
+    /// When it is smoothed.
+    pub smoothing: Smoothing,
+    /// Its streaming class in Python (`uwbimu_rs.<class>`), if it has one.
+    pub streaming_class: Option<&'static str>,
+    /// Its doc comment (one line per doc line): the composition and where it comes from.
+    pub doc: &'static str,
+}
+
+/// Declares the method registry: one row per method — variant, name, how it runs, what it takes,
+/// its smoothing and its streaming class, with its doc. From the rows come [`Method`],
+/// [`Method::ALL`], [`Method::info`] (names, parsing, capabilities, error lists), the dispatch of
+/// [`run_method`], and the macro [`for_each_streaming_filter!`](crate::for_each_streaming_filter)
+/// with which the Python bindings declare and register one class per streaming filter. Adding a
+/// method is adding a row.
+macro_rules! methods {
+    ($d:tt $(
+        $(#[doc = $doc:literal])+
+        $variant:ident {
+            name: $name:literal,
+            run: $run:ident $(($ty:ident))?,
+            takes: [$($input:ident),+],
+            smoothing: $smoothing:ident,
+            stream: $stream:ident $(,)?
+        }
+    ),+ $(,)?) => {
+        /// A method name accepted by the batch API, one per row of the registry.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum Method {
+            $($(#[doc = $doc])+ $variant,)+
+        }
+
+        impl Method {
+            /// Every method, in registry order (the order of `uwbimu_rs.FILTERS`).
+            pub const ALL: &'static [Method] = &[$(Method::$variant),+];
+
+            /// The method's registry row.
+            pub const fn info(self) -> &'static MethodInfo {
+                match self {
+                    $(Method::$variant => &MethodInfo {
+                        name: $name,
+                        takes: &[$(Input::$input),+],
+                        smoothing: Smoothing::$smoothing,
+                        streaming_class: methods!(@class $stream),
+                        doc: concat!($($doc, "\n"),+),
+                    },)+
+                }
+            }
+        }
+
+        /// Runs `method` on measurements already calibrated (see [`run_method`]).
+        fn dispatch(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+            match method {
+                $(Method::$variant => methods!(@run input, $run $($ty)?),)+
+            }
+        }
+
+        /// Calls `$callback!(Type, [extra…], "doc", …)` once for every method, `Type` its
+        /// streaming filter in `uwbimu_estimation::filters` or `none`, `extra` the tokens given
+        /// after the callback's name (the Python bindings declare and register their streaming
+        /// classes with it, one class named as the type).
+        #[macro_export]
+        macro_rules! for_each_streaming_filter {
+            ($d callback:ident $d($d extra:tt)*) => {
+                $($d callback!($stream, [$d($d extra)*], $($doc),+);)+
+            };
+        }
+    };
+    (@class none) => { None };
+    (@class $stream:ident) => { Some(stringify!($stream)) };
+    (@run $input:ident, multilateration) => {{
+        let ls = LsConfig::from_filter_config($input.config);
+        Ok(BatchOutput::Multilateration(uwb_ls($input.ranges, $input.anchors, &ls)))
+    }};
+    (@run $input:ident, inertial $ty:ident) => {
+        run_inertial(|i| $ty::new($input.anchors.to_vec(), i, $input.config.clone()), $input)
+    };
+    (@run $input:ident, planar $kind:ident) => { run_planar(PlanarKind::$kind, $input) };
+}
+
+methods! {$
+    /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
+    UwbLs { name: "uwb_ls", run: multilateration, takes: [Ranges], smoothing: Never, stream: none },
+    /// The tightly coupled EKF of Li & Wang (2020).
+    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ekf },
+    /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
+    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Iekf },
+    /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
+    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Rekf },
+    /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
+    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Riekf },
+    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
+    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Criekf },
+    /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
+    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ckf },
+    /// The adaptive-robust complementary Kalman filter (ARCKF, Sensors 2018).
+    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Arckf },
+    /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (Sensors).
+    Ackf {
+        name: "ackf",
+        run: inertial(Ackf),
+        takes: [Ranges, Tdoa, Magnetometer],
+        smoothing: OnRequest,
+        stream: Ackf,
+    },
+    /// The loosely coupled error-state filter of Liu et al. (2019).
+    Eskf { name: "eskf", run: inertial(Eskf), takes: [Ranges], smoothing: OnRequest, stream: Eskf },
+    /// The Sage–Husa adaptive ESKF of Liu et al. (2019).
+    Shaf { name: "shaf", run: inertial(Shaf), takes: [Ranges], smoothing: OnRequest, stream: Shaf },
+    /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
+    Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest, stream: Shfaf },
+    /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
+    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ukf },
+    /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
+    Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never, stream: none },
+    /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
+    Ukf2d { name: "ukf2d", run: planar(Ukf), takes: [Ranges], smoothing: Never, stream: none },
+    /// The planar errors-complementary EKF of Wang et al. (2018), eqs. (15)–(18).
+    ///
+    /// Ranges pass through a moving average first.
+    Cekf2d { name: "cekf2d", run: planar(Cekf), takes: [Ranges], smoothing: Never, stream: none },
+    /// The recommended method for real logs (ours), smoothed unless a forward pass is asked for.
+    ///
+    /// RIEKF with its range test skewed against long ranges and the zero-velocity constraint while
+    /// still ([`uwbimu_estimation::filters::Best`]), re-acquisition on divergence and
+    /// self-initialisation when no initial state is given.
+    Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa], smoothing: ByDefault, stream: Best },
+}
+
+impl Method {
+    /// The method's name.
+    pub fn name(self) -> &'static str {
+        self.info().name
+    }
+
+    /// The first line of the method's doc: one sentence that says what it is (every row's doc
+    /// starts with one; `tests::every_summary_is_a_sentence`).
+    pub fn summary(self) -> &'static str {
+        self.info().doc.lines().next().unwrap_or_default().trim()
+    }
+
+    /// Every method name, in registry order.
+    pub fn names() -> impl Iterator<Item = &'static str> {
+        Self::ALL.iter().map(|m| m.name())
+    }
+
+    /// Whether the method's run can be RTS-smoothed: the inertial 15-state filters (not
+    /// `uwb_ls` and the planar filters).
+    pub fn smoothable(self) -> bool {
+        self.info().smoothing != Smoothing::Never
+    }
+
+    /// Whether the batch API smooths the method's run when the caller does not say (`best`).
+    pub fn smooths_by_default(self) -> bool {
+        self.info().smoothing == Smoothing::ByDefault
+    }
+
+    /// Whether to smooth: as `asked`, else the method's default ([`Method::smooths_by_default`]).
+    pub fn smooth(self, asked: Option<bool>) -> bool {
+        asked.unwrap_or(self.smooths_by_default())
+    }
+
+    /// Whether the method takes `input`.
+    pub fn takes(self, input: Input) -> bool {
+        self.info().takes.contains(&input)
+    }
+
+    /// Whether the method takes TDoA (the tightly coupled inertial filters; the loosely coupled
+    /// ones fuse a per-epoch fix from ranges, the planar ones and `uwb_ls` take ranges only).
+    pub fn takes_tdoa(self) -> bool {
+        self.takes(Input::Tdoa)
+    }
+
+    /// The names of the methods for which `keep` holds, comma-separated (for error messages).
+    pub fn names_where(keep: impl Fn(Self) -> bool) -> String {
+        Self::ALL.iter().filter(|m| keep(**m)).map(|m| m.name()).collect::<Vec<_>>().join(", ")
+    }
+
+    /// Parses a method name; the error lists the allowed names.
+    pub fn parse(name: &str) -> Result<Self> {
+        Self::ALL.iter().copied().find(|m| m.name() == name).ok_or_else(|| Error::UnknownOption {
+            kind: "method",
+            got: name.to_string(),
+            allowed: Self::names_where(|_| true),
+        })
+    }
+}
+
+/// The method replays use when none is given.
+pub const DEFAULT_METHOD: Method = Method::Best;
+
+/// What a batch run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BatchOutput {
+    /// An inertial filter's trace, with the self-initialisation used (None if the caller gave
+    /// the initial state).
+    Inertial {
+        /// Per-IMU-sample records and per-range reports.
+        trace: Trace,
+        /// Self-initialisation result, when the filter initialised itself.
+        init: Option<Box<SelfInit>>,
+        /// RTS-smoothed records, one per IMU sample, when smoothing was asked for.
+        smoothed: Option<Vec<StepRecord>>,
+    },
+    /// One UWB-only fix per solvable epoch: (epoch time s, fix).
+    Multilateration(Vec<(f64, Fix)>),
+}
+
+/// What a batch run is given besides the method.
+#[derive(Debug, Clone, Copy)]
+pub struct BatchInput<'a> {
+    /// IMU samples, validated and time-ordered.
+    pub imu: &'a [ImuSample],
+    /// Ranges, validated and time-ordered.
+    pub ranges: &'a [RangeMeasurement],
+    /// Anchor positions, m.
+    pub anchors: &'a [Vec3],
+    /// Initial state (None: self-initialisation, [`uwbimu_estimation::init`]).
+    pub initial: Option<&'a InitialState>,
+    /// Filter settings.
+    pub config: &'a FilterConfig,
+    /// Also RTS-smooth the run (inertial filters only).
+    pub smooth: bool,
+    /// Magnetometer samples, validated and time-ordered (used by `ackf`; empty if none).
+    pub mag: &'a [MagSample],
+    /// TDoA, validated and time-ordered (tightly coupled inertial methods; empty if none).
+    pub tdoa: &'a [TdoaMeasurement],
+}
+
+/// Runs `method` over one recording. A non-empty `config.range_calibration` (seed 001 §2.2) and a
+/// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
+pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    if !input.mag.is_empty() && !method.takes(Input::Magnetometer) {
+        return Err(Error::InvalidCall(format!(
+            "magnetometer data given, but {} does not use a magnetometer (these do: {})",
+            method.name(),
+            Method::names_where(|m| m.takes(Input::Magnetometer))
+        )));
+    }
+    if !input.tdoa.is_empty() && !method.takes_tdoa() {
+        return Err(Error::InvalidCall(format!(
+            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {})",
+            method.name(),
+            Method::names_where(Method::takes_tdoa)
+        )));
+    }
+    let offset = input.config.ranging.time_offset_s;
+    if offset != 0.0 {
+        let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
+        let shift = |t: f64| Some(t + offset).filter(|&t| span(t));
+        let ranges: Vec<_> = input.ranges.iter().filter_map(|r| shift(r.t_s).map(|t_s| RangeMeasurement { t_s, ..*r })).collect();
+        let tdoa: Vec<_> = input.tdoa.iter().filter_map(|m| shift(m.t_s).map(|t_s| TdoaMeasurement { t_s, ..*m })).collect();
+        let mut config = input.config.clone();
+        config.ranging.time_offset_s = 0.0;
+        return run_method(method, &BatchInput { ranges: &ranges, tdoa: &tdoa, config: &config, ..*input });
+    }
+    if !input.config.range_calibration.is_empty() {
+        let calibrated = input.config.range_calibration.apply(input.ranges, input.anchors.len())?;
+        return run_calibrated(method, &BatchInput { ranges: &calibrated, ..*input });
+    }
+    run_calibrated(method, input)
+}
+
+fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    if input.smooth && !method.smoothable() {
+        return Err(Error::UnknownOption {
+            kind: "smoothing method",
+            got: method.name().into(),
+            allowed: Method::names_where(Method::smoothable),
+        });
+    }
+    dispatch(method, input)
+}
+
+/// Runs `method` over many recordings, in parallel on all cores with the `parallel` feature
+/// (rayon), else one after the other; one result per input, in order.
+pub fn run_many(method: Method, inputs: &[BatchInput<'_>]) -> Vec<Result<BatchOutput>> {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        inputs.par_iter().map(|input| run_method(method, input)).collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        inputs.iter().map(|input| run_method(method, input)).collect()
+    }
+}
+
+/// The given initial state, or the self-initialisation's.
+fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<SelfInit>>)> {
+    let BatchInput { imu, ranges, anchors, initial, config, tdoa, .. } = *input;
+    Ok(match initial {
+        Some(i) => (i.clone(), None),
+        None => {
+            let s = initialize_with_tdoa(imu, ranges, tdoa, anchors, config)?;
+            (s.initial.clone(), Some(Box::new(s)))
+        }
+    })
+}
+
+/// Runs a planar filter of seed 001 (initialised like the inertial filters: x, y, velocity, yaw
+/// and gyro bias from the initial state).
+fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    let (initial, init) = initial_state(input)?;
+    let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
+    Ok(BatchOutput::Inertial { trace: run(&mut filter, input.imu, input.ranges)?, init, smoothed: None })
+}
+
+/// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
+fn run_inertial<F: InertialFilter>(
+    build: impl FnOnce(&InitialState) -> Result<F>,
+    input: &BatchInput<'_>,
+) -> Result<BatchOutput> {
+    let BatchInput { imu, ranges, smooth, mag, tdoa, .. } = *input;
+    let (initial, init) = initial_state(input)?;
+    let mut filter = build(&initial)?;
+    if smooth {
+        filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
+    }
+    let trace = run_streams(&mut filter, &Streams { imu, ranges, mag, tdoa })?;
+    let smoothed = if smooth { Some(smoothed_steps(&trace, filter.core())?) } else { None };
+    Ok(BatchOutput::Inertial { trace, init, smoothed })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for name in Method::names() {
+            assert_eq!(Method::parse(name).map(Method::name), Ok(name));
+        }
+        assert!(matches!(Method::parse("rieks"), Err(Error::UnknownOption { .. })));
+    }
+
+    #[test]
+    fn every_summary_is_a_sentence() {
+        for m in Method::ALL {
+            let s = m.summary();
+            assert!(s.len() > 20 && s.ends_with('.') && s.chars().next().is_some_and(char::is_uppercase), "{s}");
+        }
+    }
+
+    #[test]
+    fn capabilities_follow_the_rows() {
+        assert_eq!(Method::names_where(Method::smooths_by_default), "best");
+        assert_eq!(Method::names_where(|m| m.takes(Input::Magnetometer)), "ackf");
+        assert!(!Method::UwbLs.smoothable() && !Method::Ekf2d.takes_tdoa() && Method::Best.takes_tdoa());
+        let streaming: Vec<_> = Method::ALL.iter().filter_map(|m| m.info().streaming_class).collect();
+        assert_eq!(streaming.len(), 13);
+    }
+}

@@ -1,0 +1,121 @@
+//! Replay of a decoded recording through one method ([`crate::methods::run_method`]), with the
+//! per-anchor update statistics and the comparison with ground truth that the `uwbimu-replay`
+//! binary and `uwbimu_rs.replay` report.
+
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::PosePoint;
+
+use crate::io::Recording;
+use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::metrics::{evaluate, Evaluation};
+
+/// What the filter did with one anchor's ranges (or with the TDoA).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct AnchorUpdateStats {
+    /// Anchor id (`tdoa` for the TDoA).
+    pub id: String,
+    /// Measurements applied at full weight.
+    pub accepted: usize,
+    /// Measurements applied with inflated noise (robust methods).
+    pub down_weighted: usize,
+    /// Measurements not applied (gated out or unusable).
+    pub rejected: usize,
+}
+
+/// The result of [`replay`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Replay {
+    /// The method's output.
+    pub output: BatchOutput,
+    /// Ranges per anchor, in anchor-index order (inertial methods; empty for `uwb_ls`).
+    pub anchors: Vec<AnchorUpdateStats>,
+    /// The TDoA (id `tdoa`), when the recording has any.
+    pub tdoa: Option<AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and TDoA (None when there were none).
+    pub mean_nis: Option<f64>,
+}
+
+impl Replay {
+    /// The estimated trajectory (filtered or smoothed records; `uwb_ls` fixes).
+    pub fn trajectory(&self) -> Vec<PosePoint> {
+        match &self.output {
+            BatchOutput::Inertial { trace, smoothed, .. } => smoothed
+                .as_deref()
+                .unwrap_or(&trace.steps)
+                .iter()
+                .map(|s| (s.t_s, s.state.position, Some(s.state.orientation)))
+                .collect(),
+            BatchOutput::Multilateration(fixes) => fixes.iter().map(|(t, f)| (*t, f.position, None)).collect(),
+        }
+    }
+}
+
+/// Runs `method` over the ranges and TDoA of `rec`, from `initial` (None: self-initialisation,
+/// from the ranges or else the TDoA) and gathers per-anchor statistics. A recording with TDoA
+/// needs a method that takes them ([`Method::takes_tdoa`]).
+///
+/// # Errors
+/// As [`run_method`]; [`Error::InsufficientData`] if the recording has no IMU samples, no
+/// ranges and no TDoA.
+pub fn replay(
+    rec: &Recording,
+    method: Method,
+    config: &FilterConfig,
+    initial: Option<&InitialState>,
+    smooth: bool,
+) -> Result<Replay> {
+    if rec.imu.is_empty() || (rec.ranges.is_empty() && rec.tdoa.is_empty()) {
+        return Err(Error::InsufficientData(format!(
+            "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
+            rec.imu.len(),
+            rec.ranges.len(),
+            rec.tdoa.len()
+        )));
+    }
+    let input = BatchInput {
+        imu: &rec.imu,
+        ranges: &rec.ranges,
+        anchors: &rec.anchors,
+        initial,
+        config,
+        smooth,
+        mag: &[],
+        tdoa: &rec.tdoa,
+    };
+    let output = run_method(method, &input)?;
+    let mut anchors: Vec<AnchorUpdateStats> =
+        rec.anchor_ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect();
+    let mut tdoa = (!rec.tdoa.is_empty()).then(|| AnchorUpdateStats { id: "tdoa".into(), ..AnchorUpdateStats::default() });
+    let (mut nis_sum, mut nis_n) = (0.0, 0usize);
+    if let BatchOutput::Inertial { trace, .. } = &output {
+        for u in &trace.updates {
+            let counts = if u.anchor_j.is_some() { tdoa.as_mut() } else { anchors.get_mut(u.anchor) };
+            let Some(a) = counts else { continue };
+            match (u.report.accepted, u.report.down_weighted) {
+                (true, false) => a.accepted += 1,
+                (true, true) => a.down_weighted += 1,
+                (false, _) => a.rejected += 1,
+            }
+            if u.report.accepted && u.report.nis.is_finite() {
+                nis_sum += u.report.nis;
+                nis_n += 1;
+            }
+        }
+    }
+    Ok(Replay { output, anchors, tdoa, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
+}
+
+/// Errors of a trajectory against ground truth: directly and after the least-squares rigid
+/// (SE(3)) alignment of the estimate onto the truth ([`crate::metrics::rigid_alignment`]).
+///
+/// # Errors
+/// As [`evaluate`] (e.g. no estimate inside the truth time span).
+pub fn compare_with_truth(trajectory: &[PosePoint], truth: &[(f64, Vec3)]) -> Result<(Evaluation, Evaluation)> {
+    let t: Vec<f64> = trajectory.iter().map(|p| p.0).collect();
+    let p: Vec<Vec3> = trajectory.iter().map(|p| p.1).collect();
+    let tt: Vec<f64> = truth.iter().map(|g| g.0).collect();
+    let tp: Vec<Vec3> = truth.iter().map(|g| g.1).collect();
+    Ok((evaluate(&t, &p, &tt, &tp, false)?, evaluate(&t, &p, &tt, &tp, true)?))
+}

@@ -1,0 +1,497 @@
+//! Seeded simulator of a UWB + IMU ground vehicle: exact trajectories, IMU synthesis, UWB ranges
+//! with NLOS, and the paper setups as presets.
+//!
+//! - **Trajectories** ([`Trajectory`]): still / turn-in-place / straight / closed-curve segments
+//!   (figure-8 lemniscate of Gerono, ellipse), evaluated in closed form at constant height with
+//!   roll = pitch = 0 and heading along the path tangent; an optional [`Overlay`] adds periodic
+//!   position and attitude motion (walking, flight). Speed changes use the quintic smoothstep,
+//!   so velocity and acceleration are continuous. Every constructor starts with a still period
+//!   for levelling from gravity.
+//! - **IMU** ([`ImuNoise`]): f_b = R_nbᵀ(a_n − g_n) and ω_b, rotated into the IMU frame by
+//!   `imu_rotation`ᵀ, plus white noise (density·√rate per sample), a constant bias drawn once and
+//!   a bias random walk. Optional magnetometer ([`MagConfig`]) at the IMU times.
+//! - **UWB** ([`UwbConfig`]): per-anchor ranges from the tag (body origin + R·lever arm) with
+//!   Gaussian and uniform noise, NLOS shielding windows (positive bias, extra noise, dropouts),
+//!   gross outliers and dropouts, staggered and jittered per-anchor times, per-anchor rates and
+//!   outages; each range is labelled LOS / NLOS / outlier.
+//! - **Presets** ([`preset`]): `seed000` (figure-8 ×4 in a hall, NLOS shielding), `seed000_los`,
+//!   `seed002_rectangle`, `seed002_figure8`, `seed004_s1`, `seed004_s2`.
+//! - **The scenario zoo** ([`zoo`]): deployment-like runs (staggered ranges, mixed rates,
+//!   coplanar and cuboid anchors, 20–1000 Hz IMUs, walking and flight, NLOS, outliers, outages,
+//!   survey errors) with the filter configuration matched to their sensors ([`matched_config`]).
+//!
+//! Randomness: one seed; the IMU, UWB and magnetometer draw from separate ChaCha8 streams, so
+//! changing one sensor's settings leaves the other sensors' noise unchanged.
+
+mod imu;
+mod outliers;
+mod overlay;
+mod presets;
+mod tdoa;
+mod trajectory;
+mod uwb;
+mod zoo;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::{Quat, Vec3};
+use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement, TruthSample};
+use uwbimu_vocabulary::validate::{invalid, non_negative, positive};
+
+pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
+pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
+pub use overlay::{Overlay, Sinusoid};
+pub(crate) use presets::hall_anchors;
+pub use presets::{preset, PRESET_NAMES};
+pub use tdoa::TdoaConfig;
+pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Trajectory};
+pub use uwb::{
+    NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
+};
+pub use zoo::{matched_config, true_initial, zoo, Scenario, ZOO_NAMES};
+
+/// ChaCha stream of the IMU noise.
+const STREAM_IMU: u64 = 1;
+/// ChaCha stream of the UWB noise and shielding schedule.
+const STREAM_UWB: u64 = 2;
+/// ChaCha stream of the magnetometer noise.
+const STREAM_MAG: u64 = 3;
+/// ChaCha stream of the accelerometer outliers.
+const STREAM_ACCEL_OUTLIERS: u64 = 4;
+/// ChaCha stream of the TDoA noise.
+const STREAM_TDOA: u64 = 5;
+
+/// Everything the simulator needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    /// Motion of the body (IMU) origin; its duration is the run length.
+    pub trajectory: Trajectory,
+    /// IMU (and magnetometer) sample rate, Hz; samples at k/rate, k = 0, 1, ….
+    pub imu_rate_hz: f64,
+    /// IMU error model.
+    pub imu_noise: ImuNoise,
+    /// Gravity in the navigation frame (ENU), m/s².
+    pub gravity_nav_mps2: Vec3,
+    /// UWB antenna (tag) position in the body frame, m.
+    pub lever_arm_m: Vec3,
+    /// Mounting rotation IMU frame → body frame (identity = aligned).
+    pub imu_rotation: Quat,
+    /// Anchor positions, navigation frame, m.
+    pub anchors: Vec<Vec3>,
+    /// UWB ranging model.
+    pub uwb: UwbConfig,
+    /// Magnetometer model (`None` = no magnetometer).
+    pub magnetometer: Option<MagConfig>,
+    /// TDoA model (`None` = no TDoA); independent of the ranges.
+    pub tdoa: Option<TdoaConfig>,
+    /// Abnormal accelerometer samples (seed 002 §4.1); none by default.
+    pub accel_outliers: AccelOutliers,
+    /// Seed of all random draws.
+    pub seed: u64,
+    /// The recording starts at this trajectory time, s: IMU samples and ranges before it are not
+    /// delivered (a log started while the platform was already moving).
+    pub start_s: f64,
+    /// Survey errors: the anchor table handed out ([`SimData::anchors`]) is the true one plus
+    /// these offsets `(anchor index, offset m)`; ranges are measured to the true anchors.
+    pub anchor_survey_errors: Vec<(usize, Vec3)>,
+}
+
+impl Default for SimConfig {
+    /// 10 s still at the origin, 100 Hz consumer-MEMS IMU, g = 9.80665 m/s², lever arm
+    /// [0, 0, 0.05] m, aligned IMU, the four `seed000` hall anchors, 2 Hz LOS ranging with
+    /// σ = 0.1 m, no magnetometer, seed 0.
+    fn default() -> Self {
+        Self {
+            trajectory: Trajectory::default(),
+            imu_rate_hz: 100.0,
+            imu_noise: ImuNoise::default(),
+            gravity_nav_mps2: Vec3::new(0.0, 0.0, -9.80665),
+            lever_arm_m: Vec3::new(0.0, 0.0, 0.05),
+            imu_rotation: Quat::identity(),
+            anchors: presets::hall_anchors(),
+            uwb: UwbConfig::default(),
+            magnetometer: None,
+            tdoa: None,
+            accel_outliers: AccelOutliers::default(),
+            seed: 0,
+            start_s: 0.0,
+            anchor_survey_errors: Vec::new(),
+        }
+    }
+}
+
+/// A simulated run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimData {
+    /// IMU samples (IMU frame), one per IMU time.
+    pub imu: Vec<ImuSample>,
+    /// Ranges, time-ordered (anchors in index order within an epoch).
+    pub ranges: Vec<RangeMeasurement>,
+    /// One label per range: [`LABEL_LOS`], [`LABEL_NLOS`] or [`LABEL_OUTLIER`].
+    pub range_labels: Vec<u8>,
+    /// Anchor positions as surveyed (the true ones plus [`SimConfig::anchor_survey_errors`]),
+    /// navigation frame, m: what a filter is given.
+    pub anchors: Vec<Vec3>,
+    /// True anchor positions, navigation frame, m.
+    pub true_anchors: Vec<Vec3>,
+    /// Truth of the body origin at the IMU times.
+    pub truth: Vec<TruthSample>,
+    /// Magnetometer samples at the IMU times (empty without a magnetometer).
+    pub mag: Vec<MagSample>,
+    /// TDoA in time order (empty without the TDoA model).
+    pub tdoa: Vec<TdoaMeasurement>,
+    /// Per TDoA: [`LABEL_LOS`] or [`LABEL_OUTLIER`].
+    pub tdoa_labels: Vec<u8>,
+    /// True accelerometer bias (IMU frame) at each IMU time, m/s².
+    pub accel_bias: Vec<Vec3>,
+    /// True gyroscope bias (IMU frame) at each IMU time, rad/s.
+    pub gyro_bias: Vec<Vec3>,
+    /// Shielding windows realised in this run, with their biases.
+    pub nlos_windows: Vec<ShieldingWindow>,
+    /// Times of the abnormal accelerometer samples, s (empty without [`SimConfig::accel_outliers`]).
+    pub accel_outlier_times: Vec<f64>,
+}
+
+/// A value for [`SimConfig::apply_overrides`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OverrideValue {
+    /// On/off switch.
+    Flag(bool),
+    /// Number (unit given by the key).
+    Number(f64),
+}
+
+/// Keys accepted by [`SimConfig::apply_overrides`]: switches `nlos`, `magnetometer`, `imu_noise`,
+/// then numbers (units in the names; densities in unit/√Hz, walks in unit/√s).
+pub const OVERRIDE_KEYS: &[&str] = &[
+    "nlos",
+    "magnetometer",
+    "tdoa",
+    "tdoa_rate_hz",
+    "tdoa_std_m",
+    "tdoa_outlier_prob",
+    "imu_noise",
+    "imu_rate_hz",
+    "uwb_rate_hz",
+    "range_std_m",
+    "uniform_noise_m",
+    "outlier_prob",
+    "outlier_min_m",
+    "outlier_max_m",
+    "dropout_prob",
+    "nlos_bias_min_m",
+    "nlos_bias_max_m",
+    "nlos_extra_std_m",
+    "nlos_dropout_prob",
+    "accel_noise_density",
+    "gyro_noise_density",
+    "accel_bias_std",
+    "gyro_bias_std",
+    "accel_bias_walk",
+    "gyro_bias_walk",
+    "mag_noise_std",
+    "accel_outlier_count",
+    "accel_outlier_std_mps2",
+    "stagger_s",
+    "jitter_s",
+    "start_s",
+];
+
+fn probability(field: &str, v: f64) -> Result<()> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("must be a probability in [0, 1], got {v}")))
+    }
+}
+
+fn ordered(field: &str, lo: f64, hi: f64) -> Result<()> {
+    if lo <= hi {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("minimum {lo} exceeds maximum {hi}")))
+    }
+}
+
+fn finite_vec(field: &str, v: &Vec3) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("must be finite, got {v:?}")))
+    }
+}
+
+fn anchor_index(field: &str, anchor: usize, count: usize) -> Result<()> {
+    if anchor < count {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("anchor index {anchor} out of range ({count} anchors)")))
+    }
+}
+
+impl SimConfig {
+    /// Checks every field; the first problem is returned as [`Error::InvalidConfig`] naming the
+    /// field (rates > 0, stds ≥ 0, probabilities in [0, 1], min ≤ max, ≥ 1 finite anchor, valid
+    /// anchor indices).
+    pub fn validate(&self) -> Result<()> {
+        positive("imu_rate_hz", self.imu_rate_hz)?;
+        let n = &self.imu_noise;
+        non_negative("imu_noise.accel_noise_density", n.accel_noise_density)?;
+        non_negative("imu_noise.gyro_noise_density", n.gyro_noise_density)?;
+        non_negative("imu_noise.accel_bias_std", n.accel_bias_std)?;
+        non_negative("imu_noise.gyro_bias_std", n.gyro_bias_std)?;
+        non_negative("imu_noise.accel_bias_walk", n.accel_bias_walk)?;
+        non_negative("imu_noise.gyro_bias_walk", n.gyro_bias_walk)?;
+        non_negative("accel_outliers.std_mps2", self.accel_outliers.std_mps2)?;
+        finite_vec("gravity_nav_mps2", &self.gravity_nav_mps2)?;
+        finite_vec("lever_arm_m", &self.lever_arm_m)?;
+        if !self.imu_rotation.coords.iter().all(|x| x.is_finite()) {
+            return Err(invalid("imu_rotation", "must be finite"));
+        }
+        if self.anchors.is_empty() {
+            return Err(invalid("anchors", "need at least one anchor"));
+        }
+        for a in &self.anchors {
+            finite_vec("anchors", a)?;
+        }
+        let k = self.anchors.len();
+        let u = &self.uwb;
+        positive("uwb.rate_hz", u.rate_hz)?;
+        non_negative("uwb.range_std_m", u.range_std_m)?;
+        non_negative("uwb.uniform_noise_m", u.uniform_noise_m)?;
+        probability("uwb.outlier_prob", u.outlier_prob)?;
+        non_negative("uwb.outlier_min_m", u.outlier_min_m)?;
+        ordered("uwb.outlier_max_m", u.outlier_min_m, u.outlier_max_m)?;
+        non_negative("uwb.outlier_max_m", u.outlier_max_m)?;
+        probability("uwb.dropout_prob", u.dropout_prob)?;
+        for &a in &u.outlier_anchors {
+            anchor_index("uwb.outlier_anchors", a, k)?;
+        }
+        non_negative("uwb.stagger_s", u.stagger_s)?;
+        non_negative("uwb.jitter_s", u.jitter_s)?;
+        if u.anchor_rate_divisors.len() > k || u.anchor_rate_divisors.contains(&0) {
+            return Err(invalid("uwb.anchor_rate_divisors", "one divisor >= 1 per anchor at most"));
+        }
+        for o in &u.outages {
+            if !(o.start_s.is_finite() && o.end_s.is_finite()) {
+                return Err(invalid("uwb.outages", "times must be finite"));
+            }
+            ordered("uwb.outages", o.start_s, o.end_s)?;
+        }
+        non_negative("start_s", self.start_s)?;
+        if self.start_s >= self.trajectory.duration_s() {
+            return Err(invalid("start_s", "must be before the end of the trajectory"));
+        }
+        for (anchor, offset) in &self.anchor_survey_errors {
+            anchor_index("anchor_survey_errors", *anchor, k)?;
+            finite_vec("anchor_survey_errors", offset)?;
+        }
+        if let Some(nlos) = &u.nlos {
+            non_negative("uwb.nlos.bias_min_m", nlos.bias_min_m)?;
+            non_negative("uwb.nlos.bias_max_m", nlos.bias_max_m)?;
+            ordered("uwb.nlos.bias_max_m", nlos.bias_min_m, nlos.bias_max_m)?;
+            non_negative("uwb.nlos.extra_std_m", nlos.extra_std_m)?;
+            probability("uwb.nlos.dropout_prob", nlos.dropout_prob)?;
+            for w in &nlos.windows {
+                anchor_index("uwb.nlos.windows", w.anchor, k)?;
+                if !(w.start_s.is_finite() && w.end_s.is_finite()) {
+                    return Err(invalid("uwb.nlos.windows", "times must be finite"));
+                }
+                ordered("uwb.nlos.windows", w.start_s, w.end_s)?;
+            }
+            if let Some(r) = &nlos.random {
+                if !r.start_s.is_finite() {
+                    return Err(invalid("uwb.nlos.random.start_s", "must be finite"));
+                }
+                positive("uwb.nlos.random.duration_min_s", r.duration_min_s)?;
+                ordered("uwb.nlos.random.duration_max_s", r.duration_min_s, r.duration_max_s)?;
+                non_negative("uwb.nlos.random.gap_min_s", r.gap_min_s)?;
+                ordered("uwb.nlos.random.gap_max_s", r.gap_min_s, r.gap_max_s)?;
+                positive("uwb.nlos.random.duration_max_s", r.duration_max_s)?;
+            }
+        }
+        if let Some(d) = &self.tdoa {
+            if self.anchors.len() < 2 {
+                return Err(invalid("tdoa", "needs at least two anchors"));
+            }
+            positive("tdoa.rate_hz", d.rate_hz)?;
+            non_negative("tdoa.std_m", d.std_m)?;
+            probability("tdoa.outlier_prob", d.outlier_prob)?;
+            non_negative("tdoa.outlier_min_m", d.outlier_min_m)?;
+            ordered("tdoa.outlier_max_m", d.outlier_min_m, d.outlier_max_m)?;
+            non_negative("tdoa.jitter_s", d.jitter_s)?;
+            if d.jitter_s >= 1.0 / (d.rate_hz * self.anchors.len() as f64) {
+                return Err(invalid("tdoa.jitter_s", "must be shorter than the time between two packets"));
+            }
+        }
+        if let Some(m) = &self.magnetometer {
+            finite_vec("magnetometer.field_nav", &m.field_nav)?;
+            non_negative("magnetometer.noise_std", m.noise_std)?;
+            for d in &m.disturbances {
+                finite_vec("magnetometer.disturbances", &d.offset_nav)?;
+                ordered("magnetometer.disturbances", d.start_s, d.end_s)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies named overrides (keys in [`OVERRIDE_KEYS`]); switches are applied first, so e.g.
+    /// `nlos_bias_max_m` may follow or precede `nlos = true`. `nlos = true` on a config without
+    /// NLOS installs [`NlosConfig::default`]; `magnetometer = true` installs
+    /// [`MagConfig::default`]; `imu_noise = false` makes the IMU perfect. Values are checked later
+    /// by [`SimConfig::validate`]. Unknown key → [`Error::UnknownOption`]; wrong value kind or an
+    /// `nlos_*`/`mag_*` key while that model is off → [`Error::InvalidConfig`].
+    pub fn apply_overrides(&mut self, overrides: &[(&str, OverrideValue)]) -> Result<()> {
+        let (flags, numbers): (Vec<_>, Vec<_>) = overrides.iter().partition(|(_, v)| matches!(v, OverrideValue::Flag(_)));
+        for (key, value) in flags.into_iter().chain(numbers) {
+            self.apply_override(key, value)?;
+        }
+        Ok(())
+    }
+
+    fn apply_override(&mut self, key: &str, value: OverrideValue) -> Result<()> {
+        if !OVERRIDE_KEYS.contains(&key) {
+            return Err(unknown_override(key));
+        }
+        let is_flag = matches!(key, "nlos" | "magnetometer" | "imu_noise" | "tdoa");
+        match value {
+            OverrideValue::Flag(_) if !is_flag => Err(invalid(key, "expects a number, got a bool")),
+            OverrideValue::Number(_) if is_flag => Err(invalid(key, "expects a bool, got a number")),
+            OverrideValue::Flag(on) => {
+                match (key, on) {
+                    ("nlos", false) => self.uwb.nlos = None,
+                    ("nlos", true) => {
+                        self.uwb.nlos.get_or_insert_with(NlosConfig::default);
+                    }
+                    ("magnetometer", false) => self.magnetometer = None,
+                    ("magnetometer", true) => {
+                        self.magnetometer.get_or_insert_with(MagConfig::default);
+                    }
+                    ("tdoa", false) => self.tdoa = None,
+                    ("tdoa", true) => {
+                        self.tdoa.get_or_insert_with(TdoaConfig::default);
+                    }
+                    ("imu_noise", false) => self.imu_noise = ImuNoise::none(),
+                    ("imu_noise", true) => {}
+                    _ => return Err(unknown_override(key)),
+                }
+                Ok(())
+            }
+            OverrideValue::Number(x) if key == "accel_outlier_count" => {
+                if !(x >= 0.0 && x.fract() == 0.0 && x <= 1e6) {
+                    return Err(invalid(key, format!("must be a whole number of samples in [0, 1e6], got {x}")));
+                }
+                self.accel_outliers.count = x as usize;
+                Ok(())
+            }
+            OverrideValue::Number(x) => {
+                *self.number_slot(key)? = x;
+                Ok(())
+            }
+        }
+    }
+
+    /// The numeric field behind an override key.
+    fn number_slot(&mut self, key: &str) -> Result<&mut f64> {
+        if let Some(field) = key.strip_prefix("nlos_") {
+            let nlos = self.uwb.nlos.as_mut().ok_or_else(|| invalid(key, "NLOS is off; set nlos=True"))?;
+            return match field {
+                "bias_min_m" => Ok(&mut nlos.bias_min_m),
+                "bias_max_m" => Ok(&mut nlos.bias_max_m),
+                "extra_std_m" => Ok(&mut nlos.extra_std_m),
+                "dropout_prob" => Ok(&mut nlos.dropout_prob),
+                _ => Err(unknown_override(key)),
+            };
+        }
+        if let Some(field) = key.strip_prefix("tdoa_") {
+            let tdoa = self.tdoa.as_mut().ok_or_else(|| invalid(key, "TDoA is off; set tdoa=True"))?;
+            return match field {
+                "rate_hz" => Ok(&mut tdoa.rate_hz),
+                "std_m" => Ok(&mut tdoa.std_m),
+                "outlier_prob" => Ok(&mut tdoa.outlier_prob),
+                _ => Err(unknown_override(key)),
+            };
+        }
+        if key == "mag_noise_std" {
+            let mag = self.magnetometer.as_mut().ok_or_else(|| invalid(key, "the magnetometer is off; set magnetometer=True"))?;
+            return Ok(&mut mag.noise_std);
+        }
+        match key {
+            "imu_rate_hz" => Ok(&mut self.imu_rate_hz),
+            "uwb_rate_hz" => Ok(&mut self.uwb.rate_hz),
+            "range_std_m" => Ok(&mut self.uwb.range_std_m),
+            "uniform_noise_m" => Ok(&mut self.uwb.uniform_noise_m),
+            "outlier_prob" => Ok(&mut self.uwb.outlier_prob),
+            "outlier_min_m" => Ok(&mut self.uwb.outlier_min_m),
+            "outlier_max_m" => Ok(&mut self.uwb.outlier_max_m),
+            "dropout_prob" => Ok(&mut self.uwb.dropout_prob),
+            "accel_noise_density" => Ok(&mut self.imu_noise.accel_noise_density),
+            "gyro_noise_density" => Ok(&mut self.imu_noise.gyro_noise_density),
+            "accel_bias_std" => Ok(&mut self.imu_noise.accel_bias_std),
+            "gyro_bias_std" => Ok(&mut self.imu_noise.gyro_bias_std),
+            "accel_bias_walk" => Ok(&mut self.imu_noise.accel_bias_walk),
+            "gyro_bias_walk" => Ok(&mut self.imu_noise.gyro_bias_walk),
+            "accel_outlier_std_mps2" => Ok(&mut self.accel_outliers.std_mps2),
+            "stagger_s" => Ok(&mut self.uwb.stagger_s),
+            "jitter_s" => Ok(&mut self.uwb.jitter_s),
+            "start_s" => Ok(&mut self.start_s),
+            _ => Err(unknown_override(key)),
+        }
+    }
+}
+
+fn unknown_override(key: &str) -> Error {
+    Error::UnknownOption { kind: "override", got: key.to_string(), allowed: OVERRIDE_KEYS.join(", ") }
+}
+
+/// Runs the simulator: validates `cfg`, then synthesises IMU, truth, magnetometer and ranges.
+///
+/// ```
+/// # use uwbimu_app::sim::{preset, simulate};
+/// let data = simulate(&preset("seed004_s1", 7)?)?;
+/// assert_eq!(data.imu.len(), data.truth.len());
+/// assert_eq!(data.ranges.len(), data.range_labels.len());
+/// # Ok::<(), uwbimu_vocabulary::error::Error>(())
+/// ```
+pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
+    cfg.validate()?;
+    let stream = |s: u64| {
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        rng.set_stream(s);
+        rng
+    };
+    let (mut imu_rng, mut uwb_rng, mut mag_rng) = (stream(STREAM_IMU), stream(STREAM_UWB), stream(STREAM_MAG));
+    let mut imu_out = imu::synthesise(cfg, &mut imu_rng, &mut mag_rng);
+    let accel_outlier_times = outliers::inject(&mut imu_out.imu, &cfg.accel_outliers, &mut stream(STREAM_ACCEL_OUTLIERS));
+    let mut uwb_out = uwb::synthesise(cfg, &mut uwb_rng);
+    let (mut tdoa, mut tdoa_labels) = match &cfg.tdoa {
+        Some(t) => tdoa::synthesise(cfg, t, &mut stream(STREAM_TDOA)),
+        None => (Vec::new(), Vec::new()),
+    };
+    let delivered_tdoa = tdoa.partition_point(|m| m.t_s < cfg.start_s);
+    tdoa.drain(..delivered_tdoa);
+    tdoa_labels.drain(..delivered_tdoa);
+    let delivered = uwb_out.ranges.partition_point(|r| r.t_s < cfg.start_s);
+    uwb_out.ranges.drain(..delivered);
+    uwb_out.labels.drain(..delivered);
+    let mut anchors = cfg.anchors.clone();
+    for (anchor, offset) in &cfg.anchor_survey_errors {
+        anchors[*anchor] += offset;
+    }
+    Ok(SimData {
+        imu: imu_out.imu,
+        ranges: uwb_out.ranges,
+        range_labels: uwb_out.labels,
+        anchors,
+        true_anchors: cfg.anchors.clone(),
+        truth: imu_out.truth,
+        mag: imu_out.mag,
+        tdoa,
+        tdoa_labels,
+        accel_bias: imu_out.accel_bias,
+        gyro_bias: imu_out.gyro_bias,
+        nlos_windows: uwb_out.windows,
+        accel_outlier_times,
+    })
+}

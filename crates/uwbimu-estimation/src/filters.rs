@@ -1,0 +1,131 @@
+//! Named filters composed from the shared pieces (INS core, measurement models, update step),
+//! and the trait the pipeline drives.
+
+/// Implements [`InertialFilter`] for a newtype over another filter (`self.0`), so a named filter
+/// is only its constructor.
+macro_rules! delegate_filter {
+    ($name:ident) => {
+        impl crate::filters::InertialFilter for $name {
+            fn anchors(&self) -> &[uwbimu_vocabulary::math::Vec3] {
+                self.0.anchors()
+            }
+
+            fn predict(
+                &mut self,
+                t_s: f64,
+                accel: &uwbimu_vocabulary::math::Vec3,
+                gyro: &uwbimu_vocabulary::math::Vec3,
+            ) -> uwbimu_vocabulary::error::Result<()> {
+                self.0.predict(t_s, accel, gyro)
+            }
+
+            fn update_ranges(
+                &mut self,
+                t_s: f64,
+                ranges: &[(usize, f64)],
+                reports: &mut [crate::update::UpdateReport],
+            ) -> uwbimu_vocabulary::error::Result<()> {
+                self.0.update_ranges(t_s, ranges, reports)
+            }
+
+            fn observe(
+                &mut self,
+                observation: &uwbimu_vocabulary::records::Observation,
+            ) -> uwbimu_vocabulary::error::Result<crate::update::UpdateReport> {
+                self.0.observe(observation)
+            }
+
+            fn config(&self) -> &uwbimu_vocabulary::config::FilterConfig {
+                self.0.config()
+            }
+
+            fn core(&self) -> &crate::filters::InertialCore {
+                self.0.core()
+            }
+
+            fn core_mut(&mut self) -> &mut crate::filters::InertialCore {
+                self.0.core_mut()
+            }
+
+            fn still(&self) -> bool {
+                self.0.still()
+            }
+        }
+    };
+}
+
+pub mod ackf;
+pub mod constraints;
+pub mod core;
+pub mod loose;
+pub mod named;
+pub mod range_bias;
+pub mod reacquire;
+pub mod sigma_points;
+pub mod tight;
+
+use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::error::Result;
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::{MagSample, Observation, TdoaMeasurement};
+
+use crate::update::UpdateReport;
+
+pub use self::ackf::Ackf;
+pub use self::core::{InertialCore, Segment};
+pub use self::loose::{Eskf, Shaf, Shfaf};
+pub use self::named::{Arckf, Best, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf, BEST_NLOS_SKEW};
+pub use self::tight::{Composition, TightFilter, UpdateStrategy};
+
+/// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming
+/// classes and the batch API all go through these two calls.
+pub trait InertialFilter {
+    /// Takes the IMU sample at `t_s` (raw, IMU frame) and propagates the state to `t_s`.
+    fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
+    /// Applies the ranges of one epoch, `(anchor index, range m)` all measured at `t_s` (≥ the
+    /// filter time; the state is first propagated to `t_s` with the last IMU sample held), and
+    /// writes one report per range into `reports` (same length).
+    fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+
+    /// The anchors, navigation frame, m.
+    fn anchors(&self) -> &[Vec3];
+
+    /// The configuration the filter was built with (it hands each piece its section).
+    fn config(&self) -> &FilterConfig;
+
+    /// Applies one range: an epoch of one.
+    fn update_range(&mut self, t_s: f64, anchor: usize, range_m: f64) -> Result<UpdateReport> {
+        let mut report = [UpdateReport::skipped()];
+        self.update_ranges(t_s, &[(anchor, range_m)], &mut report)?;
+        Ok(report[0])
+    }
+    /// The shared INS core (state, covariance, time).
+    fn core(&self) -> &InertialCore;
+
+    /// Mutable access to the INS core (e.g. to start recording for smoothing).
+    fn core_mut(&mut self) -> &mut InertialCore;
+
+    /// Applies one observation (a magnetometer sample, a TDoA, …) measured at its time ≥ the
+    /// filter time, and reports what was done with it. A filter refuses the kinds it does not
+    /// take with [`uwbimu_vocabulary::error::Error::InvalidCall`]: the magnetometer is [`Ackf`]'s (seed 003),
+    /// TDoA are taken by the tightly coupled filters ([`TightFilter`] and those built on it).
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        Err(self::tight::not_taken(observation))
+    }
+
+    /// Applies one magnetometer sample (IMU frame, any unit) measured at `t_s` ([`Self::observe`]).
+    fn update_magnetometer(&mut self, t_s: f64, field: &Vec3) -> Result<UpdateReport> {
+        self.observe(&Observation::Magnetometer(MagSample { t_s, field: *field }))
+    }
+
+    /// Applies one TDoA `d_ij = ‖p − a_j‖ − ‖p − a_i‖` (m) measured at `t_s` ([`Self::observe`]).
+    fn update_tdoa(&mut self, t_s: f64, anchor_i: usize, anchor_j: usize, tdoa_m: f64) -> Result<UpdateReport> {
+        self.observe(&Observation::Tdoa(TdoaMeasurement { t_s, anchor_i, anchor_j, tdoa_m }))
+    }
+
+    /// Whether the still detector reported the platform still at the last constraint step
+    /// (always false without the zero-velocity constraint).
+    fn still(&self) -> bool {
+        false
+    }
+}

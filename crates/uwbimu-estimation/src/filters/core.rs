@@ -1,0 +1,342 @@
+//! The INS core every inertial filter owns: nominal state, error covariance, filter time and
+//! the held IMU sample, with prediction at IMU rate and propagation to measurement times.
+
+use uwbimu_vocabulary::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
+
+use crate::filters::range_bias::BiasCross;
+use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
+use crate::robust::fade_position_velocity;
+
+/// Nominal state + 15×15 error covariance + time bookkeeping (seed 000 §2.1).
+#[derive(Debug, Clone)]
+pub struct InertialCore {
+    ins: InsConfig,
+    mounting: MountingConfig,
+    state: NominalState,
+    covariance: ErrCov,
+    time_s: Option<f64>,
+    last_imu_t_s: Option<f64>,
+    last_interval_s: Option<f64>,
+    held_accel: Vec3,
+    held_gyro: Vec3,
+    imu_count: usize,
+    recording: Option<Vec<Segment>>,
+    /// Cross-covariance of the error state with parameter states the owner keeps (range biases,
+    /// constant between measurements): propagated as `Φ·P_xb`. Boxed: 2 kB that a filter
+    /// without parameter states should not carry inline.
+    cross: Option<Box<BiasCross>>,
+}
+
+/// One recorded propagation, for smoothing: the posterior at its start and the IMU interval
+/// (Φ, Q and the prediction are recomputed from them in the backward pass).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Segment {
+    /// Time at the start, s.
+    pub t_s: f64,
+    /// Posterior nominal state at the start.
+    pub state: NominalState,
+    /// Posterior error covariance at the start.
+    pub covariance: ErrCov,
+    /// The IMU interval propagated over.
+    pub interval: ImuInterval,
+    /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
+    /// the end of this segment (seed 002 eq. (42), [`InertialCore::fade_prior`]); 1 if none.
+    pub prior_fading: f64,
+    /// The re-acquisition widening of that predicted covariance, after the fading
+    /// ([`InertialCore::widen_prior`], [`crate::filters::reacquire`]); None if none.
+    pub prior_widening: Option<ReacquisitionWidening>,
+}
+
+fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(col) => Err(Error::NonFinite { name, row, col, value: v[col] }),
+        None => Ok(()),
+    }
+}
+
+impl InertialCore {
+    /// Starts from `initial` (diagonal covariance from its standard deviations); the filter
+    /// time is set by the first [`InertialCore::predict`]. Validates the whole configuration and
+    /// keeps its own sections, `ins` and `mounting` (`init` gives the bias uncertainties the
+    /// initial state leaves out). Fails on an invalid configuration.
+    pub fn new(initial: &InitialState, config: &FilterConfig) -> Result<Self> {
+        config.validate()?;
+        for (name, v) in [("initial.position", &initial.position), ("initial.velocity", &initial.velocity)] {
+            check_finite3(name, 0, v)?;
+        }
+        let covariance = initial.covariance(config);
+        Ok(Self {
+            ins: config.ins,
+            mounting: config.mounting,
+            state: NominalState {
+                position: initial.position,
+                velocity: initial.velocity,
+                orientation: initial.orientation,
+                accel_bias: initial.accel_bias,
+                gyro_bias: initial.gyro_bias,
+            },
+            covariance,
+            time_s: None,
+            last_imu_t_s: None,
+            last_interval_s: None,
+            held_accel: Vec3::zeros(),
+            held_gyro: Vec3::zeros(),
+            imu_count: 0,
+            recording: None,
+            cross: None,
+        })
+    }
+
+    /// Takes an IMU sample at `t_s` (IMU frame; rotated into the body frame by
+    /// `config.imu_rotation` first) and propagates from the filter time to `t_s` with the
+    /// trapezoid between the held sample and this one. The first call only sets the time.
+    pub fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        let row = self.imu_count;
+        if !t_s.is_finite() {
+            return Err(Error::NonFinite { name: "predict t", row, col: 0, value: t_s });
+        }
+        check_finite3("predict accel", row, accel)?;
+        check_finite3("predict gyro", row, gyro)?;
+        let accel = self.mounting.imu_rotation * accel;
+        let gyro = self.mounting.imu_rotation * gyro;
+        if let Some(t0) = self.time_s {
+            if t_s <= t0 {
+                return Err(Error::NonMonotonicTime { name: "predict", row, prev_s: t0, got_s: t_s });
+            }
+            self.last_interval_s = self.last_imu_t_s.map(|t_imu| t_s - t_imu);
+            self.propagate(&ImuInterval {
+                dt_s: t_s - t0,
+                accel_start: self.held_accel,
+                accel_end: accel,
+                gyro_start: self.held_gyro,
+                gyro_end: gyro,
+            });
+        }
+        self.time_s = Some(t_s);
+        self.last_imu_t_s = Some(t_s);
+        self.held_accel = accel;
+        self.held_gyro = gyro;
+        self.imu_count += 1;
+        Ok(())
+    }
+
+    /// Propagates to a measurement time `t_s` ≥ the filter time with the held IMU sample
+    /// (zero-order hold), so a measurement between IMU samples is applied at its own time.
+    pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        let t0 = uwbimu_vocabulary::validate::measurement_time(self.time_s, t_s, self.imu_count)?;
+        if t_s > t0 {
+            self.propagate(&ImuInterval {
+                dt_s: t_s - t0,
+                accel_start: self.held_accel,
+                accel_end: self.held_accel,
+                gyro_start: self.held_gyro,
+                gyro_end: self.held_gyro,
+            });
+            self.time_s = Some(t_s);
+        }
+        Ok(())
+    }
+
+    fn propagate(&mut self, imu: &ImuInterval) {
+        if let (Some(rec), Some(t_s)) = (self.recording.as_mut(), self.time_s) {
+            rec.push(Segment {
+                t_s,
+                state: self.state,
+                covariance: self.covariance,
+                interval: *imu,
+                prior_fading: 1.0,
+                prior_widening: None,
+            });
+        }
+        let phi = Transition::new(&self.state, imu, &self.ins);
+        if let Some(cross) = self.cross.as_deref_mut() {
+            *cross = phi.apply_rows(cross);
+        }
+        self.state = propagate_nominal(&self.state, imu, &self.ins);
+        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
+    }
+
+    /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (seed 002
+    /// eq. (42), ARCKF; see [`crate::robust::fade_position_velocity`]) and notes `λ` on the last
+    /// recorded segment, so that the RTS pass predicts the same prior. Several fadings at one
+    /// time multiply.
+    pub fn fade_prior(&mut self, lambda: f64) {
+        fade_position_velocity(&mut self.covariance, lambda);
+        if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
+            last.prior_fading *= lambda;
+        }
+    }
+
+    /// Widens the current (prior) covariance for a re-acquisition
+    /// ([`ReacquisitionWidening::apply`], [`crate::filters::reacquire`]) and notes it on the last
+    /// recorded segment for the RTS pass (one per segment: a later one at the same time replaces
+    /// the note).
+    pub fn widen_prior(&mut self, widening: &ReacquisitionWidening) {
+        widening.apply(&mut self.covariance);
+        if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
+            last.prior_widening = Some(*widening);
+        }
+    }
+
+    /// Starts carrying the cross-covariance with parameter states ([`crate::filters::range_bias`]),
+    /// zero at first; the core propagates it with Φ at every prediction.
+    pub fn track_cross_covariance(&mut self) {
+        self.cross = Some(Box::new(BiasCross::zeros()));
+    }
+
+    /// The nominal state, the error covariance and the cross-covariance with parameter states
+    /// (None unless tracked), to update them jointly.
+    pub fn parts_mut(&mut self) -> (&mut NominalState, &mut ErrCov, Option<&mut BiasCross>) {
+        (&mut self.state, &mut self.covariance, self.cross.as_deref_mut())
+    }
+
+    /// The last IMU sample in the body frame (after the mounting rotation): specific force m/s²,
+    /// rate rad/s.
+    pub fn last_imu_body(&self) -> (Vec3, Vec3) {
+        (self.held_accel, self.held_gyro)
+    }
+
+    /// Time between the last two IMU samples, s (None before the second sample).
+    pub fn last_interval_s(&self) -> Option<f64> {
+        self.last_interval_s
+    }
+
+    /// Starts recording every propagation for a later RTS pass ([`crate::smoother`]), with room
+    /// for `capacity` segments (≈ 2.2 kB each; one per IMU sample plus one per measurement time
+    /// between samples). Recording is the only thing that allocates while filtering, and only when
+    /// switched on.
+    pub fn start_recording(&mut self, capacity: usize) {
+        self.recording = Some(Vec::with_capacity(capacity));
+    }
+
+    /// The recorded segments (empty when not recording).
+    pub fn segments(&self) -> &[Segment] {
+        self.recording.as_deref().unwrap_or(&[])
+    }
+
+    /// The process model section it was built with.
+    pub fn ins(&self) -> &InsConfig {
+        &self.ins
+    }
+
+    /// The mounting section (lever arm, IMU rotation) it was built with.
+    pub fn mounting(&self) -> &MountingConfig {
+        &self.mounting
+    }
+
+    /// The nominal state.
+    pub fn state(&self) -> &NominalState {
+        &self.state
+    }
+
+    /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g).
+    pub fn covariance(&self) -> &ErrCov {
+        &self.covariance
+    }
+
+    /// The filter time, s (None before the first IMU sample).
+    pub fn time_s(&self) -> Option<f64> {
+        self.time_s
+    }
+
+    /// Mutable access to state and covariance for a step that does not involve the parameter
+    /// states (a re-acquisition fix, an attitude aiding vector): their cross-covariance, when
+    /// tracked, is set to zero first, so the joint covariance stays positive semi-definite
+    /// whatever the step does to `P` (the correlation is forgotten, a conservative choice). The
+    /// motion constraints update the joint covariance instead ([`Self::parts_mut`]).
+    pub fn state_and_covariance_mut(&mut self) -> (&mut NominalState, &mut ErrCov) {
+        if let Some(cross) = self.cross.as_mut() {
+            cross.fill(0.0);
+        }
+        (&mut self.state, &mut self.covariance)
+    }
+}
+
+/// The widening of a prior before a re-acquisition (ours, [`crate::filters::reacquire`]): the
+/// filter's position is `discrepancy` (m) away from a trusted fix, an error that built up over
+/// `horizon_s` (since its last good epoch; infinite when not read as a velocity error).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReacquisitionWidening {
+    /// Fix minus the filter's tag position, m (zero height component for a horizontal re-acquisition).
+    pub discrepancy: Vec3,
+    /// Time the discrepancy built up over, s; `f64::INFINITY` for a position-only widening.
+    pub horizon_s: f64,
+}
+
+impl ReacquisitionWidening {
+    /// Widens `p` into the re-acquisition prior: the discrepancy `d` is explained as a velocity
+    /// error `d/T` held over `T = max(horizon_s, 0.5 s)`: `w·wᵀ` with `w = [d; d/T]` is added on
+    /// the position–velocity block (so the fix corrects the velocity too: widening position and
+    /// velocity independently left ARCKF re-diverging after each re-acquisition), plus
+    /// `(|d|/T)²·I` on the velocity block for other causes. With an infinite horizon only the
+    /// position is widened, by `d·dᵀ`: enough for the fix to move it all the way (unwidened, a fix
+    /// 6 m from ARCKF's faded prior moved it two thirds of the way and, through the prior's
+    /// correlations, tilted it by 5°). A zero `d` leaves `p` unchanged.
+    pub fn apply(&self, p: &mut ErrCov) {
+        let v = self.discrepancy / self.horizon_s.max(MIN_WIDENING_HORIZON_S);
+        let mut w = uwbimu_vocabulary::state::ErrVec::zeros();
+        w.fixed_rows_mut::<3>(POS).copy_from(&self.discrepancy);
+        w.fixed_rows_mut::<3>(VEL).copy_from(&v);
+        *p += w * w.transpose();
+        let mut vel = p.fixed_view_mut::<3, 3>(VEL, VEL);
+        vel += uwbimu_vocabulary::math::Mat3::identity() * v.norm_squared();
+    }
+}
+
+/// Shortest horizon a re-acquisition assumes, s (a discrepancy never implies more than
+/// |d|/0.5 s of velocity error).
+const MIN_WIDENING_HORIZON_S: f64 = 0.5;
+
+#[cfg(test)]
+mod tests {
+    use uwbimu_vocabulary::math::Mat3;
+    use uwbimu_vocabulary::state::ErrVec;
+
+    use super::*;
+    use crate::update::leading_rows_step;
+
+    /// A tight prior widened for a discrepancy `d`, then a precise fix at `d` (linear position
+    /// measurement): returns the error-state correction and the posterior covariance.
+    fn fix_after_widening(d: Vec3, horizon_s: f64) -> (ErrVec, ErrCov) {
+        let mut p = ErrCov::identity() * 1e-4;
+        ReacquisitionWidening { discrepancy: d, horizon_s }.apply(&mut p);
+        let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
+        h.fixed_view_mut::<3, 3>(0, POS).copy_from(&Mat3::identity());
+        let mut dx = ErrVec::zeros();
+        leading_rows_step::<3>(&mut dx, &mut p, &d, &h, &(Mat3::identity() * 1e-6)).expect("update");
+        (dx, p)
+    }
+
+    #[test]
+    fn a_fix_after_a_divergence_widening_corrects_position_and_velocity() {
+        let d = Vec3::new(2.0, -1.0, 0.0);
+        let (dx, p) = fix_after_widening(d, 2.0);
+        // The tight prior resisted nothing: position moves by d, velocity by d/T.
+        assert!((dx.fixed_rows::<3>(POS) - d).norm() < 1e-2, "{dx}");
+        assert!((dx.fixed_rows::<3>(VEL) - d / 2.0).norm() < 1e-2, "{dx}");
+        assert!(dx.rows(6, 9).norm() < 1e-9, "attitude and biases untouched: {dx}");
+        assert!(p.cholesky().is_some() && (p - p.transpose()).norm() < 1e-12);
+        // The horizon is floored at 0.5 s: no more than |d|/0.5 s of velocity.
+        let (dx, _) = fix_after_widening(d, 0.01);
+        assert!((dx.fixed_rows::<3>(VEL) - d / 0.5).norm() < 1e-2, "{dx}");
+    }
+
+    #[test]
+    fn a_position_only_widening_leaves_the_velocity() {
+        let d = Vec3::new(-3.0, 0.5, 1.0);
+        let (dx, p) = fix_after_widening(d, f64::INFINITY);
+        assert!((dx.fixed_rows::<3>(POS) - d).norm() < 1e-2, "{dx}");
+        assert!(dx.fixed_rows::<3>(VEL).norm() < 1e-9, "{dx}");
+        assert!(p.cholesky().is_some());
+        // Without the widening the tight prior holds the position back.
+        let mut q = ErrCov::identity() * 1e-4;
+        let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
+        h.fixed_view_mut::<3, 3>(0, POS).copy_from(&Mat3::identity());
+        let mut dq = ErrVec::zeros();
+        leading_rows_step::<3>(&mut dq, &mut q, &d, &h, &(Mat3::identity() * 1e-2)).expect("update");
+        assert!(dq.fixed_rows::<3>(POS).norm() < 0.05 * d.norm());
+    }
+}

@@ -1,0 +1,139 @@
+//! Range bias states (ours; none of the five papers models a range bias): each anchor's range
+//! carries its own bias `b_a` and a bias common to all anchors `b_c`,
+//! `r_a = ‖p + R·l − a‖ + b_a + b_c + v`, each a random walk with its own σ
+//! (`range_bias.anchor_walk`, `range_bias.common_walk`, m/√s) from a zero-mean prior
+//! (`anchor_std`, `common_std`).
+//!
+//! **Augmented filter** (the default scheme): the biases join the error state, which becomes
+//! [`AUG_DIM`] = 15 + [`BIAS_SLOTS`] long (δp, δv, δθ, δb_a, δb_g, then the anchors' biases in anchor
+//! order, then the common bias, in the last slot). The INS core propagates the cross-covariance
+//! `P_xb ← Φ·P_xb` at every prediction ([`crate::filters::InertialCore::track_cross_covariance`]); the bias
+//! covariance grows by `walk²·Δt` between epochs; each range's Jacobian gains `∂r/∂b_a =
+//! ∂r/∂b_c = 1`, and the scalar Kalman steps of the epoch run over the whole augmented state.
+//!
+//! **Schmidt (consider) scheme** (`range_bias.consider`): the same augmented covariance, but the
+//! gain of the bias rows is zero — the biases keep their value (zero, i.e. whatever
+//! `range_calibration` already removed) and only their uncertainty widens the navigation state's
+//! gain and covariance.
+//!
+//! **Observability.** Only `b_a + b_c` enters a range, so the split between an anchor's own bias
+//! and the common one is set by their priors alone; what the data determine is each anchor's
+//! total. The totals are separable from the position only through geometry that changes: a bias
+//! on one anchor shifts the position along that anchor's direction, which a moving tag sees from
+//! changing angles. A common bias is the hardest — it is a scale of all ranges, which the
+//! position cannot absorb only when the anchors surround the tag in 3-D; with four coplanar
+//! anchors (tag height from the INS) or a tag outside the anchors' hull it is barely observable
+//! and the filter keeps it near its prior (its σ stays near `common_std`). TDoA do not
+//! see range biases (their Jacobian in the bias slots is zero).
+
+use nalgebra::{SMatrix, SVector};
+use uwbimu_vocabulary::config::RangeBiasConfig;
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Cov;
+use uwbimu_vocabulary::state::ERR_DIM;
+
+use crate::models::scalar::ScalarMeasurement;
+
+/// Most anchors whose biases can be estimated.
+pub const MAX_BIASED_ANCHORS: usize = 16;
+
+/// Bias slots: one per anchor and the common bias (the last).
+pub const BIAS_SLOTS: usize = MAX_BIASED_ANCHORS + 1;
+
+/// Dimension of the augmented error state.
+pub const AUG_DIM: usize = ERR_DIM + BIAS_SLOTS;
+
+/// Cross-covariance of the 15-state error with the bias slots.
+pub type BiasCross = SMatrix<f64, ERR_DIM, BIAS_SLOTS>;
+
+/// Slot of the common bias.
+const COMMON: usize = MAX_BIASED_ANCHORS;
+
+/// The bias estimates and their covariance (the cross-covariance lives in the INS core).
+#[derive(Debug, Clone)]
+pub struct RangeBiasStates {
+    config: RangeBiasConfig,
+    anchors: usize,
+    estimate: SVector<f64, BIAS_SLOTS>,
+    covariance: Cov<BIAS_SLOTS>,
+    time_s: Option<f64>,
+}
+
+impl RangeBiasStates {
+    /// Zero biases with the configured prior, for `anchors` anchors. Fails beyond
+    /// [`MAX_BIASED_ANCHORS`].
+    pub fn new(config: RangeBiasConfig, anchors: usize) -> Result<Self> {
+        if anchors > MAX_BIASED_ANCHORS {
+            return Err(Error::InvalidCall(format!(
+                "range_bias.states estimates at most {MAX_BIASED_ANCHORS} anchors' biases, got {anchors} anchors"
+            )));
+        }
+        let mut covariance = Cov::<BIAS_SLOTS>::zeros();
+        for a in 0..anchors {
+            covariance[(a, a)] = config.anchor_std.powi(2);
+        }
+        covariance[(COMMON, COMMON)] = config.common_std.powi(2);
+        Ok(Self { config, anchors, estimate: SVector::zeros(), covariance, time_s: None })
+    }
+
+    /// Random-walk prediction of the bias covariance to `t_s` (`+ walk²·Δt` on the diagonal).
+    fn predict_to(&mut self, t_s: f64) {
+        if let Some(t0) = self.time_s {
+            let dt = (t_s - t0).max(0.0);
+            for a in 0..self.anchors {
+                self.covariance[(a, a)] += self.config.anchor_walk.powi(2) * dt;
+            }
+            self.covariance[(COMMON, COMMON)] += self.config.common_walk.powi(2) * dt;
+        }
+        self.time_s = Some(t_s);
+    }
+
+    /// `∂z/∂b` of one measurement in the bias slots of the augmented state: 1 for the range's
+    /// anchor and the common bias; 0 for a TDoA.
+    pub fn jacobian(m: &ScalarMeasurement) -> SVector<f64, AUG_DIM> {
+        let mut h = SVector::zeros();
+        if let ScalarMeasurement::Range { anchor, .. } = *m {
+            h[ERR_DIM + anchor] = 1.0;
+            h[ERR_DIM + COMMON] = 1.0;
+        }
+        h
+    }
+
+    /// One step over the augmented error state at `t_s`: the biases are predicted to `t_s`, the
+    /// joint covariance `[[P, P_xb], [P_xbᵀ, P_bb]]` and the bias estimates (in the bias slots of
+    /// an augmented vector, zero elsewhere) are handed to `step` with the number of states that
+    /// get a gain (all, or the 15 INS states in the consider scheme), and taken back into `p`,
+    /// `cross` and the biases.
+    pub fn joint_step<R>(
+        &mut self,
+        t_s: f64,
+        p: &mut SMatrix<f64, ERR_DIM, ERR_DIM>,
+        cross: &mut BiasCross,
+        step: impl FnOnce(&mut Cov<AUG_DIM>, &mut SVector<f64, AUG_DIM>, usize) -> Result<R>,
+    ) -> Result<R> {
+        self.predict_to(t_s);
+        let mut joint = Cov::<AUG_DIM>::zeros();
+        joint.fixed_view_mut::<ERR_DIM, ERR_DIM>(0, 0).copy_from(p);
+        joint.fixed_view_mut::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM).copy_from(cross);
+        joint.fixed_view_mut::<BIAS_SLOTS, ERR_DIM>(ERR_DIM, 0).copy_from(&cross.transpose());
+        joint.fixed_view_mut::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM).copy_from(&self.covariance);
+        let mut estimate = SVector::<f64, AUG_DIM>::zeros();
+        estimate.fixed_rows_mut::<BIAS_SLOTS>(ERR_DIM).copy_from(&self.estimate);
+        let estimated = if self.config.consider { ERR_DIM } else { AUG_DIM };
+        let out = step(&mut joint, &mut estimate, estimated)?;
+        self.estimate.copy_from(&estimate.fixed_rows::<BIAS_SLOTS>(ERR_DIM));
+        p.copy_from(&joint.fixed_view::<ERR_DIM, ERR_DIM>(0, 0));
+        cross.copy_from(&joint.fixed_view::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM));
+        self.covariance.copy_from(&joint.fixed_view::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM));
+        Ok(out)
+    }
+
+    /// An anchor's total bias `b_a + b_c` and its σ, m (None for an anchor out of range).
+    pub fn total(&self, anchor: usize) -> Option<(f64, f64)> {
+        (anchor < self.anchors).then(|| {
+            let c = &self.covariance;
+            let var = c[(anchor, anchor)] + c[(COMMON, COMMON)] + 2.0 * c[(anchor, COMMON)];
+            (self.estimate[anchor] + self.estimate[COMMON], var.max(0.0).sqrt())
+        })
+    }
+}

@@ -1,0 +1,616 @@
+//! The tightly coupled filter every seed-000 method is built from: INS core + scalar measurement
+//! models (ranges, seed 000 eqs. (33)–(36); TDoA, [`crate::models::scalar`]) + a noise policy
+//! ([`RangeNoisePolicy`]) + an update strategy ([`UpdateStrategy`]: single step, iterated as in
+//! seed 000 Algorithm 1, or unscented).
+
+use nalgebra::{SMatrix, SVector};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{NoiseBounds, SageHusaConfig};
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::{Cov, Vec3};
+use uwbimu_vocabulary::records::{Observation, TdoaMeasurement};
+use uwbimu_vocabulary::state::{ErrVec, NominalState, ERR_DIM};
+
+use crate::filters::constraints::Constraints;
+use crate::filters::range_bias::RangeBiasStates;
+use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
+use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
+use crate::filters::{InertialCore, InertialFilter};
+use crate::models::range::tag_position;
+use crate::models::scalar::ScalarMeasurement;
+use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
+use crate::robust::sage_husa::SageHusa;
+use crate::robust::{
+    prior_fading, robustness_factor, robustness_factors, tested_nis, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
+};
+use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport};
+
+/// A tightly coupled UWB/IMU error-state filter.
+///
+/// All ranges of one epoch (one timestamp) are processed jointly, linearised at an operating
+/// point `X_op` (the prior at the first iteration). Per range, γ is computed at `X_op` against
+/// the latest posterior covariance (seed 000 eq. (37) at the first iteration, eq. (39) after) and
+/// the policy sets `R'` (eq. (40)), a long range tested with `robust.nlos_skew`·γ
+/// ([`tested_nis`]); the linearised problem is then solved by sequential scalar
+/// Joseph steps, which equals the joint update of Algorithm 1 lines 9–11 for diagonal `R`. The
+/// strategy iterates until the step `‖X⁺ ⊖ X_op‖` is below `tolerance` or `max_iterations` is
+/// reached (line 12); one iteration is the single EKF step. An iteration whose step is longer
+/// than the previous one (Gauss–Newton no longer contracting: gross outliers sent it to
+/// kilometres on the zoo) is discarded and the previous iterate kept (ours). The iteration re-linearises from the
+/// prior covariance `P⁻` each time (a standard iterated EKF); Algorithm 1 line 8 as printed
+/// (`P⁻ := P⁺`) would re-use each iteration's posterior as the next prior and count the ranges
+/// repeatedly, so only γ (eq. (39)) uses the posterior.
+///
+/// Motion constraints ([`Constraints`], seed 000 §2.2) run after each prediction when switched on.
+/// With `adaptive_range_noise`, each anchor's range noise is estimated on line by its own
+/// Sage–Husa estimator ([`SageHusa`], seed 004, variant and settings from `config.sage_husa`),
+/// started at `range_std²` — real anchors differ.
+#[derive(Debug, Clone)]
+pub struct TightFilter {
+    core: InertialCore,
+    config: FilterConfig,
+    anchors: Vec<Vec3>,
+    policy: RangeNoisePolicy,
+    strategy: Strategy,
+    constraints: Constraints,
+    range_noise: Vec<SageHusa<1>>,
+    divergence: DivergenceWatch,
+    tdoa_watch: TdoaWatch,
+    range_bias: Option<RangeBiasStates>,
+    /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
+    epoch: Vec<ScalarMeasurement>,
+}
+
+/// How the linearised problem of an epoch is solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UpdateStrategy {
+    /// One Kalman step at the prior (EKF).
+    Single,
+    /// Iterated at the operating point up to `max_iterations`, until the step is below
+    /// `iteration_tolerance` (seed 000 Algorithm 1).
+    Iterated,
+    /// Sigma-point update over the error state (our extension of seed 001 eqs. (11)–(14)), weights
+    /// from `ukf_alpha`, `ukf_beta`, `ukf_lambda`.
+    Unscented,
+}
+
+/// A named filter as a row of pieces: which noise policy and which update strategy.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Composition {
+    /// Noise policy of every scalar measurement.
+    pub policy: RangeNoisePolicy,
+    /// Update strategy.
+    pub strategy: UpdateStrategy,
+}
+
+/// The strategy with its settings resolved from the configuration.
+#[derive(Debug, Clone, Copy)]
+enum Strategy {
+    /// Gauss–Newton iterations (1 = the single step).
+    Iterated { max_iterations: u32, tolerance: f64 },
+    /// Unscented update.
+    Unscented(UnscentedWeights),
+}
+
+/// Bounds of each anchor's adaptive range variance relative to `range_std²` (when the Sage–Husa
+/// bounds are on): σ from half to ten times the configured one — a range estimator must be able
+/// to learn one anchor far noisier than the rest (measured 24·σ² for a true 26·σ²).
+const RANGE_NOISE_BOUNDS: NoiseBounds = NoiseBounds { min_ratio: 0.25, max_ratio: 100.0 };
+
+/// Sigma points of the 15-state unscented update: 2n + 1 with n = 15 (checked at compile time
+/// by [`scalar_moments`]).
+pub const SIGMA_POINTS: usize = 2 * ERR_DIM + 1;
+
+impl TightFilter {
+    /// Builds the filter from its composition (the rows of [`crate::filters::named`]). Every
+    /// combination of policy and strategy works: the unscented strategy applies the same
+    /// robustness factors, prior fading and inflation as the Kalman steps. Fails on an invalid
+    /// configuration (including `n + λ ≤ 0` for the unscented strategy).
+    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig, composition: Composition) -> Result<Self> {
+        if anchors.is_empty() {
+            return Err(Error::InsufficientData("at least one anchor is required".into()));
+        }
+        let strategy = match composition.strategy {
+            UpdateStrategy::Single => Strategy::Iterated { max_iterations: 1, tolerance: config.robust.iteration_tolerance },
+            UpdateStrategy::Iterated => Strategy::Iterated {
+                max_iterations: config.robust.max_iterations.max(1),
+                tolerance: config.robust.iteration_tolerance,
+            },
+            UpdateStrategy::Unscented => Strategy::Unscented(UnscentedWeights::new(
+                ERR_DIM,
+                config.unscented.alpha,
+                config.unscented.beta,
+                config.unscented.lambda,
+            )?),
+        };
+        let constraints = Constraints::new(&config.constraints, initial.position.z);
+        let range_noise = if config.adaptive.range_noise {
+            let initial_r = SMatrix::<f64, 1, 1>::new(config.ranging.range_std.powi(2));
+            let sage_husa = SageHusaConfig { bounds: RANGE_NOISE_BOUNDS, ..config.sage_husa };
+            (0..anchors.len()).map(|_| SageHusa::new(sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
+        } else {
+            Vec::new()
+        };
+        let mut core = InertialCore::new(initial, &config)?;
+        let range_bias = if config.range_bias.states {
+            if matches!(strategy, Strategy::Unscented(_)) {
+                return Err(Error::InvalidCall(
+                    "range_bias.states needs a Kalman update strategy (single or iterated), not the unscented one".into(),
+                ));
+            }
+            core.track_cross_covariance();
+            Some(RangeBiasStates::new(config.range_bias, anchors.len())?)
+        } else {
+            None
+        };
+        Ok(Self {
+            core,
+            config,
+            epoch: Vec::with_capacity(anchors.len()),
+            anchors,
+            policy: composition.policy,
+            strategy,
+            constraints,
+            range_noise,
+            divergence: DivergenceWatch::default(),
+            tdoa_watch: TdoaWatch::default(),
+            range_bias,
+        })
+    }
+
+    /// Robustness factors `Cu_i` of one epoch (seed 002 eqs. (33)–(37)) from the L1 fit of its
+    /// ranges in the plane of the predicted tag height (seed 002 §3.1 works in the plane; the
+    /// height comes from the INS); for `ResidualWeighted` with two ranges, from the two-range
+    /// rule of seed 003 instead. Allocates (the L1 fit does); UWB epochs are far rarer than
+    /// IMU samples.
+    fn robustness(&self, ranges: &[(usize, f64)]) -> Vec<RobustnessFactor> {
+        let config = &self.config;
+        if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
+            let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
+            return vec![
+                robustness_factor(r1, res[0], config.ranging.range_std),
+                robustness_factor(r2, res[1], config.ranging.range_std),
+            ];
+        }
+        let tag = tag_position(self.core.state(), &config.mounting.lever_arm);
+        let ls = LsConfig { range_std_m: config.ranging.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
+        let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
+        robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.ranging.range_std)
+    }
+
+    /// γ of one measurement against the prior with noise variance `r_var` (seed 000 eq. (37));
+    /// None when the tag sits on an anchor.
+    fn nis_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> Option<f64> {
+        let (x, p) = (self.core.state(), self.core.covariance());
+        let pred = m.predict(x, &self.anchors, &self.config.mounting.lever_arm)?;
+        Some((m.value() - pred.value).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
+    }
+
+    /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
+    /// noise (for the divergence watch, [`crate::filters::reacquire`]).
+    fn failed_at_prior(&self, ranges: &[(usize, f64)]) -> usize {
+        let r_var = self.config.ranging.range_std.powi(2);
+        ranges
+            .iter()
+            .filter(|&&(anchor, range_m)| {
+                self.nis_at_prior(&ScalarMeasurement::Range { anchor, range_m }, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS)
+            })
+            .count()
+    }
+
+    /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
+    /// range's γ against the prior with `R_i = σ²·Cu_i`.
+    fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
+        let range_std = self.config.ranging.range_std;
+        let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
+            let range = ScalarMeasurement::Range { anchor, range_m };
+            (*f, self.nis_at_prior(&range, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
+        });
+        prior_fading(nis, threshold)
+    }
+}
+
+impl InertialFilter for TightFilter {
+    fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
+    fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        self.constraints.predict(&mut self.core, t_s, accel, gyro, self.range_bias.as_mut())
+    }
+
+    fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        if reports.len() != ranges.len() {
+            return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
+        }
+        check_ranges(&self.anchors, ranges)?;
+        self.core.advance_to(t_s)?;
+        let failed = self.failed_at_prior(ranges);
+        if let Some((innovation, nis)) =
+            reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
+        {
+            reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
+            return Ok(());
+        }
+        // ARCKF (seed 002 Algorithm 1): robustness factors and the fading of the prior.
+        let (factors, fading) = match self.policy {
+            RangeNoisePolicy::AdaptiveRobust { threshold } => {
+                let factors = self.robustness(ranges);
+                let fading = self.epoch_fading(ranges, &factors, threshold);
+                if fading > 1.0 {
+                    self.core.fade_prior(fading);
+                }
+                (Some(factors), fading)
+            }
+            RangeNoisePolicy::ResidualWeighted => (Some(self.robustness(ranges)), 1.0),
+            _ => (None, 1.0),
+        };
+        let mut epoch = std::mem::take(&mut self.epoch);
+        epoch.clear();
+        epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
+        let solved = self.solve(&epoch, reports, factors.as_deref(), fading);
+        self.epoch = epoch;
+        solved
+    }
+
+    /// Applies a TDoA through the filter's own strategy and policy (χ² inflation for the robust
+    /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
+    /// adaptive per-anchor range noise is for ranges only), after the TDoA re-acquisition rule
+    /// ([`crate::filters::reacquire::TdoaWatch`]); other observations are refused.
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        match observation {
+            Observation::Tdoa(m) => {
+                check_tdoa(&self.anchors, m)?;
+                self.core.advance_to(m.t_s)?;
+                let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+                let failed =
+                    self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
+                let watch = &mut self.tdoa_watch;
+                if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
+                    return Ok(UpdateReport::reacquired(innovation, nis));
+                }
+                let mut report = [UpdateReport::skipped()];
+                self.solve(&[tdoa], &mut report, None, 1.0)?;
+                Ok(report[0])
+            }
+            other => Err(not_taken(other)),
+        }
+    }
+
+    fn config(&self) -> &FilterConfig {
+        &self.config
+    }
+
+    fn core(&self) -> &InertialCore {
+        &self.core
+    }
+
+    fn core_mut(&mut self) -> &mut InertialCore {
+        &mut self.core
+    }
+
+    fn still(&self) -> bool {
+        self.constraints.still()
+    }
+}
+
+impl TightFilter {
+    /// Solves one epoch of scalar measurements with the filter's strategy; `factors` are the
+    /// robustness factors `Cu_k` (seed 002 eq. (38)) of the measurements, `fading` the prior's
+    /// fading factor already applied (seed 002 eq. (42)).
+    fn solve(
+        &mut self,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        factors: Option<&[RobustnessFactor]>,
+        fading: f64,
+    ) -> Result<()> {
+        match self.strategy {
+            Strategy::Iterated { max_iterations, tolerance } => {
+                self.solve_iterated(measurements, reports, factors, fading, max_iterations, tolerance)?;
+            }
+            Strategy::Unscented(weights) => self.solve_unscented(&weights, measurements, reports, factors, fading)?,
+        }
+        for r in reports.iter_mut().filter(|r| r.accepted) {
+            r.prior_fading = fading;
+        }
+        Ok(())
+    }
+
+    /// The Kalman strategy (see [`TightFilter`]): Gauss–Newton iterations of sequential scalar
+    /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step. With
+    /// range bias states, over the augmented error state ([`crate::filters::range_bias`]).
+    fn solve_iterated(
+        &mut self,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        factors: Option<&[RobustnessFactor]>,
+        fading: f64,
+        max_iterations: u32,
+        tolerance: f64,
+    ) -> Result<()> {
+        let time_s = self.core.time_s().unwrap_or(0.0);
+        let mut epoch = KalmanEpoch {
+            anchors: &self.anchors,
+            lever_arm: self.config.mounting.lever_arm,
+            nominal: NominalNoise::of(&self.config),
+            policy: self.policy,
+            nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
+            range_noise: &mut self.range_noise,
+            factors,
+            fading,
+            max_iterations,
+            tolerance,
+        };
+        let (x, p, cross) = self.core.parts_mut();
+        let iterations = match (self.range_bias.as_mut(), cross) {
+            (Some(bias), Some(cross)) => bias.joint_step(time_s, p, cross, |joint, params, estimated| {
+                epoch.iterate(x, joint, params, measurements, reports, RangeBiasStates::jacobian, estimated)
+            })?,
+            _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_| ErrVec::zeros(), ERR_DIM)?,
+        };
+        for r in reports.iter_mut().filter(|r| r.accepted) {
+            r.iterations = iterations;
+        }
+        if let Some(bias) = &self.range_bias {
+            for (r, m) in reports.iter_mut().zip(measurements) {
+                if let ScalarMeasurement::Range { anchor, .. } = *m {
+                    r.range_bias = bias.total(anchor);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The unscented strategy (see [`UpdateStrategy::Unscented`]): per measurement, the
+    /// [`SIGMA_POINTS`] sigma points of the error state about the prior are injected into the
+    /// nominal state (`x ⊞ χᵢ`), the measurement is predicted for each, and the scalar unscented
+    /// step updates the error mean and covariance; the measurements of an epoch are applied in
+    /// turn (sigma points redrawn from the updated error estimate), with the same noise policy as
+    /// the Kalman strategy, then the error is injected and reset.
+    fn solve_unscented(
+        &mut self,
+        weights: &UnscentedWeights,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        factors: Option<&[RobustnessFactor]>,
+        fading: f64,
+    ) -> Result<()> {
+        let config = &self.config;
+        let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
+        let (x, p_out) = self.core.state_and_covariance_mut();
+        let prior = *x;
+        let mut dx = ErrVec::zeros();
+        let mut p = *p_out;
+        for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
+            let anchors = &self.anchors;
+            let measure = |d: &ErrVec| {
+                let mut s = prior;
+                s.inject(d);
+                m.value_at(&s, anchors, &lever_arm)
+            };
+            let Some(moments) = scalar_moments::<ERR_DIM, SIGMA_POINTS>(&dx, &p, weights, measure)? else {
+                *report = UpdateReport::skipped();
+                continue;
+            };
+            let mut residual = m.value() - moments.predicted;
+            let (var, nominal_var) = nominal.variance(&mut self.range_noise, m, &mut residual, moments.variance, true);
+            let base_var = var * factors.map_or(1.0, |f| f[k].cu);
+            let nis = residual * residual / (moments.variance + base_var);
+            let trusted_in_faded = fading > 1.0 && factors.is_some_and(|f| !f[k].is_capped());
+            let inflation = if trusted_in_faded {
+                1.0
+            } else {
+                self.policy.inflation(tested_nis(nis, residual, m.is_range(), config.robust.nlos_skew_or_symmetric()))
+            };
+            apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
+            *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);
+            report.prior = Some((residual, moments.variance + base_var));
+        }
+        inject_and_reset(x, &mut p, &dx);
+        *p_out = p;
+        Ok(())
+    }
+}
+
+/// What the Kalman strategy needs from the filter for one epoch.
+struct KalmanEpoch<'a> {
+    anchors: &'a [Vec3],
+    lever_arm: Vec3,
+    nominal: NominalNoise,
+    policy: RangeNoisePolicy,
+    /// `robust.nlos_skew` ([`tested_nis`]).
+    nlos_skew: f64,
+    range_noise: &'a mut [SageHusa<1>],
+    factors: Option<&'a [RobustnessFactor]>,
+    fading: f64,
+    max_iterations: u32,
+    tolerance: f64,
+}
+
+impl KalmanEpoch<'_> {
+    /// The iterations of [`TightFilter::solve_iterated`] over an error state of dimension `N`:
+    /// the 15 INS error states, then parameters that enter the measurements linearly with
+    /// Jacobian `param_h(m)` (zero in the first 15 rows) and value `params` (updated in place);
+    /// only the first `estimated` states get a gain ([`schmidt_step`]). Returns the iterations.
+    #[allow(clippy::too_many_arguments)]
+    fn iterate<const N: usize>(
+        &mut self,
+        x: &mut NominalState,
+        p_out: &mut Cov<N>,
+        params: &mut SVector<f64, N>,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        param_h: impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        estimated: usize,
+    ) -> Result<u32> {
+        let (prior, p_prior, params_prior) = (*x, *p_out, *params);
+        let (mut op, mut p_post, mut params_op) = (prior, p_prior, params_prior);
+        let mut iterations = 0;
+        // The previous iterate (operating point, covariance, step), to fall back on when the
+        // iteration stops contracting.
+        let mut previous: Option<(NominalState, SVector<f64, N>, Cov<N>, SVector<f64, N>)> = None;
+        loop {
+            iterations += 1;
+            let mut dx = params_prior - params_op;
+            dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
+            let mut p = p_prior;
+            for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
+                let Some(pred) = m.predict(&op, self.anchors, &self.lever_arm) else {
+                    *report = UpdateReport::skipped();
+                    continue;
+                };
+                let mut residual = m.value() - pred.value;
+                let mut h = SVector::<f64, N>::zeros();
+                h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);
+                if N > ERR_DIM {
+                    let hb = param_h(m);
+                    residual -= hb.dot(&params_op);
+                    h += hb;
+                }
+                let hph = h.dot(&(p_post * h));
+                let (var, nominal_var) = self.nominal.variance(self.range_noise, m, &mut residual, hph, iterations == 1);
+                let base_var = var * self.factors.map_or(1.0, |f| f[k].cu);
+                let nis = residual * residual / (hph + base_var);
+                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
+                // adaptive branch); only capped ones are inflated (robust branch).
+                let trusted_in_faded = self.fading > 1.0 && self.factors.is_some_and(|f| !f[k].is_capped());
+                let inflation = if trusted_in_faded {
+                    1.0
+                } else if iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. }) {
+                    // A lone TDoA fits itself after one iteration, so its γ at the next operating
+                    // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
+                    report.inflation
+                } else {
+                    self.policy.inflation(tested_nis(nis, residual, m.is_range(), self.nlos_skew))
+                };
+                let prior = if iterations == 1 { Some((residual, hph + base_var)) } else { report.prior };
+                schmidt_step(&mut dx, &mut p, &h, residual, base_var * inflation, estimated)?;
+                *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, iterations);
+                report.prior = prior;
+            }
+            let step = dx.norm();
+            if let Some((mut op_prev, params_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, _, d)| step > d.norm()) {
+                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
+                // to thousands of radians): keep the previous iterate.
+                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
+                (*x, *p_out, *params) = (op_prev, p_prev, params_prev + parameter_rows(&dx_prev));
+                break;
+            }
+            if iterations >= self.max_iterations || step < self.tolerance {
+                inject_and_reset(&mut op, &mut p, &dx);
+                (*x, *p_out, *params) = (op, p, params_op + parameter_rows(&dx));
+                break;
+            }
+            previous = Some((op, params_op, p, dx));
+            op.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
+            params_op += parameter_rows(&dx);
+            p_post = p;
+        }
+        Ok(iterations)
+    }
+}
+
+/// The configured (nominal) noise variances of the scalar measurements, m².
+#[derive(Debug, Clone, Copy)]
+struct NominalNoise {
+    range_var: f64,
+    tdoa_var: f64,
+}
+
+impl NominalNoise {
+    fn of(config: &FilterConfig) -> Self {
+        Self {
+            range_var: config.ranging.range_std * config.ranging.range_std,
+            tdoa_var: config.ranging.tdoa_std * config.ranging.tdoa_std,
+        }
+    }
+
+    /// `(variance to use, nominal variance)` of one measurement: a range's from
+    /// [`range_noise`] (adaptive per anchor when configured), a TDoA's `tdoa_std²`.
+    fn variance(
+        &self,
+        estimators: &mut [SageHusa<1>],
+        m: &ScalarMeasurement,
+        residual: &mut f64,
+        hph: f64,
+        step: bool,
+    ) -> (f64, f64) {
+        match *m {
+            ScalarMeasurement::Range { anchor, .. } => {
+                (range_noise(estimators, anchor, residual, hph, step, self.range_var), self.range_var)
+            }
+            ScalarMeasurement::Tdoa { .. } => (self.tdoa_var, self.tdoa_var),
+        }
+    }
+}
+
+/// The error for an observation a filter does not take.
+pub(crate) fn not_taken(observation: &Observation) -> Error {
+    Error::InvalidCall(match observation {
+        Observation::Magnetometer(_) => {
+            "this filter does not use a magnetometer (the filters with gravity and geomagnetic aiding do)".into()
+        }
+        Observation::Tdoa(_) => "this filter does not take TDoA measurements (the tightly coupled filters do)".into(),
+    })
+}
+
+/// Checks a TDoA's anchor indices (known, distinct) and value (finite).
+pub(crate) fn check_tdoa(anchors: &[Vec3], m: &TdoaMeasurement) -> Result<()> {
+    for anchor in [m.anchor_i, m.anchor_j] {
+        if anchor >= anchors.len() {
+            return Err(Error::UnknownAnchor { name: "update_tdoa", row: 0, anchor: anchor as f64, count: anchors.len() });
+        }
+    }
+    if m.anchor_i == m.anchor_j {
+        return Err(Error::InvalidValue {
+            name: "update_tdoa",
+            row: 0,
+            value: m.anchor_i as f64,
+            reason: "anchor i and anchor j must differ",
+        });
+    }
+    if !m.tdoa_m.is_finite() {
+        return Err(Error::NonFinite { name: "update_tdoa", row: 0, col: 3, value: m.tdoa_m });
+    }
+    Ok(())
+}
+
+/// The range noise variance for one range: per-anchor Sage–Husa (seed 004 eqs. (26)–(36) on the
+/// range innovation, stepped when `step` — once per epoch, at the first iterate — else held;
+/// within the configured bounds of `r_var`; may correct `residual`), or the fixed `r_var` without
+/// adaptive noise. `hph` is the predicted
+/// range variance.
+fn range_noise(estimators: &mut [SageHusa<1>], anchor: usize, residual: &mut f64, hph: f64, step: bool, r_var: f64) -> f64 {
+    match estimators.get_mut(anchor) {
+        Some(est) if step => {
+            let s = est.step_bounded(
+                &SVector::<f64, 1>::new(*residual),
+                &SMatrix::<f64, 1, 1>::new(hph),
+                &SMatrix::<f64, 1, 1>::new(r_var),
+            );
+            *residual = s.innovation[0];
+            s.r[(0, 0)]
+        }
+        Some(est) => est.r()[(0, 0)],
+        None => r_var,
+    }
+}
+
+/// Checks the anchor indices and values of one epoch of ranges.
+pub(crate) fn check_ranges(anchors: &[Vec3], ranges: &[(usize, f64)]) -> Result<()> {
+    for (row, &(anchor, range_m)) in ranges.iter().enumerate() {
+        if anchor >= anchors.len() {
+            return Err(Error::UnknownAnchor { name: "update_range", row, anchor: anchor as f64, count: anchors.len() });
+        }
+        if !range_m.is_finite() || range_m < 0.0 {
+            return Err(Error::InvalidValue {
+                name: "update_range",
+                row,
+                value: range_m,
+                reason: "range must be finite and >= 0 m",
+            });
+        }
+    }
+    Ok(())
+}

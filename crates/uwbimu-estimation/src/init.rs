@@ -1,0 +1,201 @@
+//! Self-initialisation of an inertial filter from the start of a recording, used when the user
+//! gives no initial state:
+//!
+//! 1. **Roll, pitch, gyro bias** from the mean accelerometer and gyroscope over the first
+//!    `init_still_s` seconds (the platform is assumed still there; if the window is not still,
+//!    roll and pitch still come from the mean specific force, the gyro bias is left at zero and
+//!    the attitude and velocity uncertainties are widened).
+//! 2. **Position** from UWB-only multilateration: the median of the fixes inside the still
+//!    window, or the first fix after the start. Without ranges, the fixes come from the TDoA
+//!    ([`crate::multilateration::tdoa`]). Fixes whose ranges fail the least-squares
+//!    consistency test ([`Fix::is_consistent`], α = 0.01: an outlier or NLOS range) are left out
+//!    here and in step 3 unless no fix passes.
+//! 3. **Heading from the first metres of motion against UWB**: the IMU is dead-reckoned from the
+//!    start with yaw 0; once the UWB tag has moved `init_heading_distance_m`, the yaw is the angle
+//!    that rotates the dead-reckoned tag displacement onto the UWB displacement (least squares over
+//!    the next few epochs).
+//!    **Fallback**: if the tag never moves that far within 30 s, the yaw is 0 with a standard
+//!    deviation of π (the filter has to find the heading from the ranges by itself).
+
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::percentile;
+use uwbimu_vocabulary::math::{Quat, Vec3};
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::state::NominalState;
+
+use crate::epoch::group_epochs;
+use crate::ins::{propagate_nominal, ImuInterval};
+use crate::multilateration::tdoa::tdoa_fixes;
+use crate::multilateration::{solve_epoch, Fix, LsConfig};
+
+/// Accelerometer standard deviation below which the start window counts as still, m/s².
+const STILL_ACCEL_STD: f64 = 0.2;
+/// Mean gyroscope rate below which the start window counts as still, rad/s.
+const STILL_GYRO_RATE: f64 = 0.05;
+/// Dead reckoning beyond this many seconds is not trusted for the heading, s.
+const HEADING_MAX_S: f64 = 30.0;
+/// Epochs past `init_heading_distance_m` used for the heading least squares.
+const HEADING_EPOCHS: usize = 5;
+/// Significance of the consistency test that screens the UWB fixes used (see
+/// [`Fix::is_consistent`]).
+const CONSISTENCY_ALPHA: f64 = 0.01;
+/// Yaw standard deviation when the heading comes from motion, rad (≈ 11°).
+const HEADING_FROM_MOTION_STD: f64 = 0.2;
+
+/// Where the initial heading came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HeadingSource {
+    /// Dead-reckoned motion matched to the UWB displacement.
+    Motion,
+    /// No usable motion: yaw 0 with a standard deviation of π.
+    Fallback,
+}
+
+/// The result of self-initialisation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SelfInit {
+    /// The initial state, valid at the time of the first IMU sample.
+    pub initial: InitialState,
+    /// Whether the start window was detected as still.
+    pub still: bool,
+    /// How the heading was found.
+    pub heading: HeadingSource,
+}
+
+/// Initialises from the data (see the module doc). `imu` and `ranges` must be validated and
+/// time-ordered. Fails if there is no IMU sample or no solvable UWB epoch.
+pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
+    initialize_with_tdoa(imu, ranges, &[], anchors, config)
+}
+
+/// [`initialize`] that also takes TDoA (validated, time-ordered): their fixes serve when the
+/// ranges give none (a TDoA-only run).
+pub fn initialize_with_tdoa(
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    tdoa: &[TdoaMeasurement],
+    anchors: &[Vec3],
+    config: &FilterConfig,
+) -> Result<SelfInit> {
+    let first = imu.first().ok_or_else(|| Error::InsufficientData("self-initialisation needs IMU samples".into()))?;
+    let t0 = first.t_s;
+    let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
+
+    // 1. Roll, pitch, gyro bias from the start window.
+    let window: Vec<(Vec3, Vec3)> = imu.iter().take_while(|s| s.t_s < t0 + config.init.still_s).map(body).collect();
+    let n = window.len() as f64;
+    let f_mean = window.iter().map(|w| w.0).sum::<Vec3>() / n;
+    let w_mean = window.iter().map(|w| w.1).sum::<Vec3>() / n;
+    let f_std = (window.iter().map(|w| (w.0 - f_mean).norm_squared()).sum::<f64>() / n).sqrt();
+    let still = window.len() >= 2 && f_std < STILL_ACCEL_STD && w_mean.norm() < STILL_GYRO_RATE;
+    let roll = f_mean.y.atan2(f_mean.z);
+    let pitch = (-f_mean.x).atan2((f_mean.y * f_mean.y + f_mean.z * f_mean.z).sqrt());
+    let level = Quat::from_euler_angles(roll, pitch, 0.0);
+    let gyro_bias = if still { w_mean } else { Vec3::zeros() };
+
+    // 2. Tag position from UWB fixes.
+    let ls = LsConfig::from_filter_config(config);
+    let mut all: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
+        .into_iter()
+        .filter(|e| e.t_s >= t0 - 0.5)
+        .filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f)))
+        .collect();
+    let mut std_m = config.ranging.range_std;
+    if all.is_empty() && !tdoa.is_empty() {
+        std_m = config.ranging.tdoa_std;
+        let from = tdoa.partition_point(|m| m.t_s < t0 - 0.5);
+        all = tdoa_fixes(anchors, &tdoa[from..], &LsConfig { range_std_m: std_m, ..ls });
+    }
+    // Fixes whose measurements disagree (an outlier, NLOS) are left out when any others exist.
+    let consistent: Vec<(f64, Fix)> = all.iter().filter(|(_, f)| f.is_consistent(std_m, CONSISTENCY_ALPHA)).copied().collect();
+    let fixes = if consistent.is_empty() { all } else { consistent };
+    let Some((_, first_fix)) = fixes.first() else {
+        return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));
+    };
+    let start_fixes: Vec<&Fix> = fixes.iter().filter(|(t, _)| still && *t <= t0 + config.init.still_s).map(|(_, f)| f).collect();
+    // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
+    // errors (anchor survey, multipath, NLOS) are the same in every fix.
+    let (tag0, tag0_cov) = if start_fixes.is_empty() {
+        (first_fix.position, first_fix.covariance)
+    } else {
+        let k = start_fixes.len() as f64;
+        let median = Vec3::from_fn(|i, _| {
+            let mut axis: Vec<f64> = start_fixes.iter().map(|f| f.position[i]).collect();
+            axis.sort_by(f64::total_cmp);
+            percentile(&axis, 50.0)
+        });
+        (median, start_fixes.iter().map(|f| f.covariance).sum::<uwbimu_vocabulary::math::Mat3>() / k)
+    };
+
+    // 3. Heading from dead reckoning against UWB displacement.
+    let yaw = heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config);
+    let (yaw_rad, yaw_std, heading) = match yaw {
+        Some(y) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion),
+        None => (0.0, std::f64::consts::PI, HeadingSource::Fallback),
+    };
+    let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
+    let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
+    if first_fix.planar {
+        position_std.z = 1.0;
+    }
+    let tilt_std = if still { 0.02 } else { 0.1 };
+    Ok(SelfInit {
+        initial: InitialState {
+            position: tag0 - orientation * config.mounting.lever_arm,
+            velocity: Vec3::zeros(),
+            orientation,
+            position_std,
+            velocity_std: Vec3::repeat(if still { 0.05 } else { 0.5 }),
+            orientation_std: Vec3::new(tilt_std, tilt_std, yaw_std),
+            accel_bias: Vec3::zeros(),
+            gyro_bias,
+            accel_bias_std: None,
+            gyro_bias_std: None,
+        },
+        still,
+        heading,
+    })
+}
+
+/// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag
+/// displacement onto the UWB one, over the first epochs past the heading distance.
+fn heading_from_motion(
+    imu: &[ImuSample],
+    fixes: &[(f64, Fix)],
+    tag0: Vec3,
+    level: Quat,
+    gyro_bias: Vec3,
+    config: &FilterConfig,
+) -> Option<f64> {
+    let t0 = imu.first()?.t_s;
+    let mut x = NominalState {
+        position: Vec3::zeros(),
+        velocity: Vec3::zeros(),
+        orientation: level,
+        accel_bias: Vec3::zeros(),
+        gyro_bias,
+    };
+    let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm;
+    let dr0 = tag_dr(&x);
+    let (mut cross, mut dot, mut used) = (0.0, 0.0, 0usize);
+    let mut k = 0;
+    for (t_fix, fix) in fixes {
+        if *t_fix > t0 + HEADING_MAX_S || used >= HEADING_EPOCHS {
+            break;
+        }
+        while k + 1 < imu.len() && imu[k + 1].t_s <= *t_fix {
+            let interval = ImuInterval::between(&imu[k], &imu[k + 1], &config.mounting.imu_rotation);
+            x = propagate_nominal(&x, &interval, &config.ins);
+            k += 1;
+        }
+        let d_uwb = fix.position - tag0;
+        let d_dr = tag_dr(&x) - dr0;
+        if d_uwb.xy().norm() >= config.init.heading_distance_m {
+            cross += d_dr.x * d_uwb.y - d_dr.y * d_uwb.x;
+            dot += d_dr.x * d_uwb.x + d_dr.y * d_uwb.y;
+            used += 1;
+        }
+    }
+    (used > 0 && (cross != 0.0 || dot != 0.0)).then(|| cross.atan2(dot))
+}

@@ -1,0 +1,247 @@
+//! The strapdown INS core: nominal mechanization and error-state propagation on the 15-state
+//! error vector δp, δv, δθ (body frame), δb_a, δb_g.
+//!
+//! Mechanization follows seed 000 eqs. (3)–(8) and seed 004 eq. (4), integrated over one IMU
+//! interval with the two bracketing samples (trapezoidal): the rotation uses the mean rate over
+//! the interval (quaternion exponential, seed 000 eqs. (4)–(5)); navigation-frame acceleration is
+//! taken linear between the samples, which integrates velocity by the trapezoid and position
+//! exactly for that linear profile (seed 000 eq. (7) is the same to first order).
+//!
+//! The error-state transition is the discretisation of seed 004 eq. (5) to second order,
+//! Φ = I + A·Δt + (A² + Ȧ)·Δt²/2 (Ȧ from the rotating `R`, `Ṙ = R·[ω]×`), with the attitude block
+//! exact (`exp(−[ω]×Δt)`); seed 000 eq. (10)
+//! writes the first-order terms of the same matrix for a navigation-frame attitude error.
+//! Process noise is G·Q·Gᵀ with Q from noise densities (seed 004 eqs. (20)–(21)).
+
+use nalgebra::SMatrix;
+use uwbimu_vocabulary::config::InsConfig;
+use uwbimu_vocabulary::math::{quat_exp, skew, Mat3, Quat, Vec3};
+use uwbimu_vocabulary::records::ImuSample;
+use uwbimu_vocabulary::state::{diagonal_covariance, ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
+
+/// Bias-uncorrected IMU readings in the body frame at the two ends of one integration interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuInterval {
+    /// Interval length, s (> 0).
+    pub dt_s: f64,
+    /// Specific force at the start, body frame, m/s².
+    pub accel_start: Vec3,
+    /// Specific force at the end, body frame, m/s².
+    pub accel_end: Vec3,
+    /// Angular rate at the start, body frame, rad/s.
+    pub gyro_start: Vec3,
+    /// Angular rate at the end, body frame, rad/s.
+    pub gyro_end: Vec3,
+}
+
+/// Bias decay factors `e^{−Δt/τ}` over `dt_s` (1 for random-walk biases; seed 002 eqs. (17)–(18)
+/// for first-order Markov biases with time constants τ).
+fn bias_decay(config: &InsConfig, dt_s: f64) -> (f64, f64) {
+    let decay = |tau: Option<f64>| tau.map_or(1.0, |t| (-dt_s / t).exp());
+    (decay(config.accel_bias_tau), decay(config.gyro_bias_tau))
+}
+
+impl ImuInterval {
+    /// The interval between two consecutive raw IMU samples, rotated from the IMU frame into the
+    /// body frame by the mounting `imu_rotation`.
+    pub fn between(start: &ImuSample, end: &ImuSample, imu_rotation: &Quat) -> Self {
+        Self {
+            dt_s: end.t_s - start.t_s,
+            accel_start: imu_rotation * start.accel,
+            accel_end: imu_rotation * end.accel,
+            gyro_start: imu_rotation * start.gyro,
+            gyro_end: imu_rotation * end.gyro,
+        }
+    }
+}
+
+/// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)). Biases are constant
+/// (random walk) or decay as first-order Markov processes when `config` gives time constants
+/// (seed 002 eqs. (17)–(18)).
+pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &InsConfig) -> NominalState {
+    let dt = imu.dt_s;
+    let gravity = &config.gravity;
+    // Biases at the end of the interval (decayed for Markov biases); each sample is corrected by
+    // the bias at its own time.
+    let (decay_a, decay_g) = bias_decay(config, dt);
+    let (ba_end, bg_end) = (x.accel_bias * decay_a, x.gyro_bias * decay_g);
+    let omega = 0.5 * ((imu.gyro_start - x.gyro_bias) + (imu.gyro_end - bg_end));
+    let orientation = x.orientation * quat_exp(&(omega * dt));
+    let a0 = x.orientation * (imu.accel_start - x.accel_bias) + gravity;
+    let a1 = orientation * (imu.accel_end - ba_end) + gravity;
+    NominalState {
+        position: x.position + x.velocity * dt + (a0 / 3.0 + a1 / 6.0) * (dt * dt),
+        velocity: x.velocity + 0.5 * (a0 + a1) * dt,
+        orientation,
+        accel_bias: ba_end,
+        gyro_bias: bg_end,
+    }
+}
+
+/// The non-trivial 3×3 blocks of the discrete error-state transition Φ over one interval
+/// (seed 004 eqs. (5), (19) to second order); every other block is 0 or I.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    p_v: f64,
+    p_att: Mat3,
+    p_ba: Mat3,
+    v_att: Mat3,
+    v_ba: Mat3,
+    v_bg: Mat3,
+    att_att: Mat3,
+    att_bg: Mat3,
+    ba_ba: f64,
+    bg_bg: f64,
+}
+
+impl Transition {
+    /// Builds Φ at the nominal state at the start of the interval: with `C = R·[f − b_a]×`,
+    /// `W = [ω − b_g]×`, A has `A_pv = I`, `A_vθ = −C`, `A_v,ba = −R`, `A_θθ = −W`, `A_θ,bg = −I`,
+    /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`. With Markov biases (seed 002 eq. (24))
+    /// `A_ba,ba = −I/τ_a`, `A_bg,bg = −I/τ_g`: their blocks of Φ are `e^{−Δt/τ}·I` and the
+    /// second-order terms gain `R/τ_a` (δv, δb_a) and `I/τ_g` (δθ, δb_g).
+    pub fn new(x: &NominalState, imu: &ImuInterval, config: &InsConfig) -> Self {
+        let dt = imu.dt_s;
+        let h = 0.5 * dt * dt;
+        let r = x.orientation.to_rotation_matrix().into_inner();
+        let f = 0.5 * (imu.accel_start + imu.accel_end) - x.accel_bias;
+        let omega = 0.5 * (imu.gyro_start + imu.gyro_end) - x.gyro_bias;
+        let c = r * skew(&f);
+        let w = skew(&omega);
+        let rate = |tau: Option<f64>| tau.map_or(0.0, |t| 1.0 / t);
+        let (ra, rg) = (rate(config.accel_bias_tau), rate(config.gyro_bias_tau));
+        let (ba_ba, bg_bg) = bias_decay(config, dt);
+        Self {
+            p_v: dt,
+            p_att: -c * h,
+            p_ba: -r * h,
+            v_att: -c * dt + (c * w - r * w * skew(&f)) * h,
+            v_ba: -r * dt + (r * ra - r * w) * h,
+            v_bg: c * h,
+            att_att: quat_exp(&(-omega * dt)).to_rotation_matrix().into_inner(),
+            att_bg: -Mat3::identity() * dt + (w + Mat3::identity() * rg) * h,
+            ba_ba,
+            bg_bg,
+        }
+    }
+
+    /// Computes `Φ·M` for any `15 × C` matrix (the covariance, or its cross-covariance with
+    /// parameter states, [`crate::filters::range_bias`]) using only the non-trivial blocks of Φ (no
+    /// dense 15×15 product).
+    pub fn apply_rows<const C: usize>(&self, m: &SMatrix<f64, ERR_DIM, C>) -> SMatrix<f64, ERR_DIM, C> {
+        let row = |i: usize| m.fixed_rows::<3>(i);
+        let mut out = *m;
+        out.fixed_rows_mut::<3>(POS).copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));
+        out.fixed_rows_mut::<3>(VEL).copy_from(&(row(VEL) + self.v_att * row(ATT) + self.v_ba * row(BA) + self.v_bg * row(BG)));
+        out.fixed_rows_mut::<3>(ATT).copy_from(&(self.att_att * row(ATT) + self.att_bg * row(BG)));
+        out.fixed_rows_mut::<3>(BA).copy_from(&(row(BA) * self.ba_ba));
+        out.fixed_rows_mut::<3>(BG).copy_from(&(row(BG) * self.bg_bg));
+        out
+    }
+
+    /// `Φ·P·Φᵀ + Q` (seed 000 eq. (9), seed 004 eq. (18)), exploiting the block structure:
+    /// `M = Φ·P` by block rows, then `M·Φᵀ` only for the δp, δv, δθ columns of the δp, δv, δθ
+    /// rows (the bias rows of Φ are diagonal, so their columns are scaled); the rest follows by
+    /// symmetry.
+    pub fn propagate_covariance(&self, p: &ErrCov, q: &ProcessNoise) -> ErrCov {
+        const NAV: usize = BA; // δp, δv, δθ: the first 9 slots
+        let m = self.apply_rows(p);
+        let col = |j: usize| m.fixed_view::<NAV, 3>(0, j);
+        let mut out = m;
+        out.fixed_view_mut::<NAV, 3>(0, POS)
+            .copy_from(&(col(POS) + col(VEL) * self.p_v + col(ATT) * self.p_att.transpose() + col(BA) * self.p_ba.transpose()));
+        out.fixed_view_mut::<NAV, 3>(0, VEL).copy_from(
+            &(col(VEL) + col(ATT) * self.v_att.transpose() + col(BA) * self.v_ba.transpose() + col(BG) * self.v_bg.transpose()),
+        );
+        out.fixed_view_mut::<NAV, 3>(0, ATT)
+            .copy_from(&(col(ATT) * self.att_att.transpose() + col(BG) * self.att_bg.transpose()));
+        for j in 0..3 {
+            for i in 0..ERR_DIM {
+                out[(i, BA + j)] = m[(i, BA + j)] * self.ba_ba;
+                out[(i, BG + j)] = m[(i, BG + j)] * self.bg_bg;
+            }
+        }
+        if q.trapezoid {
+            // Seed 002 eq. (28): Q_k = ½(Φ·G·Q·Gᵀ + G·Q·Gᵀ·Φᵀ).
+            let phi_q = self.apply_rows(&q.continuous());
+            out += 0.5 * (phi_q + phi_q.transpose());
+        } else {
+            out += q.continuous();
+        }
+        // Upper triangle is now exact (the bias block and bias columns of M are already final);
+        // mirror it into the lower triangle.
+        for j in 0..ERR_DIM {
+            for i in (j + 1)..ERR_DIM {
+                out[(i, j)] = out[(j, i)];
+            }
+        }
+        out
+    }
+
+    /// The dense 15×15 Φ (for tests, smoothers and documentation; the filters use
+    /// [`Transition::propagate_covariance`]).
+    pub fn to_dense(&self) -> ErrCov {
+        let mut phi = ErrCov::identity();
+        let mut put = |r: usize, c: usize, b: &Mat3| phi.fixed_view_mut::<3, 3>(r, c).copy_from(b);
+        put(POS, VEL, &(Mat3::identity() * self.p_v));
+        put(POS, ATT, &self.p_att);
+        put(POS, BA, &self.p_ba);
+        put(VEL, ATT, &self.v_att);
+        put(VEL, BA, &self.v_ba);
+        put(VEL, BG, &self.v_bg);
+        put(ATT, ATT, &self.att_att);
+        put(ATT, BG, &self.att_bg);
+        put(BA, BA, &(Mat3::identity() * self.ba_ba));
+        put(BG, BG, &(Mat3::identity() * self.bg_bg));
+        phi
+    }
+}
+
+/// Per-interval process-noise variances `G·Q·Gᵀ` (diagonal blocks; seed 004 eqs. (20)–(21)):
+/// white noise `density²·Δt` on δv and δθ, bias walk `walk²·Δt` on δb_a and δb_g; added as is, or
+/// (seed 002 eq. (28)) as `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProcessNoise {
+    /// Velocity variance per axis, (m/s)².
+    pub vel_var: f64,
+    /// Attitude variance per axis, rad².
+    pub att_var: f64,
+    /// Accelerometer-bias variance per axis, (m/s²)².
+    pub accel_bias_var: f64,
+    /// Gyroscope-bias variance per axis, (rad/s)².
+    pub gyro_bias_var: f64,
+    /// Discretise as seed 002 eq. (28) instead of adding `G·Q·Gᵀ`.
+    pub trapezoid: bool,
+}
+
+impl ProcessNoise {
+    /// Discretises the configured noise densities over `dt_s` seconds. A first-order Markov bias
+    /// (time constant τ given) is driven so that its steady-state std is the configured bias std
+    /// (`accel_bias_std`, `gyro_bias_std`: the bias instability): variance `σ²·(1 − e^{−2Δt/τ})`
+    /// per step; a random-walk bias gets `walk²·Δt`.
+    pub fn new(config: &InsConfig, dt_s: f64) -> Self {
+        let bias_var = |tau: Option<f64>, std: f64, walk: f64| match tau {
+            Some(t) => std * std * (1.0 - (-2.0 * dt_s / t).exp()),
+            None => walk * walk * dt_s,
+        };
+        Self {
+            vel_var: config.accel_noise_density.powi(2) * dt_s,
+            att_var: config.gyro_noise_density.powi(2) * dt_s,
+            accel_bias_var: bias_var(config.accel_bias_tau, config.accel_bias_markov_std, config.accel_bias_walk),
+            gyro_bias_var: bias_var(config.gyro_bias_tau, config.gyro_bias_markov_std, config.gyro_bias_walk),
+            trapezoid: config.trapezoidal_process_noise,
+        }
+    }
+
+    /// `G·Q·Gᵀ` as a 15×15 matrix (diagonal: the rotations in G cancel for isotropic noise).
+    pub fn continuous(&self) -> ErrCov {
+        let v = |x: f64| Vec3::repeat(x);
+        diagonal_covariance([
+            v(0.0),
+            v(self.vel_var.sqrt()),
+            v(self.att_var.sqrt()),
+            v(self.accel_bias_var.sqrt()),
+            v(self.gyro_bias_var.sqrt()),
+        ])
+    }
+}

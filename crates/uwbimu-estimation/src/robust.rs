@@ -1,0 +1,18 @@
+//! Robust noise policies: χ² thresholds, the covariance inflation of outlying ranges, the
+//! ARCKF robustness factor (seed 002 §3), the Sage–Husa (fuzzy) adaptive R (seed 004 §3.2–§3.3)
+//! and the bounds and divergence detection that keep adaptive noise from running away.
+
+pub mod aiding;
+pub mod chi2;
+pub mod noise_bounds;
+pub mod policy;
+pub mod robustness;
+pub mod sage_husa;
+
+pub use chi2::{chi2_quantile, chi2_quantile_1dof, CHI2_1DOF_ALPHA_1E4};
+pub use noise_bounds::DivergenceMonitor;
+pub use policy::{tested_nis, RangeNoisePolicy};
+pub use robustness::{
+    fade_position_velocity, prior_fading, robustness_factor, robustness_factors, two_range_residuals, RobustnessFactor,
+};
+pub use sage_husa::{SageHusa, SageHusaStep};

@@ -1,0 +1,196 @@
+//! The Kalman measurement step on the error state: gain, Joseph-form covariance, injection into
+//! the nominal state and error reset; and the per-measurement report.
+
+use nalgebra::SVector;
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::{skew, symmetrize, Cov, Mat3};
+use uwbimu_vocabulary::state::{ErrCov, ErrVec, NominalState, ATT, ERR_DIM};
+
+/// What happened to one measurement: a typed form of what the filter decided.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UpdateReport {
+    /// Innovation `z − h(x_op)` at the (last) operating point, in the measurement's unit (m for
+    /// ranges).
+    pub innovation: f64,
+    /// γ, the squared Mahalanobis distance `ε²/(H·P·Hᵀ + R)` used by the noise policy (seed 000
+    /// eq. (37); eq. (39) in later iterations). With a fixed policy it is the NIS.
+    pub nis: f64,
+    /// Whether the measurement changed the state.
+    pub accepted: bool,
+    /// Weight relative to the nominal noise: `R / R_used` (1 = full weight, 0 = ignored).
+    pub weight: f64,
+    /// `R_used / R` (≥ 1; seed 000 eq. (40)).
+    pub inflation: f64,
+    /// Whether the noise policy down-weighted this measurement (inflation > 1).
+    pub down_weighted: bool,
+    /// Iterations of the update it took part in (1 for a single EKF step).
+    pub iterations: u32,
+    /// Factor `λ ≥ 1` by which the prior covariance of this measurement's epoch was inflated
+    /// (seed 002 eq. (42), ARCKF adaptive branch); 1 otherwise.
+    pub prior_fading: f64,
+    /// Whether the epoch was applied as its UWB-only fix to re-acquire the solution
+    /// ([`crate::filters::reacquire`]); `innovation` and `nis` are then the fix's.
+    pub reacquired: bool,
+    /// The range's anchor's total bias `b_a + b_c` after the update and its standard deviation,
+    /// m, with range bias states ([`crate::filters::range_bias`]); None otherwise.
+    pub range_bias: Option<(f64, f64)>,
+    /// The innovation at the prior (the first iteration) and its predicted variance `H·P⁻·Hᵀ + R`
+    /// before any robust inflation (m, m²), for the innovation likelihood (`uwbimu_app::tune`); None
+    /// when the measurement was not applied by a scalar Kalman or unscented step.
+    pub prior: Option<(f64, f64)>,
+}
+
+impl UpdateReport {
+    /// Report for a measurement that could not be used (e.g. degenerate geometry).
+    pub fn skipped() -> Self {
+        Self {
+            innovation: f64::NAN,
+            nis: f64::NAN,
+            accepted: false,
+            weight: 0.0,
+            inflation: f64::INFINITY,
+            down_weighted: false,
+            iterations: 0,
+            prior_fading: 1.0,
+            reacquired: false,
+            range_bias: None,
+            prior: None,
+        }
+    }
+
+    /// Report of a measurement applied as part of a UWB-only fix to re-acquire the solution
+    /// ([`crate::filters::reacquire`]): the fix's innovation norm and NIS, full weight.
+    pub fn reacquired(innovation: f64, nis: f64) -> Self {
+        Self { reacquired: true, ..Self::applied(innovation, nis, 1.0, 1) }
+    }
+
+    /// Report of a measurement applied with `inflation = R_used / R`.
+    pub fn applied(innovation: f64, nis: f64, inflation: f64, iterations: u32) -> Self {
+        Self {
+            innovation,
+            nis,
+            accepted: true,
+            weight: 1.0 / inflation,
+            inflation,
+            down_weighted: inflation > 1.0,
+            iterations,
+            ..Self::skipped()
+        }
+    }
+}
+
+/// One scalar Kalman step on an error-state estimate `dx` with covariance `p` for the linear(ised)
+/// measurement `residual ≈ h·δx + v`, `v ~ N(0, r_var)`: gain `K = P·hᵀ/S` (seed 004 eqs.
+/// (37)–(38)), `dx ← dx + K·(residual − h·dx)`, and the Joseph covariance
+/// `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ` (seed 004 eq. (39) in Joseph form), evaluated through its
+/// rank-one structure as `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for
+/// any gain; O(n²), symmetric by construction).
+///
+/// Generic over the state dimension N (15 for the INS error state, 4 for the planar filters of
+/// seed 001). Returns the innovation variance `S`. Fails if `S` is not positive.
+pub fn scalar_step<const N: usize>(
+    dx: &mut SVector<f64, N>,
+    p: &mut Cov<N>,
+    h: &SVector<f64, N>,
+    residual: f64,
+    r_var: f64,
+) -> Result<f64> {
+    schmidt_step(dx, p, h, residual, r_var, N)
+}
+
+/// [`scalar_step`] with the gain of the rows from `estimated` on set to zero: the Schmidt–Kalman
+/// (consider) step, whose last `N − estimated` states keep their value while their uncertainty
+/// enters the gain of the others and the (Joseph, valid for any gain) covariance. `estimated = N`
+/// is the Kalman step.
+pub fn schmidt_step<const N: usize>(
+    dx: &mut SVector<f64, N>,
+    p: &mut Cov<N>,
+    h: &SVector<f64, N>,
+    residual: f64,
+    r_var: f64,
+    estimated: usize,
+) -> Result<f64> {
+    let c = *p * h;
+    let s = h.dot(&c) + r_var;
+    if !(s > 0.0 && s.is_finite()) {
+        return Err(Error::NotPositiveDefinite { what: "scalar innovation covariance" });
+    }
+    let mut k = c / s;
+    k.rows_mut(estimated, N - estimated).fill(0.0);
+    *dx += k * (residual - h.dot(dx));
+    for j in 0..N {
+        for i in 0..=j {
+            let v = p[(i, j)] - k[i] * c[j] - c[i] * k[j] + s * k[i] * k[j];
+            p[(i, j)] = v;
+            p[(j, i)] = v;
+        }
+    }
+    Ok(s)
+}
+
+/// Injects δx into the nominal state (seed 000 eq. (19), seed 004 eq. (40)) and applies the reset
+/// Jacobian `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new
+/// nominal state (the error mean is reset to zero).
+///
+/// Generic over the dimension: an augmented error state ([`crate::filters::range_bias`]) holds the
+/// 15 INS error states first; the parameter states past them are left to the caller.
+pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
+    x.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
+    let g: Mat3 = Mat3::identity() - skew(&(0.5 * dx.fixed_rows::<3>(ATT).into_owned()));
+    let rows = g * p.fixed_rows::<3>(ATT);
+    p.fixed_rows_mut::<3>(ATT).copy_from(&rows);
+    let cols = p.fixed_columns::<3>(ATT) * g.transpose();
+    p.fixed_columns_mut::<3>(ATT).copy_from(&cols);
+    symmetrize(p);
+}
+
+/// The parameter rows (past the 15 INS error states) of an augmented vector, zero elsewhere: the
+/// part of an augmented step that [`inject_and_reset`] leaves to the caller.
+pub fn parameter_rows<const N: usize>(v: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = *v;
+    out.fixed_rows_mut::<ERR_DIM>(0).fill(0.0);
+    out
+}
+
+/// Vector measurement step for `residual ≈ H·δx + v`, `v ~ N(0, R)` with a full `M×M` noise
+/// covariance: whitened by the Cholesky factor `R = L·Lᵀ` (`H' = L⁻¹H`, `r' = L⁻¹r`, `R' = I`)
+/// and applied as `M` [`scalar_step`]s, which equals the joint Joseph update (seed 004 eqs.
+/// (37)–(39)). Generic over the state dimension N like [`scalar_step`]. Returns the normalised
+/// innovation squared `rᵀ(H·P·Hᵀ + R)⁻¹r` against the covariance before the step. Fails if `R` or
+/// the innovation covariance is not positive definite (before changing anything).
+pub fn vector_step<const M: usize, const N: usize>(
+    dx: &mut SVector<f64, N>,
+    p: &mut Cov<N>,
+    h: &nalgebra::SMatrix<f64, M, N>,
+    residual: &nalgebra::SVector<f64, M>,
+    r: &nalgebra::SMatrix<f64, M, M>,
+) -> Result<f64> {
+    let s = h * *p * h.transpose() + r;
+    let nis = match s.cholesky() {
+        Some(c) => residual.dot(&c.solve(residual)),
+        None => return Err(Error::NotPositiveDefinite { what: "innovation covariance" }),
+    };
+    let l = r.cholesky().ok_or(Error::NotPositiveDefinite { what: "measurement covariance" })?.l();
+    let hw = l.solve_lower_triangular(h).ok_or(Error::NotPositiveDefinite { what: "measurement covariance" })?;
+    let rw = l.solve_lower_triangular(residual).ok_or(Error::NotPositiveDefinite { what: "measurement covariance" })?;
+    for i in 0..M {
+        scalar_step(dx, p, &hw.row(i).transpose(), rw[i], 1.0)?;
+    }
+    Ok(nis)
+}
+
+/// [`vector_step`] on the first `N` rows (x, y or x, y, z) of a 3-row measurement with residual
+/// `residual`, Jacobian `h` and noise covariance `cov` (its leading `N × N` block): a planar
+/// UWB fix constrains x and y only.
+pub fn leading_rows_step<const N: usize>(
+    dx: &mut ErrVec,
+    p: &mut ErrCov,
+    residual: &nalgebra::SVector<f64, 3>,
+    h: &nalgebra::SMatrix<f64, 3, ERR_DIM>,
+    cov: &Mat3,
+) -> Result<f64> {
+    let r: nalgebra::SVector<f64, N> = residual.fixed_rows::<N>(0).into_owned();
+    let hn: nalgebra::SMatrix<f64, N, ERR_DIM> = h.fixed_rows::<N>(0).into_owned();
+    let c: nalgebra::SMatrix<f64, N, N> = cov.fixed_view::<N, N>(0, 0).into_owned();
+    vector_step(dx, p, &hn, &r, &c)
+}

@@ -1,0 +1,370 @@
+//! Filter configuration in sections and the initial state.
+//!
+//! [`FilterConfig`] is a set of sections ([`RangingConfig`], [`InsConfig`], …), each declared once with units, defaults
+//! and validation, and each handed to the piece that uses it (the INS core's process model takes
+//! `ins`, the constraints `constraints`, the unscented strategy `unscented`, …). Keys are written
+//! `section.field` — in Python dicts, in TOML (`[config.ranging]` tables or dotted keys) and in
+//! [`FilterConfig::set`]; a nested dict / table `{section: {field: value}}` is read the same way.
+//! The flat keys of earlier versions keep working ([`LEGACY_KEYS`] maps each to its new key).
+
+mod parse;
+mod range_calibration;
+mod sage_husa;
+mod sections;
+
+use parse::{non_negative, quaternion, vec3, vec3_or_scalar};
+
+use crate::error::{Error, Result};
+use crate::math::{Quat, Vec3};
+
+pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
+pub use sage_husa::{Defuzzification, FuzzyConfig, NoiseBounds, SageHusaConfig, SageHusaVariant, MAX_WINDOW};
+pub use sections::{
+    check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, InitConfig, InsConfig, MountingConfig, PlanarConfig,
+    RangeBiasConfig, RangingConfig, RobustConfig, Section, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S,
+    DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_SPEED_HISTORY,
+    MAX_ZUPT_WINDOW,
+};
+
+/// A configuration value as it arrives from a dict: a scalar or a vector.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigValue {
+    /// A single number.
+    Scalar(f64),
+    /// A sequence of numbers.
+    Vector(Vec<f64>),
+    /// A switch.
+    Flag(bool),
+}
+
+/// Settings of every filter, in sections (see the module doc).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FilterConfig {
+    /// UWB measurement noise and the epoch rule.
+    pub ranging: RangingConfig,
+    /// The INS core's process model and gravity.
+    pub ins: InsConfig,
+    /// Lever arm and IMU mounting.
+    pub mounting: MountingConfig,
+    /// Initial uncertainties and self-initialisation.
+    pub init: InitConfig,
+    /// χ² test and iterations.
+    pub robust: RobustConfig,
+    /// Motion constraints.
+    pub constraints: ConstraintsConfig,
+    /// Adaptive measurement noise.
+    pub adaptive: AdaptiveConfig,
+    /// Range bias states.
+    pub range_bias: RangeBiasConfig,
+    /// Sage–Husa estimator settings (seed 004 eqs. (26)–(36)); the method chooses the variant.
+    pub sage_husa: SageHusaConfig,
+    /// Unscented transform.
+    pub unscented: UnscentedConfig,
+    /// Planar filters of seed 001.
+    pub planar: PlanarConfig,
+    /// Gravity and geomagnetic aiding of `ackf`.
+    pub aiding: AidingConfig,
+    /// Per-anchor cubic range calibration (seed 001 §2.2, §4.1) applied to the ranges before any
+    /// batch method runs; empty by default. Set from Python as `{anchor: [c0, c1, c2, c3]}` under
+    /// the key `range_calibration` (a table, not a section field).
+    pub range_calibration: RangeCalibration,
+}
+
+/// The flat keys of earlier versions and the section keys each sets (`accel_bias_std` meant both
+/// the initial bias σ and the Markov steady-state σ, so it sets both).
+pub const LEGACY_KEYS: &[(&str, &[&str])] = &[
+    ("range_std", &["ranging.range_std"]),
+    ("tdoa_std", &["ranging.tdoa_std"]),
+    ("epoch_window_s", &["ranging.epoch_window_s"]),
+    ("accel_noise_density", &["ins.accel_noise_density"]),
+    ("gyro_noise_density", &["ins.gyro_noise_density"]),
+    ("accel_bias_walk", &["ins.accel_bias_walk"]),
+    ("gyro_bias_walk", &["ins.gyro_bias_walk"]),
+    ("accel_bias_tau", &["ins.accel_bias_tau"]),
+    ("gyro_bias_tau", &["ins.gyro_bias_tau"]),
+    ("trapezoidal_process_noise", &["ins.trapezoidal_process_noise"]),
+    ("gravity", &["ins.gravity"]),
+    ("lever_arm", &["mounting.lever_arm"]),
+    ("imu_rotation", &["mounting.imu_rotation"]),
+    ("accel_bias_std", &["init.accel_bias_std", "ins.accel_bias_markov_std"]),
+    ("gyro_bias_std", &["init.gyro_bias_std", "ins.gyro_bias_markov_std"]),
+    ("init_still_s", &["init.still_s"]),
+    ("init_heading_distance_m", &["init.heading_distance_m"]),
+    ("alpha", &["robust.significance"]),
+    ("max_iterations", &["robust.max_iterations"]),
+    ("iteration_tolerance", &["robust.iteration_tolerance"]),
+    ("zupt", &["constraints.zupt"]),
+    ("pseudo_velocity", &["constraints.pseudo_velocity"]),
+    ("plane", &["constraints.plane"]),
+    ("zupt_window", &["constraints.zupt_window"]),
+    ("zupt_threshold", &["constraints.zupt_threshold"]),
+    ("zupt_accel_std", &["constraints.zupt_accel_std"]),
+    ("zupt_gyro_std", &["constraints.zupt_gyro_std"]),
+    ("zupt_max_speed", &["constraints.zupt_max_speed"]),
+    ("zupt_velocity_std", &["constraints.zupt_velocity_std"]),
+    ("pseudo_velocity_var", &["constraints.pseudo_velocity_var"]),
+    ("pseudo_velocity_window", &["constraints.pseudo_velocity_window"]),
+    ("plane_height", &["constraints.plane_height"]),
+    ("plane_std", &["constraints.plane_std"]),
+    ("constraint_interval_s", &["constraints.interval_s"]),
+    ("adaptive_range_noise", &["adaptive.range_noise"]),
+    ("loose_noise_scale", &["adaptive.loose_noise_scale"]),
+    ("loose_variance_factor", &["adaptive.loose_variance_factor"]),
+    ("sh_forgetting_factor", &["sage_husa.forgetting_factor"]),
+    ("sh_lambda", &["sage_husa.lambda"]),
+    ("sh_alpha", &["sage_husa.alpha"]),
+    ("sh_warmup_steps", &["sage_husa.warmup_steps"]),
+    ("sh_window", &["sage_husa.window"]),
+    ("sh_fading_rate", &["sage_husa.fading_rate"]),
+    ("sh_outlier_threshold", &["sage_husa.outlier_threshold"]),
+    ("sh_bounds", &["sage_husa.bounded"]),
+    ("sh_min_ratio", &["sage_husa.min_ratio"]),
+    ("sh_max_ratio", &["sage_husa.max_ratio"]),
+    ("aiding_reference_s", &["aiding.reference_s"]),
+    ("aiding_gravity_std", &["aiding.gravity_std"]),
+    ("aiding_mag_std", &["aiding.mag_std"]),
+    ("aiding_adaptive", &["aiding.adaptive"]),
+    ("aiding_uncertainty_scale", &["aiding.uncertainty_scale"]),
+    ("aiding_uncertainty_max", &["aiding.uncertainty_max"]),
+    ("ukf_alpha", &["unscented.alpha"]),
+    ("ukf_beta", &["unscented.beta"]),
+    ("ukf_lambda", &["unscented.lambda"]),
+    ("cekf_window", &["planar.cekf_window"]),
+    ("planar_accel_density", &["planar.accel_density"]),
+];
+
+/// Calls `$body` with `$s` bound to each section of `$config` in declaration order (`mut`:
+/// mutably); the one list of the sections.
+macro_rules! for_each_section {
+    ($config:expr, |$s:ident| $body:expr) => {
+        for_each_section!(@ [&] $config, |$s| $body)
+    };
+    (mut $config:expr, |$s:ident| $body:expr) => {
+        for_each_section!(@ [&mut] $config, |$s| $body)
+    };
+    (@ [$($r:tt)+] $config:expr, |$s:ident| $body:expr) => {{
+        let c = $config;
+        [
+            { let $s = $($r)+ c.ranging; $body },
+            { let $s = $($r)+ c.ins; $body },
+            { let $s = $($r)+ c.mounting; $body },
+            { let $s = $($r)+ c.init; $body },
+            { let $s = $($r)+ c.robust; $body },
+            { let $s = $($r)+ c.constraints; $body },
+            { let $s = $($r)+ c.adaptive; $body },
+            { let $s = $($r)+ c.range_bias; $body },
+            { let $s = $($r)+ c.sage_husa; $body },
+            { let $s = $($r)+ c.unscented; $body },
+            { let $s = $($r)+ c.planar; $body },
+            { let $s = $($r)+ c.aiding; $body },
+        ]
+    }};
+}
+
+/// Sets `field` of `s` when `s` is the section named `section`; None when it is another.
+fn set_in<S: Section>(s: &mut S, section: &str, field: &str, value: &ConfigValue) -> Option<Result<()>> {
+    (S::NAME == section).then(|| s.set(field, value))
+}
+
+/// `(section name, its field names)` for a section type.
+fn keys_of<S: Section>(_: &S) -> (&'static str, &'static [&'static str]) {
+    (S::NAME, S::KEYS)
+}
+
+/// `(section name, its entries)` for a section.
+fn entries_of<S: Section>(s: &S) -> (&'static str, Vec<(&'static str, ConfigValue)>) {
+    (S::NAME, s.entries())
+}
+
+impl FilterConfig {
+    /// Every section key, `section.field`, in declaration order.
+    pub fn keys() -> Vec<String> {
+        for_each_section!(&Self::default(), |s| keys_of(s))
+            .into_iter()
+            .flat_map(|(section, fields)| fields.iter().map(move |f| format!("{section}.{f}")))
+            .collect()
+    }
+
+    /// Sets one field by its key: `section.field`, or a flat key of earlier versions
+    /// ([`LEGACY_KEYS`]). The value is validated; an unknown key is an error that lists the
+    /// allowed ones.
+    pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+        if let Some((section, field)) = key.split_once('.') {
+            let set = for_each_section!(mut self, |s| set_in(s, section, field, value));
+            return set.into_iter().flatten().next().unwrap_or_else(|| Err(Self::unknown(key)));
+        }
+        if key == "range_calibration" {
+            return Err(crate::validate::invalid(
+                key,
+                "expected a mapping {anchor index: [c0, c1, c2, c3]}; set the field directly in Rust",
+            ));
+        }
+        match LEGACY_KEYS.iter().find(|(old, _)| *old == key) {
+            Some((_, new)) => new.iter().try_for_each(|k| self.set(k, value)),
+            None => Err(Self::unknown(key)),
+        }
+    }
+
+    fn unknown(key: &str) -> Error {
+        Error::UnknownOption { kind: "config", got: key.to_string(), allowed: Self::keys().join(", ") }
+    }
+
+    /// Checks every field against the same rules as [`FilterConfig::set`] (for configurations
+    /// built in Rust rather than key by key).
+    pub fn validate(&self) -> Result<()> {
+        let mut probe = Self::default();
+        self.entries().iter().try_for_each(|(key, value)| probe.set(key, value))?;
+        self.sage_husa.validate()
+    }
+
+    /// The configuration as `(section.field, value)` pairs (unset optional fields and the
+    /// `range_calibration` table left out).
+    pub fn entries(&self) -> Vec<(String, ConfigValue)> {
+        for_each_section!(self, |s| entries_of(s))
+            .into_iter()
+            .flat_map(|(section, entries)| entries.into_iter().map(move |(f, v)| (format!("{section}.{f}"), v)))
+            .collect()
+    }
+}
+
+/// Initial nominal state and its uncertainty (a diagonal initial covariance).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitialState {
+    /// Body (IMU) position, navigation frame, m.
+    pub position: Vec3,
+    /// Velocity, navigation frame, m/s.
+    pub velocity: Vec3,
+    /// Body → navigation rotation.
+    pub orientation: Quat,
+    /// Position standard deviation per axis, m.
+    pub position_std: Vec3,
+    /// Velocity standard deviation per axis, m/s.
+    pub velocity_std: Vec3,
+    /// Attitude-error standard deviation per body axis (roll, pitch, yaw-ish), rad.
+    pub orientation_std: Vec3,
+    /// Initial accelerometer bias, m/s².
+    pub accel_bias: Vec3,
+    /// Initial gyroscope bias, rad/s.
+    pub gyro_bias: Vec3,
+    /// Accelerometer-bias standard deviation, m/s² (None: [`InitConfig::accel_bias_std`]).
+    pub accel_bias_std: Option<f64>,
+    /// Gyroscope-bias standard deviation, rad/s (None: [`InitConfig::gyro_bias_std`]).
+    pub gyro_bias_std: Option<f64>,
+}
+
+impl Default for InitialState {
+    fn default() -> Self {
+        Self {
+            position: Vec3::zeros(),
+            velocity: Vec3::zeros(),
+            orientation: Quat::identity(),
+            position_std: Vec3::repeat(0.3),
+            velocity_std: Vec3::repeat(0.1),
+            orientation_std: Vec3::new(0.05, 0.05, 0.2),
+            accel_bias: Vec3::zeros(),
+            gyro_bias: Vec3::zeros(),
+            accel_bias_std: None,
+            gyro_bias_std: None,
+        }
+    }
+}
+
+impl InitialState {
+    /// The diagonal initial error covariance (order δp, δv, δθ, δb_a, δb_g); bias standard
+    /// deviations fall back to the configuration's.
+    pub fn covariance(&self, config: &FilterConfig) -> crate::state::ErrCov {
+        let ba = Vec3::repeat(self.accel_bias_std.unwrap_or(config.init.accel_bias_std));
+        let bg = Vec3::repeat(self.gyro_bias_std.unwrap_or(config.init.gyro_bias_std));
+        crate::state::diagonal_covariance([self.position_std, self.velocity_std, self.orientation_std, ba, bg])
+    }
+
+    /// Every key accepted by [`InitialState::set`].
+    pub const KEYS: [&'static str; 10] = [
+        "position",
+        "velocity",
+        "orientation",
+        "position_std",
+        "velocity_std",
+        "orientation_std",
+        "accel_bias",
+        "gyro_bias",
+        "accel_bias_std",
+        "gyro_bias_std",
+    ];
+
+    /// Sets one field by name; standard deviations accept a scalar (all axes) or 3 numbers.
+    pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+        match key {
+            "position" => self.position = vec3(key, value)?,
+            "velocity" => self.velocity = vec3(key, value)?,
+            "orientation" => self.orientation = quaternion(key, value)?,
+            "position_std" => self.position_std = vec3_or_scalar(key, value)?,
+            "velocity_std" => self.velocity_std = vec3_or_scalar(key, value)?,
+            "orientation_std" => self.orientation_std = vec3_or_scalar(key, value)?,
+            "accel_bias" => self.accel_bias = vec3(key, value)?,
+            "gyro_bias" => self.gyro_bias = vec3(key, value)?,
+            "accel_bias_std" => self.accel_bias_std = Some(non_negative(key, value)?),
+            "gyro_bias_std" => self.gyro_bias_std = Some(non_negative(key, value)?),
+            _ => {
+                return Err(Error::UnknownOption {
+                    kind: "initial-state key",
+                    got: key.to_string(),
+                    allowed: Self::KEYS.join(", "),
+                })
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_key_lists_allowed() {
+        let mut c = FilterConfig::default();
+        let e = c.set("range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
+        assert!(e.contains("range_sdt") && e.contains("range_std") && e.contains("lever_arm"), "{e}");
+    }
+
+    #[test]
+    fn validate_applies_the_setter_rules() {
+        assert!(FilterConfig::default().validate().is_ok());
+        let mut bad = FilterConfig::default();
+        bad.ranging.range_std = 0.0;
+        assert!(matches!(bad.validate(), Err(Error::InvalidConfig { field, .. }) if field == "ranging.range_std"));
+    }
+
+    #[test]
+    fn rejects_bad_values() {
+        let mut c = FilterConfig::default();
+        assert!(c.set("range_std", &ConfigValue::Scalar(-1.0)).is_err());
+        assert!(c.set("lever_arm", &ConfigValue::Vector(vec![0.0, 1.0])).is_err());
+        assert!(c.set("imu_rotation", &ConfigValue::Vector(vec![0.0; 4])).is_err());
+        c.set("gravity", &ConfigValue::Scalar(9.81)).unwrap();
+        assert_eq!(c.ins.gravity, Vec3::new(0.0, 0.0, -9.81));
+    }
+
+    #[test]
+    fn legacy_keys_set_their_sections_and_all_keys_round_trip() {
+        let mut c = FilterConfig::default();
+        c.set("accel_bias_std", &ConfigValue::Scalar(0.3)).unwrap();
+        assert_eq!((c.init.accel_bias_std, c.ins.accel_bias_markov_std), (0.3, 0.3));
+        c.set("alpha", &ConfigValue::Scalar(0.05)).unwrap();
+        c.set("ukf_alpha", &ConfigValue::Scalar(0.5)).unwrap();
+        c.set("sh_alpha", &ConfigValue::Scalar(2.0)).unwrap();
+        assert_eq!((c.robust.significance, c.unscented.alpha, c.sage_husa.alpha), (0.05, 0.5, 2.0));
+        c.set("constraints.plane_height", &ConfigValue::Scalar(1.2)).unwrap();
+        // Every legacy key names a real section key; every section key is read back.
+        let keys = FilterConfig::keys();
+        assert!(LEGACY_KEYS.iter().flat_map(|(_, new)| new.iter()).all(|k| keys.iter().any(|x| x == k)));
+        let mut copy = FilterConfig::default();
+        for (k, v) in c.entries() {
+            copy.set(&k, &v).unwrap();
+        }
+        assert_eq!(copy, c);
+        let e = c.set("robust.alpha", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
+        assert!(e.contains("robust.significance"), "{e}");
+    }
+}

@@ -1,0 +1,401 @@
+//! The configuration sections, each declared once: its fields with units and defaults, and the
+//! parser that validates each field ([`crate::config::parse`]). The declaration generates the
+//! struct, its `Default`, its key list, its setter and its entries ([`Section`]), so a key cannot
+//! be listed in one place and forgotten in another. Keys are written `section.field`.
+
+use crate::config::parse::{
+    at_least_one, bounded_count, count, flag, gravity, non_negative, positive, probability, quaternion, scalar,
+    some_at_least_one, some_positive, some_scalar, vec3, ToValue,
+};
+use crate::config::ConfigValue;
+use crate::config::{SageHusaConfig, MAX_WINDOW};
+use crate::error::{Error, Result};
+use crate::math::{Quat, Vec3};
+use crate::validate::invalid;
+
+/// Smallest state dimension an unscented filter uses (`ukf2d`); bounds `unscented.lambda`.
+const MIN_UNSCENTED_DIM: usize = 4;
+
+/// Largest window the still detector holds (bounds `constraints.zupt_window`), IMU samples.
+pub const MAX_ZUPT_WINDOW: usize = 128;
+
+/// Largest pseudo-velocity history (bounds `constraints.pseudo_velocity_window`), steps.
+pub const MAX_SPEED_HISTORY: usize = 256;
+
+/// Largest moving-average window of `cekf2d` (bounds `planar.cekf_window`), ranges per anchor.
+pub const MAX_CEKF_WINDOW: usize = 64;
+
+/// Default range noise σ, m: real two-way ranges scatter by 5–10 cm and carry per-anchor biases
+/// of ±0.2 m (isas-walk1); 0.15 m covers both without a calibration.
+pub const DEFAULT_RANGE_STD_M: f64 = 0.15;
+
+/// Default TDoA noise σ, m: a difference of two arrival times, each scattering like a range
+/// (Loco Positioning TDoA reports 0.1–0.2 m indoors).
+pub const DEFAULT_TDOA_STD_M: f64 = 0.1;
+
+/// Default accelerometer white-noise density, m/s²/√Hz. Far above a consumer MEMS datasheet
+/// (≈ 0.003): the process noise must also cover what the white-noise model leaves out on a real
+/// platform — vibration, scale-factor and axis errors, IMU–UWB time offsets, handheld motion. On
+/// isas-walk1 (handheld, self-initialised) the robust filters reach 0.13 m aligned with it and
+/// 3.4 m with the datasheet value; on the scenario zoo, whose IMU does match the datasheet, it
+/// costs up to 0.35 (most scenarios 0.05–0.2) of the UWB-only error against matched noise.
+pub const DEFAULT_ACCEL_NOISE_DENSITY: f64 = 0.3;
+
+/// Default gyroscope white-noise density, rad/s/√Hz (a datasheet says ≈ 5e-4; see
+/// [`DEFAULT_ACCEL_NOISE_DENSITY`] for why the default is higher).
+pub const DEFAULT_GYRO_NOISE_DENSITY: f64 = 0.01;
+
+/// One section of [`crate::config::FilterConfig`]: a name, its keys, a validating setter and its
+/// entries.
+pub trait Section {
+    /// Section name (the part of a key before the dot).
+    const NAME: &'static str;
+    /// Field names of the section.
+    const KEYS: &'static [&'static str];
+    /// Sets one field (`key` without the section name), validating the value.
+    fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()>;
+    /// The fields as (name, value) pairs (unset optional fields left out).
+    fn entries(&self) -> Vec<(&'static str, ConfigValue)>;
+}
+
+fn unknown_field<S: Section>(key: &str) -> Error {
+    let allowed: Vec<String> = S::KEYS.iter().map(|k| format!("{}.{k}", S::NAME)).collect();
+    Error::UnknownOption { kind: "config", got: format!("{}.{key}", S::NAME), allowed: allowed.join(", ") }
+}
+
+/// Declares a section: `Name = "section" { /// doc  field: Type = default, parser; … }`.
+macro_rules! section {
+    (
+        $(#[$doc:meta])*
+        $name:ident = $section:literal {
+            $( $(#[$fdoc:meta])* $field:ident : $ty:ty = $default:expr, $parse:expr; )*
+        }
+    ) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub struct $name {
+            $( $(#[$fdoc])* pub $field: $ty, )*
+        }
+
+        impl Default for $name {
+            fn default() -> Self {
+                Self { $( $field: $default, )* }
+            }
+        }
+
+        impl Section for $name {
+            const NAME: &'static str = $section;
+            const KEYS: &'static [&'static str] = &[$( stringify!($field) ),*];
+
+            fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+                match key {
+                    $( stringify!($field) => self.$field = ($parse)(concat!($section, ".", stringify!($field)), value)?, )*
+                    _ => return Err(unknown_field::<Self>(key)),
+                }
+                Ok(())
+            }
+
+            fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
+                let mut out = Vec::with_capacity(Self::KEYS.len());
+                $( if let Some(v) = ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
+                out
+            }
+        }
+    };
+}
+
+/// Default window of the epoch rule, s: covers a sweep over 8 anchors at 5 ms per anchor plus
+/// jitter, and stays below the 50 ms period of a 20 Hz sweep.
+pub const DEFAULT_EPOCH_WINDOW_S: f64 = 0.05;
+
+/// Largest accepted window, s: beyond it the first-order alignment to the reference time is no
+/// longer accurate for moving platforms (½·a·Δt² = 2.5 cm at 1 m/s² and 0.25 s).
+pub const MAX_EPOCH_WINDOW_S: f64 = 0.25;
+
+/// Checks an epoch window, s (0 = only equal timestamps form an epoch).
+pub fn check_window(window_s: f64) -> Result<f64> {
+    if (0.0..=MAX_EPOCH_WINDOW_S).contains(&window_s) {
+        Ok(window_s)
+    } else {
+        Err(invalid("epoch_window_s", format!("must be in [0, {MAX_EPOCH_WINDOW_S}] s, got {window_s}")))
+    }
+}
+
+section! {
+    /// UWB measurement noise and the epoch rule: what the range and TDoA models need.
+    RangingConfig = "ranging" {
+        /// Range noise σ, m (seed 000 eq. (33), `R = range_std²`).
+        range_std: f64 = DEFAULT_RANGE_STD_M, positive;
+        /// TDoA noise σ of one difference `d_ij`, m (`R = tdoa_std²`).
+        tdoa_std: f64 = DEFAULT_TDOA_STD_M, positive;
+        /// Window of the epoch rule, s: ranges within this time of an epoch's first range, one
+        /// per anchor, form one epoch (`uwbimu_estimation::epoch`); 0 = only equal timestamps.
+        epoch_window_s: f64 = DEFAULT_EPOCH_WINDOW_S, |f, v| check_window(scalar(f, v)?);
+        /// UWB–IMU time offset, s: a range or TDoA stamped `t` was measured at `t + time_offset_s`
+        /// (negative when the UWB stamps lag). Every batch method applies it first, dropping what
+        /// falls outside the IMU's time span; `calibrate(..., offsets=True)` estimates it.
+        time_offset_s: f64 = 0.0, scalar;
+    }
+}
+
+section! {
+    /// The INS core's process model (seed 004 eq. (5) densities, discretised per step as
+    /// `density²·Δt`, eq. (21); seed 002 eqs. (17)–(18), (28) for Markov biases) and gravity.
+    InsConfig = "ins" {
+        /// Accelerometer white-noise density, m/s²/√Hz.
+        accel_noise_density: f64 = DEFAULT_ACCEL_NOISE_DENSITY, positive;
+        /// Gyroscope white-noise density, rad/s/√Hz.
+        gyro_noise_density: f64 = DEFAULT_GYRO_NOISE_DENSITY, positive;
+        /// Accelerometer bias random walk, m/s²/√s (when `accel_bias_tau` is unset).
+        accel_bias_walk: f64 = 1e-4, non_negative;
+        /// Gyroscope bias random walk, rad/s/√s (when `gyro_bias_tau` is unset).
+        gyro_bias_walk: f64 = 1e-5, non_negative;
+        /// Accelerometer-bias time constant τ_a of a first-order Markov model, s (seed 002 eq.
+        /// (17)); unset: random walk.
+        accel_bias_tau: Option<f64> = None, some_positive;
+        /// Gyroscope-bias time constant τ_g of a first-order Markov model, s (seed 002 eq. (18));
+        /// unset: random walk.
+        gyro_bias_tau: Option<f64> = None, some_positive;
+        /// Steady-state σ of a Markov accelerometer bias (its instability), m/s².
+        accel_bias_markov_std: f64 = 0.1, non_negative;
+        /// Steady-state σ of a Markov gyroscope bias, rad/s.
+        gyro_bias_markov_std: f64 = 0.01, non_negative;
+        /// Discretise the process noise as seed 002 eq. (28), `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`, instead of
+        /// adding `G·Q·Gᵀ` (always on in ckf and arckf).
+        trapezoidal_process_noise: bool = false, flag;
+        /// Gravity in the navigation frame, m/s² (a magnitude `g` means `[0, 0, −g]`).
+        gravity: Vec3 = Vec3::new(0.0, 0.0, -9.80665), gravity;
+    }
+}
+
+section! {
+    /// Where the sensors sit on the body.
+    MountingConfig = "mounting" {
+        /// UWB antenna position in the body frame, m (the papers mount the IMU 5 cm below the
+        /// tag: `[0, 0, 0.05]`).
+        lever_arm: Vec3 = Vec3::zeros(), vec3;
+        /// Rotation from the IMU frame to the body frame, `[w, x, y, z]` (readings are rotated by
+        /// it before use).
+        imu_rotation: Quat = Quat::identity(), quaternion;
+    }
+}
+
+section! {
+    /// Initial uncertainties the initial state does not give, and the self-initialisation
+    /// (`uwbimu_estimation::init`).
+    InitConfig = "init" {
+        /// Initial accelerometer-bias σ, m/s² (when the initial state gives none).
+        accel_bias_std: f64 = 0.1, non_negative;
+        /// Initial gyroscope-bias σ, rad/s (when the initial state gives none).
+        gyro_bias_std: f64 = 0.01, non_negative;
+        /// Self-initialisation: length of the still window at the start used for roll, pitch and
+        /// gyro bias, s.
+        still_s: f64 = 1.0, positive;
+        /// Self-initialisation: UWB displacement after which the heading is taken from motion, m.
+        heading_distance_m: f64 = 1.0, positive;
+    }
+}
+
+section! {
+    /// The χ² test of the robust policies and the iterated update strategy.
+    RobustConfig = "robust" {
+        /// Significance level α of the χ² test (seed 000 eq. (38)); threshold `χ²₁,α`
+        /// (0.01 → 6.63).
+        significance: f64 = 0.01, probability;
+        /// Maximum iterations of the iterated update (seed 000 Algorithm 1).
+        max_iterations: u32 = 10, count;
+        /// The iterated update stops when the error-state step norm falls below this (mixed
+        /// units: m, m/s, rad, m/s², rad/s).
+        iteration_tolerance: f64 = 1e-4, positive;
+        /// NLOS skew of the range test (ours, `uwbimu_estimation::robust::tested_nis`): a range longer than
+        /// predicted enters the test with `s·γ`, so it is inflated once `γ > χ²/s`; ≥ 1. Unset:
+        /// the method's own — 1 (the symmetric test of the papers), `uwbimu_estimation::filters::BEST_NLOS_SKEW`
+        /// in `best`.
+        nlos_skew: Option<f64> = None, some_at_least_one;
+    }
+}
+
+impl RobustConfig {
+    /// The NLOS skew in force: `nlos_skew`, or 1 (the symmetric test) when unset.
+    pub fn nlos_skew_or_symmetric(&self) -> f64 {
+        self.nlos_skew.unwrap_or(1.0)
+    }
+}
+
+section! {
+    /// The motion constraints of seed 000 §2.2 (`uwbimu_estimation::filters::constraints`).
+    ConstraintsConfig = "constraints" {
+        /// Zero-velocity constraint on (seed 000 eqs. (13)–(19)); always on in CRIEKF.
+        zupt: bool = false, flag;
+        /// Pseudo-velocity constraint on (seed 000 eqs. (20)–(26)); always on in CRIEKF.
+        pseudo_velocity: bool = false, flag;
+        /// Plane constraint on (seed 000 eqs. (27)–(32)); always on in CRIEKF.
+        plane: bool = false, flag;
+        /// Still detector window, IMU samples.
+        zupt_window: usize = 20, |f, v| bounded_count(f, v, 2, MAX_ZUPT_WINDOW);
+        /// Still detector threshold on its statistic, dimensionless
+        /// (`uwbimu_estimation::filters::constraints::StillDetector`).
+        zupt_threshold: f64 = 9.0, positive;
+        /// Still detector: σ of the specific force about its value at rest, m/s².
+        zupt_accel_std: f64 = 0.05, positive;
+        /// Still detector: σ of the angular rate at rest, rad/s.
+        zupt_gyro_std: f64 = 0.01, positive;
+        /// Still detector speed gate: no ZUPT above this estimated speed, m/s.
+        zupt_max_speed: f64 = 0.2, positive;
+        /// ZUPT measurement noise σ per axis, m/s.
+        zupt_velocity_std: f64 = 0.01, positive;
+        /// Pseudo-velocity measurement variance, m²/s² (seed 000 §3.5: 6).
+        pseudo_velocity_var: f64 = 6.0, positive;
+        /// Pseudo-velocity: number of past constraint steps averaged (seed 000 eq. (20): 20).
+        pseudo_velocity_window: usize = 20, |f, v| bounded_count(f, v, 1, MAX_SPEED_HISTORY);
+        /// Plane constraint height of the body origin, m (unset: the initial height).
+        plane_height: Option<f64> = None, some_scalar;
+        /// Plane constraint noise σ, m.
+        plane_std: f64 = 0.05, positive;
+        /// Constraints are applied at most once per this interval, s.
+        interval_s: f64 = 0.1, non_negative;
+    }
+}
+
+section! {
+    /// Adaptive measurement noise: per-anchor range noise of the tightly coupled filters and the
+    /// loose fix noise of `eskf`, `shaf`, `shfaf` (seed 004).
+    AdaptiveConfig = "adaptive" {
+        /// Tightly coupled filters: estimate each anchor's range noise on line (Sage–Husa,
+        /// seed 004) instead of using `ranging.range_std` throughout.
+        range_noise: bool = false, flag;
+        /// Loosely coupled filters: scale of the least-squares fix covariance used as the
+        /// measurement noise (and as the initial R of the Sage–Husa estimators), dimensionless.
+        loose_noise_scale: f64 = 1.0, positive;
+        /// Loosely coupled filters: scale each fix's covariance by its a-posteriori variance
+        /// factor when above 1 (ours); off = seed 004's plain least-squares covariance.
+        loose_variance_factor: bool = true, flag;
+    }
+}
+
+section! {
+    /// Range bias states of the tightly coupled filters (`uwbimu_estimation::filters::range_bias`, ours): a
+    /// bias per anchor and one common to all, `r = ‖p_tag − a‖ + b_a + b_c + v`, each a random
+    /// walk, estimated in an augmented error state.
+    RangeBiasConfig = "range_bias" {
+        /// Estimate the biases (off: ranges are taken as unbiased, after `range_calibration`).
+        states: bool = false, flag;
+        /// Schmidt (consider) scheme instead of the augmented filter: the biases keep their
+        /// initial value (0, or the `range_calibration` already applied) and only their
+        /// uncertainty is carried into the gain and covariance of the navigation state.
+        consider: bool = false, flag;
+        /// Initial σ of each anchor's own bias, m.
+        anchor_std: f64 = 0.1, non_negative;
+        /// Initial σ of the common bias, m.
+        common_std: f64 = 0.1, non_negative;
+        /// Random walk of each anchor's bias, m/√s.
+        anchor_walk: f64 = 1e-3, non_negative;
+        /// Random walk of the common bias, m/√s.
+        common_walk: f64 = 1e-3, non_negative;
+    }
+}
+
+section! {
+    /// The unscented transform (seed 001 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented
+    /// composition.
+    UnscentedConfig = "unscented" {
+        /// α (enters only `W₀ᶜ`; seed 001: 0.01).
+        alpha: f64 = 0.01, positive;
+        /// β (2 for Gaussian priors).
+        beta: f64 = 2.0, non_negative;
+        /// λ (seed 001: −1); `n + λ > 0` is required for every state dimension used (4 and 15).
+        lambda: f64 = -1.0, unscented_lambda;
+    }
+}
+
+section! {
+    /// The planar filters of seed 001.
+    PlanarConfig = "planar" {
+        /// `cekf2d`: moving-average window of the range prefilter, ranges per anchor (seed 001
+        /// §3.3; 1 = no averaging).
+        cekf_window: usize = 5, |f, v| bounded_count(f, v, 1, MAX_CEKF_WINDOW);
+        /// Density of the horizontal acceleration input error, m/s²/√Hz (seed 001 eq. (6)).
+        accel_density: f64 = 0.3, positive;
+    }
+}
+
+section! {
+    /// Gravity and geomagnetic attitude aiding of `ackf` (seed 003 §2.2.2).
+    AidingConfig = "aiding" {
+        /// Length of the initial still period whose mean accelerometer and magnetometer readings,
+        /// rotated to the navigation frame, become the reference gravity and field, s (seed 003:
+        /// 5–10 s).
+        reference_s: f64 = 5.0, positive;
+        /// Base σ of one accelerometer axis as a gravity observation, m/s².
+        gravity_std: f64 = 0.5, positive;
+        /// Base σ of one magnetometer axis, unit of the magnetometer readings.
+        mag_std: f64 = 1.0, positive;
+        /// Scale the variances with the residual uncertainty (`uwbimu_estimation::robust::aiding`).
+        adaptive: bool = true, flag;
+        /// Residual scale `c` of the uncertainty, dimensionless (0.005: a 0.5 % magnitude residual
+        /// multiplies the variance by e).
+        uncertainty_scale: f64 = 0.005, positive;
+        /// Cap `U_max` of the uncertainty, dimensionless (≥ 1).
+        uncertainty_max: f64 = 1e4, at_least_one;
+    }
+}
+
+/// `unscented.lambda`: `n + λ > 0` for the smallest unscented state (`ukf2d`, n = 4).
+fn unscented_lambda(field: &str, v: &ConfigValue) -> Result<f64> {
+    let l = scalar(field, v)?;
+    if l <= -(MIN_UNSCENTED_DIM as f64) {
+        return Err(invalid(field, format!("n + λ must be > 0 for n = {MIN_UNSCENTED_DIM} (ukf2d), got λ = {l}")));
+    }
+    Ok(l)
+}
+
+/// The Sage–Husa estimator of `shaf`, `shfaf` and the adaptive range noise (seed 004 eqs.
+/// (26)–(36)); the method chooses the variant.
+impl Section for SageHusaConfig {
+    const NAME: &'static str = "sage_husa";
+    const KEYS: &'static [&'static str] = &[
+        "forgetting_factor",
+        "lambda",
+        "alpha",
+        "warmup_steps",
+        "window",
+        "fading_rate",
+        "outlier_threshold",
+        "bounded",
+        "min_ratio",
+        "max_ratio",
+    ];
+
+    fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+        let field = |name: &str| format!("sage_husa.{name}");
+        match key {
+            "forgetting_factor" => self.forgetting_factor = positive(&field(key), value)?,
+            "lambda" => self.lambda = positive(&field(key), value)?,
+            "alpha" => self.alpha = positive(&field(key), value)?,
+            "warmup_steps" => self.warmup_steps = bounded_count(&field(key), value, 0, 1 << 20)?,
+            "window" => self.window_len = bounded_count(&field(key), value, 1, MAX_WINDOW)?,
+            "fading_rate" => self.fading_rate = positive(&field(key), value)?,
+            "outlier_threshold" => self.outlier_threshold = positive(&field(key), value)?,
+            "bounded" => self.bounded = flag(&field(key), value)?,
+            "min_ratio" => self.bounds.min_ratio = positive(&field(key), value)?,
+            "max_ratio" => self.bounds.max_ratio = positive(&field(key), value)?,
+            _ => return Err(unknown_field::<Self>(key)),
+        }
+        Ok(())
+    }
+
+    fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
+        vec![
+            ("forgetting_factor", ConfigValue::Scalar(self.forgetting_factor)),
+            ("lambda", ConfigValue::Scalar(self.lambda)),
+            ("alpha", ConfigValue::Scalar(self.alpha)),
+            ("warmup_steps", ConfigValue::Scalar(self.warmup_steps as f64)),
+            ("window", ConfigValue::Scalar(self.window_len as f64)),
+            ("fading_rate", ConfigValue::Scalar(self.fading_rate)),
+            ("outlier_threshold", ConfigValue::Scalar(self.outlier_threshold)),
+            ("bounded", ConfigValue::Flag(self.bounded)),
+            ("min_ratio", ConfigValue::Scalar(self.bounds.min_ratio)),
+            ("max_ratio", ConfigValue::Scalar(self.bounds.max_ratio)),
+        ]
+    }
+}

@@ -1,0 +1,65 @@
+//! Prints one line per run of a comparison set — every method × zoo scenarios × seeds × given or
+//! self-initialised start (and smoothed, where the method smooths) — with a 64-bit FNV-1a digest
+//! of everything the run returned (every recorded state, covariance, report and the
+//! self-initialisation), formatted with `{:?}` (shortest round-trip `f64`s, so two digests agree
+//! only when the outputs agree bit for bit). A refactor that must not change results is checked
+//! by diffing this output before and after:
+//!
+//! ```text
+//! cargo run --release --example results_digest > before.txt
+//! # ... change ...
+//! cargo run --release --example results_digest > after.txt && diff before.txt after.txt
+//! ```
+//!
+//! Arguments (optional): the scenarios, comma-separated (default
+//! `outliers,outage,nlos_two,mixed_rates,forklift,imu_z_down`), and the number of seeds
+//! (default 2).
+
+use uwbimu_rs::app::methods::{run_method, BatchInput, Method};
+use uwbimu_rs::app::sim::{simulate, zoo};
+use uwbimu_rs::vocabulary::config::FilterConfig;
+
+/// FNV-1a over the bytes of `text`.
+fn fnv1a(text: &str) -> u64 {
+    text.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let scenarios = args.first().map_or("outliers,outage,nlos_two,mixed_rates,forklift,imu_z_down", String::as_str);
+    let seeds: u64 = args.get(1).map_or(Ok(2), |s| s.parse())?;
+    for scenario in scenarios.split(',') {
+        for seed in 0..seeds {
+            let s = zoo(scenario, seed)?;
+            let data = simulate(&s.sim)?;
+            let initial = s.true_initial(&data)?;
+            let config = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
+            for &method in Method::ALL {
+                for given in [true, false] {
+                    for smooth in [false, true] {
+                        if smooth && !method.smoothable() {
+                            continue;
+                        }
+                        let input = BatchInput {
+                            imu: &data.imu,
+                            ranges: &data.ranges,
+                            anchors: &data.anchors,
+                            initial: given.then_some(&initial),
+                            config: &config,
+                            smooth,
+                            mag: &[],
+                            tdoa: &[],
+                        };
+                        let digest = match run_method(method, &input) {
+                            Ok(out) => format!("{:016x}", fnv1a(&format!("{out:?}"))),
+                            Err(e) => format!("error: {e}"),
+                        };
+                        let start = if given { "given" } else { "self" };
+                        println!("{scenario} {seed} {} {start} smooth={smooth} {digest}", method.name());
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}

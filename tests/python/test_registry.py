@@ -1,0 +1,67 @@
+"""Every list of method names agrees with the one registry (crates/uwbimu-app/src/methods.rs):
+``FILTERS`` and ``METHODS`` come from it at run time; the stub's ``_MethodName``, the streaming
+classes (module, ``__all__``, stub) and the README's method table are checked against it here."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import uwbimu_rs
+from uwbimu_rs import _native
+
+ROOT = Path(__file__).resolve().parents[2]
+STUB = ROOT / "python" / "uwbimu_rs" / "_native.pyi"
+
+
+def stub_tree() -> ast.Module:
+    return ast.parse(STUB.read_text())
+
+
+def test_filters_are_the_registry_rows_in_order() -> None:
+    assert uwbimu_rs.FILTERS == list(uwbimu_rs.METHODS)
+    assert len(set(uwbimu_rs.FILTERS)) == len(uwbimu_rs.FILTERS)
+    for name, row in uwbimu_rs.METHODS.items():
+        assert set(row) == {"takes", "smoothing", "streaming_class", "summary"}, name
+        assert "ranges" in row["takes"] and row["smoothing"] in {"never", "on_request", "by_default"}
+        assert row["summary"].endswith("."), row["summary"]
+
+
+def test_stub_method_names_are_the_registry() -> None:
+    for node in stub_tree().body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "_MethodName" for t in node.targets):
+            value = node.value
+            assert isinstance(value, ast.Subscript) and isinstance(value.slice, ast.Tuple)
+            names = [e.value for e in value.slice.elts if isinstance(e, ast.Constant)]
+            assert names == uwbimu_rs.FILTERS
+            return
+    raise AssertionError("no _MethodName in the stub")
+
+
+def test_streaming_classes_are_the_registry_rows_that_have_one() -> None:
+    declared = {row["streaming_class"] for row in uwbimu_rs.METHODS.values()} - {None}
+    assert declared, "no streaming class in the registry"
+    for cls in declared:
+        assert getattr(_native, cls).__module__ == "uwbimu_rs._native"
+        assert getattr(uwbimu_rs, cls) is getattr(_native, cls) and cls in uwbimu_rs.__all__
+    in_stub = {
+        node.name
+        for node in stub_tree().body
+        if isinstance(node, ast.ClassDef) and any(getattr(b, "id", None) == "_StreamingFilter" for b in node.bases)
+    }
+    assert in_stub == declared
+    exported = {name for name in uwbimu_rs.__all__ if isinstance(getattr(uwbimu_rs, name), type)}
+    streaming = {name for name in exported if hasattr(getattr(uwbimu_rs, name), "update_range")}
+    assert streaming == declared
+
+
+def test_readme_method_table_lists_every_method_once() -> None:
+    lines = (ROOT / "README.md").read_text().splitlines()
+    start = next(i for i, line in enumerate(lines) if re.match(r"\|\s*method\s*\|", line))
+    rows = []
+    for line in lines[start + 2 :]:
+        if not line.startswith("|"):
+            break
+        rows.append(line.split("|")[1].strip().strip("`"))
+    assert sorted(rows) == sorted(uwbimu_rs.FILTERS)
