@@ -44,7 +44,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     run = sim.preset("seed000_los", seed=0)
-    config = {"lever_arm": [0.0, 0.0, 0.05]}
+    config = {"mounting.lever_arm": [0.0, 0.0, 0.05]}
     initial, _ = uwbimu_rs.initialize(run.imu, run.ranges, run.anchors, config=config)
     n = run.imu.shape[0]
     batch = best_of(lambda: uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, initial=initial, config=config), args.repeat)

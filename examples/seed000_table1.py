@@ -31,7 +31,7 @@ def table(seeds: int = 5, range_std: float | None = None) -> dict[str, tuple[flo
     stats: dict[str, list] = {m: [] for m in PAPER}
     for seed in range(seeds):
         run = sim.preset("seed000", seed=seed)
-        config = dict(run.config) if range_std is None else {**run.config, "range_std": range_std}
+        config = dict(run.config) if range_std is None else {**run.config, "ranging.range_std": range_std}
         for method in PAPER:
             df = uwbimu_rs.run_filter(method, run.imu, run.ranges, run.anchors, config=config)
             e = metrics.evaluate(df, run.truth).errors["e_h"].to_numpy()

@@ -21,7 +21,7 @@ import uwbimu_rs
 from uwbimu_rs import metrics, sim
 
 PAPER = {"uwb_ls": 0.8038, "eskf": 0.3904, "shaf": 0.3196, "shfaf": 0.1440}  # Table 1, absolute RMSE, m
-AS_PRINTED = {"loose_variance_factor": False, "sh_bounds": False}
+AS_PRINTED = {"adaptive.loose_variance_factor": False, "sage_husa.bounded": False}
 LOOSE = ("eskf", "shaf", "shfaf")
 
 
@@ -48,7 +48,7 @@ def scenario1(seeds: int = 5, paper_form: bool = True) -> list[dict[str, float]]
     out = []
     for seed in range(seeds):
         run = sim.preset("seed004_s1", seed=seed)
-        config = {**run.config, "loose_noise_scale": 25.0, **(AS_PRINTED if paper_form else {})}
+        config = {**run.config, "adaptive.loose_noise_scale": 25.0, **(AS_PRINTED if paper_form else {})}
         settled = {}
         for method in LOOSE:
             df = uwbimu_rs.run_filter(method, run.imu, run.ranges, run.anchors, initial=initial_from(run, (0.57, 0, 0)), config=config)

@@ -182,8 +182,8 @@ fn bad_unscented_settings_are_config_errors() {
     let sim = preset("seed001", 0).expect("preset");
     let data = simulate(&sim).expect("sim");
     let mut config = FilterConfig::default();
-    assert!(config.set("ukf_lambda", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(-4.0)).is_err());
-    assert!(config.set("cekf_window", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(0.0)).is_err());
+    assert!(config.set("unscented.lambda", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(-4.0)).is_err());
+    assert!(config.set("planar.cekf_window", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(0.0)).is_err());
     config.unscented.lambda = -20.0;
     assert!(Ukf::new(data.anchors.clone(), &InitialState::default(), config).is_err());
 }

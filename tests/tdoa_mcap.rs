@@ -146,7 +146,7 @@ fn uwbimu_replay_takes_tdoa_with_or_without_an_initial_state_and_names_the_metho
     std::fs::write(
         &toml,
         format!(
-            "method = \"rekf\"\n[config]\ntdoa_std = {}\n[initial]\nposition = [{}, {}, {}]\norientation = [{}, {}, {}, {}]\n",
+            "method = \"rekf\"\n[config]\nranging.tdoa_std = {}\n[initial]\nposition = [{}, {}, {}]\norientation = [{}, {}, {}, {}]\n",
             config.ranging.tdoa_std, p.x, p.y, p.z, q.w, q.i, q.j, q.k
         ),
     )

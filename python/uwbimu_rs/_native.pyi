@@ -144,48 +144,19 @@ class FilterConfig:
 
     Unset keys keep their defaults; unknown keys or invalid values raise :class:`ConfigError`.
 
-    Parameters
-    ----------
-    range_std : float, default 0.1
-        UWB range noise standard deviation, m (> 0).
-    accel_noise_density : float, default 0.003
-        Accelerometer white-noise density, m/s²/√Hz (> 0).
-    gyro_noise_density : float, default 5e-4
-        Gyroscope white-noise density, rad/s/√Hz (> 0).
-    accel_bias_walk : float, default 1e-4
-        Accelerometer bias random walk, m/s²/√s (≥ 0).
-    gyro_bias_walk : float, default 1e-5
-        Gyroscope bias random walk, rad/s/√s (≥ 0).
-    lever_arm : sequence of 3 floats, default [0, 0, 0]
-        UWB antenna position in the body frame, m.
-    imu_rotation : sequence of 4 floats, default [1, 0, 0, 0]
-        IMU → body mounting rotation ``[w, x, y, z]`` (normalised; zero norm is an error).
-    gravity : float or sequence of 3 floats, default [0, 0, -9.80665]
-        Gravity in the navigation frame, m/s²; a scalar ``g`` means ``[0, 0, -g]``.
-    accel_bias_std : float, default 0.1
-        Initial accelerometer-bias standard deviation, m/s², when the initial state gives none.
-    gyro_bias_std : float, default 0.01
-        Initial gyroscope-bias standard deviation, rad/s, when the initial state gives none.
-    init_still_s : float, default 1.0
-        Self-initialisation: still window at the start for roll, pitch and gyro bias, s.
-    init_heading_distance_m : float, default 1.0
-        Self-initialisation: UWB displacement after which the heading is taken from motion, m.
-    range_calibration : dict {int: [c0, c1, c2, c3]}, default {}
-        Per-anchor cubic range calibration applied before any batch method (seed 001 §2.2);
-        ascending coefficients, ``true = c0 + c1·m + c2·m² + c3·m³``.
-    ukf_alpha, ukf_beta, ukf_lambda : float, default 0.01, 2, -1
-        Unscented-transform α, β, λ of ``ukf``, ``ukf2d`` (seed 001 eq. (14)); λ > −4.
-    cekf_window : int, default 5
-        ``cekf2d``: moving-average window of the range prefilter, ranges per anchor (1..=64).
-    planar_accel_density : float, default 0.3
-        Planar filters: horizontal acceleration input noise density, m/s²/√Hz.
+    Keyword arguments are sections, each a dict of its fields
+    (``FilterConfig(ranging={"range_std": 0.2}, mounting={"lever_arm": [0, 0, 0.05]})``), or
+    ``section.field`` keys (``FilterConfig(**{"ranging.range_std": 0.2})``), or
+    ``range_calibration={anchor: [c0, c1, c2, c3]}``. :meth:`keys` lists every key; each key's
+    unit, default and rule are in ``docs/configuration.md``, generated from the Rust declaration.
 
     Raises
     ------
     ConfigError
         Unknown key or invalid value.
     ValueError
-        A value that is neither a number nor a sequence of numbers (e.g. a bool).
+        A value of the wrong kind: a string, or a bool where a number is expected (and the
+        reverse).
     """
 
     def __new__(cls, **kwargs: _ConfigValue | dict[int, Sequence[float]]) -> FilterConfig: ...

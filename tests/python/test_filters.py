@@ -146,11 +146,11 @@ def test_unknown_config_key_lists_allowed(small):
 @pytest.mark.parametrize(
     ("config", "pattern"),
     [
-        ({"range_std": -0.1}, r"config `ranging.range_std`: must be finite and > 0"),
-        ({"lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers, got 2"),
-        ({"imu_rotation": [0, 0, 0, 0]}, r"config `mounting.imu_rotation`: quaternion"),
-        ({"range_std": "big"}, r"`range_std`: expected a number"),
-        ({"gravity": float("nan")}, r"config `ins.gravity`: must be finite"),
+        ({"ranging.range_std": -0.1}, r"config `ranging.range_std`: must be finite and > 0"),
+        ({"mounting.lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers, got 2"),
+        ({"mounting.imu_rotation": [0, 0, 0, 0]}, r"config `mounting.imu_rotation`: quaternion"),
+        ({"ranging.range_std": "big"}, r"`ranging.range_std`: expected a number"),
+        ({"ins.gravity": float("nan")}, r"config `ins.gravity`: must be finite"),
     ],
 )
 def test_bad_config_values(small, config, pattern):
@@ -168,7 +168,7 @@ def test_bad_initial_key(small):
 def test_config_object_and_dict_agree(small):
     imu, ranges, anchors, initial = small
     # Flat keys of earlier versions, section keys and section dicts all say the same.
-    cfg = uwbimu_rs.FilterConfig(range_std=0.2, lever_arm=[0, 0, 0.05])
+    cfg = uwbimu_rs.FilterConfig(ranging={"range_std": 0.2}, mounting={"lever_arm": [0, 0, 0.05]})
     d = cfg.to_dict()
     # The given keys are kept, the others are the defaults, and the keys are the allowed ones.
     assert d["ranging"]["range_std"] == 0.2 and list(d["mounting"]["lever_arm"]) == [0, 0, 0.05]
@@ -176,7 +176,7 @@ def test_config_object_and_dict_agree(small):
     keys = set(uwbimu_rs.FilterConfig.keys())
     assert {f"{s}.{k}" for s, fields in d.items() if s != "range_calibration" for k in fields} <= keys
     a = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=cfg)
-    b = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"range_std": 0.2, "lever_arm": [0, 0, 0.05]})
+    b = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"ranging": {"range_std": 0.2}, "mounting.lever_arm": [0, 0, 0.05]})
     c = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config=d)
     e = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial, config={"ranging.range_std": 0.2, "mounting": {"lever_arm": [0, 0, 0.05]}})
     defaults = uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial=initial)
@@ -217,7 +217,7 @@ def test_constraint_switches_and_still_column(filter_config):
     from uwbimu_rs import sim
 
     run = sim.preset("seed000_los", seed=0)
-    cfg = uwbimu_rs.FilterConfig(**{**filter_config, "zupt": True})
+    cfg = uwbimu_rs.FilterConfig(**{**filter_config, "constraints.zupt": True})
     assert cfg.to_dict()["constraints"]["zupt"] is True
     df = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, config=cfg)
     assert df["still"].dtype == pl.Boolean
@@ -226,7 +226,7 @@ def test_constraint_switches_and_still_column(filter_config):
     late = df.filter(pl.col("t") > 10.0)["still"].mean()
     assert early > 0.5 and late < 0.02
     with pytest.raises(ValueError, match=r"config `constraints.zupt`: expected True or False"):
-        uwbimu_rs.FilterConfig(zupt=1.0)
+        uwbimu_rs.FilterConfig(constraints={"zupt": 1.0})
 
 
 def test_smoothing_batch(los_run, filter_config):
@@ -281,7 +281,7 @@ def test_run_filters_in_parallel_equals_one_by_one(filter_config):
 def test_ackf_uses_the_magnetometer_and_others_refuse_it():
     run = uwbimu_rs.sim.preset("seed004_s1", seed=1)
     assert run.mag is not None
-    df = uwbimu_rs.run_filter("ackf", run.imu, run.ranges, run.anchors, mag=run.mag, config={"aiding_reference_s": 1.5})
+    df = uwbimu_rs.run_filter("ackf", run.imu, run.ranges, run.anchors, mag=run.mag, config={"aiding.reference_s": 1.5})
     err = uwbimu_rs.metrics.evaluate(df, run.truth).horizontal.rmse
     assert err < 0.5, err
     with pytest.raises(ValueError, match=r"ckf does not use a magnetometer \(these do: ackf\)"):

@@ -26,7 +26,7 @@ def config(lab):
 
 @pytest.mark.parametrize("method", ["ekf2d", "ukf2d", "cekf2d", "ukf"])
 def test_seed001_methods_through_run_filter(lab, config, method):
-    df = uwbimu_rs.run_filter(method, lab.imu, lab.ranges, lab.anchors, config={**config, "plane_height": 0.2})
+    df = uwbimu_rs.run_filter(method, lab.imu, lab.ranges, lab.anchors, config={**config, "constraints.plane_height": 0.2})
     assert df.columns[:15] == ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z", "still"]
     assert df.height == lab.imu.shape[0]
     h = metrics.evaluate(df, lab.truth).horizontal
@@ -40,7 +40,7 @@ def test_seed001_methods_through_run_filter(lab, config, method):
 
 
 def test_planar_settings_are_validated(lab):
-    for bad in ({"ukf_lambda": -4.0}, {"cekf_window": 0}, {"cekf_window": 2.5}, {"planar_accel_density": -1.0}):
+    for bad in ({"unscented.lambda": -4.0}, {"planar.cekf_window": 0}, {"planar.cekf_window": 2.5}, {"planar.accel_density": -1.0}):
         with pytest.raises(uwbimu_rs.ConfigError):
             uwbimu_rs.run_filter("ukf2d", lab.imu, lab.ranges, lab.anchors, config=bad)
     with pytest.raises(uwbimu_rs.ConfigError, match="smoothing"):

@@ -162,42 +162,6 @@ pub enum OverrideValue {
     Number(f64),
 }
 
-/// Keys accepted by [`SimConfig::apply_overrides`]: switches `nlos`, `magnetometer`, `imu_noise`,
-/// then numbers (units in the names; densities in unit/√Hz, walks in unit/√s).
-pub const OVERRIDE_KEYS: &[&str] = &[
-    "nlos",
-    "magnetometer",
-    "tdoa",
-    "tdoa_rate_hz",
-    "tdoa_std_m",
-    "tdoa_outlier_prob",
-    "imu_noise",
-    "imu_rate_hz",
-    "uwb_rate_hz",
-    "range_std_m",
-    "uniform_noise_m",
-    "outlier_prob",
-    "outlier_min_m",
-    "outlier_max_m",
-    "dropout_prob",
-    "nlos_bias_min_m",
-    "nlos_bias_max_m",
-    "nlos_extra_std_m",
-    "nlos_dropout_prob",
-    "accel_noise_density",
-    "gyro_noise_density",
-    "accel_bias_std",
-    "gyro_bias_std",
-    "accel_bias_walk",
-    "gyro_bias_walk",
-    "mag_noise_std",
-    "accel_outlier_count",
-    "accel_outlier_std_mps2",
-    "stagger_s",
-    "jitter_s",
-    "start_s",
-];
-
 fn probability(field: &str, v: f64) -> Result<()> {
     if (0.0..=1.0).contains(&v) {
         Ok(())
@@ -345,100 +309,98 @@ impl SimConfig {
     pub fn apply_overrides(&mut self, overrides: &[(&str, OverrideValue)]) -> Result<()> {
         let (flags, numbers): (Vec<_>, Vec<_>) = overrides.iter().partition(|(_, v)| matches!(v, OverrideValue::Flag(_)));
         for (key, value) in flags.into_iter().chain(numbers) {
-            self.apply_override(key, value)?;
+            apply_override(self, key, value)?;
         }
         Ok(())
     }
+}
 
-    fn apply_override(&mut self, key: &str, value: OverrideValue) -> Result<()> {
-        if !OVERRIDE_KEYS.contains(&key) {
-            return Err(unknown_override(key));
-        }
-        let is_flag = matches!(key, "nlos" | "magnetometer" | "imu_noise" | "tdoa");
-        match value {
-            OverrideValue::Flag(_) if !is_flag => Err(invalid(key, "expects a number, got a bool")),
-            OverrideValue::Number(_) if is_flag => Err(invalid(key, "expects a bool, got a number")),
-            OverrideValue::Flag(on) => {
-                match (key, on) {
-                    ("nlos", false) => self.uwb.nlos = None,
-                    ("nlos", true) => {
-                        self.uwb.nlos.get_or_insert_with(NlosConfig::default);
-                    }
-                    ("magnetometer", false) => self.magnetometer = None,
-                    ("magnetometer", true) => {
-                        self.magnetometer.get_or_insert_with(MagConfig::default);
-                    }
-                    ("tdoa", false) => self.tdoa = None,
-                    ("tdoa", true) => {
-                        self.tdoa.get_or_insert_with(TdoaConfig::default);
-                    }
-                    ("imu_noise", false) => self.imu_noise = ImuNoise::none(),
-                    ("imu_noise", true) => {}
-                    _ => return Err(unknown_override(key)),
-                }
-                Ok(())
-            }
-            OverrideValue::Number(x) if key == "accel_outlier_count" => {
-                if !(x >= 0.0 && x.fract() == 0.0 && x <= 1e6) {
-                    return Err(invalid(key, format!("must be a whole number of samples in [0, 1e6], got {x}")));
-                }
-                self.accel_outliers.count = x as usize;
-                Ok(())
-            }
-            OverrideValue::Number(x) => {
-                *self.number_slot(key)? = x;
-                Ok(())
-            }
-        }
-    }
+/// Declares the simulator overrides, one row each: `switch key(config, on) { … }` for a bool,
+/// `number key(config) { place }` for a number written to `place` (an `&mut f64` that may fail
+/// with `?`), `count key(config, n) { … }` for a whole number. From the rows come
+/// [`OVERRIDE_KEYS`] and the setter; a key cannot be listed and not applied, or the reverse.
+macro_rules! overrides {
+    ($(
+        $kind:ident $key:ident ($c:ident $(, $v:ident)?) $body:block;
+    )+) => {
+        /// Keys accepted by [`SimConfig::apply_overrides`], in declaration order: switches (bool)
+        /// and numbers, units in the names (densities in unit/√Hz, walks in unit/√s).
+        pub const OVERRIDE_KEYS: &[&str] = &[$(stringify!($key)),+];
 
-    /// The numeric field behind an override key.
-    fn number_slot(&mut self, key: &str) -> Result<&mut f64> {
-        if let Some(field) = key.strip_prefix("nlos_") {
-            let nlos = self.uwb.nlos.as_mut().ok_or_else(|| invalid(key, "NLOS is off; set nlos=True"))?;
-            return match field {
-                "bias_min_m" => Ok(&mut nlos.bias_min_m),
-                "bias_max_m" => Ok(&mut nlos.bias_max_m),
-                "extra_std_m" => Ok(&mut nlos.extra_std_m),
-                "dropout_prob" => Ok(&mut nlos.dropout_prob),
+        /// Applies one override to `config` (see [`SimConfig::apply_overrides`]).
+        fn apply_override(config: &mut SimConfig, key: &str, value: OverrideValue) -> Result<()> {
+            match key {
+                $(stringify!($key) => overrides!(@apply $kind, key, value, config, $c $(, $v)? $body),)+
                 _ => Err(unknown_override(key)),
-            };
+            }
         }
-        if let Some(field) = key.strip_prefix("tdoa_") {
-            let tdoa = self.tdoa.as_mut().ok_or_else(|| invalid(key, "TDoA is off; set tdoa=True"))?;
-            return match field {
-                "rate_hz" => Ok(&mut tdoa.rate_hz),
-                "std_m" => Ok(&mut tdoa.std_m),
-                "outlier_prob" => Ok(&mut tdoa.outlier_prob),
-                _ => Err(unknown_override(key)),
-            };
+    };
+    (@apply switch, $key:ident, $value:ident, $config:ident, $c:ident, $v:ident $body:block) => {{
+        let OverrideValue::Flag($v) = $value else { return Err(invalid($key, "expects a bool, got a number")) };
+        let $c = $config;
+        $body
+        Ok(())
+    }};
+    (@apply number, $key:ident, $value:ident, $config:ident, $c:ident $body:block) => {{
+        let OverrideValue::Number(x) = $value else { return Err(invalid($key, "expects a number, got a bool")) };
+        let $c = $config;
+        let place: &mut f64 = $body;
+        *place = x;
+        Ok(())
+    }};
+    (@apply count, $key:ident, $value:ident, $config:ident, $c:ident, $v:ident $body:block) => {{
+        let OverrideValue::Number(x) = $value else { return Err(invalid($key, "expects a number, got a bool")) };
+        if !(x >= 0.0 && x.fract() == 0.0 && x <= 1e6) {
+            return Err(invalid($key, format!("must be a whole number in [0, 1e6], got {x}")));
         }
-        if key == "mag_noise_std" {
-            let mag = self.magnetometer.as_mut().ok_or_else(|| invalid(key, "the magnetometer is off; set magnetometer=True"))?;
-            return Ok(&mut mag.noise_std);
-        }
-        match key {
-            "imu_rate_hz" => Ok(&mut self.imu_rate_hz),
-            "uwb_rate_hz" => Ok(&mut self.uwb.rate_hz),
-            "range_std_m" => Ok(&mut self.uwb.range_std_m),
-            "uniform_noise_m" => Ok(&mut self.uwb.uniform_noise_m),
-            "outlier_prob" => Ok(&mut self.uwb.outlier_prob),
-            "outlier_min_m" => Ok(&mut self.uwb.outlier_min_m),
-            "outlier_max_m" => Ok(&mut self.uwb.outlier_max_m),
-            "dropout_prob" => Ok(&mut self.uwb.dropout_prob),
-            "accel_noise_density" => Ok(&mut self.imu_noise.accel_noise_density),
-            "gyro_noise_density" => Ok(&mut self.imu_noise.gyro_noise_density),
-            "accel_bias_std" => Ok(&mut self.imu_noise.accel_bias_std),
-            "gyro_bias_std" => Ok(&mut self.imu_noise.gyro_bias_std),
-            "accel_bias_walk" => Ok(&mut self.imu_noise.accel_bias_walk),
-            "gyro_bias_walk" => Ok(&mut self.imu_noise.gyro_bias_walk),
-            "accel_outlier_std_mps2" => Ok(&mut self.accel_outliers.std_mps2),
-            "stagger_s" => Ok(&mut self.uwb.stagger_s),
-            "jitter_s" => Ok(&mut self.uwb.jitter_s),
-            "start_s" => Ok(&mut self.start_s),
-            _ => Err(unknown_override(key)),
-        }
-    }
+        let ($c, $v) = ($config, x as usize);
+        $body
+        Ok(())
+    }};
+}
+
+/// The NLOS model of `c`, or the error for an `nlos_*` override while NLOS is off.
+fn nlos_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut NlosConfig> {
+    c.uwb.nlos.as_mut().ok_or_else(|| invalid(key, "NLOS is off; set nlos=True"))
+}
+
+/// The TDoA model of `c`, or the error for a `tdoa_*` override while TDoA is off.
+fn tdoa_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut TdoaConfig> {
+    c.tdoa.as_mut().ok_or_else(|| invalid(key, "TDoA is off; set tdoa=True"))
+}
+
+overrides! {
+    switch nlos(c, on) { if on { c.uwb.nlos.get_or_insert_with(NlosConfig::default); } else { c.uwb.nlos = None; } };
+    switch magnetometer(c, on) { if on { c.magnetometer.get_or_insert_with(MagConfig::default); } else { c.magnetometer = None; } };
+    switch tdoa(c, on) { if on { c.tdoa.get_or_insert_with(TdoaConfig::default); } else { c.tdoa = None; } };
+    number tdoa_rate_hz(c) { &mut tdoa_on(c, "tdoa_rate_hz")?.rate_hz };
+    number tdoa_std_m(c) { &mut tdoa_on(c, "tdoa_std_m")?.std_m };
+    number tdoa_outlier_prob(c) { &mut tdoa_on(c, "tdoa_outlier_prob")?.outlier_prob };
+    switch imu_noise(c, on) { if !on { c.imu_noise = ImuNoise::none(); } };
+    number imu_rate_hz(c) { &mut c.imu_rate_hz };
+    number uwb_rate_hz(c) { &mut c.uwb.rate_hz };
+    number range_std_m(c) { &mut c.uwb.range_std_m };
+    number uniform_noise_m(c) { &mut c.uwb.uniform_noise_m };
+    number outlier_prob(c) { &mut c.uwb.outlier_prob };
+    number outlier_min_m(c) { &mut c.uwb.outlier_min_m };
+    number outlier_max_m(c) { &mut c.uwb.outlier_max_m };
+    number dropout_prob(c) { &mut c.uwb.dropout_prob };
+    number nlos_bias_min_m(c) { &mut nlos_on(c, "nlos_bias_min_m")?.bias_min_m };
+    number nlos_bias_max_m(c) { &mut nlos_on(c, "nlos_bias_max_m")?.bias_max_m };
+    number nlos_extra_std_m(c) { &mut nlos_on(c, "nlos_extra_std_m")?.extra_std_m };
+    number nlos_dropout_prob(c) { &mut nlos_on(c, "nlos_dropout_prob")?.dropout_prob };
+    number accel_noise_density(c) { &mut c.imu_noise.accel_noise_density };
+    number gyro_noise_density(c) { &mut c.imu_noise.gyro_noise_density };
+    number accel_bias_std(c) { &mut c.imu_noise.accel_bias_std };
+    number gyro_bias_std(c) { &mut c.imu_noise.gyro_bias_std };
+    number accel_bias_walk(c) { &mut c.imu_noise.accel_bias_walk };
+    number gyro_bias_walk(c) { &mut c.imu_noise.gyro_bias_walk };
+    number mag_noise_std(c) { &mut c.magnetometer.as_mut().ok_or_else(|| invalid("mag_noise_std", "the magnetometer is off; set magnetometer=True"))?.noise_std };
+    count accel_outlier_count(c, n) { c.accel_outliers.count = n; };
+    number accel_outlier_std_mps2(c) { &mut c.accel_outliers.std_mps2 };
+    number stagger_s(c) { &mut c.uwb.stagger_s };
+    number jitter_s(c) { &mut c.uwb.jitter_s };
+    number start_s(c) { &mut c.start_s };
 }
 
 fn unknown_override(key: &str) -> Error {

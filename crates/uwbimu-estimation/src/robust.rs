@@ -10,9 +10,9 @@ pub mod robustness;
 pub mod sage_husa;
 
 pub use chi2::{chi2_quantile, chi2_quantile_1dof, CHI2_1DOF_ALPHA_1E4};
-pub use noise_bounds::DivergenceMonitor;
+pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
 pub use policy::{tested_nis, RangeNoisePolicy};
 pub use robustness::{
     fade_position_velocity, prior_fading, robustness_factor, robustness_factors, two_range_residuals, RobustnessFactor,
 };
-pub use sage_husa::{SageHusa, SageHusaStep};
+pub use sage_husa::{SageHusa, SageHusaConfig, SageHusaStep};

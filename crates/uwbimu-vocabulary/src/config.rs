@@ -5,11 +5,11 @@
 //! `ins`, the constraints `constraints`, the unscented strategy `unscented`, …). Keys are written
 //! `section.field` — in Python dicts, in TOML (`[config.ranging]` tables or dotted keys) and in
 //! [`FilterConfig::set`]; a nested dict / table `{section: {field: value}}` is read the same way.
-//! The flat keys of earlier versions keep working ([`LEGACY_KEYS`] maps each to its new key).
+//! There are no other spellings: the flat keys of the unreleased 0.1 development versions
+//! (`range_std`, `zupt`, …) were removed rather than kept as aliases.
 
 mod parse;
 mod range_calibration;
-mod sage_husa;
 mod sections;
 
 use parse::{non_negative, quaternion, vec3, vec3_or_scalar};
@@ -18,12 +18,11 @@ use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
 
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
-pub use sage_husa::{Defuzzification, FuzzyConfig, NoiseBounds, SageHusaConfig, SageHusaVariant, MAX_WINDOW};
 pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, InitConfig, InsConfig, MountingConfig, PlanarConfig,
-    RangeBiasConfig, RangingConfig, RobustConfig, Section, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S,
-    DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_SPEED_HISTORY,
-    MAX_ZUPT_WINDOW,
+    RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY,
+    DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW,
+    MAX_EPOCH_WINDOW_S, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
@@ -57,7 +56,7 @@ pub struct FilterConfig {
     /// Range bias states.
     pub range_bias: RangeBiasConfig,
     /// Sage–Husa estimator settings (seed 004 eqs. (26)–(36)); the method chooses the variant.
-    pub sage_husa: SageHusaConfig,
+    pub sage_husa: SageHusaSection,
     /// Unscented transform.
     pub unscented: UnscentedConfig,
     /// Planar filters of seed 001.
@@ -69,69 +68,6 @@ pub struct FilterConfig {
     /// the key `range_calibration` (a table, not a section field).
     pub range_calibration: RangeCalibration,
 }
-
-/// The flat keys of earlier versions and the section keys each sets (`accel_bias_std` meant both
-/// the initial bias σ and the Markov steady-state σ, so it sets both).
-pub const LEGACY_KEYS: &[(&str, &[&str])] = &[
-    ("range_std", &["ranging.range_std"]),
-    ("tdoa_std", &["ranging.tdoa_std"]),
-    ("epoch_window_s", &["ranging.epoch_window_s"]),
-    ("accel_noise_density", &["ins.accel_noise_density"]),
-    ("gyro_noise_density", &["ins.gyro_noise_density"]),
-    ("accel_bias_walk", &["ins.accel_bias_walk"]),
-    ("gyro_bias_walk", &["ins.gyro_bias_walk"]),
-    ("accel_bias_tau", &["ins.accel_bias_tau"]),
-    ("gyro_bias_tau", &["ins.gyro_bias_tau"]),
-    ("trapezoidal_process_noise", &["ins.trapezoidal_process_noise"]),
-    ("gravity", &["ins.gravity"]),
-    ("lever_arm", &["mounting.lever_arm"]),
-    ("imu_rotation", &["mounting.imu_rotation"]),
-    ("accel_bias_std", &["init.accel_bias_std", "ins.accel_bias_markov_std"]),
-    ("gyro_bias_std", &["init.gyro_bias_std", "ins.gyro_bias_markov_std"]),
-    ("init_still_s", &["init.still_s"]),
-    ("init_heading_distance_m", &["init.heading_distance_m"]),
-    ("alpha", &["robust.significance"]),
-    ("max_iterations", &["robust.max_iterations"]),
-    ("iteration_tolerance", &["robust.iteration_tolerance"]),
-    ("zupt", &["constraints.zupt"]),
-    ("pseudo_velocity", &["constraints.pseudo_velocity"]),
-    ("plane", &["constraints.plane"]),
-    ("zupt_window", &["constraints.zupt_window"]),
-    ("zupt_threshold", &["constraints.zupt_threshold"]),
-    ("zupt_accel_std", &["constraints.zupt_accel_std"]),
-    ("zupt_gyro_std", &["constraints.zupt_gyro_std"]),
-    ("zupt_max_speed", &["constraints.zupt_max_speed"]),
-    ("zupt_velocity_std", &["constraints.zupt_velocity_std"]),
-    ("pseudo_velocity_var", &["constraints.pseudo_velocity_var"]),
-    ("pseudo_velocity_window", &["constraints.pseudo_velocity_window"]),
-    ("plane_height", &["constraints.plane_height"]),
-    ("plane_std", &["constraints.plane_std"]),
-    ("constraint_interval_s", &["constraints.interval_s"]),
-    ("adaptive_range_noise", &["adaptive.range_noise"]),
-    ("loose_noise_scale", &["adaptive.loose_noise_scale"]),
-    ("loose_variance_factor", &["adaptive.loose_variance_factor"]),
-    ("sh_forgetting_factor", &["sage_husa.forgetting_factor"]),
-    ("sh_lambda", &["sage_husa.lambda"]),
-    ("sh_alpha", &["sage_husa.alpha"]),
-    ("sh_warmup_steps", &["sage_husa.warmup_steps"]),
-    ("sh_window", &["sage_husa.window"]),
-    ("sh_fading_rate", &["sage_husa.fading_rate"]),
-    ("sh_outlier_threshold", &["sage_husa.outlier_threshold"]),
-    ("sh_bounds", &["sage_husa.bounded"]),
-    ("sh_min_ratio", &["sage_husa.min_ratio"]),
-    ("sh_max_ratio", &["sage_husa.max_ratio"]),
-    ("aiding_reference_s", &["aiding.reference_s"]),
-    ("aiding_gravity_std", &["aiding.gravity_std"]),
-    ("aiding_mag_std", &["aiding.mag_std"]),
-    ("aiding_adaptive", &["aiding.adaptive"]),
-    ("aiding_uncertainty_scale", &["aiding.uncertainty_scale"]),
-    ("aiding_uncertainty_max", &["aiding.uncertainty_max"]),
-    ("ukf_alpha", &["unscented.alpha"]),
-    ("ukf_beta", &["unscented.beta"]),
-    ("ukf_lambda", &["unscented.lambda"]),
-    ("cekf_window", &["planar.cekf_window"]),
-    ("planar_accel_density", &["planar.accel_density"]),
-];
 
 /// Calls `$body` with `$s` bound to each section of `$config` in declaration order (`mut`:
 /// mutably); the one list of the sections.
@@ -171,12 +107,43 @@ fn keys_of<S: Section>(_: &S) -> (&'static str, &'static [&'static str]) {
     (S::NAME, S::KEYS)
 }
 
+/// `(section name, its field names, their docs)` for a section type.
+fn docs_of<S: Section>(_: &S) -> (&'static str, &'static [&'static str], &'static [&'static str]) {
+    (S::NAME, S::KEYS, S::DOCS)
+}
+
+/// One configuration key as the declaration gives it: the key, its default and its doc.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KeyDoc {
+    /// `section.field`.
+    pub key: String,
+    /// The default value; None for an optional field that is unset by default.
+    pub default: Option<ConfigValue>,
+    /// The field's doc comment on one line: meaning, unit, rule.
+    pub doc: String,
+}
+
 /// `(section name, its entries)` for a section.
 fn entries_of<S: Section>(s: &S) -> (&'static str, Vec<(&'static str, ConfigValue)>) {
     (S::NAME, s.entries())
 }
 
 impl FilterConfig {
+    /// Every section key with its default and doc, in declaration order (the source of the key
+    /// tables in the docs and of `FilterConfig.describe()` in Python).
+    pub fn key_docs() -> Vec<KeyDoc> {
+        let defaults = Self::default().entries();
+        for_each_section!(&Self::default(), |s| docs_of(s))
+            .into_iter()
+            .flat_map(|(section, fields, docs)| fields.iter().zip(docs.iter()).map(move |(f, d)| (section, *f, *d)))
+            .map(|(section, field, doc)| {
+                let key = format!("{section}.{field}");
+                let default = defaults.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone());
+                KeyDoc { key, default, doc: doc.split_whitespace().collect::<Vec<_>>().join(" ") }
+            })
+            .collect()
+    }
+
     /// Every section key, `section.field`, in declaration order.
     pub fn keys() -> Vec<String> {
         for_each_section!(&Self::default(), |s| keys_of(s))
@@ -185,9 +152,8 @@ impl FilterConfig {
             .collect()
     }
 
-    /// Sets one field by its key: `section.field`, or a flat key of earlier versions
-    /// ([`LEGACY_KEYS`]). The value is validated; an unknown key is an error that lists the
-    /// allowed ones.
+    /// Sets one field by its key, `section.field`. The value is validated; an unknown key is an
+    /// error that lists the allowed ones.
     pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
         if let Some((section, field)) = key.split_once('.') {
             let set = for_each_section!(mut self, |s| set_in(s, section, field, value));
@@ -199,10 +165,7 @@ impl FilterConfig {
                 "expected a mapping {anchor index: [c0, c1, c2, c3]}; set the field directly in Rust",
             ));
         }
-        match LEGACY_KEYS.iter().find(|(old, _)| *old == key) {
-            Some((_, new)) => new.iter().try_for_each(|k| self.set(k, value)),
-            None => Err(Self::unknown(key)),
-        }
+        Err(Self::unknown(key))
     }
 
     fn unknown(key: &str) -> Error {
@@ -214,7 +177,13 @@ impl FilterConfig {
     pub fn validate(&self) -> Result<()> {
         let mut probe = Self::default();
         self.entries().iter().try_for_each(|(key, value)| probe.set(key, value))?;
-        self.sage_husa.validate()
+        if self.sage_husa.min_ratio > self.sage_husa.max_ratio {
+            return Err(crate::validate::invalid(
+                "sage_husa.min_ratio",
+                format!("must not exceed sage_husa.max_ratio {}, got {}", self.sage_husa.max_ratio, self.sage_husa.min_ratio),
+            ));
+        }
+        Ok(())
     }
 
     /// The configuration as `(section.field, value)` pairs (unset optional fields and the
@@ -324,8 +293,8 @@ mod tests {
     #[test]
     fn unknown_key_lists_allowed() {
         let mut c = FilterConfig::default();
-        let e = c.set("range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
-        assert!(e.contains("range_sdt") && e.contains("range_std") && e.contains("lever_arm"), "{e}");
+        let e = c.set("ranging.range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
+        assert!(e.contains("range_sdt") && e.contains("ranging.range_std") && e.contains("ranging.tdoa_std"), "{e}");
     }
 
     #[test]
@@ -339,26 +308,26 @@ mod tests {
     #[test]
     fn rejects_bad_values() {
         let mut c = FilterConfig::default();
-        assert!(c.set("range_std", &ConfigValue::Scalar(-1.0)).is_err());
-        assert!(c.set("lever_arm", &ConfigValue::Vector(vec![0.0, 1.0])).is_err());
-        assert!(c.set("imu_rotation", &ConfigValue::Vector(vec![0.0; 4])).is_err());
-        c.set("gravity", &ConfigValue::Scalar(9.81)).unwrap();
+        assert!(c.set("ranging.range_std", &ConfigValue::Scalar(-1.0)).is_err());
+        assert!(c.set("mounting.lever_arm", &ConfigValue::Vector(vec![0.0, 1.0])).is_err());
+        assert!(c.set("mounting.imu_rotation", &ConfigValue::Vector(vec![0.0; 4])).is_err());
+        c.set("ins.gravity", &ConfigValue::Scalar(9.81)).unwrap();
         assert_eq!(c.ins.gravity, Vec3::new(0.0, 0.0, -9.81));
     }
 
     #[test]
-    fn legacy_keys_set_their_sections_and_all_keys_round_trip() {
+    fn only_section_keys_are_taken_and_all_round_trip() {
         let mut c = FilterConfig::default();
-        c.set("accel_bias_std", &ConfigValue::Scalar(0.3)).unwrap();
-        assert_eq!((c.init.accel_bias_std, c.ins.accel_bias_markov_std), (0.3, 0.3));
-        c.set("alpha", &ConfigValue::Scalar(0.05)).unwrap();
-        c.set("ukf_alpha", &ConfigValue::Scalar(0.5)).unwrap();
-        c.set("sh_alpha", &ConfigValue::Scalar(2.0)).unwrap();
-        assert_eq!((c.robust.significance, c.unscented.alpha, c.sage_husa.alpha), (0.05, 0.5, 2.0));
+        assert!(matches!(c.set("range_std", &ConfigValue::Scalar(0.2)), Err(Error::UnknownOption { .. })));
+        assert!(c.set("sage_husa.forgetting_factor", &ConfigValue::Scalar(1.0)).is_err());
+        assert!(c.set("sage_husa.lambda", &ConfigValue::Scalar(0.9)).is_err());
+        c.set("robust.significance", &ConfigValue::Scalar(0.05)).unwrap();
+        c.set("unscented.alpha", &ConfigValue::Scalar(0.5)).unwrap();
+        c.set("sage_husa.alpha", &ConfigValue::Scalar(2.0)).unwrap();
+        c.set("sage_husa.min_ratio", &ConfigValue::Scalar(5.0)).unwrap();
+        assert!(c.validate().is_err(), "min_ratio above max_ratio");
+        c.set("sage_husa.max_ratio", &ConfigValue::Scalar(6.0)).unwrap();
         c.set("constraints.plane_height", &ConfigValue::Scalar(1.2)).unwrap();
-        // Every legacy key names a real section key; every section key is read back.
-        let keys = FilterConfig::keys();
-        assert!(LEGACY_KEYS.iter().flat_map(|(_, new)| new.iter()).all(|k| keys.iter().any(|x| x == k)));
         let mut copy = FilterConfig::default();
         for (k, v) in c.entries() {
             copy.set(&k, &v).unwrap();

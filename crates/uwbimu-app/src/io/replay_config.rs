@@ -125,7 +125,7 @@ mod tests {
 
     #[test]
     fn parses_method_config_and_mapping() {
-        let text = "method = \"riekf\"\n[config]\nrange_std = 0.2\nlever_arm = [0, 0, 0.1]\nzupt = true\n\
+        let text = "method = \"riekf\"\n[config]\nranging.range_std = 0.2\nmounting.lever_arm = [0, 0, 0.1]\n[config.constraints]\nzupt = true\n\
                     [mapping]\nimu_topic = \"/imu\"\n[mapping.uwb]\ntopics = [\"/uwb\"]\nscale = 0.001\n[mapping.anchors]\nfile = \"a.csv\"\n";
         let c = ReplayConfig::from_toml(text, Path::new("/data")).unwrap();
         assert_eq!(c.method.as_deref(), Some("riekf"));

@@ -3,7 +3,6 @@
 
 use nalgebra::{SMatrix, SVector};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
-use uwbimu_vocabulary::config::{SageHusaConfig, SageHusaVariant};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Mat3;
 use uwbimu_vocabulary::math::Vec3;
@@ -13,7 +12,7 @@ use crate::filters::constraints::Constraints;
 use crate::filters::{InertialCore, InertialFilter};
 use crate::models::loose::{position_measurement, velocity_measurement, TagFix};
 use crate::multilateration::{solve_epoch, LsConfig};
-use crate::robust::sage_husa::SageHusa;
+use crate::robust::sage_husa::{SageHusa, SageHusaConfig, SageHusaVariant};
 use crate::robust::{chi2_quantile, DivergenceMonitor};
 use crate::update::{inject_and_reset, leading_rows_step, vector_step, UpdateReport};
 
@@ -145,7 +144,7 @@ impl InertialFilter for Eskf {
         let (residual, h) = position_measurement(x, &tag, &lever_arm);
         let velocity = self.previous.as_ref().and_then(|prev| velocity_measurement(x, &tag, prev));
         if let (Some(variant), Some(v)) = (self.adaptive, velocity.as_ref()) {
-            let config = SageHusaConfig { variant, ..sage_husa };
+            let config = SageHusaConfig::from_section(&sage_husa, variant);
             let (nis, fr) = match (planar, &mut self.estimator) {
                 (true, Some(LooseEstimator::Planar(est))) => {
                     adaptive_step::<4, 2>(est, &mut dx, p, (&residual, &h, &tag.covariance), v, noise_scale)?

@@ -5,7 +5,6 @@
 
 use nalgebra::{SMatrix, SVector};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
-use uwbimu_vocabulary::config::{NoiseBounds, SageHusaConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Cov, Vec3};
 use uwbimu_vocabulary::records::{Observation, TdoaMeasurement};
@@ -19,7 +18,8 @@ use crate::filters::{InertialCore, InertialFilter};
 use crate::models::range::tag_position;
 use crate::models::scalar::ScalarMeasurement;
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
-use crate::robust::sage_husa::SageHusa;
+use crate::robust::sage_husa::{SageHusa, SageHusaConfig, SageHusaVariant};
+use crate::robust::NoiseBounds;
 use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, tested_nis, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
@@ -126,7 +126,10 @@ impl TightFilter {
         let constraints = Constraints::new(&config.constraints, initial.position.z);
         let range_noise = if config.adaptive.range_noise {
             let initial_r = SMatrix::<f64, 1, 1>::new(config.ranging.range_std.powi(2));
-            let sage_husa = SageHusaConfig { bounds: RANGE_NOISE_BOUNDS, ..config.sage_husa };
+            let sage_husa = SageHusaConfig {
+                bounds: RANGE_NOISE_BOUNDS,
+                ..SageHusaConfig::from_section(&config.sage_husa, SageHusaVariant::Shfaf)
+            };
             (0..anchors.len()).map(|_| SageHusa::new(sage_husa, initial_r)).collect::<Result<Vec<_>>>()?
         } else {
             Vec::new()

@@ -18,6 +18,51 @@
 //! exceeds a χ² bound; after `epochs` of them the caller restarts the estimator at the nominal
 //! `R` and widens the state covariance so the filter can re-converge instead of locking out.
 
+use uwbimu_vocabulary::error::Result;
+use uwbimu_vocabulary::math::{symmetric_eigen, Cov};
+use uwbimu_vocabulary::validate::invalid;
+
+/// Ratio bounds of an estimated covariance to its nominal value (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseBounds {
+    /// Smallest allowed ratio of a whitened variance, dimensionless (> 0).
+    pub min_ratio: f64,
+    /// Largest allowed ratio, dimensionless (≥ `min_ratio`).
+    pub max_ratio: f64,
+}
+
+impl NoiseBounds {
+    /// Checks `0 < min_ratio ≤ max_ratio < ∞`.
+    pub fn validate(&self) -> Result<()> {
+        let (lo, hi) = (self.min_ratio, self.max_ratio);
+        if lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi {
+            Ok(())
+        } else {
+            Err(invalid("noise bounds", format!("need 0 < min_ratio <= max_ratio, got {lo}, {hi}")))
+        }
+    }
+
+    /// `r` with the eigenvalues of its whitened form clamped into the bounds (module doc);
+    /// `None` when `nominal` is not positive definite or `r` is not finite. Returns `r` itself
+    /// when it is inside the bounds.
+    pub fn clamp<const M: usize>(&self, r: &Cov<M>, nominal: &Cov<M>) -> Option<Cov<M>> {
+        let l = nominal.cholesky()?.l();
+        let half = l.solve_lower_triangular(r)?;
+        let w = l.solve_lower_triangular(&half.transpose())?;
+        if w.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let (lambda, v) = symmetric_eigen(&w);
+        if lambda.iter().all(|x| (self.min_ratio..=self.max_ratio).contains(x)) {
+            return Some(*r);
+        }
+        let clamped = lambda.map(|x| x.clamp(self.min_ratio, self.max_ratio));
+        let mut out = l * v * Cov::<M>::from_diagonal(&clamped) * v.transpose() * l.transpose();
+        uwbimu_vocabulary::math::symmetrize(&mut out);
+        Some(out)
+    }
+}
+
 /// Counts consecutive updates with a normalised innovation squared above `threshold`; reports a
 /// divergence after `epochs` of them (and starts counting anew).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,10 +96,8 @@ impl DivergenceMonitor {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::Matrix2;
-    use uwbimu_vocabulary::config::NoiseBounds;
-
     use super::*;
+    use nalgebra::Matrix2;
 
     #[test]
     fn clamp_keeps_whitened_variances_in_bounds_and_stays_positive_definite() {

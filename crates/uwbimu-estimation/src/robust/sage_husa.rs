@@ -23,11 +23,11 @@
 //!    overwritten by `ε'`, so a single outlier does not inflate `Ŝ` for the next `l` steps;
 //! 4. fuzzy regulatory factor (eqs. (28)–(31)): `r_k = |Tr(Ŝ_k)/Tr(S_k) − 1|` with the window
 //!    estimate after the correction and the theoretical `S_k = H P⁻ Hᵀ + R_{k−1}` (eq. (23));
-//!    `s_k = 1` while `k ≤ k_s`, else `fuzzy(r_k)` ([`FuzzyInference`]);
+//!    `s_k = 1` while `k ≤ k_s`, else `fuzzy(r_k)` ([`FuzzyConfig`]);
 //! 5. `R_k = (1 − w) R_{k−1} + w (ε' ε'ᵀ − H P⁻ Hᵀ)` with `w = min(s_k^α d_k, 1)` (eq. (26)) and
 //!    `d_k = (λ − b)/(λ − b^{k+1})` (eq. (27)), followed by the positive-definiteness guard.
 //!
-//! SHAF is the variant [`SageHusaVariant::Shaf`](uwbimu_vocabulary::config::SageHusaVariant::Shaf) with `λ = 1` (`SageHusaConfig::shaf`):
+//! SHAF is the variant [`SageHusaVariant::Shaf`] with `λ = 1` ([`SageHusaConfig::shaf`]):
 //! `s_k = 1` and no outlier correction, i.e. the classic Sage–Husa estimator of `R`.
 //!
 //! # Positive-definiteness guard (not in the paper)
@@ -45,13 +45,15 @@
 //! # Parameters the paper does not give
 //!
 //! Seed 004 gives ranges only for `b` and `a` (0.95–0.99) and no value for `λ`, `α`, `k_s`, `l`,
-//! `ζ`, nor the membership functions of its Figure 4. The defaults of `SageHusaConfig` and
-//! `FuzzyConfig` (in `uwbimu_vocabulary::config`) are this crate's choices and say so field by field.
+//! `ζ`, nor the membership functions of its Figure 4. The defaults of [`SageHusaConfig`] and
+//! [`FuzzyConfig`] are this crate's choices and say so field by field.
 
+mod config;
 mod estimator;
 mod fuzzy;
 mod window;
 
+pub use config::{SageHusaConfig, SageHusaVariant};
 pub use estimator::{innovation_weight, SageHusa, SageHusaStep};
-pub use fuzzy::FuzzyInference;
+pub use fuzzy::{Defuzzification, FuzzyConfig};
 pub use window::FadingWindow;

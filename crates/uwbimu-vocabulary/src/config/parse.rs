@@ -45,6 +45,24 @@ pub fn probability(field: &str, v: &ConfigValue) -> Result<f64> {
     Ok(a)
 }
 
+/// A number in (0, 1).
+pub fn open_unit(field: &str, v: &ConfigValue) -> Result<f64> {
+    let x = positive(field, v)?;
+    if x >= 1.0 {
+        return Err(invalid(field, format!("must be in (0, 1), got {x}")));
+    }
+    Ok(x)
+}
+
+/// A number in (0, 1].
+pub fn half_open_unit(field: &str, v: &ConfigValue) -> Result<f64> {
+    let x = positive(field, v)?;
+    if x > 1.0 {
+        return Err(invalid(field, format!("must be in (0, 1], got {x}")));
+    }
+    Ok(x)
+}
+
 /// A number ≥ 1.
 pub fn at_least_one(field: &str, v: &ConfigValue) -> Result<f64> {
     let x = positive(field, v)?;

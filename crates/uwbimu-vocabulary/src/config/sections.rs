@@ -4,11 +4,10 @@
 //! be listed in one place and forgotten in another. Keys are written `section.field`.
 
 use crate::config::parse::{
-    at_least_one, bounded_count, count, flag, gravity, non_negative, positive, probability, quaternion, scalar,
-    some_at_least_one, some_positive, some_scalar, vec3, ToValue,
+    at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
+    quaternion, scalar, some_at_least_one, some_positive, some_scalar, vec3, ToValue,
 };
 use crate::config::ConfigValue;
-use crate::config::{SageHusaConfig, MAX_WINDOW};
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
 use crate::validate::invalid;
@@ -52,6 +51,9 @@ pub trait Section {
     const NAME: &'static str;
     /// Field names of the section.
     const KEYS: &'static [&'static str];
+    /// The doc comment of each field, in the order of [`Section::KEYS`] (its lines joined by
+    /// spaces): meaning, unit and rule.
+    const DOCS: &'static [&'static str];
     /// Sets one field (`key` without the section name), validating the value.
     fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()>;
     /// The fields as (name, value) pairs (unset optional fields left out).
@@ -68,13 +70,13 @@ macro_rules! section {
     (
         $(#[$doc:meta])*
         $name:ident = $section:literal {
-            $( $(#[$fdoc:meta])* $field:ident : $ty:ty = $default:expr, $parse:expr; )*
+            $( $(#[doc = $fdoc:literal])* $field:ident : $ty:ty = $default:expr, $parse:expr; )*
         }
     ) => {
         $(#[$doc])*
         #[derive(Debug, Clone, Copy, PartialEq)]
         pub struct $name {
-            $( $(#[$fdoc])* pub $field: $ty, )*
+            $( $(#[doc = $fdoc])* pub $field: $ty, )*
         }
 
         impl Default for $name {
@@ -86,6 +88,7 @@ macro_rules! section {
         impl Section for $name {
             const NAME: &'static str = $section;
             const KEYS: &'static [&'static str] = &[$( stringify!($field) ),*];
+            const DOCS: &'static [&'static str] = &[$( concat!($($fdoc, " "),*) ),*];
 
             fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
                 match key {
@@ -349,53 +352,37 @@ fn unscented_lambda(field: &str, v: &ConfigValue) -> Result<f64> {
     Ok(l)
 }
 
-/// The Sage–Husa estimator of `shaf`, `shfaf` and the adaptive range noise (seed 004 eqs.
-/// (26)–(36)); the method chooses the variant.
-impl Section for SageHusaConfig {
-    const NAME: &'static str = "sage_husa";
-    const KEYS: &'static [&'static str] = &[
-        "forgetting_factor",
-        "lambda",
-        "alpha",
-        "warmup_steps",
-        "window",
-        "fading_rate",
-        "outlier_threshold",
-        "bounded",
-        "min_ratio",
-        "max_ratio",
-    ];
-
-    fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
-        let field = |name: &str| format!("sage_husa.{name}");
-        match key {
-            "forgetting_factor" => self.forgetting_factor = positive(&field(key), value)?,
-            "lambda" => self.lambda = positive(&field(key), value)?,
-            "alpha" => self.alpha = positive(&field(key), value)?,
-            "warmup_steps" => self.warmup_steps = bounded_count(&field(key), value, 0, 1 << 20)?,
-            "window" => self.window_len = bounded_count(&field(key), value, 1, MAX_WINDOW)?,
-            "fading_rate" => self.fading_rate = positive(&field(key), value)?,
-            "outlier_threshold" => self.outlier_threshold = positive(&field(key), value)?,
-            "bounded" => self.bounded = flag(&field(key), value)?,
-            "min_ratio" => self.bounds.min_ratio = positive(&field(key), value)?,
-            "max_ratio" => self.bounds.max_ratio = positive(&field(key), value)?,
-            _ => return Err(unknown_field::<Self>(key)),
-        }
-        Ok(())
-    }
-
-    fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
-        vec![
-            ("forgetting_factor", ConfigValue::Scalar(self.forgetting_factor)),
-            ("lambda", ConfigValue::Scalar(self.lambda)),
-            ("alpha", ConfigValue::Scalar(self.alpha)),
-            ("warmup_steps", ConfigValue::Scalar(self.warmup_steps as f64)),
-            ("window", ConfigValue::Scalar(self.window_len as f64)),
-            ("fading_rate", ConfigValue::Scalar(self.fading_rate)),
-            ("outlier_threshold", ConfigValue::Scalar(self.outlier_threshold)),
-            ("bounded", ConfigValue::Flag(self.bounded)),
-            ("min_ratio", ConfigValue::Scalar(self.bounds.min_ratio)),
-            ("max_ratio", ConfigValue::Scalar(self.bounds.max_ratio)),
-        ]
+section! {
+    /// The Sage–Husa estimator of `shaf`, `shfaf` and the adaptive range noise (seed 004 eqs.
+    /// (26)–(36)); the method chooses the variant.
+    SageHusaSection = "sage_husa" {
+        /// Forgetting factor `b` of eq. (27), in (0, 1); the paper: "usually between 0.95 and 0.99".
+        forgetting_factor: f64 = 0.96, open_unit;
+        /// `λ ≥ 1` of eq. (27), raising the steady-state weight to `(λ − b)/λ` (not given by the
+        /// paper; steady-state `d = 0.086` with `b = 0.96`, about twice the classic 0.04).
+        lambda: f64 = 1.05, at_least_one;
+        /// Exponent `α > 0` on `s_k` in eq. (26) (Remark 2: chosen per application).
+        alpha: f64 = 1.0, positive;
+        /// Warm-up `k_s` of eq. (30): `s_k = 1` for the first updates (not given by the paper; 6 s
+        /// at its 5 Hz UWB rate).
+        warmup_steps: usize = 30, |f, v| bounded_count(f, v, 0, 1 << 20);
+        /// Width `l` of the fading window of eq. (36), 1 ≤ l ≤ 32 (not given by the paper).
+        window: usize = 20, |f, v| bounded_count(f, v, 1, MAX_SAGE_HUSA_WINDOW);
+        /// Fading rate `a` of eq. (36), in (0, 1] (the paper: "usually 0.95 to 0.99"; 1 gives equal
+        /// weights).
+        fading_rate: f64 = 0.95, half_open_unit;
+        /// Outlier threshold `ζ > 0` on `M_i = G_ii/D_ii` of eq. (34) (not given by the paper).
+        outlier_threshold: f64 = 3.0, positive;
+        /// Keep the estimate within [`min_ratio`, `max_ratio`] of each update's nominal covariance,
+        /// with the divergence restart of the loosely coupled filters (ours; off = the estimator
+        /// as printed).
+        bounded: bool = true, flag;
+        /// Smallest ratio of the estimated to the nominal covariance in any direction (> 0).
+        min_ratio: f64 = 1.0, positive;
+        /// Largest ratio of the estimated to the nominal covariance in any direction (≥ `min_ratio`).
+        max_ratio: f64 = 4.0, positive;
     }
 }
+
+/// Capacity of the Sage–Husa fading window (eq. (36) of Liu et al. 2019): the largest `window`.
+pub const MAX_SAGE_HUSA_WINDOW: usize = 32;

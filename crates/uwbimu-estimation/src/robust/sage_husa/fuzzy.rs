@@ -2,23 +2,88 @@
 //! functions of the mismatch `r_k` (eq. (29)), the rules of eq. (31) and the defuzzification of
 //! eq. (30).
 
-use uwbimu_vocabulary::config::{Defuzzification, FuzzyConfig};
+use uwbimu_vocabulary::error::Result;
+use uwbimu_vocabulary::validate::invalid;
 
 /// Number of grid points on the output universe for the Mamdani centroid.
 const CENTROID_GRID: usize = 101;
 
-/// The inference of the fuzzy regulatory factor over its settings ([`FuzzyConfig`], declared with
-/// the configuration): the memberships of eq. (29)'s mismatch and `fuzzy(r_k)` of eq. (30).
-pub trait FuzzyInference {
-    /// Firing strengths `[μ_Less, μ_Equal, μ_More]` of the input `r` (they sum to 1).
-    fn input_memberships(&self, r: f64) -> [f64; 3];
-    /// `fuzzy(r_k)` of Liu et al. (2019) eq. (30): the regulatory factor `s_k` for the mismatch
-    /// `r ≥ 0` (eq. (29)) by the rules of eq. (31). A non-finite `r` is treated as "More".
-    fn regulatory_factor(&self, r: f64) -> f64;
+/// Defuzzification of the fuzzy regulatory factor (seed 004 eq. (30), `fuzzy(·)`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Defuzzification {
+    /// Mamdani inference: min implication, max aggregation, centroid of the aggregated output
+    /// set, evaluated on a 101-point grid (the usual fuzzy-toolbox choice; about 1 µs per call).
+    Centroid,
+    /// Weighted average of the output sets' centroids, weights = rule firing strengths. The
+    /// default: exact and a few nanoseconds. Equal to [`Self::Centroid`] where a single rule
+    /// fires; where two fire, the centroid weights each clipped set by its area, so the wide
+    /// "More" set pulls harder (up to 35 % higher `s` for the default sets, measured).
+    #[default]
+    WeightedAverage,
 }
 
-impl FuzzyInference for FuzzyConfig {
-    fn input_memberships(&self, r: f64) -> [f64; 3] {
+/// Membership functions of the fuzzy regulatory factor (seed 004 eq. (31), Figure 4, whose
+/// breakpoints the text does not give; these are this crate's choice).
+///
+/// Input `r_k ≥ 0` (eq. (29)), three sets centred at `input_centers = [c_L, c_E, c_M]`:
+/// "Less" is a left shoulder (1 for `r ≤ c_L`, falling linearly to 0 at `c_E`), "Equal" the
+/// triangle `(c_L, c_E, c_M)`, "More" a right shoulder (0 at `c_E`, 1 for `r ≥ c_M`). The three
+/// sum to 1 for every `r`. Output `s_k`: triangles `(left, peak, right)`. Rules (eq. (31)):
+/// Less → Less, Equal → Equal, More → More. Following the paper's text, a small mismatch lowers
+/// `s` slightly below 1 (the "Less" output), a moderate one keeps `s ≈ 1`, a large one raises it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FuzzyConfig {
+    /// Centres `[c_L, c_E, c_M]` of the input sets Less / Equal / More; dimensionless,
+    /// `0 ≤ c_L < c_E < c_M`. Default `[0.0, 0.5, 1.5]`.
+    pub input_centers: [f64; 3],
+    /// Output triangle "Less" `(left, peak, right)`, `0 ≤ left ≤ peak ≤ right`, `left < right`.
+    /// Default `(0.5, 0.75, 1.0)`.
+    pub output_less: [f64; 3],
+    /// Output triangle "Equal". Default `(0.75, 1.0, 1.25)`.
+    pub output_equal: [f64; 3],
+    /// Output triangle "More". Default `(1.0, 2.0, 3.0)`.
+    pub output_more: [f64; 3],
+    /// Defuzzification method. Default [`Defuzzification::WeightedAverage`].
+    pub defuzzification: Defuzzification,
+}
+
+impl Default for FuzzyConfig {
+    fn default() -> Self {
+        Self {
+            input_centers: [0.0, 0.5, 1.5],
+            output_less: [0.5, 0.75, 1.0],
+            output_equal: [0.75, 1.0, 1.25],
+            output_more: [1.0, 2.0, 3.0],
+            defuzzification: Defuzzification::WeightedAverage,
+        }
+    }
+}
+
+impl FuzzyConfig {
+    /// Checks the breakpoints (see the field docs).
+    pub fn validate(&self) -> Result<()> {
+        let [c0, c1, c2] = self.input_centers;
+        if !(c0.is_finite() && c1.is_finite() && c2.is_finite() && 0.0 <= c0 && c0 < c1 && c1 < c2) {
+            return Err(invalid(
+                "fuzzy.input_centers",
+                format!("need finite 0 <= c_L < c_E < c_M, got {:?}", self.input_centers),
+            ));
+        }
+        for (name, t) in [
+            ("fuzzy.output_less", self.output_less),
+            ("fuzzy.output_equal", self.output_equal),
+            ("fuzzy.output_more", self.output_more),
+        ] {
+            let [l, p, r] = t;
+            if !(l.is_finite() && p.is_finite() && r.is_finite() && 0.0 <= l && l <= p && p <= r && l < r) {
+                return Err(invalid(name, format!("need finite 0 <= left <= peak <= right, left < right, got {t:?}")));
+            }
+        }
+        Ok(())
+    }
+
+    /// Firing strengths `[μ_Less, μ_Equal, μ_More]` of the input `r` (they sum to 1).
+    pub fn input_memberships(&self, r: f64) -> [f64; 3] {
         let [c0, c1, c2] = self.input_centers;
         let less = if r <= c0 {
             1.0
@@ -37,7 +102,9 @@ impl FuzzyInference for FuzzyConfig {
         [less, triangle(r, [c0, c1, c2]), more]
     }
 
-    fn regulatory_factor(&self, r: f64) -> f64 {
+    /// `fuzzy(r_k)` of seed 004 eq. (30): the regulatory factor `s_k` for the mismatch `r ≥ 0`
+    /// (eq. (29)) by the rules of eq. (31). A non-finite `r` is treated as "More".
+    pub fn regulatory_factor(&self, r: f64) -> f64 {
         let r = if r.is_finite() { r } else { f64::MAX };
         let w = self.input_memberships(r);
         let sets = [self.output_less, self.output_equal, self.output_more];

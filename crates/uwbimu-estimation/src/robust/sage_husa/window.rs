@@ -2,7 +2,7 @@
 //! eq. (36)), on which the outlier test (eqs. (32)–(34)) and the mismatch `r_k` (eq. (29)) rest.
 
 use nalgebra::SVector;
-use uwbimu_vocabulary::config::MAX_WINDOW;
+use uwbimu_vocabulary::config::MAX_SAGE_HUSA_WINDOW as MAX_WINDOW;
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Cov;
 use uwbimu_vocabulary::validate::invalid;
