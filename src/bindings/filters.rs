@@ -5,7 +5,7 @@ use numpy::{IntoPyArray, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
-use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Input, Method, Smoothing};
+use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
 use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::init::{initialize, HeadingSource};
 use uwbimu_estimation::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
@@ -688,22 +688,8 @@ fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     for method in Method::ALL {
         let info = method.info();
         let row = PyDict::new(py);
-        let takes: Vec<&str> = info
-            .takes
-            .iter()
-            .map(|i| match i {
-                Input::Ranges => "ranges",
-                Input::Tdoa => "tdoa",
-                Input::Magnetometer => "magnetometer",
-            })
-            .collect();
-        row.set_item("takes", takes)?;
-        let smoothing = match info.smoothing {
-            Smoothing::Never => "never",
-            Smoothing::OnRequest => "on_request",
-            Smoothing::ByDefault => "by_default",
-        };
-        row.set_item("smoothing", smoothing)?;
+        row.set_item("takes", info.takes.iter().map(|i| i.name()).collect::<Vec<_>>())?;
+        row.set_item("smoothing", info.smoothing.name())?;
         row.set_item("streaming_class", info.streaming_class)?;
         row.set_item("summary", method.summary())?;
         table.set_item(info.name, row)?;

@@ -23,6 +23,17 @@ pub enum Input {
     Magnetometer,
 }
 
+impl Input {
+    /// The input's name in Python (`METHODS[name]["takes"]`) and the docs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ranges => "ranges",
+            Self::Tdoa => "tdoa",
+            Self::Magnetometer => "magnetometer",
+        }
+    }
+}
+
 /// Whether and when the batch API RTS-smooths a method's run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Smoothing {
@@ -32,6 +43,17 @@ pub enum Smoothing {
     OnRequest,
     /// Unless a forward pass is asked for.
     ByDefault,
+}
+
+impl Smoothing {
+    /// The smoothing's name in Python (`METHODS[name]["smoothing"]`) and the docs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Never => "never",
+            Self::OnRequest => "on_request",
+            Self::ByDefault => "by_default",
+        }
+    }
 }
 
 /// One row of the method registry (the `methods!` declaration in this module): everything the library says about a method
