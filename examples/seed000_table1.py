@@ -1,4 +1,4 @@
-"""Seed 000 Table 1 on the simulated seed-000 NLOS setup: UWB-only, EKF, REKF, RIEKF, CRIEKF.
+"""Li & Wang 2020 Table 1 on its simulated NLOS setup: UWB-only, EKF, REKF, RIEKF, CRIEKF.
 
 Figure-8 ×4, 4 anchors, UWB 2 Hz, IMU 100 Hz, 1–2 anchors randomly shielded. Every filter
 initialises itself and uses the same settings: the simulated sensors' (``run.config``, range σ =
@@ -17,7 +17,7 @@ import numpy as np
 import uwbimu_rs
 from uwbimu_rs import metrics, sim
 
-PAPER = {  # seed 000 Table 1: min / mean / max error, m
+PAPER = {  # Li & Wang 2020 Table 1: min / mean / max error, m
     "uwb_ls": (0.02, 0.36, 3.98),
     "ekf": (0.01, 0.30, 3.18),
     "rekf": (0.01, 0.28, 3.19),

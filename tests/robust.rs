@@ -1,4 +1,4 @@
-//! The robust filters of seed 000: REKF and RIEKF against their definitions and against the
+//! The robust filters of Li & Wang 2020: REKF and RIEKF against their definitions and against the
 //! plain and iterated EKF.
 
 mod common;

@@ -1,4 +1,4 @@
-//! The fuzzy regulatory factor `s_k = fuzzy(r_k)` of seed 004 eqs. (28)–(31): the membership
+//! The fuzzy regulatory factor `s_k = fuzzy(r_k)` of Liu et al. 2019 eqs. (28)–(31): the membership
 //! functions of the mismatch `r_k` (eq. (29)), the rules of eq. (31) and the defuzzification of
 //! eq. (30).
 
