@@ -1,6 +1,6 @@
-"""Demo: UWB-only least squares vs the tightly coupled EKF on the simulated seed-000 setup.
+"""Demo: UWB-only least squares vs the tightly coupled EKF on the simulated setup of Li & Wang 2020.
 
-Runs both methods on the seed-000 preset (figure-8 ×4, 4 anchors, UWB 2 Hz, IMU 100 Hz) with and
+Runs both methods on the Li & Wang 2020 preset (figure-8 ×4, 4 anchors, UWB 2 Hz, IMU 100 Hz) with and
 without NLOS shielding, prints an accuracy table, writes a plot to out/demo.png and the NLOS run
 as an MCAP recording out/demo.mcap (+ its ground truth out/demo_truth.csv) for uwbimu-replay.
 The filter gets the configuration matched to the simulated sensors (``run.config``).

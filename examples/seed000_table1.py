@@ -1,4 +1,4 @@
-"""Seed 000 Table 1 on the simulated seed-000 NLOS setup: UWB-only, EKF, REKF, RIEKF, CRIEKF.
+"""Li & Wang 2020 Table 1 on its simulated NLOS setup: UWB-only, EKF, REKF, RIEKF, CRIEKF.
 
 Figure-8 ×4, 4 anchors, UWB 2 Hz, IMU 100 Hz, 1–2 anchors randomly shielded. Every filter
 initialises itself and uses the same settings: the simulated sensors' (``run.config``, range σ =
@@ -17,7 +17,7 @@ import numpy as np
 import uwbimu_rs
 from uwbimu_rs import metrics, sim
 
-PAPER = {  # seed 000 Table 1: min / mean / max error, m
+PAPER = {  # Li & Wang 2020 Table 1: min / mean / max error, m
     "uwb_ls": (0.02, 0.36, 3.98),
     "ekf": (0.01, 0.30, 3.18),
     "rekf": (0.01, 0.28, 3.19),
@@ -45,7 +45,7 @@ def main() -> None:
     parser.add_argument("--range-std", type=float, default=None, help="filter range σ, m (default: the simulator's)")
     args = parser.parse_args()
     result = table(args.seeds, args.range_std)
-    print(f"seed-000 NLOS preset, {args.seeds} seeds, range σ {args.range_std or 0.1} m: horizontal error, m")
+    print(f"NLOS preset of Li & Wang 2020, {args.seeds} seeds, range σ {args.range_std or 0.1} m: horizontal error, m")
     print(f"{'method':<8} {'min':>6} {'mean':>6} {'max':>6}   paper: {'min':>5} {'mean':>5} {'max':>5}")
     for method, (lo, mean, hi) in result.items():
         p = PAPER[method]

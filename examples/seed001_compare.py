@@ -1,4 +1,4 @@
-"""Seed 001 on its simulated lab: mean / max x and y errors per method, LOS and NLOS (Table 1).
+"""Wang et al. 2018 on its simulated lab: mean / max x and y errors per method, LOS and NLOS (Table 1).
 
 Six anchors around a 4 m × 3 m area, a small robot driving a figure-8, UWB at 40 Hz with
 σ = 0.0514 m (the paper's range variance), a consumer MEMS IMU at 100 Hz; the NLOS preset shields
@@ -18,7 +18,7 @@ import numpy as np
 import uwbimu_rs
 from uwbimu_rs import sim
 
-# Seed 001 Table 1 ("the error of NLOS relative to LOS"), m: x mean, x max, y mean, y max.
+# Wang et al. 2018 Table 1 ("the error of NLOS relative to LOS"), m: x mean, x max, y mean, y max.
 PAPER = {"ekf2d": (0.911, 0.2124, 0.0791, 0.1137), "ukf2d": (0.0623, 0.1524, 0.0319, 0.1436), "cekf2d": (0.0744, 0.1711, 0.5174, 0.1091)}
 METHODS = ["uwb_ls", "ekf2d", "ukf2d", "cekf2d", "ekf", "ukf"]
 

@@ -1,4 +1,4 @@
-"""Seed 002 on its simulated garage: Table 4 (acceleration outliers) and Table 6 (range outliers).
+"""The ARCKF paper on its simulated garage: Table 4 (acceleration outliers) and Table 6 (range outliers).
 
 Site: 10 m × 5 m, four beacons at 1.5 / 2.0 m, UWB 2 Hz, IMU 100 Hz with the x-IMU densities of
 Table 1. Table 4: the 8 m × 3 m rectangle route with 1–4 abnormal accelerometer samples (white

@@ -1,4 +1,4 @@
-"""Seed 004 on its simulated setup: Table 1 (scenario 2) and the scenario-1 convergence.
+"""Liu et al. 2019 on its simulated setup: Table 1 (scenario 2) and the scenario-1 convergence.
 
 Anchors (−5,−1), (1,−1), (1,5), (−5,5); UWB 5 Hz with σ 0.1 m + U(−0.2, 0.2); IMU 100 Hz; 0.4 m/s
 along the diagonal of a 4 m square. Scenario 2 adds gross outliers; scenario 1 starts the filter

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the main job on simulated demo data: uwb_ls and ekf on the seed-000 preset, with an
+# Runs the main job on simulated demo data: uwb_ls and ekf on the Li & Wang 2020 preset, with an
 # accuracy table and a plot written to out/; then replays the recording written to out/demo.mcap
 # with the uwbimu-replay binary (Foxglove output out/demo_replay.mcap, CSV out/demo_replay.csv).
 set -euo pipefail

@@ -1,4 +1,4 @@
-//! ACKF (seed 003): gravity and geomagnetic aiding with adaptive covariances.
+//! ACKF (the ACKF paper): gravity and geomagnetic aiding with adaptive covariances.
 
 mod common;
 
@@ -8,7 +8,7 @@ use uwbimu_rs::estimation::filters::{Ackf, Ckf, InertialFilter};
 use uwbimu_rs::estimation::pipeline::{run, run_streams, Streams, Trace};
 use uwbimu_rs::vocabulary::math::Vec3;
 
-/// The seed 002 garage with a 6 s still start (the reference period), two rectangle laps and a
+/// The ARCKF paper's garage with a 6 s still start (the reference period), two rectangle laps and a
 /// magnetometer; `disturbed` adds two 20 s field disturbances of ~40 % of the field.
 fn garage_with_magnetometer(seed: u64, disturbed: bool) -> SimConfig {
     let mut cfg = preset("seed002_rectangle", seed).expect("preset");

@@ -1,4 +1,4 @@
-//! ARCKF against CKF on the seed 002 experiments (Tables 4 and 6), over several seeds.
+//! ARCKF against CKF on the ARCKF paper's experiments (Tables 4 and 6), over several seeds.
 
 mod common;
 

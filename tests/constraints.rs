@@ -1,4 +1,4 @@
-//! Motion constraints of seed 000 §2.2: still detection, and each constraint lowering the error
+//! Motion constraints of Li & Wang 2020 §2.2: still detection, and each constraint lowering the error
 //! on a case built for it.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Posterior CRLB (seed 002 eqs. (43)–(44)).
+//! Posterior CRLB (the ARCKF paper's eqs. (43)–(44)).
 
 mod common;
 

@@ -107,7 +107,7 @@ fn a_ten_second_outage_is_bridged_and_recovered() {
 #[test]
 fn a_diverged_filter_re_acquires_when_most_epochs_hold_two_ranges() {
     // `mixed_rates` (anchors at 20/20/10/10/5 Hz: most epochs hold the two fast anchors) with
-    // three acceleration outliers of seed 002 (single samples, σ 316 m/s²): each leaves RIEKF
+    // three acceleration outliers of the ARCKF paper (single samples, σ 316 m/s²): each leaves RIEKF
     // with a velocity error of 2–5 m/s and, confident, it down-weights every range. The
     // divergence watch must not be reset by the two-range epochs, which it cannot judge:
     // with that reset RIEKF's RMSE was 4.9 m (seeds 0–4); measured now 0.370 / 0.285 / 0.167 m,

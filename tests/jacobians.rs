@@ -38,7 +38,7 @@ fn perturbed(x: &NominalState, j: usize, eps: f64) -> NominalState {
 
 #[test]
 fn transition_matches_finite_differences_of_mechanization() {
-    // Random-walk biases, and first-order Markov biases (seed 002) with short time constants.
+    // Random-walk biases, and first-order Markov biases (the ARCKF paper) with short time constants.
     for config in [
         FilterConfig::default(),
         FilterConfig {
@@ -90,7 +90,7 @@ fn block_propagation_equals_dense_product() {
     }
     let fast = t.propagate_covariance(&p, &q);
     assert!((fast - dense).abs().max() < 1e-12);
-    // Seed 002 eq. (28): ½(Φ·Q + Q·Φᵀ) instead of Q.
+    // The ARCKF paper's eq. (28): ½(Φ·Q + Q·Φᵀ) instead of Q.
     let trap = ProcessNoise { trapezoid: true, ..q };
     let qc = q.continuous();
     let dense_trap = phi * p * phi.transpose() + 0.5 * (phi * qc + qc * phi.transpose());
@@ -152,7 +152,7 @@ fn joseph_update_equals_definition() {
 
 /// The reset Jacobian: for a true state `x₀ ⊞ e`, the error about the corrected state
 /// `x⁺ = x₀ ⊞ δx` is `(x₀ ⊞ e) ⊖ x⁺`; its derivative in `e` at `e = δx` must be `G = I − [½δθ]×` on
-/// the attitude block (seed 000 eq. (19)) to first order in δθ.
+/// the attitude block (Li & Wang 2020 eq. (19)) to first order in δθ.
 #[test]
 fn reset_jacobian_matches_finite_differences() {
     let x0 = example_state();

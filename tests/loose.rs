@@ -1,4 +1,4 @@
-//! The loosely coupled ESKF of seed 004.
+//! The loosely coupled ESKF of Liu et al. 2019.
 
 mod common;
 
@@ -38,7 +38,7 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
     }
 }
 
-/// One seed-004 run of the three loose filters and `uwb_ls`: RMSEs `[uwb_ls, eskf, shaf, shfaf]`
+/// One Liu et al. 2019 run of the three loose filters and `uwb_ls`: RMSEs `[uwb_ls, eskf, shaf, shfaf]`
 /// and the time after which each filter's error stays below 0.2 m. `paper`: the filters as printed (plain
 /// least-squares fix covariance, unbounded Sage–Husa); else this crate's defaults.
 fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, paper: bool) -> ([f64; 4], [f64; 3]) {

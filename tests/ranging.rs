@@ -1,4 +1,4 @@
-//! Seed 001 §2: SDS-TWR under clock drift (eqs. (1)–(2)), DW1000 timestamps, and the cubic range
+//! Wang et al. 2018 §2: SDS-TWR under clock drift (eqs. (1)–(2)), DW1000 timestamps, and the cubic range
 //! calibration (§2.2, §4.1), including its use as preprocessing of a batch run.
 
 use rand::{Rng, SeedableRng};

@@ -1,4 +1,4 @@
-//! The robust filters of seed 000: REKF and RIEKF against their definitions and against the
+//! The robust filters of Li & Wang 2020: REKF and RIEKF against their definitions and against the
 //! plain and iterated EKF.
 
 mod common;
@@ -146,7 +146,7 @@ fn seed000_nlos_table_over_five_seeds() {
     }
     let n = seeds.count() as f64;
     let [uwb, ekf, rekf, riekf, criekf] = sums.map(|[a, b]| (a / n, b / n));
-    println!("seed-000 NLOS preset, 5 seeds, horizontal error (mean / max, m); paper Table 1 in brackets");
+    println!("NLOS preset of Li & Wang 2020, 5 seeds, horizontal error (mean / max, m); paper Table 1 in brackets");
     for (name, (mean, max), paper) in [
         ("UWB", uwb, (0.36, 3.98)),
         ("EKF", ekf, (0.30, 3.18)),

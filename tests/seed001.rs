@@ -1,4 +1,4 @@
-//! Seed 001: the planar EKF / UKF / errors-complementary EKF and the 15-state UKF on simulated
+//! Wang et al. 2018: the planar EKF / UKF / errors-complementary EKF and the 15-state UKF on simulated
 //! runs of the `seed001` presets (6 anchors, 4 m × 3 m, UWB 40 Hz σ 0.0514 m).
 
 mod common;
@@ -23,7 +23,7 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
-/// Mean and max of |x error| and |y error| (seed 001 Table 1 columns).
+/// Mean and max of |x error| and |y error| (Wang et al. 2018 Table 1 columns).
 fn axis_errors(steps: &[StepRecord], data: &SimData) -> [f64; 4] {
     let ex: Vec<f64> = steps.iter().zip(&data.truth).map(|(s, t)| (s.state.position.x - t.position.x).abs()).collect();
     let ey: Vec<f64> = steps.iter().zip(&data.truth).map(|(s, t)| (s.state.position.y - t.position.y).abs()).collect();
@@ -123,13 +123,13 @@ fn ukf2d_agrees_with_ekf2d_for_far_anchors() {
     println!("far anchors: max |ekf2d − ukf2d| {diff:.2e} m, rmse {e_ekf:.4} vs {e_ukf:.4}");
     assert!(diff < 1e-3, "max difference {diff}");
     assert!((e_ekf - e_ukf).abs() < 0.01 * e_ekf);
-    // Close to the seed-001 anchors the two differ measurably (the test can fail).
+    // Close to the anchors of Wang et al. 2018 the two differ measurably (the test can fail).
     let near = simulate(&preset("seed001", 4).expect("preset")).expect("sim");
     let initial = truth_initial(&near, Vec3::new(0.1, -0.1, 0.0));
     let (a, b) = (steps(Method::Ekf2d, &near, Some(&initial), &config), steps(Method::Ukf2d, &near, Some(&initial), &config));
     let near_diff = a.iter().zip(&b).map(|(a, b)| (a.state.position - b.state.position).norm()).fold(0.0, f64::max);
-    println!("seed-001 anchors: max |ekf2d − ukf2d| {near_diff:.2e} m");
-    // README: the two differ by less than 3 mm on the seed-001 anchors, more than far away.
+    println!("anchors of Wang et al. 2018: max |ekf2d − ukf2d| {near_diff:.2e} m");
+    // README: the two differ by less than 3 mm on the anchors of Wang et al. 2018, more than far away.
     assert!(near_diff > diff && near_diff < 3e-3, "{near_diff}");
 }
 

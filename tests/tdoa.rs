@@ -100,7 +100,7 @@ fn tdoa_only_runs_initialise_themselves() {
 #[test]
 fn iterated_robust_filters_keep_the_prior_gamma_of_a_lone_tdoa() {
     // forklift: a 5 s outage with an acceleration spike in it. A lone TDoA fits itself after one
-    // Gauss–Newton iteration, so γ at the next operating point (seed 000 eq. (39)) hid the
+    // Gauss–Newton iteration, so γ at the next operating point (Li & Wang 2020 eq. (39)) hid the
     // outliers: riekf / criekf ended 102 / 86 m off on average (worst 408 / 343 m) over these
     // seeds until a TDoA kept the prior's inflation.
     for seed in 0..4 {

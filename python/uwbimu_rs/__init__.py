@@ -228,7 +228,7 @@ def run_filter(
         None: the filter initialises itself (see :func:`initialize`).
     config : FilterConfig or dict, optional
         Keys as in ``FilterConfig.keys()``; unknown keys raise :class:`ConfigError`.
-        ``range_calibration={anchor: [c0, c1, c2, c3]}`` calibrates the ranges first (seed 001).
+        ``range_calibration={anchor: [c0, c1, c2, c3]}`` calibrates the ranges first (Wang et al. 2018).
     covariance : bool
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
     smooth : bool, optional
@@ -236,7 +236,7 @@ def run_filter(
         ones (None: only for ``"best"``) (inertial methods only; the updates frame stays the forward pass's).
     mag : numpy.ndarray, shape (N, 4), optional
         Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
-        only ``ackf`` uses them (seed 003 geomagnetic aiding), other methods raise ValueError.
+        only ``ackf`` uses them (geomagnetic aiding of the ACKF paper), other methods raise ValueError.
     tdoa : numpy.ndarray, shape (M, 4), optional
         Time differences of arrival ``t, i, j, d_ij`` with ``d_ij = |p − a_j| − |p − a_i|`` [m]
         (Loco Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time,
@@ -501,7 +501,7 @@ def crlb(
     initial: Mapping[str, Any] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
 ) -> pl.DataFrame:
-    """Posterior Cramér–Rao lower bound along the true trajectory (seed 002 eqs. (43)–(44)).
+    """Posterior Cramér–Rao lower bound along the true trajectory (the ARCKF paper's eqs. (43)–(44)).
 
     Parameters
     ----------

@@ -212,7 +212,7 @@ class UpdateReport:
 
     @property
     def nis(self) -> float:
-        """γ: squared Mahalanobis distance of the innovation (seed 000 eqs. (37), (39))."""
+        """γ: squared Mahalanobis distance of the innovation (Li & Wang 2020 eqs. (37), (39))."""
 
     @property
     def accepted(self) -> bool:
@@ -224,7 +224,7 @@ class UpdateReport:
 
     @property
     def inflation(self) -> float:
-        """R_used / R (≥ 1; seed 000 eq. (40))."""
+        """R_used / R (≥ 1; Li & Wang 2020 eq. (40))."""
 
     @property
     def down_weighted(self) -> bool:
@@ -236,7 +236,7 @@ class UpdateReport:
 
     @property
     def prior_fading(self) -> float:
-        """Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42), ARCKF); 1 if not."""
+        """Factor by which the epoch's prior covariance was inflated (the ARCKF paper's eq. (42), ARCKF); 1 if not."""
 
     @property
     def reacquired(self) -> bool:
@@ -361,7 +361,7 @@ class _StreamingFilter:
 
     def update_magnetometer(self, t: float, field: ArrayLike) -> None:
         """Apply one magnetometer sample (3,) in the IMU frame measured at ``t`` (s). Only
-        :class:`Ackf` uses a magnetometer (seed 003); the others raise ``UwbImuError``."""
+        :class:`Ackf` uses a magnetometer (the ACKF paper); the others raise ``UwbImuError``."""
 
     def update_tdoa(self, t: float, i: int, j: int, d_ij: float) -> list[UpdateReport]:
         """Apply one TDoA ``d_ij = |p − a_j| − |p − a_i|`` (m) between anchor indices ``i`` and ``j``
@@ -410,23 +410,23 @@ class _StreamingFilter:
 
 @final
 class Ekf(_StreamingFilter):
-    """The tightly coupled error-state EKF (seed 000), fed sample by sample."""
+    """The tightly coupled error-state EKF (Li & Wang 2020), fed sample by sample."""
 
 @final
 class Iekf(_StreamingFilter):
-    """The iterated EKF (seed 000 Algorithm 1 without re-weighting), fed sample by sample; API of :class:`_StreamingFilter`."""
+    """The iterated EKF (Li & Wang 2020 Algorithm 1 without re-weighting), fed sample by sample; API of :class:`_StreamingFilter`."""
 
 @final
 class Rekf(_StreamingFilter):
-    """The robust EKF of seed 000 (eqs. (37)–(40)), fed sample by sample; API of :class:`_StreamingFilter`."""
+    """The robust EKF of Li & Wang 2020 (eqs. (37)–(40)), fed sample by sample; API of :class:`_StreamingFilter`."""
 
 @final
 class Riekf(_StreamingFilter):
-    """The robust iterated EKF of seed 000 (Algorithm 1), fed sample by sample; API of :class:`_StreamingFilter`."""
+    """The robust iterated EKF of Li & Wang 2020 (Algorithm 1), fed sample by sample; API of :class:`_StreamingFilter`."""
 
 @final
 class Criekf(_StreamingFilter):
-    """RIEKF with zero-velocity, pseudo-velocity and plane constraints (seed 000 CRIEKF); API of :class:`_StreamingFilter`."""
+    """RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020 CRIEKF); API of :class:`_StreamingFilter`."""
 
 @final
 class Best(_StreamingFilter):
@@ -434,35 +434,35 @@ class Best(_StreamingFilter):
 
 @final
 class Ckf(_StreamingFilter):
-    """The complementary Kalman filter of seed 002 (Markov biases, Q of eq. (28)); API of :class:`_StreamingFilter`."""
+    """The complementary Kalman filter of the ARCKF paper (Markov biases, Q of eq. (28)); API of :class:`_StreamingFilter`."""
 
 @final
 class Arckf(_StreamingFilter):
-    """The adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1); API of :class:`_StreamingFilter`."""
+    """The adaptive-robust complementary Kalman filter of the ARCKF paper (ARCKF, Algorithm 1); API of :class:`_StreamingFilter`."""
 
 @final
 class Ackf(_StreamingFilter):
-    """The adaptive complementary Kalman filter of seed 003 (gravity and geomagnetic aiding); API of :class:`_StreamingFilter`."""
+    """The adaptive complementary Kalman filter of the ACKF paper (gravity and geomagnetic aiding); API of :class:`_StreamingFilter`."""
 
 @final
 class Eskf(_StreamingFilter):
-    """The loosely coupled error-state filter of seed 004 (least-squares fix + differenced velocity); API of :class:`_StreamingFilter`."""
+    """The loosely coupled error-state filter of Liu et al. 2019 (least-squares fix + differenced velocity); API of :class:`_StreamingFilter`."""
 
 @final
 class Shaf(_StreamingFilter):
-    """The Sage–Husa adaptive ESKF of seed 004; API of :class:`_StreamingFilter`."""
+    """The Sage–Husa adaptive ESKF of Liu et al. 2019; API of :class:`_StreamingFilter`."""
 
 @final
 class Shfaf(_StreamingFilter):
-    """The Sage–Husa fuzzy adaptive ESKF of seed 004; API of :class:`_StreamingFilter`."""
+    """The Sage–Husa fuzzy adaptive ESKF of Liu et al. 2019; API of :class:`_StreamingFilter`."""
 
 @final
 class Ukf(_StreamingFilter):
-    """The 15-state error-state UKF (seed 001 eqs. (11)–(14) over the INS error state), fed sample by
+    """The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) over the INS error state), fed sample by
     sample; API of :class:`_StreamingFilter`."""
 
 # --------------------------------------------------------------------------------------------
-# Ranging (src/bindings/ranging.rs): seed 001 §2
+# Ranging (src/bindings/ranging.rs): Wang et al. 2018 §2
 # --------------------------------------------------------------------------------------------
 
 DW1000_TICK_S: float
@@ -474,7 +474,7 @@ SPEED_OF_LIGHT_MPS: float
 def sds_twr(
     t_round1: ArrayLike, t_reply1: ArrayLike, t_round2: ArrayLike, t_reply2: ArrayLike, *, antenna_delay_s: float = 0.0
 ) -> _F64:
-    """SDS-TWR distances (m), seed 001 eqs. (1)–(2), element-wise over same-shaped arrays of
+    """SDS-TWR distances (m), Wang et al. 2018 eqs. (1)–(2), element-wise over same-shaped arrays of
     intervals (s); ``antenna_delay_s`` is the sum of both devices' antenna delays."""
 
 def ss_twr(t_round: ArrayLike, t_reply: ArrayLike, *, antenna_delay_s: float = 0.0) -> _F64:
@@ -505,7 +505,7 @@ def posterior_crlb(
     initial: dict[str, Any] | None = None,
     config: _ConfigArg = None,
 ) -> dict[str, _F64]:
-    """Posterior CRLB (seed 002 eqs. (43)–(44)) along ``truth`` (N, 11) = t, x, y, z, vx, vy, vz,
+    """Posterior CRLB (the ARCKF paper's eqs. (43)–(44)) along ``truth`` (N, 11) = t, x, y, z, vx, vy, vz,
     qw, qx, qy, qz; ``biases`` (N, 6). Returns columns t, crlb_x, crlb_y, crlb_z (std, m)."""
 
 def run_filters(

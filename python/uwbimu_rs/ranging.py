@@ -1,4 +1,4 @@
-"""UWB ranging of seed 001 §2: SDS-TWR (eqs. (1)–(2)), SS-TWR for comparison, DW1000 40-bit
+"""UWB ranging of Wang et al. 2018 §2: SDS-TWR (eqs. (1)–(2)), SS-TWR for comparison, DW1000 40-bit
 timestamps, antenna delays, and the per-anchor cubic range calibration (§2.2, §4.1).
 
 A thin wrapper over the native core: every function is element-wise over NumPy arrays of equal
@@ -40,7 +40,7 @@ SPEED_OF_LIGHT_MPS: float = _native.SPEED_OF_LIGHT_MPS
 def sds_twr(
     t_round1: ArrayLike, t_reply1: ArrayLike, t_round2: ArrayLike, t_reply2: ArrayLike, *, antenna_delay_s: float = 0.0
 ) -> np.ndarray:
-    """Distances by symmetric double-sided two-way ranging (seed 001 eqs. (1)–(2)).
+    """Distances by symmetric double-sided two-way ranging (Wang et al. 2018 eqs. (1)–(2)).
 
     ``T_prop = (T_round1·T_round2 − T_reply1·T_reply2) / (T_round1 + T_round2 + T_reply1 + T_reply2)``,
     ``D = C·(T_prop − antenna_delay_s)``. Clock drift of the two devices cancels to first order.

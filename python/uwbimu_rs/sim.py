@@ -101,7 +101,7 @@ class SimResult:
         Realised shielding windows: anchor index, start (s), end (s), range bias (m).
     accel_outlier_times : numpy.ndarray, shape (P,), float64
         Times (s) of the abnormal accelerometer samples (override ``accel_outlier_count``,
-        seed 002 §4.1); empty by default.
+        the ARCKF paper's §4.1); empty by default.
     true_anchors : numpy.ndarray, shape (K, 3), float64
         The true anchor positions (``anchors`` is the surveyed table a filter gets; they differ
         only in the zoo's ``survey_error``).
@@ -159,9 +159,9 @@ def preset(name: PresetName, *, seed: int = 0, **overrides: float | bool) -> Sim
     name : {"seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"}
         ``seed000``: 4 anchors in a 10 m × 8 m hall (heights 0.8–2.2 m), figure-8 ×4, UWB 2 Hz
         σ 0.1 m, IMU 100 Hz, 1–2 anchors randomly shielded (NLOS). ``seed000_los``: the same without
-        NLOS, outliers or dropouts. ``seed002_*``: the 10 m × 5 m garage site of seed 002,
+        NLOS, outliers or dropouts. ``seed002_*``: the 10 m × 5 m garage site of the ARCKF paper,
         rectangle or figure-8 ×2 (the latter with 10 % outliers on beacons 2 and 4).
-        ``seed004_s1`` / ``seed004_s2``: the planar simulation of seed 004 (anchors (−5,−1), (1,−1),
+        ``seed004_s1`` / ``seed004_s2``: the planar simulation of Liu et al. 2019 (anchors (−5,−1), (1,−1),
         (1,5), (−5,5), 0.4 m/s along a diagonal, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2)); s2 adds gross
         outliers. The (0.57, 0) start of scenario 1 is a filter initial error, not part of the data.
     seed : int, default 0

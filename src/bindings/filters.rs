@@ -236,13 +236,13 @@ pub struct PyUpdateReport {
     accepted: bool,
     /// Weight relative to the nominal range noise, R / R_used (1 = full).
     weight: f64,
-    /// R_used / R (seed 000 eq. (40)).
+    /// R_used / R (Li & Wang 2020 eq. (40)).
     inflation: f64,
     /// Whether the noise policy down-weighted the range.
     down_weighted: bool,
     /// Iterations of the update.
     iterations: u32,
-    /// Factor by which the epoch's prior covariance was inflated (seed 002 eq. (42)); 1 if not.
+    /// Factor by which the epoch's prior covariance was inflated (the ARCKF paper's eq. (42)); 1 if not.
     prior_fading: f64,
     /// Whether the epoch was applied as its UWB-only fix (re-acquisition,
     /// `uwbimu_estimation::filters::reacquire`).
@@ -405,7 +405,7 @@ macro_rules! py_filter {
             }
 
             /// Applies a magnetometer sample (3,) (IMU frame) measured at `t` (s); only `Ackf`
-            /// uses one (seed 003), the others raise ValueError.
+            /// uses one (the ACKF paper), the others raise ValueError.
             fn update_magnetometer(&mut self, t: f64, field: &Bound<'_, PyAny>) -> PyResult<()> {
                 let field = vec3_arg(field, "field")?;
                 Ok(self.0.observation(&Observation::Magnetometer(MagSample { t_s: t, field }))?)
@@ -635,7 +635,7 @@ fn initialize_state<'py>(
     Ok((d, info))
 }
 
-/// Posterior CRLB (seed 002 eqs. (43)–(44)) along a true trajectory: `truth` (N, 11) = t, x, y, z,
+/// Posterior CRLB (the ARCKF paper's eqs. (43)–(44)) along a true trajectory: `truth` (N, 11) = t, x, y, z,
 /// vx, vy, vz, qw, qx, qy, qz at the IMU times, optional `biases` (N, 6) = true accelerometer and
 /// gyroscope biases; the bound starts from the initial covariance of `initial` (its standard
 /// deviations). Returns columns `t, crlb_x, crlb_y, crlb_z` (standard deviations, m).

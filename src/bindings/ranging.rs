@@ -1,4 +1,4 @@
-//! Python functions for seed 001 ranging: SDS-TWR / SS-TWR over arrays, DW1000 timestamp
+//! Python functions for Wang et al. 2018 ranging: SDS-TWR / SS-TWR over arrays, DW1000 timestamp
 //! intervals, and the cubic range calibration (fit, apply). Element-wise over arrays of equal
 //! shape; errors name the array and the (flat) element index.
 
@@ -49,7 +49,7 @@ fn shaped<'py>(py: Python<'py>, values: Vec<f64>, shape: &[usize]) -> PyResult<B
     Ok(values.into_pyarray(py).reshape(shape)?)
 }
 
-/// SDS-TWR distances, m (seed 001 eqs. (1)–(2)), element-wise; intervals in s; `antenna_delay_s`
+/// SDS-TWR distances, m (Wang et al. 2018 eqs. (1)–(2)), element-wise; intervals in s; `antenna_delay_s`
 /// is the sum of both devices' antenna delays.
 #[pyfunction]
 #[pyo3(signature = (t_round1, t_reply1, t_round2, t_reply2, *, antenna_delay_s=0.0))]

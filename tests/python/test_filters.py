@@ -67,7 +67,7 @@ def test_streaming_state_and_report_types(los_run):
     p0 = ekf.covariance
     rep = ekf.update_range(0.005, 1, 6.0)
     assert isinstance(rep, uwbimu_rs.UpdateReport)
-    # γ = ε² / (h·P·hᵀ + R) at the prior (seed 000 eq. (37)): the tag at [5, 4, 0.4] (no lever arm
+    # γ = ε² / (h·P·hᵀ + R) at the prior (Li & Wang 2020 eq. (37)): the tag at [5, 4, 0.4] (no lever arm
     # by default) is 5.036 m from anchor 1; P barely moves in 5 ms at rest.
     d = np.array([5.0, 4.0, 0.4]) - los_run.anchors[1]
     u = d / np.linalg.norm(d)

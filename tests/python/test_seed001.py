@@ -1,4 +1,4 @@
-"""Seed 001 from Python: planar filters and the 15-state UKF through run_filter, SDS-TWR and the
+"""Wang et al. 2018 from Python: planar filters and the 15-state UKF through run_filter, SDS-TWR and the
 range calibration of uwbimu_rs.ranging, and their input errors."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ C = ranging.SPEED_OF_LIGHT_MPS
 
 @pytest.fixture(scope="module")
 def lab():
-    """The seed-001 lab, line of sight (6 anchors, UWB 40 Hz σ 0.0514 m)."""
+    """The lab of Wang et al. 2018, line of sight (6 anchors, UWB 40 Hz σ 0.0514 m)."""
     return sim.preset("seed001", seed=2)
 
 

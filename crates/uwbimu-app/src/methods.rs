@@ -158,9 +158,9 @@ methods! {$
     Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Criekf },
     /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
     Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ckf },
-    /// The adaptive-robust complementary Kalman filter (ARCKF, Sensors 2018).
+    /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
     Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Arckf },
-    /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (Sensors).
+    /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
     Ackf {
         name: "ackf",
         run: inertial(Ackf),
@@ -292,7 +292,7 @@ pub struct BatchInput<'a> {
     pub tdoa: &'a [TdoaMeasurement],
 }
 
-/// Runs `method` over one recording. A non-empty `config.range_calibration` (seed 001 §2.2) and a
+/// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     if !input.mag.is_empty() && !method.takes(Input::Magnetometer) {
@@ -363,7 +363,7 @@ fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<Sel
     })
 }
 
-/// Runs a planar filter of seed 001 (initialised like the inertial filters: x, y, velocity, yaw
+/// Runs a planar filter of Wang et al. 2018 (initialised like the inertial filters: x, y, velocity, yaw
 /// and gyro bias from the initial state).
 fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let (initial, init) = initial_state(input)?;

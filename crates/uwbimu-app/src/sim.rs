@@ -85,7 +85,7 @@ pub struct SimConfig {
     pub magnetometer: Option<MagConfig>,
     /// TDoA model (`None` = no TDoA); independent of the ranges.
     pub tdoa: Option<TdoaConfig>,
-    /// Abnormal accelerometer samples (seed 002 §4.1); none by default.
+    /// Abnormal accelerometer samples (the ARCKF paper's §4.1); none by default.
     pub accel_outliers: AccelOutliers,
     /// Seed of all random draws.
     pub seed: u64,

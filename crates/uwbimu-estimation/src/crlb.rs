@@ -1,4 +1,4 @@
-//! Posterior Cramér–Rao lower bound along a known trajectory (seed 002 eqs. (43)–(44)).
+//! Posterior Cramér–Rao lower bound along a known trajectory (the ARCKF paper's eqs. (43)–(44)).
 //!
 //! `J_{k+1} = (Q_k + F_k·J_k⁻¹·F_kᵀ)⁻¹ + H_{k+1}ᵀ·R⁻¹·H_{k+1}` and `CRLB_k = J_k⁻¹`, with the
 //! transition `F` ([`Transition`]) and the range Jacobians `H` ([`predict_range`]) evaluated at the

@@ -1,17 +1,17 @@
 //! The strapdown INS core: nominal mechanization and error-state propagation on the 15-state
 //! error vector δp, δv, δθ (body frame), δb_a, δb_g.
 //!
-//! Mechanization follows seed 000 eqs. (3)–(8) and seed 004 eq. (4), integrated over one IMU
+//! Mechanization follows Li & Wang 2020 eqs. (3)–(8) and Liu et al. 2019 eq. (4), integrated over one IMU
 //! interval with the two bracketing samples (trapezoidal): the rotation uses the mean rate over
-//! the interval (quaternion exponential, seed 000 eqs. (4)–(5)); navigation-frame acceleration is
+//! the interval (quaternion exponential, Li & Wang 2020 eqs. (4)–(5)); navigation-frame acceleration is
 //! taken linear between the samples, which integrates velocity by the trapezoid and position
-//! exactly for that linear profile (seed 000 eq. (7) is the same to first order).
+//! exactly for that linear profile (Li & Wang 2020 eq. (7) is the same to first order).
 //!
-//! The error-state transition is the discretisation of seed 004 eq. (5) to second order,
+//! The error-state transition is the discretisation of Liu et al. 2019 eq. (5) to second order,
 //! Φ = I + A·Δt + (A² + Ȧ)·Δt²/2 (Ȧ from the rotating `R`, `Ṙ = R·[ω]×`), with the attitude block
-//! exact (`exp(−[ω]×Δt)`); seed 000 eq. (10)
+//! exact (`exp(−[ω]×Δt)`); Li & Wang 2020 eq. (10)
 //! writes the first-order terms of the same matrix for a navigation-frame attitude error.
-//! Process noise is G·Q·Gᵀ with Q from noise densities (seed 004 eqs. (20)–(21)).
+//! Process noise is G·Q·Gᵀ with Q from noise densities (Liu et al. 2019 eqs. (20)–(21)).
 
 use nalgebra::SMatrix;
 use uwbimu_vocabulary::config::InsConfig;
@@ -34,7 +34,7 @@ pub struct ImuInterval {
     pub gyro_end: Vec3,
 }
 
-/// Bias decay factors `e^{−Δt/τ}` over `dt_s` (1 for random-walk biases; seed 002 eqs. (17)–(18)
+/// Bias decay factors `e^{−Δt/τ}` over `dt_s` (1 for random-walk biases; the ARCKF paper's eqs. (17)–(18)
 /// for first-order Markov biases with time constants τ).
 fn bias_decay(config: &InsConfig, dt_s: f64) -> (f64, f64) {
     let decay = |tau: Option<f64>| tau.map_or(1.0, |t| (-dt_s / t).exp());
@@ -55,9 +55,9 @@ impl ImuInterval {
     }
 }
 
-/// Propagates the nominal state over one interval (seed 000 eqs. (3)–(8)). Biases are constant
+/// Propagates the nominal state over one interval (Li & Wang 2020 eqs. (3)–(8)). Biases are constant
 /// (random walk) or decay as first-order Markov processes when `config` gives time constants
-/// (seed 002 eqs. (17)–(18)).
+/// (the ARCKF paper's eqs. (17)–(18)).
 pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &InsConfig) -> NominalState {
     let dt = imu.dt_s;
     let gravity = &config.gravity;
@@ -79,7 +79,7 @@ pub fn propagate_nominal(x: &NominalState, imu: &ImuInterval, config: &InsConfig
 }
 
 /// The non-trivial 3×3 blocks of the discrete error-state transition Φ over one interval
-/// (seed 004 eqs. (5), (19) to second order); every other block is 0 or I.
+/// (Liu et al. 2019 eqs. (5), (19) to second order); every other block is 0 or I.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transition {
     p_v: f64,
@@ -97,7 +97,7 @@ pub struct Transition {
 impl Transition {
     /// Builds Φ at the nominal state at the start of the interval: with `C = R·[f − b_a]×`,
     /// `W = [ω − b_g]×`, A has `A_pv = I`, `A_vθ = −C`, `A_v,ba = −R`, `A_θθ = −W`, `A_θ,bg = −I`,
-    /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`. With Markov biases (seed 002 eq. (24))
+    /// and `Ȧ_vθ = −R·W·[f]×`, `Ȧ_v,ba = −R·W`. With Markov biases (the ARCKF paper's eq. (24))
     /// `A_ba,ba = −I/τ_a`, `A_bg,bg = −I/τ_g`: their blocks of Φ are `e^{−Δt/τ}·I` and the
     /// second-order terms gain `R/τ_a` (δv, δb_a) and `I/τ_g` (δθ, δb_g).
     pub fn new(x: &NominalState, imu: &ImuInterval, config: &InsConfig) -> Self {
@@ -139,7 +139,7 @@ impl Transition {
         out
     }
 
-    /// `Φ·P·Φᵀ + Q` (seed 000 eq. (9), seed 004 eq. (18)), exploiting the block structure:
+    /// `Φ·P·Φᵀ + Q` (Li & Wang 2020 eq. (9), Liu et al. 2019 eq. (18)), exploiting the block structure:
     /// `M = Φ·P` by block rows, then `M·Φᵀ` only for the δp, δv, δθ columns of the δp, δv, δθ
     /// rows (the bias rows of Φ are diagonal, so their columns are scaled); the rest follows by
     /// symmetry.
@@ -162,7 +162,7 @@ impl Transition {
             }
         }
         if q.trapezoid {
-            // Seed 002 eq. (28): Q_k = ½(Φ·G·Q·Gᵀ + G·Q·Gᵀ·Φᵀ).
+            // The ARCKF paper's eq. (28): Q_k = ½(Φ·G·Q·Gᵀ + G·Q·Gᵀ·Φᵀ).
             let phi_q = self.apply_rows(&q.continuous());
             out += 0.5 * (phi_q + phi_q.transpose());
         } else {
@@ -197,9 +197,9 @@ impl Transition {
     }
 }
 
-/// Per-interval process-noise variances `G·Q·Gᵀ` (diagonal blocks; seed 004 eqs. (20)–(21)):
+/// Per-interval process-noise variances `G·Q·Gᵀ` (diagonal blocks; Liu et al. 2019 eqs. (20)–(21)):
 /// white noise `density²·Δt` on δv and δθ, bias walk `walk²·Δt` on δb_a and δb_g; added as is, or
-/// (seed 002 eq. (28)) as `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`.
+/// (the ARCKF paper's eq. (28)) as `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProcessNoise {
     /// Velocity variance per axis, (m/s)².
@@ -210,7 +210,7 @@ pub struct ProcessNoise {
     pub accel_bias_var: f64,
     /// Gyroscope-bias variance per axis, (rad/s)².
     pub gyro_bias_var: f64,
-    /// Discretise as seed 002 eq. (28) instead of adding `G·Q·Gᵀ`.
+    /// Discretise as the ARCKF paper's eq. (28) instead of adding `G·Q·Gᵀ`.
     pub trapezoid: bool,
 }
 

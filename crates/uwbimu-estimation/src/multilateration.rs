@@ -1,12 +1,12 @@
 //! UWB-only multilateration (the `uwb_ls` baseline): a closed-form linear seed followed by
 //! Gauss–Newton on the range residuals.
 //!
-//! The linear seed differences squared ranges against the first one (seed 004 eqs. (9)–(13)):
+//! The linear seed differences squared ranges against the first one (Liu et al. 2019 eqs. (9)–(13)):
 //! `2·G·p = b`, solved by least squares through an SVD. Gauss–Newton then minimises
-//! `Σ (‖p − a_i‖ − r_i)²` (seed 004 eq. (8)). Both run in 3-D, or in *planar* mode where the
+//! `Σ (‖p − a_i‖ − r_i)²` (Liu et al. 2019 eq. (8)). Both run in 3-D, or in *planar* mode where the
 //! height is fixed and only x, y are estimated.
 //!
-//! [`l1`] adds the L1 fix of seed 002 eqs. (33)–(34) (sum of absolute range residuals, by IRLS
+//! [`l1`] adds the L1 fix of the ARCKF paper's eqs. (33)–(34) (sum of absolute range residuals, by IRLS
 //! from the L2 fix), whose residuals drive the ARCKF robustness factor.
 //!
 //! Nothing here panics: degenerate input (too few ranges, collinear or coplanar anchors, unknown
@@ -179,7 +179,7 @@ fn well_conditioned(min: f64, max: f64, rcond: f64) -> bool {
     max > 0.0 && min > max * rcond
 }
 
-/// Linear least-squares seed with its condition number (seed 004 eqs. (10)–(13)).
+/// Linear least-squares seed with its condition number (Liu et al. 2019 eqs. (10)–(13)).
 ///
 /// Coordinates are shifted so the first anchor is the origin (this leaves eqs. (10)–(12)
 /// unchanged but avoids cancellation with large coordinates). Row `i` of `G` is `a_1 − a_i` and
@@ -230,7 +230,7 @@ fn linear_solve(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Option<
     p.iter().all(|v| v.is_finite()).then_some((p, s_max / s_min))
 }
 
-/// Closed-form linear multilateration (seed 004 eqs. (10)–(13)): differences the squared ranges
+/// Closed-form linear multilateration (Liu et al. 2019 eqs. (10)–(13)): differences the squared ranges
 /// against the first observation and solves `2·G·p = b` by least squares (SVD).
 ///
 /// * 3-D (`planar_height_m = None`): needs ≥ 4 ranges from non-coplanar anchors.
@@ -244,7 +244,7 @@ pub fn linear_fix(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Optio
 }
 
 /// Range residuals `e_i = ‖p − a_i‖ − r_i` (m) and their Jacobian rows `∂e_i/∂p = (p − a_i)ᵀ/‖p − a_i‖`
-/// (seed 004 eqs. (6)–(8)); `None` if `p` coincides with an anchor.
+/// (Liu et al. 2019 eqs. (6)–(8)); `None` if `p` coincides with an anchor.
 fn residuals_and_jacobian(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> Option<Vec<(f64, Vec3)>> {
     obs.iter()
         .map(|&(a, r)| {
@@ -291,7 +291,7 @@ pub(crate) fn invert_normal(jtj: &Mat3, planar: bool) -> Option<Mat3> {
     }
 }
 
-/// Gauss–Newton minimisation of `Σ (‖p − a_i‖ − r_i)²` (seed 004 eq. (8)) from `start`.
+/// Gauss–Newton minimisation of `Σ (‖p − a_i‖ − r_i)²` (Liu et al. 2019 eq. (8)) from `start`.
 ///
 /// Each step solves `JᵀJ·Δ = −Jᵀe` with `J_i = (p − a_i)ᵀ/‖p − a_i‖` over 3 unknowns, or over
 /// x, y only in planar mode (`planar_height_m = Some(h)`, z held at `h` m). It stops when
@@ -353,7 +353,7 @@ pub fn gauss_newton_fix(
 /// (fallback) planar at the **mean height of the anchors used** (one term per observation),
 /// unless the ranges show the tag well below the anchors' plane, which gives a 3-D fix below it
 /// (see `below_coplanar_anchors`).
-/// In 3-D, Gauss–Newton runs from the linear solution (seed 004 eq. (13); skipped when `G` is
+/// In 3-D, Gauss–Newton runs from the linear solution (Liu et al. 2019 eq. (13); skipped when `G` is
 /// ill-conditioned, condition number above 300, i.e. near-coplanar anchors) and from the planar
 /// linear solution at the mean anchor height, then once more from the better result reflected
 /// through that height (near-coplanar anchors fit the mirror image almost as well); the fix with
@@ -679,7 +679,7 @@ mod tests {
 
     #[test]
     fn gross_outlier_on_near_coplanar_anchors_stays_bounded() {
-        // The seed-002 garage: anchors at 1.5 / 2.0 m, tag at 0.9 m, one range 6 m too long.
+        // The garage of the ARCKF paper: anchors at 1.5 / 2.0 m, tag at 0.9 m, one range 6 m too long.
         // Undamped Gauss–Newton went kilometres away here; with step halving the fix stays near.
         let anchors =
             vec![Vec3::new(0.0, 0.0, 1.5), Vec3::new(10.0, 0.0, 2.0), Vec3::new(10.0, 5.0, 1.5), Vec3::new(0.0, 5.0, 2.0)];
@@ -747,11 +747,11 @@ mod tests {
 
     #[test]
     fn of_two_equal_fits_the_lower_one_is_taken() {
-        // The seed-000 hall (anchors 0.8–2.2 m high), a tag at 0.45 m on a 0.5 m grid over the
+        // The hall of Li & Wang 2020 (anchors 0.8–2.2 m high), a tag at 0.45 m on a 0.5 m grid over the
         // hall, σ 0.1 m, seeds 0–4: near an anchor the fixes flip between two heights that fit
         // about equally. Measured: height within 0.75 m in 94.8 % of 1785 epochs with the
         // low-fix rule, 89.2 % without it.
-        // The anchors of the simulator's hall (`uwbimu_app::sim`, Li & Wang 2020's site).
+        // The anchors of the simulator's hall (`uwbimu_app::sim`, the site of Li & Wang 2020).
         let anchors =
             vec![Vec3::new(0.0, 0.0, 0.8), Vec3::new(10.0, 0.0, 2.2), Vec3::new(10.0, 8.0, 1.2), Vec3::new(0.0, 8.0, 1.8)];
         let cfg = LsConfig { range_std_m: 0.1, ..LsConfig::default() };

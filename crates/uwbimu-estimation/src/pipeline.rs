@@ -67,7 +67,7 @@ pub struct Trace {
     pub ranges_before_start: usize,
 }
 
-/// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of seed 001
+/// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of Wang et al. 2018
 /// ([`crate::planar::PlanarFilter`]), which record their 4-state estimate in the same
 /// [`StepRecord`].
 pub trait Estimator {

@@ -1,4 +1,4 @@
-//! The planar filter family of seed 001: a 4-state (x, y, vx, vy) filter driven by the IMU's
+//! The planar filter family of Wang et al. 2018: a 4-state (x, y, vx, vy) filter driven by the IMU's
 //! horizontal acceleration, rotated into the navigation frame by the gyro-integrated yaw
 //! (eqs. (3)–(6) with roll = pitch = 0), and corrected by UWB ranges with one of three updates:
 //!
@@ -37,7 +37,7 @@ use crate::update::{vector_step, UpdateReport};
 pub use cekf::MovingAverage;
 pub use model::{PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
 
-/// Which planar update (seed 001 §3.1–§3.3).
+/// Which planar update (Wang et al. 2018 §3.1–§3.3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlanarKind {
     /// EKF, eqs. (7)–(10).
@@ -48,7 +48,7 @@ pub enum PlanarKind {
     Cekf,
 }
 
-/// A planar UWB/IMU filter of seed 001 (see the module doc).
+/// A planar UWB/IMU filter of Wang et al. 2018 (see the module doc).
 #[derive(Debug, Clone)]
 pub struct PlanarFilter {
     kind: PlanarKind,
@@ -147,7 +147,7 @@ impl PlanarFilter {
         self.time_s
     }
 
-    /// Takes the IMU sample at `t_s` (IMU frame) and propagates to it (seed 001 eqs. (4)–(6)):
+    /// Takes the IMU sample at `t_s` (IMU frame) and propagates to it (Wang et al. 2018 eqs. (4)–(6)):
     /// yaw by the trapezoid of the z rates, the navigation acceleration as the mean of the held and
     /// the new sample, each rotated by the yaw at its time. The first call only sets the time.
     pub fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {

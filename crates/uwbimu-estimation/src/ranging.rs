@@ -1,4 +1,4 @@
-//! UWB ranging arithmetic of seed 001 §2: symmetric double-sided two-way ranging (SDS-TWR,
+//! UWB ranging arithmetic of Wang et al. 2018 §2: symmetric double-sided two-way ranging (SDS-TWR,
 //! eqs. (1)–(2)), single-sided TWR for comparison, DW1000 40-bit timestamps and antenna delays.
 //! The third-order range calibration of §2.2 / §4.1 is in [`calibration`].
 //!
@@ -10,7 +10,7 @@ pub mod calibration;
 
 use uwbimu_vocabulary::error::{Error, Result};
 
-/// Speed of light in vacuum, m/s (seed 001 eq. (2) uses C ≈ 3·10⁸ m/s; the exact value is used).
+/// Speed of light in vacuum, m/s (Wang et al. 2018 eq. (2) uses C ≈ 3·10⁸ m/s; the exact value is used).
 pub const SPEED_OF_LIGHT_MPS: f64 = 299_792_458.0;
 
 /// One DW1000 timestamp tick, s: 1/(128 · 499.2 MHz) ≈ 15.65 ps.
@@ -47,7 +47,7 @@ fn check_interval(name: &'static str, v: f64) -> Result<()> {
     }
 }
 
-/// Time of flight by SDS-TWR, seed 001 eq. (1):
+/// Time of flight by SDS-TWR, Wang et al. 2018 eq. (1):
 /// `T_prop = (T_round1·T_round2 − T_reply1·T_reply2) / (T_round1 + T_round2 + T_reply1 + T_reply2)`,
 /// all intervals in s, each measured on its own device's clock. Fails on negative or non-finite
 /// intervals and on a round shorter than its reply (a negative time of flight).
@@ -80,7 +80,7 @@ pub fn ss_twr_tof_s(round_s: f64, reply_s: f64) -> Result<f64> {
     Ok(0.5 * (round_s - reply_s))
 }
 
-/// Distance from a time of flight, seed 001 eq. (2): `D = C·(T_prop − d_A − d_B)`, m, where
+/// Distance from a time of flight, Wang et al. 2018 eq. (2): `D = C·(T_prop − d_A − d_B)`, m, where
 /// `antenna_delay_s = d_A + d_B` is the sum of both devices' antenna delays, each the mean of its
 /// transmit and receive delays (those add `d_A + d_B` to every one-way trip of eq. (1)).
 pub fn distance_m(tof_s: f64, antenna_delay_s: f64) -> f64 {

@@ -1,5 +1,5 @@
 //! Robust noise policies: χ² thresholds, the covariance inflation of outlying ranges, the
-//! ARCKF robustness factor (seed 002 §3), the Sage–Husa (fuzzy) adaptive R (seed 004 §3.2–§3.3)
+//! ARCKF robustness factor (the ARCKF paper's §3), the Sage–Husa (fuzzy) adaptive R (Liu et al. 2019 §3.2–§3.3)
 //! and the bounds and divergence detection that keep adaptive noise from running away.
 
 pub mod aiding;

@@ -1,9 +1,9 @@
-//! Rauch–Tung–Striebel smoothing of a recorded inertial-filter run (seed 002 §3.2 applies RTS
+//! Rauch–Tung–Striebel smoothing of a recorded inertial-filter run (the ARCKF paper's §3.2 applies RTS
 //! after abnormal states), in error-state form.
 //!
 //! The forward pass records, for every propagation, the posterior at its start and the IMU
 //! interval ([`Segment`]). The backward pass recomputes `Φ`, `Q` and the prediction
-//! `(x⁻, P⁻)` of each segment (with the ARCKF fading of `P⁻`, seed 002 eq. (42), where the
+//! `(x⁻, P⁻)` of each segment (with the ARCKF fading of `P⁻`, the ARCKF paper's eq. (42), where the
 //! forward pass applied one) and applies, from the last node back,
 //!
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,

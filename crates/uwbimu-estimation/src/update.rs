@@ -12,21 +12,21 @@ pub struct UpdateReport {
     /// Innovation `z − h(x_op)` at the (last) operating point, in the measurement's unit (m for
     /// ranges).
     pub innovation: f64,
-    /// γ, the squared Mahalanobis distance `ε²/(H·P·Hᵀ + R)` used by the noise policy (seed 000
+    /// γ, the squared Mahalanobis distance `ε²/(H·P·Hᵀ + R)` used by the noise policy (Li & Wang 2020
     /// eq. (37); eq. (39) in later iterations). With a fixed policy it is the NIS.
     pub nis: f64,
     /// Whether the measurement changed the state.
     pub accepted: bool,
     /// Weight relative to the nominal noise: `R / R_used` (1 = full weight, 0 = ignored).
     pub weight: f64,
-    /// `R_used / R` (≥ 1; seed 000 eq. (40)).
+    /// `R_used / R` (≥ 1; Li & Wang 2020 eq. (40)).
     pub inflation: f64,
     /// Whether the noise policy down-weighted this measurement (inflation > 1).
     pub down_weighted: bool,
     /// Iterations of the update it took part in (1 for a single EKF step).
     pub iterations: u32,
     /// Factor `λ ≥ 1` by which the prior covariance of this measurement's epoch was inflated
-    /// (seed 002 eq. (42), ARCKF adaptive branch); 1 otherwise.
+    /// (the ARCKF paper's eq. (42), ARCKF adaptive branch); 1 otherwise.
     pub prior_fading: f64,
     /// Whether the epoch was applied as its UWB-only fix to re-acquire the solution
     /// ([`crate::filters::reacquire`]); `innovation` and `nis` are then the fix's.
@@ -80,14 +80,14 @@ impl UpdateReport {
 }
 
 /// One scalar Kalman step on an error-state estimate `dx` with covariance `p` for the linear(ised)
-/// measurement `residual ≈ h·δx + v`, `v ~ N(0, r_var)`: gain `K = P·hᵀ/S` (seed 004 eqs.
+/// measurement `residual ≈ h·δx + v`, `v ~ N(0, r_var)`: gain `K = P·hᵀ/S` (Liu et al. 2019 eqs.
 /// (37)–(38)), `dx ← dx + K·(residual − h·dx)`, and the Joseph covariance
-/// `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ` (seed 004 eq. (39) in Joseph form), evaluated through its
+/// `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ` (Liu et al. 2019 eq. (39) in Joseph form), evaluated through its
 /// rank-one structure as `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for
 /// any gain; O(n²), symmetric by construction).
 ///
 /// Generic over the state dimension N (15 for the INS error state, 4 for the planar filters of
-/// seed 001). Returns the innovation variance `S`. Fails if `S` is not positive.
+/// Wang et al. 2018). Returns the innovation variance `S`. Fails if `S` is not positive.
 pub fn scalar_step<const N: usize>(
     dx: &mut SVector<f64, N>,
     p: &mut Cov<N>,
@@ -128,7 +128,7 @@ pub fn schmidt_step<const N: usize>(
     Ok(s)
 }
 
-/// Injects δx into the nominal state (seed 000 eq. (19), seed 004 eq. (40)) and applies the reset
+/// Injects δx into the nominal state (Li & Wang 2020 eq. (19), Liu et al. 2019 eq. (40)) and applies the reset
 /// Jacobian `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new
 /// nominal state (the error mean is reset to zero).
 ///
@@ -154,7 +154,7 @@ pub fn parameter_rows<const N: usize>(v: &SVector<f64, N>) -> SVector<f64, N> {
 
 /// Vector measurement step for `residual ≈ H·δx + v`, `v ~ N(0, R)` with a full `M×M` noise
 /// covariance: whitened by the Cholesky factor `R = L·Lᵀ` (`H' = L⁻¹H`, `r' = L⁻¹r`, `R' = I`)
-/// and applied as `M` [`scalar_step`]s, which equals the joint Joseph update (seed 004 eqs.
+/// and applied as `M` [`scalar_step`]s, which equals the joint Joseph update (Liu et al. 2019 eqs.
 /// (37)–(39)). Generic over the state dimension N like [`scalar_step`]. Returns the normalised
 /// innovation squared `rᵀ(H·P·Hᵀ + R)⁻¹r` against the covariance before the step. Fails if `R` or
 /// the innovation covariance is not positive definite (before changing anything).

@@ -55,15 +55,15 @@ pub struct FilterConfig {
     pub adaptive: AdaptiveConfig,
     /// Range bias states.
     pub range_bias: RangeBiasConfig,
-    /// Sage–Husa estimator settings (seed 004 eqs. (26)–(36)); the method chooses the variant.
+    /// Sage–Husa estimator settings (Liu et al. 2019 eqs. (26)–(36)); the method chooses the variant.
     pub sage_husa: SageHusaSection,
     /// Unscented transform.
     pub unscented: UnscentedConfig,
-    /// Planar filters of seed 001.
+    /// Planar filters of Wang et al. 2018.
     pub planar: PlanarConfig,
     /// Gravity and geomagnetic aiding of `ackf`.
     pub aiding: AidingConfig,
-    /// Per-anchor cubic range calibration (seed 001 §2.2, §4.1) applied to the ranges before any
+    /// Per-anchor cubic range calibration (Wang et al. 2018 §2.2, §4.1) applied to the ranges before any
     /// batch method runs; empty by default. Set from Python as `{anchor: [c0, c1, c2, c3]}` under
     /// the key `range_calibration` (a table, not a section field).
     pub range_calibration: RangeCalibration,

@@ -12,13 +12,13 @@ pub type Cov<const N: usize> = SMatrix<f64, N, N>;
 /// Hamilton unit quaternion (w, x, y, z), used as body → navigation rotation.
 pub type Quat = UnitQuaternion<f64>;
 
-/// Skew-symmetric matrix `[w]×` with `[w]× v = w × v` (seed 000 eq. (12)).
+/// Skew-symmetric matrix `[w]×` with `[w]× v = w × v` (Li & Wang 2020 eq. (12)).
 pub fn skew(w: &Vec3) -> Mat3 {
     Mat3::new(0.0, -w.z, w.y, w.z, 0.0, -w.x, -w.y, w.x, 0.0)
 }
 
 /// Quaternion exponential `exp_q(θ)` of a rotation vector θ (rad): rotation by |θ| about θ/|θ|
-/// (seed 000 eqs. (4)–(5)); exact, with the small-angle limit handled.
+/// (Li & Wang 2020 eqs. (4)–(5)); exact, with the small-angle limit handled.
 pub fn quat_exp(rotation_vector: &Vec3) -> Quat {
     Quat::from_scaled_axis(*rotation_vector)
 }

@@ -65,7 +65,7 @@ pub struct TdoaMeasurement {
 /// here, its measurement model and the filters that take it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Observation {
-    /// A magnetometer sample (geomagnetic aiding of seed 003, `uwbimu_estimation::filters::Ackf`).
+    /// A magnetometer sample (geomagnetic aiding of the ACKF paper, `uwbimu_estimation::filters::Ackf`).
     Magnetometer(MagSample),
     /// A time difference of arrival (`uwbimu_estimation::models::scalar::ScalarMeasurement::Tdoa`).
     Tdoa(TdoaMeasurement),

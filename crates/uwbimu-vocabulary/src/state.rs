@@ -1,8 +1,8 @@
 //! Nominal navigation state and the 15-dimensional error-state layout.
 //!
-//! Error-state order (the project convention): δp, δv, δθ, δb_a, δb_g. Seed 000 eq. (1) and
-//! seed 004 eq. (3) use the same order. δθ is the attitude error in the **body** frame
-//! (true = nominal ⊗ exp(δθ), seed 004 eq. (5) and seed 000 eq. (19)).
+//! Error-state order (the project convention): δp, δv, δθ, δb_a, δb_g. Li & Wang 2020 eq. (1) and
+//! Liu et al. 2019 eq. (3) use the same order. δθ is the attitude error in the **body** frame
+//! (true = nominal ⊗ exp(δθ), Liu et al. 2019 eq. (5) and Li & Wang 2020 eq. (19)).
 
 use crate::math::{Cov, Quat, Vec3};
 
@@ -36,7 +36,7 @@ pub fn diagonal_covariance(std: [Vec3; 5]) -> ErrCov {
     p
 }
 
-/// Nominal state of the strapdown INS (seed 000 eq. (1), seed 004 eq. (4)).
+/// Nominal state of the strapdown INS (Li & Wang 2020 eq. (1), Liu et al. 2019 eq. (4)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NominalState {
     /// IMU (body origin) position in the navigation frame, m.
@@ -52,8 +52,8 @@ pub struct NominalState {
 }
 
 impl NominalState {
-    /// Injects an error-state correction into the nominal state (seed 000 eq. (19),
-    /// seed 004 eq. (39)): sums for p, v, biases and `q ← q ⊗ exp(δθ)`.
+    /// Injects an error-state correction into the nominal state (Li & Wang 2020 eq. (19),
+    /// Liu et al. 2019 eq. (39)): sums for p, v, biases and `q ← q ⊗ exp(δθ)`.
     pub fn inject(&mut self, dx: &ErrVec) {
         self.position += dx.fixed_rows::<3>(POS);
         self.velocity += dx.fixed_rows::<3>(VEL);

@@ -1,6 +1,6 @@
 //! IMU and magnetometer synthesis from an analytic trajectory.
 //!
-//! Ideal readings (seed 000 eqs. (2)–(3), seed 004 eq. (4), read backwards): specific force
+//! Ideal readings (Li & Wang 2020 eqs. (2)–(3), Liu et al. 2019 eq. (4), read backwards): specific force
 //! f_b = R_nbᵀ (a_n − g_n) and angular rate ω_b (body frame). A sensor mounted with rotation
 //! q_mount (IMU frame → body) reports q_mountᵀ·f_b and q_mountᵀ·ω_b. The error model per axis is
 //! reading = ideal + b_const + b_walk(t) + white noise, with per-sample white-noise std

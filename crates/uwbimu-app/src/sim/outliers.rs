@@ -1,4 +1,4 @@
-//! Abnormal accelerometer samples, as injected in seed 002 §4.1 (Table 4): white Gaussian noise
+//! Abnormal accelerometer samples, as injected in the ARCKF paper's §4.1 (Table 4): white Gaussian noise
 //! of high intensity added to the acceleration at a few points, which makes the integrated
 //! velocity jump.
 
@@ -7,14 +7,14 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use uwbimu_vocabulary::records::ImuSample;
 
-/// Seed 002's intensity, 50 dBW = 10⁵ W, read as the variance of the added noise:
+/// The ARCKF paper's intensity, 50 dBW = 10⁵ W, read as the variance of the added noise:
 /// std `√10⁵ ≈ 316 m/s²` per axis.
 pub const SEED002_ACCEL_OUTLIER_STD_MPS2: f64 = 316.227_766_016_837_9;
 
 /// Accelerometer outliers: `count` IMU samples, each with `N(0, std²)` added to every axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AccelOutliers {
-    /// Number of contaminated samples (seed 002 Table 4: 1–4).
+    /// Number of contaminated samples (the ARCKF paper's Table 4: 1–4).
     pub count: usize,
     /// Standard deviation of the added noise per axis, m/s².
     pub std_mps2: f64,

@@ -1,6 +1,6 @@
 //! The paper setups as simulator configurations (table in [`preset`]).
 //!
-//! Scenario 1 of seed 004 starts the *filter* at (0.57, 0) while the robot is at (0, 0): that is an
+//! Scenario 1 of Liu et al. 2019 starts the *filter* at (0.57, 0) while the robot is at (0, 0): that is an
 //! initial-state error for the filter, not a simulator property, so it is not part of the preset.
 
 use uwbimu_vocabulary::error::{Error, Result};
@@ -23,12 +23,12 @@ pub(crate) fn hall_anchors() -> Vec<Vec3> {
     vec![Vec3::new(0.0, 0.0, 0.8), Vec3::new(10.0, 0.0, 2.2), Vec3::new(10.0, 8.0, 1.2), Vec3::new(0.0, 8.0, 1.8)]
 }
 
-/// The seed 002 garage site (m): corners of 10 m × 5 m, brackets at 1.5 and 2.0 m.
+/// The garage site of the ARCKF paper (m): corners of 10 m × 5 m, brackets at 1.5 and 2.0 m.
 fn garage_anchors() -> Vec<Vec3> {
     vec![Vec3::new(0.0, 0.0, 1.5), Vec3::new(10.0, 0.0, 2.0), Vec3::new(10.0, 5.0, 1.5), Vec3::new(0.0, 5.0, 2.0)]
 }
 
-/// x-IMU of seed 002 Table 1: 218 µg/√Hz and 0.01 °/s/√Hz; the ±50 mg zero offset taken as 3σ;
+/// x-IMU of the ARCKF paper's Table 1: 218 µg/√Hz and 0.01 °/s/√Hz; the ±50 mg zero offset taken as 3σ;
 /// a calibrated gyro bias of 0.005 rad/s; small random walks.
 fn x_imu() -> ImuNoise {
     ImuNoise {
@@ -60,7 +60,7 @@ fn seed000(seed: u64, nlos: bool) -> Result<SimConfig> {
     Ok(SimConfig { trajectory, anchors: hall_anchors(), uwb, seed, ..SimConfig::default() })
 }
 
-/// The seed 001 laboratory (m): six anchors around a 4 m × 3 m area — the corners and the middle
+/// The Wang et al. 2018 laboratory (m): six anchors around a 4 m × 3 m area — the corners and the middle
 /// of the long sides — alternately at 1.0 and 1.6 m.
 fn lab_anchors() -> Vec<Vec3> {
     vec![
@@ -73,7 +73,7 @@ fn lab_anchors() -> Vec<Vec3> {
     ]
 }
 
-/// Seed 001 §4: a small omnidirectional robot (IMU 0.20 m high, tag 5 cm above) driving a
+/// Wang et al. 2018 §4: a small omnidirectional robot (IMU 0.20 m high, tag 5 cm above) driving a
 /// figure-8 inside the 4 m × 3 m area (2 laps of 30 s, ≤ 0.4 m/s), six anchors, UWB at 40 Hz with
 /// σ 0.0514 m (§3.1), a consumer MEMS IMU at 100 Hz (the MPU9250 class). NLOS: desks and chairs
 /// shield 1–2 anchors at a time (windows of 3–8 s), each adding a bias of 0.1–0.6 m and 0.05 m of
@@ -149,17 +149,17 @@ fn seed004(seed: u64, outliers: bool) -> Result<SimConfig> {
 ///
 /// | preset | setup |
 /// |---|---|
-/// | `seed000` | seed 000 §3: 4 anchors in a ~10 m × 8 m hall at 0.8–2.2 m, figure-8 ×4 (37 s laps, ≤ 1 m/s), tag 0.45 m high (IMU 5 cm below), UWB 2 Hz σ 0.1 m, IMU 100 Hz consumer MEMS, 1–2 anchors randomly shielded (bias 0.3–1.5 m), 1 % outliers, 2 % dropouts |
+/// | `seed000` | Li & Wang 2020 §3: 4 anchors in a ~10 m × 8 m hall at 0.8–2.2 m, figure-8 ×4 (37 s laps, ≤ 1 m/s), tag 0.45 m high (IMU 5 cm below), UWB 2 Hz σ 0.1 m, IMU 100 Hz consumer MEMS, 1–2 anchors randomly shielded (bias 0.3–1.5 m), 1 % outliers, 2 % dropouts |
 /// | `seed000_los` | `seed000` without NLOS, outliers or dropouts |
-/// | `seed001` | seed 001 §4: six anchors around a 4 m × 3 m lab (corners and mid long sides, 1.0 / 1.6 m), figure-8 ×2 (30 s laps) of a small robot (IMU 0.20 m, tag 5 cm above), UWB 40 Hz σ 0.0514 m, IMU 100 Hz consumer MEMS |
+/// | `seed001` | Wang et al. 2018 §4: six anchors around a 4 m × 3 m lab (corners and mid long sides, 1.0 / 1.6 m), figure-8 ×2 (30 s laps) of a small robot (IMU 0.20 m, tag 5 cm above), UWB 40 Hz σ 0.0514 m, IMU 100 Hz consumer MEMS |
 /// | `seed001_nlos` | `seed001` with 1–2 anchors at a time shielded by furniture: bias 0.1–0.6 m, +0.05 m noise, 10 % of shielded ranges lost |
-/// | `seed002_rectangle` | seed 002 §4: 10 m × 5 m site, 4 anchors at 1.5/2.0 m, 8 m × 3 m rectangle ×2 at 0.5 m/s, UWB 2 Hz, IMU 100 Hz with Table 1 densities |
+/// | `seed002_rectangle` | the ARCKF paper's §4: 10 m × 5 m site, 4 anchors at 1.5/2.0 m, 8 m × 3 m rectangle ×2 at 0.5 m/s, UWB 2 Hz, IMU 100 Hz with Table 1 densities |
 /// | `seed002_figure8` | same site, figure-8 ×2 (40 s laps); 10 % outliers U(1, 8) m on beacons 2 and 4 (§4.2) |
-/// | `seed004_s1` | seed 004 §4.1: anchors (−5,−1), (1,−1), (1,5), (−5,5) and tag at z = 0, diagonal (0,0) → (−4,4) of a 4 m square at 0.4 m/s, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2), IMU 100 Hz with per-sample std 0.06, magnetometer on |
+/// | `seed004_s1` | Liu et al. 2019 §4.1: anchors (−5,−1), (1,−1), (1,5), (−5,5) and tag at z = 0, diagonal (0,0) → (−4,4) of a 4 m square at 0.4 m/s, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2), IMU 100 Hz with per-sample std 0.06, magnetometer on |
 /// | `seed004_s2` | `seed004_s1` plus 10 % gross outliers U(1, 5) m |
 ///
 ///
-/// Seed 004 scenario 1 starts the *filter* at (0.57, 0) while the robot is at (0, 0): an initial
+/// Liu et al. 2019 scenario 1 starts the *filter* at (0.57, 0) while the robot is at (0, 0): an initial
 /// filter error, not a simulator property, so it is not part of the preset.
 ///
 /// Unknown name → [`Error::UnknownOption`] listing [`PRESET_NAMES`].

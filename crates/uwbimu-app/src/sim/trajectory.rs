@@ -498,7 +498,7 @@ impl Trajectory {
     }
 
     /// A single straight leg from `from` to `to` (m) after the initial still period, e.g. the
-    /// diagonal of a square (seed 004 §4.1).
+    /// diagonal of a square (Liu et al. 2019 §4.1).
     pub fn diagonal(from: Vec3, to: Vec3, opts: &DriveOptions) -> Result<Self> {
         Self::waypoints(&[from, to], opts)
     }

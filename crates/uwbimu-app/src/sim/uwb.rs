@@ -2,13 +2,13 @@
 //!
 //! Per epoch (every 1/rate s, the first one 1/rate after the start) and per anchor, from the tag
 //! position p_tag = p + R_nb·lever_arm at the range's own time:
-//! - LOS: r = ‖p_tag − a‖ + N(0, σ²) + U(−u, u) (seed 004 §4.1: σ = 0.1 m, u = 0.2 m);
-//! - NLOS (the anchor is inside one of its shielding windows, seed 000 §3: "1–2 base stations
+//! - LOS: r = ‖p_tag − a‖ + N(0, σ²) + U(−u, u) (Liu et al. 2019 §4.1: σ = 0.1 m, u = 0.2 m);
+//! - NLOS (the anchor is inside one of its shielding windows, Li & Wang 2020 §3: "1–2 base stations
 //!   randomly shielded"): a positive bias drawn once per window from U(bias_min, bias_max), plus
 //!   extra N(0, extra²) on top of the LOS noise; the range is lost with the window's dropout
 //!   probability;
 //! - gross outlier with probability p_out: + U(outlier_min, outlier_max) instead of the uniform
-//!   term (seed 002 §4.2 injects them on chosen beacons);
+//!   term (the ARCKF paper's §4.2 injects them on chosen beacons);
 //! - random dropout with probability p_drop (any condition).
 //!
 //! Ranges are clipped at 0. Every range carries a label: [`LABEL_LOS`], [`LABEL_NLOS`] or

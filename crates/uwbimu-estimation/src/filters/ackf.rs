@@ -1,5 +1,5 @@
-//! The adaptive complementary Kalman filter of seed 003 (ACKF): the complementary filter of
-//! seed 002 plus gravity and geomagnetic observations of the attitude, each with a covariance set
+//! The adaptive complementary Kalman filter of the ACKF paper (ACKF): the complementary filter of
+//! the ARCKF paper plus gravity and geomagnetic observations of the attitude, each with a covariance set
 //! from its residuals, and range variances set from the multilateration residuals.
 
 use uwbimu_vocabulary::config::{AidingConfig, FilterConfig, InitialState};
@@ -37,16 +37,16 @@ impl Reference {
     }
 }
 
-/// Seed 003's ACKF.
+/// The ACKF of the ACKF paper.
 ///
 /// * **Ranges**: the [`crate::filters::Ckf`] range update with `R_i = σ²·Cu_i`, `Cu_i` from the L1
 ///   multilateration residual (three or more ranges) or the two-range rule
 ///   ([`crate::robust::two_range_residuals`]), no χ² test ([`RangeNoisePolicy::ResidualWeighted`]).
 /// * **Field reference**: the mean magnetometer reading of the first `aiding.reference_s`
-///   seconds, rotated to the navigation frame by the filter's attitude (seed 003 §3.1.2; the
+///   seconds, rotated to the navigation frame by the filter's attitude (the ACKF paper's §3.1.2; the
 ///   platform must be still then). It fixes heading relative to the initial attitude.
 /// * **Gravity reference**: the specific force at rest of the configured gravity, `−g_n`, plus
-///   the centripetal term `ω × v` of the current estimate (ours, both). Seed 003 takes the
+///   the centripetal term `ω × v` of the current estimate (ours, both). The ACKF paper takes the
 ///   reference from the still start; but the mean accelerometer reading carries the accelerometer
 ///   bias (its tilt, and along z its magnitude), so the observation would pin the bias estimate
 ///   at zero. And a turning vehicle's specific force leans by `ω × v`, which the residual-driven
@@ -89,7 +89,7 @@ impl Ackf {
         t_s - start < self.aiding.reference_s
     }
 
-    /// One vector observation (seed 003 §2.2.2): `reading` in the body frame against the
+    /// One vector observation (the ACKF paper's §2.2.2): `reading` in the body frame against the
     /// navigation-frame `reference`, base std `std`. Reports the residual's norm, its NIS (the sum
     /// of the sequential scalar NIS, equal to the joint one) and the inflation `U`.
     fn vector_update(&mut self, reading: &Vec3, reference: &Vec3, sensor: VectorSensor, std: f64) -> Result<UpdateReport> {

@@ -1,4 +1,4 @@
-//! The motion constraints of seed 000 §2.2, each a measurement model with a trigger, applied to
+//! The motion constraints of Li & Wang 2020 §2.2, each a measurement model with a trigger, applied to
 //! an [`InertialCore`] every `constraint_interval_s` after the IMU prediction:
 //!
 //! - **zero velocity** (eqs. (13)–(19)): `v = 0` with std `zupt_velocity_std` while the
@@ -158,7 +158,7 @@ impl Constraints {
     }
 
     /// Mean of the last `pseudo_velocity_window` speeds (None until that many were recorded:
-    /// seed 000 eq. (20) uses the current speed itself, i.e. no constraint, before).
+    /// Li & Wang 2020 eq. (20) uses the current speed itself, i.e. no constraint, before).
     fn mean_speed(&self) -> Option<f64> {
         (self.speed_len >= self.speed_window)
             .then(|| self.speeds[..self.speed_window].iter().sum::<f64>() / self.speed_window as f64)

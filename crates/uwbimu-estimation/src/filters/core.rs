@@ -10,7 +10,7 @@ use crate::filters::range_bias::BiasCross;
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::robust::fade_position_velocity;
 
-/// Nominal state + 15×15 error covariance + time bookkeeping (seed 000 §2.1).
+/// Nominal state + 15×15 error covariance + time bookkeeping (Li & Wang 2020 §2.1).
 #[derive(Debug, Clone)]
 pub struct InertialCore {
     ins: InsConfig,
@@ -43,7 +43,7 @@ pub struct Segment {
     /// The IMU interval propagated over.
     pub interval: ImuInterval,
     /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
-    /// the end of this segment (seed 002 eq. (42), [`InertialCore::fade_prior`]); 1 if none.
+    /// the end of this segment (the ARCKF paper's eq. (42), [`InertialCore::fade_prior`]); 1 if none.
     pub prior_fading: f64,
     /// The re-acquisition widening of that predicted covariance, after the fading
     /// ([`InertialCore::widen_prior`], [`crate::filters::reacquire`]); None if none.
@@ -159,7 +159,7 @@ impl InertialCore {
         self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
     }
 
-    /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (seed 002
+    /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (the ARCKF paper's
     /// eq. (42), ARCKF; see [`crate::robust::fade_position_velocity`]) and notes `λ` on the last
     /// recorded segment, so that the RTS pass predicts the same prior. Several fadings at one
     /// time multiply.

@@ -1,4 +1,4 @@
-//! `Eskf`: the loosely coupled error-state filter of seed 004 (INS core + UWB least-squares fix and
+//! `Eskf`: the loosely coupled error-state filter of Liu et al. 2019 (INS core + UWB least-squares fix and
 //! differenced velocity as the measurement, eqs. (14)–(15), (37)–(40)).
 
 use nalgebra::{SMatrix, SVector};
@@ -16,21 +16,21 @@ use crate::robust::sage_husa::{SageHusa, SageHusaConfig, SageHusaVariant};
 use crate::robust::{chi2_quantile, DivergenceMonitor};
 use crate::update::{inject_and_reset, leading_rows_step, vector_step, UpdateReport};
 
-/// Loosely coupled UWB/IMU error-state Kalman filter (seed 004).
+/// Loosely coupled UWB/IMU error-state Kalman filter (Liu et al. 2019).
 ///
 /// Each UWB epoch is solved by least squares ([`solve_epoch`]: linear seed, Gauss–Newton); the tag
 /// position, and from the second epoch on the differenced velocity, update the error state with
 /// their least-squares covariances (`σ²(JᵀJ)⁻¹` scaled by `loose_noise_scale` and, with
 /// `loose_variance_factor` (default) and when above 1, by the fix's a-posteriori variance factor
 /// [`crate::multilateration::Fix::variance_factor`] — our addition, so a fix spoiled by an outlier
-/// range counts as imprecise (seed 004 scenario 2, 10 % outliers: ESKF 0.135 m with it, 0.83 m
+/// range counts as imprecise (Liu et al. 2019 scenario 2, 10 % outliers: ESKF 0.135 m with it, 0.83 m
 /// without; the paper's form is `loose_variance_factor = false`); and
 /// `(Σ_k + Σ_{k−1})/Δt²`). With coplanar anchors (vertical span below 0.3 m) the fixes update x
 /// and y only; with 3-D anchors an epoch that only has a planar fallback fix (fewer than four
 /// ranges) is skipped. An epoch that cannot be solved (too few ranges, degenerate
 /// geometry) is skipped: its reports say `accepted = false`. The reports describe the epoch: every
 /// range of it carries the position residual norm (m) as `innovation` and the position NIS.
-/// The motion constraints of seed 000 §2.2 ([`Constraints`]) run after each prediction when
+/// The motion constraints of Li & Wang 2020 §2.2 ([`Constraints`]) run after each prediction when
 /// switched on in the configuration, as in the tightly coupled filters. TDoA are refused (the
 /// filter fuses a per-epoch fix from ranges; TDoA need a tightly coupled method).
 #[derive(Debug, Clone)]
@@ -93,7 +93,7 @@ impl Eskf {
         })
     }
 
-    /// The same filter with the measurement noise estimated on line (seed 004 eqs. (26)–(36)):
+    /// The same filter with the measurement noise estimated on line (Liu et al. 2019 eqs. (26)–(36)):
     /// `Shaf` (simplified Sage–Husa, λ = 1, s = 1, no outlier correction) or `Shfaf` (modified
     /// weight, fuzzy factor, fading-window outlier correction), configured by `config.sage_husa`
     /// and started from the least-squares covariance of the first epoch with a velocity.
@@ -221,7 +221,7 @@ fn stacked<const M: usize, const N: usize>(position: &Mat3, velocity: &Mat3) -> 
 }
 
 /// One adaptive loose update: stacks the first `N` axes of position and velocity (`M = 2N`), lets
-/// the Sage–Husa estimator correct outliers and set `R_k` (seed 004 eqs. (26)–(36), kept within
+/// the Sage–Husa estimator correct outliers and set `R_k` (Liu et al. 2019 eqs. (26)–(36), kept within
 /// the configured bounds of the least-squares covariance), and applies the corrected innovation
 /// with `R_k` (bounds relative to the unscaled least-squares covariance). With the bounds on
 /// (ours; default), when the raw innovation has exceeded the `χ²_M`
@@ -286,7 +286,7 @@ macro_rules! adaptive_eskf {
 }
 
 adaptive_eskf!(
-    /// Sage–Husa adaptive filter (seed 004 SHAF): the loosely coupled ESKF with the simplified
+    /// Sage–Husa adaptive filter (Liu et al. 2019 SHAF): the loosely coupled ESKF with the simplified
     /// Sage–Husa estimate of R (classic weight, λ = 1, s = 1) and the positive-definiteness guard of
     /// [`crate::robust::sage_husa`].
     Shaf,
@@ -294,7 +294,7 @@ adaptive_eskf!(
 );
 
 adaptive_eskf!(
-    /// Sage–Husa fuzzy adaptive filter (seed 004 SHFAF): the ESKF with the modified weight (eq.
+    /// Sage–Husa fuzzy adaptive filter (Liu et al. 2019 SHFAF): the ESKF with the modified weight (eq.
     /// (27)), the fuzzy regulatory factor (eqs. (28)–(31)) and the fading-window outlier
     /// correction (eqs. (32)–(36)); each epoch's report carries `weight = fr` (the smallest
     /// correction factor).

@@ -9,7 +9,7 @@
 //! | [`Riekf`] | χ² inflation | iterated | |
 //! | [`Criekf`] | χ² inflation | iterated | zero-velocity, pseudo-velocity, plane constraints |
 //! | [`Best`] | χ² inflation, skewed against long ranges | iterated | zero-velocity constraint (ours) |
-//! | [`Ckf`] | fixed | single | Markov biases, trapezoidal `Q` (seed 002) |
+//! | [`Ckf`] | fixed | single | Markov biases, trapezoidal `Q` (the ARCKF paper) |
 //! | [`Arckf`] | adaptive-robust (L1 `Cu`, prior fading, χ²) | single | as `Ckf` |
 //! | [`Ukf`] | fixed | unscented | |
 //! | [`crate::filters::Ackf`] | residual-weighted (L1 `Cu`) | single | as `Ckf`, gravity and magnetometer aiding |
@@ -45,7 +45,7 @@ macro_rules! named_filter {
 }
 
 named_filter!(
-    /// Tightly coupled UWB/IMU EKF (seed 000 eqs. (1)–(12), (33)–(36)): fixed range noise, one
+    /// Tightly coupled UWB/IMU EKF (Li & Wang 2020 eqs. (1)–(12), (33)–(36)): fixed range noise, one
     /// step per epoch.
     ///
     /// ```
@@ -63,21 +63,21 @@ named_filter!(
 );
 
 named_filter!(
-    /// Iterated EKF: the EKF with the update iterated at the operating point (seed 000
+    /// Iterated EKF: the EKF with the update iterated at the operating point (Li & Wang 2020
     /// Algorithm 1 without the covariance re-weighting), up to `max_iterations`.
     Iekf,
     |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Iterated)
 );
 
 named_filter!(
-    /// Robust EKF (seed 000 eqs. (37)–(38), (40)): each range's γ against the prior; beyond the
+    /// Robust EKF (Li & Wang 2020 eqs. (37)–(38), (40)): each range's γ against the prior; beyond the
     /// χ²₁ quantile of significance `alpha`, `R' = (γ/χ²)·R`.
     Rekf,
     |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Single)
 );
 
 named_filter!(
-    /// Robust iterated EKF (seed 000 Algorithm 1, eqs. (39)–(40)): γ and `R'` recomputed per
+    /// Robust iterated EKF (Li & Wang 2020 Algorithm 1, eqs. (39)–(40)): γ and `R'` recomputed per
     /// range at each operating point from the current posterior, until the step is below
     /// `iteration_tolerance` or `max_iterations` is reached.
     Riekf,
@@ -85,7 +85,7 @@ named_filter!(
 );
 
 named_filter!(
-    /// Constrained robust iterated EKF (seed 000 CRIEKF): RIEKF with the zero-velocity,
+    /// Constrained robust iterated EKF (Li & Wang 2020 CRIEKF): RIEKF with the zero-velocity,
     /// pseudo-velocity and plane constraints all switched on.
     Criekf,
     |config| {
@@ -101,8 +101,8 @@ named_filter!(
 pub const BEST_NLOS_SKEW: f64 = 4.0;
 
 named_filter!(
-    /// `best` (ours): the RIEKF composition (seed 000 Algorithm 1, eqs. (39)–(40)) with the
-    /// zero-velocity constraint of the CRIEKF (seed 000 eqs. (13)–(19)), applied only while the
+    /// `best` (ours): the RIEKF composition (Li & Wang 2020 Algorithm 1, eqs. (39)–(40)) with the
+    /// zero-velocity constraint of the CRIEKF (Li & Wang 2020 eqs. (13)–(19)), applied only while the
     /// still detector fires — so it costs nothing in motion — and the range test skewed against
     /// long ranges ([`BEST_NLOS_SKEW`]). The composition that measured best
     /// across the simulated zoo and isas-walk1 (README "`best` and the isas-walk1 table"); the
@@ -115,11 +115,11 @@ named_filter!(
     }
 );
 
-/// Bias time constant used by `Ckf` when the configuration gives none, s (seed 002
+/// Bias time constant used by `Ckf` when the configuration gives none, s (the ARCKF paper
 /// models the biases as first-order Markov processes without giving τ).
 pub const DEFAULT_BIAS_TAU_S: f64 = 300.0;
 
-/// The complementary-filter settings of seed 002: Markov biases (eqs. (17)–(18)) and the
+/// The complementary-filter settings of the ARCKF paper: Markov biases (eqs. (17)–(18)) and the
 /// process noise of eq. (28).
 pub(crate) fn complementary(config: &mut FilterConfig) {
     config.ins.accel_bias_tau = config.ins.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
@@ -128,9 +128,9 @@ pub(crate) fn complementary(config: &mut FilterConfig) {
 }
 
 named_filter!(
-    /// Complementary (error-state, feedback) Kalman filter of seed 002 eqs. (1)–(32): Markov
+    /// Complementary (error-state, feedback) Kalman filter of the ARCKF paper, eqs. (1)–(32): Markov
     /// biases, Φ to second order, `Q_k` of eq. (28), range observations linearised at the INS
-    /// position (eqs. (29)–(31), the same linearisation as seed 000 eq. (36)), fixed noise.
+    /// position (eqs. (29)–(31), the same linearisation as Li & Wang 2020 eq. (36)), fixed noise.
     Ckf,
     |config| {
         complementary(&mut config);
@@ -139,7 +139,7 @@ named_filter!(
 );
 
 named_filter!(
-    /// Adaptive-robust complementary Kalman filter of seed 002 (ARCKF, Algorithm 1): the
+    /// Adaptive-robust complementary Kalman filter of the ARCKF paper (ARCKF, Algorithm 1): the
     /// [`Ckf`] with `R_i = σ²·Cu_i` from the L1 robustness factor (eqs. (33)–(38)), the prior
     /// inflated by `γ/χ²` when the epoch shows an abnormal state (eq. (42)), and `R_i` inflated by
     /// `γ/χ²` for outlying ranges (eq. (41)); χ² is the 1-dof quantile of `alpha`. Which branch a
@@ -154,7 +154,7 @@ named_filter!(
 
 named_filter!(
     /// 15-state error-state unscented Kalman filter: the shared INS core and tightly coupled range
-    /// model with the sigma-point update of seed 001 eqs. (11)–(14) over the error state (our
+    /// model with the sigma-point update of Wang et al. 2018 eqs. (11)–(14) over the error state (our
     /// extension of the paper's planar UKF to 3-D; [`UpdateStrategy::Unscented`]), fixed range
     /// noise. Fails on an invalid configuration (including `n + λ ≤ 0`).
     ///

@@ -10,7 +10,7 @@
 //! [`REACQUIRE_MIN_STD_M`]²), and the fix passes its own consistency test, the epoch is applied
 //! as the fix — the tag position with its least-squares covariance, a linear update that is the
 //! ranges' information linearised at the fix — instead of as ranges. The next epochs are ordinary
-//! range updates from a prior near the solution. The planar filters of seed 001 use the same rule
+//! range updates from a prior near the solution. The planar filters of Wang et al. 2018 use the same rule
 //! with a fix at their plane height ([`crate::planar::PlanarFilter`]).
 //!
 //! **Divergence.** A filter can also be wrong *and* confident: a non-robust IEKF that chased an
@@ -25,7 +25,7 @@
 //! outliers do not trigger it: they
 //! spoil some ranges, not nearly all (with two of four anchors biased by ~1 m, a watch on the mean
 //! innovation re-acquired on the biased fix and raised CRIEKF's worst error from 1.55 to 2.35 m on
-//! the seed-000 NLOS preset).
+//! the NLOS preset of Li & Wang 2020).
 //!
 //! Either way the prior is first widened by the discrepancy to the fix ([`reacquire`]).
 
@@ -154,7 +154,7 @@ const DIVERGED_NIS_BOUND: f64 = 27.631_021_115_928_547;
 /// the fix knows the height better than the prior: with anchors within half a metre of one
 /// another in height, a fix can sit 2 m off on the wrong side of them, consistent with its
 /// ranges (a diverged prior's height variance means nothing: ignoring the fix's height there
-/// raised RIEKF's RMSE on a seed-000 NLOS run from 0.57 to 1.01 m).
+/// raised RIEKF's RMSE on an NLOS run of the Li & Wang 2020 preset from 0.57 to 1.01 m).
 pub fn reacquire(
     core: &mut InertialCore,
     config: &FilterConfig,

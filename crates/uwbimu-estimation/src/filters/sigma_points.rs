@@ -1,4 +1,4 @@
-//! The unscented transform of seed 001 eqs. (12)–(14) for a scalar measurement, shared by the
+//! The unscented transform of Wang et al. 2018 eqs. (12)–(14) for a scalar measurement, shared by the
 //! planar `ukf2d` (n = 4, on the state) and the 15-state `ukf` (on the error state).
 //!
 //! Sigma points `χ₀ = x̂`, `χᵢ = x̂ ± (√((n+λ)P))ᵢ` (eq. (13), the matrix square root by Cholesky,
@@ -11,7 +11,7 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{symmetrize, Cov};
 use uwbimu_vocabulary::validate::invalid;
 
-/// Weights of the unscented transform for a state of dimension `n` (seed 001 eq. (14)).
+/// Weights of the unscented transform for a state of dimension `n` (Wang et al. 2018 eq. (14)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UnscentedWeights {
     /// `n + λ`, the squared spread of the sigma points.
@@ -25,7 +25,7 @@ pub struct UnscentedWeights {
 }
 
 impl UnscentedWeights {
-    /// Weights for dimension `n` from α, β, λ (seed 001: 0.01, 2, −1). Fails unless `n + λ > 0`.
+    /// Weights for dimension `n` from α, β, λ (Wang et al. 2018: 0.01, 2, −1). Fails unless `n + λ > 0`.
     pub fn new(n: usize, alpha: f64, beta: f64, lambda: f64) -> Result<Self> {
         let spread = n as f64 + lambda;
         if !(spread > 0.0 && spread.is_finite()) {
@@ -47,7 +47,7 @@ pub struct ScalarMoments<const N: usize> {
     pub cross: SVector<f64, N>,
 }
 
-/// Propagates the `S = 2N + 1` sigma points of (`mean`, `p`) through `measure` (seed 001
+/// Propagates the `S = 2N + 1` sigma points of (`mean`, `p`) through `measure` (Wang et al. 2018
 /// eqs. (11)–(14)). `measure` returns None where the measurement is undefined (e.g. a sigma point
 /// on an anchor); then the result is None. Fails if `(n+λ)P` has no Cholesky factor.
 pub fn scalar_moments<const N: usize, const S: usize>(

@@ -1,7 +1,7 @@
-//! The tightly coupled filter every seed-000 method is built from: INS core + scalar measurement
-//! models (ranges, seed 000 eqs. (33)–(36); TDoA, [`crate::models::scalar`]) + a noise policy
+//! The tightly coupled filter every Li & Wang 2020 method is built from: INS core + scalar measurement
+//! models (ranges, Li & Wang 2020 eqs. (33)–(36); TDoA, [`crate::models::scalar`]) + a noise policy
 //! ([`RangeNoisePolicy`]) + an update strategy ([`UpdateStrategy`]: single step, iterated as in
-//! seed 000 Algorithm 1, or unscented).
+//! Li & Wang 2020 Algorithm 1, or unscented).
 
 use nalgebra::{SMatrix, SVector};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
@@ -29,7 +29,7 @@ use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport
 ///
 /// All ranges of one epoch (one timestamp) are processed jointly, linearised at an operating
 /// point `X_op` (the prior at the first iteration). Per range, γ is computed at `X_op` against
-/// the latest posterior covariance (seed 000 eq. (37) at the first iteration, eq. (39) after) and
+/// the latest posterior covariance (Li & Wang 2020 eq. (37) at the first iteration, eq. (39) after) and
 /// the policy sets `R'` (eq. (40)), a long range tested with `robust.nlos_skew`·γ
 /// ([`tested_nis`]); the linearised problem is then solved by sequential scalar
 /// Joseph steps, which equals the joint update of Algorithm 1 lines 9–11 for diagonal `R`. The
@@ -41,9 +41,9 @@ use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport
 /// (`P⁻ := P⁺`) would re-use each iteration's posterior as the next prior and count the ranges
 /// repeatedly, so only γ (eq. (39)) uses the posterior.
 ///
-/// Motion constraints ([`Constraints`], seed 000 §2.2) run after each prediction when switched on.
+/// Motion constraints ([`Constraints`], Li & Wang 2020 §2.2) run after each prediction when switched on.
 /// With `adaptive_range_noise`, each anchor's range noise is estimated on line by its own
-/// Sage–Husa estimator ([`SageHusa`], seed 004, variant and settings from `config.sage_husa`),
+/// Sage–Husa estimator ([`SageHusa`], Liu et al. 2019, variant and settings from `config.sage_husa`),
 /// started at `range_std²` — real anchors differ.
 #[derive(Debug, Clone)]
 pub struct TightFilter {
@@ -67,9 +67,9 @@ pub enum UpdateStrategy {
     /// One Kalman step at the prior (EKF).
     Single,
     /// Iterated at the operating point up to `max_iterations`, until the step is below
-    /// `iteration_tolerance` (seed 000 Algorithm 1).
+    /// `iteration_tolerance` (Li & Wang 2020 Algorithm 1).
     Iterated,
-    /// Sigma-point update over the error state (our extension of seed 001 eqs. (11)–(14)), weights
+    /// Sigma-point update over the error state (our extension of Wang et al. 2018 eqs. (11)–(14)), weights
     /// from `ukf_alpha`, `ukf_beta`, `ukf_lambda`.
     Unscented,
 }
@@ -161,10 +161,10 @@ impl TightFilter {
         })
     }
 
-    /// Robustness factors `Cu_i` of one epoch (seed 002 eqs. (33)–(37)) from the L1 fit of its
-    /// ranges in the plane of the predicted tag height (seed 002 §3.1 works in the plane; the
+    /// Robustness factors `Cu_i` of one epoch (the ARCKF paper's eqs. (33)–(37)) from the L1 fit of its
+    /// ranges in the plane of the predicted tag height (the ARCKF paper's §3.1 works in the plane; the
     /// height comes from the INS); for `ResidualWeighted` with two ranges, from the two-range
-    /// rule of seed 003 instead. Allocates (the L1 fit does); UWB epochs are far rarer than
+    /// rule of the ACKF paper instead. Allocates (the L1 fit does); UWB epochs are far rarer than
     /// IMU samples.
     fn robustness(&self, ranges: &[(usize, f64)]) -> Vec<RobustnessFactor> {
         let config = &self.config;
@@ -181,7 +181,7 @@ impl TightFilter {
         robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.ranging.range_std)
     }
 
-    /// γ of one measurement against the prior with noise variance `r_var` (seed 000 eq. (37));
+    /// γ of one measurement against the prior with noise variance `r_var` (Li & Wang 2020 eq. (37));
     /// None when the tag sits on an anchor.
     fn nis_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> Option<f64> {
         let (x, p) = (self.core.state(), self.core.covariance());
@@ -201,7 +201,7 @@ impl TightFilter {
             .count()
     }
 
-    /// Fading factor of the prior for one epoch (seed 002 eqs. (38)–(42), [`prior_fading`]): each
+    /// Fading factor of the prior for one epoch (the ARCKF paper's eqs. (38)–(42), [`prior_fading`]): each
     /// range's γ against the prior with `R_i = σ²·Cu_i`.
     fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
         let range_std = self.config.ranging.range_std;
@@ -235,7 +235,7 @@ impl InertialFilter for TightFilter {
             reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
             return Ok(());
         }
-        // ARCKF (seed 002 Algorithm 1): robustness factors and the fading of the prior.
+        // ARCKF (the ARCKF paper's Algorithm 1): robustness factors and the fading of the prior.
         let (factors, fading) = match self.policy {
             RangeNoisePolicy::AdaptiveRobust { threshold } => {
                 let factors = self.robustness(ranges);
@@ -299,8 +299,8 @@ impl InertialFilter for TightFilter {
 
 impl TightFilter {
     /// Solves one epoch of scalar measurements with the filter's strategy; `factors` are the
-    /// robustness factors `Cu_k` (seed 002 eq. (38)) of the measurements, `fading` the prior's
-    /// fading factor already applied (seed 002 eq. (42)).
+    /// robustness factors `Cu_k` (the ARCKF paper's eq. (38)) of the measurements, `fading` the prior's
+    /// fading factor already applied (the ARCKF paper's eq. (42)).
     fn solve(
         &mut self,
         measurements: &[ScalarMeasurement],
@@ -579,7 +579,7 @@ pub(crate) fn check_tdoa(anchors: &[Vec3], m: &TdoaMeasurement) -> Result<()> {
     Ok(())
 }
 
-/// The range noise variance for one range: per-anchor Sage–Husa (seed 004 eqs. (26)–(36) on the
+/// The range noise variance for one range: per-anchor Sage–Husa (Liu et al. 2019 eqs. (26)–(36) on the
 /// range innovation, stepped when `step` — once per epoch, at the first iterate — else held;
 /// within the configured bounds of `r_var`; may correct `residual`), or the fixed `r_var` without
 /// adaptive noise. `hph` is the predicted

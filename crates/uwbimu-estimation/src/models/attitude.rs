@@ -1,9 +1,9 @@
-//! Gravity and geomagnetic vector observations of the attitude (seed 003 §2.2.2): a reference
+//! Gravity and geomagnetic vector observations of the attitude (the ACKF paper's §2.2.2): a reference
 //! vector `r` in the navigation frame, measured in the body frame.
 //!
 //! With the body-frame attitude error `q_true = q ⊗ exp(δθ)`, the body-frame reading is
 //! `y = R_trueᵀ·r (+ b_a) = Rᵀ·r + [Rᵀ·r]×·δθ (+ δb_a)`, so the residual `y − ŷ` has the Jacobian
-//! `[ŷ_r]×` on δθ, and for the accelerometer also `I` on δb_a. Seed 003 writes the residual in
+//! `[ŷ_r]×` on δθ, and for the accelerometer also `I` on δb_a. The ACKF paper writes the residual in
 //! the navigation frame (`R·y − r`); the body-frame form is the same observation rotated by `Rᵀ`,
 //! and its isotropic noise is unchanged by the rotation.
 
@@ -29,7 +29,7 @@ pub struct VectorPrediction {
     pub jacobian: SMatrix<f64, 3, ERR_DIM>,
 }
 
-/// Predicts the body-frame reading of the navigation-frame `reference` (seed 003 §2.2.2).
+/// Predicts the body-frame reading of the navigation-frame `reference` (the ACKF paper's §2.2.2).
 pub fn predict_vector(x: &NominalState, reference: &Vec3, sensor: VectorSensor) -> VectorPrediction {
     let body = x.orientation.inverse_transform_vector(reference);
     let mut jacobian = SMatrix::<f64, 3, ERR_DIM>::zeros();

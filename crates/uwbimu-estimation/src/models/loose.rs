@@ -1,4 +1,4 @@
-//! Loosely coupled UWB measurement of seed 004: the epoch's least-squares tag fix (eqs.
+//! Loosely coupled UWB measurement of Liu et al. 2019: the epoch's least-squares tag fix (eqs.
 //! (6)–(13)) and the velocity from differencing consecutive fixes (eq. (14)), compared with the INS
 //! (eq. (15), here with the lever arm).
 
@@ -33,7 +33,7 @@ pub fn position_measurement(x: &NominalState, fix: &TagFix, lever_arm: &Vec3) ->
 /// velocity measurement.
 pub const MAX_VELOCITY_BASELINE_S: f64 = 1.0;
 
-/// Differenced tag velocity (seed 004 eq. (14)) `(p_k − p_{k−1})/Δt` against the INS velocity
+/// Differenced tag velocity (Liu et al. 2019 eq. (14)) `(p_k − p_{k−1})/Δt` against the INS velocity
 /// (the lever-arm term `R·(ω × l)` is neglected); residual, Jacobian (`I` on δv) and covariance
 /// `(Σ_k + Σ_{k−1})/Δt²`. None if the fixes are not in time order or more than
 /// [`MAX_VELOCITY_BASELINE_S`] apart.

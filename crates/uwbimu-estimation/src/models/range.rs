@@ -1,4 +1,4 @@
-//! Tightly coupled UWB range to one anchor, with the tag's lever arm (seed 000 eqs. (33)–(36)).
+//! Tightly coupled UWB range to one anchor, with the tag's lever arm (Li & Wang 2020 eqs. (33)–(36)).
 
 use uwbimu_vocabulary::math::{skew, Vec3};
 use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, POS};
@@ -6,9 +6,9 @@ use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, POS};
 /// Predicted range and its 1×15 Jacobian row.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RangePrediction {
-    /// Predicted range `h(x) = ‖p + R·l − a‖`, m (seed 000 eq. (33) with the lever arm l).
+    /// Predicted range `h(x) = ‖p + R·l − a‖`, m (Li & Wang 2020 eq. (33) with the lever arm l).
     pub range_m: f64,
-    /// `∂h/∂δx`: `uᵀ` on δp (seed 000 eq. (36)) and `−uᵀ·R·[l]×` on the body-frame δθ, where
+    /// `∂h/∂δx`: `uᵀ` on δp (Li & Wang 2020 eq. (36)) and `−uᵀ·R·[l]×` on the body-frame δθ, where
     /// `u` is the unit vector from the anchor to the tag.
     pub jacobian: ErrVec,
 }
@@ -18,7 +18,7 @@ pub fn tag_position(x: &NominalState, lever_arm: &Vec3) -> Vec3 {
     x.position + x.orientation * lever_arm
 }
 
-/// Predicts the range from the tag to `anchor` (seed 000 eqs. (33)–(36)); `None` when the tag
+/// Predicts the range from the tag to `anchor` (Li & Wang 2020 eqs. (33)–(36)); `None` when the tag
 /// sits on the anchor (the direction, hence the Jacobian, is undefined).
 pub fn predict_range(x: &NominalState, anchor: &Vec3, lever_arm: &Vec3) -> Option<RangePrediction> {
     let d = tag_position(x, lever_arm) - anchor;

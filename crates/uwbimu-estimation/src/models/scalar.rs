@@ -1,5 +1,5 @@
 //! The scalar measurement models of the tightly coupled filters, one vocabulary for the update
-//! strategies and noise policies: a UWB range (seed 000 eqs. (33)–(36)) and a time difference of
+//! strategies and noise policies: a UWB range (Li & Wang 2020 eqs. (33)–(36)) and a time difference of
 //! arrival (TDoA, ours: the difference of two range models). Each predicts its value at a nominal
 //! state and the 1×15 Jacobian row on the error state (order δp, δv, δθ, δb_a, δb_g).
 
@@ -64,7 +64,7 @@ impl ScalarMeasurement {
     }
 
     /// Predicts the measurement at `x` with the tag at lever arm `lever_arm` (body frame):
-    /// a range by seed 000 eqs. (33)–(36); a TDoA as `h_j(x) − h_i(x)` of the two range models,
+    /// a range by Li & Wang 2020 eqs. (33)–(36); a TDoA as `h_j(x) − h_i(x)` of the two range models,
     /// Jacobian `H_j − H_i`. None when the tag sits on an anchor (direction undefined).
     pub fn predict(&self, x: &NominalState, anchors: &[Vec3], lever_arm: &Vec3) -> Option<ScalarPrediction> {
         match *self {

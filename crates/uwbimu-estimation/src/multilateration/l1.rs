@@ -1,6 +1,6 @@
-//! L1 multilateration (seed 002 eqs. (33)–(34)): the tag position minimising the sum of absolute
+//! L1 multilateration (the ARCKF paper's eqs. (33)–(34)): the tag position minimising the sum of absolute
 //! range residuals, and the residuals themselves, which feed the robustness factor of the ARCKF
-//! (seed 002 eq. (35), [`crate::robust::robustness`]).
+//! (the ARCKF paper's eq. (35), [`crate::robust::robustness`]).
 //!
 //! The minimiser is found by iteratively reweighted least squares (IRLS) started from the L2
 //! solution: each iteration takes one Gauss–Newton step on `Σ w_i·e_i²` with
@@ -17,7 +17,7 @@ use super::{obs_valid, residuals_and_jacobian, solve_epoch, well_conditioned, Ls
 /// Step halvings tried per IRLS iteration before the iterate counts as converged.
 const MAX_HALVINGS: usize = 30;
 
-/// Options of the L1 (IRLS) multilateration of seed 002 eqs. (33)–(34).
+/// Options of the L1 (IRLS) multilateration of the ARCKF paper, eqs. (33)–(34).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct L1Config {
     /// Maximum number of IRLS iterations (dimensionless count).
@@ -37,13 +37,13 @@ impl Default for L1Config {
     }
 }
 
-/// One L1 multilateration fix (seed 002 eq. (34)).
+/// One L1 multilateration fix (the ARCKF paper's eq. (34)).
 #[derive(Debug, Clone, PartialEq)]
 pub struct L1Fix {
     /// Estimated tag position `argmin_p Σ_i |‖p − a_i‖ − r_i|`, navigation frame (ENU), m.
     pub position: Vec3,
     /// Range residuals `Δr_i = r_i − ‖p − a_i‖` at the fix (measured minus fitted, so that
-    /// `r_i = ‖p − a_i‖ + Δr_i` as in seed 002 §3.1), m, in observation order.
+    /// `r_i = ‖p − a_i‖ + Δr_i` as in the ARCKF paper's §3.1), m, in observation order.
     pub residuals_m: Vec<f64>,
     /// IRLS iterations taken.
     pub iterations: usize,
@@ -82,7 +82,7 @@ fn solve_normal(jtwj: &Mat3, rhs: &Vec3, planar: bool) -> Option<Vec3> {
     }
 }
 
-/// L1 multilateration (seed 002 eqs. (33)–(34)): minimises `E(p) = Σ_i |‖p − a_i‖ − r_i|` by
+/// L1 multilateration (the ARCKF paper's eqs. (33)–(34)): minimises `E(p) = Σ_i |‖p − a_i‖ − r_i|` by
 /// IRLS from `start` (normally the L2 fix, see [`l1_solve_epoch`]).
 ///
 /// Each iteration computes `e_i = ‖p − a_i‖ − r_i`, weights `w_i = 1/max(|e_i|, ε)` with
@@ -93,7 +93,7 @@ fn solve_normal(jtwj: &Mat3, rhs: &Vec3, planar: bool) -> Option<Vec3> {
 ///
 /// * 3-D (`planar_height_m = None`): x, y, z estimated; needs ≥ 3 ranges from anchors whose
 ///   directions span 3-D.
-/// * Planar (`Some(h)`): z fixed to `h` m (seed 002 works in the plane with the height known);
+/// * Planar (`Some(h)`): z fixed to `h` m (the ARCKF paper works in the plane with the height known);
 ///   distances stay 3-D, `‖(x, y, h) − a_i‖`; needs ≥ 2 ranges.
 ///
 /// Returns the position and the residuals `Δr_i = r_i − ‖p − a_i‖` (m). Returns `None` on
@@ -160,7 +160,7 @@ pub fn l1_fix(
     finite.then_some(L1Fix { position: p, residuals_m, iterations, planar })
 }
 
-/// L1 fix of one epoch (seed 002 eqs. (33)–(34)): the mode (planar or 3-D) and a first start come
+/// L1 fix of one epoch (the ARCKF paper's eqs. (33)–(34)): the mode (planar or 3-D) and a first start come
 /// from the L2 fix ([`solve_epoch`] with `ls_cfg`). In planar mode the L1 optimum lies where two
 /// range circles meet (at least two residuals vanish), so every pairwise circle intersection is
 /// also tried as a start and the one with the smallest `E(p)` is refined by [`l1_fix`]; started
@@ -183,7 +183,7 @@ pub fn l1_solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], ls_cfg: &LsConfig,
     l1_fix(anchors, obs, start, height, l1_cfg)
 }
 
-/// `E(p) = Σ |‖p − a_i‖ − r_i|` (seed 002 eq. (33)).
+/// `E(p) = Σ |‖p − a_i‖ − r_i|` (the ARCKF paper's eq. (33)).
 fn abs_cost(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> f64 {
     obs.iter().map(|&(a, r)| ((p - anchors[a]).norm() - r).abs()).sum()
 }
@@ -336,7 +336,7 @@ mod tests {
 
     #[test]
     fn planar_epoch_finds_the_global_l1_optimum() {
-        // Four anchors of the seed-002 garage, one range 3 m too long, tags on a grid. The fix must
+        // Four anchors of the ARCKF paper's garage, one range 3 m too long, tags on a grid. The fix must
         // be the global minimum of E(p): no circle intersection has a lower cost.
         let anchors =
             vec![Vec3::new(0.0, 0.0, 1.5), Vec3::new(10.0, 0.0, 2.0), Vec3::new(10.0, 5.0, 1.5), Vec3::new(0.0, 5.0, 2.0)];

@@ -1,4 +1,4 @@
-//! The errors-complementary EKF of seed 001 §3.3 (eqs. (15)–(18)) and its moving-average range
+//! The errors-complementary EKF of Wang et al. 2018 §3.3 (eqs. (15)–(18)) and its moving-average range
 //! prefilter.
 //!
 //! The navigation state x̂ = [p, v] is propagated by eq. (5); the EKF runs on the error
@@ -9,7 +9,7 @@
 //! linear motion model of eq. (5) this feedback form is algebraically the EKF of eqs. (7)–(10)
 //! linearised at the prior: with a window of 1, `cekf2d` equals `ekf2d` (tested). What sets
 //! it apart is the prefilter: each range is replaced by the mean of its anchor's last
-//! `cekf_window` ranges (seed 001 Fig. 2), which smooths noise and short NLOS spikes.
+//! `cekf_window` ranges (Wang et al. 2018 Fig. 2), which smooths noise and short NLOS spikes.
 //!
 //! **Deviation (ours): the average is taken after moving each stored range to the current time.**
 //! The paper averages the raw ranges, which lags the motion by (window − 1)/2 samples: fine at

@@ -1,4 +1,4 @@
-//! The planar EKF update of seed 001 eqs. (7)–(10): the ranges of an epoch (eq. (7)) against the
+//! The planar EKF update of Wang et al. 2018 eqs. (7)–(10): the ranges of an epoch (eq. (7)) against the
 //! predicted ranges (eq. (8)) with the Jacobian of eq. (9), all linearised at the prior and
 //! applied as sequential scalar Joseph steps (the joint update of eq. (10) for diagonal R).
 

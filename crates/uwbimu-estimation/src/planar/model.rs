@@ -1,4 +1,4 @@
-//! The planar motion and range models of seed 001: state `[x, y, vx, vy]` (eq. (6)), IMU
+//! The planar motion and range models of Wang et al. 2018: state `[x, y, vx, vy]` (eq. (6)), IMU
 //! acceleration rotated into the navigation frame by the gyro-integrated yaw (eq. (4)), the
 //! constant-acceleration transition (eqs. (5)–(6)) and the range to an anchor (eqs. (8)–(9)).
 
@@ -16,18 +16,18 @@ pub const VY: usize = 3;
 /// Dimension of the planar state.
 pub const PLANAR_DIM: usize = 4;
 
-/// Planar state `[x, y, vx, vy]`, m and m/s (seed 001 eq. (6)).
+/// Planar state `[x, y, vx, vy]`, m and m/s (Wang et al. 2018 eq. (6)).
 pub type PlanarState = SVector<f64, PLANAR_DIM>;
 /// Its 4×4 covariance.
 pub type PlanarCov = Cov<PLANAR_DIM>;
 
-/// Rotation by the yaw ψ, seed 001 eq. (4): `T = [[cψ, −sψ], [sψ, cψ]]`.
+/// Rotation by the yaw ψ, Wang et al. 2018 eq. (4): `T = [[cψ, −sψ], [sψ, cψ]]`.
 pub fn yaw_rotation(yaw_rad: f64) -> Matrix2<f64> {
     let (s, c) = yaw_rad.sin_cos();
     Matrix2::new(c, -s, s, c)
 }
 
-/// One propagation of seed 001 eqs. (5)–(6) with input `u` (navigation-frame acceleration, m/s²)
+/// One propagation of Wang et al. 2018 eqs. (5)–(6) with input `u` (navigation-frame acceleration, m/s²)
 /// over `dt_s`: `x ← A·x + B·u`, `P ← A·P·Aᵀ + Q`. Q is the white-noise-acceleration
 /// discretisation of `w` with density `accel_density` (m/s²/√Hz): per axis
 /// `q²·[[Δt³/3, Δt²/2], [Δt²/2, Δt]]`.
@@ -60,7 +60,7 @@ pub struct PlanarGeometry {
 }
 
 impl PlanarGeometry {
-    /// Predicted range to `anchor` from state `x` at yaw ψ, seed 001 eq. (8) with the known
+    /// Predicted range to `anchor` from state `x` at yaw ψ, Wang et al. 2018 eq. (8) with the known
     /// height difference: `‖(p + T(ψ)·l_xy, h + l_z) − a‖` (eq. (8) is the case of anchors at the
     /// tag's height). None when the tag sits on the anchor.
     pub fn range(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Option<f64> {
@@ -69,7 +69,7 @@ impl PlanarGeometry {
         (r > 1e-9).then_some(r)
     }
 
-    /// Predicted range and its Jacobian row `[(x − A_x)/r, (y − A_y)/r, 0, 0]` (seed 001 eq. (9),
+    /// Predicted range and its Jacobian row `[(x − A_x)/r, (y − A_y)/r, 0, 0]` (Wang et al. 2018 eq. (9),
     /// with r the 3-D range).
     pub fn range_and_jacobian(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Option<(f64, PlanarState)> {
         let d = self.offset(x, yaw_rad, anchor);

@@ -1,4 +1,4 @@
-//! The planar UKF update of seed 001 eqs. (11)–(14): no Jacobian; per range, 2n + 1 = 9 sigma
+//! The planar UKF update of Wang et al. 2018 eqs. (11)–(14): no Jacobian; per range, 2n + 1 = 9 sigma
 //! points of the current estimate through the range model of eq. (8).
 
 use uwbimu_vocabulary::error::Result;

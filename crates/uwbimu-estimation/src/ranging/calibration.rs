@@ -15,8 +15,8 @@ fn check_finite(name: &'static str, values: &[f64]) -> Result<()> {
     }
 }
 
-/// Least-squares cubic `true ≈ c0 + c1·m + c2·m² + c3·m³` through (measured, true) pairs (seed
-/// 001 §4.1, "three order linear fitting"). The powers are taken of `m / max|m|` for
+/// Least-squares cubic `true ≈ c0 + c1·m + c2·m² + c3·m³` through (measured, true) pairs (Wang et al.
+/// 2018 §4.1, "three order linear fitting"). The powers are taken of `m / max|m|` for
 /// conditioning and the coefficients scaled back. Fails on unequal lengths, non-finite values or
 /// fewer than 4 distinct measured values.
 pub fn fit_cubic(measured: &[f64], truth: &[f64]) -> Result<Cubic> {
@@ -48,7 +48,7 @@ pub fn fit_cubic(measured: &[f64], truth: &[f64]) -> Result<Cubic> {
     Ok(c)
 }
 
-/// Fits one cubic per anchor (seed 001 §4.1: every anchor calibrated the same way) from
+/// Fits one cubic per anchor (Wang et al. 2018 §4.1: every anchor calibrated the same way) from
 /// pairs labelled by anchor index; see [`fit_cubic`].
 pub fn fit_range_calibration(anchors: &[usize], measured: &[f64], truth: &[f64]) -> Result<RangeCalibration> {
     if anchors.len() != measured.len() {

@@ -1,8 +1,8 @@
-//! Adaptive noise of the gravity and geomagnetic observations (seed 003 §2.2.2): body
+//! Adaptive noise of the gravity and geomagnetic observations (the ACKF paper's §2.2.2): body
 //! acceleration and magnetic disturbances change the measured vector's magnitude and direction
 //! with respect to the reference, so the observation's variance grows with both residuals.
 //!
-//! Seed 003 lost its formulas in extraction; from its text, this crate uses, for a measured
+//! Our copy of the ACKF paper lost its formulas in extraction; from its text, this crate uses, for a measured
 //! vector `y` (body frame, rotated to the navigation frame by the current attitude) and the
 //! reference `r`:
 //!

@@ -1,8 +1,8 @@
-//! χ² quantiles from a significance level (seed 000 eq. (38)).
+//! χ² quantiles from a significance level (Li & Wang 2020 eq. (38)).
 //!
 //! For one degree of freedom, `P(γ < χ²₁,α) = 1 − α` gives `χ²₁,α = z²` with `z = Φ⁻¹(1 − α/2)`,
 //! the standard-normal quantile. Reference values: α = 0.05 → 3.841, α = 0.01 → 6.635,
-//! α = 0.001 → 10.828. Seed 002 quotes "6.2 at α = 0.001", which matches neither of the last two
+//! α = 0.001 → 10.828. The ARCKF paper quotes "6.2 at α = 0.001", which matches neither of the last two
 //! (6.2 is the quantile for α ≈ 0.0128).
 
 use uwbimu_vocabulary::error::{Error, Result};
@@ -51,7 +51,7 @@ pub fn normal_quantile(p: f64) -> f64 {
 /// the prior in the divergence watch).
 pub const CHI2_1DOF_ALPHA_1E4: f64 = 15.136_705_226_623_606;
 
-/// χ² quantile with 1 degree of freedom exceeded with probability `alpha` (seed 000 eq. (38)).
+/// χ² quantile with 1 degree of freedom exceeded with probability `alpha` (Li & Wang 2020 eq. (38)).
 /// Fails unless `0 < alpha < 1`.
 pub fn chi2_quantile_1dof(alpha: f64) -> Result<f64> {
     if !(alpha > 0.0 && alpha < 1.0) {
@@ -181,7 +181,7 @@ mod tests {
             let q = chi2_quantile_1dof(alpha).unwrap();
             assert!((q - expected).abs() < 1e-7 * expected, "alpha {alpha}: {q} vs {expected}");
         }
-        // Seed 002's "6.2 at α = 0.001" is not the 0.001 quantile.
+        // The ARCKF paper's "6.2 at α = 0.001" is not the 0.001 quantile.
         assert!((chi2_quantile_1dof(0.001).unwrap() - 6.2).abs() > 4.0);
     }
 

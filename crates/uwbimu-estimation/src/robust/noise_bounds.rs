@@ -1,8 +1,8 @@
 //! Bounds on an on-line estimated measurement covariance relative to its nominal value, and the
-//! detection of a diverged filter — what keeps the Sage–Husa estimators of seed 004 from running
+//! detection of a diverged filter — what keeps the Sage–Husa estimators of Liu et al. 2019 from running
 //! away (our addition; the paper has neither).
 //!
-//! **Why.** Sage–Husa (seed 004 eq. (26)) reads every innovation beyond `H·P·Hᵀ` as measurement
+//! **Why.** Sage–Husa (Liu et al. 2019 eq. (26)) reads every innovation beyond `H·P·Hᵀ` as measurement
 //! noise. When the state error grows (a biased anchor, an outage, a poor IMU), the innovations
 //! carry it, `R` grows, the gain drops, the state drifts further and the innovations grow again:
 //! measured on the scenario zoo, SHAF ran to 45× the UWB-only error with two anchors in NLOS

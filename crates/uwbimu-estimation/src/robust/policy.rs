@@ -6,12 +6,12 @@ pub enum RangeNoisePolicy {
     /// `R` as configured (EKF, iterated EKF).
     Fixed,
     /// Mahalanobis test against `threshold = χ²₁,α` and inflation `R' = (γ/χ²)·R` beyond it
-    /// (seed 000 eqs. (37)–(40); REKF, RIEKF).
+    /// (Li & Wang 2020 eqs. (37)–(40); REKF, RIEKF).
     ChiSquareInflation {
         /// χ² threshold, dimensionless.
         threshold: f64,
     },
-    /// The adaptive-robust policy of seed 002 (ARCKF, Algorithm 1): base variance `σ²·Cu_i` from the
+    /// The adaptive-robust policy of the ARCKF paper (ARCKF, Algorithm 1): base variance `σ²·Cu_i` from the
     /// L1 robustness factor (eqs. (35)–(38)), the prior faded by [`crate::robust::prior_fading`]
     /// when the epoch shows an abnormal state (eq. (42)), and `R' = (γ/χ²)·R` for the ranges that
     /// still fail the test (eq. (41)).
@@ -19,8 +19,8 @@ pub enum RangeNoisePolicy {
         /// χ² threshold, dimensionless.
         threshold: f64,
     },
-    /// Range variance `σ²·Cu_i` from the multilateration residual only, no χ² test (seed 003
-    /// §2.2.1, ACKF): the L1 residual of eqs. (33)–(35) of seed 002 with three or more ranges,
+    /// Range variance `σ²·Cu_i` from the multilateration residual only, no χ² test (the ACKF paper's
+    /// §2.2.1, ACKF): the L1 residual of eqs. (33)–(35) of the ARCKF paper with three or more ranges,
     /// [`crate::robust::two_range_residuals`] with two.
     ResidualWeighted,
     /// Heavy-tailed Student-t weights (ours): `R' = R·(ν + γ)/(ν + 1)` for `γ` above 1, the
@@ -36,7 +36,7 @@ pub enum RangeNoisePolicy {
 
 impl RangeNoisePolicy {
     /// The factor `R'/R ≥ 1` for a range whose squared Mahalanobis distance is `nis`
-    /// (seed 000 eq. (40), seed 002 eq. (41)).
+    /// (Li & Wang 2020 eq. (40), the ARCKF paper's eq. (41)).
     pub fn inflation(&self, nis: f64) -> f64 {
         match *self {
             Self::Fixed => 1.0,

@@ -1,4 +1,4 @@
-//! Robustness factor and branch decision of the adaptive-robust CKF (seed 002 §3, eqs. (35)–(42),
+//! Robustness factor and branch decision of the adaptive-robust CKF (the ARCKF paper's §3, eqs. (35)–(42),
 //! Algorithm 1 "ARCKF").
 //!
 //! Per epoch, the L1 multilateration residuals `Δr_i` ([`crate::multilateration::l1_fix`]) give each
@@ -9,15 +9,15 @@
 //! prior covariance, eq. (42), the *adaptive* branch) and blaming the range (inflate `R_i`,
 //! eq. (41), the *robust* branch).
 //!
-//! **Attribution and fading (deviations from Algorithm 1, lines 3–9, measured on the seed 002
+//! **Attribution and fading (deviations from Algorithm 1, lines 3–9, measured on the ARCKF paper's
 //! presets).**
 //!
 //! * *Which epochs blame the state.* Algorithm 1 blames the state for every failing range that the
 //!   L1 fit trusts (`Cu_i < Cu_max`). With four anchors the L1 fit has too few spare ranges to
-//!   isolate an outlier reliably: on the seed 002 garage grid it isolates a +3 m outlier at only
+//!   isolate an outlier reliably: on the ARCKF paper's garage grid it isolates a +3 m outlier at only
 //!   about half of the positions, and each misattributed outlier inflated the prior by `γ/χ²`
 //!   (factors of 50–400), so that literal ARCKF diverged in 10 of 12 figure-8 runs with 3–10 %
-//!   outliers. An abnormal *state* makes most ranges disagree with the prediction (seed 002
+//!   outliers. An abnormal *state* makes most ranges disagree with the prediction (the ARCKF paper's
 //!   Fig. 12: γ above the threshold on all four beacons), an outlier only its own. So the prior is
 //!   faded only when a **strict majority** of the epoch's ranges fail the test and at least one of
 //!   the failing ranges is trusted ([`prior_fading`]). Requiring *all* ranges to fail missed
@@ -43,18 +43,18 @@
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::state::{ErrCov, POS, VEL};
 
-/// Ranging error (m) of seed 002 eq. (36), `f(d) = 0.4·(1.10 − e^{−0.17·d})`, at the tag–beacon
-/// distance `d` (m; seed 002 takes it from its ref. \[9\] and plots it for `d` within 20 m).
+/// Ranging error (m) of the ARCKF paper's eq. (36), `f(d) = 0.4·(1.10 − e^{−0.17·d})`, at the tag–beacon
+/// distance `d` (m; the ARCKF paper takes it from its ref. \[9\] and plots it for `d` within 20 m).
 /// It grows from 0.04 m at `d = 0` towards 0.44 m.
 pub fn ranging_error_m(distance_m: f64) -> f64 {
     0.4 * (1.10 - (-0.17 * distance_m).exp())
 }
 
-/// Robustness factor of one range and its cap (seed 002 eqs. (35), (37)).
+/// Robustness factor of one range and its cap (the ARCKF paper's eqs. (35), (37)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RobustnessFactor {
     /// `Cu_i = min(e^{|Δr_i|}, Cu_max)` (eq. (35)), or 1 when the epoch has fewer than 3 ranges
-    /// (no effective residual, seed 002 §3.1); dimensionless, ≥ 1.
+    /// (no effective residual, the ARCKF paper's §3.1); dimensionless, ≥ 1.
     pub cu: f64,
     /// `Cu_max = e^{f(d) + 3σ}` (eq. (37)), dimensionless.
     pub cu_max: f64,
@@ -67,20 +67,20 @@ impl RobustnessFactor {
         self.cu >= self.cu_max
     }
 
-    /// Range variance `R_i = σ_i²·Cu_i` of seed 002 eq. (38), m², for range standard deviation
+    /// Range variance `R_i = σ_i²·Cu_i` of the ARCKF paper's eq. (38), m², for range standard deviation
     /// `range_std_m` (m).
     pub fn range_var_m2(&self, range_std_m: f64) -> f64 {
         range_std_m * range_std_m * self.cu
     }
 }
 
-/// `Cu_max = e^{f(d) + 3σ}` (seed 002 eq. (37)).
+/// `Cu_max = e^{f(d) + 3σ}` (the ARCKF paper's eq. (37)).
 fn cu_max(distance_m: f64, range_std_m: f64) -> f64 {
     (ranging_error_m(distance_m) + 3.0 * range_std_m).exp()
 }
 
 /// Robustness factor of one range `r` (m) with residual `Δr` (m): `Cu = min(e^{|Δr|}, Cu_max)`
-/// (seed 002 eq. (35)) with `Cu_max` at the fitted distance `r − Δr` (eq. (37)); a non-finite
+/// (the ARCKF paper's eq. (35)) with `Cu_max` at the fitted distance `r − Δr` (eq. (37)); a non-finite
 /// residual counts as capped.
 pub fn robustness_factor(range_m: f64, residual_m: f64, range_std_m: f64) -> RobustnessFactor {
     let cap = cu_max(range_m - residual_m, range_std_m);
@@ -88,9 +88,9 @@ pub fn robustness_factor(range_m: f64, residual_m: f64, range_std_m: f64) -> Rob
     RobustnessFactor { cu: if raw < cap { raw } else { cap }, cu_max: cap }
 }
 
-/// Residuals of an epoch with exactly two ranges (seed 003 §2.2.1): 0 for both if the two range
+/// Residuals of an epoch with exactly two ranges (the ACKF paper's §2.2.1): 0 for both if the two range
 /// spheres meet (`r₁ + r₂ ≥ ‖a₁ − a₂‖`), else each range is short by half the gap,
-/// `Δr = −(‖a₁ − a₂‖ − r₁ − r₂)/2` (seed 003 gives only the first case; the second is this
+/// `Δr = −(‖a₁ − a₂‖ − r₁ − r₂)/2` (the ACKF paper gives only the first case; the second is this
 /// crate's reading).
 pub fn two_range_residuals(anchor_1: &Vec3, range_1_m: f64, anchor_2: &Vec3, range_2_m: f64) -> [f64; 2] {
     let gap = (anchor_1 - anchor_2).norm() - range_1_m - range_2_m;
@@ -101,7 +101,7 @@ pub fn two_range_residuals(anchor_1: &Vec3, range_1_m: f64, anchor_2: &Vec3, ran
     }
 }
 
-/// Robustness factors of one epoch's ranges (seed 002 eqs. (35)–(37)).
+/// Robustness factors of one epoch's ranges (the ARCKF paper's eqs. (35)–(37)).
 ///
 /// * `obs`: the epoch's `(anchor index, measured range r_i m)`.
 /// * `residuals_m`: the L1 residuals `Δr_i = r_i − ‖p̂ − a_i‖` in the same order
@@ -112,7 +112,7 @@ pub fn two_range_residuals(anchor_1: &Vec3, range_1_m: f64, anchor_2: &Vec3, ran
 /// `Cu_max = e^{f(d_i) + 3σ}` (eq. (37)). `d_i` is the tag–beacon distance, taken as the fitted
 /// distance `‖p̂ − a_i‖ = r_i − Δr_i` (the paper's true distance `r_i` in `r'_i = r_i + Δr_i`),
 /// so a biased range does not raise its own cap. With fewer than 3 ranges, no residuals, or a
-/// residual count that differs from `obs.len()`, every `Cu_i = 1` (seed 002 §3.1) and `d_i` is the
+/// residual count that differs from `obs.len()`, every `Cu_i = 1` (the ARCKF paper's §3.1) and `d_i` is the
 /// measured range. A non-finite residual counts as capped.
 pub fn robustness_factors(obs: &[(usize, f64)], residuals_m: Option<&[f64]>, range_std_m: f64) -> Vec<RobustnessFactor> {
     match residuals_m {
@@ -123,7 +123,7 @@ pub fn robustness_factors(obs: &[(usize, f64)], residuals_m: Option<&[f64]>, ran
     }
 }
 
-/// Fading factor `λ ≥ 1` of the prior covariance for one epoch (seed 002 eq. (42)), with the
+/// Fading factor `λ ≥ 1` of the prior covariance for one epoch (the ARCKF paper's eq. (42)), with the
 /// attribution rule of the module doc.
 ///
 /// `ranges` yields, for each range of the epoch, its robustness factor (eqs. (35)–(37)) and
@@ -151,7 +151,7 @@ pub fn prior_fading(ranges: impl IntoIterator<Item = (RobustnessFactor, f64)>, c
     }
 }
 
-/// Fades the position–velocity block of an error covariance by `λ` (seed 002 eq. (42), restricted
+/// Fades the position–velocity block of an error covariance by `λ` (the ARCKF paper's eq. (42), restricted
 /// as in the module doc): `P ← D·P·D` with `D = diag(√λ·I₆, I₉)`, so the position–velocity block
 /// is multiplied by `λ`, its cross-covariances with attitude and biases by `√λ`, and the rest is
 /// unchanged. A congruence, so `P` stays symmetric positive definite for `λ > 0`.

@@ -1,13 +1,13 @@
 //! Sage–Husa adaptive estimation of the measurement-noise covariance `R`, with the fuzzy
-//! regulatory factor and the fading-window outlier correction of seed 004 §3.2–§3.3
+//! regulatory factor and the fading-window outlier correction of Liu et al. 2019 §3.2–§3.3
 //! (eqs. (22)–(36)): the noise policy of SHAF and SHFAF.
 //!
 //! The module is independent of the 15-state filter: per update the caller passes the innovation
 //! `ε_k = z_k − H δx⁻` (eq. (22)) and `H P⁻ Hᵀ` (an `M × M` matrix), and gets back the `R_k` to use
 //! in the gain (eq. (37)) and the corrected innovation to use in eq. (38). `M` is the measurement
-//! dimension: 6 for the loose position + velocity fix of seed 004, 1 for a range.
+//! dimension: 6 for the loose position + velocity fix of Liu et al. 2019, 1 for a range.
 //!
-//! # Order of one step ([`SageHusa::step`], Figure 5 of seed 004: outliers first, then `R`)
+//! # Order of one step ([`SageHusa::step`], Figure 5 of Liu et al. 2019: outliers first, then `R`)
 //!
 //! With `k` the 0-based update index and `R_{k−1}` the current estimate:
 //!
@@ -44,7 +44,7 @@
 //!
 //! # Parameters the paper does not give
 //!
-//! Seed 004 gives ranges only for `b` and `a` (0.95–0.99) and no value for `λ`, `α`, `k_s`, `l`,
+//! Liu et al. 2019 give ranges only for `b` and `a` (0.95–0.99) and no value for `λ`, `α`, `k_s`, `l`,
 //! `ζ`, nor the membership functions of its Figure 4. The defaults of [`SageHusaConfig`] and
 //! [`FuzzyConfig`] are this crate's choices and say so field by field.
 

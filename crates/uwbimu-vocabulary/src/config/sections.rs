@@ -127,7 +127,7 @@ pub fn check_window(window_s: f64) -> Result<f64> {
 section! {
     /// UWB measurement noise and the epoch rule: what the range and TDoA models need.
     RangingConfig = "ranging" {
-        /// Range noise σ, m (seed 000 eq. (33), `R = range_std²`).
+        /// Range noise σ, m (Li & Wang 2020 eq. (33), `R = range_std²`).
         range_std: f64 = DEFAULT_RANGE_STD_M, positive;
         /// TDoA noise σ of one difference `d_ij`, m (`R = tdoa_std²`).
         tdoa_std: f64 = DEFAULT_TDOA_STD_M, positive;
@@ -142,8 +142,8 @@ section! {
 }
 
 section! {
-    /// The INS core's process model (seed 004 eq. (5) densities, discretised per step as
-    /// `density²·Δt`, eq. (21); seed 002 eqs. (17)–(18), (28) for Markov biases) and gravity.
+    /// The INS core's process model (Liu et al. 2019 eq. (5) densities, discretised per step as
+    /// `density²·Δt`, eq. (21); the ARCKF paper's eqs. (17)–(18), (28) for Markov biases) and gravity.
     InsConfig = "ins" {
         /// Accelerometer white-noise density, m/s²/√Hz.
         accel_noise_density: f64 = DEFAULT_ACCEL_NOISE_DENSITY, positive;
@@ -153,17 +153,17 @@ section! {
         accel_bias_walk: f64 = 1e-4, non_negative;
         /// Gyroscope bias random walk, rad/s/√s (when `gyro_bias_tau` is unset).
         gyro_bias_walk: f64 = 1e-5, non_negative;
-        /// Accelerometer-bias time constant τ_a of a first-order Markov model, s (seed 002 eq.
+        /// Accelerometer-bias time constant τ_a of a first-order Markov model, s (the ARCKF paper's eq.
         /// (17)); unset: random walk.
         accel_bias_tau: Option<f64> = None, some_positive;
-        /// Gyroscope-bias time constant τ_g of a first-order Markov model, s (seed 002 eq. (18));
+        /// Gyroscope-bias time constant τ_g of a first-order Markov model, s (the ARCKF paper's eq. (18));
         /// unset: random walk.
         gyro_bias_tau: Option<f64> = None, some_positive;
         /// Steady-state σ of a Markov accelerometer bias (its instability), m/s².
         accel_bias_markov_std: f64 = 0.1, non_negative;
         /// Steady-state σ of a Markov gyroscope bias, rad/s.
         gyro_bias_markov_std: f64 = 0.01, non_negative;
-        /// Discretise the process noise as seed 002 eq. (28), `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`, instead of
+        /// Discretise the process noise as the ARCKF paper's eq. (28), `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`, instead of
         /// adding `G·Q·Gᵀ` (always on in ckf and arckf).
         trapezoidal_process_noise: bool = false, flag;
         /// Gravity in the navigation frame, m/s² (a magnitude `g` means `[0, 0, −g]`).
@@ -202,10 +202,10 @@ section! {
 section! {
     /// The χ² test of the robust policies and the iterated update strategy.
     RobustConfig = "robust" {
-        /// Significance level α of the χ² test (seed 000 eq. (38)); threshold `χ²₁,α`
+        /// Significance level α of the χ² test (Li & Wang 2020 eq. (38)); threshold `χ²₁,α`
         /// (0.01 → 6.63).
         significance: f64 = 0.01, probability;
-        /// Maximum iterations of the iterated update (seed 000 Algorithm 1).
+        /// Maximum iterations of the iterated update (Li & Wang 2020 Algorithm 1).
         max_iterations: u32 = 10, count;
         /// The iterated update stops when the error-state step norm falls below this (mixed
         /// units: m, m/s, rad, m/s², rad/s).
@@ -226,13 +226,13 @@ impl RobustConfig {
 }
 
 section! {
-    /// The motion constraints of seed 000 §2.2 (`uwbimu_estimation::filters::constraints`).
+    /// The motion constraints of Li & Wang 2020 §2.2 (`uwbimu_estimation::filters::constraints`).
     ConstraintsConfig = "constraints" {
-        /// Zero-velocity constraint on (seed 000 eqs. (13)–(19)); always on in CRIEKF.
+        /// Zero-velocity constraint on (Li & Wang 2020 eqs. (13)–(19)); always on in CRIEKF.
         zupt: bool = false, flag;
-        /// Pseudo-velocity constraint on (seed 000 eqs. (20)–(26)); always on in CRIEKF.
+        /// Pseudo-velocity constraint on (Li & Wang 2020 eqs. (20)–(26)); always on in CRIEKF.
         pseudo_velocity: bool = false, flag;
-        /// Plane constraint on (seed 000 eqs. (27)–(32)); always on in CRIEKF.
+        /// Plane constraint on (Li & Wang 2020 eqs. (27)–(32)); always on in CRIEKF.
         plane: bool = false, flag;
         /// Still detector window, IMU samples.
         zupt_window: usize = 20, |f, v| bounded_count(f, v, 2, MAX_ZUPT_WINDOW);
@@ -247,9 +247,9 @@ section! {
         zupt_max_speed: f64 = 0.2, positive;
         /// ZUPT measurement noise σ per axis, m/s.
         zupt_velocity_std: f64 = 0.01, positive;
-        /// Pseudo-velocity measurement variance, m²/s² (seed 000 §3.5: 6).
+        /// Pseudo-velocity measurement variance, m²/s² (Li & Wang 2020 §3.5: 6).
         pseudo_velocity_var: f64 = 6.0, positive;
-        /// Pseudo-velocity: number of past constraint steps averaged (seed 000 eq. (20): 20).
+        /// Pseudo-velocity: number of past constraint steps averaged (Li & Wang 2020 eq. (20): 20).
         pseudo_velocity_window: usize = 20, |f, v| bounded_count(f, v, 1, MAX_SPEED_HISTORY);
         /// Plane constraint height of the body origin, m (unset: the initial height).
         plane_height: Option<f64> = None, some_scalar;
@@ -262,16 +262,16 @@ section! {
 
 section! {
     /// Adaptive measurement noise: per-anchor range noise of the tightly coupled filters and the
-    /// loose fix noise of `eskf`, `shaf`, `shfaf` (seed 004).
+    /// loose fix noise of `eskf`, `shaf`, `shfaf` (Liu et al. 2019).
     AdaptiveConfig = "adaptive" {
         /// Tightly coupled filters: estimate each anchor's range noise on line (Sage–Husa,
-        /// seed 004) instead of using `ranging.range_std` throughout.
+        /// Liu et al. 2019) instead of using `ranging.range_std` throughout.
         range_noise: bool = false, flag;
         /// Loosely coupled filters: scale of the least-squares fix covariance used as the
         /// measurement noise (and as the initial R of the Sage–Husa estimators), dimensionless.
         loose_noise_scale: f64 = 1.0, positive;
         /// Loosely coupled filters: scale each fix's covariance by its a-posteriori variance
-        /// factor when above 1 (ours); off = seed 004's plain least-squares covariance.
+        /// factor when above 1 (ours); off = the plain least-squares covariance of Liu et al. 2019.
         loose_variance_factor: bool = true, flag;
     }
 }
@@ -299,34 +299,34 @@ section! {
 }
 
 section! {
-    /// The unscented transform (seed 001 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented
+    /// The unscented transform (Wang et al. 2018 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented
     /// composition.
     UnscentedConfig = "unscented" {
-        /// α (enters only `W₀ᶜ`; seed 001: 0.01).
+        /// α (enters only `W₀ᶜ`; Wang et al. 2018: 0.01).
         alpha: f64 = 0.01, positive;
         /// β (2 for Gaussian priors).
         beta: f64 = 2.0, non_negative;
-        /// λ (seed 001: −1); `n + λ > 0` is required for every state dimension used (4 and 15).
+        /// λ (Wang et al. 2018: −1); `n + λ > 0` is required for every state dimension used (4 and 15).
         lambda: f64 = -1.0, unscented_lambda;
     }
 }
 
 section! {
-    /// The planar filters of seed 001.
+    /// The planar filters of Wang et al. 2018.
     PlanarConfig = "planar" {
-        /// `cekf2d`: moving-average window of the range prefilter, ranges per anchor (seed 001
+        /// `cekf2d`: moving-average window of the range prefilter, ranges per anchor (Wang et al. 2018
         /// §3.3; 1 = no averaging).
         cekf_window: usize = 5, |f, v| bounded_count(f, v, 1, MAX_CEKF_WINDOW);
-        /// Density of the horizontal acceleration input error, m/s²/√Hz (seed 001 eq. (6)).
+        /// Density of the horizontal acceleration input error, m/s²/√Hz (Wang et al. 2018 eq. (6)).
         accel_density: f64 = 0.3, positive;
     }
 }
 
 section! {
-    /// Gravity and geomagnetic attitude aiding of `ackf` (seed 003 §2.2.2).
+    /// Gravity and geomagnetic attitude aiding of `ackf` (the ACKF paper's §2.2.2).
     AidingConfig = "aiding" {
         /// Length of the initial still period whose mean accelerometer and magnetometer readings,
-        /// rotated to the navigation frame, become the reference gravity and field, s (seed 003:
+        /// rotated to the navigation frame, become the reference gravity and field, s (the ACKF paper:
         /// 5–10 s).
         reference_s: f64 = 5.0, positive;
         /// Base σ of one accelerometer axis as a gravity observation, m/s².
@@ -353,7 +353,7 @@ fn unscented_lambda(field: &str, v: &ConfigValue) -> Result<f64> {
 }
 
 section! {
-    /// The Sage–Husa estimator of `shaf`, `shfaf` and the adaptive range noise (seed 004 eqs.
+    /// The Sage–Husa estimator of `shaf`, `shfaf` and the adaptive range noise (Liu et al. 2019 eqs.
     /// (26)–(36)); the method chooses the variant.
     SageHusaSection = "sage_husa" {
         /// Forgetting factor `b` of eq. (27), in (0, 1); the paper: "usually between 0.95 and 0.99".

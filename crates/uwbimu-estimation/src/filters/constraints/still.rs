@@ -1,4 +1,4 @@
-//! Still (zero-velocity) detector: the GLRT of Fischer et al. 2013 (cited by seed 000 §2.2(1)) on
+//! Still (zero-velocity) detector: the GLRT of Fischer et al. 2013 (cited by Li & Wang 2020 §2.2(1)) on
 //! a trailing window of IMU samples, with the gravity direction taken from the filter's attitude,
 //! gated by the estimated speed.
 

@@ -1,4 +1,4 @@
-//! Settings of the Sage–Husa estimator (seed 004 §3.2–§3.3, eqs. (26)–(36)): the variant (SHAF or
+//! Settings of the Sage–Husa estimator (Liu et al. 2019 §3.2–§3.3, eqs. (26)–(36)): the variant (SHAF or
 //! SHFAF), the parameters of eqs. (26), (27), (30), (34) and (36), and their validation.
 
 use crate::robust::noise_bounds::NoiseBounds;
@@ -8,19 +8,19 @@ use uwbimu_vocabulary::validate::invalid;
 
 use super::fuzzy::FuzzyConfig;
 
-/// Which filter of seed 004 the estimator implements.
+/// Which filter of Liu et al. 2019 the estimator implements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SageHusaVariant {
-    /// SHAF (seed 004 ref. \[36\]): eqs. (26)–(27) with `s_k = 1`; no outlier correction. Use with
+    /// SHAF (Liu et al. 2019 ref. \[36\]): eqs. (26)–(27) with `s_k = 1`; no outlier correction. Use with
     /// `λ = 1` for the classic estimator ([`SageHusaConfig::shaf`]).
     Shaf,
-    /// SHFAF (seed 004 §3.2–§3.3): fuzzy regulatory factor `s_k` (eqs. (28)–(31)) and outlier
+    /// SHFAF (Liu et al. 2019 §3.2–§3.3): fuzzy regulatory factor `s_k` (eqs. (28)–(31)) and outlier
     /// detection and correction (eqs. (32)–(36)). The default.
     #[default]
     Shfaf,
 }
 
-/// Settings of [`SageHusa`](super::SageHusa) (seed 004 §3.2–§3.3). All dimensionless unless stated.
+/// Settings of [`SageHusa`](super::SageHusa) (Liu et al. 2019 §3.2–§3.3). All dimensionless unless stated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SageHusaConfig {
     /// SHAF or SHFAF. Default [`SageHusaVariant::Shfaf`].
@@ -49,14 +49,14 @@ pub struct SageHusaConfig {
     /// innovations (before, `Ŝ` rests on too few samples).
     pub outlier_threshold: f64,
     /// Floor of the estimate: the guard keeps every eigenvalue of `R` above `min_var` (in the
-    /// measurement's squared units, e.g. m² and (m/s)² for seed 004's position + velocity).
+    /// measurement's squared units, e.g. m² and (m/s)² for the position + velocity of Liu et al. 2019).
     /// Default 1e-4 ((1 cm)²).
     pub min_var: f64,
     /// Membership functions and defuzzification of `s_k` (SHFAF only).
     pub fuzzy: FuzzyConfig,
     /// Whether the estimate is kept within `bounds` of each update's nominal covariance, with the
     /// divergence restart of the loosely coupled filters ([`crate::robust::noise_bounds`]; ours).
-    /// False = the estimator as printed in seed 004. Default: true.
+    /// False = the estimator as printed in Liu et al. 2019. Default: true.
     pub bounded: bool,
     /// The bounds when `bounded`. Default: `[1, 4]` (the variance may grow to 4×, σ to 2×, not
     /// shrink below the nominal). Chosen on the scenario zoo: unbounded, SHAF reached 45× the

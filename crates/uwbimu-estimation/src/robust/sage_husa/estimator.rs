@@ -1,4 +1,4 @@
-//! The Sage–Husa (fuzzy) adaptive estimator of `R` (seed 004 eqs. (22)–(27), (32)–(35)) and one
+//! The Sage–Husa (fuzzy) adaptive estimator of `R` (Liu et al. 2019 eqs. (22)–(27), (32)–(35)) and one
 //! step of it, with the positive-definiteness guard and the bounded variant (module doc of
 //! [`crate::robust::sage_husa`]).
 
@@ -11,7 +11,7 @@ use uwbimu_vocabulary::validate::invalid;
 use super::config::{SageHusaConfig, SageHusaVariant};
 use super::window::FadingWindow;
 
-/// Modified innovation contribution weight `d_k = (λ − b)/(λ − b^{k+1})` of seed 004 eq. (27).
+/// Modified innovation contribution weight `d_k = (λ − b)/(λ − b^{k+1})` of Liu et al. 2019 eq. (27).
 ///
 /// `k` is the 0-based update index, `lambda = λ ≥ 1`, `b ∈ (0, 1)` the forgetting factor.
 /// `d_0 = 1`; `d_k` decreases monotonically to `(λ − b)/λ`; `λ = 1` gives the classic Sage–Husa
@@ -55,7 +55,7 @@ impl<const M: usize> SageHusaStep<M> {
     }
 }
 
-/// Sage–Husa (fuzzy) adaptive estimator of the measurement-noise covariance of seed 004,
+/// Sage–Husa (fuzzy) adaptive estimator of the measurement-noise covariance of Liu et al. 2019,
 /// SHAF / SHFAF (eqs. (22)–(36)); see the module doc for the order of one step and the guard.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SageHusa<const M: usize> {
@@ -69,7 +69,7 @@ pub struct SageHusa<const M: usize> {
 }
 
 impl<const M: usize> SageHusa<M> {
-    /// Estimator starting from `R = initial_r` (seed 004 Scenario 1 starts from "a large matrix").
+    /// Estimator starting from `R = initial_r` (Liu et al. 2019 Scenario 1 starts from "a large matrix").
     ///
     /// Validates `config` ([`SageHusaConfig::validate`]) and requires `initial_r` to be finite,
     /// symmetric (to 1e-9 relative) and to have every eigenvalue above `config.min_var`.
@@ -127,7 +127,7 @@ impl<const M: usize> SageHusa<M> {
         self.step_with_prediction(innovation, &SVector::zeros(), hph)
     }
 
-    /// One update (seed 004 eqs. (23)–(36), order in the module doc) with the predicted
+    /// One update (Liu et al. 2019 eqs. (23)–(36), order in the module doc) with the predicted
     /// measurement `ẑ = H δx⁻` of eqs. (32)–(33) (`predicted`), which the outlier correction
     /// `z' = fr ⊙ z` (eq. (35)) acts through: `z = ε + ẑ`, `ε' = z' − ẑ`.
     ///
@@ -536,7 +536,7 @@ pub(super) mod tests {
 
     #[test]
     fn six_dimensional_loose_measurement_runs_clean() {
-        // Seed 004's position + velocity fix: R_true = diag(0.01 m², 0.0025 (m/s)²).
+        // The position + velocity fix of Liu et al. 2019: R_true = diag(0.01 m², 0.0025 (m/s)²).
         let mut r_true = Cov::<6>::identity() * 0.01;
         for i in 3..6 {
             r_true[(i, i)] = 0.0025;

@@ -1,4 +1,4 @@
-//! The fuzzy regulatory factor `s_k = fuzzy(r_k)` of seed 004 eqs. (28)–(31): the membership
+//! The fuzzy regulatory factor `s_k = fuzzy(r_k)` of Liu et al. 2019 eqs. (28)–(31): the membership
 //! functions of the mismatch `r_k` (eq. (29)), the rules of eq. (31) and the defuzzification of
 //! eq. (30).
 
@@ -8,7 +8,7 @@ use uwbimu_vocabulary::validate::invalid;
 /// Number of grid points on the output universe for the Mamdani centroid.
 const CENTROID_GRID: usize = 101;
 
-/// Defuzzification of the fuzzy regulatory factor (seed 004 eq. (30), `fuzzy(·)`).
+/// Defuzzification of the fuzzy regulatory factor (Liu et al. 2019 eq. (30), `fuzzy(·)`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Defuzzification {
     /// Mamdani inference: min implication, max aggregation, centroid of the aggregated output
@@ -22,7 +22,7 @@ pub enum Defuzzification {
     WeightedAverage,
 }
 
-/// Membership functions of the fuzzy regulatory factor (seed 004 eq. (31), Figure 4, whose
+/// Membership functions of the fuzzy regulatory factor (Liu et al. 2019 eq. (31), Figure 4, whose
 /// breakpoints the text does not give; these are this crate's choice).
 ///
 /// Input `r_k ≥ 0` (eq. (29)), three sets centred at `input_centers = [c_L, c_E, c_M]`:
@@ -102,7 +102,7 @@ impl FuzzyConfig {
         [less, triangle(r, [c0, c1, c2]), more]
     }
 
-    /// `fuzzy(r_k)` of seed 004 eq. (30): the regulatory factor `s_k` for the mismatch `r ≥ 0`
+    /// `fuzzy(r_k)` of Liu et al. 2019 eq. (30): the regulatory factor `s_k` for the mismatch `r ≥ 0`
     /// (eq. (29)) by the rules of eq. (31). A non-finite `r` is treated as "More".
     pub fn regulatory_factor(&self, r: f64) -> f64 {
         let r = if r.is_finite() { r } else { f64::MAX };

@@ -1,4 +1,4 @@
-//! The fading sliding window of innovations and its covariance estimate `Ŝ_k` (seed 004
+//! The fading sliding window of innovations and its covariance estimate `Ŝ_k` (Liu et al. 2019
 //! eq. (36)), on which the outlier test (eqs. (32)–(34)) and the mismatch `r_k` (eq. (29)) rest.
 
 use nalgebra::SVector;
@@ -8,7 +8,7 @@ use uwbimu_vocabulary::math::Cov;
 use uwbimu_vocabulary::validate::invalid;
 
 /// Fading sliding window of the last `l` innovations and its covariance estimate
-/// `Ŝ_k = Σ_{j=k−l+1}^{k} σ_j ε_j ε_jᵀ`, `σ_j = a^{k−j}(1 − a)/(1 − a^l)` (seed 004 eq. (36)).
+/// `Ŝ_k = Σ_{j=k−l+1}^{k} σ_j ε_j ε_jᵀ`, `σ_j = a^{k−j}(1 − a)/(1 − a^l)` (Liu et al. 2019 eq. (36)).
 ///
 /// A ring buffer of fixed capacity `CAP` (no heap) with a runtime width `l ≤ CAP`. Before `l`
 /// innovations have arrived, the weights are renormalised over the `n < l` available ones,
