@@ -7,9 +7,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-#[cfg(feature = "parallel")]
-use rayon::prelude::*;
-use uwbimu_rs::app::generality::{run_cell, Cell, Settings, Start};
+use uwbimu_rs::app::generality::{cells, run_cell, run_cells, Cell, Settings, Start};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::sim::ZOO_NAMES;
 
@@ -36,35 +34,28 @@ fn bound(method: &str, scenario: &str, start: Start) -> f64 {
     )
 }
 
-/// Why `cell` fails its bound, or None when it holds.
-fn failure(cell: &Cell<'static>, start: Start) -> Option<String> {
-    let name = cell.method.name();
-    match run_cell(cell) {
-        Ok(r) if r.finite && r.ratio() <= bound(name, cell.scenario, start) => None,
-        Ok(r) => Some(format!(
-            "{name} on {} seed {}: {:.3} m vs uwb_ls {:.3} m ({:.2}×, finite {})",
-            cell.scenario,
-            cell.seed,
-            r.rmse_m,
-            r.uwb_ls_rmse_m,
-            r.ratio(),
-            r.finite
-        )),
-        Err(e) => Some(format!("{name} on {} seed {}: {e}", cell.scenario, cell.seed)),
-    }
-}
-
 fn check(start: Start, settings: Settings<'static>) {
-    let cells: Vec<Cell<'static>> = ZOO_NAMES
+    let cells: Vec<Cell<'static>> = cells(&Method::ALL[1..], ZOO_NAMES, &SEEDS, start, settings).unwrap();
+    let failures: Vec<String> = cells
         .iter()
-        .flat_map(|s| Method::ALL[1..].iter().flat_map(move |m| SEEDS.iter().map(move |&seed| (*s, *m, seed))))
-        .map(|(scenario, method, seed)| Cell { scenario, seed, method, start, settings })
+        .zip(run_cells(&cells))
+        .filter_map(|(cell, result)| {
+            let name = cell.method.name();
+            match result {
+                Ok(r) if r.finite && r.ratio() <= bound(name, cell.scenario, start) => None,
+                Ok(r) => Some(format!(
+                    "{name} on {} seed {}: {:.3} m vs uwb_ls {:.3} m ({:.2}×, finite {})",
+                    cell.scenario,
+                    cell.seed,
+                    r.rmse_m,
+                    r.uwb_ls_rmse_m,
+                    r.ratio(),
+                    r.finite
+                )),
+                Err(e) => Some(format!("{name} on {} seed {}: {e}", cell.scenario, cell.seed)),
+            }
+        })
         .collect();
-    // On all cores with `parallel`, else one after the other (the same cells, the same order).
-    #[cfg(feature = "parallel")]
-    let failures: Vec<String> = cells.par_iter().filter_map(|cell| failure(cell, start)).collect();
-    #[cfg(not(feature = "parallel"))]
-    let failures: Vec<String> = cells.iter().filter_map(|cell| failure(cell, start)).collect();
     assert!(failures.is_empty(), "{start:?} {settings:?}: {} cells fail:\n{}", failures.len(), failures.join("\n"));
 }
 

@@ -13,9 +13,10 @@ use uwbimu_rs::app::io::csv_out::write_columns_csv;
 use uwbimu_rs::app::io::foxglove_out::write_trajectory_mcap;
 use uwbimu_rs::app::io::mapping::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_rs::app::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
+use uwbimu_rs::app::io::{IoError as Error, IoResult as Result};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::{compare_with_truth, replay, Replay};
-use uwbimu_rs::vocabulary::error::{Error, Result};
+use uwbimu_rs::vocabulary::error::Error as CoreError;
 
 /// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter.
 #[derive(Debug, Parser)]
@@ -213,9 +214,7 @@ fn print_stats(rec: &Recording, result: &Replay) {
 
 fn run(args: &Args) -> Result<()> {
     let (cfg, method) = settings(args)?;
-    let size = std::fs::metadata(&args.file)
-        .map_err(|e| Error::Io { path: args.file.display().to_string(), reason: e.to_string() })?
-        .len();
+    let size = std::fs::metadata(&args.file).map_err(|e| Error::io(args.file.display(), e))?.len();
     let mut progress = Progress {
         total: size,
         enabled: !args.no_progress && std::io::stderr().is_terminal() && size > 8 << 20,
@@ -234,8 +233,8 @@ fn run(args: &Args) -> Result<()> {
         None
     });
     let result = replay(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth).map_err(|e| match e {
-        Error::InvalidCall(reason) if !rec.tdoa.is_empty() && !method.takes_tdoa() => {
-            Error::InvalidCall(format!("the recording has TDoA: {reason}; choose one with --method"))
+        Error::Core(CoreError::InvalidCall(reason)) if !rec.tdoa.is_empty() && !method.takes_tdoa() => {
+            CoreError::InvalidCall(format!("the recording has TDoA: {reason}; choose one with --method")).into()
         }
         other => other,
     })?;
@@ -256,7 +255,7 @@ fn run(args: &Args) -> Result<()> {
     }
     if let Some(path) = &args.out {
         let label = path.display().to_string();
-        let file = std::fs::File::create(path).map_err(|e| Error::Io { path: label.clone(), reason: e.to_string() })?;
+        let file = std::fs::File::create(path).map_err(|e| Error::io(&label, e))?;
         write_trajectory_mcap(std::io::BufWriter::new(file), &label, &trajectory, 1.0, 0.2)?;
         println!(
             "wrote {label} (foxglove.PoseInFrame /uwbimu/pose, foxglove.PosesInFrame /uwbimu/path, foxglove.FrameTransform /tf)"

@@ -5,8 +5,10 @@
 //! `OSError` (`FormatError` for corrupt content).
 
 use pyo3::create_exception;
-use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
 use pyo3::PyErr;
+use pyo3::Python;
+use uwbimu_app::io::IoError;
 use uwbimu_vocabulary::error::Error;
 
 create_exception!(uwbimu_rs._native, UwbImuError, PyValueError, "Base class of uwbimu_rs errors (a ValueError).");
@@ -20,13 +22,15 @@ create_exception!(
     "A file that is not well-formed (an OSError): bad magic, truncation, CRC mismatch, unsupported encoding."
 );
 
-/// What a binding returns on failure: a core error, mapped to its exception when it reaches
-/// Python ([`BindingError::into`]), or a Python exception raised on the way. (A core error
-/// cannot convert to `PyErr` directly: neither type is this crate's.)
+/// What a binding returns on failure: an error of the library's layers, mapped to its exception
+/// when it reaches Python, or a Python exception raised on the way. (A library error cannot
+/// convert to `PyErr` directly: neither type is this crate's.)
 #[derive(Debug)]
 pub enum BindingError {
-    /// An error of the library's layers.
+    /// An error of the vocabulary, estimation or computing application layers.
     Core(Error),
+    /// An error reading or writing a file (it may wrap a core error).
+    Io(IoError),
     /// A Python exception (a failed conversion, a callback that raised).
     Python(PyErr),
 }
@@ -37,6 +41,15 @@ pub type PyResult<T> = std::result::Result<T, BindingError>;
 impl From<Error> for BindingError {
     fn from(e: Error) -> Self {
         Self::Core(e)
+    }
+}
+
+impl From<IoError> for BindingError {
+    fn from(e: IoError) -> Self {
+        match e {
+            IoError::Core(e) => Self::Core(e),
+            other => Self::Io(other),
+        }
     }
 }
 
@@ -56,6 +69,7 @@ impl From<BindingError> for PyErr {
     fn from(e: BindingError) -> PyErr {
         match e {
             BindingError::Core(e) => exception(e),
+            BindingError::Io(e) => io_exception(e),
             BindingError::Python(e) => e,
         }
     }
@@ -67,9 +81,29 @@ fn exception(e: Error) -> PyErr {
     match e {
         Error::InvalidConfig { .. } | Error::UnknownOption { .. } => ConfigError::new_err(msg),
         Error::NotPositiveDefinite { .. } => NumericalError::new_err(msg),
-        Error::Mapping { .. } => MappingError::new_err(msg),
-        Error::Format { .. } => FormatError::new_err(msg),
-        Error::Io { .. } => PyOSError::new_err(msg),
+        _ => UwbImuError::new_err(msg),
+    }
+}
+
+/// The exception of a file error: `FileNotFoundError` for a missing file, `OSError` for other
+/// failures of the operating system or the MCAP library (the cause kept as `__cause__`),
+/// `FormatError` for malformed content, `MappingError` for a mapping that does not fit.
+fn io_exception(e: IoError) -> PyErr {
+    let msg = e.to_string();
+    match e {
+        IoError::Core(e) => exception(e),
+        IoError::Io { source, .. } => {
+            let err = if source.kind() == std::io::ErrorKind::NotFound {
+                PyFileNotFoundError::new_err(msg)
+            } else {
+                PyOSError::new_err(msg)
+            };
+            Python::attach(|py| err.set_cause(py, Some(PyOSError::new_err(source.to_string()))));
+            err
+        }
+        IoError::Mcap { .. } => PyOSError::new_err(msg),
+        IoError::Format { .. } => FormatError::new_err(msg),
+        IoError::Mapping { .. } => MappingError::new_err(msg),
         _ => UwbImuError::new_err(msg),
     }
 }

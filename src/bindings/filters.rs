@@ -8,8 +8,7 @@ use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
 use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
 use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::init::{initialize, HeadingSource};
-use uwbimu_estimation::pipeline::{smooth_recording, Estimator, StepRecord, Stream, UpdateRecord};
-use uwbimu_estimation::update::UpdateReport;
+use uwbimu_estimation::pipeline::{smoothed_nodes, Estimator, Stream, UpdateRecord};
 use uwbimu_vocabulary::config::RangeCalibration;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::math::{quat_to_wxyz, Vec3};
@@ -349,19 +348,7 @@ macro_rules! py_filter {
             /// the current time. Releases the GIL.
             fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
                 let core = self.0.estimator().core();
-                if core.segments().is_empty() {
-                    return Err(uwbimu_vocabulary::error::Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()).into());
-                }
-                let nodes = py.detach(|| smooth_recording(core))?;
-                let steps: Vec<StepRecord> = nodes
-                    .iter()
-                    .map(|n| StepRecord {
-                        t_s: n.t_s,
-                        state: n.state,
-                        position_cov: n.covariance.fixed_view::<3, 3>(uwbimu_vocabulary::state::POS, uwbimu_vocabulary::state::POS).into_owned(),
-                        still: false,
-                    })
-                    .collect();
+                let steps = py.detach(|| smoothed_nodes(core))?;
                 let mut cols = step_columns(&steps, false);
                 cols.retain(|(name, _)| *name != "still");
                 columns(py, cols)
@@ -430,15 +417,8 @@ macro_rules! py_filter {
                 }
                 let count = InertialFilter::anchors(self.0.estimator()).len();
                 let obs = anchors.iter().zip(&ranges).map(|(a, r)| Ok((anchor_index(*a, count)?, *r))).collect::<PyResult<Vec<(usize, f64)>>>()?;
-                self.0.flush()?;
-                let mut reports = vec![UpdateReport::skipped(); obs.len()];
-                self.0.estimator_mut().update_ranges(t, &obs, &mut reports)?;
-                let epoch_t = self.0.estimator().core().time_s().unwrap_or(t);
-                let mut out = applied_reports(&mut self.0);
-                out.extend(obs.iter().zip(reports).map(|(&(anchor, range_m), report)| {
-                    PyUpdateReport::from(UpdateRecord { t_s: t, epoch_t_s: epoch_t, anchor, anchor_j: None, range_m, report })
-                }));
-                Ok(out)
+                self.0.epoch(t, &obs)?;
+                Ok(applied_reports(&mut self.0))
             }
 
             /// Filter time, s (None before the first predict).

@@ -8,9 +8,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use uwbimu_app::columns::output_columns;
 use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
-use uwbimu_app::io::{read_recording_file, Mapping, ReadStats, Recording, ReplayConfig};
+use uwbimu_app::io::{read_recording_file, IoError, Mapping, ReadStats, Recording, ReplayConfig};
 use uwbimu_app::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
-use uwbimu_vocabulary::error::Error;
 
 use super::convert::columns;
 use super::errors::PyResult;
@@ -220,7 +219,7 @@ fn write_mcap(
     let tdoa = read_tdoa(tdoa, inputs.anchors.len())?;
     let label = path.display().to_string();
     py.detach(|| {
-        let file = std::fs::File::create(&path).map_err(|e| Error::Io { path: label.clone(), reason: e.to_string() })?;
+        let file = std::fs::File::create(&path).map_err(|e| IoError::io(&label, e))?;
         let sink = std::io::BufWriter::new(file);
         let streams = RecordingStreams { imu: &inputs.imu, ranges: &inputs.ranges, tdoa: &tdoa, anchors: &inputs.anchors };
         write_recording_mcap(sink, &label, &streams, range_std, true)

@@ -4,7 +4,7 @@
 use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict};
-use uwbimu_app::generality::{run_cell, Cell, CellResult, Settings, Start};
+use uwbimu_app::generality::{self, CellResult, Settings, Start};
 use uwbimu_app::methods::Method;
 use uwbimu_app::sim::{self, DriveOptions, KinematicSample, OverrideValue, SimConfig, SimData, Trajectory};
 use uwbimu_vocabulary::config::FilterConfig;
@@ -286,42 +286,11 @@ fn sim_zoo_matrix<'py>(
     settings: &str,
     config: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use rayon::prelude::*;
-    let start = match start {
-        "given" => Start::Given,
-        "self" => Start::SelfInit,
-        _ => return Err(Error::UnknownOption { kind: "start", got: start.into(), allowed: "given, self".into() }.into()),
-    };
     let custom = read_config(config)?;
-    let settings = match settings {
-        "matched" => Settings::Matched,
-        "defaults" => Settings::Defaults,
-        "custom" => Settings::Custom(&custom),
-        _ => {
-            return Err(Error::UnknownOption {
-                kind: "settings",
-                got: settings.into(),
-                allowed: "matched, defaults, custom".into(),
-            }
-            .into())
-        }
-    };
+    let settings = Settings::parse(settings, &custom)?;
     let methods = methods.iter().map(|m| Method::parse(m)).collect::<Result<Vec<_>, Error>>()?;
-    if let Some(bad) = methods.iter().find(|m| **m == Method::UwbLs) {
-        return Err(Error::InvalidCall(format!("{} is the baseline of the matrix, not a cell", bad.name())).into());
-    }
-    for s in &scenarios {
-        if !sim::ZOO_NAMES.contains(&s.as_str()) {
-            return Err(Error::UnknownOption { kind: "zoo scenario", got: s.clone(), allowed: sim::ZOO_NAMES.join(", ") }.into());
-        }
-    }
-    let mut cells: Vec<Cell<'_>> = Vec::with_capacity(scenarios.len() * seeds.len() * methods.len());
-    for scenario in &scenarios {
-        for &seed in &seeds {
-            cells.extend(methods.iter().map(|&method| Cell { scenario, seed, method, start, settings }));
-        }
-    }
-    let results = py.detach(|| cells.par_iter().map(run_cell).collect::<Vec<_>>());
+    let cells = generality::cells(&methods, &scenarios, &seeds, Start::parse(start)?, settings)?;
+    let results = py.detach(|| generality::run_cells(&cells));
     let results = results.into_iter().collect::<Result<Vec<CellResult>, Error>>()?;
     let d = PyDict::new(py);
     d.set_item("scenario", cells.iter().map(|c| c.scenario).collect::<Vec<_>>())?;

@@ -171,3 +171,11 @@ def test_simulator_tdoa_round_trip_and_replay(tmp_path):
         uwbimu_rs.read_mcap(path, mapping={"tdoa": {"tdoa": "distDiff"}})
     with pytest.raises(ValueError, match="unknown field `anchor`"):
         uwbimu_rs.read_mcap(path, mapping={"tdoa": {"anchor": "idA"}})
+
+
+def test_a_file_error_names_the_file_and_keeps_its_cause(tmp_path):
+    run = uwbimu_rs.sim.preset("seed000", seed=0)
+    target = tmp_path / "no_such_dir" / "out.mcap"
+    with pytest.raises(FileNotFoundError, match="no_such_dir/out.mcap") as info:
+        uwbimu_rs.sim.write_mcap(run, target)
+    assert isinstance(info.value.__cause__, OSError) and "No such file" in str(info.value.__cause__)

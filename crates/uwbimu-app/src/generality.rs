@@ -18,7 +18,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
-use crate::sim::{simulate, zoo, Scenario};
+use crate::sim::{simulate, zoo, Scenario, ZOO_NAMES};
 
 /// Time after the start left out of a self-initialised run's RMSE, s.
 pub const SELF_INIT_SETTLE_S: f64 = 10.0;
@@ -35,6 +35,17 @@ pub enum Start {
     SelfInit,
 }
 
+impl Start {
+    /// Parses `"given"` or `"self"`.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "given" => Ok(Self::Given),
+            "self" => Ok(Self::SelfInit),
+            _ => Err(Error::UnknownOption { kind: "start", got: name.into(), allowed: "given, self".into() }),
+        }
+    }
+}
+
 /// Which configuration the filter gets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Settings<'a> {
@@ -46,6 +57,18 @@ pub enum Settings<'a> {
     Defaults,
     /// A configuration of the caller's (e.g. to try settings on the zoo).
     Custom(&'a FilterConfig),
+}
+
+impl<'a> Settings<'a> {
+    /// Parses `"matched"`, `"defaults"` or `"custom"` (which takes `custom`).
+    pub fn parse(name: &str, custom: &'a FilterConfig) -> Result<Self> {
+        match name {
+            "matched" => Ok(Self::Matched),
+            "defaults" => Ok(Self::Defaults),
+            "custom" => Ok(Self::Custom(custom)),
+            _ => Err(Error::UnknownOption { kind: "settings", got: name.into(), allowed: "matched, defaults, custom".into() }),
+        }
+    }
 }
 
 /// One cell of the matrix.
@@ -80,6 +103,45 @@ impl CellResult {
     /// `rmse_m / uwb_ls_rmse_m`.
     pub fn ratio(&self) -> f64 {
         self.rmse_m / self.uwb_ls_rmse_m
+    }
+}
+
+/// Every cell of the matrix over `scenarios` × `seeds` × `methods` (in that nesting order) with
+/// one `start` and `settings`. Fails on an unknown scenario and on `uwb_ls`, the baseline every
+/// cell is compared with.
+pub fn cells<'a, S: AsRef<str>>(
+    methods: &[Method],
+    scenarios: &'a [S],
+    seeds: &[u64],
+    start: Start,
+    settings: Settings<'a>,
+) -> Result<Vec<Cell<'a>>> {
+    if let Some(bad) = methods.iter().find(|m| **m == Method::UwbLs) {
+        return Err(Error::InvalidCall(format!("{} is the baseline of the matrix, not a cell", bad.name())));
+    }
+    let mut out = Vec::with_capacity(scenarios.len() * seeds.len() * methods.len());
+    for scenario in scenarios.iter().map(AsRef::as_ref) {
+        if !ZOO_NAMES.contains(&scenario) {
+            return Err(Error::UnknownOption { kind: "zoo scenario", got: scenario.into(), allowed: ZOO_NAMES.join(", ") });
+        }
+        for &seed in seeds {
+            out.extend(methods.iter().map(|&method| Cell { scenario, seed, method, start, settings }));
+        }
+    }
+    Ok(out)
+}
+
+/// Runs every cell ([`run_cell`]), on all cores with the `parallel` feature, else one after the
+/// other; one result per cell, in order.
+pub fn run_cells(cells: &[Cell<'_>]) -> Vec<Result<CellResult>> {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        cells.par_iter().map(run_cell).collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        cells.iter().map(run_cell).collect()
     }
 }
 

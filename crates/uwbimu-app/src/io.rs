@@ -8,6 +8,7 @@
 pub mod anchors;
 pub mod cdr;
 pub mod csv_out;
+mod error;
 pub mod field_path;
 pub mod foxglove_out;
 pub mod mapping;
@@ -20,6 +21,7 @@ pub mod replay_config;
 pub mod topics;
 pub mod truth_file;
 
+pub use error::{IoError, IoResult};
 pub use mapping::{Mapping, TimeSource};
 pub use recording::{read_recording, read_recording_file, ReadStats, Recording};
 pub use replay_config::ReplayConfig;

@@ -2,8 +2,9 @@
 //! per-anchor update statistics and the comparison with ground truth that the `uwbimu-replay`
 //! binary and `uwbimu_rs.replay` report.
 
+use crate::io::IoResult as Result;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
-use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::PosePoint;
 
@@ -57,7 +58,7 @@ impl Replay {
 /// needs a method that takes them ([`Method::takes_tdoa`]).
 ///
 /// # Errors
-/// As [`run_method`]; [`Error::InsufficientData`] if the recording has no IMU samples, no
+/// As [`run_method`]; [`CoreError::InsufficientData`] if the recording has no IMU samples, no
 /// ranges and no TDoA.
 pub fn replay(
     rec: &Recording,
@@ -67,12 +68,13 @@ pub fn replay(
     smooth: bool,
 ) -> Result<Replay> {
     if rec.imu.is_empty() || (rec.ranges.is_empty() && rec.tdoa.is_empty()) {
-        return Err(Error::InsufficientData(format!(
+        return Err(CoreError::InsufficientData(format!(
             "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
             rec.imu.len(),
             rec.ranges.len(),
             rec.tdoa.len()
-        )));
+        ))
+        .into());
     }
     let input = BatchInput {
         imu: &rec.imu,

@@ -289,6 +289,27 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Applies the open epoch (if any), then `ranges` (anchor, m) as one epoch measured at `t_s`
+    /// (no alignment: they share their time), keeping one [`UpdateRecord`] per range for
+    /// [`Pipeline::take_applied`]. The streaming form of an epoch a caller has already gathered.
+    pub fn epoch<E: Estimator>(&mut self, est: &mut E, t_s: f64, ranges: &[(usize, f64)]) -> Result<()> {
+        self.flush(est)?;
+        self.check_order("range", t_s)?;
+        self.reports.clear();
+        self.reports.resize(ranges.len(), UpdateReport::skipped());
+        est.feed_ranges(t_s, ranges, &mut self.reports)?;
+        let epoch_t_s = est.time_s().unwrap_or(t_s);
+        self.applied.extend(ranges.iter().zip(&self.reports).map(|(&(anchor, range_m), report)| UpdateRecord {
+            t_s,
+            epoch_t_s,
+            anchor,
+            anchor_j: None,
+            range_m,
+            report: *report,
+        }));
+        Ok(())
+    }
+
     /// Moves the records of the ranges applied since the last call into `out`.
     pub fn take_applied(&mut self, out: &mut Vec<UpdateRecord>) {
         out.append(&mut self.applied);
@@ -352,6 +373,12 @@ impl<E: Estimator> Stream<E> {
             check_tdoa(self.estimator.anchors(), m)?;
         }
         self.pipeline.observation(&mut self.estimator, o)
+    }
+
+    /// [`Pipeline::epoch`], after checking the ranges' anchor indices and values.
+    pub fn epoch(&mut self, t_s: f64, ranges: &[(usize, f64)]) -> Result<()> {
+        check_ranges(self.estimator.anchors(), ranges)?;
+        self.pipeline.epoch(&mut self.estimator, t_s, ranges)
     }
 
     /// [`Pipeline::flush`].
@@ -476,6 +503,23 @@ pub fn smoothed_steps(trace: &Trace, core: &InertialCore) -> Result<Vec<StepReco
             }
             let n = &nodes[k];
             StepRecord { state: n.state, position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(), ..*step }
+        })
+        .collect())
+}
+
+/// The smoothed track of a streaming filter: one record per node of [`smooth_recording`] (each
+/// propagation start and the current time), `still` false. Fails when nothing was recorded.
+pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
+    if core.segments().is_empty() {
+        return Err(Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()));
+    }
+    Ok(smooth_recording(core)?
+        .iter()
+        .map(|n| StepRecord {
+            t_s: n.t_s,
+            state: n.state,
+            position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(),
+            still: false,
         })
         .collect())
 }

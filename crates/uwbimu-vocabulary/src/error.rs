@@ -1,7 +1,8 @@
-//! Error type shared by every module of the crate.
-//!
-//! One `#[non_exhaustive]` enum with structured fields; the Python bindings map it to
-//! exceptions in exactly one place (`bindings::errors`).
+//! The error of the vocabulary and estimation layers (and of the applications that only compute):
+//! invalid input, configuration or call, and numerical failure. One `#[non_exhaustive]` enum with
+//! structured fields. Reading and writing files has its own error in the layer that does it
+//! (`uwbimu_app::io::IoError`, which wraps this one); the Python bindings map both to exceptions
+//! in one place.
 
 /// Everything that can go wrong in uwbimu_rs.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -95,32 +96,6 @@ pub enum Error {
     /// A streaming call out of order (e.g. an update before the first predict).
     #[error("{0}")]
     InvalidCall(String),
-    /// A file could not be opened, read or written.
-    #[error("{path}: {reason}")]
-    Io {
-        /// The file.
-        path: String,
-        /// What the operating system said.
-        reason: String,
-    },
-    /// A file or message is not well-formed (bad magic, CRC mismatch, truncation, a payload that
-    /// does not match its schema, an unsupported encoding).
-    #[error("{what}: {reason}")]
-    Format {
-        /// What was being read (file, topic, schema).
-        what: String,
-        /// What is wrong.
-        reason: String,
-    },
-    /// A topic/field mapping that does not fit the recording (missing topic, a field the schema
-    /// does not have, a field of the wrong type).
-    #[error("mapping `{field}`: {reason}")]
-    Mapping {
-        /// The mapping entry (e.g. `uwb.range`).
-        field: String,
-        /// Why it does not fit.
-        reason: String,
-    },
 }
 
 /// Result with the crate's [`Error`].

@@ -6,7 +6,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::math::Vec3;
 
 /// Name of the MCAP metadata record holding anchor positions.
@@ -73,8 +73,7 @@ fn finite3(path: &Path, id: &str, v: &[f64]) -> Result<Vec3> {
 /// # Errors
 /// [`Error::Io`] if unreadable, [`Error::Format`] for bad content or an unknown extension.
 pub fn read_anchor_file(path: &Path) -> Result<BTreeMap<String, Vec3>> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| Error::Io { path: path.display().to_string(), reason: e.to_string() })?;
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display().to_string(), e))?;
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let mut out = BTreeMap::new();
     match ext.as_str() {

@@ -7,7 +7,7 @@
 //! `T[]` and `T[<=N]` a uint32 count. Nested messages add no padding of their own. Parameter-list
 //! and delimited encodings are rejected.
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 
 use crate::io::msg_schema::{ArrayKind, FieldType, MsgSchema, Primitive};
 

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 
 use crate::columns::Columns;
 
@@ -12,7 +12,7 @@ use crate::columns::Columns;
 /// # Errors
 /// [`Error::Io`] if the file cannot be written.
 pub fn write_columns_csv(path: &Path, cols: &Columns) -> Result<()> {
-    let io = |e: std::io::Error| Error::Io { path: path.display().to_string(), reason: e.to_string() };
+    let io = |e: std::io::Error| Error::io(path.display().to_string(), e);
     let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
     let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
     writeln!(out, "{}", names.join(",")).map_err(io)?;

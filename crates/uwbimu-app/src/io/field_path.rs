@@ -5,7 +5,7 @@
 //! A path is a `.`-separated list of field names; a segment ending in `[]` iterates over an array
 //! (at most one per path), `[k]` picks element k.
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::math::Vec3;
 
 use crate::io::cdr::Value;

@@ -7,10 +7,10 @@
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 
+use crate::io::{IoError as Error, IoResult as Result};
 use mcap::records::MessageHeader;
 use mcap::WriteOptions;
 use serde_json::json;
-use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::records::PosePoint;
 
@@ -48,10 +48,6 @@ fn pose_json(p: &Vec3, q: &Quat) -> serde_json::Value {
     json!({"position": {"x": p.x, "y": p.y, "z": p.z}, "orientation": {"x": q.i, "y": q.j, "z": q.k, "w": q.w}})
 }
 
-fn write_error(what: &str, e: impl std::fmt::Display) -> Error {
-    Error::Io { path: what.to_string(), reason: e.to_string() }
-}
-
 /// Writes `trajectory` (time s, position m, orientation; identity when absent) to `sink`.
 /// `label` names the output in errors; the path is published every `path_period_s` with poses
 /// spaced at least `path_spacing_s` apart.
@@ -65,7 +61,7 @@ pub fn write_trajectory_mcap<W: Write + Seek>(
     path_period_s: f64,
     path_spacing_s: f64,
 ) -> Result<()> {
-    let err = |e: mcap::McapError| write_error(label, e);
+    let err = |source: mcap::McapError| Error::Mcap { path: label.to_string(), source };
     let mut w = WriteOptions::new().profile("").create(sink).map_err(err)?;
     let mut channel = |name: &str, topic: &str| -> Result<u16> {
         let schema = w.add_schema(name, "jsonschema", schema_text(name).as_bytes()).map_err(err)?;
@@ -83,7 +79,7 @@ pub fn write_trajectory_mcap<W: Write + Seek>(
         let mut put = |channel_id: u16, v: serde_json::Value| -> Result<()> {
             sequence += 1;
             let header = MessageHeader { channel_id, sequence, log_time: ns, publish_time: ns };
-            let bytes = serde_json::to_vec(&v).map_err(|e| write_error(label, e))?;
+            let bytes = serde_json::to_vec(&v).map_err(|e| Error::io(label, e.into()))?;
             w.write_to_known_channel(&header, &bytes).map_err(err)
         };
         put(pose_ch, json!({"timestamp": stamp, "frame_id": "map", "pose": pose_json(p, &q)}))?;

@@ -5,8 +5,9 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use crate::io::{IoError as Error, IoResult as Result};
 use serde::Deserialize;
-use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::error::Error as CoreError;
 
 /// Which clock stamps a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -25,7 +26,7 @@ impl TimeSource {
         match s {
             "header" => Ok(Self::Header),
             "log" => Ok(Self::Log),
-            _ => Err(Error::UnknownOption { kind: "time source", got: s.into(), allowed: "header, log".into() }),
+            _ => Err(CoreError::UnknownOption { kind: "time source", got: s.into(), allowed: "header, log".into() }.into()),
         }
     }
 }

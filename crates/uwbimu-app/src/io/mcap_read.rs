@@ -10,9 +10,9 @@ use std::io::Read;
 use std::path::Path;
 use std::sync::Arc;
 
+use crate::io::{IoError as Error, IoResult as Result};
 use mcap::records::{ChunkHeader, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
-use uwbimu_vocabulary::error::{Error, Result};
 
 /// A schema record.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -175,8 +175,7 @@ pub fn read_mcap<R: Read>(
             LinearReadEvent::ReadRequest(need) => {
                 // Never ask for more than what is left of the file (corrupt lengths).
                 let want = need.min((size.saturating_sub(read_total)).max(1) as usize).clamp(1, 1 << 20);
-                let n =
-                    source.read(reader.insert(want)).map_err(|e| Error::Io { path: label.to_string(), reason: e.to_string() })?;
+                let n = source.read(reader.insert(want)).map_err(|e| Error::io(label.to_string(), e))?;
                 reader.notify_read(n);
                 read_total += n as u64;
                 progress(read_total);
@@ -223,7 +222,7 @@ fn describe(e: &mcap::McapError) -> String {
 /// [`Error::Io`] if the file cannot be opened; otherwise as [`read_mcap`].
 pub fn read_mcap_file(path: &Path, on_event: impl FnMut(McapEvent<'_>) -> Result<()>, progress: impl FnMut(u64)) -> Result<()> {
     let label = path.display().to_string();
-    let io = |e: std::io::Error| Error::Io { path: label.clone(), reason: e.to_string() };
+    let io = |e: std::io::Error| Error::io(label.clone(), e);
     let file = File::open(path).map_err(io)?;
     let size = file.metadata().map_err(io)?.len();
     read_mcap(std::io::BufReader::with_capacity(1 << 16, file), size, &label, on_event, progress)

@@ -8,7 +8,7 @@
 
 use std::collections::HashMap;
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 
 /// A primitive ROS 2 field type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

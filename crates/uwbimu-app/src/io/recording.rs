@@ -6,7 +6,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 
@@ -346,7 +346,7 @@ pub fn read_recording<R: std::io::Read>(
     r.buffer.finish(|t, i| r.released.push(t, i));
     r.stats.late_dropped = r.buffer.late;
     r.stats.reordered = r.buffer.reordered;
-    check_topics(&r)?;
+    check_topics(&mut r)?;
     assemble(r)
 }
 
@@ -356,7 +356,7 @@ pub fn read_recording<R: std::io::Read>(
 /// As [`read_recording`]; [`Error::Io`] if the file cannot be opened.
 pub fn read_recording_file(path: &Path, mapping: &Mapping, progress: impl FnMut(u64)) -> Result<Recording> {
     let label = path.display().to_string();
-    let io = |e: std::io::Error| Error::Io { path: label.clone(), reason: e.to_string() };
+    let io = |e: std::io::Error| Error::io(label.clone(), e);
     let file = std::fs::File::open(path).map_err(io)?;
     let size = file.metadata().map_err(io)?.len();
     read_recording(std::io::BufReader::with_capacity(1 << 16, file), size, &label, mapping, progress)
@@ -371,7 +371,9 @@ fn topic_list(r: &Reader<'_>) -> String {
     }
 }
 
-fn check_topics(r: &Reader<'_>) -> Result<()> {
+fn check_topics(r: &mut Reader<'_>) -> Result<()> {
+    let misfit = r.uwb_misfit.take();
+    let r = &*r;
     let m = r.mapping;
     let has = |role: TopicRole| r.stats.topics.iter().any(|t| t.role == role);
     let missing = |field: &str, what: String| Error::Mapping {
@@ -392,8 +394,8 @@ fn check_topics(r: &Reader<'_>) -> Result<()> {
         }
     }
     if !has(TopicRole::Uwb) && !has(TopicRole::Tdoa) {
-        return Err(match &r.uwb_misfit {
-            Some(e) => e.clone(),
+        return Err(match misfit {
+            Some(e) => e,
             None => missing(
                 "uwb.topics",
                 "no UWB range or TDoA topic (name one in uwb.topics / tdoa.topics, or give field paths such as uwb.range)".into(),

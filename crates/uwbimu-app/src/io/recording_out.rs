@@ -7,10 +7,10 @@
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 
+use crate::io::{IoError as Error, IoResult as Result};
 use mcap::records::{MessageHeader, Metadata};
 use mcap::WriteOptions;
 use serde_json::json;
-use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 
@@ -145,7 +145,7 @@ pub fn write_recording_mcap<W: Write + Seek>(
     compress: bool,
 ) -> Result<()> {
     let RecordingStreams { imu, ranges, tdoa, anchors } = *streams;
-    let err = |e: mcap::McapError| Error::Io { path: label.to_string(), reason: e.to_string() };
+    let err = |source: mcap::McapError| Error::Mcap { path: label.to_string(), source };
     let mut w =
         WriteOptions::new().profile("").compression(compress.then_some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
     let imu_schema = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", IMU_MSG.as_bytes()).map_err(err)?;

@@ -6,8 +6,9 @@
 
 use std::path::Path;
 
+use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
-use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::io::mapping::Mapping;
 use crate::methods::{Method, DEFAULT_METHOD};
@@ -26,7 +27,7 @@ pub struct ReplayConfig {
 }
 
 fn config_error(reason: impl Into<String>) -> Error {
-    Error::InvalidConfig { field: "replay file".into(), reason: reason.into() }
+    CoreError::InvalidConfig { field: "replay file".into(), reason: reason.into() }.into()
 }
 
 /// A TOML value as a [`ConfigValue`].
@@ -47,13 +48,13 @@ impl ReplayConfig {
     /// The method to replay with: `given` (a command-line or call argument), else the file's
     /// `method`, else [`DEFAULT_METHOD`]. Fails on an unknown name.
     pub fn method_or(&self, given: Option<&str>) -> Result<Method> {
-        Method::parse(given.or(self.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()))
+        Ok(Method::parse(given.or(self.method.as_deref()).unwrap_or(DEFAULT_METHOD.name()))?)
     }
 
     /// Parses TOML text; `base_dir` resolves relative anchor / ground-truth file paths.
     ///
     /// # Errors
-    /// [`Error::InvalidConfig`] / [`Error::UnknownOption`] for bad filter settings or unknown
+    /// [`CoreError::InvalidConfig`] / [`CoreError::UnknownOption`] for bad filter settings or unknown
     /// top-level keys, [`Error::Mapping`] for a bad mapping table.
     pub fn from_toml(text: &str, base_dir: &Path) -> Result<Self> {
         let table: toml::Table = toml::from_str(text).map_err(|e| config_error(e.to_string()))?;
@@ -91,11 +92,12 @@ impl ReplayConfig {
                         .map_err(|e: toml::de::Error| Error::Mapping { field: "mapping".into(), reason: e.to_string() })?;
                 }
                 other => {
-                    return Err(Error::UnknownOption {
+                    return Err(CoreError::UnknownOption {
                         kind: "replay file key",
                         got: other.into(),
                         allowed: "method, config, initial, mapping".into(),
-                    })
+                    }
+                    .into())
                 }
             }
         }
@@ -113,8 +115,7 @@ impl ReplayConfig {
     /// # Errors
     /// [`Error::Io`] if unreadable; otherwise as [`ReplayConfig::from_toml`].
     pub fn read(path: &Path) -> Result<Self> {
-        let text =
-            std::fs::read_to_string(path).map_err(|e| Error::Io { path: path.display().to_string(), reason: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display().to_string(), e))?;
         Self::from_toml(&text, path.parent().unwrap_or(Path::new(".")))
     }
 }

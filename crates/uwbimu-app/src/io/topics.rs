@@ -3,8 +3,8 @@
 //! `uwbimu.UwbRange`), TDoA (through the field mapping), anchor lists and ground-truth poses. Each decoder is built once per
 //! channel from its schema, so a mapping that does not fit fails before the first message.
 
+use crate::io::{IoError as Error, IoResult as Result};
 use serde::Deserialize;
-use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 
 use crate::io::anchors::json_id;

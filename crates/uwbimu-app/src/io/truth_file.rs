@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use uwbimu_vocabulary::error::{Error, Result};
+use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::math::Vec3;
 
 /// Reads a ground-truth CSV into (time s, position m), sorted by time.
@@ -12,8 +12,7 @@ use uwbimu_vocabulary::math::Vec3;
 /// [`Error::Io`] if unreadable, [`Error::Format`] for a line that is not 4 numbers or an empty
 /// file.
 pub fn read_truth_csv(path: &Path) -> Result<Vec<(f64, Vec3)>> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| Error::Io { path: path.display().to_string(), reason: e.to_string() })?;
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display().to_string(), e))?;
     let bad = |reason: String| Error::Format { what: format!("ground truth {}", path.display()), reason };
     let mut out = Vec::new();
     for (n, line) in text.lines().enumerate() {
