@@ -8,9 +8,8 @@
 //! at the prior, `S_k = H·P⁻·Hᵀ + R` before any robust inflation; constants dropped). Maximising
 //! the innovation likelihood is the classical maximum-likelihood noise identification (prediction
 //! error decomposition of a Kalman filter's likelihood); the heavy tail makes an outlier cost
-//! only logarithmically, so NLOS spikes do not drive `range_std` up to cover them (with a Huber
-//! loss, linear beyond 3 σ, the zoo's outlier scenario tuned `range_std` to 0.96 m and its RMSE
-//! went from 0.053 to 0.301 m).
+//! only logarithmically, so NLOS spikes do not drive `range_std` up to cover them (a Huber loss,
+//! linear beyond 3 σ, did on the zoo's outlier scenario: docs/design-notes.md#tuning-likelihood).
 //!
 //! **With ground truth** (`(t, tag position)`) the score is the horizontal RMSE of the tag track
 //! (smoothed when the input asks for smoothing), leaving out the first [`SETTLE_S`] when the filter

@@ -30,9 +30,9 @@ pub use l1::{l1_fix, l1_solve_epoch, L1Config, L1Fix};
 /// Relative singular-value threshold below which the linear system counts as rank-deficient.
 const RANK_RCOND: f64 = 1e-10;
 /// Condition number of `G` above which [`solve_epoch`] does not trust the 3-D linear seed
-/// (near-coplanar anchors) and seeds Gauss–Newton from the planar solution instead. In seeded
-/// trials (0.1 m range noise, five anchors) the 3-D seed gave the lower Gauss–Newton error up to a
-/// condition number of about 150 and the planar seed from about 500 on.
+/// (near-coplanar anchors) and seeds Gauss–Newton from the planar solution instead. It lies between
+/// the condition numbers up to which the 3-D seed, and from which the planar seed, gave the lower
+/// Gauss–Newton error in seeded trials (docs/design-notes.md#multilateration-seeds).
 const MAX_LINEAR_CONDITION: f64 = 300.0;
 /// Relative eigenvalue threshold below which `JᵀJ` counts as singular.
 const NORMAL_RCOND: f64 = 1e-12;
@@ -360,7 +360,8 @@ pub fn gauss_newton_fix(
 /// the smallest residual RMS is kept. Last, Gauss–Newton runs from below every anchor; its fix
 /// replaces the kept one when it is lower and fits about as well (sum of squares within 3.84·σ²
 /// of it): anchors are mounted above the tag (near one anchor of a hall the fixes flipped between
-/// two heights 1.5 m apart, which spoiled self-initialisation on the zoo's `forklift`).
+/// two heights, which spoiled self-initialisation on the zoo's `forklift`;
+/// docs/design-notes.md#multilateration-seeds).
 ///
 /// Returns `None` on degenerate input (too few ranges, collinear anchors, unknown anchor index,
 /// negative or non-finite values).

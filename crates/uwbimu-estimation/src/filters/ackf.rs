@@ -51,8 +51,8 @@ impl Reference {
 ///   bias (its tilt, and along z its magnitude), so the observation would pin the bias estimate
 ///   at zero. And a turning vehicle's specific force leans by `ω × v`, which the residual-driven
 ///   weights barely notice (0.5 m/s² sideways changes `e_m + e_d` by 0.003): the attitude leaned
-///   with it. Measured on the scenario zoo (4 seeds, worst ratio to UWB-only): after the 10 s
-///   outage 2.5× → 0.50× (CKF 0.60×), the vehicle loop 0.77× → 0.54×, mixed rates 0.71× → 0.51×.
+///   with it. Both showed on the scenario zoo, after its outage and in turns (figures:
+///   docs/design-notes.md#ackf-gravity-reference).
 /// * **Observations**: at every IMU sample the accelerometer reading, and after the reference
 ///   period at every [`InertialFilter::update_magnetometer`] call the magnetometer reading, as
 ///   vector observations of the reference ([`crate::models::attitude`]) with noise `σ²·U·I₃`, `U`

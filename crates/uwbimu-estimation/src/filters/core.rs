@@ -273,8 +273,8 @@ impl ReacquisitionWidening {
     /// velocity independently left ARCKF re-diverging after each re-acquisition), plus
     /// `(|d|/T)²·I` on the velocity block for other causes. With an infinite horizon only the
     /// position is widened, by `d·dᵀ`: enough for the fix to move it all the way (unwidened, a fix
-    /// 6 m from ARCKF's faded prior moved it two thirds of the way and, through the prior's
-    /// correlations, tilted it by 5°). A zero `d` leaves `p` unchanged.
+    /// metres from ARCKF's faded prior moved it only part of the way and, through the prior's
+    /// correlations, tilted it; docs/design-notes.md#reacquisition). A zero `d` leaves `p` unchanged.
     pub fn apply(&self, p: &mut ErrCov) {
         let v = self.discrepancy / self.horizon_s.max(MIN_WIDENING_HORIZON_S);
         let mut w = uwbimu_vocabulary::state::ErrVec::zeros();

@@ -23,8 +23,8 @@ use crate::update::{inject_and_reset, leading_rows_step, vector_step, UpdateRepo
 /// their least-squares covariances (`σ²(JᵀJ)⁻¹` scaled by `loose_noise_scale` and, with
 /// `loose_variance_factor` (default) and when above 1, by the fix's a-posteriori variance factor
 /// [`crate::multilateration::Fix::variance_factor`] — our addition, so a fix spoiled by an outlier
-/// range counts as imprecise (Liu et al. 2019 scenario 2, 10 % outliers: ESKF 0.135 m with it, 0.83 m
-/// without; the paper's form is `loose_variance_factor = false`); and
+/// range counts as imprecise (Liu et al. 2019 scenario 2: docs/design-notes.md#loose-variance-factor;
+/// the paper's form is `loose_variance_factor = false`); and
 /// `(Σ_k + Σ_{k−1})/Δt²`). With coplanar anchors (vertical span below 0.3 m) the fixes update x
 /// and y only; with 3-D anchors an epoch that only has a planar fallback fix (fewer than four
 /// ranges) is skipped. An epoch that cannot be solved (too few ranges, degenerate

@@ -96,8 +96,8 @@ named_filter!(
 
 /// The NLOS skew of `best`'s range test unless `robust.nlos_skew` is set
 /// ([`crate::robust::tested_nis`]): a range longer than predicted is inflated from `γ > χ²/4`
-/// (1.66 at α = 0.01, 1.3 σ), a shorter one from `γ > χ²`. Chosen on the zoo (seeds 0–1, 2 and 8
-/// also measured; held out on seeds 2–5) and isas-walk1 (README "`best` and the isas-walk1 table").
+/// (1.66 at α = 0.01, 1.3 σ), a shorter one from `γ > χ²`. Chosen on the scenario zoo and
+/// isas-walk1 (figures: docs/design-notes.md#best-nlos-skew).
 pub const BEST_NLOS_SKEW: f64 = 4.0;
 
 named_filter!(

@@ -4,8 +4,9 @@
 //! A single range update linearised at a prior metres away is poor: the range directions are
 //! wrong by tens of degrees, the EKF jumps to a wrong point with a small covariance and needs
 //! several epochs (and a corrupted velocity) to come back, and the unscented update, whose sigma
-//! points then straddle the anchors, barely moves at all (after the zoo's 10 s outage with a
-//! handheld-grade process noise, the 15-state UKF was still 2.4 m off 4 s later). When the
+//! points then straddle the anchors, barely moves at all (after the zoo's outage with a
+//! handheld-grade process noise, the 15-state UKF was still metres off seconds later;
+//! docs/design-notes.md#reacquisition). When the
 //! prior's horizontal position variance exceeds [`REACQUIRE_RATIO`] times the fix's (and at least
 //! [`REACQUIRE_MIN_STD_M`]²), and the fix passes its own consistency test, the epoch is applied
 //! as the fix — the tag position with its least-squares covariance, a linear update that is the
@@ -14,18 +15,18 @@
 //! with a fix at their plane height ([`crate::planar::PlanarFilter`]).
 //!
 //! **Divergence.** A filter can also be wrong *and* confident: a non-robust IEKF that chased an
-//! outlier epoch to a wrong minimum (metres off, velocity error 15 m/s, position σ 2 cm), or a
+//! outlier epoch to a wrong minimum (metres off, with a position σ of centimetres), or a
 //! χ²-gated filter that has locked its ranges out. [`DivergenceWatch`] notices it: when at least
 //! [`DIVERGED_SHARE`] of an epoch's ranges (and three or more) fail their own `χ²₁` test at the
 //! prior (α = 10⁻⁴), the epoch's UWB-only fix is computed; if that fix is consistent, more than
 //! [`DIVERGED_DISTANCE_M`] from the filter and beyond the `χ²` bound of their joint covariance,
 //! for [`DIVERGED_EPOCHS`] epochs in a row, the filter re-acquires on it. An epoch of fewer than
 //! three ranges is not judged: with anchors at mixed rates most epochs hold two, and letting them
-//! reset the count left a confident RIEKF 17 m off after an acceleration outlier. NLOS and
+//! reset the count left a confident RIEKF metres off after an acceleration outlier. NLOS and
 //! outliers do not trigger it: they
 //! spoil some ranges, not nearly all (with two of four anchors biased by ~1 m, a watch on the mean
-//! innovation re-acquired on the biased fix and raised CRIEKF's worst error from 1.55 to 2.35 m on
-//! the NLOS preset of Li & Wang 2020).
+//! innovation re-acquired on the biased fix and raised CRIEKF's worst error on
+//! the NLOS preset of Li & Wang 2020; figures: docs/design-notes.md#divergence-watch).
 //!
 //! Either way the prior is first widened by the discrepancy to the fix ([`reacquire`]).
 
@@ -146,15 +147,16 @@ const DIVERGED_NIS_BOUND: f64 = 27.631_021_115_928_547;
 /// A prior that does not cover the discrepancy to the fix (`disagrees`) is first widened by it
 /// ([`crate::filters::core::ReacquisitionWidening`]): after a divergence, as built up by a
 /// velocity error since the last good epoch; a prior that was merely wide (an ARCKF fading that
-/// left the fix 6 m and 1670 in NIS away) in position only (reading it as a velocity error there
-/// too re-acquired CKF 90 times in a row after an acceleration outlier, each widening feeding the
+/// left the fix metres away, far beyond its χ² bound) in position only (reading it as a velocity error there
+/// too re-acquired CKF epoch after epoch after an acceleration outlier, each widening feeding the
 /// next). A prior that covers it — after an outage, from a poor start — is used as it is
-/// (widening it anyway stopped the RTS pass bridging the outage: 0.019 → 0.208 m smoothed RMSE
+/// (widening it anyway stopped the RTS pass bridging the outage, and the smoothed RMSE rose
 /// in the gap). The fix's height is used when it is 3-D and either the filter has diverged or
 /// the fix knows the height better than the prior: with anchors within half a metre of one
 /// another in height, a fix can sit 2 m off on the wrong side of them, consistent with its
 /// ranges (a diverged prior's height variance means nothing: ignoring the fix's height there
-/// raised RIEKF's RMSE on an NLOS run of the Li & Wang 2020 preset from 0.57 to 1.01 m).
+/// raised RIEKF's RMSE on an NLOS run of the Li & Wang 2020 preset; figures:
+/// docs/design-notes.md#reacquisition).
 pub fn reacquire(
     core: &mut InertialCore,
     config: &FilterConfig,

@@ -94,7 +94,7 @@ enum Strategy {
 
 /// Bounds of each anchor's adaptive range variance relative to `range_std²` (when the Sage–Husa
 /// bounds are on): σ from half to ten times the configured one — a range estimator must be able
-/// to learn one anchor far noisier than the rest (measured 24·σ² for a true 26·σ²).
+/// to learn one anchor far noisier than the rest (figures: docs/design-notes.md#noise-bounds).
 const RANGE_NOISE_BOUNDS: NoiseBounds = NoiseBounds { min_ratio: 0.25, max_ratio: 100.0 };
 
 /// Sigma points of the 15-state unscented update: 2n + 1 with n = 15 (checked at compile time

@@ -14,15 +14,15 @@
 //! **Deviation (ours): the average is taken after moving each stored range to the current time.**
 //! The paper averages the raw ranges, which lags the motion by (window − 1)/2 samples: fine at
 //! its 40 Hz (50 ms), but at 5 Hz a window of 5 lags 0.4 s, and on the scenario zoo the plain
-//! average gave 2.6–3.1× the UWB-only error. Here every stored range is moved to the current
+//! average gave several times the UWB-only error (figures: docs/design-notes.md#cekf-moving-average).
+//! Here every stored range is moved to the current
 //! time along the predicted range rate `ṙ = uᵀ·v` (as the epoch rule aligns an epoch,
 //! [`crate::epoch`]): the prefilter returns `mean(rₖ) + ṙ·(t − mean(tₖ))`, so the noise is
 //! averaged and the motion is not. (Moving them by the change of the predicted range instead
 //! re-applies each residual `window` times after the feedback has absorbed it, and diverged.)
 //! The average also restarts from the new range whenever the filter is not converged on it
 //! (`H·P·Hᵀ` above the range variance: after an outage or at the start), since averaging against
-//! a state that is still jumping only slows the re-convergence (after the zoo's 10 s outage it
-//! took 3 s instead of 1).
+//! a state that is still jumping only slows the re-convergence (as it did after the zoo's outage).
 
 use uwbimu_vocabulary::config::MAX_CEKF_WINDOW;
 use uwbimu_vocabulary::error::{Error, Result};

@@ -5,8 +5,8 @@
 //! **Why.** Sage–Husa (Liu et al. 2019 eq. (26)) reads every innovation beyond `H·P·Hᵀ` as measurement
 //! noise. When the state error grows (a biased anchor, an outage, a poor IMU), the innovations
 //! carry it, `R` grows, the gain drops, the state drifts further and the innovations grow again:
-//! measured on the scenario zoo, SHAF ran to 45× the UWB-only error with two anchors in NLOS
-//! and diverged (kilometres) on a run without a still start.
+//! on the scenario zoo, unbounded SHAF ran far above the UWB-only error with two anchors in NLOS
+//! and diverged on a run without a still start (figures: docs/design-notes.md#noise-bounds).
 //!
 //! **Bounds.** In coordinates whitened by the nominal covariance `R₀ = L·Lᵀ`, `W = L⁻¹·R·L⁻ᵀ`,
 //! every eigenvalue of `W` is clamped into `[min_ratio, max_ratio]` (`W = V·Λ·Vᵀ`,

@@ -9,14 +9,14 @@
 //! prior covariance, eq. (42), the *adaptive* branch) and blaming the range (inflate `R_i`,
 //! eq. (41), the *robust* branch).
 //!
-//! **Attribution and fading (deviations from Algorithm 1, lines 3–9, measured on the ARCKF paper's
-//! presets).**
+//! **Attribution and fading (deviations from Algorithm 1, lines 3–9, chosen on the ARCKF paper's
+//! presets; figures: docs/design-notes.md#arckf-attribution).**
 //!
 //! * *Which epochs blame the state.* Algorithm 1 blames the state for every failing range that the
 //!   L1 fit trusts (`Cu_i < Cu_max`). With four anchors the L1 fit has too few spare ranges to
-//!   isolate an outlier reliably: on the ARCKF paper's garage grid it isolates a +3 m outlier at only
-//!   about half of the positions, and each misattributed outlier inflated the prior by `γ/χ²`
-//!   (factors of 50–400), so that literal ARCKF diverged in 10 of 12 figure-8 runs with 3–10 %
+//!   isolate an outlier reliably: on the ARCKF paper's garage grid it misses a +3 m outlier at
+//!   many of the positions, and each misattributed outlier inflated the prior by `γ/χ²`
+//!   (large factors), so that literal ARCKF diverged in most figure-8 runs with 3–10 %
 //!   outliers. An abnormal *state* makes most ranges disagree with the prediction (the ARCKF paper's
 //!   Fig. 12: γ above the threshold on all four beacons), an outlier only its own. So the prior is
 //!   faded only when a **strict majority** of the epoch's ranges fail the test and at least one of
@@ -24,12 +24,12 @@
 //!   abnormal states whose error is perpendicular to one anchor's line of sight.
 //! * *By how much.* Algorithm 1 inflates `P` once per failing trusted range, i.e. by the product
 //!   of their ratios; here it is inflated once, by the largest ratio `γ_i/χ²` among them. (The
-//!   smallest ratio left most of the jump uncorrected: ARCKF then beat CKF in only 12 of 16
+//!   smallest ratio left most of the jump uncorrected: ARCKF then lost to CKF in some
 //!   Table 4 runs.)
 //! * *What is faded.* Only the position–velocity block, `P⁻' = D·P⁻·D` with
 //!   `D = diag(√λ·I₆, I₉)` ([`fade_position_velocity`]; positive definite like `P⁻`). Fading the
-//!   whole `P⁻` also inflates the attitude and bias blocks; on the Table 4 runs it ended three of
-//!   sixteen runs with a non-positive innovation variance.
+//!   whole `P⁻` also inflates the attitude and bias blocks; on the Table 4 runs it ended some
+//!   runs with a non-positive innovation variance.
 //! * In a faded epoch the trusted ranges keep `R_i = σ²·Cu_i` (adaptive branch) and the capped
 //!   ones get `R_i' = (γ_i/χ²)·R_i` (robust branch, eq. (41)); in any other epoch every failing
 //!   range gets the robust branch, whatever its `Cu_i`.

@@ -24,8 +24,9 @@ pub const MAX_SPEED_HISTORY: usize = 256;
 /// Largest moving-average window of `cekf2d` (bounds `planar.cekf_window`), ranges per anchor.
 pub const MAX_CEKF_WINDOW: usize = 64;
 
-/// Default range noise σ, m: real two-way ranges scatter by 5–10 cm and carry per-anchor biases
-/// of ±0.2 m (isas-walk1); 0.15 m covers both without a calibration.
+/// Default range noise σ, m: real two-way ranges scatter by centimetres and carry per-anchor biases
+/// of decimetres (isas-walk1); 0.15 m covers both without a calibration (figures:
+/// docs/design-notes.md#default-range-noise).
 pub const DEFAULT_RANGE_STD_M: f64 = 0.15;
 
 /// Default TDoA noise σ, m: a difference of two arrival times, each scattering like a range
@@ -35,9 +36,10 @@ pub const DEFAULT_TDOA_STD_M: f64 = 0.1;
 /// Default accelerometer white-noise density, m/s²/√Hz. Far above a consumer MEMS datasheet
 /// (≈ 0.003): the process noise must also cover what the white-noise model leaves out on a real
 /// platform — vibration, scale-factor and axis errors, IMU–UWB time offsets, handheld motion. On
-/// isas-walk1 (handheld, self-initialised) the robust filters reach 0.13 m aligned with it and
-/// 3.4 m with the datasheet value; on the scenario zoo, whose IMU does match the datasheet, it
-/// costs up to 0.35 (most scenarios 0.05–0.2) of the UWB-only error against matched noise.
+/// isas-walk1 (handheld, self-initialised) the robust filters follow the walk with it and run off
+/// with the datasheet value; on the scenario zoo, whose IMU does match the datasheet, it
+/// costs a fraction of the UWB-only error against matched noise (figures:
+/// docs/design-notes.md#default-process-noise).
 pub const DEFAULT_ACCEL_NOISE_DENSITY: f64 = 0.3;
 
 /// Default gyroscope white-noise density, rad/s/√Hz (a datasheet says ≈ 5e-4; see

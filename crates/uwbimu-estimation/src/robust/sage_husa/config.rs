@@ -59,10 +59,11 @@ pub struct SageHusaConfig {
     /// False = the estimator as printed in Liu et al. 2019. Default: true.
     pub bounded: bool,
     /// The bounds when `bounded`. Default: `[1, 4]` (the variance may grow to 4×, σ to 2×, not
-    /// shrink below the nominal). Chosen on the scenario zoo: unbounded, SHAF reached 45× the
+    /// shrink below the nominal). Chosen on the scenario zoo: unbounded, SHAF ran far above the
     /// UWB-only error with two anchors in NLOS and diverged on a log without a still start; a
-    /// floor below 1 let the estimate collapse after quiet stretches (overconfident, 2–4×); a
-    /// ceiling of 10 left 1.4–1.8× under sustained NLOS.
+    /// floor below 1 let the estimate collapse after quiet stretches (overconfident); a
+    /// ceiling of 10 left the error above UWB-only under sustained NLOS (figures:
+    /// docs/design-notes.md#noise-bounds).
     pub bounds: NoiseBounds,
 }
 

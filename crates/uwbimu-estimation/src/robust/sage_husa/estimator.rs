@@ -337,7 +337,7 @@ pub(super) mod tests {
     /// steps 300..2000, (c) the median over 100 seeds of the single-run error after 800 steps
     /// with a long memory, b = 0.998 (`d_k ≈ 1/(k+1)` early, i.e. nearly the sample mean).
     /// A single run with b = 0.96 is not a convergence test: its steady weight 0.04 leaves a
-    /// fluctuation of `√(2w/(2 − w))·S ≈ 0.2·S` (±25 % of R here, measured).
+    /// fluctuation of `√(2w/(2 − w))·S ≈ 0.2·S` (docs/design-notes.md#sage-husa-estimator).
     fn check_shaf_convergence<const M: usize>(hph: &Cov<M>, r_true: &Cov<M>, seed: u64) -> [f64; 3] {
         let runs = 400;
         let ensemble =

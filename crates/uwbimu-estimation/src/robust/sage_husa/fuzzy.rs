@@ -12,12 +12,13 @@ const CENTROID_GRID: usize = 101;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Defuzzification {
     /// Mamdani inference: min implication, max aggregation, centroid of the aggregated output
-    /// set, evaluated on a 101-point grid (the usual fuzzy-toolbox choice; about 1 µs per call).
+    /// set, evaluated on a 101-point grid (the usual fuzzy-toolbox choice; far slower than the default:
+    /// docs/design-notes.md#sage-husa-estimator).
     Centroid,
     /// Weighted average of the output sets' centroids, weights = rule firing strengths. The
-    /// default: exact and a few nanoseconds. Equal to [`Self::Centroid`] where a single rule
+    /// default: exact and cheap. Equal to [`Self::Centroid`] where a single rule
     /// fires; where two fire, the centroid weights each clipped set by its area, so the wide
-    /// "More" set pulls harder (up to 35 % higher `s` for the default sets, measured).
+    /// "More" set pulls harder (a higher `s`; figures: docs/design-notes.md#sage-husa-estimator).
     #[default]
     WeightedAverage,
 }
