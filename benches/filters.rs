@@ -27,7 +27,7 @@ fn setup<F: Estimator>(build: &Build<F>) -> F {
         c
     };
     let mut f = build(anchors(), &initial, config).expect("valid filter");
-    f.feed_imu(0.0, &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.1)).expect("first sample");
+    f.predict(0.0, &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.1)).expect("first sample");
     f
 }
 
@@ -42,7 +42,7 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
         let mut t = 0.0;
         b.iter(|| {
             t += 0.01;
-            f.feed_imu(black_box(t), black_box(&accel), black_box(&gyro)).expect("predict");
+            f.predict(black_box(t), black_box(&accel), black_box(&gyro)).expect("predict");
         })
     });
     group.bench_function("update_range", |b| {
@@ -50,7 +50,7 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
             || setup(build),
             |f| {
                 let mut report = [UpdateReport::skipped()];
-                f.feed_ranges(black_box(0.0), black_box(&[(1, 6.3)]), &mut report).expect("update");
+                f.update_ranges(black_box(0.0), black_box(&[(1, 6.3)]), &mut report).expect("update");
                 report
             },
             BatchSize::SmallInput,
@@ -64,7 +64,7 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
             || setup(build),
             |f| {
                 let mut reports = [UpdateReport::skipped(); 4];
-                f.feed_ranges(black_box(0.0), black_box(&epoch), &mut reports).expect("update");
+                f.update_ranges(black_box(0.0), black_box(&epoch), &mut reports).expect("update");
                 reports
             },
             BatchSize::SmallInput,
@@ -98,7 +98,7 @@ fn bench_tdoa<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
     group.throughput(Throughput::Elements(1));
     let tdoa = Observation::Tdoa(TdoaMeasurement { t_s: 0.0, anchor_i: 0, anchor_j: 1, tdoa_m: 1.2 });
     group.bench_function("update_tdoa", |b| {
-        b.iter_batched_ref(|| setup(&build), |f| f.feed_observation(black_box(&tdoa)).expect("tdoa"), BatchSize::SmallInput)
+        b.iter_batched_ref(|| setup(&build), |f| f.observe(black_box(&tdoa)).expect("tdoa"), BatchSize::SmallInput)
     });
     group.finish();
 }

@@ -4,7 +4,7 @@ mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, DriveOptions, MagConfig, MagDisturbance, SimConfig, SimData, Trajectory};
-use uwbimu_rs::estimation::filters::{Ackf, Ckf, InertialFilter};
+use uwbimu_rs::estimation::filters::{Ackf, Ckf, Filter};
 use uwbimu_rs::estimation::pipeline::{run, run_streams, Streams, Trace};
 use uwbimu_rs::vocabulary::math::Vec3;
 

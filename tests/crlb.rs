@@ -5,7 +5,7 @@ mod common;
 use common::{config_for, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimData};
 use uwbimu_rs::estimation::crlb::posterior_crlb;
-use uwbimu_rs::estimation::filters::{Ekf, InertialFilter};
+use uwbimu_rs::estimation::filters::{Ekf, Filter, InertialFilter};
 use uwbimu_rs::estimation::pipeline::run;
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::state::{ErrCov, NominalState};

@@ -6,7 +6,7 @@ mod common;
 use common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::metrics::evaluate;
 use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimConfig, Trajectory};
-use uwbimu_rs::estimation::filters::{Ekf, InertialFilter};
+use uwbimu_rs::estimation::filters::{Ekf, Filter, InertialFilter};
 use uwbimu_rs::estimation::init::{initialize, HeadingSource};
 use uwbimu_rs::estimation::multilateration::{uwb_ls, LsConfig};
 use uwbimu_rs::estimation::pipeline::run;

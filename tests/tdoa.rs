@@ -7,6 +7,7 @@ mod common;
 use common::{horizontal_errors, rms};
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
+use uwbimu_rs::estimation::filters::Filter;
 use uwbimu_rs::estimation::filters::{Ackf, Composition, InertialFilter, Rekf, TightFilter, UpdateStrategy};
 use uwbimu_rs::estimation::pipeline::{run_streams, Event, Stream, Streams};
 use uwbimu_rs::estimation::robust::{chi2_quantile_1dof, RangeNoisePolicy};

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
 use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
-use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_estimation::filters::{Filter, InertialFilter};
 use uwbimu_estimation::init::{initialize, HeadingSource};
 use uwbimu_estimation::pipeline::{smoothed_nodes, Estimator, Stream, UpdateRecord};
 use uwbimu_vocabulary::config::RangeCalibration;
@@ -367,7 +367,7 @@ macro_rules! py_filter {
             /// (the epoch rule of the batch API); returns the reports of the ranges applied by
             /// this call: the epoch it closed, if any.
             fn add_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
-                let anchor = anchor_index(anchor, InertialFilter::anchors(self.0.estimator()).len())?;
+                let anchor = anchor_index(anchor, Filter::anchors(self.0.estimator()).len())?;
                 self.0.range(&RangeMeasurement { t_s: t, anchor, range_m: range })?;
                 Ok(applied_reports(&mut self.0))
             }
@@ -402,7 +402,7 @@ macro_rules! py_filter {
             /// `j` measured at `t` (s), at its own time; returns its report (none before the
             /// first IMU sample). The loosely coupled and planar filters raise ValueError.
             fn update_tdoa(&mut self, t: f64, i: i64, j: i64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
-                let count = InertialFilter::anchors(self.0.estimator()).len();
+                let count = Filter::anchors(self.0.estimator()).len();
                 let m = TdoaMeasurement { t_s: t, anchor_i: anchor_index(i, count)?, anchor_j: anchor_index(j, count)?, tdoa_m: d_ij };
                 self.0.observation(&Observation::Tdoa(m))?;
                 Ok(applied_reports(&mut self.0))
@@ -415,7 +415,7 @@ macro_rules! py_filter {
                 if anchors.len() != ranges.len() {
                     return Err(uwbimu_vocabulary::error::Error::Shape { name: "update_ranges", expected: format!("ranges of length {}", anchors.len()), got: format!("{}", ranges.len()) }.into());
                 }
-                let count = InertialFilter::anchors(self.0.estimator()).len();
+                let count = Filter::anchors(self.0.estimator()).len();
                 let obs = anchors.iter().zip(&ranges).map(|(a, r)| Ok((anchor_index(*a, count)?, *r))).collect::<PyResult<Vec<(usize, f64)>>>()?;
                 self.0.epoch(t, &obs)?;
                 Ok(applied_reports(&mut self.0))

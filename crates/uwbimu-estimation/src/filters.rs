@@ -1,11 +1,11 @@
 //! Named filters composed from the shared pieces (INS core, measurement models, update step),
 //! and the trait the pipeline drives.
 
-/// Implements [`InertialFilter`] for a newtype over another filter (`self.0`), so a named filter
-/// is only its constructor.
+/// Implements [`Filter`] and [`InertialFilter`] for a newtype over another filter (`self.0`), so a
+/// named filter is only its constructor.
 macro_rules! delegate_filter {
     ($name:ident) => {
-        impl crate::filters::InertialFilter for $name {
+        impl crate::filters::Filter for $name {
             fn anchors(&self) -> &[uwbimu_vocabulary::math::Vec3] {
                 self.0.anchors()
             }
@@ -34,7 +34,9 @@ macro_rules! delegate_filter {
             ) -> uwbimu_vocabulary::error::Result<crate::update::UpdateReport> {
                 self.0.observe(observation)
             }
+        }
 
+        impl crate::filters::InertialFilter for $name {
             fn config(&self) -> &uwbimu_vocabulary::config::FilterConfig {
                 self.0.config()
             }
@@ -77,9 +79,10 @@ pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::{Arckf, Best, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf, BEST_NLOS_SKEW};
 pub use self::tight::{Composition, TightFilter, UpdateStrategy};
 
-/// An error-state filter driven by IMU samples and UWB ranges. The pipeline, the Python streaming
-/// classes and the batch API all go through these two calls.
-pub trait InertialFilter {
+/// The verbs of every filter, 15-state or planar: propagate with an IMU sample, update with an
+/// epoch of ranges or an observation. The pipeline, the Python streaming classes and the batch
+/// API all drive filters through these calls.
+pub trait Filter {
     /// Takes the IMU sample at `t_s` (raw, IMU frame) and propagates the state to `t_s`.
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
     /// Applies the ranges of one epoch, `(anchor index, range m)` all measured at `t_s` (≥ the
@@ -90,27 +93,20 @@ pub trait InertialFilter {
     /// The anchors, navigation frame, m.
     fn anchors(&self) -> &[Vec3];
 
-    /// The configuration the filter was built with (it hands each piece its section).
-    fn config(&self) -> &FilterConfig;
+    /// Applies one observation (a magnetometer sample, a TDoA, …) measured at its time ≥ the
+    /// filter time, and reports what was done with it. A filter refuses the kinds it does not
+    /// take with [`uwbimu_vocabulary::error::Error::InvalidCall`]: the magnetometer is [`Ackf`]'s
+    /// (the ACKF paper), TDoA are taken by the tightly coupled filters ([`TightFilter`] and those
+    /// built on it).
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        Err(self::tight::not_taken(observation))
+    }
 
     /// Applies one range: an epoch of one.
     fn update_range(&mut self, t_s: f64, anchor: usize, range_m: f64) -> Result<UpdateReport> {
         let mut report = [UpdateReport::skipped()];
         self.update_ranges(t_s, &[(anchor, range_m)], &mut report)?;
         Ok(report[0])
-    }
-    /// The shared INS core (state, covariance, time).
-    fn core(&self) -> &InertialCore;
-
-    /// Mutable access to the INS core (e.g. to start recording for smoothing).
-    fn core_mut(&mut self) -> &mut InertialCore;
-
-    /// Applies one observation (a magnetometer sample, a TDoA, …) measured at its time ≥ the
-    /// filter time, and reports what was done with it. A filter refuses the kinds it does not
-    /// take with [`uwbimu_vocabulary::error::Error::InvalidCall`]: the magnetometer is [`Ackf`]'s (the ACKF paper),
-    /// TDoA are taken by the tightly coupled filters ([`TightFilter`] and those built on it).
-    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
-        Err(self::tight::not_taken(observation))
     }
 
     /// Applies one magnetometer sample (IMU frame, any unit) measured at `t_s` ([`Self::observe`]).
@@ -122,6 +118,20 @@ pub trait InertialFilter {
     fn update_tdoa(&mut self, t_s: f64, anchor_i: usize, anchor_j: usize, tdoa_m: f64) -> Result<UpdateReport> {
         self.observe(&Observation::Tdoa(TdoaMeasurement { t_s, anchor_i, anchor_j, tdoa_m }))
     }
+}
+
+/// A 15-state error-state filter: a [`Filter`] on the shared INS core, with the configuration it
+/// hands to its pieces. The loop's view of it (record, time, tag motion) follows from the core
+/// (`pipeline::Estimator`).
+pub trait InertialFilter: Filter {
+    /// The configuration the filter was built with (it hands each piece its section).
+    fn config(&self) -> &FilterConfig;
+
+    /// The shared INS core (state, covariance, time).
+    fn core(&self) -> &InertialCore;
+
+    /// Mutable access to the INS core (e.g. to start recording for smoothing).
+    fn core_mut(&mut self) -> &mut InertialCore;
 
     /// Whether the still detector reported the platform still at the last constraint step
     /// (always false without the zero-velocity constraint).

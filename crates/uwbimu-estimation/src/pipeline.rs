@@ -3,7 +3,7 @@
 //! same [`Pipeline`] call for call, so streaming equals batch bit for bit).
 //!
 //! Events are taken in time order. An IMU sample is predicted at once; an observation is applied
-//! at its own time ([`crate::filters::InertialFilter::observe`]). Ranges are gathered into epochs
+//! at its own time ([`crate::filters::Filter::observe`]). Ranges are gathered into epochs
 //! by the epoch rule of
 //! [`crate::epoch`]; an epoch is applied jointly when it closes — when it holds every anchor, when
 //! a range does not fit it, or when an IMU sample passes its window — at the reference time
@@ -21,7 +21,7 @@ use uwbimu_vocabulary::state::{NominalState, POS};
 
 use crate::epoch::{align_to_reference, EpochAssembler};
 use crate::filters::tight::{check_ranges, check_tdoa};
-use crate::filters::{InertialCore, InertialFilter};
+use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::range::tag_position;
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::update::UpdateReport;
@@ -70,43 +70,20 @@ pub struct Trace {
 /// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of Wang et al. 2018
 /// ([`crate::planar::PlanarFilter`]), which record their 4-state estimate in the same
 /// [`StepRecord`].
-pub trait Estimator {
-    /// Takes the IMU sample at `t_s` (raw, IMU frame).
-    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()>;
-    /// Applies one epoch of ranges, all valid at `t_s` (≥ the filter time), one report per range.
-    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+pub trait Estimator: Filter {
     /// The estimate to record at IMU time `t_s`.
     fn record(&self, t_s: f64) -> StepRecord;
-    /// Applies one observation at its own time; a filter refuses the kinds it does not take
-    /// (the planar filters take ranges only).
-    fn feed_observation(&mut self, observation: &Observation) -> Result<UpdateReport> {
-        Err(crate::filters::tight::not_taken(observation))
-    }
     /// The filter time, s (None before the first IMU sample).
     fn time_s(&self) -> Option<f64>;
     /// Propagates to `t_s` ≥ the filter time with the last IMU sample held.
     fn advance_to(&mut self, t_s: f64) -> Result<()>;
     /// The tag (UWB antenna) position and velocity, navigation frame, m and m/s.
     fn tag_motion(&self) -> (Vec3, Vec3);
-    /// The anchors, navigation frame, m.
-    fn anchors(&self) -> &[Vec3];
     /// The window of the epoch rule, s (`epoch_window_s` of the filter's configuration).
     fn epoch_window_s(&self) -> f64;
 }
 
 impl<F: InertialFilter> Estimator for F {
-    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.predict(t_s, accel, gyro)
-    }
-
-    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
-        self.update_ranges(t_s, ranges, reports)
-    }
-
-    fn feed_observation(&mut self, observation: &Observation) -> Result<UpdateReport> {
-        self.observe(observation)
-    }
-
     fn record(&self, t_s: f64) -> StepRecord {
         let core = self.core();
         StepRecord {
@@ -131,10 +108,6 @@ impl<F: InertialFilter> Estimator for F {
         let (x, lever_arm) = (core.state(), &core.mounting().lever_arm);
         let omega = core.last_imu_body().1 - x.gyro_bias;
         (tag_position(x, lever_arm), x.velocity + x.orientation * omega.cross(lever_arm))
-    }
-
-    fn anchors(&self) -> &[Vec3] {
-        InertialFilter::anchors(self)
     }
 
     fn epoch_window_s(&self) -> f64 {
@@ -210,7 +183,7 @@ impl Pipeline {
         if self.epochs.expires_before(s.t_s) {
             self.flush(est)?;
         }
-        est.feed_imu(s.t_s, &s.accel, &s.gyro)
+        est.predict(s.t_s, &s.accel, &s.gyro)
     }
 
     /// Takes a range: before the first IMU sample it is counted and skipped; otherwise it closes
@@ -239,7 +212,7 @@ impl Pipeline {
             return Ok(());
         }
         self.check_order(o.stream(), o.t_s())?;
-        let report = est.feed_observation(o)?;
+        let report = est.observe(o)?;
         if let Observation::Tdoa(m) = o {
             self.applied.push(UpdateRecord {
                 t_s: m.t_s,
@@ -276,7 +249,7 @@ impl Pipeline {
         align_to_reference(epoch, t_ref, est.anchors(), &tag, &velocity, &mut self.aligned);
         self.reports.clear();
         self.reports.resize(epoch.len(), UpdateReport::skipped());
-        est.feed_ranges(t_ref, &self.aligned, &mut self.reports)?;
+        est.update_ranges(t_ref, &self.aligned, &mut self.reports)?;
         self.applied.extend(epoch.iter().zip(&self.reports).map(|(r, report)| UpdateRecord {
             t_s: r.t_s,
             epoch_t_s: t_ref,
@@ -297,7 +270,7 @@ impl Pipeline {
         self.check_order("range", t_s)?;
         self.reports.clear();
         self.reports.resize(ranges.len(), UpdateReport::skipped());
-        est.feed_ranges(t_s, ranges, &mut self.reports)?;
+        est.update_ranges(t_s, ranges, &mut self.reports)?;
         let epoch_t_s = est.time_s().unwrap_or(t_s);
         self.applied.extend(ranges.iter().zip(&self.reports).map(|(&(anchor, range_m), report)| UpdateRecord {
             t_s,

@@ -30,6 +30,7 @@ use uwbimu_vocabulary::state::NominalState;
 use crate::filters::reacquire::reacquisition_fix;
 use crate::filters::sigma_points::UnscentedWeights;
 use crate::filters::tight::check_ranges;
+use crate::filters::Filter;
 use crate::multilateration::LsConfig;
 use crate::pipeline::{Estimator, StepRecord};
 use crate::update::{vector_step, UpdateReport};
@@ -147,32 +148,6 @@ impl PlanarFilter {
         self.time_s
     }
 
-    /// Takes the IMU sample at `t_s` (IMU frame) and propagates to it (Wang et al. 2018 eqs. (4)–(6)):
-    /// yaw by the trapezoid of the z rates, the navigation acceleration as the mean of the held and
-    /// the new sample, each rotated by the yaw at its time. The first call only sets the time.
-    pub fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        if let Some(col) = [t_s, accel.x, accel.y, accel.z, gyro.x, gyro.y, gyro.z].iter().position(|v| !v.is_finite()) {
-            return Err(Error::NonFinite {
-                name: "planar predict",
-                row: 0,
-                col,
-                value: [t_s, accel.x, accel.y, accel.z, gyro.x, gyro.y, gyro.z][col],
-            });
-        }
-        let (a, g) = (self.imu_rotation * accel, self.imu_rotation * gyro);
-        let (a_xy, rate_z) = (a.xy() - self.accel_bias_xy, g.z - self.gyro_bias_z);
-        if let Some(t0) = self.time_s {
-            if t_s <= t0 {
-                return Err(Error::NonMonotonicTime { name: "planar predict", row: 0, prev_s: t0, got_s: t_s });
-            }
-            self.propagate(t_s - t0, a_xy, rate_z);
-        }
-        self.time_s = Some(t_s);
-        self.held_accel = a_xy;
-        self.held_rate_z = rate_z;
-        Ok(())
-    }
-
     /// Propagates to a measurement time `t_s` ≥ the filter time with the held sample.
     pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
         let t0 = uwbimu_vocabulary::validate::measurement_time(self.time_s, t_s, 0)?;
@@ -213,10 +188,38 @@ impl PlanarFilter {
         self.state += dx;
         Ok(Some((residual.norm(), nis)))
     }
+}
+
+impl Filter for PlanarFilter {
+    /// Takes the IMU sample at `t_s` (IMU frame) and propagates to it (Wang et al. 2018 eqs. (4)–(6)):
+    /// yaw by the trapezoid of the z rates, the navigation acceleration as the mean of the held and
+    /// the new sample, each rotated by the yaw at its time. The first call only sets the time.
+    fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
+        if let Some(col) = [t_s, accel.x, accel.y, accel.z, gyro.x, gyro.y, gyro.z].iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                name: "planar predict",
+                row: 0,
+                col,
+                value: [t_s, accel.x, accel.y, accel.z, gyro.x, gyro.y, gyro.z][col],
+            });
+        }
+        let (a, g) = (self.imu_rotation * accel, self.imu_rotation * gyro);
+        let (a_xy, rate_z) = (a.xy() - self.accel_bias_xy, g.z - self.gyro_bias_z);
+        if let Some(t0) = self.time_s {
+            if t_s <= t0 {
+                return Err(Error::NonMonotonicTime { name: "planar predict", row: 0, prev_s: t0, got_s: t_s });
+            }
+            self.propagate(t_s - t0, a_xy, rate_z);
+        }
+        self.time_s = Some(t_s);
+        self.held_accel = a_xy;
+        self.held_rate_z = rate_z;
+        Ok(())
+    }
 
     /// Applies the ranges of one epoch at `t_s` (≥ the filter time; propagated there with the
     /// held sample), one report per range.
-    pub fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+    fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         if reports.len() != ranges.len() {
             return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
         }
@@ -245,17 +248,13 @@ impl PlanarFilter {
             }
         }
     }
+
+    fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
 }
 
 impl Estimator for PlanarFilter {
-    fn feed_imu(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.predict(t_s, accel, gyro)
-    }
-
-    fn feed_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
-        self.update_ranges(t_s, ranges, reports)
-    }
-
     fn time_s(&self) -> Option<f64> {
         self.time_s
     }
@@ -268,10 +267,6 @@ impl Estimator for PlanarFilter {
     fn tag_motion(&self) -> (Vec3, Vec3) {
         let x = &self.state;
         (self.geometry.tag_position(x, self.yaw_rad), Vec3::new(x[VX], x[VY], 0.0))
-    }
-
-    fn anchors(&self) -> &[Vec3] {
-        &self.anchors
     }
 
     fn epoch_window_s(&self) -> f64 {

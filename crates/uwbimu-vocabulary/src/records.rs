@@ -61,7 +61,7 @@ pub struct TdoaMeasurement {
 }
 
 /// A measurement applied on its own at its own time (not gathered into range epochs): what the
-/// pipeline hands to `uwbimu_estimation::filters::InertialFilter::observe`. Adding a sensor adds a variant
+/// pipeline hands to `uwbimu_estimation::filters::Filter::observe`. Adding a sensor adds a variant
 /// here, its measurement model and the filters that take it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Observation {

@@ -9,7 +9,7 @@ use uwbimu_vocabulary::records::Observation;
 use uwbimu_vocabulary::state::ErrVec;
 
 use crate::filters::named::complementary;
-use crate::filters::{Composition, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
+use crate::filters::{Composition, Filter, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
 use crate::models::attitude::{predict_vector, VectorSensor};
 use crate::robust::aiding::AidingUncertainty;
 use crate::robust::RangeNoisePolicy;
@@ -54,7 +54,7 @@ impl Reference {
 ///   with it. Both showed on the scenario zoo, after its outage and in turns (figures:
 ///   docs/design-notes.md#ackf-gravity-reference).
 /// * **Observations**: at every IMU sample the accelerometer reading, and after the reference
-///   period at every [`InertialFilter::update_magnetometer`] call the magnetometer reading, as
+///   period at every [`Filter::update_magnetometer`] call the magnetometer reading, as
 ///   vector observations of the reference ([`crate::models::attitude`]) with noise `σ²·U·I₃`, `U`
 ///   from the magnitude and direction residuals ([`AidingUncertainty`]) when `aiding.adaptive`,
 ///   else `U = 1`.
@@ -119,7 +119,7 @@ impl Ackf {
     }
 }
 
-impl InertialFilter for Ackf {
+impl Filter for Ackf {
     fn anchors(&self) -> &[Vec3] {
         self.inner.anchors()
     }
@@ -162,7 +162,9 @@ impl InertialFilter for Ackf {
             None => Ok(UpdateReport::skipped()),
         }
     }
+}
 
+impl InertialFilter for Ackf {
     fn config(&self) -> &FilterConfig {
         self.inner.config()
     }

@@ -9,7 +9,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::state::{ErrCov, ErrVec, ERR_DIM, POS, VEL};
 
 use crate::filters::constraints::Constraints;
-use crate::filters::{InertialCore, InertialFilter};
+use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::loose::{position_measurement, velocity_measurement, TagFix};
 use crate::multilateration::{solve_epoch, LsConfig};
 use crate::robust::sage_husa::{SageHusa, SageHusaConfig, SageHusaVariant};
@@ -104,17 +104,13 @@ impl Eskf {
     }
 }
 
-impl InertialFilter for Eskf {
+impl Filter for Eskf {
     fn anchors(&self) -> &[Vec3] {
         &self.anchors
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
         self.constraints.predict(&mut self.core, t_s, accel, gyro, None)
-    }
-
-    fn still(&self) -> bool {
-        self.constraints.still()
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
@@ -188,6 +184,12 @@ impl InertialFilter for Eskf {
         let innovation = if planar { residual.xy().norm() } else { residual.norm() };
         reports.iter_mut().for_each(|r| *r = UpdateReport::applied(innovation, nis, 1.0, 1));
         Ok(())
+    }
+}
+
+impl InertialFilter for Eskf {
+    fn still(&self) -> bool {
+        self.constraints.still()
     }
 
     fn config(&self) -> &FilterConfig {

@@ -49,7 +49,7 @@ named_filter!(
     /// step per epoch.
     ///
     /// ```
-    /// use uwbimu_estimation::filters::{Ekf, InertialFilter};
+    /// use uwbimu_estimation::filters::{Ekf, Filter};
     /// use uwbimu_vocabulary::{config::{FilterConfig, InitialState}, math::Vec3};
     /// let anchors = vec![Vec3::new(0., 0., 2.), Vec3::new(8., 0., 1.), Vec3::new(8., 6., 2.), Vec3::new(0., 6., 1.)];
     /// let mut ekf = Ekf::new(anchors, &InitialState::default(), FilterConfig::default())?;
@@ -159,7 +159,7 @@ named_filter!(
     /// noise. Fails on an invalid configuration (including `n + λ ≤ 0`).
     ///
     /// ```
-    /// use uwbimu_estimation::filters::{InertialFilter, Ukf};
+    /// use uwbimu_estimation::filters::{Filter, Ukf};
     /// use uwbimu_vocabulary::{config::{FilterConfig, InitialState}, math::Vec3};
     /// let anchors = vec![Vec3::new(0., 0., 2.), Vec3::new(8., 0., 1.), Vec3::new(8., 6., 2.), Vec3::new(0., 6., 1.)];
     /// let mut ukf = Ukf::new(anchors, &InitialState::default(), FilterConfig::default())?;

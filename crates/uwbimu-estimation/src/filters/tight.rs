@@ -14,7 +14,7 @@ use crate::filters::constraints::Constraints;
 use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
-use crate::filters::{InertialCore, InertialFilter};
+use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::range::tag_position;
 use crate::models::scalar::ScalarMeasurement;
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
@@ -213,7 +213,7 @@ impl TightFilter {
     }
 }
 
-impl InertialFilter for TightFilter {
+impl Filter for TightFilter {
     fn anchors(&self) -> &[Vec3] {
         &self.anchors
     }
@@ -279,7 +279,9 @@ impl InertialFilter for TightFilter {
             other => Err(not_taken(other)),
         }
     }
+}
 
+impl InertialFilter for TightFilter {
     fn config(&self) -> &FilterConfig {
         &self.config
     }
