@@ -228,12 +228,9 @@ fn student_t_weights_down_weight_gross_outliers_without_a_threshold() {
                 rms(&horizontal_errors(&trace(&mut f, &data).steps, &data))
             };
             let threshold = chi2_quantile_1dof(s.config.robust.significance).expect("chi2");
-            let ekf = rmse(Composition { policy: RangeNoisePolicy::Fixed, strategy: UpdateStrategy::Single });
-            let riekf = rmse(Composition {
-                policy: RangeNoisePolicy::ChiSquareInflation { threshold },
-                strategy: UpdateStrategy::Iterated,
-            });
-            let t = rmse(Composition { policy: RangeNoisePolicy::StudentT { dof: 4.0 }, strategy: UpdateStrategy::Iterated });
+            let ekf = rmse(Composition::new(RangeNoisePolicy::Fixed, UpdateStrategy::Single));
+            let riekf = rmse(Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold }, UpdateStrategy::Iterated));
+            let t = rmse(Composition::new(RangeNoisePolicy::StudentT { dof: 4.0 }, UpdateStrategy::Iterated));
             println!("{name} seed {seed}: ekf {ekf:.3}, riekf {riekf:.3}, student-t {t:.3} m");
             (ekf_sum, riekf_sum, t_sum) = (ekf_sum + ekf, riekf_sum + riekf, t_sum + t);
         }

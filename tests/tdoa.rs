@@ -170,7 +170,7 @@ fn every_policy_works_with_the_unscented_strategy() {
     let initial = s.true_initial(&data).expect("initial");
     let threshold = chi2_quantile_1dof(s.config.robust.significance).expect("chi2");
     let run = |policy| {
-        let composition = Composition { policy, strategy: UpdateStrategy::Unscented };
+        let composition = Composition::new(policy, UpdateStrategy::Unscented);
         let mut f = TightFilter::new(data.anchors.clone(), &initial, s.config.clone(), composition).expect("filter");
         let trace = run_streams(&mut f, &Streams { imu: &data.imu, tdoa: &data.tdoa, ..Streams::default() }).expect("run");
         rms(&horizontal_errors(&trace.steps, &data))

@@ -8,7 +8,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::Observation;
 use uwbimu_vocabulary::state::ErrVec;
 
-use crate::filters::named::complementary;
+use crate::filters::tight::BiasModel;
 use crate::filters::{Composition, Filter, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
 use crate::models::attitude::{predict_vector, VectorSensor};
 use crate::robust::aiding::AidingUncertainty;
@@ -69,10 +69,12 @@ pub struct Ackf {
 
 impl Ackf {
     /// Builds the filter; anchors in the navigation frame, m.
-    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut config: FilterConfig) -> Result<Self> {
-        complementary(&mut config);
+    pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
         let (aiding, gravity) = (config.aiding, -config.ins.gravity);
-        let composition = Composition { policy: RangeNoisePolicy::ResidualWeighted, strategy: UpdateStrategy::Single };
+        let composition = Composition {
+            biases: BiasModel::Complementary,
+            ..Composition::new(RangeNoisePolicy::ResidualWeighted, UpdateStrategy::Single)
+        };
         let inner = TightFilter::new(anchors, initial, config, composition)?;
         Ok(Self { inner, aiding, start_s: None, gravity, field: Reference::default() })
     }

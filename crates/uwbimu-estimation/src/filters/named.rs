@@ -21,21 +21,26 @@ use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Vec3;
 
+use crate::filters::tight::{BiasModel, ConstraintSwitches};
 use crate::filters::{Composition, TightFilter, UpdateStrategy};
 use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 
 macro_rules! named_filter {
-    ($(#[$doc:meta])* $name:ident, |$config:ident| $setup:expr) => {
+    ($(#[$doc:meta])* $name:ident, |$config:ident| $composition:expr) => {
         $(#[$doc])*
         #[derive(Debug, Clone)]
         pub struct $name(TightFilter);
 
         impl $name {
-            /// Builds the filter; anchors in the navigation frame, m.
-            #[allow(unused_mut)]
-            pub fn new(anchors: Vec<Vec3>, initial: &InitialState, mut $config: FilterConfig) -> Result<Self> {
-                let (policy, strategy): (RangeNoisePolicy, UpdateStrategy) = $setup;
-                Ok(Self(TightFilter::new(anchors, initial, $config, Composition { policy, strategy })?))
+            /// Builds the filter; anchors in the navigation frame, m. The row's composition is
+            /// applied to `config` ([`Composition::configure`]).
+            pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
+                let composition = {
+                    #[allow(unused_variables)]
+                    let $config = &config;
+                    $composition
+                };
+                Ok(Self(TightFilter::new(anchors, initial, config, composition)?))
             }
 
         }
@@ -59,21 +64,21 @@ named_filter!(
     /// # Ok::<(), uwbimu_vocabulary::error::Error>(())
     /// ```
     Ekf,
-    |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Single)
+    |config| Composition::new(RangeNoisePolicy::Fixed, UpdateStrategy::Single)
 );
 
 named_filter!(
     /// Iterated EKF: the EKF with the update iterated at the operating point (Li & Wang 2020
     /// Algorithm 1 without the covariance re-weighting), up to `max_iterations`.
     Iekf,
-    |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Iterated)
+    |config| Composition::new(RangeNoisePolicy::Fixed, UpdateStrategy::Iterated)
 );
 
 named_filter!(
     /// Robust EKF (Li & Wang 2020 eqs. (37)–(38), (40)): each range's γ against the prior; beyond the
     /// χ²₁ quantile of significance `alpha`, `R' = (γ/χ²)·R`.
     Rekf,
-    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Single)
+    |config| Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Single)
 );
 
 named_filter!(
@@ -81,16 +86,16 @@ named_filter!(
     /// range at each operating point from the current posterior, until the step is below
     /// `iteration_tolerance` or `max_iterations` is reached.
     Riekf,
-    |config| (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
+    |config| Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
 );
 
 named_filter!(
     /// Constrained robust iterated EKF (Li & Wang 2020 CRIEKF): RIEKF with the zero-velocity,
     /// pseudo-velocity and plane constraints all switched on.
     Criekf,
-    |config| {
-        (config.constraints.zupt, config.constraints.pseudo_velocity, config.constraints.plane) = (true, true, true);
-        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
+    |config| Composition {
+        constraints: ConstraintSwitches::ALL,
+        ..Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
     }
 );
 
@@ -108,34 +113,19 @@ named_filter!(
     /// across the simulated zoo and isas-walk1 (README "`best` and the isas-walk1 table"); the
     /// batch method `best` adds self-initialisation and RTS smoothing.
     Best,
-    |config| {
-        config.constraints.zupt = true;
-        config.robust.nlos_skew.get_or_insert(BEST_NLOS_SKEW);
-        (RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
+    |config| Composition {
+        constraints: ConstraintSwitches::ZUPT,
+        nlos_skew: Some(BEST_NLOS_SKEW),
+        ..Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
     }
 );
-
-/// Bias time constant used by `Ckf` when the configuration gives none, s (the ARCKF paper
-/// models the biases as first-order Markov processes without giving τ).
-pub const DEFAULT_BIAS_TAU_S: f64 = 300.0;
-
-/// The complementary-filter settings of the ARCKF paper: Markov biases (eqs. (17)–(18)) and the
-/// process noise of eq. (28).
-pub(crate) fn complementary(config: &mut FilterConfig) {
-    config.ins.accel_bias_tau = config.ins.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
-    config.ins.gyro_bias_tau = config.ins.gyro_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
-    config.ins.trapezoidal_process_noise = true;
-}
 
 named_filter!(
     /// Complementary (error-state, feedback) Kalman filter of the ARCKF paper, eqs. (1)–(32): Markov
     /// biases, Φ to second order, `Q_k` of eq. (28), range observations linearised at the INS
     /// position (eqs. (29)–(31), the same linearisation as Li & Wang 2020 eq. (36)), fixed noise.
     Ckf,
-    |config| {
-        complementary(&mut config);
-        (RangeNoisePolicy::Fixed, UpdateStrategy::Single)
-    }
+    |config| Composition { biases: BiasModel::Complementary, ..Composition::new(RangeNoisePolicy::Fixed, UpdateStrategy::Single) }
 );
 
 named_filter!(
@@ -146,9 +136,12 @@ named_filter!(
     /// failing range takes follows [`crate::robust::robustness`] (documented deviations: the
     /// prior is faded, in its position–velocity block, only when most ranges of the epoch fail).
     Arckf,
-    |config| {
-        complementary(&mut config);
-        (RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Single)
+    |config| Composition {
+        biases: BiasModel::Complementary,
+        ..Composition::new(
+            RangeNoisePolicy::AdaptiveRobust { threshold: chi2_quantile_1dof(config.robust.significance)? },
+            UpdateStrategy::Single,
+        )
     }
 );
 
@@ -169,5 +162,5 @@ named_filter!(
     /// # Ok::<(), uwbimu_vocabulary::error::Error>(())
     /// ```
     Ukf,
-    |config| (RangeNoisePolicy::Fixed, UpdateStrategy::Unscented)
+    |config| Composition::new(RangeNoisePolicy::Fixed, UpdateStrategy::Unscented)
 );

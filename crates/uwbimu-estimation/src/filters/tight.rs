@@ -56,6 +56,8 @@ pub struct TightFilter {
     range_noise: Vec<SageHusa<1>>,
     divergence: DivergenceWatch,
     tdoa_watch: TdoaWatch,
+    /// Whether the watches run and re-acquire ([`Composition::reacquire`]).
+    reacquire: bool,
     range_bias: Option<RangeBiasStates>,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
     epoch: Vec<ScalarMeasurement>,
@@ -74,13 +76,93 @@ pub enum UpdateStrategy {
     Unscented,
 }
 
-/// A named filter as a row of pieces: which noise policy and which update strategy.
+/// A named filter as a row of pieces: the noise policy, the update strategy, the bias model, the
+/// constraints it always applies, its NLOS skew and whether it re-acquires. The row's settings
+/// are applied to the configuration the filter keeps ([`Composition::configure`]), so
+/// [`InertialFilter::config`] shows what the filter runs with; nothing else rewrites the
+/// caller's configuration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Composition {
     /// Noise policy of every scalar measurement.
     pub policy: RangeNoisePolicy,
     /// Update strategy.
     pub strategy: UpdateStrategy,
+    /// The INS bias model.
+    pub biases: BiasModel,
+    /// The motion constraints the row always applies, on top of the configured `constraints.*`.
+    pub constraints: ConstraintSwitches,
+    /// The NLOS skew of the range test when `robust.nlos_skew` is unset (None: the symmetric test
+    /// of the papers).
+    pub nlos_skew: Option<f64>,
+    /// Watch for divergence and re-acquire on a UWB-only fix ([`crate::filters::reacquire`],
+    /// ours): the divergence watch of ranges and the TDoA watch.
+    pub reacquire: bool,
+}
+
+/// The INS bias model of a composition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BiasModel {
+    /// As configured (`ins.*_bias_tau`, `ins.trapezoidal_process_noise`).
+    Configured,
+    /// The complementary filter of the ARCKF paper: first-order Markov biases (eqs. (17)–(18)) with
+    /// `τ =` [`DEFAULT_BIAS_TAU_S`] unless configured, and the process noise of eq. (28).
+    Complementary,
+}
+
+/// Bias time constant of [`BiasModel::Complementary`] when the configuration gives none, s (the
+/// ARCKF paper models the biases as first-order Markov processes without giving τ).
+pub const DEFAULT_BIAS_TAU_S: f64 = 300.0;
+
+/// Which motion constraints (Li & Wang 2020 §2.2) a composition switches on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ConstraintSwitches {
+    /// Zero-velocity constraint while still.
+    pub zupt: bool,
+    /// Pseudo-velocity constraint.
+    pub pseudo_velocity: bool,
+    /// Plane constraint.
+    pub plane: bool,
+}
+
+impl ConstraintSwitches {
+    /// None: the configuration decides.
+    pub const NONE: Self = Self { zupt: false, pseudo_velocity: false, plane: false };
+    /// The zero-velocity constraint.
+    pub const ZUPT: Self = Self { zupt: true, pseudo_velocity: false, plane: false };
+    /// All three (CRIEKF).
+    pub const ALL: Self = Self { zupt: true, pseudo_velocity: true, plane: true };
+}
+
+impl Composition {
+    /// A row of `policy` and `strategy` with the configured bias model and constraints, the
+    /// symmetric range test and re-acquisition on.
+    pub const fn new(policy: RangeNoisePolicy, strategy: UpdateStrategy) -> Self {
+        Self {
+            policy,
+            strategy,
+            biases: BiasModel::Configured,
+            constraints: ConstraintSwitches::NONE,
+            nlos_skew: None,
+            reacquire: true,
+        }
+    }
+
+    /// `config` with the row's settings applied: its constraints switched on, its NLOS skew where
+    /// `robust.nlos_skew` is unset, the complementary bias model's τ where unset and its process
+    /// noise.
+    pub fn configure(&self, mut config: FilterConfig) -> FilterConfig {
+        if self.biases == BiasModel::Complementary {
+            config.ins.accel_bias_tau = config.ins.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
+            config.ins.gyro_bias_tau = config.ins.gyro_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
+            config.ins.trapezoidal_process_noise = true;
+        }
+        let (c, on) = (&mut config.constraints, self.constraints);
+        (c.zupt, c.pseudo_velocity, c.plane) = (c.zupt || on.zupt, c.pseudo_velocity || on.pseudo_velocity, c.plane || on.plane);
+        if let Some(skew) = self.nlos_skew {
+            config.robust.nlos_skew.get_or_insert(skew);
+        }
+        config
+    }
 }
 
 /// The strategy with its settings resolved from the configuration.
@@ -107,6 +189,7 @@ impl TightFilter {
     /// robustness factors, prior fading and inflation as the Kalman steps. Fails on an invalid
     /// configuration (including `n + λ ≤ 0` for the unscented strategy).
     pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig, composition: Composition) -> Result<Self> {
+        let config = composition.configure(config);
         if anchors.is_empty() {
             return Err(Error::InsufficientData("at least one anchor is required".into()));
         }
@@ -157,6 +240,7 @@ impl TightFilter {
             range_noise,
             divergence: DivergenceWatch::default(),
             tdoa_watch: TdoaWatch::default(),
+            reacquire: composition.reacquire,
             range_bias,
         })
     }
@@ -228,12 +312,14 @@ impl Filter for TightFilter {
         }
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
-        let failed = self.failed_at_prior(ranges);
-        if let Some((innovation, nis)) =
-            reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
-        {
-            reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
-            return Ok(());
+        if self.reacquire {
+            let failed = self.failed_at_prior(ranges);
+            if let Some((innovation, nis)) =
+                reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
+            {
+                reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
+                return Ok(());
+            }
         }
         // ARCKF (the ARCKF paper's Algorithm 1): robustness factors and the fading of the prior.
         let (factors, fading) = match self.policy {
@@ -266,11 +352,15 @@ impl Filter for TightFilter {
                 check_tdoa(&self.anchors, m)?;
                 self.core.advance_to(m.t_s)?;
                 let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
-                let failed =
-                    self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
-                let watch = &mut self.tdoa_watch;
-                if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
-                    return Ok(UpdateReport::reacquired(innovation, nis));
+                if self.reacquire {
+                    let failed =
+                        self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
+                    let watch = &mut self.tdoa_watch;
+                    if let Some((innovation, nis)) =
+                        reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)?
+                    {
+                        return Ok(UpdateReport::reacquired(innovation, nis));
+                    }
                 }
                 let mut report = [UpdateReport::skipped()];
                 self.solve(&[tdoa], &mut report, None, 1.0)?;
@@ -338,12 +428,14 @@ impl TightFilter {
         let mut epoch = KalmanEpoch {
             anchors: &self.anchors,
             lever_arm: self.config.mounting.lever_arm,
-            nominal: NominalNoise::of(&self.config),
-            policy: self.policy,
-            nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
-            range_noise: &mut self.range_noise,
-            factors,
-            fading,
+            noise: EpochNoise {
+                nominal: NominalNoise::of(&self.config),
+                policy: self.policy,
+                nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
+                range_noise: &mut self.range_noise,
+                factors,
+                fading,
+            },
             max_iterations,
             tolerance,
         };
@@ -381,8 +473,15 @@ impl TightFilter {
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
     ) -> Result<()> {
-        let config = &self.config;
-        let (lever_arm, nominal) = (config.mounting.lever_arm, NominalNoise::of(config));
+        let lever_arm = self.config.mounting.lever_arm;
+        let mut noise = EpochNoise {
+            nominal: NominalNoise::of(&self.config),
+            policy: self.policy,
+            nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
+            range_noise: &mut self.range_noise,
+            factors,
+            fading,
+        };
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
         let mut dx = ErrVec::zeros();
@@ -399,18 +498,10 @@ impl TightFilter {
                 continue;
             };
             let mut residual = m.value() - moments.predicted;
-            let (var, nominal_var) = nominal.variance(&mut self.range_noise, m, &mut residual, moments.variance, true);
-            let base_var = var * factors.map_or(1.0, |f| f[k].cu);
-            let nis = residual * residual / (moments.variance + base_var);
-            let trusted_in_faded = fading > 1.0 && factors.is_some_and(|f| !f[k].is_capped());
-            let inflation = if trusted_in_faded {
-                1.0
-            } else {
-                self.policy.inflation(tested_nis(nis, residual, m.is_range(), config.robust.nlos_skew_or_symmetric()))
-            };
-            apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, base_var * inflation)?;
-            *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, 1);
-            report.prior = Some((residual, moments.variance + base_var));
+            let noise = noise.decide(k, m, &mut residual, moments.variance, true, None);
+            apply_scalar(&mut dx, &mut p, &moments, moments.predicted + residual, noise.variance())?;
+            *report = noise.report(residual, 1);
+            report.prior = Some((residual, moments.variance + noise.base_var));
         }
         inject_and_reset(x, &mut p, &dx);
         *p_out = p;
@@ -418,10 +509,10 @@ impl TightFilter {
     }
 }
 
-/// What the Kalman strategy needs from the filter for one epoch.
-struct KalmanEpoch<'a> {
-    anchors: &'a [Vec3],
-    lever_arm: Vec3,
+/// The noise of one epoch's scalar measurements: the nominal (or per-anchor adaptive) variance,
+/// the ARCKF robustness factors and prior fading, and the policy's inflation. Its
+/// [`EpochNoise::decide`] is the per-measurement decision of every update strategy.
+struct EpochNoise<'a> {
     nominal: NominalNoise,
     policy: RangeNoisePolicy,
     /// `robust.nlos_skew` ([`tested_nis`]).
@@ -429,6 +520,67 @@ struct KalmanEpoch<'a> {
     range_noise: &'a mut [SageHusa<1>],
     factors: Option<&'a [RobustnessFactor]>,
     fading: f64,
+}
+
+/// What the noise policy decided for one scalar measurement.
+#[derive(Debug, Clone, Copy)]
+struct NoiseDecision {
+    /// Variance before the policy's inflation (nominal or adaptive, times `Cu`), m².
+    base_var: f64,
+    /// The policy's inflation of `base_var` (≥ 1; Li & Wang 2020 eq. (40)).
+    inflation: f64,
+    /// γ = ε² / (predicted variance + `base_var`) (eq. (37) / (39)).
+    nis: f64,
+    /// The configured variance the weight is relative to, m².
+    nominal_var: f64,
+}
+
+impl NoiseDecision {
+    /// The variance to update with, `base_var · inflation`, m².
+    fn variance(&self) -> f64 {
+        self.base_var * self.inflation
+    }
+
+    /// The report of a measurement applied with this noise after `iterations` iterations.
+    fn report(&self, residual: f64, iterations: u32) -> UpdateReport {
+        UpdateReport::applied(residual, self.nis, self.base_var * self.inflation / self.nominal_var, iterations)
+    }
+}
+
+impl EpochNoise<'_> {
+    /// The noise of measurement `k` of the epoch, `m`, with innovation `residual` (corrected in
+    /// place by the adaptive range noise) and predicted variance `predicted_var` (`H·P·Hᵀ`, or the
+    /// unscented one). `first`: the first evaluation at this epoch (the adaptive estimators step
+    /// only then). `kept_inflation`: an inflation decided earlier to keep instead of testing again.
+    /// In a faded epoch (abnormal state) the trusted ranges keep their weight (the ARCKF paper's
+    /// Algorithm 1, adaptive branch); only capped ones are inflated (robust branch).
+    fn decide(
+        &mut self,
+        k: usize,
+        m: &ScalarMeasurement,
+        residual: &mut f64,
+        predicted_var: f64,
+        first: bool,
+        kept_inflation: Option<f64>,
+    ) -> NoiseDecision {
+        let (var, nominal_var) = self.nominal.variance(self.range_noise, m, residual, predicted_var, first);
+        let base_var = var * self.factors.map_or(1.0, |f| f[k].cu);
+        let nis = *residual * *residual / (predicted_var + base_var);
+        let trusted_in_faded = self.fading > 1.0 && self.factors.is_some_and(|f| !f[k].is_capped());
+        let inflation = match kept_inflation {
+            _ if trusted_in_faded => 1.0,
+            Some(kept) => kept,
+            None => self.policy.inflation(tested_nis(nis, *residual, m.is_range(), self.nlos_skew)),
+        };
+        NoiseDecision { base_var, inflation, nis, nominal_var }
+    }
+}
+
+/// What the Kalman strategy needs from the filter for one epoch.
+struct KalmanEpoch<'a> {
+    anchors: &'a [Vec3],
+    lever_arm: Vec3,
+    noise: EpochNoise<'a>,
     max_iterations: u32,
     tolerance: f64,
 }
@@ -474,24 +626,13 @@ impl KalmanEpoch<'_> {
                     h += hb;
                 }
                 let hph = h.dot(&(p_post * h));
-                let (var, nominal_var) = self.nominal.variance(self.range_noise, m, &mut residual, hph, iterations == 1);
-                let base_var = var * self.factors.map_or(1.0, |f| f[k].cu);
-                let nis = residual * residual / (hph + base_var);
-                // In a faded epoch (abnormal state) the trusted ranges keep their weight (Algorithm 1,
-                // adaptive branch); only capped ones are inflated (robust branch).
-                let trusted_in_faded = self.fading > 1.0 && self.factors.is_some_and(|f| !f[k].is_capped());
-                let inflation = if trusted_in_faded {
-                    1.0
-                } else if iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. }) {
-                    // A lone TDoA fits itself after one iteration, so its γ at the next operating
-                    // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
-                    report.inflation
-                } else {
-                    self.policy.inflation(tested_nis(nis, residual, m.is_range(), self.nlos_skew))
-                };
-                let prior = if iterations == 1 { Some((residual, hph + base_var)) } else { report.prior };
-                schmidt_step(&mut dx, &mut p, &h, residual, base_var * inflation, estimated)?;
-                *report = UpdateReport::applied(residual, nis, base_var * inflation / nominal_var, iterations);
+                // A lone TDoA fits itself after one iteration, so its γ at the next operating
+                // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
+                let kept = (iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. })).then_some(report.inflation);
+                let noise = self.noise.decide(k, m, &mut residual, hph, iterations == 1, kept);
+                let prior = if iterations == 1 { Some((residual, hph + noise.base_var)) } else { report.prior };
+                schmidt_step(&mut dx, &mut p, &h, residual, noise.variance(), estimated)?;
+                *report = noise.report(residual, iterations);
                 report.prior = prior;
             }
             let step = dx.norm();
