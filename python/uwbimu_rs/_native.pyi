@@ -40,6 +40,7 @@ __all__ = [
     "Iekf",
     "Rekf",
     "Riekf",
+    "Rukf",
     "UwbImuError",
     "ConfigError",
     "NumericalError",
@@ -114,7 +115,7 @@ class FormatError(OSError):
 
 _MethodName = Literal[
     "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf",
-    "ekf2d", "ukf2d", "cekf2d", "best",
+    "rukf", "ekf2d", "ukf2d", "cekf2d", "best",
 ]
 """A method name: the rows of the registry (``crates/uwbimu-app/src/methods.rs``), in its order
 (tests/python/test_registry.py holds this list to :data:`FILTERS`)."""
@@ -460,6 +461,11 @@ class Shfaf(_StreamingFilter):
 class Ukf(_StreamingFilter):
     """The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) over the INS error state), fed sample by
     sample; API of :class:`_StreamingFilter`."""
+
+@final
+class Rukf(_StreamingFilter):
+    """The robust 15-state error-state UKF (ours): :class:`Ukf`'s update with :class:`Rekf`'s χ²
+    inflation, fed sample by sample; API of :class:`_StreamingFilter`."""
 
 # --------------------------------------------------------------------------------------------
 # Ranging (src/bindings/ranging.rs): Wang et al. 2018 §2

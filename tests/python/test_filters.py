@@ -12,13 +12,6 @@ from uwbimu_rs import metrics
 COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z", "still"]
 
 
-def test_filters_listed():
-    assert uwbimu_rs.FILTERS == [
-        "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf", "ekf2d",
-        "ukf2d", "cekf2d", "best",
-    ]
-
-
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
     df = uwbimu_rs.run_filter("ekf", los_run.imu, los_run.ranges, los_run.anchors, config=filter_config)
     assert isinstance(df, pl.DataFrame)

@@ -1,8 +1,6 @@
 //! The named methods of the batch API and the function that runs one of them over whole arrays.
 
-use uwbimu_estimation::filters::{
-    Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Iekf, InertialFilter, Rekf, Riekf, Shaf, Shfaf, Ukf,
-};
+use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::init::{initialize_with_tdoa, SelfInit};
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
 use uwbimu_estimation::pipeline::{run, run_streams, smoothed_steps, StepRecord, Streams, Trace};
@@ -138,7 +136,7 @@ macro_rules! methods {
         Ok(BatchOutput::Multilateration(uwb_ls($input.ranges, $input.anchors, &ls)))
     }};
     (@run $input:ident, inertial $ty:ident) => {
-        run_inertial(|i| $ty::new($input.anchors.to_vec(), i, $input.config.clone()), $input)
+        run_inertial(|i| uwbimu_estimation::filters::$ty::new($input.anchors.to_vec(), i, $input.config.clone()), $input)
     };
     (@run $input:ident, planar $kind:ident) => { run_planar(PlanarKind::$kind, $input) };
 }
@@ -176,6 +174,8 @@ methods! {$
     Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest, stream: Shfaf },
     /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
     Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ukf },
+    /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
+    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Rukf },
     /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
     Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never, stream: none },
     /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
@@ -413,6 +413,6 @@ mod tests {
         assert_eq!(Method::names_where(|m| m.takes(Input::Magnetometer)), "ackf");
         assert!(!Method::UwbLs.smoothable() && !Method::Ekf2d.takes_tdoa() && Method::Best.takes_tdoa());
         let streaming: Vec<_> = Method::ALL.iter().filter_map(|m| m.info().streaming_class).collect();
-        assert_eq!(streaming.len(), 13);
+        assert_eq!(streaming.len(), 14);
     }
 }

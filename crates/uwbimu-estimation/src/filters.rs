@@ -1,5 +1,26 @@
 //! Named filters composed from the shared pieces (INS core, measurement models, update step),
-//! and the trait the pipeline drives.
+//! and the traits the pipeline drives ([`Filter`], [`InertialFilter`]).
+//!
+//! Each tightly coupled filter is a row, a [`Composition`] (the INS core and the scalar
+//! measurement models are shared by all; every row re-acquires on divergence):
+//!
+//! | filter | noise policy | update strategy | also |
+//! |---|---|---|---|
+//! | [`Ekf`] | fixed | single | |
+//! | [`Iekf`] | fixed | iterated | |
+//! | [`Rekf`] | χ² inflation | single | |
+//! | [`Riekf`] | χ² inflation | iterated | |
+//! | [`Criekf`] | χ² inflation | iterated | zero-velocity, pseudo-velocity, plane constraints |
+//! | [`Best`] | χ² inflation, skewed against long ranges | iterated | zero-velocity constraint (ours) |
+//! | [`Ckf`] | fixed | single | complementary bias model (Markov biases, trapezoidal `Q`; the ARCKF paper) |
+//! | [`Arckf`] | adaptive-robust (L1 `Cu`, prior fading, χ²) | single | as `Ckf` |
+//! | [`Ukf`] | fixed | unscented | |
+//! | [`Rukf`] | χ² inflation | unscented | (ours) |
+//! | [`Ackf`] | residual-weighted (L1 `Cu`) | single | as `Ckf`, gravity and magnetometer aiding |
+//!
+//! Other rows can be composed with [`TightFilter::new`] and a [`Composition`]; every policy works
+//! with every strategy. The loosely coupled [`Eskf`], [`Shaf`] and [`Shfaf`] fuse a per-epoch
+//! UWB fix instead.
 
 /// Implements [`Filter`] and [`InertialFilter`] for a newtype over another filter (`self.0`), so a
 /// named filter is only its constructor.
@@ -60,7 +81,7 @@ pub mod ackf;
 pub mod constraints;
 pub mod core;
 pub mod loose;
-pub mod named;
+mod named;
 pub mod range_bias;
 pub mod reacquire;
 pub mod sigma_points;
@@ -76,7 +97,7 @@ use crate::update::UpdateReport;
 pub use self::ackf::Ackf;
 pub use self::core::{InertialCore, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
-pub use self::named::{Arckf, Best, Ckf, Criekf, Ekf, Iekf, Rekf, Riekf, Ukf, BEST_NLOS_SKEW};
+pub use self::named::*;
 pub use self::tight::{Composition, TightFilter, UpdateStrategy};
 
 /// The verbs of every filter, 15-state or planar: propagate with an IMU sample, update with an

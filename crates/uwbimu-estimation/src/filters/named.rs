@@ -1,21 +1,5 @@
-//! The named tightly coupled filters, each a declared composition of pieces — a row of this table
-//! (the INS core and the scalar measurement models are shared by all):
-//!
-//! | filter | noise policy | update strategy | also |
-//! |---|---|---|---|
-//! | [`Ekf`] | fixed | single | |
-//! | [`Iekf`] | fixed | iterated | |
-//! | [`Rekf`] | χ² inflation | single | |
-//! | [`Riekf`] | χ² inflation | iterated | |
-//! | [`Criekf`] | χ² inflation | iterated | zero-velocity, pseudo-velocity, plane constraints |
-//! | [`Best`] | χ² inflation, skewed against long ranges | iterated | zero-velocity constraint (ours) |
-//! | [`Ckf`] | fixed | single | Markov biases, trapezoidal `Q` (the ARCKF paper) |
-//! | [`Arckf`] | adaptive-robust (L1 `Cu`, prior fading, χ²) | single | as `Ckf` |
-//! | [`Ukf`] | fixed | unscented | |
-//! | [`crate::filters::Ackf`] | residual-weighted (L1 `Cu`) | single | as `Ckf`, gravity and magnetometer aiding |
-//!
-//! Other rows can be composed with [`TightFilter::new`] and a [`Composition`]; every policy works
-//! with every strategy.
+//! The named tightly coupled filters, each a declared [`Composition`] (the table is in the
+//! module doc of `filters`).
 
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Result;
@@ -163,4 +147,15 @@ named_filter!(
     /// ```
     Ukf,
     |config| Composition::new(RangeNoisePolicy::Fixed, UpdateStrategy::Unscented)
+);
+
+named_filter!(
+    /// Robust error-state unscented Kalman filter (ours): the [`Ukf`]'s sigma-point update with the
+    /// χ² inflation of the robust EKF (Li & Wang 2020 eqs. (37)–(38), (40)), γ from the unscented
+    /// predicted variance.
+    Rukf,
+    |config| Composition::new(
+        RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? },
+        UpdateStrategy::Unscented,
+    )
 );

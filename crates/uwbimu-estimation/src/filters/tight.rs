@@ -184,7 +184,7 @@ const RANGE_NOISE_BOUNDS: NoiseBounds = NoiseBounds { min_ratio: 0.25, max_ratio
 pub const SIGMA_POINTS: usize = 2 * ERR_DIM + 1;
 
 impl TightFilter {
-    /// Builds the filter from its composition (the rows of [`crate::filters::named`]). Every
+    /// Builds the filter from its composition (the named rows, e.g. [`crate::filters::Riekf`]). Every
     /// combination of policy and strategy works: the unscented strategy applies the same
     /// robustness factors, prior fading and inflation as the Kalman steps. Fails on an invalid
     /// configuration (including `n + λ ≤ 0` for the unscented strategy).
