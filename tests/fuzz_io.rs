@@ -10,10 +10,10 @@ use std::time::Duration;
 
 use proptest::prelude::*;
 use uwbimu_rs::app::io::cdr::decode;
-use uwbimu_rs::app::io::mapping::{Mapping, UwbMapping};
 use uwbimu_rs::app::io::msg_schema::MsgSchema;
 use uwbimu_rs::app::io::read_recording;
 use uwbimu_rs::app::io::recording_out::{imu_cdr, write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::app::io::{Mapping, UwbMapping};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::records::{ImuSample, RangeMeasurement};
 

@@ -8,8 +8,8 @@ mod common;
 
 use std::path::PathBuf;
 
-use uwbimu_rs::app::io::mapping::AnchorMapping;
 use uwbimu_rs::app::io::truth_file::read_truth_csv;
+use uwbimu_rs::app::io::AnchorMapping;
 use uwbimu_rs::app::io::{read_recording_file, Recording, ReplayConfig};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::{compare_with_truth, replay};
@@ -124,6 +124,7 @@ fn every_method_holds_up_with_the_defaults() {
         ("shaf", 0.18),
         ("shfaf", 0.19),
         ("ukf", 0.31),
+        ("rukf", 0.145),
         ("ekf2d", 0.37),
         ("ukf2d", 0.37),
         ("cekf2d", 0.47),

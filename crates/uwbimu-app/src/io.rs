@@ -1,7 +1,7 @@
 //! MCAP logs in and out: streaming reading ([`mcap_read`]), the ros2msg schema parser
 //! ([`msg_schema`]) and generic CDR decoder ([`cdr`]), field-path mappings ([`field_path`],
-//! [`mapping`]), per-topic decoders ([`topics`]), anchor tables ([`anchors`]), the bounded
-//! reorder window ([`reorder`]), the whole-recording reader ([`recording`]), ground-truth files
+//! [`Mapping`]), per-topic decoders ([`topics`]), anchor tables ([`anchors`]), the bounded
+//! reorder window ([`reorder`]), the whole-recording reader ([`read_recording`]), ground-truth files
 //! ([`truth_file`]) and the writers: Foxglove trajectories ([`foxglove_out`]), recordings
 //! ([`recording_out`]), CSV ([`csv_out`]).
 
@@ -11,17 +11,20 @@ pub mod csv_out;
 mod error;
 pub mod field_path;
 pub mod foxglove_out;
-pub mod mapping;
+mod mapping;
 pub mod mcap_read;
 pub mod msg_schema;
-pub mod recording;
+mod recording;
 pub mod recording_out;
 pub mod reorder;
-pub mod replay_config;
+mod replay_config;
 pub mod topics;
 pub mod truth_file;
 
 pub use error::{IoError, IoResult};
-pub use mapping::{Mapping, TimeSource};
+pub use mapping::{
+    AnchorFrom, AnchorMapping, GroundTruthMapping, Mapping, TdoaMapping, TimeSource, UwbMapping, TDOA_ANCHOR_I_DEFAULT,
+    TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
+};
 pub use recording::{read_recording, read_recording_file, ReadStats, Recording};
 pub use replay_config::ReplayConfig;

@@ -77,15 +77,15 @@ macro_rules! delegate_filter {
     };
 }
 
-pub mod ackf;
+mod ackf;
 pub mod constraints;
-pub mod core;
-pub mod loose;
+mod core;
+mod loose;
 mod named;
 pub mod range_bias;
 pub mod reacquire;
 pub mod sigma_points;
-pub mod tight;
+mod tight;
 
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::Result;
@@ -95,10 +95,13 @@ use uwbimu_vocabulary::records::{MagSample, Observation, TdoaMeasurement};
 use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
-pub use self::core::{InertialCore, Segment};
+pub use self::core::{InertialCore, ReacquisitionWidening, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
-pub use self::tight::{Composition, TightFilter, UpdateStrategy};
+pub(crate) use self::tight::{check_ranges, check_tdoa};
+pub use self::tight::{
+    BiasModel, Composition, ConstraintSwitches, TightFilter, UpdateStrategy, DEFAULT_BIAS_TAU_S, SIGMA_POINTS,
+};
 
 /// The verbs of every filter, 15-state or planar: propagate with an IMU sample, update with an
 /// epoch of ranges or an observation. The pipeline, the Python streaming classes and the batch

@@ -6,14 +6,14 @@
 //! `Σ (‖p − a_i‖ − r_i)²` (Liu et al. 2019 eq. (8)). Both run in 3-D, or in *planar* mode where the
 //! height is fixed and only x, y are estimated.
 //!
-//! [`l1`] adds the L1 fix of the ARCKF paper's eqs. (33)–(34) (sum of absolute range residuals, by IRLS
+//! `l1` adds the L1 fix of the ARCKF paper's eqs. (33)–(34) (sum of absolute range residuals, by IRLS
 //! from the L2 fix), whose residuals drive the ARCKF robustness factor.
 //!
 //! Nothing here panics: degenerate input (too few ranges, collinear or coplanar anchors, unknown
 //! anchor indices, non-finite values) gives `None`. Allocation per epoch is accepted; this is
 //! not the filters' hot path.
 
-pub mod l1;
+mod l1;
 pub mod tdoa;
 
 use nalgebra::{Cholesky, DMatrix, DVector, Matrix2, SymmetricEigen, Vector2};

@@ -20,7 +20,7 @@ use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasure
 use uwbimu_vocabulary::state::{NominalState, POS};
 
 use crate::epoch::{align_to_reference, EpochAssembler};
-use crate::filters::tight::{check_ranges, check_tdoa};
+use crate::filters::{check_ranges, check_tdoa};
 use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::range::tag_position;
 use crate::smoother::{rts_smooth, SmoothedNode};

@@ -16,9 +16,9 @@
 //! The plane height is `plane_height` (default: the initial height). The range model uses the
 //! 3-D distance to each anchor with that known height (eq. (8) is the case of equal heights).
 
-pub mod cekf;
+mod cekf;
 pub mod ekf;
-pub mod model;
+mod model;
 pub mod ukf;
 
 use nalgebra::{Matrix2, SMatrix, UnitQuaternion, Vector2};
@@ -27,15 +27,15 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::state::NominalState;
 
+use crate::filters::check_ranges;
 use crate::filters::reacquire::reacquisition_fix;
 use crate::filters::sigma_points::UnscentedWeights;
-use crate::filters::tight::check_ranges;
 use crate::filters::Filter;
 use crate::multilateration::LsConfig;
 use crate::pipeline::{Estimator, StepRecord};
 use crate::update::{vector_step, UpdateReport};
 
-pub use cekf::MovingAverage;
+pub use cekf::{MovingAverage, MAX_AGE_S};
 pub use model::{PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
 
 /// Which planar update (Wang et al. 2018 §3.1–§3.3).

@@ -3,11 +3,11 @@
 //! and the bounds and divergence detection that keep adaptive noise from running away.
 
 pub mod aiding;
-pub mod chi2;
-pub mod noise_bounds;
-pub mod policy;
-pub mod robustness;
-pub mod sage_husa;
+mod chi2;
+mod noise_bounds;
+mod policy;
+mod robustness;
+mod sage_husa;
 
 pub use chi2::{chi2_quantile, chi2_quantile_1dof, CHI2_1DOF_ALPHA_1E4};
 pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
@@ -15,4 +15,6 @@ pub use policy::{tested_nis, RangeNoisePolicy};
 pub use robustness::{
     fade_position_velocity, prior_fading, robustness_factor, robustness_factors, two_range_residuals, RobustnessFactor,
 };
-pub use sage_husa::{SageHusa, SageHusaConfig, SageHusaStep};
+pub use sage_husa::{
+    innovation_weight, Defuzzification, FadingWindow, FuzzyConfig, SageHusa, SageHusaConfig, SageHusaStep, SageHusaVariant,
+};

@@ -11,11 +11,11 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 
 use crate::io::anchors::{parse_anchor_metadata, read_anchor_file, AnchorTable, ANCHORS_METADATA};
-use crate::io::mapping::{Mapping, TimeSource};
 use crate::io::mcap_read::{read_mcap, ChannelInfo, McapEvent};
 use crate::io::reorder::ReorderBuffer;
 use crate::io::topics::{AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawRange, RawTdoa, TdoaDecoder};
 use crate::io::truth_file::read_truth_csv;
+use crate::io::{Mapping, TimeSource};
 
 /// What a topic was used for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

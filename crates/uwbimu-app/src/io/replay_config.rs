@@ -10,7 +10,7 @@ use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 
-use crate::io::mapping::Mapping;
+use crate::io::Mapping;
 use crate::methods::{Method, DEFAULT_METHOD};
 
 /// A parsed replay file.

@@ -10,12 +10,12 @@ use uwbimu_vocabulary::math::Vec3;
 use crate::io::anchors::json_id;
 use crate::io::cdr::{decode, Value};
 use crate::io::field_path::{Condition, FieldPath, PointPath};
-use crate::io::mapping::{
+use crate::io::mcap_read::ChannelInfo;
+use crate::io::msg_schema::MsgSchema;
+use crate::io::{
     AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
     TDOA_DEFAULT,
 };
-use crate::io::mcap_read::ChannelInfo;
-use crate::io::msg_schema::MsgSchema;
 
 /// Schema name of our JSON range message.
 pub const UWB_RANGE_JSON: &str = "uwbimu.UwbRange";

@@ -8,7 +8,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::Observation;
 use uwbimu_vocabulary::state::ErrVec;
 
-use crate::filters::tight::BiasModel;
+use crate::filters::BiasModel;
 use crate::filters::{Composition, Filter, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
 use crate::models::attitude::{predict_vector, VectorSensor};
 use crate::robust::aiding::AidingUncertainty;

@@ -15,7 +15,7 @@
 //! columns, but the biases correlated with the velocity and height move with them and their
 //! cross-covariance stays consistent.
 
-pub mod still;
+mod still;
 
 use nalgebra::SVector;
 use uwbimu_vocabulary::config::{ConstraintsConfig, MAX_SPEED_HISTORY};

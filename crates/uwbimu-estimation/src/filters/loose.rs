@@ -12,8 +12,8 @@ use crate::filters::constraints::Constraints;
 use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::loose::{position_measurement, velocity_measurement, TagFix};
 use crate::multilateration::{solve_epoch, LsConfig};
-use crate::robust::sage_husa::{SageHusa, SageHusaConfig, SageHusaVariant};
 use crate::robust::{chi2_quantile, DivergenceMonitor};
+use crate::robust::{SageHusa, SageHusaConfig, SageHusaVariant};
 use crate::update::{inject_and_reset, leading_rows_step, vector_step, UpdateReport};
 
 /// Loosely coupled UWB/IMU error-state Kalman filter (Liu et al. 2019).
@@ -117,7 +117,7 @@ impl Filter for Eskf {
         if reports.len() != ranges.len() {
             return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
         }
-        crate::filters::tight::check_ranges(&self.anchors, ranges)?;
+        crate::filters::check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
         let config = &self.config;
         let lever_arm = config.mounting.lever_arm;
@@ -290,7 +290,7 @@ macro_rules! adaptive_eskf {
 adaptive_eskf!(
     /// Sage–Husa adaptive filter (Liu et al. 2019 SHAF): the loosely coupled ESKF with the simplified
     /// Sage–Husa estimate of R (classic weight, λ = 1, s = 1) and the positive-definiteness guard of
-    /// [`crate::robust::sage_husa`].
+    /// `crate::robust::sage_husa`.
     Shaf,
     SageHusaVariant::Shaf
 );

@@ -5,7 +5,7 @@ use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Vec3;
 
-use crate::filters::tight::{BiasModel, ConstraintSwitches};
+use crate::filters::{BiasModel, ConstraintSwitches};
 use crate::filters::{Composition, TightFilter, UpdateStrategy};
 use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 
@@ -117,7 +117,7 @@ named_filter!(
     /// [`Ckf`] with `R_i = σ²·Cu_i` from the L1 robustness factor (eqs. (33)–(38)), the prior
     /// inflated by `γ/χ²` when the epoch shows an abnormal state (eq. (42)), and `R_i` inflated by
     /// `γ/χ²` for outlying ranges (eq. (41)); χ² is the 1-dof quantile of `alpha`. Which branch a
-    /// failing range takes follows [`crate::robust::robustness`] (documented deviations: the
+    /// failing range takes follows `crate::robust::robustness` (documented deviations: the
     /// prior is faded, in its position–velocity block, only when most ranges of the epoch fail).
     Arckf,
     |config| Composition {

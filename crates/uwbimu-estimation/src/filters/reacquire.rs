@@ -36,8 +36,8 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::TdoaMeasurement;
 use uwbimu_vocabulary::state::{ErrVec, POS};
 
-use crate::filters::core::ReacquisitionWidening;
 use crate::filters::InertialCore;
+use crate::filters::ReacquisitionWidening;
 use crate::models::loose::{position_measurement, TagFix};
 use crate::multilateration::tdoa::solve_tdoa;
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
@@ -145,7 +145,7 @@ const DIVERGED_NIS_BOUND: f64 = 27.631_021_115_928_547;
 /// the prior ([`RANGE_FAIL_NIS`]); `config` gives the least-squares settings.
 ///
 /// A prior that does not cover the discrepancy to the fix (`disagrees`) is first widened by it
-/// ([`crate::filters::core::ReacquisitionWidening`]): after a divergence, as built up by a
+/// ([`crate::filters::ReacquisitionWidening`]): after a divergence, as built up by a
 /// velocity error since the last good epoch; a prior that was merely wide (an ARCKF fading that
 /// left the fix metres away, far beyond its χ² bound) in position only (reading it as a velocity error there
 /// too re-acquired CKF epoch after epoch after an acceleration outlier, each widening feeding the

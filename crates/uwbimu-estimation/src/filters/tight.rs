@@ -18,11 +18,11 @@ use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::range::tag_position;
 use crate::models::scalar::ScalarMeasurement;
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
-use crate::robust::sage_husa::{SageHusa, SageHusaConfig, SageHusaVariant};
 use crate::robust::NoiseBounds;
 use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, tested_nis, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
+use crate::robust::{SageHusa, SageHusaConfig, SageHusaVariant};
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport};
 
 /// A tightly coupled UWB/IMU error-state filter.

@@ -1,6 +1,6 @@
 //! L1 multilateration (the ARCKF paper's eqs. (33)–(34)): the tag position minimising the sum of absolute
 //! range residuals, and the residuals themselves, which feed the robustness factor of the ARCKF
-//! (the ARCKF paper's eq. (35), [`crate::robust::robustness`]).
+//! (the ARCKF paper's eq. (35), `crate::robust::robustness`).
 //!
 //! The minimiser is found by iteratively reweighted least squares (IRLS) started from the L2
 //! solution: each iteration takes one Gauss–Newton step on `Σ w_i·e_i²` with

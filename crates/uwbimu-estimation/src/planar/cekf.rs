@@ -28,7 +28,7 @@ use uwbimu_vocabulary::config::MAX_CEKF_WINDOW;
 use uwbimu_vocabulary::error::{Error, Result};
 
 use crate::planar::ekf::{linearised_update, Epoch};
-use crate::planar::model::{PlanarCov, PlanarState};
+use crate::planar::{PlanarCov, PlanarState};
 use crate::update::UpdateReport;
 
 /// Oldest range the prefilter averages, s: the range rate is taken as constant over this span

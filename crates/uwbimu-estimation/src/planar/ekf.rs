@@ -5,7 +5,7 @@
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Vec3;
 
-use crate::planar::model::{PlanarCov, PlanarGeometry, PlanarState, VX, VY, X, Y};
+use crate::planar::{PlanarCov, PlanarGeometry, PlanarState, VX, VY, X, Y};
 use crate::update::{scalar_step, UpdateReport};
 
 /// What every planar update of one epoch needs besides the state.
@@ -33,7 +33,7 @@ pub struct PrefilterInput {
     /// Predicted range rate `∂h/∂p·v`, m/s.
     pub rate_mps: f64,
     /// Whether the filter is converged on this range: its predicted variance `H·P·Hᵀ`, and the
-    /// variance of its predicted rate over [`crate::planar::cekf::MAX_AGE_S`], are below the
+    /// variance of its predicted rate over [`crate::planar::MAX_AGE_S`], are below the
     /// range noise variance.
     pub converged: bool,
 }
@@ -60,7 +60,7 @@ pub fn linearised_update(
         let hph = h.dot(&(p_prior * h));
         let rate_mps = h[X] * prior[VX] + h[Y] * prior[VY];
         let hv = PlanarState::new(0.0, 0.0, h[X], h[Y]);
-        let rate_var = hv.dot(&(p_prior * hv)) * crate::planar::cekf::MAX_AGE_S.powi(2);
+        let rate_var = hv.dot(&(p_prior * hv)) * crate::planar::MAX_AGE_S.powi(2);
         let converged = hph < epoch.range_var && rate_var < epoch.range_var;
         let z = prefilter(PrefilterInput { anchor, range_m, rate_mps, converged })?;
         let residual = z - predicted;

@@ -5,7 +5,7 @@ use uwbimu_vocabulary::error::Result;
 
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::planar::ekf::Epoch;
-use crate::planar::model::{PlanarCov, PlanarState, PLANAR_DIM};
+use crate::planar::{PlanarCov, PlanarState, PLANAR_DIM};
 use crate::update::UpdateReport;
 
 /// Sigma points of the planar UKF: 2n + 1 with n = 4 (checked at compile time by

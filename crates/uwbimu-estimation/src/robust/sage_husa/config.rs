@@ -1,7 +1,7 @@
 //! Settings of the Sage–Husa estimator (Liu et al. 2019 §3.2–§3.3, eqs. (26)–(36)): the variant (SHAF or
 //! SHFAF), the parameters of eqs. (26), (27), (30), (34) and (36), and their validation.
 
-use crate::robust::noise_bounds::NoiseBounds;
+use crate::robust::NoiseBounds;
 use uwbimu_vocabulary::config::{SageHusaSection, MAX_SAGE_HUSA_WINDOW as MAX_WINDOW};
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::validate::invalid;
@@ -55,7 +55,7 @@ pub struct SageHusaConfig {
     /// Membership functions and defuzzification of `s_k` (SHFAF only).
     pub fuzzy: FuzzyConfig,
     /// Whether the estimate is kept within `bounds` of each update's nominal covariance, with the
-    /// divergence restart of the loosely coupled filters ([`crate::robust::noise_bounds`]; ours).
+    /// divergence restart of the loosely coupled filters (`crate::robust::noise_bounds`; ours).
     /// False = the estimator as printed in Liu et al. 2019. Default: true.
     pub bounded: bool,
     /// The bounds when `bounded`. Default: `[1, 4]` (the variance may grow to 4×, σ to 2×, not
@@ -139,9 +139,9 @@ impl SageHusaConfig {
 mod tests {
     use nalgebra::SMatrix;
 
+    use super::super::estimator::tests::m1;
     use super::*;
-    use crate::robust::sage_husa::estimator::tests::m1;
-    use crate::robust::sage_husa::SageHusa;
+    use crate::robust::SageHusa;
 
     #[test]
     fn config_is_validated() {

@@ -1,6 +1,6 @@
 //! The Sage–Husa (fuzzy) adaptive estimator of `R` (Liu et al. 2019 eqs. (22)–(27), (32)–(35)) and one
 //! step of it, with the positive-definiteness guard and the bounded variant (module doc of
-//! [`crate::robust::sage_husa`]).
+//! `crate::robust::sage_husa`).
 
 use nalgebra::{Cholesky, SVector};
 use uwbimu_vocabulary::config::MAX_SAGE_HUSA_WINDOW as MAX_WINDOW;
@@ -76,7 +76,7 @@ impl<const M: usize> SageHusa<M> {
     ///
     /// ```
     /// # use nalgebra::{SMatrix, SVector};
-    /// # use uwbimu_estimation::robust::sage_husa::{SageHusa, SageHusaConfig};
+    /// # use uwbimu_estimation::robust::{SageHusa, SageHusaConfig};
     /// let mut est = SageHusa::<1>::new(SageHusaConfig::default(), SMatrix::<f64, 1, 1>::new(1.0))?;
     /// let step = est.step(&SVector::<f64, 1>::new(0.3), &SMatrix::<f64, 1, 1>::new(0.01));
     /// assert!(step.r[(0, 0)] > 0.0);
