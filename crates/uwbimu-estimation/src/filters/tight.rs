@@ -428,14 +428,7 @@ impl TightFilter {
         let mut epoch = KalmanEpoch {
             anchors: &self.anchors,
             lever_arm: self.config.mounting.lever_arm,
-            noise: EpochNoise {
-                nominal: NominalNoise::of(&self.config),
-                policy: self.policy,
-                nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
-                range_noise: &mut self.range_noise,
-                factors,
-                fading,
-            },
+            noise: EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading),
             max_iterations,
             tolerance,
         };
@@ -474,14 +467,7 @@ impl TightFilter {
         fading: f64,
     ) -> Result<()> {
         let lever_arm = self.config.mounting.lever_arm;
-        let mut noise = EpochNoise {
-            nominal: NominalNoise::of(&self.config),
-            policy: self.policy,
-            nlos_skew: self.config.robust.nlos_skew_or_symmetric(),
-            range_noise: &mut self.range_noise,
-            factors,
-            fading,
-        };
+        let mut noise = EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading);
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
         let mut dx = ErrVec::zeros();
@@ -547,7 +533,21 @@ impl NoiseDecision {
     }
 }
 
-impl EpochNoise<'_> {
+impl<'a> EpochNoise<'a> {
+    /// The noise of an epoch under `policy` with the configured variances and NLOS skew, the
+    /// per-anchor adaptive estimators `range_noise` (empty when off), the epoch's robustness
+    /// factors and the prior's fading.
+    fn new(
+        config: &FilterConfig,
+        policy: RangeNoisePolicy,
+        range_noise: &'a mut [SageHusa<1>],
+        factors: Option<&'a [RobustnessFactor]>,
+        fading: f64,
+    ) -> Self {
+        let (nominal, nlos_skew) = (NominalNoise::of(config), config.robust.nlos_skew_or_symmetric());
+        Self { nominal, policy, nlos_skew, range_noise, factors, fading }
+    }
+
     /// The noise of measurement `k` of the epoch, `m`, with innovation `residual` (corrected in
     /// place by the adaptive range noise) and predicted variance `predicted_var` (`H·P·Hᵀ`, or the
     /// unscented one). `first`: the first evaluation at this epoch (the adaptive estimators step
