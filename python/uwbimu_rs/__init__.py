@@ -338,8 +338,8 @@ def initialize(
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Initialise a filter from the start of a recording.
 
-    Roll and pitch (and gyro bias) from the first ``init_still_s`` seconds, position from
-    UWB multilateration, heading from the first ``init_heading_distance_m`` metres of motion
+    Roll and pitch (and gyro bias) from the first ``init.still_s`` seconds, position from
+    UWB multilateration, heading from the first ``init.heading_distance_m`` metres of motion
     against UWB (fallback: yaw 0 with σ = π).
 
     Returns

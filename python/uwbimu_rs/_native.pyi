@@ -625,8 +625,8 @@ def initialize_state(
 ) -> tuple[dict[str, _F64], dict[str, Any]]:
     """Self-initialisation from the start of a recording.
 
-    Roll, pitch and gyro bias from the first ``init_still_s`` seconds; position from UWB
-    multilateration; heading from the first ``init_heading_distance_m`` metres of motion
+    Roll, pitch and gyro bias from the first ``init.still_s`` seconds; position from UWB
+    multilateration; heading from the first ``init.heading_distance_m`` metres of motion
     (fallback: yaw 0 with σ = π).
 
     Parameters
