@@ -445,18 +445,18 @@ macro_rules! py_filter {
 
 /// Declares the streaming class of a registry row that has one, named as its filter.
 macro_rules! streaming_class {
-    (none, [], $($doc:literal),+) => {};
-    ($ty:ident, [], $($doc:literal),+) => {
+    (inertial $ty:ident, [], $($doc:literal),+) => {
         py_filter!($(#[doc = $doc])+ $ty, uwbimu_estimation::filters::$ty);
     };
+    ($run:ident $($ty:ident)?, [], $($doc:literal),+) => {};
 }
 
 /// Adds the streaming class of a registry row that has one to the module `$m`.
 macro_rules! register_class {
-    (none, [$m:ident], $($doc:literal),+) => {};
-    ($ty:ident, [$m:ident], $($doc:literal),+) => {
+    (inertial $ty:ident, [$m:ident], $($doc:literal),+) => {
         $m.add_class::<classes::$ty>()?;
     };
+    ($run:ident $($ty:ident)?, [$m:ident], $($doc:literal),+) => {};
 }
 
 /// One streaming class per registry row with a streaming filter (`uwbimu_app::methods`).

@@ -70,12 +70,12 @@ pub struct MethodInfo {
     pub doc: &'static str,
 }
 
-/// Declares the method registry: one row per method — variant, name, how it runs, what it takes,
-/// its smoothing and its streaming class, with its doc. From the rows come [`Method`],
-/// [`Method::ALL`], [`Method::info`] (names, parsing, capabilities, error lists), the dispatch of
-/// [`run_method`], and the macro [`for_each_streaming_filter!`](crate::for_each_streaming_filter)
-/// with which the Python bindings declare and register one class per streaming filter. Adding a
-/// method is adding a row.
+/// Declares the method registry: one row per method — variant, name, how it runs, what it takes
+/// and its smoothing, with its doc; an inertial method's filter is also its streaming class.
+/// From the rows come [`Method`], [`Method::ALL`], [`Method::info`] (names, parsing,
+/// capabilities, error lists), the dispatch of [`run_method`], and the macro
+/// [`for_each_streaming_filter!`](crate::for_each_streaming_filter) with which the Python
+/// bindings declare and register one class per streaming filter. Adding a method is adding a row.
 macro_rules! methods {
     ($d:tt $(
         $(#[doc = $doc:literal])+
@@ -83,8 +83,7 @@ macro_rules! methods {
             name: $name:literal,
             run: $run:ident $(($ty:ident))?,
             takes: [$($input:ident),+],
-            smoothing: $smoothing:ident,
-            stream: $stream:ident $(,)?
+            smoothing: $smoothing:ident $(,)?
         }
     ),+ $(,)?) => {
         /// A method name accepted by the batch API, one per row of the registry.
@@ -104,7 +103,7 @@ macro_rules! methods {
                         name: $name,
                         takes: &[$(Input::$input),+],
                         smoothing: Smoothing::$smoothing,
-                        streaming_class: methods!(@class $stream),
+                        streaming_class: methods!(@class $run $($ty)?),
                         doc: concat!($($doc, "\n"),+),
                     },)+
                 }
@@ -118,19 +117,20 @@ macro_rules! methods {
             }
         }
 
-        /// Calls `$callback!(Type, [extra…], "doc", …)` once for every method, `Type` its
-        /// streaming filter in `uwbimu_estimation::filters` or `none`, `extra` the tokens given
-        /// after the callback's name (the Python bindings declare and register their streaming
-        /// classes with it, one class named as the type).
+        /// Calls `$callback!(run [Type], [extra…], "doc", …)` once for every method: `run` how it
+        /// runs (`inertial`, `planar`, `multilateration`), `Type` its filter in
+        /// `uwbimu_estimation::filters` when it is inertial (its streaming class), `extra` the
+        /// tokens given after the callback's name (the Python bindings declare and register one
+        /// class per inertial method with it, named as the type).
         #[macro_export]
         macro_rules! for_each_streaming_filter {
             ($d callback:ident $d($d extra:tt)*) => {
-                $($d callback!($stream, [$d($d extra)*], $($doc),+);)+
+                $($d callback!($run $($ty)?, [$d($d extra)*], $($doc),+);)+
             };
         }
     };
-    (@class none) => { None };
-    (@class $stream:ident) => { Some(stringify!($stream)) };
+    (@class inertial $ty:ident) => { Some(stringify!($ty)) };
+    (@class $run:ident $($ty:ident)?) => { None };
     (@run $input:ident, multilateration) => {{
         let ls = LsConfig::from_filter_config($input.config);
         Ok(BatchOutput::Multilateration(uwb_ls($input.ranges, $input.anchors, &ls)))
@@ -143,53 +143,52 @@ macro_rules! methods {
 
 methods! {$
     /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
-    UwbLs { name: "uwb_ls", run: multilateration, takes: [Ranges], smoothing: Never, stream: none },
+    UwbLs { name: "uwb_ls", run: multilateration, takes: [Ranges], smoothing: Never },
     /// The tightly coupled EKF of Li & Wang (2020).
-    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ekf },
+    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
-    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Iekf },
+    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
-    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Rekf },
+    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
-    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Riekf },
+    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
-    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Criekf },
+    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ckf },
+    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Arckf },
+    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
     Ackf {
         name: "ackf",
         run: inertial(Ackf),
         takes: [Ranges, Tdoa, Magnetometer],
         smoothing: OnRequest,
-        stream: Ackf,
     },
     /// The loosely coupled error-state filter of Liu et al. (2019).
-    Eskf { name: "eskf", run: inertial(Eskf), takes: [Ranges], smoothing: OnRequest, stream: Eskf },
+    Eskf { name: "eskf", run: inertial(Eskf), takes: [Ranges], smoothing: OnRequest },
     /// The Sage–Husa adaptive ESKF of Liu et al. (2019).
-    Shaf { name: "shaf", run: inertial(Shaf), takes: [Ranges], smoothing: OnRequest, stream: Shaf },
+    Shaf { name: "shaf", run: inertial(Shaf), takes: [Ranges], smoothing: OnRequest },
     /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
-    Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest, stream: Shfaf },
+    Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest },
     /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
-    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Ukf },
+    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
-    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tdoa], smoothing: OnRequest, stream: Rukf },
+    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tdoa], smoothing: OnRequest },
     /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
-    Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never, stream: none },
+    Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never },
     /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
-    Ukf2d { name: "ukf2d", run: planar(Ukf), takes: [Ranges], smoothing: Never, stream: none },
+    Ukf2d { name: "ukf2d", run: planar(Ukf), takes: [Ranges], smoothing: Never },
     /// The planar errors-complementary EKF of Wang et al. (2018), eqs. (15)–(18).
     ///
     /// Ranges pass through a moving average first.
-    Cekf2d { name: "cekf2d", run: planar(Cekf), takes: [Ranges], smoothing: Never, stream: none },
+    Cekf2d { name: "cekf2d", run: planar(Cekf), takes: [Ranges], smoothing: Never },
     /// The recommended method for real logs (ours), smoothed unless a forward pass is asked for.
     ///
     /// RIEKF with its range test skewed against long ranges and the zero-velocity constraint while
     /// still ([`uwbimu_estimation::filters::Best`]), re-acquisition on divergence and
     /// self-initialisation when no initial state is given.
-    Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa], smoothing: ByDefault, stream: Best },
+    Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa], smoothing: ByDefault },
 }
 
 impl Method {
