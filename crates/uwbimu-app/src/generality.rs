@@ -134,15 +134,7 @@ pub fn cells<'a, S: AsRef<str>>(
 /// Runs every cell ([`run_cell`]), on all cores with the `parallel` feature, else one after the
 /// other; one result per cell, in order.
 pub fn run_cells(cells: &[Cell<'_>]) -> Vec<Result<CellResult>> {
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        cells.par_iter().map(run_cell).collect()
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        cells.iter().map(run_cell).collect()
-    }
+    crate::parallel::map_all(cells, run_cell)
 }
 
 /// The `[start, end)` range outages of a time-ordered range stream within `[t0, t1]`.

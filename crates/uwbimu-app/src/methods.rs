@@ -339,15 +339,7 @@ fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 /// Runs `method` over many recordings, in parallel on all cores with the `parallel` feature
 /// (rayon), else one after the other; one result per input, in order.
 pub fn run_many(method: Method, inputs: &[BatchInput<'_>]) -> Vec<Result<BatchOutput>> {
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        inputs.par_iter().map(|input| run_method(method, input)).collect()
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        inputs.iter().map(|input| run_method(method, input)).collect()
-    }
+    crate::parallel::map_all(inputs, |input| run_method(method, input))
 }
 
 /// The given initial state, or the self-initialisation's.

@@ -133,16 +133,7 @@ pub fn tune(method: Method, input: &BatchInput<'_>, objective: Objective<'_>, ro
 
 /// Scores of `configs`, in parallel with the `parallel` feature; a failed run scores +∞.
 fn score_all(method: Method, input: &BatchInput<'_>, configs: &[FilterConfig], objective: Objective<'_>) -> Vec<f64> {
-    let one = |c: &FilterConfig| score(method, input, c, objective).unwrap_or(f64::INFINITY);
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        configs.par_iter().map(one).collect()
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        configs.iter().map(one).collect()
-    }
+    crate::parallel::map_all(configs, |c| score(method, input, c, objective).unwrap_or(f64::INFINITY))
 }
 
 /// The score of one configuration (module doc); NaN results count as +∞.
