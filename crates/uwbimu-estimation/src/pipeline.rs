@@ -247,17 +247,8 @@ impl Pipeline {
         let epoch = self.epochs.ranges();
         self.aligned.resize(epoch.len(), (0, 0.0));
         align_to_reference(epoch, t_ref, est.anchors(), &tag, &velocity, &mut self.aligned);
-        self.reports.clear();
-        self.reports.resize(epoch.len(), UpdateReport::skipped());
-        est.update_ranges(t_ref, &self.aligned, &mut self.reports)?;
-        self.applied.extend(epoch.iter().zip(&self.reports).map(|(r, report)| UpdateRecord {
-            t_s: r.t_s,
-            epoch_t_s: t_ref,
-            anchor: r.anchor,
-            anchor_j: None,
-            range_m: r.range_m,
-            report: *report,
-        }));
+        let measured = epoch.iter().map(|r| (r.t_s, r.anchor, r.range_m));
+        apply_epoch(est, t_ref, &self.aligned, measured, &mut self.reports, &mut self.applied)?;
         self.epochs.clear();
         Ok(())
     }
@@ -268,19 +259,8 @@ impl Pipeline {
     pub fn epoch<E: Estimator>(&mut self, est: &mut E, t_s: f64, ranges: &[(usize, f64)]) -> Result<()> {
         self.flush(est)?;
         self.check_order("range", t_s)?;
-        self.reports.clear();
-        self.reports.resize(ranges.len(), UpdateReport::skipped());
-        est.update_ranges(t_s, ranges, &mut self.reports)?;
-        let epoch_t_s = est.time_s().unwrap_or(t_s);
-        self.applied.extend(ranges.iter().zip(&self.reports).map(|(&(anchor, range_m), report)| UpdateRecord {
-            t_s,
-            epoch_t_s,
-            anchor,
-            anchor_j: None,
-            range_m,
-            report: *report,
-        }));
-        Ok(())
+        let measured = ranges.iter().map(|&(anchor, range_m)| (t_s, anchor, range_m));
+        apply_epoch(est, t_s, ranges, measured, &mut self.reports, &mut self.applied)
     }
 
     /// Moves the records of the ranges applied since the last call into `out`.
@@ -297,6 +277,32 @@ impl Pipeline {
     pub fn pending(&self) -> &[RangeMeasurement] {
         self.epochs.ranges()
     }
+}
+
+/// Applies the epoch `ranges` (anchor, m) at `t_s` to `est` with `reports` as scratch, and keeps
+/// one [`UpdateRecord`] per range in `applied`, with the range as `measured` (time s, anchor,
+/// range m) and the epoch time the filter reached.
+fn apply_epoch<E: Estimator>(
+    est: &mut E,
+    t_s: f64,
+    ranges: &[(usize, f64)],
+    measured: impl Iterator<Item = (f64, usize, f64)>,
+    reports: &mut Vec<UpdateReport>,
+    applied: &mut Vec<UpdateRecord>,
+) -> Result<()> {
+    reports.clear();
+    reports.resize(ranges.len(), UpdateReport::skipped());
+    est.update_ranges(t_s, ranges, reports)?;
+    let epoch_t_s = est.time_s().unwrap_or(t_s);
+    applied.extend(measured.zip(reports.iter()).map(|((t_s, anchor, range_m), report)| UpdateRecord {
+        t_s,
+        epoch_t_s,
+        anchor,
+        anchor_j: None,
+        range_m,
+        report: *report,
+    }));
+    Ok(())
 }
 
 /// An estimator with its [`Pipeline`]: the streaming form of the loop.
