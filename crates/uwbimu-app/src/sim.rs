@@ -316,8 +316,8 @@ impl SimConfig {
 }
 
 /// Declares the simulator overrides, one row each: `switch key(config, on) { … }` for a bool,
-/// `number key(config) { place }` for a number written to `place` (an `&mut f64` that may fail
-/// with `?`), `count key(config, n) { … }` for a whole number. From the rows come
+/// `number key(config[, key]) { place }` for a number written to `place` (an `&mut f64` that may
+/// fail with `?`; `key` names the key for its errors), `count key(config, n) { … }` for a whole number. From the rows come
 /// [`OVERRIDE_KEYS`] and the setter; a key cannot be listed and not applied, or the reverse.
 macro_rules! overrides {
     ($(
@@ -341,9 +341,10 @@ macro_rules! overrides {
         $body
         Ok(())
     }};
-    (@apply number, $key:ident, $value:ident, $config:ident, $c:ident $body:block) => {{
+    (@apply number, $key:ident, $value:ident, $config:ident, $c:ident $(, $k:ident)? $body:block) => {{
         let OverrideValue::Number(x) = $value else { return Err(invalid($key, "expects a number, got a bool")) };
         let $c = $config;
+        $(let $k = $key;)?
         let place: &mut f64 = $body;
         *place = x;
         Ok(())
@@ -369,13 +370,18 @@ fn tdoa_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut TdoaConfig> {
     c.tdoa.as_mut().ok_or_else(|| invalid(key, "TDoA is off; set tdoa=True"))
 }
 
+/// The magnetometer model of `c`, or the error for a `mag_*` override while it is off.
+fn magnetometer_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut MagConfig> {
+    c.magnetometer.as_mut().ok_or_else(|| invalid(key, "the magnetometer is off; set magnetometer=True"))
+}
+
 overrides! {
     switch nlos(c, on) { if on { c.uwb.nlos.get_or_insert_with(NlosConfig::default); } else { c.uwb.nlos = None; } };
     switch magnetometer(c, on) { if on { c.magnetometer.get_or_insert_with(MagConfig::default); } else { c.magnetometer = None; } };
     switch tdoa(c, on) { if on { c.tdoa.get_or_insert_with(TdoaConfig::default); } else { c.tdoa = None; } };
-    number tdoa_rate_hz(c) { &mut tdoa_on(c, "tdoa_rate_hz")?.rate_hz };
-    number tdoa_std_m(c) { &mut tdoa_on(c, "tdoa_std_m")?.std_m };
-    number tdoa_outlier_prob(c) { &mut tdoa_on(c, "tdoa_outlier_prob")?.outlier_prob };
+    number tdoa_rate_hz(c, key) { &mut tdoa_on(c, key)?.rate_hz };
+    number tdoa_std_m(c, key) { &mut tdoa_on(c, key)?.std_m };
+    number tdoa_outlier_prob(c, key) { &mut tdoa_on(c, key)?.outlier_prob };
     switch imu_noise(c, on) { if !on { c.imu_noise = ImuNoise::none(); } };
     number imu_rate_hz(c) { &mut c.imu_rate_hz };
     number uwb_rate_hz(c) { &mut c.uwb.rate_hz };
@@ -385,17 +391,17 @@ overrides! {
     number outlier_min_m(c) { &mut c.uwb.outlier_min_m };
     number outlier_max_m(c) { &mut c.uwb.outlier_max_m };
     number dropout_prob(c) { &mut c.uwb.dropout_prob };
-    number nlos_bias_min_m(c) { &mut nlos_on(c, "nlos_bias_min_m")?.bias_min_m };
-    number nlos_bias_max_m(c) { &mut nlos_on(c, "nlos_bias_max_m")?.bias_max_m };
-    number nlos_extra_std_m(c) { &mut nlos_on(c, "nlos_extra_std_m")?.extra_std_m };
-    number nlos_dropout_prob(c) { &mut nlos_on(c, "nlos_dropout_prob")?.dropout_prob };
+    number nlos_bias_min_m(c, key) { &mut nlos_on(c, key)?.bias_min_m };
+    number nlos_bias_max_m(c, key) { &mut nlos_on(c, key)?.bias_max_m };
+    number nlos_extra_std_m(c, key) { &mut nlos_on(c, key)?.extra_std_m };
+    number nlos_dropout_prob(c, key) { &mut nlos_on(c, key)?.dropout_prob };
     number accel_noise_density(c) { &mut c.imu_noise.accel_noise_density };
     number gyro_noise_density(c) { &mut c.imu_noise.gyro_noise_density };
     number accel_bias_std(c) { &mut c.imu_noise.accel_bias_std };
     number gyro_bias_std(c) { &mut c.imu_noise.gyro_bias_std };
     number accel_bias_walk(c) { &mut c.imu_noise.accel_bias_walk };
     number gyro_bias_walk(c) { &mut c.imu_noise.gyro_bias_walk };
-    number mag_noise_std(c) { &mut c.magnetometer.as_mut().ok_or_else(|| invalid("mag_noise_std", "the magnetometer is off; set magnetometer=True"))?.noise_std };
+    number mag_noise_std(c, key) { &mut magnetometer_on(c, key)?.noise_std };
     count accel_outlier_count(c, n) { c.accel_outliers.count = n; };
     number accel_outlier_std_mps2(c) { &mut c.accel_outliers.std_mps2 };
     number stagger_s(c) { &mut c.uwb.stagger_s };
