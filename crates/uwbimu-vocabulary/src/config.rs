@@ -102,11 +102,6 @@ fn set_in<S: Section>(s: &mut S, section: &str, field: &str, value: &ConfigValue
     (S::NAME == section).then(|| s.set(field, value))
 }
 
-/// `(section name, its field names)` for a section type.
-fn keys_of<S: Section>(_: &S) -> (&'static str, &'static [&'static str]) {
-    (S::NAME, S::KEYS)
-}
-
 /// `(section name, its field names, their docs)` for a section type.
 fn docs_of<S: Section>(_: &S) -> (&'static str, &'static [&'static str], &'static [&'static str]) {
     (S::NAME, S::KEYS, S::DOCS)
@@ -146,10 +141,7 @@ impl FilterConfig {
 
     /// Every section key, `section.field`, in declaration order.
     pub fn keys() -> Vec<String> {
-        for_each_section!(&Self::default(), |s| keys_of(s))
-            .into_iter()
-            .flat_map(|(section, fields)| fields.iter().map(move |f| format!("{section}.{f}")))
-            .collect()
+        Self::key_docs().into_iter().map(|k| k.key).collect()
     }
 
     /// Sets one field by its key, `section.field`. The value is validated; an unknown key is an
