@@ -5,7 +5,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use uwbimu_rs::estimation::filters::{Ackf, Arckf, Best, Ckf, Criekf, Ekf, Eskf, Riekf, Ukf};
-use uwbimu_rs::estimation::pipeline::{Estimator, Stream};
+use uwbimu_rs::estimation::pipeline::{Estimator, Event, Stream, StreamOptions};
 use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_rs::estimation::update::UpdateReport;
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
@@ -70,6 +70,8 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
             BatchSize::SmallInput,
         )
     });
+    // Data arriving in order: no reorder window.
+    const IN_ORDER: StreamOptions = StreamOptions { reorder_window_s: 0.0, strict: true };
     // The same epoch through the event loop, staggered 1 ms per anchor: grouping by the epoch
     // rule, alignment to the reference time, then the joint update.
     let staggered: Vec<RangeMeasurement> = epoch
@@ -79,10 +81,10 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
         .collect();
     group.bench_function("stream_epoch_4", |b| {
         b.iter_batched_ref(
-            || (Stream::new(setup(build)).expect("stream"), Vec::with_capacity(4)),
+            || (Stream::new(setup(build), IN_ORDER).expect("stream"), Vec::with_capacity(4)),
             |(stream, applied)| {
                 for r in &staggered {
-                    stream.range(black_box(r)).expect("range");
+                    stream.push("range", Event::Range(*black_box(r))).expect("range");
                 }
                 stream.take_applied(applied);
             },

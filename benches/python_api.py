@@ -31,12 +31,13 @@ def streaming(run, initial, config) -> None:
     for sample in run.imu:
         t = sample[0]
         while j < len(ranges) and ranges[j, 0] < t:
-            ekf.update_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2])
+            ekf.add_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2])
             j += 1
-        ekf.predict(t, sample[1:4], sample[4:7])
+        ekf.add_imu(t, sample[1:4], sample[4:7])
         while j < len(ranges) and ranges[j, 0] == t:
-            ekf.update_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2])
+            ekf.add_range(ranges[j, 0], int(ranges[j, 1]), ranges[j, 2])
             j += 1
+    ekf.flush()
 
 
 def main() -> None:

@@ -79,7 +79,7 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
     let rmse: f64 = stdout.split("horizontal ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
     assert!(rmse < 0.14, "{stdout}");
     let csv = std::fs::read_to_string(&out_csv).unwrap();
-    assert!(csv.starts_with("t,x,y,z,vx,vy,vz,qw,qx,qy,qz,std_x,std_y,std_z,still\n"));
+    assert!(csv.starts_with("t,x,y,z,vx,vy,vz,qw,qx,qy,qz,std_x,std_y,std_z,still,status\n"));
     assert_eq!(csv.lines().count(), data.imu.len() + 1);
     // The Foxglove file: three JSON channels with the exact schema names.
     let bytes = std::fs::read(&out_mcap).unwrap();

@@ -9,7 +9,7 @@ use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
 use uwbimu_rs::estimation::filters::Filter;
 use uwbimu_rs::estimation::filters::{Ackf, Composition, InertialFilter, Rekf, TightFilter, UpdateStrategy};
-use uwbimu_rs::estimation::pipeline::{run_streams, Event, Stream, Streams};
+use uwbimu_rs::estimation::pipeline::{run_streams, Event, Stream, StreamOptions, Streams};
 use uwbimu_rs::estimation::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;
@@ -230,7 +230,8 @@ fn every_sensor_at_unrelated_jittered_rates_streams_like_the_batch() {
     let streams = Streams { imu: &data.imu, ranges: &data.ranges, mag: &mag, tdoa: &data.tdoa };
     let mut batch = Ackf::new(data.anchors.clone(), &initial, config.clone()).expect("ackf");
     let trace = run_streams(&mut batch, &streams).expect("every sensor, merged by time");
-    let mut stream = Stream::new(Ackf::new(data.anchors.clone(), &initial, config).expect("ackf")).expect("stream");
+    let options = StreamOptions { reorder_window_s: 0.0, strict: true };
+    let mut stream = Stream::new(Ackf::new(data.anchors.clone(), &initial, config).expect("ackf"), options).expect("stream");
     // Drive the stream event by event; record like the batch, once the events at an IMU time
     // are in.
     let (mut steps, mut pending) = (Vec::new(), false);
@@ -238,20 +239,16 @@ fn every_sensor_at_unrelated_jittered_rates_streams_like_the_batch() {
     let mut last_imu_t = f64::NEG_INFINITY;
     for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
         if pending && event.t_s() > last_imu_t {
-            steps.push(stream.estimator().core().state().position);
+            steps.push(stream.estimator().expect("started").core().state().position);
             pending = false;
         }
-        match event {
-            Event::Imu(s) => {
-                stream.imu(&s).expect("imu");
-                (pending, last_imu_t) = (true, s.t_s);
-            }
-            Event::Range(r) => stream.range(&r).expect("range"),
-            Event::Observation(o) => stream.observation(&o).expect("observation"),
+        if let Event::Imu(s) = event {
+            (pending, last_imu_t) = (true, s.t_s);
         }
+        stream.push("test", event).expect("event");
     }
     if pending {
-        steps.push(stream.estimator().core().state().position);
+        steps.push(stream.estimator().expect("started").core().state().position);
     }
     assert_eq!(steps.len(), trace.steps.len());
     assert!(steps.iter().zip(&trace.steps).all(|(a, b)| *a == b.state.position), "streaming = batch bit for bit");

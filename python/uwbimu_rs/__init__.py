@@ -478,10 +478,12 @@ def replay(
 
 
 def _frame(cols: dict[str, np.ndarray]) -> pl.DataFrame:
-    """A result frame from native columns (``still`` as a boolean)."""
+    """A result frame from native columns (``still`` as a boolean, ``status`` as UInt8 bits)."""
     frame = pl.DataFrame(cols)
     if "still" in frame.columns:
         frame = frame.with_columns(pl.col("still").cast(pl.Boolean))
+    if "status" in frame.columns:
+        frame = frame.with_columns(pl.col("status").cast(pl.UInt8))
     return frame
 
 

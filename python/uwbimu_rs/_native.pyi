@@ -255,45 +255,78 @@ class UpdateReport:
 
 class _StreamingFilter:
     """Streaming API shared by the 15-state filter classes (documented once here; each class below
-    is one named composition of the shared pieces). Constructed as ``Cls(anchors, *, initial,
-    config=None, record=False)``.
+    is one named composition of the shared pieces). Constructed as ``Cls(anchors, *,
+    initial=None, config=None, record=False, reorder_window_s=None, strict=False)``.
 
-        Parameters
+    A robot loop feeds whatever arrives, in any order within the reorder window, and reads the
+    state::
+
+        f = uwbimu_rs.Best(anchors)                      # initialises itself
+        for msg in bus:                                  # IMU and UWB, as they arrive
+            if msg.kind == "imu": f.add_imu(msg.t, msg.accel, msg.gyro)
+            else: f.add_range(msg.t, msg.anchor, msg.range)
+            if f.initialized: publish(f.state["position"])
+
+    Every input goes through a reorder buffer: it is applied once it is ``reorder_window_s``
+    older than the newest input, in the batch order (time; IMU, magnetometer, TDoA, range at
+    equal times), so data late by less than the window gives the same result as data in order;
+    older data is counted (``health["late_dropped"]``) and dropped, or refused with
+    ``strict=True``. Then the plausibility gate (``gate.*`` config keys): impossible
+    measurements are counted in ``health["rejected"]``. Fed a whole log and flushed, a stream
+    equals :func:`run_filter` bit for bit, self-initialisation included.
+
+    Parameters
     ----------
     anchors : array_like, shape (K, 3)
         Anchor positions in the navigation frame, m (finite).
-    initial : dict
+    initial : dict, optional
         Initial state valid at the first IMU time: ``position`` (3,) m, ``velocity`` (3,) m/s,
         ``orientation`` (4,) w, x, y, z, and optional ``position_std`` (m), ``velocity_std``
         (m/s), ``orientation_std`` (rad) (each a scalar or 3 values), ``accel_bias`` (3,) m/s²,
-        ``gyro_bias`` (3,) rad/s, ``accel_bias_std`` (m/s²), ``gyro_bias_std`` (rad/s). The first
-        element of :func:`initialize_state`'s result fits.
+        ``gyro_bias`` (3,) rad/s, ``accel_bias_std`` (m/s²), ``gyro_bias_std`` (rad/s). None: the
+        filter keeps the data until the self-initialisation of the batch API decides (see
+        :func:`initialize`; ``init.heading_timeout_s`` bounds the wait), then starts from it and
+        replays what it kept (``initialized`` says when).
     config : FilterConfig or dict, optional
         Filter settings (see :class:`FilterConfig`); None for the defaults.
+    record : bool
+        Keep what :meth:`smooth` needs.
+    reorder_window_s : float, optional
+        Inputs up to this much older than the newest are put back in order, s; the filter lags
+        the newest input by this much (0: apply at once, for data that arrives in order). None:
+        the replay's default, 0.5 s.
+    strict : bool
+        Raise on an input older than the window allows instead of counting and dropping it.
 
     Raises
     ------
     ConfigError
         Unknown or invalid ``initial`` / ``config`` key.
     ValueError
-        Bad anchor shape or values, or ``initial`` / ``config`` not a dict.
+        Bad anchor shape or values, ``initial`` / ``config`` not a dict, a negative window.
     """
 
     def __new__(
-        cls: type[_S], anchors: ArrayLike, *, initial: dict[str, Any], config: _ConfigArg = None, record: bool = False
+        cls: type[_S],
+        anchors: ArrayLike,
+        *,
+        initial: dict[str, Any] | None = None,
+        config: _ConfigArg = None,
+        record: bool = False,
+        reorder_window_s: float | None = None,
+        strict: bool = False,
     ) -> _S: ...
     def smooth(self) -> dict[str, _F64]:
         """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
         qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
 
-    def predict(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]:
-        """Propagate with the IMU sample at time ``t``; first applies the open range epoch when
-        ``t`` is past its window (see :meth:`add_range`).
+    def add_imu(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]:
+        """Take the IMU sample at time ``t``.
 
         Parameters
         ----------
         t : float
-            Sample time, s (strictly increasing across calls).
+            Sample time, s.
         accel : array_like, shape (3,)
             Specific force in the IMU frame, m/s².
         gyro : array_like, shape (3,)
@@ -302,79 +335,50 @@ class _StreamingFilter:
         Returns
         -------
         list of UpdateReport
-            The ranges applied by this call (usually none).
+            The updates this call applied (usually none; many when it completed the
+            self-initialisation).
 
         Raises
         ------
         UwbImuError
-            Wrong shape, non-finite values or non-increasing time.
+            Wrong shape or non-finite values (the message names ``add_imu`` and the argument), or
+            with ``strict=True`` a time older than the window allows.
         """
 
     def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]:
-        """Add one UWB range to the open epoch, by the batch API's epoch rule: ranges within
-        ``epoch_window_s`` of the epoch's first range, one per anchor, are applied jointly once
-        the epoch closes (every anchor in it, a range that does not fit, or an IMU sample past the
-        window), aligned to the epoch's reference time. Feeding :meth:`predict` and
-        :meth:`add_range` in time order, then :meth:`flush`, reproduces ``run_filter`` exactly.
+        """Take one UWB range: the one way to give a range. It joins an epoch by the batch API's
+        epoch rule: ranges within ``epoch_window_s`` of the epoch's first range, one per anchor,
+        are applied jointly once the epoch closes (every anchor in it, a range that does not fit,
+        or an IMU sample past the window), aligned to the epoch's reference time.
 
         Returns
         -------
         list of UpdateReport
-            The ranges applied by this call (the epoch it closed, if any).
+            The updates this call applied (an epoch it closed, if any).
 
         Raises
         ------
         UwbImuError
-            Anchor index out of range, non-finite or negative range, or a time earlier than the
-            previous call's.
+            An anchor index that does not exist or a non-finite value (the message names
+            ``add_range`` and the argument), or with ``strict=True`` a time older than the window
+            allows. A negative or impossible range is not an error: the gate counts it.
         """
 
-    def flush(self) -> list[UpdateReport]:
-        """Apply the open epoch now; returns its reports."""
+    def add_tdoa(self, t: float, i: int, j: int, d_ij: float) -> list[UpdateReport]:
+        """Take one TDoA ``d_ij = |p − a_j| − |p − a_i|`` (m) between anchor indices ``i`` and
+        ``j`` measured at ``t`` (s), applied at its own time through the filter's noise policy
+        (σ = ``tdoa_std``); a report has ``anchor`` = i, ``anchor_j`` = j and ``range`` = d_ij.
+        The loosely coupled filters (:class:`Eskf`, :class:`Shaf`, :class:`Shfaf`) raise
+        ``UwbImuError``; so do an unknown or repeated anchor and a non-finite value."""
 
-    @property
-    def pending(self) -> int:
-        """Number of ranges waiting in the open epoch."""
-
-    def update_range(self, t: float, anchor: int, range: float) -> UpdateReport:
-        """Apply one UWB range at once, as an epoch of its own (after the open epoch, if any).
-
-        Parameters
-        ----------
-        t : float
-            Measurement time, s.
-        anchor : int
-            Anchor index (row of ``anchors``).
-        range : float
-            Measured range, m.
-
-        Returns
-        -------
-        UpdateReport
-
-        Raises
-        ------
-        UwbImuError
-            Anchor index out of range or non-finite values.
-        NumericalError
-            The innovation covariance was not positive definite.
-        """
-
-    def update_magnetometer(self, t: float, field: ArrayLike) -> None:
-        """Apply one magnetometer sample (3,) in the IMU frame measured at ``t`` (s). Only
+    def add_magnetometer(self, t: float, field: ArrayLike) -> list[UpdateReport]:
+        """Take one magnetometer sample (3,) in the IMU frame measured at ``t`` (s). Only
         :class:`Ackf` uses a magnetometer (the ACKF paper); the others raise ``UwbImuError``."""
 
-    def update_tdoa(self, t: float, i: int, j: int, d_ij: float) -> list[UpdateReport]:
-        """Apply one TDoA ``d_ij = |p − a_j| − |p − a_i|`` (m) between anchor indices ``i`` and ``j``
-        measured at ``t`` (s), at its own time, through the filter's noise policy (σ =
-        ``tdoa_std``). Returns its report (``anchor`` = i, ``anchor_j`` = j, ``range`` = d_ij), or
-        an empty list before the first :meth:`predict`. The loosely coupled filters
-        (:class:`Eskf`, :class:`Shaf`, :class:`Shfaf`) raise ``UwbImuError``; so do an unknown
-        or repeated anchor and a non-finite value."""
-
-    def update_ranges(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]:
-        """Apply the ranges of one epoch (all measured at ``t``) jointly, at once (after the open
-        epoch, if any).
+    def apply_ranges_now(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]:
+        """Apply ranges all measured at ``t`` jointly, at once — bypassing the epoch rule, the
+        reorder window and the gate (for a caller that gathers its own epochs). The inputs
+        buffered up to ``t`` and the open epoch are applied first.
 
         Parameters
         ----------
@@ -388,16 +392,52 @@ class _StreamingFilter:
         Returns
         -------
         list of UpdateReport
-            The open epoch's reports (if one was pending), then one per range given.
+            The updates this call applied: the buffered ones, then one per range given.
+
+        Raises
+        ------
+        UwbImuError
+            Before the filter is initialised, a time older than the data applied, an unknown
+            anchor or a non-finite value.
         """
+
+    def flush(self) -> list[UpdateReport]:
+        """The end of the input so far: apply everything buffered (the reorder window and the
+        open epoch; initialise on what was seen when still waiting). Returns the reports."""
+
+    @property
+    def pending(self) -> int:
+        """Number of ranges waiting in the open epoch."""
+
+    @property
+    def buffered(self) -> int:
+        """Inputs waiting in the reorder buffer or kept for the self-initialisation."""
+
+    @property
+    def initialized(self) -> bool:
+        """Whether the filter has an initial state (given, or found from the data)."""
+
+    @property
+    def init_info(self) -> dict[str, Any] | None:
+        """None while waiting; else ``{"from": "initial"}`` or ``{"from": "self", "still_start":
+        bool, "heading_from": "motion" | "fallback"}``."""
+
+    @property
+    def health(self) -> dict[str, Any]:
+        """What the stream counted: ``rejected`` ({``imu_beyond_range``, ``negative_range``,
+        ``range_beyond_hall``, ``tdoa_beyond_baseline``: count}), ``numerical_repairs``
+        (numerical failures repaired, their measurement skipped), ``ranges_before_start``,
+        ``reordered`` (late inputs put back in order), ``late_dropped``."""
 
     @property
     def time(self) -> float | None:
-        """Filter time, s (None before the first :meth:`predict`)."""
+        """Filter time, s (None before the first IMU sample is applied; it lags the newest input
+        by the reorder window)."""
 
     @property
     def state(self) -> dict[str, _F64]:
-        """Snapshot of the nominal state (copies).
+        """Snapshot of the nominal state (copies); raises ``UwbImuError`` before the filter is
+        initialised (see :attr:`initialized`).
 
         Keys: ``position`` (3,) m, ``velocity`` (3,) m/s, ``orientation`` (4,) w, x, y, z
         (body → navigation), ``accel_bias`` (3,) m/s², ``gyro_bias`` (3,) rad/s.
@@ -405,7 +445,8 @@ class _StreamingFilter:
 
     @property
     def covariance(self) -> _F64:
-        """Error-state covariance, shape (15, 15), order δp, δv, δθ, δb_a, δb_g (a copy)."""
+        """Error-state covariance, shape (15, 15), order δp, δv, δθ, δb_a, δb_g (a copy); raises
+        before the filter is initialised."""
 
 
 

@@ -14,7 +14,7 @@ use uwbimu_rs::app::io::foxglove_out::write_trajectory_mcap;
 use uwbimu_rs::app::io::{read_recording_file, Recording, ReplayConfig, TimeSource};
 use uwbimu_rs::app::io::{AnchorMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_rs::app::io::{IoError as Error, IoResult as Result};
-use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::methods::{BatchOutput, Method};
 use uwbimu_rs::app::replay::{compare_with_truth, replay, Replay};
 use uwbimu_rs::vocabulary::error::Error as CoreError;
 
@@ -205,6 +205,20 @@ fn print_stats(rec: &Recording, result: &Replay) {
             "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
             t.id, "-", t.accepted, t.down_weighted, t.rejected, rec.stats.tdoa_bad_value
         );
+    }
+    if let BatchOutput::Inertial { trace, warnings, .. } = &result.output {
+        let h = &trace.health;
+        let rejected: Vec<String> =
+            h.rejected.by_kind().filter(|(_, n)| *n > 0).map(|(k, n)| format!("{n} {}", k.name())).collect();
+        if !rejected.is_empty() {
+            println!("rejected as impossible: {}", rejected.join(", "));
+        }
+        if h.numerical_repairs > 0 {
+            println!("numerical repairs: {} (each skipped its measurement)", h.numerical_repairs);
+        }
+        for w in warnings {
+            eprintln!("uwbimu-replay: warning: {w}");
+        }
     }
     match result.mean_nis {
         Some(n) => println!("mean NIS: {n:.3} (1 for a consistent filter)"),

@@ -107,3 +107,13 @@ fn io_exception(e: IoError) -> PyErr {
         _ => UwbImuError::new_err(msg),
     }
 }
+
+/// Emits each message as a Python `UserWarning` pointing at the user's call.
+pub(super) fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    for w in warnings {
+        let message = std::ffi::CString::new(w.replace('\0', " ")).unwrap_or_default();
+        PyErr::warn(py, &category, &message, 2)?;
+    }
+    Ok(())
+}

@@ -5,18 +5,22 @@ use numpy::{IntoPyArray, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
-use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Method};
-use uwbimu_estimation::filters::{Filter, InertialFilter};
-use uwbimu_estimation::init::{initialize, HeadingSource};
-use uwbimu_estimation::pipeline::{smoothed_nodes, Estimator, Stream, UpdateRecord};
+use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Input, Method};
+use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_estimation::init::{HeadingSource, SelfInit};
+use uwbimu_estimation::pipeline::DEFAULT_REORDER_WINDOW_S;
+use uwbimu_estimation::pipeline::{
+    self_initialize, smoothed_nodes, Estimator, Event, Health, Stream, StreamOptions, Streams, UpdateRecord,
+};
 use uwbimu_vocabulary::config::RangeCalibration;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_to_wxyz, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::state::{ErrCov, NominalState, ERR_DIM};
 use uwbimu_vocabulary::validate;
 
-use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table, vec3};
+use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table};
 use super::errors::PyResult;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
@@ -301,45 +305,126 @@ impl PyUpdateReport {
     }
 }
 
-/// The reports of the ranges a streaming call applied.
+/// The reports of the updates a streaming call applied.
 fn applied_reports<E: Estimator>(stream: &mut Stream<E>) -> Vec<PyUpdateReport> {
     let mut out = Vec::new();
     stream.take_applied(&mut out);
     out.into_iter().map(PyUpdateReport::from).collect()
 }
 
-fn vec3_arg(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
-    Ok(vec3(&array(obj, name)?, name)?)
+/// A finite scalar argument of the streaming call `call`.
+fn finite(call: &'static str, arg: &str, v: f64) -> PyResult<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Error::BadArgument { call, arg: format!("{arg}={v}"), reason: "must be finite".into() }.into())
+    }
+}
+
+/// A finite 3-vector argument of the streaming call `call`.
+fn vec3_arg(call: &'static str, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
+    let arr = array(obj, name)?;
+    let values: Vec<f64> = arr.as_array().iter().copied().collect();
+    match values[..] {
+        [x, y, z] if values.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+        [_, _, _] => Err(Error::BadArgument { call, arg: format!("{name}={values:?}"), reason: "must be finite".into() }.into()),
+        _ => {
+            Err(Error::BadArgument { call, arg: name.into(), reason: format!("must hold 3 values, got {}", values.len()) }.into())
+        }
+    }
+}
+
+/// An anchor index argument of the streaming call `call`: an integer in `0..count`.
+fn anchor_arg(call: &'static str, arg: &str, anchor: i64, count: usize) -> PyResult<usize> {
+    usize::try_from(anchor).ok().filter(|&a| a < count).ok_or_else(|| {
+        Error::BadArgument {
+            call,
+            arg: format!("{arg}={anchor}"),
+            reason: format!("is not an anchor index (there are {count} anchors: 0..{})", count.saturating_sub(1)),
+        }
+        .into()
+    })
 }
 
 /// Initial room for recorded segments of a streaming filter (it grows as needed).
 const RECORD_CAPACITY: usize = 1 << 16;
 
-fn anchor_index(anchor: i64, count: usize) -> PyResult<usize> {
-    usize::try_from(anchor).map_err(|_| {
-        uwbimu_vocabulary::error::Error::UnknownAnchor { name: "update_range", row: 0, anchor: anchor as f64, count }.into()
-    })
+/// The registry row whose streaming class is `class`.
+fn method_of_class(class: &str) -> Option<Method> {
+    Method::ALL.iter().copied().find(|m| m.info().streaming_class == Some(class))
+}
+
+/// Refuses the streaming call `call` when the class's method does not take `input`.
+fn check_takes(call: &'static str, class: &str, input: Input) -> PyResult<()> {
+    match method_of_class(class) {
+        Some(m) if !m.takes(input) => Err(Error::InvalidCall(format!(
+            "{call}: {class} does not take {} (these do: {})",
+            input.name(),
+            Method::names_where(|m| m.takes(input) && m.info().streaming_class.is_some())
+        ))
+        .into()),
+        _ => Ok(()),
+    }
 }
 
 /// A Python class wrapping one named filter, with the streaming API: the filter driven by its own
-/// [`Stream`] (the batch API's event loop), so streaming in time order equals batch.
+/// [`Stream`] (the batch API's event loop behind a reorder buffer, self-initialising without an
+/// initial state), so streaming equals batch.
 macro_rules! py_filter {
     ($(#[$doc:meta])* $py:ident, $core:ty) => {
         $(#[$doc])*
         #[pyclass(module = "uwbimu_rs._native")]
         pub struct $py(Stream<$core>);
 
+        impl $py {
+            fn estimator(&self, what: &str) -> PyResult<&$core> {
+                self.0.estimator().ok_or_else(|| {
+                    Error::InvalidCall(format!(
+                        "{what}: the filter has not initialised itself yet (see `initialized`; feed IMU samples and ranges, or give `initial=`)"
+                    ))
+                    .into()
+                })
+            }
+
+            fn push(&mut self, py: Python<'_>, call: &'static str, event: Event) -> PyResult<Vec<PyUpdateReport>> {
+                self.0.push(call, event)?;
+                super::super::errors::warn_all(py, &self.0.take_warnings())?;
+                Ok(applied_reports(&mut self.0))
+            }
+        }
+
         #[pymethods]
         impl $py {
             #[new]
-            #[pyo3(signature = (anchors, *, initial, config=None, record=false))]
-            fn new(anchors: &Bound<'_, PyAny>, initial: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>, record: bool) -> PyResult<Self> {
+            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false))]
+            fn new(
+                anchors: &Bound<'_, PyAny>,
+                initial: Option<&Bound<'_, PyAny>>,
+                config: Option<&Bound<'_, PyAny>>,
+                record: bool,
+                reorder_window_s: Option<f64>,
+                strict: bool,
+            ) -> PyResult<Self> {
+                let reorder_window_s = reorder_window_s.unwrap_or(DEFAULT_REORDER_WINDOW_S);
                 let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
-                let mut filter = <$core>::new(anchors, &read_initial(initial)?, read_config(config)?)?;
-                if record {
-                    filter.core_mut().start_recording(RECORD_CAPACITY);
-                }
-                Ok(Self(Stream::new(filter)?))
+                let config = read_config(config)?;
+                let options = StreamOptions { reorder_window_s, strict };
+                let build = {
+                    let anchors = anchors.clone();
+                    let config = config.clone();
+                    move |initial: &InitialState| -> uwbimu_vocabulary::error::Result<$core> {
+                        let mut filter = <$core>::new(anchors.clone(), initial, config.clone())?;
+                        if record {
+                            filter.core_mut().start_recording(RECORD_CAPACITY);
+                        }
+                        Ok(filter)
+                    }
+                };
+                let stream = match read_optional_initial(initial)? {
+                    Some(initial) => Stream::new(build(&initial)?, options)?,
+                    None => Stream::self_initializing(anchors, config, Box::new(build), options)?,
+                };
+                Ok(Self(stream))
             }
 
             /// RTS-smooths everything seen so far (needs ``record=True``): a dict of columns
@@ -347,97 +432,157 @@ macro_rules! py_filter {
             /// propagation start (each IMU sample and each epoch time between samples) plus
             /// the current time. Releases the GIL.
             fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-                let core = self.0.estimator().core();
+                let core = self.estimator("smooth")?.core();
                 let steps = py.detach(|| smoothed_nodes(core))?;
                 let mut cols = step_columns(&steps, false);
-                cols.retain(|(name, _)| *name != "still");
+                cols.retain(|(name, _)| *name != "still" && *name != "status");
                 columns(py, cols)
             }
 
             /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,)
-            /// rad/s. Closes the open range epoch first when `t` is past its window; returns the
-            /// reports of the ranges that applied (usually none).
-            fn predict(&mut self, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
-                let (accel, gyro) = (vec3_arg(accel, "accel")?, vec3_arg(gyro, "gyro")?);
-                self.0.imu(&ImuSample { t_s: t, accel, gyro })?;
+            /// rad/s. Returns the reports of the updates this call applied.
+            fn add_imu(&mut self, py: Python<'_>, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_imu";
+                let (accel, gyro) = (vec3_arg(CALL, accel, "accel")?, vec3_arg(CALL, gyro, "gyro")?);
+                self.push(py, CALL, Event::Imu(ImuSample { t_s: finite(CALL, "t", t)?, accel, gyro }))
+            }
+
+            /// Takes a range (m) to anchor index `anchor` measured at `t` (s): it joins a range
+            /// epoch by the epoch rule of the batch API. Returns the reports of the updates this
+            /// call applied (an epoch it closed, if any).
+            fn add_range(&mut self, py: Python<'_>, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_range";
+                let anchor = anchor_arg(CALL, "anchor", anchor, self.anchor_count())?;
+                let r = RangeMeasurement { t_s: finite(CALL, "t", t)?, anchor, range_m: finite(CALL, "range", range)? };
+                self.push(py, CALL, Event::Range(r))
+            }
+
+            /// Takes a TDoA `d_ij = |p - a_j| - |p - a_i|` (m) between anchor indices `i` and
+            /// `j` measured at `t` (s), applied at its own time. The loosely coupled filters
+            /// raise ValueError.
+            fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: i64, j: i64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_tdoa";
+                check_takes(CALL, stringify!($py), Input::Tdoa)?;
+                let count = self.anchor_count();
+                let (anchor_i, anchor_j) = (anchor_arg(CALL, "i", i, count)?, anchor_arg(CALL, "j", j, count)?);
+                if anchor_i == anchor_j {
+                    return Err(Error::BadArgument { call: CALL, arg: format!("i=j={i}"), reason: "the two anchors must differ".into() }.into());
+                }
+                let m = TdoaMeasurement { t_s: finite(CALL, "t", t)?, anchor_i, anchor_j, tdoa_m: finite(CALL, "d_ij", d_ij)? };
+                self.push(py, CALL, Event::Observation(Observation::Tdoa(m)))
+            }
+
+            /// Takes a magnetometer sample (3,) (IMU frame) measured at `t` (s); only `Ackf`
+            /// uses one (the ACKF paper), the others raise ValueError.
+            fn add_magnetometer(&mut self, py: Python<'_>, t: f64, field: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_magnetometer";
+                check_takes(CALL, stringify!($py), Input::Magnetometer)?;
+                let field = vec3_arg(CALL, field, "field")?;
+                self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: finite(CALL, "t", t)?, field })))
+            }
+
+            /// Applies the ranges of one epoch, all measured at `t` (s), at once — bypassing the
+            /// epoch rule and the plausibility gate: anchor indices (M,) and ranges (M,) m. The
+            /// buffered data up to `t` and the open epoch are applied first. Returns the reports.
+            fn apply_ranges_now(&mut self, t: f64, anchors: Vec<i64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "apply_ranges_now";
+                if anchors.len() != ranges.len() {
+                    return Err(Error::BadArgument {
+                        call: CALL,
+                        arg: "ranges".into(),
+                        reason: format!("has {} values for {} anchors", ranges.len(), anchors.len()),
+                    }
+                    .into());
+                }
+                let count = self.anchor_count();
+                let obs = anchors
+                    .iter()
+                    .zip(&ranges)
+                    .map(|(a, r)| Ok((anchor_arg(CALL, "anchors", *a, count)?, finite(CALL, "ranges", *r)?)))
+                    .collect::<PyResult<Vec<(usize, f64)>>>()?;
+                self.0.apply_ranges_now(CALL, t, &obs)?;
                 Ok(applied_reports(&mut self.0))
             }
 
-            /// Adds a range (m) to anchor index `anchor` measured at `t` (s) to the open epoch
-            /// (the epoch rule of the batch API); returns the reports of the ranges applied by
-            /// this call: the epoch it closed, if any.
-            fn add_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
-                let anchor = anchor_index(anchor, Filter::anchors(self.0.estimator()).len())?;
-                self.0.range(&RangeMeasurement { t_s: t, anchor, range_m: range })?;
-                Ok(applied_reports(&mut self.0))
-            }
-
-            /// Applies the open epoch now; returns its reports.
-            fn flush(&mut self) -> PyResult<Vec<PyUpdateReport>> {
+            /// The end of the input so far: applies everything buffered (the reorder window and
+            /// the open epoch; initialises on what was seen when still waiting). Returns the
+            /// reports.
+            fn flush(&mut self, py: Python<'_>) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.flush()?;
+                super::super::errors::warn_all(py, &self.0.take_warnings())?;
                 Ok(applied_reports(&mut self.0))
             }
 
             /// Ranges waiting in the open epoch.
             #[getter]
             fn pending(&self) -> usize {
-                self.0.pipeline().pending().len()
+                self.0.pending_ranges()
             }
 
-            /// Applies one range (m) to anchor index `anchor` at `t` (s) at once, as an epoch of
-            /// its own (after applying the open epoch, if any).
-            fn update_range(&mut self, t: f64, anchor: i64, range: f64) -> PyResult<PyUpdateReport> {
-                let mut reports = self.update_ranges(t, vec![anchor], vec![range])?;
-                Ok(reports.remove(0))
+            /// Events waiting in the reorder buffer or kept for the self-initialisation.
+            #[getter]
+            fn buffered(&self) -> usize {
+                self.0.buffered()
             }
 
-            /// Applies a magnetometer sample (3,) (IMU frame) measured at `t` (s); only `Ackf`
-            /// uses one (the ACKF paper), the others raise ValueError.
-            fn update_magnetometer(&mut self, t: f64, field: &Bound<'_, PyAny>) -> PyResult<()> {
-                let field = vec3_arg(field, "field")?;
-                Ok(self.0.observation(&Observation::Magnetometer(MagSample { t_s: t, field }))?)
+            /// Whether the filter has an initial state (given, or found from the data).
+            #[getter]
+            fn initialized(&self) -> bool {
+                self.0.estimator().is_some()
             }
 
-            /// Applies a TDoA `d_ij = |p - a_j| - |p - a_i|` (m) between anchor indices `i` and
-            /// `j` measured at `t` (s), at its own time; returns its report (none before the
-            /// first IMU sample). The loosely coupled and planar filters raise ValueError.
-            fn update_tdoa(&mut self, t: f64, i: i64, j: i64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
-                let count = Filter::anchors(self.0.estimator()).len();
-                let m = TdoaMeasurement { t_s: t, anchor_i: anchor_index(i, count)?, anchor_j: anchor_index(j, count)?, tdoa_m: d_ij };
-                self.0.observation(&Observation::Tdoa(m))?;
-                Ok(applied_reports(&mut self.0))
-            }
-
-            /// Applies the ranges of one epoch, all measured at `t` (s), at once: anchor
-            /// indices (M,) and ranges (M,) m (after applying the open epoch, if any); returns
-            /// one report per range.
-            fn update_ranges(&mut self, t: f64, anchors: Vec<i64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
-                if anchors.len() != ranges.len() {
-                    return Err(uwbimu_vocabulary::error::Error::Shape { name: "update_ranges", expected: format!("ranges of length {}", anchors.len()), got: format!("{}", ranges.len()) }.into());
+            /// How the filter was initialised: None while waiting; else a dict with `from`
+            /// ("initial" or "self") and, when self-initialised, `still_start` and `heading_from`
+            /// ("motion" or "fallback"), as the batch `info`.
+            #[getter]
+            fn init_info<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+                if self.0.estimator().is_none() {
+                    return Ok(None);
                 }
-                let count = Filter::anchors(self.0.estimator()).len();
-                let obs = anchors.iter().zip(&ranges).map(|(a, r)| Ok((anchor_index(*a, count)?, *r))).collect::<PyResult<Vec<(usize, f64)>>>()?;
-                self.0.epoch(t, &obs)?;
-                Ok(applied_reports(&mut self.0))
+                let d = PyDict::new(py);
+                match self.0.self_init() {
+                    Some(s) => {
+                        d.set_item("from", "self")?;
+                        init_info_items(&d, s)?;
+                    }
+                    None => d.set_item("from", "initial")?,
+                }
+                Ok(Some(d))
             }
 
-            /// Filter time, s (None before the first predict).
+            /// What the stream counted: `rejected` (a dict per gate kind), `numerical_repairs`,
+            /// `ranges_before_start`, `reordered`, `late_dropped`.
+            #[getter]
+            fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+                health_dict(py, &self.0.health())
+            }
+
+            /// Filter time, s (None before the first IMU sample is applied; the filter lags the
+            /// newest data by the reorder window).
             #[getter]
             fn time(&self) -> Option<f64> {
-                self.0.estimator().core().time_s()
+                self.0.estimator().and_then(|e| e.core().time_s())
             }
 
             /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
-            /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`.
+            /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`; raises before the filter is
+            /// initialised (see `initialized`).
             #[getter]
             fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-                state_dict(py, self.0.estimator().core().state())
+                state_dict(py, self.estimator("state")?.core().state())
             }
 
-            /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy.
+            /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy; raises
+            /// before the filter is initialised.
             #[getter]
             fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-                covariance_array(py, self.0.estimator().core().covariance())
+                covariance_array(py, self.estimator("covariance")?.core().covariance())
+            }
+        }
+
+        impl $py {
+            fn anchor_count(&self) -> usize {
+                self.0.anchor_count()
             }
         }
     };
@@ -522,11 +667,12 @@ fn run_filter<'py>(
 fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, updates: bool) -> PyResult<BatchColumns<'py>> {
     let info = PyDict::new(py);
     match output {
-        BatchOutput::Inertial { trace, init, smoothed } => {
-            info.set_item("ranges_before_start", trace.ranges_before_start)?;
+        BatchOutput::Inertial { trace, init, smoothed, warnings } => {
+            super::errors::warn_all(py, &warnings)?;
+            info.set_item("ranges_before_start", trace.health.ranges_before_start)?;
+            info.set_item("health", health_dict(py, &trace.health)?)?;
             if let Some(s) = init {
-                info.set_item("still_start", s.still)?;
-                info.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
+                init_info_items(&info, &s)?;
             }
             let upd = if updates { Some(columns(py, update_columns(&trace))?) } else { None };
             let steps = smoothed.as_deref().unwrap_or(&trace.steps);
@@ -607,12 +753,35 @@ fn initialize_state<'py>(
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let inputs = read_inputs(imu, ranges, anchors)?;
     let config = read_config(config)?;
-    let s = py.detach(|| initialize(&inputs.imu, &inputs.ranges, &inputs.anchors, &config))?;
+    let streams = Streams { imu: &inputs.imu, ranges: &inputs.ranges, ..Streams::default() };
+    let s = py.detach(|| self_initialize(&streams, &inputs.anchors, &config))?;
     let d = initial_dict(py, &s.initial)?;
     let info = PyDict::new(py);
-    info.set_item("still_start", s.still)?;
-    info.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
+    init_info_items(&info, &s)?;
     Ok((d, info))
+}
+
+/// Sets `still_start` and `heading_from` ("motion" or "fallback") of a self-initialisation in `d`.
+fn init_info_items(d: &Bound<'_, PyDict>, s: &SelfInit) -> PyResult<()> {
+    d.set_item("still_start", s.still)?;
+    d.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
+    Ok(())
+}
+
+/// What a run or stream counted, as a dict: `rejected` ({gate kind: count}), `numerical_repairs`,
+/// `ranges_before_start`, `reordered`, `late_dropped`.
+pub(super) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let rejected = PyDict::new(py);
+    for (kind, n) in h.rejected.by_kind() {
+        rejected.set_item(kind.name(), n)?;
+    }
+    d.set_item("rejected", rejected)?;
+    d.set_item("numerical_repairs", h.numerical_repairs)?;
+    d.set_item("ranges_before_start", h.ranges_before_start)?;
+    d.set_item("reordered", h.reordered)?;
+    d.set_item("late_dropped", h.late_dropped)?;
+    Ok(d)
 }
 
 /// Posterior CRLB (the ARCKF paper's eqs. (43)–(44)) along a true trajectory: `truth` (N, 11) = t, x, y, z,

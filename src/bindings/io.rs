@@ -9,6 +9,7 @@ use pyo3::types::{PyDict, PyList};
 use uwbimu_app::columns::output_columns;
 use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_app::io::{read_recording_file, IoError, Mapping, ReadStats, Recording, ReplayConfig};
+use uwbimu_app::methods::BatchOutput;
 use uwbimu_app::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
 
 use super::convert::columns;
@@ -183,6 +184,11 @@ fn replay<'py>(
     info.set_item("method", method.name())?;
     info.set_item("stats", stats_dict(py, &rec.stats)?)?;
     info.set_item("mean_nis", result.mean_nis)?;
+    if let BatchOutput::Inertial { trace, warnings, .. } = &result.output {
+        info.set_item("health", super::filters::health_dict(py, &trace.health)?)?;
+        info.set_item("warnings", warnings.clone())?;
+        super::errors::warn_all(py, warnings)?;
+    }
     let anchors = PyList::empty(py);
     for a in &result.anchors {
         anchors.append(update_stats_dict(py, a)?)?;

@@ -9,7 +9,7 @@ import pytest
 import uwbimu_rs
 from uwbimu_rs import metrics
 
-COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z", "still"]
+COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z", "still", "status"]
 
 
 def test_ekf_batch_frame_and_accuracy(los_run, filter_config):
@@ -52,13 +52,16 @@ def test_covariance_and_update_reports(los_run, filter_config):
 
 
 def test_streaming_state_and_report_types(los_run):
-    ekf = uwbimu_rs.Ekf(los_run.anchors, initial={"position": [5.0, 4.0, 0.4], "velocity": [0, 0, 0], "orientation": [1, 0, 0, 0]})
+    ekf = uwbimu_rs.Ekf(
+        los_run.anchors,
+        initial={"position": [5.0, 4.0, 0.4], "velocity": [0, 0, 0], "orientation": [1, 0, 0, 0]},
+        reorder_window_s=0.0,
+    )
     assert ekf.time is None
-    with pytest.raises(ValueError, match="predict first"):
-        ekf.update_range(0.0, 0, 3.0)
-    ekf.predict(0.0, [0.0, 0.0, 9.80665], [0.0, 0.0, 0.0])
+    assert ekf.add_range(0.0, 0, 3.0) == [] and ekf.health["ranges_before_start"] == 1
+    ekf.add_imu(0.0, [0.0, 0.0, 9.80665], [0.0, 0.0, 0.0])
     p0 = ekf.covariance
-    rep = ekf.update_range(0.005, 1, 6.0)
+    (rep,) = ekf.apply_ranges_now(0.005, [1], [6.0])
     assert isinstance(rep, uwbimu_rs.UpdateReport)
     # γ = ε² / (h·P·hᵀ + R) at the prior (Li & Wang 2020 eq. (37)): the tag at [5, 4, 0.4] (no lever arm
     # by default) is 5.036 m from anchor 1; P barely moves in 5 ms at rest.
@@ -69,12 +72,12 @@ def test_streaming_state_and_report_types(los_run):
     assert rep.accepted and rep.weight == 1.0 and rep.nis == pytest.approx(expected_nis, rel=1e-3)
     assert (rep.t, rep.anchor, rep.range, rep.epoch_t) == (0.005, 1, 6.0, pytest.approx(0.005))
     assert ekf.time == pytest.approx(0.005)
-    with pytest.raises(ValueError, match="not after"):
-        ekf.predict(0.001, [0.0, 0.0, 9.8], [0.0, 0.0, 0.0])
-    with pytest.raises(ValueError, match="anchor index 9"):
-        ekf.update_range(0.01, 9, 3.0)
-    with pytest.raises(ValueError, match="non-finite"):
-        ekf.predict(0.02, [0.0, np.nan, 9.8], [0.0, 0.0, 0.0])
+    # Without a window a late sample is dropped and counted.
+    assert ekf.add_imu(0.001, [0.0, 0.0, 9.8], [0.0, 0.0, 0.0]) == [] and ekf.health["late_dropped"] == 1
+    with pytest.raises(ValueError, match="add_range: anchor=9"):
+        ekf.add_range(0.01, 9, 3.0)
+    with pytest.raises(ValueError, match="add_imu: accel=.* must be finite"):
+        ekf.add_imu(0.02, [0.0, np.nan, 9.8], [0.0, 0.0, 0.0])
 
 
 # ---------------------------------------------------------------------------- bad input

@@ -52,7 +52,7 @@ def test_streaming_classes_are_the_registry_rows_that_have_one() -> None:
     }
     assert in_stub == declared
     exported = {name for name in uwbimu_rs.__all__ if isinstance(getattr(uwbimu_rs, name), type)}
-    streaming = {name for name in exported if hasattr(getattr(uwbimu_rs, name), "update_range")}
+    streaming = {name for name in exported if hasattr(getattr(uwbimu_rs, name), "add_range")}
     assert streaming == declared
 
 

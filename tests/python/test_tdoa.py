@@ -45,7 +45,7 @@ def test_tdoa_only_robust_beats_ekf_and_reports_each_tdoa():
 def test_tdoa_with_ranges_and_streaming_equals_batch():
     r = _run(1)
     batch = uwbimu_rs.run_filter("riekf", r.imu, r.ranges, r.anchors, initial=r.initial, config=r.config, tdoa=r.tdoa)
-    f = uwbimu_rs.Riekf(r.anchors, initial=r.initial, config=r.config)
+    f = uwbimu_rs.Riekf(r.anchors, initial=r.initial, config=r.config, reorder_window_s=0.0)
     # Merge by time: IMU first at equal times, then TDoA, then ranges (the batch order).
     events = [(t, 0, k) for k, t in enumerate(r.imu[:, 0])]
     events += [(t, 1, k) for k, t in enumerate(r.tdoa[:, 0])]
@@ -55,9 +55,9 @@ def test_tdoa_with_ranges_and_streaming_equals_batch():
         if t > last:
             continue
         if kind == 0:
-            f.predict(t, r.imu[k, 1:4], r.imu[k, 4:7])
+            f.add_imu(t, r.imu[k, 1:4], r.imu[k, 4:7])
         elif kind == 1:
-            f.update_tdoa(t, int(r.tdoa[k, 1]), int(r.tdoa[k, 2]), float(r.tdoa[k, 3]))
+            f.add_tdoa(t, int(r.tdoa[k, 1]), int(r.tdoa[k, 2]), float(r.tdoa[k, 3]))
         else:
             f.add_range(t, int(r.ranges[k, 1]), float(r.ranges[k, 2]))
     f.flush()
@@ -76,13 +76,12 @@ def test_tdoa_errors_are_clear():
     bad[5, 2] = bad[5, 1]
     with pytest.raises(ValueError, match="row 5"):
         uwbimu_rs.run_filter("rekf", r.imu, EMPTY, r.anchors, initial=r.initial, tdoa=bad)
-    f = uwbimu_rs.Ekf(r.anchors, initial=r.initial)
-    f.predict(0.0, [0, 0, 9.8], [0, 0, 0])
-    with pytest.raises(ValueError, match="anchor"):
-        f.update_tdoa(0.01, 0, 7, 0.2)
-    (report,) = f.update_tdoa(0.01, 0, 1, 0.2)
+    f = uwbimu_rs.Ekf(r.anchors, initial=r.initial, reorder_window_s=0.0)
+    f.add_imu(0.0, [0, 0, 9.8], [0, 0, 0])
+    with pytest.raises(ValueError, match="add_tdoa: j=7 is not an anchor index"):
+        f.add_tdoa(0.01, 0, 7, 0.2)
+    (report,) = f.add_tdoa(0.01, 0, 1, 0.2)
     assert report.anchor == 0 and report.anchor_j == 1 and report.range == 0.2
     shaf = uwbimu_rs.Shaf(r.anchors, initial=r.initial)
-    shaf.predict(0.0, [0, 0, 9.8], [0, 0, 0])
-    with pytest.raises(ValueError, match="TDoA"):
-        shaf.update_tdoa(0.01, 0, 1, 0.2)
+    with pytest.raises(ValueError, match="add_tdoa: Shaf does not take tdoa"):
+        shaf.add_tdoa(0.01, 0, 1, 0.2)

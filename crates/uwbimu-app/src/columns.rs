@@ -12,8 +12,9 @@ pub type Columns = Vec<(&'static str, Vec<f64>)>;
 const COV_ENTRIES: [(&str, usize, usize); 6] =
     [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)];
 
-/// One row per step: `t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z, still`, then
-/// the position covariance entries when `covariance`.
+/// One row per step: `t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z, still,
+/// status` (`status`: the bits of [`StepRecord::status`]), then the position covariance entries
+/// when `covariance`.
 pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
     let col = |f: &dyn Fn(&StepRecord) -> f64| s.iter().map(f).collect::<Vec<f64>>();
     let mut cols = vec![
@@ -32,6 +33,7 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
         ("std_y", col(&|r| r.position_cov[(1, 1)].sqrt())),
         ("std_z", col(&|r| r.position_cov[(2, 2)].sqrt())),
         ("still", col(&|r| f64::from(u8::from(r.still)))),
+        ("status", col(&|r| f64::from(r.status))),
     ];
     if covariance {
         for (name, i, j) in COV_ENTRIES {

@@ -1,10 +1,11 @@
 //! The named methods of the batch API and the function that runs one of them over whole arrays.
 
 use uwbimu_estimation::filters::InertialFilter;
-use uwbimu_estimation::init::{initialize_with_tdoa, SelfInit};
+use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
-use uwbimu_estimation::pipeline::{run, run_streams, smoothed_steps, StepRecord, Streams, Trace};
+use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, StepRecord, Streams, Trace};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_estimation::units::check_imu_units;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
@@ -265,6 +266,8 @@ pub enum BatchOutput {
         init: Option<Box<SelfInit>>,
         /// RTS-smoothed records, one per IMU sample, when smoothing was asked for.
         smoothed: Option<Vec<StepRecord>>,
+        /// What the unit check of the IMU found suspicious ([`check_imu_units`]).
+        warnings: Vec<String>,
     },
     /// One UWB-only fix per solvable epoch: (epoch time s, fix).
     Multilateration(Vec<(f64, Fix)>),
@@ -342,24 +345,33 @@ pub fn run_many(method: Method, inputs: &[BatchInput<'_>]) -> Vec<Result<BatchOu
     crate::parallel::map_all(inputs, |input| run_method(method, input))
 }
 
-/// The given initial state, or the self-initialisation's.
+/// The given initial state, or the self-initialisation's ([`self_initialize`]: the decision a
+/// self-initialising streaming filter reaches on the same data).
 fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<SelfInit>>)> {
-    let BatchInput { imu, ranges, anchors, initial, config, tdoa, .. } = *input;
-    Ok(match initial {
+    Ok(match input.initial {
         Some(i) => (i.clone(), None),
         None => {
-            let s = initialize_with_tdoa(imu, ranges, tdoa, anchors, config)?;
+            let s = self_initialize(&input.streams(), input.anchors, input.config)?;
             (s.initial.clone(), Some(Box::new(s)))
         }
     })
 }
 
+impl BatchInput<'_> {
+    /// The input streams (IMU, ranges, magnetometer, TDoA).
+    pub fn streams(&self) -> Streams<'_> {
+        Streams { imu: self.imu, ranges: self.ranges, mag: self.mag, tdoa: self.tdoa }
+    }
+}
+
 /// Runs a planar filter of Wang et al. 2018 (initialised like the inertial filters: x, y, velocity, yaw
 /// and gyro bias from the initial state).
 fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    let warnings = check_imu_units(input.imu)?;
     let (initial, init) = initial_state(input)?;
     let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
-    Ok(BatchOutput::Inertial { trace: run(&mut filter, input.imu, input.ranges)?, init, smoothed: None })
+    let trace = run_streams(&mut filter, &Streams { imu: input.imu, ranges: input.ranges, ..Streams::default() })?;
+    Ok(BatchOutput::Inertial { trace, init, smoothed: None, warnings })
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
@@ -368,14 +380,15 @@ fn run_inertial<F: InertialFilter>(
     input: &BatchInput<'_>,
 ) -> Result<BatchOutput> {
     let BatchInput { imu, ranges, smooth, mag, tdoa, .. } = *input;
+    let warnings = check_imu_units(imu)?;
     let (initial, init) = initial_state(input)?;
     let mut filter = build(&initial)?;
     if smooth {
         filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
     }
-    let trace = run_streams(&mut filter, &Streams { imu, ranges, mag, tdoa })?;
+    let trace = run_streams(&mut filter, &input.streams())?;
     let smoothed = if smooth { Some(smoothed_steps(&trace, filter.core())?) } else { None };
-    Ok(BatchOutput::Inertial { trace, init, smoothed })
+    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings })
 }
 
 #[cfg(test)]

@@ -139,7 +139,8 @@ fn score_all(method: Method, input: &BatchInput<'_>, configs: &[FilterConfig], o
 /// The score of one configuration (module doc); NaN results count as +∞.
 fn score(method: Method, input: &BatchInput<'_>, config: &FilterConfig, objective: Objective<'_>) -> Result<f64> {
     let smooth = input.smooth && matches!(objective, Objective::TruthRmse(_));
-    let BatchOutput::Inertial { trace, smoothed, init } = run_method(method, &BatchInput { config, smooth, ..*input })? else {
+    let BatchOutput::Inertial { trace, smoothed, init, .. } = run_method(method, &BatchInput { config, smooth, ..*input })?
+    else {
         return Err(Error::InvalidCall(format!("{} has no noise settings to tune", method.name())));
     };
     let s = match objective {

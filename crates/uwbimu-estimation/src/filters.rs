@@ -98,7 +98,7 @@ pub use self::ackf::Ackf;
 pub use self::core::{InertialCore, ReacquisitionWidening, Segment};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
-pub(crate) use self::tight::{check_ranges, check_tdoa};
+pub(crate) use self::tight::check_ranges;
 pub use self::tight::{
     BiasModel, Composition, ConstraintSwitches, TightFilter, UpdateStrategy, DEFAULT_BIAS_TAU_S, SIGMA_POINTS,
 };

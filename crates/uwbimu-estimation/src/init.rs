@@ -14,8 +14,15 @@
 //!    start with yaw 0; once the UWB tag has moved `init_heading_distance_m`, the yaw is the angle
 //!    that rotates the dead-reckoned tag displacement onto the UWB displacement (least squares over
 //!    the next few epochs).
-//!    **Fallback**: if the tag never moves that far within 30 s, the yaw is 0 with a standard
-//!    deviation of π (the filter has to find the heading from the ranges by itself).
+//!    **Fallback**: if the tag never moves that far within `init.heading_timeout_s` (30 s), the
+//!    yaw is 0 with a standard deviation of π (the filter has to find the heading from the ranges
+//!    by itself).
+//!
+//! **On a prefix** ([`SelfInitializer`], the one way both the batch API and a streaming filter
+//! initialise): the data is taken in time order and the initialisation is tried every
+//! [`ATTEMPT_INTERVAL_S`] of IMU time from `init.still_s` on, on everything seen so far; it is
+//! decided once a fix exists and the heading is settled — its last epoch closed (older than the
+//! epoch window) or the timeout passed. A log that ends first is initialised on all of it.
 
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
@@ -33,8 +40,8 @@ use crate::multilateration::{solve_epoch, Fix, LsConfig};
 const STILL_ACCEL_STD: f64 = 0.2;
 /// Mean gyroscope rate below which the start window counts as still, rad/s.
 const STILL_GYRO_RATE: f64 = 0.05;
-/// Dead reckoning beyond this many seconds is not trusted for the heading, s.
-const HEADING_MAX_S: f64 = 30.0;
+/// Interval between two attempts of a [`SelfInitializer`], s of IMU time.
+pub const ATTEMPT_INTERVAL_S: f64 = 0.5;
 /// Epochs past `init_heading_distance_m` used for the heading least squares.
 const HEADING_EPOCHS: usize = 5;
 /// Significance of the consistency test that screens the UWB fixes used (see
@@ -78,6 +85,43 @@ pub fn initialize_with_tdoa(
     anchors: &[Vec3],
     config: &FilterConfig,
 ) -> Result<SelfInit> {
+    Ok(self_init(imu, ranges, tdoa, anchors, config)?.0)
+}
+
+/// [`initialize_with_tdoa`] on the data seen so far, and whether more data could still change it
+/// (see the module doc): Some once decided, None before.
+pub fn initialize_if_decided(
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    tdoa: &[TdoaMeasurement],
+    anchors: &[Vec3],
+    config: &FilterConfig,
+) -> Result<Option<SelfInit>> {
+    let (Some(first), Some(last)) = (imu.first(), imu.last()) else {
+        return Ok(None);
+    };
+    let (t0, t_s) = (first.t_s, last.t_s);
+    if t_s < t0 + config.init.still_s {
+        return Ok(None);
+    }
+    let (init, heading_settled_s) = match self_init(imu, ranges, tdoa, anchors, config) {
+        Ok(found) => found,
+        Err(Error::InsufficientData(_)) => return Ok(None),
+        Err(e) => return Err(e),
+    };
+    let settled_s = heading_settled_s.unwrap_or(t0 + config.init.heading_timeout_s);
+    Ok((t_s > settled_s + config.ranging.epoch_window_s).then_some(init))
+}
+
+/// The self-initialisation and, when the heading came from a full set of epochs, the time of the
+/// last one (later data cannot change it).
+fn self_init(
+    imu: &[ImuSample],
+    ranges: &[RangeMeasurement],
+    tdoa: &[TdoaMeasurement],
+    anchors: &[Vec3],
+    config: &FilterConfig,
+) -> Result<(SelfInit, Option<f64>)> {
     let first = imu.first().ok_or_else(|| Error::InsufficientData("self-initialisation needs IMU samples".into()))?;
     let t0 = first.t_s;
     let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
@@ -129,7 +173,7 @@ pub fn initialize_with_tdoa(
     };
 
     // 3. Heading from dead reckoning against UWB displacement.
-    let yaw = heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config);
+    let (yaw, settled_s) = heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config);
     let (yaw_rad, yaw_std, heading) = match yaw {
         Some(y) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion),
         None => (0.0, std::f64::consts::PI, HeadingSource::Fallback),
@@ -140,26 +184,30 @@ pub fn initialize_with_tdoa(
         position_std.z = 1.0;
     }
     let tilt_std = if still { 0.02 } else { 0.1 };
-    Ok(SelfInit {
-        initial: InitialState {
-            position: tag0 - orientation * config.mounting.lever_arm,
-            velocity: Vec3::zeros(),
-            orientation,
-            position_std,
-            velocity_std: Vec3::repeat(if still { 0.05 } else { 0.5 }),
-            orientation_std: Vec3::new(tilt_std, tilt_std, yaw_std),
-            accel_bias: Vec3::zeros(),
-            gyro_bias,
-            accel_bias_std: None,
-            gyro_bias_std: None,
+    Ok((
+        SelfInit {
+            initial: InitialState {
+                position: tag0 - orientation * config.mounting.lever_arm,
+                velocity: Vec3::zeros(),
+                orientation,
+                position_std,
+                velocity_std: Vec3::repeat(if still { 0.05 } else { 0.5 }),
+                orientation_std: Vec3::new(tilt_std, tilt_std, yaw_std),
+                accel_bias: Vec3::zeros(),
+                gyro_bias,
+                accel_bias_std: None,
+                gyro_bias_std: None,
+            },
+            still,
+            heading,
         },
-        still,
-        heading,
-    })
+        settled_s,
+    ))
 }
 
 /// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag
-/// displacement onto the UWB one, over the first epochs past the heading distance.
+/// displacement onto the UWB one, over the first epochs past the heading distance, with the time
+/// of the last of them once all [`HEADING_EPOCHS`] were used.
 fn heading_from_motion(
     imu: &[ImuSample],
     fixes: &[(f64, Fix)],
@@ -167,8 +215,10 @@ fn heading_from_motion(
     level: Quat,
     gyro_bias: Vec3,
     config: &FilterConfig,
-) -> Option<f64> {
-    let t0 = imu.first()?.t_s;
+) -> (Option<f64>, Option<f64>) {
+    let Some(t0) = imu.first().map(|s| s.t_s) else {
+        return (None, None);
+    };
     let mut x = NominalState {
         position: Vec3::zeros(),
         velocity: Vec3::zeros(),
@@ -178,10 +228,10 @@ fn heading_from_motion(
     };
     let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm;
     let dr0 = tag_dr(&x);
-    let (mut cross, mut dot, mut used) = (0.0, 0.0, 0usize);
+    let (mut cross, mut dot, mut used, mut settled_s) = (0.0, 0.0, 0usize, None);
     let mut k = 0;
     for (t_fix, fix) in fixes {
-        if *t_fix > t0 + HEADING_MAX_S || used >= HEADING_EPOCHS {
+        if *t_fix > t0 + config.init.heading_timeout_s || used >= HEADING_EPOCHS {
             break;
         }
         while k + 1 < imu.len() && imu[k + 1].t_s <= *t_fix {
@@ -195,7 +245,63 @@ fn heading_from_motion(
             cross += d_dr.x * d_uwb.y - d_dr.y * d_uwb.x;
             dot += d_dr.x * d_uwb.x + d_dr.y * d_uwb.y;
             used += 1;
+            if used == HEADING_EPOCHS {
+                settled_s = Some(*t_fix);
+            }
         }
     }
-    (used > 0 && (cross != 0.0 || dot != 0.0)).then(|| cross.atan2(dot))
+    ((used > 0 && (cross != 0.0 || dot != 0.0)).then(|| cross.atan2(dot)), settled_s)
+}
+
+/// Gathers the data of a run in time order and initialises on it as soon as that is decided
+/// ([`initialize_if_decided`], tried every [`ATTEMPT_INTERVAL_S`]); the batch API and the
+/// self-initialising streaming filters both initialise through it, so they start alike.
+#[derive(Debug, Clone, Default)]
+pub struct SelfInitializer {
+    imu: Vec<ImuSample>,
+    ranges: Vec<RangeMeasurement>,
+    tdoa: Vec<TdoaMeasurement>,
+    next_attempt_s: Option<f64>,
+}
+
+impl SelfInitializer {
+    /// An empty initializer.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes a range (in time order with the other calls).
+    pub fn range(&mut self, r: &RangeMeasurement) {
+        self.ranges.push(*r);
+    }
+
+    /// Takes a TDoA.
+    pub fn tdoa(&mut self, m: &TdoaMeasurement) {
+        self.tdoa.push(*m);
+    }
+
+    /// Takes an IMU sample and, when an attempt is due, tries to initialise on everything taken
+    /// so far: Some once decided.
+    pub fn imu(&mut self, s: &ImuSample, anchors: &[Vec3], config: &FilterConfig) -> Result<Option<SelfInit>> {
+        self.imu.push(*s);
+        let due = *self.next_attempt_s.get_or_insert(s.t_s + config.init.still_s);
+        if s.t_s < due {
+            return Ok(None);
+        }
+        self.next_attempt_s = Some(due + ATTEMPT_INTERVAL_S * (((s.t_s - due) / ATTEMPT_INTERVAL_S).floor() + 1.0));
+        initialize_if_decided(&self.imu, &self.ranges, &self.tdoa, anchors, config)
+    }
+
+    /// Initialises on everything taken (the data ended before it was decided).
+    pub fn finish(&self, anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
+        initialize_with_tdoa(&self.imu, &self.ranges, &self.tdoa, anchors, config)
+    }
+
+    /// Time span of the IMU samples taken, s.
+    pub fn span_s(&self) -> f64 {
+        match (self.imu.first(), self.imu.last()) {
+            (Some(a), Some(b)) => b.t_s - a.t_s,
+            _ => 0.0,
+        }
+    }
 }

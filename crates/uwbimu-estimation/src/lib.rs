@@ -6,6 +6,7 @@
 pub mod crlb;
 pub mod epoch;
 pub mod filters;
+pub mod gate;
 pub mod init;
 pub mod ins;
 pub mod models;
@@ -13,6 +14,8 @@ pub mod multilateration;
 pub mod pipeline;
 pub mod planar;
 pub mod ranging;
+pub mod repair;
 pub mod robust;
 pub mod smoother;
+pub mod units;
 pub mod update;

@@ -13,15 +13,28 @@
 //! and ranges; a step is recorded after every IMU sample and the events at its time. Ranges
 //! before the first IMU sample are counted and skipped, observations before it skipped (the
 //! filter has no time yet); events after the last IMU sample are not applied.
+//!
+//! Every event passes the plausibility gate first ([`crate::gate`]): what it rejects is counted
+//! in [`Health`] and flagged in the next step's [`StepRecord::status`]. A numerical failure in a
+//! step (an innovation variance or a factorisation that is not positive definite, a state or
+//! covariance that is no longer finite) never ends a run: the state and covariance from before
+//! the step are put back, the covariance repaired ([`crate::repair`]), the measurement skipped and
+//! the repair counted and flagged. [`Stream`] adds what a robot loop needs: late data put back in
+//! order within a window, and self-initialisation on the data as it arrives.
 
+mod stream;
+
+pub use stream::{self_initialize, Builder, Stream, StreamOptions, DEFAULT_REORDER_WINDOW_S};
+
+use uwbimu_vocabulary::config::GateConfig;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::state::{NominalState, POS};
 
 use crate::epoch::{align_to_reference, EpochAssembler};
-use crate::filters::{check_ranges, check_tdoa};
 use crate::filters::{Filter, InertialCore, InertialFilter};
+use crate::gate::{Gate, GateCounts};
 use crate::models::range::tag_position;
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::update::UpdateReport;
@@ -37,6 +50,32 @@ pub struct StepRecord {
     pub position_cov: Mat3,
     /// Whether the still detector reported the platform still (zero-velocity constraint only).
     pub still: bool,
+    /// What happened since the previous step: [`STATUS_REJECTED`], [`STATUS_REPAIRED`],
+    /// [`STATUS_LATE`] or-ed (0 = nothing unusual).
+    pub status: u8,
+}
+
+/// [`StepRecord::status`] bit: the plausibility gate rejected a measurement since the previous step.
+pub const STATUS_REJECTED: u8 = 1;
+/// [`StepRecord::status`] bit: a numerical failure was repaired and its measurement skipped.
+pub const STATUS_REPAIRED: u8 = 2;
+/// [`StepRecord::status`] bit: a streamed measurement arrived too late to be put in order and was
+/// dropped.
+pub const STATUS_LATE: u8 = 4;
+
+/// What a run counted besides its estimates.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Health {
+    /// Measurements the plausibility gate rejected, per kind.
+    pub rejected: GateCounts,
+    /// Numerical failures repaired (the measurement skipped).
+    pub numerical_repairs: usize,
+    /// Ranges before the first IMU sample (skipped: the filter has no time yet).
+    pub ranges_before_start: usize,
+    /// Streamed measurements that arrived out of order within the reorder window (put in order).
+    pub reordered: usize,
+    /// Streamed measurements older than the reorder window allows (dropped).
+    pub late_dropped: usize,
 }
 
 /// One applied range or TDoA and what the filter did with it.
@@ -63,8 +102,8 @@ pub struct Trace {
     pub steps: Vec<StepRecord>,
     /// One record per range or TDoA applied.
     pub updates: Vec<UpdateRecord>,
-    /// Ranges skipped because they came before the first IMU sample.
-    pub ranges_before_start: usize,
+    /// What the run counted: rejections, repairs, ranges before the start.
+    pub health: Health,
 }
 
 /// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of Wang et al. 2018
@@ -81,6 +120,19 @@ pub trait Estimator: Filter {
     fn tag_motion(&self) -> (Vec3, Vec3);
     /// The window of the epoch rule, s (`epoch_window_s` of the filter's configuration).
     fn epoch_window_s(&self) -> f64;
+    /// The plausibility gate's settings (`gate` of the filter's configuration).
+    fn gate_config(&self) -> GateConfig;
+
+    /// What a step may change and a failed one must put back: the state and its covariance.
+    type Snapshot: Copy;
+    /// The state and covariance now.
+    fn snapshot(&self) -> Self::Snapshot;
+    /// Puts back a [`Estimator::snapshot`].
+    fn restore(&mut self, snapshot: &Self::Snapshot);
+    /// Whether the state is finite and the covariance finite with a non-negative diagonal.
+    fn is_sound(&self) -> bool;
+    /// Makes the covariance symmetric positive definite ([`crate::repair::repair_covariance`]).
+    fn repair_covariance(&mut self);
 }
 
 impl<F: InertialFilter> Estimator for F {
@@ -91,6 +143,7 @@ impl<F: InertialFilter> Estimator for F {
             state: *core.state(),
             position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
             still: self.still(),
+            status: 0,
         }
     }
 
@@ -112,6 +165,29 @@ impl<F: InertialFilter> Estimator for F {
 
     fn epoch_window_s(&self) -> f64 {
         self.config().ranging.epoch_window_s
+    }
+
+    fn gate_config(&self) -> GateConfig {
+        self.config().gate
+    }
+
+    type Snapshot = (NominalState, uwbimu_vocabulary::state::ErrCov);
+
+    fn snapshot(&self) -> Self::Snapshot {
+        (*self.core().state(), *self.core().covariance())
+    }
+
+    fn restore(&mut self, snapshot: &Self::Snapshot) {
+        self.core_mut().restore(&snapshot.0, &snapshot.1);
+    }
+
+    fn is_sound(&self) -> bool {
+        let core = self.core();
+        core.state().is_finite() && crate::repair::is_sound_covariance(core.covariance())
+    }
+
+    fn repair_covariance(&mut self) {
+        self.core_mut().repair_covariance();
     }
 }
 
@@ -135,31 +211,103 @@ impl Event {
             Self::Observation(o) => o.t_s(),
         }
     }
+
+    /// Rank of the event's stream among events at one time: IMU, magnetometer, TDoA, range (the
+    /// order of [`Streams::events`]).
+    pub fn rank(&self) -> u8 {
+        match self {
+            Self::Imu(_) => 0,
+            Self::Observation(Observation::Magnetometer(_)) => 1,
+            Self::Observation(Observation::Tdoa(_)) => 2,
+            Self::Range(_) => 3,
+        }
+    }
 }
 
-/// The event loop's own state: the open range epoch, scratch buffers and the applied updates not
-/// yet collected. Each call takes the estimator it drives; [`Stream`] bundles the two.
+/// The event loop's own state: the gate, the open range epoch, scratch buffers, what it counted,
+/// and the applied updates (and recorded steps) not yet collected. Each call takes the estimator
+/// it drives; [`Stream`] bundles the two.
 #[derive(Debug, Clone)]
 pub struct Pipeline {
+    gate: Gate,
     epochs: EpochAssembler,
     aligned: Vec<(usize, f64)>,
     reports: Vec<UpdateReport>,
     applied: Vec<UpdateRecord>,
     last_t_s: Option<f64>,
-    ranges_before_start: usize,
+    tally: Tally,
+    pending_step: Option<f64>,
+    steps: Option<Vec<StepRecord>>,
+}
+
+/// What the loop counts, and the status bits since the last recorded step.
+#[derive(Debug, Clone, Copy, Default)]
+struct Tally {
+    health: Health,
+    status: u8,
+}
+
+impl Tally {
+    /// Runs one step of `est` (`step`) so that a numerical failure cannot end the run: on a
+    /// [`Error::NotPositiveDefinite`] or an unsound result the state and covariance from before
+    /// are put back and the covariance repaired. Returns whether the step was applied.
+    fn guarded<E: Estimator>(&mut self, est: &mut E, step: impl FnOnce(&mut E) -> Result<()>) -> Result<bool> {
+        let before = est.snapshot();
+        match step(est) {
+            Ok(()) if est.is_sound() => return Ok(true),
+            Ok(()) | Err(Error::NotPositiveDefinite { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        est.restore(&before);
+        est.repair_covariance();
+        self.health.numerical_repairs += 1;
+        self.status |= STATUS_REPAIRED;
+        Ok(false)
+    }
+
+    /// After a propagation: repairs a covariance that lost its soundness; fails only when the
+    /// state itself is no longer finite (nothing can be computed from it).
+    fn check_propagation<E: Estimator>(&mut self, est: &mut E) -> Result<()> {
+        if est.is_sound() {
+            return Ok(());
+        }
+        est.repair_covariance();
+        self.health.numerical_repairs += 1;
+        self.status |= STATUS_REPAIRED;
+        if est.is_sound() {
+            Ok(())
+        } else {
+            Err(Error::NotPositiveDefinite { what: "state or covariance after the prediction (not finite)" })
+        }
+    }
 }
 
 impl Pipeline {
-    /// A loop for `anchor_count` anchors with the epoch window `epoch_window_s` (s).
-    pub fn new(epoch_window_s: f64, anchor_count: usize) -> Result<Self> {
+    /// A loop for `anchors` with the epoch window `epoch_window_s` (s) and the plausibility gate
+    /// of `gate`.
+    pub fn new(epoch_window_s: f64, anchors: &[Vec3], gate: &GateConfig) -> Result<Self> {
         Ok(Self {
-            epochs: EpochAssembler::new(epoch_window_s, anchor_count)?,
-            aligned: Vec::with_capacity(anchor_count),
-            reports: Vec::with_capacity(anchor_count),
-            applied: Vec::with_capacity(anchor_count),
+            gate: Gate::new(anchors, gate),
+            epochs: EpochAssembler::new(epoch_window_s, anchors.len())?,
+            aligned: Vec::with_capacity(anchors.len()),
+            reports: Vec::with_capacity(anchors.len()),
+            applied: Vec::with_capacity(anchors.len()),
             last_t_s: None,
-            ranges_before_start: 0,
+            tally: Tally::default(),
+            pending_step: None,
+            steps: None,
         })
+    }
+
+    /// The loop for `est` (its epoch window, anchors and gate).
+    pub fn for_estimator<E: Estimator>(est: &E) -> Result<Self> {
+        Self::new(est.epoch_window_s(), est.anchors(), &est.gate_config())
+    }
+
+    /// Records one [`StepRecord`] per IMU sample from now on, taken once the events at its time
+    /// are in (collected by [`Pipeline::take_steps`]); `capacity` steps are reserved.
+    pub fn record_steps(&mut self, capacity: usize) {
+        self.steps = Some(Vec::with_capacity(capacity));
     }
 
     /// Checks that an event at `t_s` is not earlier than the previous one.
@@ -183,7 +331,8 @@ impl Pipeline {
         if self.epochs.expires_before(s.t_s) {
             self.flush(est)?;
         }
-        est.predict(s.t_s, &s.accel, &s.gyro)
+        est.predict(s.t_s, &s.accel, &s.gyro)?;
+        self.tally.check_propagation(est)
     }
 
     /// Takes a range: before the first IMU sample it is counted and skipped; otherwise it closes
@@ -191,7 +340,7 @@ impl Pipeline {
     /// every anchor.
     pub fn range<E: Estimator>(&mut self, est: &mut E, r: &RangeMeasurement) -> Result<()> {
         if est.time_s().is_none() {
-            self.ranges_before_start += 1;
+            self.tally.health.ranges_before_start += 1;
             return Ok(());
         }
         self.check_order("range", r.t_s)?;
@@ -212,7 +361,11 @@ impl Pipeline {
             return Ok(());
         }
         self.check_order(o.stream(), o.t_s())?;
-        let report = est.observe(o)?;
+        let mut report = UpdateReport::skipped();
+        self.tally.guarded(est, |est| {
+            report = est.observe(o)?;
+            Ok(())
+        })?;
         if let Observation::Tdoa(m) = o {
             self.applied.push(UpdateRecord {
                 t_s: m.t_s,
@@ -226,13 +379,44 @@ impl Pipeline {
         Ok(())
     }
 
-    /// Takes any event ([`Pipeline::imu`], [`Pipeline::range`], [`Pipeline::observation`]).
+    /// Takes any event: records the step of the previous IMU sample once the event is later than
+    /// it (when recording), drops what the plausibility gate rejects (counted), then
+    /// [`Pipeline::imu`], [`Pipeline::range`] or [`Pipeline::observation`].
     pub fn event<E: Estimator>(&mut self, est: &mut E, event: &Event) -> Result<()> {
+        let t_s = event.t_s();
+        if let Some(step_s) = self.pending_step.filter(|&step_s| t_s > step_s) {
+            self.record_step(est, step_s);
+        }
+        if let Some(rejection) = self.gate.check(event) {
+            self.tally.health.rejected.count(rejection);
+            self.tally.status |= STATUS_REJECTED;
+            return Ok(());
+        }
         match event {
-            Event::Imu(s) => self.imu(est, s),
+            Event::Imu(s) => {
+                self.imu(est, s)?;
+                self.pending_step = Some(t_s);
+                Ok(())
+            }
             Event::Range(r) => self.range(est, r),
             Event::Observation(o) => self.observation(est, o),
         }
+    }
+
+    fn record_step<E: Estimator>(&mut self, est: &E, t_s: f64) {
+        self.pending_step = None;
+        if let Some(steps) = self.steps.as_mut() {
+            steps.push(StepRecord { status: self.tally.status, ..est.record(t_s) });
+            self.tally.status = 0;
+        }
+    }
+
+    /// The end of the input: records the last step and applies the open epoch.
+    pub fn finish<E: Estimator>(&mut self, est: &mut E) -> Result<()> {
+        if let Some(step_s) = self.pending_step {
+            self.record_step(est, step_s);
+        }
+        self.flush(est)
     }
 
     /// Applies the open epoch (if any) at `max(time of its last range, filter time)`, its ranges
@@ -243,24 +427,27 @@ impl Pipeline {
         };
         let t_ref = est.time_s().map_or(last.t_s, |t| t.max(last.t_s));
         est.advance_to(t_ref)?;
+        self.tally.check_propagation(est)?;
         let (tag, velocity) = est.tag_motion();
         let epoch = self.epochs.ranges();
         self.aligned.resize(epoch.len(), (0, 0.0));
         align_to_reference(epoch, t_ref, est.anchors(), &tag, &velocity, &mut self.aligned);
         let measured = epoch.iter().map(|r| (r.t_s, r.anchor, r.range_m));
-        apply_epoch(est, t_ref, &self.aligned, measured, &mut self.reports, &mut self.applied)?;
+        let (aligned, reports, applied) = (&self.aligned, &mut self.reports, &mut self.applied);
+        apply_epoch(est, t_ref, aligned, measured, reports, applied, &mut self.tally)?;
         self.epochs.clear();
         Ok(())
     }
 
     /// Applies the open epoch (if any), then `ranges` (anchor, m) as one epoch measured at `t_s`
     /// (no alignment: they share their time), keeping one [`UpdateRecord`] per range for
-    /// [`Pipeline::take_applied`]. The streaming form of an epoch a caller has already gathered.
+    /// [`Pipeline::take_applied`]. An immediate epoch a caller has already gathered: it bypasses
+    /// the epoch rule and the gate.
     pub fn epoch<E: Estimator>(&mut self, est: &mut E, t_s: f64, ranges: &[(usize, f64)]) -> Result<()> {
         self.flush(est)?;
         self.check_order("range", t_s)?;
         let measured = ranges.iter().map(|&(anchor, range_m)| (t_s, anchor, range_m));
-        apply_epoch(est, t_s, ranges, measured, &mut self.reports, &mut self.applied)
+        apply_epoch(est, t_s, ranges, measured, &mut self.reports, &mut self.applied, &mut self.tally)
     }
 
     /// Moves the records of the ranges applied since the last call into `out`.
@@ -268,20 +455,31 @@ impl Pipeline {
         out.append(&mut self.applied);
     }
 
-    /// Ranges skipped because they came before the first IMU sample.
-    pub fn ranges_before_start(&self) -> usize {
-        self.ranges_before_start
+    /// The steps recorded since [`Pipeline::record_steps`] (empty when not recording).
+    pub fn take_steps(&mut self) -> Vec<StepRecord> {
+        self.steps.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// What the loop counted so far.
+    pub fn health(&self) -> Health {
+        self.tally.health
     }
 
     /// Ranges of the open (not yet applied) epoch.
     pub fn pending(&self) -> &[RangeMeasurement] {
         self.epochs.ranges()
     }
+
+    /// The loop's plausibility gate.
+    pub fn gate(&self) -> &Gate {
+        &self.gate
+    }
 }
 
 /// Applies the epoch `ranges` (anchor, m) at `t_s` to `est` with `reports` as scratch, and keeps
 /// one [`UpdateRecord`] per range in `applied`, with the range as `measured` (time s, anchor,
-/// range m) and the epoch time the filter reached.
+/// range m) and the epoch time the filter reached. A numerical failure skips the whole epoch
+/// ([`Tally::guarded`]; its reports say skipped).
 fn apply_epoch<E: Estimator>(
     est: &mut E,
     t_s: f64,
@@ -289,10 +487,13 @@ fn apply_epoch<E: Estimator>(
     measured: impl Iterator<Item = (f64, usize, f64)>,
     reports: &mut Vec<UpdateReport>,
     applied: &mut Vec<UpdateRecord>,
+    tally: &mut Tally,
 ) -> Result<()> {
     reports.clear();
     reports.resize(ranges.len(), UpdateReport::skipped());
-    est.update_ranges(t_s, ranges, reports)?;
+    if !tally.guarded(est, |est| est.update_ranges(t_s, ranges, reports))? {
+        reports.iter_mut().for_each(|r| *r = UpdateReport::skipped());
+    }
     let epoch_t_s = est.time_s().unwrap_or(t_s);
     applied.extend(measured.zip(reports.iter()).map(|((t_s, anchor, range_m), report)| UpdateRecord {
         t_s,
@@ -303,72 +504,6 @@ fn apply_epoch<E: Estimator>(
         report: *report,
     }));
     Ok(())
-}
-
-/// An estimator with its [`Pipeline`]: the streaming form of the loop.
-#[derive(Debug, Clone)]
-pub struct Stream<E> {
-    estimator: E,
-    pipeline: Pipeline,
-}
-
-impl<E: Estimator> Stream<E> {
-    /// Drives `estimator` (with its own epoch window).
-    pub fn new(estimator: E) -> Result<Self> {
-        let pipeline = Pipeline::new(estimator.epoch_window_s(), estimator.anchors().len())?;
-        Ok(Self { estimator, pipeline })
-    }
-
-    /// The estimator.
-    pub fn estimator(&self) -> &E {
-        &self.estimator
-    }
-
-    /// The estimator, mutably (e.g. to start recording, or to apply an epoch directly).
-    pub fn estimator_mut(&mut self) -> &mut E {
-        &mut self.estimator
-    }
-
-    /// The loop state (open epoch, counts).
-    pub fn pipeline(&self) -> &Pipeline {
-        &self.pipeline
-    }
-
-    /// [`Pipeline::imu`].
-    pub fn imu(&mut self, s: &ImuSample) -> Result<()> {
-        self.pipeline.imu(&mut self.estimator, s)
-    }
-
-    /// [`Pipeline::range`], after checking the range's anchor index and value (a streamed range
-    /// waits in the open epoch, so it is checked when it arrives, not when the epoch closes).
-    pub fn range(&mut self, r: &RangeMeasurement) -> Result<()> {
-        check_ranges(self.estimator.anchors(), &[(r.anchor, r.range_m)])?;
-        self.pipeline.range(&mut self.estimator, r)
-    }
-
-    /// [`Pipeline::observation`], after checking a TDoA's anchor indices and value.
-    pub fn observation(&mut self, o: &Observation) -> Result<()> {
-        if let Observation::Tdoa(m) = o {
-            check_tdoa(self.estimator.anchors(), m)?;
-        }
-        self.pipeline.observation(&mut self.estimator, o)
-    }
-
-    /// [`Pipeline::epoch`], after checking the ranges' anchor indices and values.
-    pub fn epoch(&mut self, t_s: f64, ranges: &[(usize, f64)]) -> Result<()> {
-        check_ranges(self.estimator.anchors(), ranges)?;
-        self.pipeline.epoch(&mut self.estimator, t_s, ranges)
-    }
-
-    /// [`Pipeline::flush`].
-    pub fn flush(&mut self) -> Result<()> {
-        self.pipeline.flush(&mut self.estimator)
-    }
-
-    /// [`Pipeline::take_applied`].
-    pub fn take_applied(&mut self, out: &mut Vec<UpdateRecord>) {
-        self.pipeline.take_applied(out)
-    }
 }
 
 /// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
@@ -418,40 +553,18 @@ impl Streams<'_> {
 
 /// Runs `filter` over all streams merged by time ([`Streams::events`]; see the module doc).
 pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Result<Trace> {
-    let mut pipeline = Pipeline::new(filter.epoch_window_s(), filter.anchors().len())?;
-    let mut trace = Trace {
-        steps: Vec::with_capacity(streams.imu.len()),
-        updates: Vec::with_capacity(streams.ranges.len() + streams.tdoa.len()),
-        ranges_before_start: 0,
-    };
+    let mut pipeline = Pipeline::for_estimator(filter)?;
+    pipeline.record_steps(streams.imu.len());
     let Some(last_imu_s) = streams.imu.last().map(|s| s.t_s) else {
-        return Ok(trace);
+        return Ok(Trace::default());
     };
-    // The IMU time whose step is recorded once the events at that time are in.
-    let mut pending_step: Option<f64> = None;
-    for event in streams.events() {
-        let t_s = event.t_s();
-        if t_s > last_imu_s {
-            break;
-        }
-        if let Some(step_s) = pending_step.filter(|&step_s| t_s > step_s) {
-            pipeline.take_applied(&mut trace.updates);
-            trace.steps.push(filter.record(step_s));
-            pending_step = None;
-        }
+    for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
         pipeline.event(filter, &event)?;
-        if let Event::Imu(_) = event {
-            pending_step = Some(t_s);
-        }
     }
-    if let Some(step_s) = pending_step {
-        pipeline.take_applied(&mut trace.updates);
-        trace.steps.push(filter.record(step_s));
-    }
-    pipeline.flush(filter)?;
-    pipeline.take_applied(&mut trace.updates);
-    trace.ranges_before_start = pipeline.ranges_before_start();
-    Ok(trace)
+    pipeline.finish(filter)?;
+    let mut updates = Vec::with_capacity(streams.ranges.len() + streams.tdoa.len());
+    pipeline.take_applied(&mut updates);
+    Ok(Trace { steps: pipeline.take_steps(), updates, health: pipeline.health() })
 }
 
 /// Runs `filter` like [`run`] while recording, then smooths the run backwards
@@ -499,6 +612,7 @@ pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
             state: n.state,
             position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(),
             still: false,
+            status: 0,
         })
         .collect())
 }

@@ -22,7 +22,7 @@ mod model;
 pub mod ukf;
 
 use nalgebra::{Matrix2, SMatrix, UnitQuaternion, Vector2};
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{FilterConfig, GateConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::state::NominalState;
@@ -67,6 +67,7 @@ pub struct PlanarFilter {
     weights: UnscentedWeights,
     prefilter: MovingAverage,
     epoch_window_s: f64,
+    gate: GateConfig,
     time_s: Option<f64>,
     held_accel: Vector2<f64>,
     held_rate_z: f64,
@@ -117,6 +118,7 @@ impl PlanarFilter {
             range_var: config.ranging.range_std.powi(2),
             weights,
             epoch_window_s: config.ranging.epoch_window_s,
+            gate: config.gate,
             time_s: None,
             held_accel: Vector2::zeros(),
             held_rate_z: 0.0,
@@ -273,6 +275,30 @@ impl Estimator for PlanarFilter {
         self.epoch_window_s
     }
 
+    fn gate_config(&self) -> GateConfig {
+        self.gate
+    }
+
+    type Snapshot = (PlanarState, PlanarCov);
+
+    fn snapshot(&self) -> Self::Snapshot {
+        (self.state, self.covariance)
+    }
+
+    fn restore(&mut self, snapshot: &Self::Snapshot) {
+        (self.state, self.covariance) = *snapshot;
+    }
+
+    fn is_sound(&self) -> bool {
+        self.state.iter().all(|v| v.is_finite())
+            && self.yaw_rad.is_finite()
+            && crate::repair::is_sound_covariance(&self.covariance)
+    }
+
+    fn repair_covariance(&mut self) {
+        crate::repair::repair_covariance(&mut self.covariance);
+    }
+
     /// Position (x, y, plane height), velocity (vx, vy, 0), orientation = the yaw after the
     /// initial levelling, gyro bias (0, 0, b_z) and accelerometer bias (b_x, b_y, 0) in the
     /// levelled frame as given initially; the position
@@ -292,6 +318,7 @@ impl Estimator for PlanarFilter {
             },
             position_cov,
             still: false,
+            status: 0,
         }
     }
 }

@@ -19,10 +19,10 @@ use crate::math::{Quat, Vec3};
 
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
 pub use sections::{
-    check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, InitConfig, InsConfig, MountingConfig, PlanarConfig,
-    RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY,
-    DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW,
-    MAX_EPOCH_WINDOW_S, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
+    check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig, MountingConfig,
+    PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, UnscentedConfig,
+    DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M,
+    MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
@@ -41,6 +41,8 @@ pub enum ConfigValue {
 pub struct FilterConfig {
     /// UWB measurement noise and the epoch rule.
     pub ranging: RangingConfig,
+    /// The plausibility gate in front of every method.
+    pub gate: GateConfig,
     /// The INS core's process model and gravity.
     pub ins: InsConfig,
     /// Lever arm and IMU mounting.
@@ -82,6 +84,7 @@ macro_rules! for_each_section {
         let c = $config;
         [
             { let $s = $($r)+ c.ranging; $body },
+            { let $s = $($r)+ c.gate; $body },
             { let $s = $($r)+ c.ins; $body },
             { let $s = $($r)+ c.mounting; $body },
             { let $s = $($r)+ c.init; $body },

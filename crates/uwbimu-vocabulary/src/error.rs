@@ -93,6 +93,17 @@ pub enum Error {
         /// What was expected.
         reason: &'static str,
     },
+    /// A bad argument: the message names the call the user made (a streaming call such as
+    /// `add_range`) or the input (`imu`).
+    #[error("{call}: {arg} {reason}")]
+    BadArgument {
+        /// The call or input, as the user wrote it (e.g. `add_range`, `imu`).
+        call: &'static str,
+        /// The argument and its value, e.g. `anchor=7`.
+        arg: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A streaming call out of order (e.g. an update before the first predict).
     #[error("{0}")]
     InvalidCall(String),

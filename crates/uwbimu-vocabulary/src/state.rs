@@ -52,6 +52,13 @@ pub struct NominalState {
 }
 
 impl NominalState {
+    /// Whether every component is finite.
+    pub fn is_finite(&self) -> bool {
+        let q = self.orientation.coords;
+        [self.position, self.velocity, self.accel_bias, self.gyro_bias].iter().all(|v| v.iter().all(|c| c.is_finite()))
+            && q.iter().all(|c| c.is_finite())
+    }
+
     /// Injects an error-state correction into the nominal state (Li & Wang 2020 eq. (19),
     /// Liu et al. 2019 eq. (39)): sums for p, v, biases and `q ← q ⊗ exp(δθ)`.
     pub fn inject(&mut self, dx: &ErrVec) {

@@ -160,7 +160,7 @@ pub struct Mapping {
 }
 
 fn default_window() -> f64 {
-    0.5
+    uwbimu_estimation::pipeline::DEFAULT_REORDER_WINDOW_S
 }
 
 impl Default for Mapping {

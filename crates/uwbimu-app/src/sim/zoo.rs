@@ -97,7 +97,8 @@ pub fn true_initial(sim: &SimConfig, config: &FilterConfig, data: &SimData) -> R
 
 /// The filter configuration matched to a simulator configuration: range σ (Gaussian and uniform
 /// parts combined), IMU noise densities, bias walks and bias sizes, lever arm, gravity and the IMU
-/// mounting rotation.
+/// mounting rotation; a simulated accelerometer with outliers (the ARCKF paper's Table 4) reports
+/// them, so its range (`gate.accel_range`) covers ten of their σ.
 pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     let u = &sim.uwb;
     let n = &sim.imu_noise;
@@ -112,6 +113,9 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     (c.init.gyro_bias_std, c.ins.gyro_bias_markov_std) = (n.gyro_bias_std.max(1e-4), n.gyro_bias_std.max(1e-4));
     c.mounting = uwbimu_vocabulary::config::MountingConfig { lever_arm: sim.lever_arm_m, imu_rotation: sim.imu_rotation };
     c.ins.gravity = sim.gravity_nav_mps2;
+    if sim.accel_outliers.count > 0 {
+        c.gate.accel_range = c.gate.accel_range.max(10.0 * sim.accel_outliers.std_mps2);
+    }
     c
 }
 

@@ -242,6 +242,18 @@ impl InertialCore {
         self.time_s
     }
 
+    /// Puts back a state and covariance taken before a step that failed
+    /// ([`crate::pipeline::Estimator::restore`]); the parameter cross-covariance is kept.
+    pub fn restore(&mut self, state: &NominalState, covariance: &ErrCov) {
+        self.state = *state;
+        self.covariance = *covariance;
+    }
+
+    /// Makes the covariance symmetric positive definite ([`crate::repair::repair_covariance`]).
+    pub fn repair_covariance(&mut self) {
+        crate::repair::repair_covariance(&mut self.covariance);
+    }
+
     /// Mutable access to state and covariance for a step that does not involve the parameter
     /// states (a re-acquisition fix, an attitude aiding vector): their cross-covariance, when
     /// tracked, is set to zero first, so the joint covariance stays positive semi-definite

@@ -144,6 +144,26 @@ section! {
 }
 
 section! {
+    /// The plausibility gate in front of every method (`uwbimu_estimation::gate`): measurements no
+    /// sensor or geometry can produce are counted and never reach a filter.
+    GateConfig = "gate" {
+        /// Whether the gate is on.
+        enabled: bool = true, flag;
+        /// A TDoA `|d_ij|` may exceed the baseline `‖a_i − a_j‖` between its two anchors by this
+        /// much (noise, NLOS), m; beyond it the TDoA is impossible.
+        tdoa_margin_m: f64 = 1.0, non_negative;
+        /// The tag is taken to stay within this distance of the anchors' bounding box, m; a range
+        /// longer than the farthest point of that box from its anchor is impossible.
+        hall_margin_m: f64 = 30.0, non_negative;
+        /// Largest plausible accelerometer reading per axis, m/s² (a consumer IMU's full scale,
+        /// ±16 g); a sample beyond it is dropped (the previous sample is held).
+        accel_range: f64 = 16.0 * 9.80665, positive;
+        /// Largest plausible gyroscope reading per axis, rad/s (±2000 °/s full scale).
+        gyro_range: f64 = 2000.0 * std::f64::consts::PI / 180.0, positive;
+    }
+}
+
+section! {
     /// The INS core's process model (Liu et al. 2019 eq. (5) densities, discretised per step as
     /// `density²·Δt`, eq. (21); the ARCKF paper's eqs. (17)–(18), (28) for Markov biases) and gravity.
     InsConfig = "ins" {
@@ -198,6 +218,10 @@ section! {
         still_s: f64 = 1.0, positive;
         /// Self-initialisation: UWB displacement after which the heading is taken from motion, m.
         heading_distance_m: f64 = 1.0, positive;
+        /// Self-initialisation: how long after the first IMU sample the heading may still come
+        /// from motion, s; past it the yaw is 0 ± π. A self-initialising streaming filter starts
+        /// once the heading is found or this time has passed (lower it on a robot that waits).
+        heading_timeout_s: f64 = 30.0, positive;
     }
 }
 

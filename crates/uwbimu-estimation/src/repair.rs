@@ -1,0 +1,65 @@
+//! Repair of a covariance that lost its definiteness (rounding, an update far outside the
+//! linearisation): the step after a numerical failure, so one measurement never ends a run.
+
+use nalgebra::{DMatrix, SMatrix};
+
+/// Relative floor of the eigenvalues after a repair (times the largest), and the absolute floor.
+const EIGEN_FLOOR_REL: f64 = 1e-12;
+const EIGEN_FLOOR_ABS: f64 = 1e-15;
+
+/// Makes `p` symmetric, `(P + Pᵀ)/2`, then, if it has no Cholesky factor, positive definite by
+/// raising its eigenvalues to a floor (`max(λ_max·1e-12, 1e-15)`) in its eigenbasis. Returns false
+/// (and leaves `p` symmetrised) when `p` holds a non-finite entry: nothing can be repaired.
+pub fn repair_covariance<const N: usize>(p: &mut SMatrix<f64, N, N>) -> bool {
+    if p.iter().any(|v| !v.is_finite()) {
+        return false;
+    }
+    *p = (*p + p.transpose()) * 0.5;
+    if p.cholesky().is_some() {
+        return true;
+    }
+    // A failure path, not the hot path: the eigen decomposition runs on a dynamic copy.
+    let mut eigen = DMatrix::from_iterator(N, N, p.iter().copied()).symmetric_eigen();
+    let floor = (eigen.eigenvalues.max() * EIGEN_FLOOR_REL).max(EIGEN_FLOOR_ABS);
+    eigen.eigenvalues.iter_mut().for_each(|l| *l = l.max(floor));
+    let q = eigen.recompose();
+    *p = SMatrix::from_fn(|i, j| 0.5 * (q[(i, j)] + q[(j, i)]));
+    true
+}
+
+/// Whether `p` is finite with a non-negative diagonal (a cheap test run after every step).
+pub fn is_sound_covariance<const N: usize>(p: &SMatrix<f64, N, N>) -> bool {
+    (0..N).all(|i| p[(i, i)].is_finite() && p[(i, i)] >= 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Matrix3;
+
+    use super::*;
+
+    #[test]
+    fn an_indefinite_matrix_becomes_positive_definite_and_close_to_its_psd_part() {
+        // Eigenvalues 3, 1, -0.5 in a rotated basis.
+        let q = nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 0.7).into_inner();
+        let mut p = q * Matrix3::from_diagonal(&nalgebra::Vector3::new(3.0, 1.0, -0.5)) * q.transpose();
+        p[(0, 1)] += 1e-9; // slightly asymmetric
+        assert!(p.cholesky().is_none());
+        assert!(repair_covariance(&mut p));
+        assert!(p.cholesky().is_some());
+        assert_eq!(p, p.transpose());
+        let expected = q * Matrix3::from_diagonal(&nalgebra::Vector3::new(3.0, 1.0, 0.0)) * q.transpose();
+        assert!((p - expected).abs().max() < 1e-8, "{p}");
+    }
+
+    #[test]
+    fn a_positive_definite_matrix_is_only_symmetrised_and_a_nan_is_refused() {
+        let mut p = Matrix3::new(2.0, 0.1, 0.0, 0.1, 1.0, 0.0, 0.0, 0.0, 0.5);
+        let before = p;
+        assert!(repair_covariance(&mut p));
+        assert_eq!(p, before);
+        p[(2, 2)] = f64::NAN;
+        assert!(!repair_covariance(&mut p));
+        assert!(!is_sound_covariance(&p));
+    }
+}
