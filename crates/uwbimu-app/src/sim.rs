@@ -285,6 +285,9 @@ impl SimConfig {
             non_negative("tdoa.outlier_min_m", d.outlier_min_m)?;
             ordered("tdoa.outlier_max_m", d.outlier_min_m, d.outlier_max_m)?;
             non_negative("tdoa.jitter_s", d.jitter_s)?;
+            non_negative("tdoa.pair_bias_min_m", d.pair_bias_min_m)?;
+            ordered("tdoa.pair_bias_max_m", d.pair_bias_min_m, d.pair_bias_max_m)?;
+            probability("tdoa.impossible_prob", d.impossible_prob)?;
             if d.jitter_s >= 1.0 / (d.rate_hz * self.anchors.len() as f64) {
                 return Err(invalid("tdoa.jitter_s", "must be shorter than the time between two packets"));
             }
