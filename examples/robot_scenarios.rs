@@ -42,9 +42,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         tdoa: if tdoa { &data.tdoa } else { &[] },
                     };
                     let (steps, positions): (Vec<f64>, Vec<_>) = match run_method(method, &input) {
-                        Ok(BatchOutput::Inertial { trace, .. }) => {
-                            trace.steps.iter().map(|r| (r.t_s, r.state.position + r.state.orientation * s.config.mounting.lever_arm)).unzip()
-                        }
+                        Ok(BatchOutput::Inertial { trace, .. }) => trace
+                            .steps
+                            .iter()
+                            .map(|r| (r.t_s, r.state.position + r.state.orientation * s.config.mounting.lever_arm))
+                            .unzip(),
                         Ok(BatchOutput::Multilateration(fixes)) => fixes.iter().map(|(t, f)| (*t, f.position)).unzip(),
                         Err(e) => {
                             failed = Some(e.to_string());

@@ -125,9 +125,11 @@ fn every_method_holds_up_with_the_defaults() {
         ("shfaf", 0.19),
         ("ukf", 0.31),
         ("rukf", 0.145),
-        ("ekf2d", 0.37),
-        ("ukf2d", 0.37),
-        ("cekf2d", 0.47),
+        // The planar filters, levelled by the propagated attitude (0.350 / 0.351 / 0.445 after 10 s
+        // before, with the start's levelling held fixed): 0.285 / 0.285 / 0.329 over the run.
+        ("ekf2d", 0.33),
+        ("ukf2d", 0.33),
+        ("cekf2d", 0.38),
         // `best` forward: the riekf composition with the NLOS skew and the zero-velocity
         // constraint (0.121 m here, riekf 0.126; after the first 10 s 0.128 m forward and
         // 0.076 m smoothed, README).
@@ -138,6 +140,38 @@ fn every_method_holds_up_with_the_defaults() {
         let h = aligned(m);
         println!("{m}: aligned {:.3} m (max {:.2} m), uwb_ls {ls:.3} m", h.rmse, h.max);
         assert!(h.rmse.is_finite() && h.rmse < 2.0 * ls && h.rmse < bound, "{m}: {} m (bound {bound}, uwb_ls {ls})", h.rmse);
+    }
+}
+
+#[test]
+fn planar_filters_hold_on_the_tilted_handheld_imu() {
+    // The IMU of this walk tilts by 15° RMS (up to 50°, riekf's attitude). Defaults,
+    // self-initialised, first 10 s left out, aligned horizontal RMSE (as
+    // `cargo run --release --example planar_tilt`, docs/design-notes.md#planar-tilt). None of
+    // the planar filters rejects outliers, so the log is also scored without its two gross
+    // ones (ranges above 10 m in a 5.5 m room), which dominate theirs and uwb_ls's errors.
+    // Measured (before → after the levelling by the propagated attitude and cekf2d's 0.125 s
+    // window): with them ekf2d 0.350 → 0.314, ukf2d 0.351 → 0.314, cekf2d 0.445 → 0.366,
+    // uwb_ls 0.805; without them 0.182 → 0.131, 0.184 → 0.131, 0.279 → 0.135, uwb_ls 0.158.
+    let cfg = config();
+    let Some((rec, _, truth)) = isas(&cfg) else { return };
+    let mut clean = rec.clone();
+    clean.ranges.retain(|r| r.range_m < 10.0);
+    assert_eq!(rec.ranges.len() - clean.ranges.len(), 2);
+    let defaults = uwbimu_rs::vocabulary::config::FilterConfig::default();
+    let after_10_s = |rec: &Recording, m: &str| {
+        let r = replay(rec, Method::parse(m).unwrap(), &defaults, None, false).unwrap();
+        let mut trajectory = r.trajectory();
+        let t0 = trajectory[0].0;
+        trajectory.retain(|p| p.0 >= t0 + 10.0);
+        compare_with_truth(&trajectory, &truth).unwrap().1.horizontal.rmse
+    };
+    let (ls, ls_clean) = (after_10_s(&rec, "uwb_ls"), after_10_s(&clean, "uwb_ls"));
+    for (m, bound, bound_clean) in [("ekf2d", 0.36, 0.15), ("ukf2d", 0.36, 0.15), ("cekf2d", 0.42, 0.155)] {
+        let (e, e_clean) = (after_10_s(&rec, m), after_10_s(&clean, m));
+        println!("{m}: {e:.3} m (uwb_ls {ls:.3}), without the gross outliers {e_clean:.3} m (uwb_ls {ls_clean:.3})");
+        assert!(e < bound && e < 1.2 * ls, "{m}: {e} m, uwb_ls {ls} m");
+        assert!(e_clean < bound_clean && e_clean < 1.2 * ls_clean, "{m}: {e_clean} m, uwb_ls {ls_clean} m (clean)");
     }
 }
 

@@ -60,6 +60,7 @@ ZooName = Literal[
     "corridor",
     "walk_nlos",
     "forklift",
+    "tilted_walk",
 ]
 """Names accepted by :func:`zoo`."""
 

@@ -70,7 +70,11 @@ pub(crate) fn synthesise(cfg: &SimConfig, tdoa: &TdoaConfig, rng: &mut ChaCha8Rn
         (0..k * k)
             .map(|_| {
                 let m = tdoa.pair_bias_min_m + (tdoa.pair_bias_max_m - tdoa.pair_bias_min_m) * rng.random::<f64>();
-                if rng.random::<bool>() { m } else { -m }
+                if rng.random::<bool>() {
+                    m
+                } else {
+                    -m
+                }
             })
             .collect()
     } else {
@@ -88,8 +92,8 @@ pub(crate) fn synthesise(cfg: &SimConfig, tdoa: &TdoaConfig, rng: &mut ChaCha8Rn
         let outlier = rng.random::<f64>() < tdoa.outlier_prob;
         let gross_m = tdoa.outlier_min_m + (tdoa.outlier_max_m - tdoa.outlier_min_m) * rng.random::<f64>();
         let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
-        let impossible_by_m = (tdoa.impossible_prob > 0.0 && rng.random::<f64>() < tdoa.impossible_prob)
-            .then(|| 1.0 + 119.0 * rng.random::<f64>());
+        let impossible_by_m =
+            (tdoa.impossible_prob > 0.0 && rng.random::<f64>() < tdoa.impossible_prob).then(|| 1.0 + 119.0 * rng.random::<f64>());
         if cfg.uwb.outages.iter().any(|o| o.start_s <= t_s && t_s < o.end_s) {
             continue;
         }

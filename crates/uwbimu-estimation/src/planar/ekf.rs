@@ -3,7 +3,7 @@
 //! applied as sequential scalar Joseph steps (the joint update of eq. (10) for diagonal R).
 
 use uwbimu_vocabulary::error::Result;
-use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::math::{Quat, Vec3};
 
 use crate::planar::{PlanarCov, PlanarGeometry, PlanarState, VX, VY, X, Y};
 use crate::update::{scalar_step, UpdateReport};
@@ -17,8 +17,8 @@ pub struct Epoch<'a> {
     pub anchors: &'a [Vec3],
     /// Plane height and lever arm.
     pub geometry: &'a PlanarGeometry,
-    /// Yaw at the epoch, rad.
-    pub yaw_rad: f64,
+    /// Attitude (body → navigation) at the epoch: turns the lever arm.
+    pub attitude: &'a Quat,
     /// Range noise variance R, m².
     pub range_var: f64,
 }
@@ -33,7 +33,7 @@ pub struct PrefilterInput {
     /// Predicted range rate `∂h/∂p·v`, m/s.
     pub rate_mps: f64,
     /// Whether the filter is converged on this range: its predicted variance `H·P·Hᵀ`, and the
-    /// variance of its predicted rate over [`crate::planar::MAX_AGE_S`], are below the
+    /// variance of its predicted rate over [`crate::planar::RATE_HORIZON_S`], are below the
     /// range noise variance.
     pub converged: bool,
 }
@@ -53,14 +53,14 @@ pub fn linearised_update(
     let p_prior = *p;
     let mut dx = PlanarState::zeros();
     for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
-        let Some((predicted, h)) = epoch.geometry.range_and_jacobian(&prior, epoch.yaw_rad, &epoch.anchors[anchor]) else {
+        let Some((predicted, h)) = epoch.geometry.range_and_jacobian(&prior, epoch.attitude, &epoch.anchors[anchor]) else {
             *report = UpdateReport::skipped();
             continue;
         };
         let hph = h.dot(&(p_prior * h));
         let rate_mps = h[X] * prior[VX] + h[Y] * prior[VY];
         let hv = PlanarState::new(0.0, 0.0, h[X], h[Y]);
-        let rate_var = hv.dot(&(p_prior * hv)) * crate::planar::MAX_AGE_S.powi(2);
+        let rate_var = hv.dot(&(p_prior * hv)) * crate::planar::RATE_HORIZON_S.powi(2);
         let converged = hph < epoch.range_var && rate_var < epoch.range_var;
         let z = prefilter(PrefilterInput { anchor, range_m, rate_mps, converged })?;
         let residual = z - predicted;

@@ -1,9 +1,10 @@
-//! The planar motion and range models of Wang et al. 2018: state `[x, y, vx, vy]` (eq. (6)), IMU
-//! acceleration rotated into the navigation frame by the gyro-integrated yaw (eq. (4)), the
-//! constant-acceleration transition (eqs. (5)–(6)) and the range to an anchor (eqs. (8)–(9)).
+//! The planar motion and range models of Wang et al. 2018: state `[x, y, vx, vy]` (eq. (6)), the
+//! IMU's specific force levelled into the navigation frame by the gyro-propagated attitude (eq. (4)
+//! generalised to roll and pitch, see [`level`]), the constant-acceleration transition
+//! (eqs. (5)–(6)) and the range to an anchor (eqs. (8)–(9)).
 
 use nalgebra::{Matrix2, SVector, Vector2};
-use uwbimu_vocabulary::math::{Cov, Vec3};
+use uwbimu_vocabulary::math::{Cov, Quat, Vec3};
 
 /// Offset of x in the planar state.
 pub const X: usize = 0;
@@ -21,10 +22,31 @@ pub type PlanarState = SVector<f64, PLANAR_DIM>;
 /// Its 4×4 covariance.
 pub type PlanarCov = Cov<PLANAR_DIM>;
 
-/// Rotation by the yaw ψ, Wang et al. 2018 eq. (4): `T = [[cψ, −sψ], [sψ, cψ]]`.
-pub fn yaw_rotation(yaw_rad: f64) -> Matrix2<f64> {
-    let (s, c) = yaw_rad.sin_cos();
-    Matrix2::new(c, -s, s, c)
+/// The navigation-frame acceleration of a body whose accelerometer reads the specific force
+/// `specific_force` (body frame, bias removed) at attitude `attitude` (body → navigation):
+/// `a = R(q)·f + g` with `gravity` the navigation-frame gravity (`[0, 0, −g]`). Its x, y are the
+/// input `u` of eq. (5). Wang et al. 2018 eq. (4) is the case roll = pitch = 0, where
+/// `R(q)·f` reduces to the yaw rotation `T(ψ)` of `f_xy`; a still IMU at any tilt reads
+/// `f = −R(q)ᵀ·g` and gives `a = 0`.
+pub fn level(attitude: &Quat, specific_force: &Vec3, gravity: &Vec3) -> Vec3 {
+    attitude * specific_force + gravity
+}
+
+/// The tilt error the accelerometer shows: the navigation-frame rotation vector, horizontal, that
+/// turns the levelled specific force `R(q)·f` toward its reference `−g + ω × v` (gravity plus the
+/// centripetal term of a turn at velocity `velocity`, with `ω = R(q)·rate`), both normalised:
+/// `e = (R·f)^ × (−g + ω × v)^` with its z component (yaw, which gravity does not show) set to
+/// zero. Zero when either vector vanishes. Small angles: `|e|` is the tilt error in rad.
+pub fn tilt_error(attitude: &Quat, specific_force: &Vec3, rate: &Vec3, velocity: &Vec3, gravity: &Vec3) -> Vec3 {
+    let measured = attitude * specific_force;
+    let reference = (attitude * rate).cross(velocity) - gravity;
+    match (measured.try_normalize(1e-9), reference.try_normalize(1e-9)) {
+        (Some(m), Some(r)) => {
+            let e = m.cross(&r);
+            Vec3::new(e.x, e.y, 0.0)
+        }
+        _ => Vec3::zeros(),
+    }
 }
 
 /// One propagation of Wang et al. 2018 eqs. (5)–(6) with input `u` (navigation-frame acceleration, m/s²)
@@ -50,7 +72,7 @@ pub fn propagate(x: &mut PlanarState, p: &mut PlanarCov, u: &Vector2<f64>, dt_s:
     p.fixed_view_mut::<2, 2>(VX, VX).copy_from(&(vv + Matrix2::identity() * (q * dt_s)));
 }
 
-/// The fixed geometry of the planar range model: the tag's height and lever arm.
+/// The fixed geometry of the planar range model: the plane's height and the tag's lever arm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlanarGeometry {
     /// Height of the body origin (the plane), m.
@@ -60,31 +82,31 @@ pub struct PlanarGeometry {
 }
 
 impl PlanarGeometry {
-    /// Predicted range to `anchor` from state `x` at yaw ψ, Wang et al. 2018 eq. (8) with the known
-    /// height difference: `‖(p + T(ψ)·l_xy, h + l_z) − a‖` (eq. (8) is the case of anchors at the
-    /// tag's height). None when the tag sits on the anchor.
-    pub fn range(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Option<f64> {
-        let d = self.offset(x, yaw_rad, anchor);
+    /// Predicted range to `anchor` from state `x` at attitude `q` (body → navigation),
+    /// Wang et al. 2018 eq. (8) with the known height and lever arm: `‖tag(x, q) − a‖` (eq. (8) is
+    /// the case of anchors at the tag's height and no lever arm). None when the tag sits on the
+    /// anchor.
+    pub fn range(&self, x: &PlanarState, attitude: &Quat, anchor: &Vec3) -> Option<f64> {
+        let d = self.offset(x, attitude, anchor);
         let r = d.norm();
         (r > 1e-9).then_some(r)
     }
 
     /// Predicted range and its Jacobian row `[(x − A_x)/r, (y − A_y)/r, 0, 0]` (Wang et al. 2018 eq. (9),
-    /// with r the 3-D range).
-    pub fn range_and_jacobian(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Option<(f64, PlanarState)> {
-        let d = self.offset(x, yaw_rad, anchor);
+    /// with r the 3-D range and x, y those of the tag).
+    pub fn range_and_jacobian(&self, x: &PlanarState, attitude: &Quat, anchor: &Vec3) -> Option<(f64, PlanarState)> {
+        let d = self.offset(x, attitude, anchor);
         let r = d.norm();
         (r > 1e-9).then(|| (r, PlanarState::new(d.x / r, d.y / r, 0.0, 0.0)))
     }
 
-    /// The tag (UWB antenna) position of state `x` at yaw ψ: `(p + T(ψ)·l_xy, h + l_z)`, m.
-    pub fn tag_position(&self, x: &PlanarState, yaw_rad: f64) -> Vec3 {
-        let lever = yaw_rotation(yaw_rad) * self.lever_arm.xy();
-        Vec3::new(x[X] + lever.x, x[Y] + lever.y, self.height_m + self.lever_arm.z)
+    /// The tag (UWB antenna) position of state `x` at attitude `q`: `(p, h) + R(q)·l`, m.
+    pub fn tag_position(&self, x: &PlanarState, attitude: &Quat) -> Vec3 {
+        Vec3::new(x[X], x[Y], self.height_m) + attitude * self.lever_arm
     }
 
-    fn offset(&self, x: &PlanarState, yaw_rad: f64, anchor: &Vec3) -> Vec3 {
-        self.tag_position(x, yaw_rad) - anchor
+    fn offset(&self, x: &PlanarState, attitude: &Quat, anchor: &Vec3) -> Vec3 {
+        self.tag_position(x, attitude) - anchor
     }
 }
 
@@ -116,11 +138,34 @@ mod tests {
         let g = PlanarGeometry { height_m: 0.3, lever_arm: Vec3::new(0.1, -0.05, 0.05) };
         let anchor = Vec3::new(4.0, 3.0, 1.2);
         let x = PlanarState::new(1.0, 0.5, 0.2, 0.1);
-        let (_, h) = g.range_and_jacobian(&x, 0.7, &anchor).expect("defined");
+        let q = Quat::from_euler_angles(0.3, -0.2, 0.7);
+        let (_, h) = g.range_and_jacobian(&x, &q, &anchor).expect("defined");
         for i in 0..PLANAR_DIM {
             let e = PlanarState::from_fn(|k, _| if k == i { 1e-6 } else { 0.0 });
-            let fd = (g.range(&(x + e), 0.7, &anchor).expect("d") - g.range(&(x - e), 0.7, &anchor).expect("d")) / 2e-6;
+            let fd = (g.range(&(x + e), &q, &anchor).expect("d") - g.range(&(x - e), &q, &anchor).expect("d")) / 2e-6;
             assert!((fd - h[i]).abs() < 1e-8, "column {i}: {fd} vs {}", h[i]);
         }
+    }
+
+    #[test]
+    fn a_still_imu_at_any_tilt_levels_to_zero_acceleration() {
+        // A still IMU reads the specific force −Rᵀ·g: levelled with its attitude it must give no
+        // acceleration at all, horizontal or vertical. A wrong sign (Rᵀ instead of R, or −g
+        // instead of +g) leaks g·sin(tilt) into the horizontal, here metres per second squared.
+        let gravity = Vec3::new(0.0, 0.0, -9.80665);
+        for (roll, pitch, yaw) in [(0.0, 0.0, 0.0), (0.35, 0.0, 1.0), (0.0, -0.3, -2.0), (0.25, 0.4, 2.5), (3.0, 0.2, 0.5)] {
+            let q = Quat::from_euler_angles(roll, pitch, yaw);
+            let f = -(q.inverse() * gravity);
+            assert!(level(&q, &f, &gravity).norm() < 1e-12, "{roll} {pitch} {yaw}");
+            // The wrong rotation direction leaks gravity into the horizontal whenever tilted.
+            let wrong = q.inverse() * f + gravity;
+            if roll != 0.0 || pitch != 0.0 {
+                assert!(wrong.xy().norm() > 1.0, "{roll} {pitch} {yaw}: {wrong:?}");
+            }
+        }
+        // A level IMU accelerating along its x axis at yaw 90°: the acceleration points north (+y).
+        let q = Quat::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2);
+        let a = level(&q, &Vec3::new(1.5, 0.0, 9.80665), &gravity);
+        assert!((a - Vec3::new(0.0, 1.5, 0.0)).norm() < 1e-12, "{a:?}");
     }
 }

@@ -24,7 +24,7 @@ pub fn unscented_update(
 ) -> Result<()> {
     for (report, &(anchor, range_m)) in reports.iter_mut().zip(ranges) {
         let anchor = &epoch.anchors[anchor];
-        let measure = |s: &PlanarState| epoch.geometry.range(s, epoch.yaw_rad, anchor);
+        let measure = |s: &PlanarState| epoch.geometry.range(s, epoch.attitude, anchor);
         let Some(m) = scalar_moments::<PLANAR_DIM, PLANAR_SIGMA_POINTS>(x, p, weights, measure)? else {
             *report = UpdateReport::skipped();
             continue;

@@ -340,8 +340,8 @@ section! {
 section! {
     /// The planar filters of Wang et al. 2018.
     PlanarConfig = "planar" {
-        /// `cekf2d`: moving-average window of the range prefilter, ranges per anchor (Wang et al. 2018
-        /// §3.3; 1 = no averaging).
+        /// `cekf2d`: moving-average window of the range prefilter, ranges per anchor, none older
+        /// than 0.125 s (Wang et al. 2018 §3.3; 1 = no averaging).
         cekf_window: usize = 5, |f, v| bounded_count(f, v, 1, MAX_CEKF_WINDOW);
         /// Density of the horizontal acceleration input error, m/s²/√Hz (Wang et al. 2018 eq. (6)).
         accel_density: f64 = 0.3, positive;
