@@ -60,6 +60,8 @@ ZooName = Literal[
     "corridor",
     "walk_nlos",
     "forklift",
+    "still_tdoa_lost",
+    "moving_uwb_lost",
 ]
 """Names accepted by :func:`zoo`."""
 

@@ -24,9 +24,14 @@
 //! | `corridor` | vehicle at 2 m/s up and down a 40 m × 4 m corridor | 6, coplanar at 2.5 m | 400 Hz | 25 Hz, 4 ms | long thin geometry, speed, 5 % outliers |
 //! | `walk_nlos` | walking loop | 5, mixed | 50 Hz | 10 Hz, 3 ms | handheld with two anchors +0.4–0.7 m NLOS for 20 s |
 //! | `forklift` | stop-and-go with quick turns, IMU mounted z down (declared) | 4, hall | 100 Hz | 8 Hz, 5 ms | two anchors surveyed 0.2 m off, a 5 s outage |
+//! | `still_tdoa_lost` | still drone 1.5 m up, tilted 2° / 1°, 11 s | 8, cuboid | 1000 Hz | TDoA only, 22.5 rounds/s (180 /s), lost after 1 s | no invented motion without UWB |
+//! | `moving_uwb_lost` | robot: 2 s still, a 6 m leg at 1 m/s, stop, turn, 4 m leg (14.5 s) | 4, hall | 100 Hz | 10 Hz, 4 ms, lost after 1 s of motion | IMU-only in motion stays finite |
 //!
-//! The last three were built after the fixes the first ten prompted, to check those fixes on
-//! data they were not made for.
+//! The last three of the first sixteen were built after the fixes the first ten prompted, to
+//! check those fixes on data they were not made for. The last two reproduce a user's report
+//! (issue 20): a still drone whose TDoA stopped after a second, and its moving counterpart. In
+//! `still_tdoa_lost` the ranges the simulator also draws (10 Hz, lost with the TDoA) are for the
+//! loosely coupled methods, which take no TDoA; every other method is meant to get TDoA only.
 
 use std::f64::consts::PI;
 
@@ -35,8 +40,8 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 
 use crate::sim::{
-    hall_anchors, DriveOptions, ImuNoise, NlosConfig, NlosWindow, Outage, Overlay, SimConfig, SimData, Sinusoid, Trajectory,
-    UwbConfig,
+    hall_anchors, DriveOptions, ImuNoise, NlosConfig, NlosWindow, Outage, Overlay, SimConfig, SimData, Sinusoid, TdoaConfig,
+    Trajectory, UwbConfig,
 };
 
 /// Names accepted by [`zoo`], in the order of the table above.
@@ -57,7 +62,14 @@ pub const ZOO_NAMES: &[&str] = &[
     "corridor",
     "walk_nlos",
     "forklift",
+    "still_tdoa_lost",
+    "moving_uwb_lost",
 ];
+
+/// The scenarios in which UWB is lost for good after the first second ([`ZOO_NAMES`]' last two):
+/// no method can match `uwb_ls` over them (it has no fix after the first second), so the
+/// generality matrix leaves them out and `tests/uwb_lost.rs` bounds them.
+pub const UWB_LOST_NAMES: &[&str] = &["still_tdoa_lost", "moving_uwb_lost"];
 
 /// One zoo scenario: what to simulate and how a user would configure a filter for it.
 #[derive(Debug, Clone, PartialEq)]
@@ -359,6 +371,37 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
                 anchors: hall_anchors(),
                 anchor_survey_errors: vec![(0, Vec3::new(0.15, 0.1, -0.08)), (2, Vec3::new(-0.1, 0.15, 0.1))],
                 uwb: UwbConfig { outages: vec![Outage { start_s: 20.0, end_s: 25.0 }], ..staggered(8.0, 0.1, 5.0) },
+                ..base
+            }
+        }
+        "still_tdoa_lost" => {
+            // Recorded from 0.5 s of a still trajectory, so the constant tilt is there from the
+            // first sample (the overlay is switched on at 0).
+            let tilt = |deg: f64| vec![Sinusoid::new(deg.to_radians(), 0.0, PI / 2.0)];
+            let overlay = Overlay { roll_rad: tilt(2.0), pitch_rad: tilt(-1.0), ..Overlay::default() };
+            let (start_s, with_uwb_s, end_s) = (0.5, 1.0, 11.5);
+            SimConfig {
+                trajectory: Trajectory::still(Vec3::new(4.5, 3.0, 1.5), 0.4, end_s)?.with_overlay(overlay)?,
+                start_s,
+                imu_rate_hz: 1000.0,
+                anchors: cuboid8(),
+                tdoa: Some(TdoaConfig { rate_hz: 22.5, std_m: 0.1, ..TdoaConfig::default() }),
+                uwb: UwbConfig {
+                    outages: vec![Outage { start_s: start_s + with_uwb_s, end_s: end_s + 1.0 }],
+                    ..staggered(10.0, 0.1, 2.0)
+                },
+                ..base
+            }
+        }
+        "moving_uwb_lost" => {
+            // 2 s still, 1 s of driving with ranges, then 11.5 s without: the rest of the 6 m leg,
+            // a stop, a turn in place and a 4 m leg.
+            let points = [(2.0, 2.0), (8.0, 2.0), (8.0, 6.0)].map(|(x, y)| Vec3::new(x, y, 0.3));
+            let opts = DriveOptions { speed_mps: 1.0, ramp_s: 0.5, dwell_s: 0.5, turn_time_s: 1.0, still_s: 2.0 };
+            SimConfig {
+                trajectory: Trajectory::waypoints(&points, &opts)?,
+                anchors: hall_anchors(),
+                uwb: UwbConfig { outages: vec![Outage { start_s: 3.0, end_s: 20.0 }], ..staggered(10.0, 0.1, 4.0) },
                 ..base
             }
         }
