@@ -60,7 +60,10 @@ ZooName = Literal[
     "corridor",
     "walk_nlos",
     "forklift",
+    "tdoa_drone",
     "tilted_walk",
+    "still_tdoa_lost",
+    "moving_uwb_lost",
 ]
 """Names accepted by :func:`zoo`."""
 

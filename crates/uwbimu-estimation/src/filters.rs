@@ -157,8 +157,11 @@ pub trait InertialFilter: Filter {
     /// Mutable access to the INS core (e.g. to start recording for smoothing).
     fn core_mut(&mut self) -> &mut InertialCore;
 
-    /// Whether the still detector reported the platform still at the last constraint step
-    /// (always false without the zero-velocity constraint).
+    /// Whether the still detector reported the platform still at its last check (every
+    /// `constraints.interval_s`). The detector runs in every inertial filter, whether or not the
+    /// zero-velocity constraint is applied ([`crate::filters::constraints`]: always with
+    /// `constraints.zupt`, during an outage with `constraints.outage_zupt`); this is its
+    /// decision, not whether a constraint was applied.
     fn still(&self) -> bool {
         false
     }

@@ -48,7 +48,10 @@ pub struct StepRecord {
     pub state: NominalState,
     /// Position covariance block, m².
     pub position_cov: Mat3,
-    /// Whether the still detector reported the platform still (zero-velocity constraint only).
+    /// Whether the still detector reported the platform still
+    /// ([`crate::filters::InertialFilter::still`]: its decision, in every inertial filter, whether
+    /// or not the zero-velocity constraint was applied; false in the planar filters, which have
+    /// no detector).
     pub still: bool,
     /// What happened since the previous step: [`STATUS_REJECTED`], [`STATUS_REPAIRED`],
     /// [`STATUS_LATE`] or-ed (0 = nothing unusual).

@@ -191,7 +191,8 @@ impl FilterConfig {
     }
 }
 
-/// Initial nominal state and its uncertainty (a diagonal initial covariance).
+/// Initial nominal state and its uncertainty (an initial covariance diagonal but for the attitude
+/// block, [`InitialState::covariance`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct InitialState {
     /// Body (IMU) position, navigation frame, m.
@@ -204,7 +205,8 @@ pub struct InitialState {
     pub position_std: Vec3,
     /// Velocity standard deviation per axis, m/s.
     pub velocity_std: Vec3,
-    /// Attitude-error standard deviation per body axis (roll, pitch, yaw-ish), rad.
+    /// Attitude-error standard deviation about the navigation axes (east, north: the tilt; up: the
+    /// heading), rad.
     pub orientation_std: Vec3,
     /// Initial accelerometer bias, m/s².
     pub accel_bias: Vec3,
@@ -234,12 +236,23 @@ impl Default for InitialState {
 }
 
 impl InitialState {
-    /// The diagonal initial error covariance (order δp, δv, δθ, δb_a, δb_g); bias standard
-    /// deviations fall back to the configuration's.
+    /// The initial error covariance (order δp, δv, δθ, δb_a, δb_g): diagonal from the standard
+    /// deviations, but for the attitude block. The attitude error δθ is a body-frame rotation,
+    /// while `orientation_std` is about the navigation axes, so that block is `Rᵀ·diag(σ²)·R` (`R`
+    /// the initial orientation): a heading uncertainty is a rotation about the vertical, not
+    /// about the body's z axis. The two differ on a tilted body, and an unknown heading (σ = π,
+    /// a self-initialisation without motion) placed on the body z axis read as a tilt of the
+    /// specific force: the updates turned the heading by tens of degrees on a still platform and
+    /// the tilted gravity moved it (docs/design-notes.md#uwb-lost). Bias standard deviations
+    /// fall back to the configuration's.
     pub fn covariance(&self, config: &FilterConfig) -> crate::state::ErrCov {
         let ba = Vec3::repeat(self.accel_bias_std.unwrap_or(config.init.accel_bias_std));
         let bg = Vec3::repeat(self.gyro_bias_std.unwrap_or(config.init.gyro_bias_std));
-        crate::state::diagonal_covariance([self.position_std, self.velocity_std, self.orientation_std, ba, bg])
+        let mut p = crate::state::diagonal_covariance([self.position_std, self.velocity_std, Vec3::zeros(), ba, bg]);
+        let r = self.orientation.to_rotation_matrix().into_inner();
+        let nav = crate::math::Mat3::from_diagonal(&self.orientation_std.component_mul(&self.orientation_std));
+        p.fixed_view_mut::<3, 3>(crate::state::ATT, crate::state::ATT).copy_from(&(r.transpose() * nav * r));
+        p
     }
 
     /// Every key accepted by [`InitialState::set`].

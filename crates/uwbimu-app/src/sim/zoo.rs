@@ -26,12 +26,18 @@
 //! | `forklift` | stop-and-go with quick turns, IMU mounted z down (declared) | 4, hall | 100 Hz | 8 Hz, 5 ms | two anchors surveyed 0.2 m off, a 5 s outage |
 //! | `tdoa_drone` | drone: 3 s on the ground, then a slow figure-8 at 1.5 m | 8, cuboid | 1000 Hz | 10 Hz, 1 ms; TDoA 22 rounds/s (176/s), σ 0.1 m | per-pair TDoA biases ±0.1–0.5 m, 1.2 % impossible TDoA |
 //! | `tilted_walk` | walking at 1.1 m/s with a phone-like tag held tilted (mean roll 12°, pitch −18°, drifting ±6–8°) and swinging (±8° roll at 1 Hz, ±6° pitch at 2 Hz) | 5, mixed | 100 Hz | 20 Hz, 3 ms | a handheld IMU that is never level |
+//! | `still_tdoa_lost` | still drone 1.5 m up, tilted 2° / 1°, 11 s | 8, cuboid | 1000 Hz | TDoA only, 22.5 rounds/s (180 /s), lost after 1 s | no invented motion without UWB |
+//! | `moving_uwb_lost` | robot: 2 s still, a 6 m leg at 1 m/s, stop, turn, 4 m leg (14.5 s) | 4, hall | 100 Hz | 10 Hz, 4 ms, lost after 1 s of motion | IMU-only in motion stays finite |
 //!
 //! `corridor`, `walk_nlos` and `forklift` were built after the fixes the first ten prompted, to
-//! check those fixes on data they were not made for. `tdoa_drone` was built after a peer's
-//! recorded flight (TDoA with per-pair biases and impossible values) lost filters to one
-//! measurement; `tilted_walk` for the planar filters, whose levelling it checks (the other walks
-//! tilt by 6° at most), before they were changed.
+//! check those fixes on data they were not made for. The last four reproduce what users met
+//! (issue 20), each built before the fix it checks: `tdoa_drone` a peer's recorded flight (TDoA
+//! with per-pair biases and impossible values) that lost filters to one measurement;
+//! `tilted_walk` a handheld tag, for the planar filters' levelling (the other walks tilt by 6° at
+//! most); `still_tdoa_lost` a still drone whose TDoA stopped after a second, and
+//! `moving_uwb_lost` its moving counterpart. In `still_tdoa_lost` the ranges the simulator also
+//! draws (10 Hz, lost with the TDoA) are for the loosely coupled methods, which take no TDoA;
+//! every other method is meant to get TDoA only.
 
 use std::f64::consts::PI;
 
@@ -64,7 +70,14 @@ pub const ZOO_NAMES: &[&str] = &[
     "forklift",
     "tdoa_drone",
     "tilted_walk",
+    "still_tdoa_lost",
+    "moving_uwb_lost",
 ];
+
+/// The scenarios in which UWB is lost for good after the first second ([`ZOO_NAMES`]' last two):
+/// no method can match `uwb_ls` over them (it has no fix after the first second), so the
+/// generality matrix leaves them out and `tests/uwb_lost.rs` bounds them.
+pub const UWB_LOST_NAMES: &[&str] = &["still_tdoa_lost", "moving_uwb_lost"];
 
 /// One zoo scenario: what to simulate and how a user would configure a filter for it.
 #[derive(Debug, Clone, PartialEq)]
@@ -417,6 +430,37 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
                 lever_arm_m: Vec3::new(0.08, 0.03, 0.06),
                 anchors: mixed5(),
                 uwb: staggered(20.0, 0.1, 3.0),
+                ..base
+            }
+        }
+        "still_tdoa_lost" => {
+            // Recorded from 0.5 s of a still trajectory, so the constant tilt is there from the
+            // first sample (the overlay is switched on at 0).
+            let tilt = |deg: f64| vec![Sinusoid::new(deg.to_radians(), 0.0, PI / 2.0)];
+            let overlay = Overlay { roll_rad: tilt(2.0), pitch_rad: tilt(-1.0), ..Overlay::default() };
+            let (start_s, with_uwb_s, end_s) = (0.5, 1.0, 11.5);
+            SimConfig {
+                trajectory: Trajectory::still(Vec3::new(4.5, 3.0, 1.5), 0.4, end_s)?.with_overlay(overlay)?,
+                start_s,
+                imu_rate_hz: 1000.0,
+                anchors: cuboid8(),
+                tdoa: Some(TdoaConfig { rate_hz: 22.5, std_m: 0.1, ..TdoaConfig::default() }),
+                uwb: UwbConfig {
+                    outages: vec![Outage { start_s: start_s + with_uwb_s, end_s: end_s + 1.0 }],
+                    ..staggered(10.0, 0.1, 2.0)
+                },
+                ..base
+            }
+        }
+        "moving_uwb_lost" => {
+            // 2 s still, 1 s of driving with ranges, then 11.5 s without: the rest of the 6 m leg,
+            // a stop, a turn in place and a 4 m leg.
+            let points = [(2.0, 2.0), (8.0, 2.0), (8.0, 6.0)].map(|(x, y)| Vec3::new(x, y, 0.3));
+            let opts = DriveOptions { speed_mps: 1.0, ramp_s: 0.5, dwell_s: 0.5, turn_time_s: 1.0, still_s: 2.0 };
+            SimConfig {
+                trajectory: Trajectory::waypoints(&points, &opts)?,
+                anchors: hall_anchors(),
+                uwb: UwbConfig { outages: vec![Outage { start_s: 3.0, end_s: 20.0 }], ..staggered(10.0, 0.1, 4.0) },
                 ..base
             }
         }

@@ -135,7 +135,13 @@ impl Filter for Ackf {
         let x = self.inner.core().state();
         // Specific force expected in steady motion: −g_n plus the centripetal term ω × v.
         let expected = self.gravity + (x.orientation * (w_body - x.gyro_bias)).cross(&x.velocity);
-        self.vector_update(&f_body, &expected, VectorSensor::Accelerometer, self.aiding.gravity_std).map(|_| ())
+        // Gravity says nothing about the heading: while still it is held, as in the range updates.
+        let hold = self.inner.hold_heading();
+        self.vector_update(&f_body, &expected, VectorSensor::Accelerometer, self.aiding.gravity_std)?;
+        if let Some(hold) = hold {
+            hold.restore(self.inner.core_mut());
+        }
+        Ok(())
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
@@ -177,5 +183,9 @@ impl InertialFilter for Ackf {
 
     fn core_mut(&mut self) -> &mut InertialCore {
         self.inner.core_mut()
+    }
+
+    fn still(&self) -> bool {
+        self.inner.still()
     }
 }

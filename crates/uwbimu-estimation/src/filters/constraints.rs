@@ -9,6 +9,16 @@
 //! - **plane** (eqs. (27)–(32)): the body height `z` equals `plane_height` (default: the initial
 //!   height) with std `plane_std`.
 //!
+//! The still detector runs in every inertial filter, whether or not a constraint uses it: its
+//! decision is what [`crate::filters::InertialFilter::still`] reports. Two uses of it are ours:
+//!
+//! - **outage guard** (`outage_zupt`): the zero-velocity constraint also applies, in a filter
+//!   without `zupt`, while the platform is still and no UWB measurement has arrived for
+//!   `outage_zupt_after_s` ([`Constraints::note_aiding`]). Without UWB the papers' filters
+//!   integrate the IMU alone, and 10 s of a consumer MEMS moved a still drone by metres;
+//! - **heading hold** (`still_heading_hold`): while the platform is still, every update leaves the
+//!   heading as it was ([`Constraints::hold_heading`]).
+//!
 //! All constraints due in one step form one linear update (sequential scalar Joseph steps, then
 //! one injection), like a joint update with diagonal noise. With range bias states
 //! ([`RangeBiasStates`]) the update runs on the joint covariance: the constraints have no bias
@@ -20,14 +30,14 @@ mod still;
 use nalgebra::SVector;
 use uwbimu_vocabulary::config::{ConstraintsConfig, MAX_SPEED_HISTORY};
 use uwbimu_vocabulary::error::Result;
-use uwbimu_vocabulary::math::{Cov, Vec3};
-use uwbimu_vocabulary::state::{ErrVec, NominalState, ERR_DIM, POS, VEL};
+use uwbimu_vocabulary::math::{quat_exp, Cov, Vec3};
+use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, ERR_DIM, POS, VEL};
 
 use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::InertialCore;
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step};
 
-pub use still::StillDetector;
+pub use still::{Rest, StillDetector, DETECTOR_BLOCK_S};
 
 /// Threshold of the plane and pseudo-velocity constraints' own innovation test,
 /// `γ = r²/(h·P·hᵀ + R)`: above it (`χ²₁` at α = 10⁻⁴) the constraint does not hold now (a
@@ -37,11 +47,14 @@ const CONSTRAINT_GATE: f64 = crate::robust::CHI2_1DOF_ALPHA_1E4;
 /// Speed below which the pseudo-velocity direction `v/‖v‖` is undefined, m/s.
 const MIN_PSEUDO_SPEED: f64 = 1e-3;
 
-/// Constraint state of one filter: which constraints are on, the detector, the speed history.
+/// Constraint state of one filter: which constraints are on, the detector, the speed history, the
+/// time of the last UWB measurement.
 #[derive(Debug, Clone)]
 pub struct Constraints {
     config: ConstraintsConfig,
     zupt: bool,
+    /// Time of the last UWB measurement, or of the first IMU sample before any, s.
+    last_aiding_s: Option<f64>,
     pseudo_velocity: bool,
     plane_height: Option<f64>,
     detector: StillDetector,
@@ -60,6 +73,7 @@ impl Constraints {
         Self {
             config: *config,
             zupt: config.zupt,
+            last_aiding_s: None,
             pseudo_velocity: config.pseudo_velocity,
             plane_height: config.plane.then(|| config.plane_height.unwrap_or(initial_height)),
             detector: StillDetector::new(config.zupt_window, config.zupt_threshold, config.zupt_max_speed),
@@ -72,19 +86,41 @@ impl Constraints {
         }
     }
 
-    /// Whether any constraint is switched on.
+    /// Whether any constraint is switched on (the outage guard is not counted: it applies only
+    /// without UWB).
     pub fn any(&self) -> bool {
         self.zupt || self.pseudo_velocity || self.plane_height.is_some()
     }
 
-    /// Whether the detector reported the platform still at the last check.
+    /// Whether the still detector reported the platform still at its last check (every
+    /// `interval_s`). The detector runs in every filter, whether or not a constraint uses it.
     pub fn still(&self) -> bool {
         self.still
     }
 
-    /// Predicts `core` with the IMU sample at `t_s` ([`InertialCore::predict`]), then applies the
-    /// constraints due (`Constraints::after_predict`, when any is on): the prediction step of
-    /// every filter that carries constraints. `bias`: the filter's range bias states, when it
+    /// Notes that a UWB measurement (a range epoch, a TDoA, a fix) arrived at `t_s`, whatever
+    /// the filter then did with it: the outage guard waits `outage_zupt_after_s` from the last
+    /// one.
+    pub fn note_aiding(&mut self, t_s: f64) {
+        self.last_aiding_s = Some(self.last_aiding_s.map_or(t_s, |t| t.max(t_s)));
+    }
+
+    /// Whether the outage guard applies the zero-velocity constraint at `t_s`: switched on, and
+    /// no UWB measurement for `outage_zupt_after_s` (counted from the first IMU sample before the
+    /// first one).
+    fn outage(&self, t_s: f64) -> bool {
+        self.config.outage_zupt && self.last_aiding_s.is_some_and(|last| t_s - last >= self.config.outage_zupt_after_s)
+    }
+
+    /// While the platform is still and `still_heading_hold` is on, the hold to take the heading
+    /// out of the next update of `core` ([`HeadingHold`]); None otherwise.
+    pub fn hold_heading(&self, core: &InertialCore) -> Option<HeadingHold> {
+        (self.still && self.config.still_heading_hold).then(|| HeadingHold::new(core))
+    }
+
+    /// Predicts `core` with the IMU sample at `t_s` ([`InertialCore::predict`]), then feeds the
+    /// still detector and applies the constraints due (`Constraints::after_predict`): the
+    /// prediction step of every inertial filter. `bias`: the filter's range bias states, when it
     /// carries them, for the joint update.
     pub fn predict(
         &mut self,
@@ -95,30 +131,29 @@ impl Constraints {
         bias: Option<&mut RangeBiasStates>,
     ) -> Result<()> {
         core.predict(t_s, accel, gyro)?;
-        if self.any() {
-            self.after_predict(core, bias)?;
-        }
-        Ok(())
+        self.after_predict(core, bias)
     }
 
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
     fn after_predict(&mut self, core: &mut InertialCore, bias: Option<&mut RangeBiasStates>) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
+        self.last_aiding_s.get_or_insert(t);
         let (cfg, gravity) = (self.config, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();
         let x = core.state();
-        if self.zupt {
-            self.detector.push(accel - x.accel_bias, gyro - x.gyro_bias);
-        }
+        let speed = x.velocity.norm();
+        self.detector.push(accel - x.accel_bias, gyro - x.gyro_bias, core.last_interval_s());
         if self.next_t_s.is_some_and(|next| t < next) {
             return Ok(());
         }
-        let speed = x.velocity.norm();
-        let rest_accel = x.orientation.inverse() * (-gravity);
-        self.still = self.zupt && self.detector.is_still(&rest_accel, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
+        let outage = self.outage(t);
+        let rest = Rest::of(x, core.covariance(), &gravity);
+        self.still = self.detector.is_still(&rest, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
         self.next_t_s = Some(t + cfg.interval_s);
-        let rows = self.rows_due(x, speed);
+        let zupt = self.still && (self.zupt || outage);
+        let rows = self.rows_due(x, speed, zupt);
         if rows.len > 0 {
+            let hold = self.hold_heading(core);
             let (x, p, cross) = core.parts_mut();
             match (bias, cross) {
                 (Some(bias), Some(cross)) => {
@@ -126,17 +161,20 @@ impl Constraints {
                 }
                 _ => rows.apply(x, p, &mut ErrVec::zeros(), ERR_DIM)?,
             }
+            if let Some(hold) = hold {
+                hold.restore(core);
+            }
         }
         self.push_speed(core.state().velocity.norm());
         Ok(())
     }
 
-    /// The constraint rows due now at the state `x` (speed `speed`): three for a ZUPT, else one
-    /// for the pseudo-velocity; one for the plane.
-    fn rows_due(&self, x: &NominalState, speed: f64) -> ConstraintRows {
+    /// The constraint rows due now at the state `x` (speed `speed`): three for a ZUPT (`zupt`),
+    /// else one for the pseudo-velocity; one for the plane.
+    fn rows_due(&self, x: &NominalState, speed: f64, zupt: bool) -> ConstraintRows {
         let cfg = &self.config;
         let mut rows = ConstraintRows::default();
-        if self.still {
+        if zupt {
             for i in 0..3 {
                 let mut h = ErrVec::zeros();
                 h[VEL + i] = 1.0;
@@ -168,6 +206,49 @@ impl Constraints {
         self.speeds[self.speed_head] = speed;
         self.speed_head = (self.speed_head + 1) % self.speed_window;
         self.speed_len = (self.speed_len + 1).min(self.speed_window);
+    }
+}
+
+/// The heading of a filter before an update, to take it out of the update's correction
+/// ([`Constraints::hold_heading`]): the consider (Schmidt) update of the heading, the rotation
+/// about the vertical, which is not observable on a still platform. Of the update's posterior only
+/// the heading changes: the correction's component about the vertical is undone and the heading
+/// variance restored to its prior value. For a joint linear update that is exactly the Schmidt
+/// posterior (the other states' gain, and their covariance with the heading, are those of the full
+/// update). With the heading unknown (σ = π after a self-initialisation without motion), the
+/// linearised updates coupled it to the velocity through the noise of the estimated acceleration
+/// and turned it by tens of degrees on a still drone (docs/design-notes.md#uwb-lost).
+#[derive(Debug, Clone, Copy)]
+pub struct HeadingHold {
+    prior: uwbimu_vocabulary::math::Quat,
+    /// The vertical in the prior's body frame.
+    up: Vec3,
+    /// Prior variance of the attitude error about `up`, rad².
+    var: f64,
+}
+
+impl HeadingHold {
+    /// The hold of `core`'s heading as it is now.
+    pub fn new(core: &InertialCore) -> Self {
+        let prior = core.state().orientation;
+        let up = prior.inverse() * Vec3::z();
+        let var = up.dot(&(core.covariance().fixed_view::<3, 3>(ATT, ATT) * up));
+        Self { prior, up, var }
+    }
+
+    /// Undoes the heading part of what `core` was corrected by since [`HeadingHold::new`] and
+    /// restores the heading variance (the cross-covariance with parameter states is left as the
+    /// update made it, as the Schmidt update would).
+    pub fn restore(self, core: &mut InertialCore) {
+        let (x, p, _) = core.parts_mut();
+        let dtheta = (self.prior.inverse() * x.orientation).scaled_axis();
+        x.orientation = self.prior * quat_exp(&(dtheta - self.up * self.up.dot(&dtheta)));
+        let up = x.orientation.inverse() * Vec3::z();
+        let restore = self.var - up.dot(&(p.fixed_view::<3, 3>(ATT, ATT) * up));
+        if restore > 0.0 {
+            let mut block = p.fixed_view_mut::<3, 3>(ATT, ATT);
+            block += up * up.transpose() * restore;
+        }
     }
 }
 

@@ -119,6 +119,19 @@ impl Filter for Eskf {
         }
         crate::filters::check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
+        self.constraints.note_aiding(t_s);
+        let hold = self.constraints.hold_heading(&self.core);
+        self.apply_fix(t_s, ranges, reports)?;
+        if let Some(hold) = hold {
+            hold.restore(&mut self.core);
+        }
+        Ok(())
+    }
+}
+
+impl Eskf {
+    /// Applies one checked epoch of ranges at the filter time `t_s` as its UWB fix.
+    fn apply_fix(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         let config = &self.config;
         let lever_arm = config.mounting.lever_arm;
         let ls = LsConfig::from_filter_config(config);

@@ -312,6 +312,48 @@ impl Filter for TightFilter {
         }
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
+        self.constraints.note_aiding(t_s);
+        let hold = self.constraints.hold_heading(&self.core);
+        self.apply_ranges(ranges, reports)?;
+        if let Some(hold) = hold {
+            hold.restore(&mut self.core);
+        }
+        Ok(())
+    }
+
+    /// Applies the TDoA `m` through the filter's own strategy and policy (χ² inflation for the robust
+    /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
+    /// adaptive per-anchor range noise is for ranges only), after the TDoA re-acquisition rule
+    /// ([`crate::filters::reacquire::TdoaWatch`]); other observations are refused. While the
+    /// platform is still, the heading is held ([`Constraints::hold_heading`]).
+    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
+        match observation {
+            Observation::Tdoa(m) => {
+                check_tdoa(&self.anchors, m)?;
+                self.core.advance_to(m.t_s)?;
+                self.constraints.note_aiding(m.t_s);
+                let hold = self.constraints.hold_heading(&self.core);
+                let report = self.apply_tdoa(m)?;
+                if let Some(hold) = hold {
+                    hold.restore(&mut self.core);
+                }
+                Ok(report)
+            }
+            other => Err(not_taken(other)),
+        }
+    }
+}
+
+impl TightFilter {
+    /// The hold of the heading for an update of the core by the owner ([`Constraints::hold_heading`]):
+    /// Some while the platform is still and `constraints.still_heading_hold` is on.
+    pub(crate) fn hold_heading(&self) -> Option<crate::filters::constraints::HeadingHold> {
+        self.constraints.hold_heading(&self.core)
+    }
+
+    /// Applies one checked epoch of ranges at the filter time (re-acquisition, robustness, the
+    /// strategy's update).
+    fn apply_ranges(&mut self, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         if self.reacquire {
             let failed = self.failed_at_prior(ranges);
             if let Some((innovation, nis)) =
@@ -342,32 +384,19 @@ impl Filter for TightFilter {
         solved
     }
 
-    /// Applies a TDoA through the filter's own strategy and policy (χ² inflation for the robust
-    /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
-    /// adaptive per-anchor range noise is for ranges only), after the TDoA re-acquisition rule
-    /// ([`crate::filters::reacquire::TdoaWatch`]); other observations are refused.
-    fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
-        match observation {
-            Observation::Tdoa(m) => {
-                check_tdoa(&self.anchors, m)?;
-                self.core.advance_to(m.t_s)?;
-                let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
-                if self.reacquire {
-                    let failed =
-                        self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
-                    let watch = &mut self.tdoa_watch;
-                    if let Some((innovation, nis)) =
-                        reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)?
-                    {
-                        return Ok(UpdateReport::reacquired(innovation, nis));
-                    }
-                }
-                let mut report = [UpdateReport::skipped()];
-                self.solve(&[tdoa], &mut report, None, 1.0)?;
-                Ok(report[0])
+    /// Applies one checked TDoA at the filter time (re-acquisition, the strategy's update).
+    fn apply_tdoa(&mut self, m: &TdoaMeasurement) -> Result<UpdateReport> {
+        let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+        if self.reacquire {
+            let failed = self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
+            let watch = &mut self.tdoa_watch;
+            if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
+                return Ok(UpdateReport::reacquired(innovation, nis));
             }
-            other => Err(not_taken(other)),
         }
+        let mut report = [UpdateReport::skipped()];
+        self.solve(&[tdoa], &mut report, None, 1.0)?;
+        Ok(report[0])
     }
 }
 

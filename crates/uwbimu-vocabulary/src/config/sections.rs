@@ -260,7 +260,8 @@ section! {
         pseudo_velocity: bool = false, flag;
         /// Plane constraint on (Li & Wang 2020 eqs. (27)–(32)); always on in CRIEKF.
         plane: bool = false, flag;
-        /// Still detector window, IMU samples.
+        /// Still detector window, in IMU samples averaged to at most 100 Hz (at 1 kHz, blocks of
+        /// ten).
         zupt_window: usize = 20, |f, v| bounded_count(f, v, 2, MAX_ZUPT_WINDOW);
         /// Still detector threshold on its statistic, dimensionless
         /// (`uwbimu_estimation::filters::constraints::StillDetector`).
@@ -283,6 +284,17 @@ section! {
         plane_std: f64 = 0.05, positive;
         /// Constraints are applied at most once per this interval, s.
         interval_s: f64 = 0.1, non_negative;
+        /// Outage guard (ours): in every inertial filter, also those without `zupt`, apply the
+        /// zero-velocity constraint while the still detector fires and no range, TDoA or UWB
+        /// fix has arrived for `outage_zupt_after_s`. Off: without UWB the papers' filters
+        /// integrate the IMU alone, and a still platform drifts away.
+        outage_zupt: bool = true, flag;
+        /// Outage guard: time without any UWB measurement after which it applies, s.
+        outage_zupt_after_s: f64 = 0.5, positive;
+        /// Heading hold (ours): while the still detector fires, the updates leave the heading
+        /// (the rotation about the vertical) as it is, a consider (Schmidt) update on it: it is
+        /// not observable then, and what a linearised update makes of it is noise.
+        still_heading_hold: bool = true, flag;
     }
 }
 
