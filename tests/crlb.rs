@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{config_for, truth_initial};
+use common::{paper_config, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimData};
 use uwbimu_rs::estimation::crlb::posterior_crlb;
 use uwbimu_rs::estimation::filters::{Ekf, Filter, InertialFilter};
@@ -33,7 +33,7 @@ fn crlb_equals_the_covariance_of_a_filter_linearised_at_the_truth() {
     cfg.uwb.range_std_m = 0.0;
     let data = simulate(&cfg).expect("sim");
     let config = {
-        let mut c = config_for(&cfg);
+        let mut c = paper_config(&cfg);
         c.ranging.range_std = 0.1;
         c
     };
@@ -64,7 +64,7 @@ fn filter_error_is_not_below_the_crlb() {
     for seed in 0..6 {
         let cfg = preset("seed000_los", seed).expect("preset");
         let data = simulate(&cfg).expect("sim");
-        let config = config_for(&cfg);
+        let config = paper_config(&cfg);
         let mut ekf = Ekf::new(data.anchors.clone(), &truth_initial(&data, Vec3::zeros()), config.clone()).expect("filter");
         let p0 = *ekf.core().covariance();
         let bound = posterior_crlb(&truth_states(&data), &data.imu, &data.ranges, &data.anchors, &p0, &config).expect("crlb");

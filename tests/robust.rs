@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use common::{config_for, horizontal_errors, paper_config, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, SimData};
 use uwbimu_rs::estimation::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use uwbimu_rs::estimation::pipeline::{run, Trace};
@@ -17,7 +17,7 @@ fn trace<F: InertialFilter>(filter: &mut F, data: &SimData) -> Trace {
 
 fn nlos_data(seed: u64) -> (SimData, FilterConfig) {
     let cfg = preset("seed000", seed).expect("preset");
-    (simulate(&cfg).expect("sim"), config_for(&cfg))
+    (simulate(&cfg).expect("sim"), paper_config(&cfg))
 }
 
 #[test]

@@ -258,7 +258,10 @@ def run_filter(
     -------
     polars.DataFrame
         Inertial filters: one row per IMU sample with ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz,
-        std_x, std_y, std_z, still`` (``still``: the zero-velocity detector's decision). Planar
+        std_x, std_y, std_z, still, status`` (``still``: the still detector's decision, in every
+        inertial method; ``status``: bits since the previous row — 1 a measurement the
+        plausibility gate rejected, 2 a numerical failure repaired and its measurement skipped,
+        4 late streamed data dropped). Planar
         methods fill the same columns: ``z`` = the plane height, ``vz`` = 0, a yaw-only
         quaternion, ``std_z`` = 0. ``uwb_ls``: one row per solvable UWB epoch with
         ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms``.
@@ -268,7 +271,14 @@ def run_filter(
     ------
     ValueError
         Wrong shape, NaN/inf, decreasing time, anchor index out of range, unknown method or
-        config key (the message names the array, row and column or the allowed values).
+        config key (the message names the array, row and column or the allowed values), IMU
+        times that cannot be seconds. A negative or impossible measurement inside good data is
+        not an error: the plausibility gate drops it (``gate.*`` config keys).
+
+    Warns
+    -----
+    UserWarning
+        An accelerometer that looks like g or a gyroscope that looks like deg/s.
     """
     cols, upd, _info = _native.run_filter(
         method,

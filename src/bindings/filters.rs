@@ -321,6 +321,15 @@ fn finite(call: &'static str, arg: &str, v: f64) -> PyResult<f64> {
     }
 }
 
+/// A finite, non-negative scalar argument of the streaming call `call`.
+fn non_negative(call: &'static str, arg: &str, v: f64) -> PyResult<f64> {
+    if finite(call, arg, v)? >= 0.0 {
+        Ok(v)
+    } else {
+        Err(Error::BadArgument { call, arg: format!("{arg}={v}"), reason: "must be >= 0".into() }.into())
+    }
+}
+
 /// A finite 3-vector argument of the streaming call `call`.
 fn vec3_arg(call: &'static str, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec3> {
     let arr = array(obj, name)?;
@@ -498,7 +507,7 @@ macro_rules! py_filter {
                 let obs = anchors
                     .iter()
                     .zip(&ranges)
-                    .map(|(a, r)| Ok((anchor_arg(CALL, "anchors", *a, count)?, finite(CALL, "ranges", *r)?)))
+                    .map(|(a, r)| Ok((anchor_arg(CALL, "anchors", *a, count)?, non_negative(CALL, "ranges", *r)?)))
                     .collect::<PyResult<Vec<(usize, f64)>>>()?;
                 self.0.apply_ranges_now(CALL, t, &obs)?;
                 Ok(applied_reports(&mut self.0))

@@ -38,6 +38,16 @@ pub fn config_for(sim: &SimConfig) -> FilterConfig {
     c
 }
 
+/// [`config_for`] with the papers' filters as printed: without the outage guard and the heading
+/// hold (ours, `constraints.outage_zupt`, `constraints.still_heading_hold`), for tests of a
+/// paper's claim.
+pub fn paper_config(sim: &SimConfig) -> FilterConfig {
+    let mut c = config_for(sim);
+    c.constraints.outage_zupt = false;
+    c.constraints.still_heading_hold = false;
+    c
+}
+
 /// The true state at the first IMU sample, with the given position offset.
 pub fn truth_initial(data: &SimData, position_offset: Vec3) -> InitialState {
     let t0 = &data.truth[0];

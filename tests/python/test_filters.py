@@ -109,7 +109,6 @@ def small():
         (lambda i, r, a: (i, _set(r, (3, 0), 0.1), a), r"ranges: time 0.1 s at row 3"),
         (lambda i, r, a: (i, _set(r, (1, 1), 4.0), a), r"anchor index 4 at row 1 is out of range \(there are 4 anchors\)"),
         (lambda i, r, a: (i, _set(r, (1, 1), -1.0), a), r"anchor index -1 at row 1"),
-        (lambda i, r, a: (i, _set(r, (1, 2), -2.0), a), r"range must be >= 0"),
         (lambda i, r, a: ([["a"] * 7], r, a), r"imu: cannot convert to a float64 array"),
     ],
 )
@@ -123,6 +122,18 @@ def test_bad_arrays_raise_value_error(small, mutate, pattern):
 def _set(a, idx, value):
     a[idx] = value
     return a
+
+
+def test_a_negative_range_is_dropped_and_flagged_not_raised(small):
+    imu, ranges, anchors, initial = small
+    bad = _set(ranges.copy(), (2, 2), -2.0)
+    df = uwbimu_rs.run_filter("ekf", imu, bad, anchors, initial=initial)
+    clean = uwbimu_rs.run_filter("ekf", imu, np.delete(ranges, 2, axis=0), anchors, initial=initial)
+    # The row after the range's time carries the gate's bit; the estimate is the run without it.
+    assert df["status"].dtype == pl.UInt8 and (df["status"] & 1).sum() == 1
+    np.testing.assert_array_equal(df["x"].to_numpy(), clean["x"].to_numpy())
+    fixes = uwbimu_rs.run_filter("uwb_ls", imu, bad, anchors)
+    assert fixes.height == uwbimu_rs.run_filter("uwb_ls", imu, np.delete(ranges, 2, axis=0), anchors).height
 
 
 def test_unknown_method_lists_allowed(small):

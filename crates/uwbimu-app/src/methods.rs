@@ -1,9 +1,10 @@
 //! The named methods of the batch API and the function that runs one of them over whole arrays.
 
 use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_estimation::gate::Gate;
 use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
-use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, StepRecord, Streams, Trace};
+use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, StepRecord, Streams, Trace};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_estimation::units::check_imu_units;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
@@ -134,7 +135,7 @@ macro_rules! methods {
     (@class $run:ident $($ty:ident)?) => { None };
     (@run $input:ident, multilateration) => {{
         let ls = LsConfig::from_filter_config($input.config);
-        Ok(BatchOutput::Multilateration(uwb_ls($input.ranges, $input.anchors, &ls)))
+        Ok(BatchOutput::Multilateration(uwb_ls(&plausible_ranges($input), $input.anchors, &ls)))
     }};
     (@run $input:ident, inertial $ty:ident) => {
         run_inertial(|i| uwbimu_estimation::filters::$ty::new($input.anchors.to_vec(), i, $input.config.clone()), $input)
@@ -343,6 +344,13 @@ fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 /// (rayon), else one after the other; one result per input, in order.
 pub fn run_many(method: Method, inputs: &[BatchInput<'_>]) -> Vec<Result<BatchOutput>> {
     crate::parallel::map_all(inputs, |input| run_method(method, input))
+}
+
+/// The ranges of `input` that pass the plausibility gate ([`Gate`]): `uwb_ls` does not run the
+/// pipeline, whose gate the other methods pass.
+fn plausible_ranges(input: &BatchInput<'_>) -> Vec<RangeMeasurement> {
+    let gate = Gate::new(input.anchors, &input.config.gate);
+    input.ranges.iter().filter(|r| gate.check(&Event::Range(**r)).is_none()).copied().collect()
 }
 
 /// The given initial state, or the self-initialisation's ([`self_initialize`]: the decision a

@@ -132,10 +132,15 @@ pub trait Estimator: Filter {
     fn snapshot(&self) -> Self::Snapshot;
     /// Puts back a [`Estimator::snapshot`].
     fn restore(&mut self, snapshot: &Self::Snapshot);
-    /// Whether the state is finite and the covariance finite with a non-negative diagonal.
+    /// Whether the state is finite and plausible ([`crate::repair::is_plausible_state`]) and the
+    /// covariance finite with a non-negative diagonal.
     fn is_sound(&self) -> bool;
     /// Makes the covariance symmetric positive definite ([`crate::repair::repair_covariance`]).
     fn repair_covariance(&mut self);
+    /// Remembers the state and covariance as the last good ones (after an update that passed).
+    fn mark_good(&mut self);
+    /// Puts back the last good state and covariance; false when there is none.
+    fn fall_back(&mut self) -> bool;
 }
 
 impl<F: InertialFilter> Estimator for F {
@@ -186,11 +191,19 @@ impl<F: InertialFilter> Estimator for F {
 
     fn is_sound(&self) -> bool {
         let core = self.core();
-        core.state().is_finite() && crate::repair::is_sound_covariance(core.covariance())
+        crate::repair::is_plausible_state(core.state()) && crate::repair::is_sound_covariance(core.covariance())
     }
 
     fn repair_covariance(&mut self) {
         self.core_mut().repair_covariance();
+    }
+
+    fn mark_good(&mut self) {
+        self.core_mut().mark_good();
+    }
+
+    fn fall_back(&mut self) -> bool {
+        self.core_mut().fall_back()
     }
 }
 
@@ -257,7 +270,10 @@ impl Tally {
     fn guarded<E: Estimator>(&mut self, est: &mut E, step: impl FnOnce(&mut E) -> Result<()>) -> Result<bool> {
         let before = est.snapshot();
         match step(est) {
-            Ok(()) if est.is_sound() => return Ok(true),
+            Ok(()) if est.is_sound() => {
+                est.mark_good();
+                return Ok(true);
+            }
             Ok(()) | Err(Error::NotPositiveDefinite { .. }) => {}
             Err(e) => return Err(e),
         }
@@ -268,19 +284,23 @@ impl Tally {
         Ok(false)
     }
 
-    /// After a propagation: repairs a covariance that lost its soundness; fails only when the
-    /// state itself is no longer finite (nothing can be computed from it).
+    /// After a propagation: repairs a covariance that lost its soundness and, when the state
+    /// itself ran away (not finite or not plausible, a filter diverged on bad data), falls back
+    /// to the last good state; fails only when there is none (nothing can be computed).
     fn check_propagation<E: Estimator>(&mut self, est: &mut E) -> Result<()> {
         if est.is_sound() {
             return Ok(());
         }
-        est.repair_covariance();
         self.health.numerical_repairs += 1;
         self.status |= STATUS_REPAIRED;
+        est.repair_covariance();
+        if !est.is_sound() && est.fall_back() {
+            est.repair_covariance();
+        }
         if est.is_sound() {
             Ok(())
         } else {
-            Err(Error::NotPositiveDefinite { what: "state or covariance after the prediction (not finite)" })
+            Err(Error::NotPositiveDefinite { what: "state or covariance after the prediction (not finite or not plausible)" })
         }
     }
 }

@@ -102,6 +102,7 @@ pub struct PlanarFilter {
     prefilter: MovingAverage,
     epoch_window_s: f64,
     gate: GateConfig,
+    last_good: Option<(PlanarState, PlanarCov)>,
     time_s: Option<f64>,
     held_accel: Vec3,
     held_rate: Vec3,
@@ -150,6 +151,7 @@ impl PlanarFilter {
             weights,
             epoch_window_s: config.ranging.epoch_window_s,
             gate: config.gate,
+            last_good: None,
             time_s: None,
             held_accel: Vec3::zeros(),
             held_rate: Vec3::zeros(),
@@ -338,12 +340,21 @@ impl Estimator for PlanarFilter {
 
     fn is_sound(&self) -> bool {
         self.state.iter().all(|v| v.is_finite())
+            && self.state.fixed_rows::<2>(VX).norm() < crate::repair::MAX_SPEED_MPS
             && self.attitude.coords.iter().all(|v| v.is_finite())
             && crate::repair::is_sound_covariance(&self.covariance)
     }
 
     fn repair_covariance(&mut self) {
         crate::repair::repair_covariance(&mut self.covariance);
+    }
+
+    fn mark_good(&mut self) {
+        self.last_good = Some((self.state, self.covariance));
+    }
+
+    fn fall_back(&mut self) -> bool {
+        self.last_good.map(|good| (self.state, self.covariance) = good).is_some()
     }
 
     /// Position (x, y, plane height), velocity (vx, vy, 0), orientation = the propagated

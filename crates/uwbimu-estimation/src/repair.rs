@@ -2,6 +2,7 @@
 //! linearisation): the step after a numerical failure, so one measurement never ends a run.
 
 use nalgebra::{DMatrix, SMatrix};
+use uwbimu_vocabulary::state::NominalState;
 
 /// Relative floor of the eigenvalues after a repair (times the largest), and the absolute floor.
 const EIGEN_FLOOR_REL: f64 = 1e-12;
@@ -25,6 +26,26 @@ pub fn repair_covariance<const N: usize>(p: &mut SMatrix<f64, N, N>) -> bool {
     let q = eigen.recompose();
     *p = SMatrix::from_fn(|i, j| 0.5 * (q[(i, j)] + q[(j, i)]));
     true
+}
+
+/// Largest plausible speed of any platform the library tracks, m/s (the speed of sound): a step
+/// that leaves a faster state has failed, however finite.
+pub const MAX_SPEED_MPS: f64 = 340.0;
+/// Largest plausible distance from the navigation origin, m.
+pub const MAX_DISTANCE_M: f64 = 1e5;
+/// Largest plausible accelerometer bias, m/s² (beyond a ±16 g sensor's range).
+pub const MAX_ACCEL_BIAS_MPS2: f64 = 160.0;
+/// Largest plausible gyroscope bias, rad/s.
+pub const MAX_GYRO_BIAS_RADPS: f64 = 35.0;
+
+/// Whether a nominal state is finite and plausible (speed, distance and biases below the bounds
+/// above): the test a step must pass to be kept.
+pub fn is_plausible_state(x: &NominalState) -> bool {
+    x.is_finite()
+        && x.velocity.norm() < MAX_SPEED_MPS
+        && x.position.norm() < MAX_DISTANCE_M
+        && x.accel_bias.amax() < MAX_ACCEL_BIAS_MPS2
+        && x.gyro_bias.amax() < MAX_GYRO_BIAS_RADPS
 }
 
 /// Whether `p` is finite with a non-negative diagonal (a cheap test run after every step).

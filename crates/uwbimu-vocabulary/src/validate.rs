@@ -91,8 +91,9 @@ pub fn magnetometer(rows: &[[f64; 4]]) -> Result<Vec<MagSample>> {
 }
 
 /// Range table `(M, 3)` = t, anchor index, range → measurements. Finite; time non-decreasing
-/// (several anchors may share an epoch time); the anchor an integer in `0..anchor_count`;
-/// the range non-negative.
+/// (several anchors may share an epoch time); the anchor an integer in `0..anchor_count`. A
+/// negative range is not refused here: it is one bad measurement, which the plausibility gate
+/// of the pipeline drops and counts (`uwbimu_estimation::gate`).
 pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasurement>> {
     check_finite("ranges", rows)?;
     let mut out = Vec::with_capacity(rows.len());
@@ -105,9 +106,6 @@ pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasure
         let a = r[1];
         if a < 0.0 || a.fract() != 0.0 || a >= anchor_count as f64 {
             return Err(Error::UnknownAnchor { name: "ranges", row, anchor: a, count: anchor_count });
-        }
-        if r[2] < 0.0 {
-            return Err(Error::InvalidValue { name: "ranges", row, value: r[2], reason: "range must be >= 0 m" });
         }
         out.push(RangeMeasurement { t_s: r[0], anchor: a as usize, range_m: r[2] });
     }

@@ -47,6 +47,18 @@ const CONSTRAINT_GATE: f64 = crate::robust::CHI2_1DOF_ALPHA_1E4;
 /// Speed below which the pseudo-velocity direction `v/‖v‖` is undefined, m/s.
 const MIN_PSEUDO_SPEED: f64 = 1e-3;
 
+/// The outage guard waits at least this many usual intervals between UWB updates (an average
+/// of the recent ones), so low-rate UWB (2 Hz) does not count as lost between its epochs.
+pub const OUTAGE_INTERVALS: f64 = 3.0;
+/// Time constant of the mean velocity the outage guard's speed gate takes, s.
+const VELOCITY_AVERAGE_S: f64 = 1.0;
+/// Longest interval between UWB updates taken into that average, s (an outage does not count).
+const AIDING_INTERVAL_CAP_S: f64 = 2.0;
+/// The heading is held only while its σ exceeds this, rad (≈ 14°, above the σ of a heading found
+/// from motion): a known heading gains little from the hold, and a smoother over the run does
+/// better with the plain update.
+pub const HOLD_MIN_HEADING_STD_RAD: f64 = 0.25;
+
 /// Constraint state of one filter: which constraints are on, the detector, the speed history, the
 /// time of the last UWB measurement.
 #[derive(Debug, Clone)]
@@ -55,6 +67,9 @@ pub struct Constraints {
     zupt: bool,
     /// Time of the last UWB measurement, or of the first IMU sample before any, s.
     last_aiding_s: Option<f64>,
+    aiding_interval_s: Option<f64>,
+    mean_velocity: Vec3,
+    mean_velocity_t_s: Option<f64>,
     pseudo_velocity: bool,
     plane_height: Option<f64>,
     detector: StillDetector,
@@ -74,6 +89,9 @@ impl Constraints {
             config: *config,
             zupt: config.zupt,
             last_aiding_s: None,
+            aiding_interval_s: None,
+            mean_velocity: Vec3::zeros(),
+            mean_velocity_t_s: None,
             pseudo_velocity: config.pseudo_velocity,
             plane_height: config.plane.then(|| config.plane_height.unwrap_or(initial_height)),
             detector: StillDetector::new(config.zupt_window, config.zupt_threshold, config.zupt_max_speed),
@@ -102,20 +120,29 @@ impl Constraints {
     /// the filter then did with it: the outage guard waits `outage_zupt_after_s` from the last
     /// one.
     pub fn note_aiding(&mut self, t_s: f64) {
+        if let Some(last) = self.last_aiding_s.filter(|&last| t_s > last) {
+            let dt = (t_s - last).min(AIDING_INTERVAL_CAP_S);
+            self.aiding_interval_s = Some(self.aiding_interval_s.map_or(dt, |i| 0.9 * i + 0.1 * dt));
+        }
         self.last_aiding_s = Some(self.last_aiding_s.map_or(t_s, |t| t.max(t_s)));
     }
 
     /// Whether the outage guard applies the zero-velocity constraint at `t_s`: switched on, and
-    /// no UWB measurement for `outage_zupt_after_s` (counted from the first IMU sample before the
-    /// first one).
+    /// no UWB measurement for `outage_zupt_after_s` or [`OUTAGE_INTERVALS`] usual intervals between
+    /// them, whichever is longer (counted from the first IMU sample before the first one).
     fn outage(&self, t_s: f64) -> bool {
-        self.config.outage_zupt && self.last_aiding_s.is_some_and(|last| t_s - last >= self.config.outage_zupt_after_s)
+        let after_s = self.config.outage_zupt_after_s.max(OUTAGE_INTERVALS * self.aiding_interval_s.unwrap_or(0.0));
+        self.config.outage_zupt && self.last_aiding_s.is_some_and(|last| t_s - last >= after_s)
     }
 
-    /// While the platform is still and `still_heading_hold` is on, the hold to take the heading
-    /// out of the next update of `core` ([`HeadingHold`]); None otherwise.
+    /// While the platform is still, `still_heading_hold` is on and the heading is poorly known
+    /// (σ above [`HOLD_MIN_HEADING_STD_RAD`]), the hold to take the heading out of the next update
+    /// of `core` ([`HeadingHold`]); None otherwise.
     pub fn hold_heading(&self, core: &InertialCore) -> Option<HeadingHold> {
-        (self.still && self.config.still_heading_hold).then(|| HeadingHold::new(core))
+        if !(self.still && self.config.still_heading_hold) {
+            return None;
+        }
+        Some(HeadingHold::new(core)).filter(|hold| hold.var > HOLD_MIN_HEADING_STD_RAD.powi(2))
     }
 
     /// Predicts `core` with the IMU sample at `t_s` ([`InertialCore::predict`]), then feeds the
@@ -148,7 +175,10 @@ impl Constraints {
         }
         let outage = self.outage(t);
         let rest = Rest::of(x, core.covariance(), &gravity);
-        self.still = self.detector.is_still(&rest, cfg.zupt_accel_std, cfg.zupt_gyro_std, speed);
+        // In an outage the speed gate takes the velocity averaged over the last second: a
+        // cruise keeps its mean, a still platform's velocity that only wanders does not.
+        let gated_speed = if outage { self.mean_velocity.norm() } else { speed };
+        self.still = self.detector.is_still(&rest, cfg.zupt_accel_std, cfg.zupt_gyro_std, gated_speed);
         self.next_t_s = Some(t + cfg.interval_s);
         let zupt = self.still && (self.zupt || outage);
         let rows = self.rows_due(x, speed, zupt);
@@ -165,7 +195,11 @@ impl Constraints {
                 hold.restore(core);
             }
         }
-        self.push_speed(core.state().velocity.norm());
+        let v = core.state().velocity;
+        let dt = self.mean_velocity_t_s.map_or(0.0, |t0| t - t0);
+        self.mean_velocity_t_s = Some(t);
+        self.mean_velocity += (v - self.mean_velocity) * (dt / VELOCITY_AVERAGE_S).clamp(0.0, 1.0);
+        self.push_speed(v.norm());
         Ok(())
     }
 

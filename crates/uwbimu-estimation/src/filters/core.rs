@@ -28,6 +28,7 @@ pub struct InertialCore {
     /// constant between measurements): propagated as `Φ·P_xb`. Boxed: 2 kB that a filter
     /// without parameter states should not carry inline.
     cross: Option<Box<BiasCross>>,
+    last_good: Option<Box<(NominalState, ErrCov)>>,
 }
 
 /// One recorded propagation, for smoothing: the posterior at its start and the IMU interval
@@ -87,6 +88,7 @@ impl InertialCore {
             imu_count: 0,
             recording: None,
             cross: None,
+            last_good: None,
         })
     }
 
@@ -247,6 +249,26 @@ impl InertialCore {
     pub fn restore(&mut self, state: &NominalState, covariance: &ErrCov) {
         self.state = *state;
         self.covariance = *covariance;
+    }
+
+    /// Remembers the state and covariance as the last good ones (after an update that passed).
+    pub fn mark_good(&mut self) {
+        match self.last_good.as_mut() {
+            Some(good) => **good = (self.state, self.covariance),
+            None => self.last_good = Some(Box::new((self.state, self.covariance))),
+        }
+    }
+
+    /// Puts back the last good state and covariance ([`Self::mark_good`]); false when there is
+    /// none. The filter time stays.
+    pub fn fall_back(&mut self) -> bool {
+        match self.last_good.as_deref() {
+            Some((x, p)) => {
+                (self.state, self.covariance) = (*x, *p);
+                true
+            }
+            None => false,
+        }
     }
 
     /// Makes the covariance symmetric positive definite ([`crate::repair::repair_covariance`]).

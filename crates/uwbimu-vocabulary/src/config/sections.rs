@@ -289,8 +289,10 @@ section! {
         /// fix has arrived for `outage_zupt_after_s`. Off: without UWB the papers' filters
         /// integrate the IMU alone, and a still platform drifts away.
         outage_zupt: bool = true, flag;
-        /// Outage guard: time without any UWB measurement after which it applies, s.
-        outage_zupt_after_s: f64 = 0.5, positive;
+        /// Outage guard: time without any UWB measurement after which it applies, s (at least
+        /// three usual intervals between UWB updates, so low-rate UWB does not count as lost
+        /// between its epochs).
+        outage_zupt_after_s: f64 = 0.2, positive;
         /// Heading hold (ours): while the still detector fires, the updates leave the heading
         /// (the rotation about the vertical) as it is, a consider (Schmidt) update on it: it is
         /// not observable then, and what a linearised update makes of it is noise.
