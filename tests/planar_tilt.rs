@@ -20,25 +20,26 @@ fn ratio(scenario: &str, seed: u64, method: Method) -> f64 {
     r.ratio()
 }
 
+/// Every planar filter on `scenario` over `seeds`, self-initialised with the defaults, within
+/// `bound` × `uwb_ls`.
+fn assert_within(scenario: &str, seeds: std::ops::Range<u64>, bound: f64) {
+    for seed in seeds {
+        for method in PLANAR {
+            let r = ratio(scenario, seed, method);
+            assert!(r < bound, "{scenario} seed {seed} {}: {r:.2}× uwb_ls", method.name());
+        }
+    }
+}
+
 #[test]
 fn planar_filters_hold_on_a_tilted_handheld_walk() {
     // Measured (seeds 0–2): ekf2d and ukf2d 0.47–0.51×, cekf2d 0.51–0.56× uwb_ls.
-    for seed in 0..3 {
-        for method in PLANAR {
-            let r = ratio("tilted_walk", seed, method);
-            assert!(r < 0.65, "tilted_walk seed {seed} {}: {r:.2}× uwb_ls", method.name());
-        }
-    }
+    assert_within("tilted_walk", 0..3, 0.65);
 }
 
 #[test]
 fn planar_filters_hold_on_another_handheld_walk() {
     // Seeds not used to choose anything. Measured (seeds 3–5): 0.47–0.50× (ekf2d, ukf2d),
     // 0.53–0.54× (cekf2d).
-    for seed in 3..6 {
-        for method in PLANAR {
-            let r = ratio("handheld_walk", seed, method);
-            assert!(r < 0.65, "handheld_walk seed {seed} {}: {r:.2}× uwb_ls", method.name());
-        }
-    }
+    assert_within("handheld_walk", 3..6, 0.65);
 }

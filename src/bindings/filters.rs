@@ -395,6 +395,12 @@ macro_rules! py_filter {
                 })
             }
 
+            fn anchor_count(&self) -> usize {
+                self.0.anchor_count()
+            }
+
+            /// Gives `event` to the stream (which checks its time) and emits the unit check's
+            /// warnings; returns the reports of the updates it applied.
             fn push(&mut self, py: Python<'_>, call: &'static str, event: Event) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.push(call, event)?;
                 super::super::errors::warn_all(py, &self.0.take_warnings())?;
@@ -453,7 +459,7 @@ macro_rules! py_filter {
             fn add_imu(&mut self, py: Python<'_>, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_imu";
                 let (accel, gyro) = (vec3_arg(CALL, accel, "accel")?, vec3_arg(CALL, gyro, "gyro")?);
-                self.push(py, CALL, Event::Imu(ImuSample { t_s: finite(CALL, "t", t)?, accel, gyro }))
+                self.push(py, CALL, Event::Imu(ImuSample { t_s: t, accel, gyro }))
             }
 
             /// Takes a range (m) to anchor index `anchor` measured at `t` (s): it joins a range
@@ -462,7 +468,7 @@ macro_rules! py_filter {
             fn add_range(&mut self, py: Python<'_>, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_range";
                 let anchor = anchor_arg(CALL, "anchor", anchor, self.anchor_count())?;
-                let r = RangeMeasurement { t_s: finite(CALL, "t", t)?, anchor, range_m: finite(CALL, "range", range)? };
+                let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)? };
                 self.push(py, CALL, Event::Range(r))
             }
 
@@ -477,7 +483,7 @@ macro_rules! py_filter {
                 if anchor_i == anchor_j {
                     return Err(Error::BadArgument { call: CALL, arg: format!("i=j={i}"), reason: "the two anchors must differ".into() }.into());
                 }
-                let m = TdoaMeasurement { t_s: finite(CALL, "t", t)?, anchor_i, anchor_j, tdoa_m: finite(CALL, "d_ij", d_ij)? };
+                let m = TdoaMeasurement { t_s: t, anchor_i, anchor_j, tdoa_m: finite(CALL, "d_ij", d_ij)? };
                 self.push(py, CALL, Event::Observation(Observation::Tdoa(m)))
             }
 
@@ -487,7 +493,7 @@ macro_rules! py_filter {
                 const CALL: &str = "add_magnetometer";
                 check_takes(CALL, stringify!($py), Input::Magnetometer)?;
                 let field = vec3_arg(CALL, field, "field")?;
-                self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: finite(CALL, "t", t)?, field })))
+                self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: t, field })))
             }
 
             /// Applies the ranges of one epoch, all measured at `t` (s), at once — bypassing the
@@ -586,12 +592,6 @@ macro_rules! py_filter {
             #[getter]
             fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
                 covariance_array(py, self.estimator("covariance")?.core().covariance())
-            }
-        }
-
-        impl $py {
-            fn anchor_count(&self) -> usize {
-                self.0.anchor_count()
             }
         }
     };

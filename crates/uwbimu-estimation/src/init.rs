@@ -296,12 +296,4 @@ impl SelfInitializer {
     pub fn finish(&self, anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
         initialize_with_tdoa(&self.imu, &self.ranges, &self.tdoa, anchors, config)
     }
-
-    /// Time span of the IMU samples taken, s.
-    pub fn span_s(&self) -> f64 {
-        match (self.imu.first(), self.imu.last()) {
-            (Some(a), Some(b)) => b.t_s - a.t_s,
-            _ => 0.0,
-        }
-    }
 }

@@ -492,11 +492,6 @@ impl Pipeline {
     pub fn pending(&self) -> &[RangeMeasurement] {
         self.epochs.ranges()
     }
-
-    /// The loop's plausibility gate.
-    pub fn gate(&self) -> &Gate {
-        &self.gate
-    }
 }
 
 /// Applies the epoch `ranges` (anchor, m) at `t_s` to `est` with `reports` as scratch, and keeps
@@ -560,9 +555,10 @@ impl Streams<'_> {
                 self.tdoa.get(next[2]).map(|m| Event::Observation(Observation::Tdoa(*m))),
                 self.ranges.get(next[3]).map(|r| Event::Range(*r)),
             ];
-            // The earliest head; the lower stream rank wins ties.
+            // The earliest head; the lower rank wins ties ([`Event::rank`]).
             let (k, event) = heads.into_iter().enumerate().filter_map(|(k, e)| e.map(|e| (k, e))).reduce(|best, cand| {
-                if cand.1.t_s() < best.1.t_s() {
+                let key = |e: &Event| (e.t_s(), e.rank());
+                if key(&cand.1) < key(&best.1) {
                     cand
                 } else {
                     best

@@ -24,8 +24,8 @@ pub const UNIT_CHECK_SPAN_S: f64 = 2.0;
 const MAX_IMU_INTERVAL_S: f64 = 0.5;
 /// A gyroscope rate above this is not plausible in rad/s for a robot, vehicle or person, rad/s.
 const MAX_PLAUSIBLE_RATE: f64 = 20.0;
-/// Rate scatter of a still gyroscope in rad/s stays below this (consumer MEMS: < 0.01; the noisiest
-/// simulated paper IMU: 0.1), rad/s; in deg/s a MEMS still reads 0.1–0.5.
+/// Rate scatter of a still gyroscope in rad/s stays below this, rad/s (why this value:
+/// docs/streaming.md#units).
 const MAX_STILL_RATE_STD: f64 = 0.15;
 /// Scatter of the specific force, relative to its norm, below which the accelerometer is still.
 const STILL_FORCE_REL_STD: f64 = 0.02;

@@ -24,7 +24,7 @@ use uwbimu_vocabulary::records::{ImuSample, Observation};
 use super::{Estimator, Event, Health, Pipeline, Streams, UpdateRecord};
 use crate::gate::Gate;
 use crate::init::{SelfInit, SelfInitializer};
-use crate::units::{check_imu_units, UNIT_CHECK_SAMPLES, UNIT_CHECK_SPAN_S};
+use crate::units::{check_imu_units, check_window as unit_check_window, UNIT_CHECK_SAMPLES};
 
 /// Default reorder window of a stream, s (the replay's: `reorder_window_s` of a mapping).
 pub const DEFAULT_REORDER_WINDOW_S: f64 = 0.5;
@@ -177,11 +177,9 @@ impl<E: Estimator> Stream<E> {
             return Ok(());
         };
         samples.extend(sample);
-        let span_s = match (samples.first(), samples.last()) {
-            (Some(a), Some(b)) => b.t_s - a.t_s,
-            _ => 0.0,
-        };
-        if !(now || samples.len() >= UNIT_CHECK_SAMPLES || span_s > UNIT_CHECK_SPAN_S) {
+        // Complete once the window is full or the newest sample lies past it.
+        let complete = samples.len() >= UNIT_CHECK_SAMPLES || unit_check_window(samples).len() < samples.len();
+        if !(now || complete) {
             return Ok(());
         }
         match check_imu_units(samples) {
