@@ -1,0 +1,256 @@
+"""Whole-recording runs: one method over arrays, many runs on all cores, self-initialisation and
+the posterior Cramér–Rao bound."""
+
+from __future__ import annotations
+
+from typing import Any, Literal, Mapping, Sequence, overload
+
+import numpy as np
+import polars as pl
+
+from uwbimu_rs import _native
+from uwbimu_rs._convert import frame as _frame
+from uwbimu_rs._convert import plain as _as_dict
+from uwbimu_rs._native import FilterConfig
+from uwbimu_rs._typing import MethodName
+
+@overload
+def run_filter(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: Literal[False] = False,
+    smooth: bool | None = None,
+    mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
+) -> pl.DataFrame: ...
+
+
+@overload
+def run_filter(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: Literal[True],
+    smooth: bool | None = None,
+    mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
+) -> tuple[pl.DataFrame, pl.DataFrame]: ...
+
+
+def run_filter(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: bool = False,
+    smooth: bool | None = None,
+    mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
+) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
+    """Run one method over whole recordings (the GIL is released while Rust runs).
+
+    Parameters
+    ----------
+    method : str
+        One of ``uwbimu_rs.FILTERS``; ``uwbimu_rs.METHODS[name]["summary"]`` says what each is.
+        ``"best"`` is the recommended method for real logs.
+    imu : array (N, 7)
+        t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
+    ranges : array (M, 3)
+        t [s] (non-decreasing), anchor index (row of ``anchors``), range [m].
+    anchors : array (K, 3)
+        Anchor positions in the navigation frame [m].
+    initial : dict, optional
+        ``position`` (3,), ``velocity`` (3,), ``orientation`` (w, x, y, z) and optional
+        ``position_std``, ``velocity_std``, ``orientation_std`` (rad), ``accel_bias``,
+        ``gyro_bias``, ``accel_bias_std``, ``gyro_bias_std``; valid at the first IMU time.
+        None: the filter initialises itself (see :func:`initialize`).
+    config : FilterConfig or dict, optional
+        Keys as in ``FilterConfig.keys()``; unknown keys raise :class:`ConfigError`.
+        ``range_calibration={anchor: [c0, c1, c2, c3]}`` calibrates the ranges first (Wang et al. 2018).
+    covariance : bool
+        Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
+    smooth : bool, optional
+        Return the Rauch–Tung–Striebel smoothed estimates (same columns) instead of the filtered
+        ones (None: only for ``"best"``) (inertial methods only; the updates frame stays the forward pass's).
+    mag : numpy.ndarray, shape (N, 4), optional
+        Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
+        only ``ackf`` uses them (geomagnetic aiding of the ACKF paper), other methods raise ValueError.
+    tdoa : numpy.ndarray, shape (M, 4), optional
+        Time differences of arrival ``t, i, j, d_ij`` with ``d_ij = |p − a_j| − |p − a_i|`` [m]
+        (Loco Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time,
+        noise σ = ``tdoa_std``. Alone (``ranges`` an empty ``(0, 3)`` array; without ``initial`` the
+        filter initialises itself from TDoA fixes) or with ranges. Taken by the methods whose
+        ``METHODS[name]["takes"]`` lists ``"tdoa"`` (the tightly coupled ones) through their own noise policy (the robust ones down-weight TDoA
+        outliers by χ² inflation); the others raise ValueError.
+    updates : bool
+        Also return a DataFrame with one row per range or TDoA update
+        (t, epoch_t, anchor, anchor_j, range, innovation, nis, accepted, weight, inflation,
+        down_weighted, iterations, prior_fading, reacquired, bias, bias_std); ``bias``, ``bias_std``:
+        the anchor's range bias estimate after the update with ``range_bias.states`` (NaN without); a TDoA row has ``anchor`` = i,
+        ``anchor_j`` = j and ``range`` = d_ij, a range row ``anchor_j`` = −1. Ranges within the
+        epoch window (``epoch_window_s``) form one epoch, updated jointly.
+
+    Returns
+    -------
+    polars.DataFrame
+        Inertial filters: one row per IMU sample with ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz,
+        std_x, std_y, std_z, still, status`` (``still``: the still detector's decision, in every
+        inertial method; ``status``: bits since the previous row — 1 a measurement the
+        plausibility gate rejected, 2 a numerical failure repaired and its measurement skipped,
+        4 late streamed data dropped). Planar
+        methods fill the same columns: ``z`` = the plane height, ``vz`` = 0, a yaw-only
+        quaternion, ``std_z`` = 0. ``uwb_ls``: one row per solvable UWB epoch with
+        ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms``.
+        ``(frame, updates_frame)`` when ``updates=True``.
+
+    Raises
+    ------
+    ValueError
+        Wrong shape, NaN/inf, decreasing time, anchor index out of range, unknown method or
+        config key (the message names the array, row and column or the allowed values), IMU
+        times that cannot be seconds. A negative or impossible measurement inside good data is
+        not an error: the plausibility gate drops it (``gate.*`` config keys).
+
+    Warns
+    -----
+    UserWarning
+        An accelerometer that looks like g or a gyroscope that looks like deg/s.
+    """
+    cols, upd, _info = _native.run_filter(
+        method,
+        imu,
+        ranges,
+        anchors,
+        initial=_as_dict(initial),
+        config=_as_dict(config),
+        covariance=covariance,
+        updates=updates,
+        smooth=smooth,
+        mag=mag,
+        tdoa=tdoa,
+    )
+    frame = _frame(cols)
+    if updates:
+        if upd is None:
+            raise ValueError(f"method {method!r} has no range updates to report")
+        u = pl.DataFrame(upd).with_columns(
+            pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
+        )
+        return frame, u
+    return frame
+
+
+def run_filters(
+    method: MethodName,
+    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    *,
+    initial: Sequence[Mapping[str, Any] | None] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    smooth: bool | None = None,
+) -> list[pl.DataFrame]:
+    """Run one method over many recordings in parallel on all cores (GIL released).
+
+    Parameters
+    ----------
+    method : str
+        As for :func:`run_filter`.
+    runs : sequence of (imu, ranges, anchors)
+        One tuple of arrays per recording, shapes as for :func:`run_filter`
+        (e.g. ``[(r.imu, r.ranges, r.anchors) for r in sims]``).
+    initial : sequence of dict or None, optional
+        One initial state per run (None entries self-initialise); None: all self-initialise.
+    config, covariance, smooth
+        As for :func:`run_filter`, shared by all runs.
+
+    Returns
+    -------
+    list of polars.DataFrame
+        One frame per run, in order, identical to what :func:`run_filter` returns for it.
+    """
+    inits = None if initial is None else [_as_dict(i) for i in initial]
+    outputs = _native.run_filters(
+        method, list(runs), initial=inits, config=_as_dict(config), covariance=covariance, smooth=smooth
+    )
+    return [_frame(cols) for cols, _upd, _info in outputs]
+
+
+def initialize(
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Initialise a filter from the start of a recording.
+
+    Roll and pitch (and gyro bias) from the first ``init.still_s`` seconds, position from
+    UWB multilateration, heading from the first ``init.heading_distance_m`` metres of motion
+    against UWB (fallback: yaw 0 with σ = π).
+
+    Returns
+    -------
+    (initial, info)
+        ``initial``: dict usable as ``initial=`` of :func:`run_filter` or a filter class;
+        ``info``: ``still_start`` (bool) and ``heading_from`` ("motion" or "fallback").
+    """
+    return _native.initialize_state(imu, ranges, anchors, config=_as_dict(config))
+
+
+_TRUTH_COLUMNS = ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz"]
+
+
+def crlb(
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    truth: pl.DataFrame | np.ndarray,
+    *,
+    biases: np.ndarray | None = None,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+) -> pl.DataFrame:
+    """Posterior Cramér–Rao lower bound along the true trajectory (the ARCKF paper's eqs. (43)–(44)).
+
+    Parameters
+    ----------
+    imu, ranges, anchors : arrays
+        As for :func:`run_filter`.
+    truth : polars.DataFrame or array (N, 11)
+        The true state at every IMU time: ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz`` (as
+        ``sim.SimResult.truth``).
+    biases : array (N, 6), optional
+        True accelerometer (m/s²) and gyroscope (rad/s) biases per IMU sample
+        (``np.hstack([run.accel_bias, run.gyro_bias])``); zero when omitted.
+    initial : dict, optional
+        Only its standard deviations are used: the bound starts from that covariance.
+    config : FilterConfig or dict, optional
+        Noise model (as given to the filter being compared).
+
+    Returns
+    -------
+    polars.DataFrame
+        ``t, crlb_x, crlb_y, crlb_z``: the bound as standard deviations, m, one row per IMU sample.
+    """
+    if isinstance(truth, pl.DataFrame):
+        truth = truth.select(_TRUTH_COLUMNS).to_numpy()
+    cols = _native.posterior_crlb(
+        imu, ranges, anchors, truth, biases=biases, initial=_as_dict(initial), config=_as_dict(config)
+    )
+    return pl.DataFrame(cols)

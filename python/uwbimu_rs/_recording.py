@@ -1,0 +1,140 @@
+"""MCAP recordings: reading one into frames, replaying one through a method."""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Mapping
+
+import polars as pl
+
+from uwbimu_rs import _native
+from uwbimu_rs._convert import frame as _frame
+from uwbimu_rs._convert import plain as _as_dict
+from uwbimu_rs._native import FilterConfig, MappingError
+from uwbimu_rs._typing import MethodName
+
+def _mapping_json(mapping: Mapping[str, Any] | None) -> str | None:
+    """The mapping as JSON text for the native layer (it parses and checks it)."""
+    if mapping is None:
+        return None
+    try:
+        return json.dumps(dict(mapping), default=os.fspath)
+    except TypeError as e:
+        raise MappingError(f"mapping: cannot convert to JSON: {e}") from e
+
+
+def read_mcap(
+    path: str | os.PathLike[str],
+    *,
+    mapping: Mapping[str, Any] | None = None,
+    config_file: str | os.PathLike[str] | None = None,
+) -> dict[str, Any]:
+    """Read an MCAP recording (IMU + UWB ranges and/or TDoA) into polars DataFrames.
+
+    Parameters
+    ----------
+    path : str or path
+        The MCAP file (chunked or not, indexed or not, zstd / lz4 / uncompressed).
+    mapping : dict, optional
+        The ``[mapping]`` table of a replay file as a dict (see the README, "MCAP replay"), e.g.
+        ``{"imu_topic": "/imu", "uwb": {"topics": ["/uwb"], "range": "ranges[].range",
+        "anchor_id": "ranges[].id", "valid": "ranges[].ra == 1"}}``, or for TDoA
+        ``{"tdoa": {"topics": ["/tdoa"], "anchor_i": "idA", "anchor_j": "idB", "tdoa": "distanceDiff"}}``
+        (those field names are the defaults); replaces the file's mapping.
+    config_file : str or path, optional
+        A replay TOML file whose ``[mapping]`` is used.
+
+    Returns
+    -------
+    dict
+        ``imu``: DataFrame t, ax, ay, az, gx, gy, gz (s, m/s², rad/s); ``ranges``: t, anchor
+        (index into ``anchors``), range (m), variance (m², NaN when not in the message);
+        ``tdoa``: t, i, j (indices into ``anchors``), d_ij = |p − a_j| − |p − a_i| (m) —
+        ``frames["tdoa"].to_numpy()`` is the ``(M, 4)`` array :func:`run_filter` takes as
+        ``tdoa``; ``anchors``: id, x, y, z (m); ``ground_truth``: t, x, y, z (empty when not mapped);
+        ``stats``: dict (topics with schema, count and role; duration_s; reordered;
+        late_dropped; invalid_per_anchor; anchor_source; tdoa_unknown_anchor and
+        tdoa_unknown_ids (TDoA dropped for an anchor without a position); tdoa_bad_value; ...).
+
+    Raises
+    ------
+    FileNotFoundError, OSError
+        Missing, unreadable or corrupt file (``FormatError``, an OSError, for bad magic,
+        truncation, CRC mismatch, unknown encoding).
+    ValueError
+        A mapping that does not fit the file (``MappingError``: missing topic, unknown field).
+    """
+    out = _native.read_mcap(
+        os.fspath(path), mapping=_mapping_json(mapping), config_file=None if config_file is None else os.fspath(config_file)
+    )
+    ranges = pl.DataFrame(out["ranges"]).with_columns(pl.col("anchor").cast(pl.Int64))
+    tdoa = pl.DataFrame(out["tdoa"]).with_columns(pl.col("i", "j").cast(pl.Int64))
+    anchors = pl.DataFrame(out["anchors"]).insert_column(0, pl.Series("id", out["anchor_ids"], dtype=pl.String))
+    return {
+        "imu": pl.DataFrame(out["imu"]),
+        "ranges": ranges,
+        "tdoa": tdoa,
+        "anchors": anchors,
+        "ground_truth": pl.DataFrame(out["ground_truth"]),
+        "stats": out["stats"],
+    }
+
+
+def replay(
+    path: str | os.PathLike[str],
+    method: MethodName | None = None,
+    *,
+    mapping: Mapping[str, Any] | None = None,
+    config_file: str | os.PathLike[str] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    initial: Mapping[str, Any] | None = None,
+    smooth: bool | None = None,
+) -> tuple[pl.DataFrame, dict[str, Any]]:
+    """Replay an MCAP recording through one method (the core of the ``uwbimu-replay`` binary).
+
+    Parameters
+    ----------
+    path : str or path
+        The MCAP file.
+    method : str, optional
+        One of ``FILTERS``; None: the config file's ``method``, else ``"best"``.
+    mapping, config_file
+        As for :func:`read_mcap`; the config file also supplies ``method``, ``[config]`` and
+        ``[initial]``.
+    config : FilterConfig or dict, optional
+        Filter settings; replaces the config file's ``[config]``.
+    initial : dict, optional
+        Initial state as for :func:`run_filter`; replaces the config file's ``[initial]``. None
+        and no ``[initial]``: self-initialisation (from the ranges, or from the TDoA of a
+        recording without ranges). TDoA are taken by the methods whose
+        ``METHODS[name]["takes"]`` lists ``"tdoa"``; the others raise ValueError on a recording
+        with TDoA.
+    smooth : bool, optional
+        Return RTS-smoothed estimates (inertial methods; None: only for ``"best"``).
+
+    Returns
+    -------
+    (polars.DataFrame, dict)
+        The trajectory with the :func:`run_filter` columns, and ``info``: ``method``,
+        ``anchors`` (per anchor: id, accepted, down_weighted, rejected, for the ranges),
+        ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis``,
+        ``stats`` (as :func:`read_mcap`) and, when ground truth is mapped,
+        ``rmse_horizontal_m``, ``rmse_horizontal_aligned_m``, ``rmse_3d_m``,
+        ``rmse_3d_aligned_m`` (rigid SE(3) alignment).
+
+    Raises
+    ------
+    OSError, ValueError
+        As :func:`read_mcap`; ``ConfigError`` for an unknown method or config key.
+    """
+    cols, info = _native.replay(
+        os.fspath(path),
+        method,
+        mapping=_mapping_json(mapping),
+        config_file=None if config_file is None else os.fspath(config_file),
+        config=_as_dict(config),
+        initial=_as_dict(initial),
+        smooth=smooth,
+    )
+    return _frame(cols), info
