@@ -44,7 +44,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    run = sim.preset("seed000_los", seed=0)
+    run = sim.preset("hall_vehicle", seed=0)
     config = {"mounting.lever_arm": [0.0, 0.0, 0.05]}
     initial, _ = uwbimu_rs.initialize(run.imu, run.ranges, run.anchors, config=config)
     n = run.imu.shape[0]
@@ -60,7 +60,7 @@ def main() -> None:
     # `best` as a user calls it: self-initialised, smoothed.
     best = best_of(lambda: uwbimu_rs.run_filter("best", run.imu, run.ranges, run.anchors, config=config), args.repeat)
     print(f"best (self-init, smoothed) / ekf batch ratio: {best / batch:.1f}, {run.imu[-1, 0] / best:8.0f}x real time")
-    runs = [sim.preset("seed000", seed=s) for s in range(4)]
+    runs = [sim.preset("hall_vehicle_nlos", seed=s) for s in range(4)]
     tuples = [(r.imu, r.ranges, r.anchors) for r in runs]
     one_by_one = best_of(lambda: [uwbimu_rs.run_filter("riekf", *t, config=config) for t in tuples], args.repeat)
     parallel = best_of(lambda: uwbimu_rs.run_filters("riekf", tuples, config=config), args.repeat)

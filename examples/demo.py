@@ -16,7 +16,7 @@ from pathlib import Path
 import uwbimu_rs
 from uwbimu_rs import metrics, sim
 
-SCENARIOS = ("seed000_los", "seed000")
+SCENARIOS = ("hall_vehicle", "hall_vehicle_nlos")
 METHODS = ("uwb_ls", "ekf")
 
 
@@ -42,7 +42,7 @@ def main() -> None:
         print(f"{name:<12} {method:<8} {h.rmse:>10.3f} {h.mean:>10.3f} {h.p95:>10.3f} {h.max:>10.3f}")
     out = Path("out")
     out.mkdir(exist_ok=True)
-    run = frames[("seed000", "ekf")][2]
+    run = frames[("hall_vehicle_nlos", "ekf")][2]
     sim.write_mcap(run, out / "demo.mcap", range_std=0.1)
     run.truth.select("t", "x", "y", "z").write_csv(out / "demo_truth.csv")
     print(f"recording written to {out / 'demo.mcap'} (ground truth {out / 'demo_truth.csv'})")

@@ -1,8 +1,8 @@
-"""The README's isas-walk1 accuracy table: every method, self-initialised, first 10 s left out,
+"""The isas-walk1 accuracy table of docs/accuracy.md: every method, self-initialised, first 10 s left out,
 horizontal RMSE raw and after rigid alignment, forward and smoothed, with the defaults
 (`config=None`) and with the noise `uwbimu_rs.tune` picks from the log alone (no ground truth).
 
-    python examples/isas_walk1_table.py [--data ../shared/data/isas-walk1]
+    python examples/isas_walk1_table.py [--data ../shared/data/isas-walk1] [--methods riekf best]
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import uwbimu_rs
 import uwbimu_rs.metrics as metrics
 
 ROOT = Path(__file__).resolve().parent.parent
-SMOOTHABLE = {"ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "eskf", "shaf", "shfaf", "ukf", "best"}
+SMOOTHABLE = {name for name, row in uwbimu_rs.METHODS.items() if row["smoothing"] != "never"}
 
 
 def score(df: pl.DataFrame, truth: pl.DataFrame) -> str:
@@ -31,6 +31,7 @@ def score(df: pl.DataFrame, truth: pl.DataFrame) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data" / "isas-walk1")
+    parser.add_argument("--methods", nargs="*", choices=uwbimu_rs.FILTERS, default=uwbimu_rs.FILTERS)
     args = parser.parse_args(argv)
     if not (args.data / "isas-walk1.mcap").exists():
         print(f"skipped: {args.data} is not present", file=sys.stderr)
@@ -42,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     ranges = d["ranges"].select("t", "anchor", "range").to_numpy()
     print("| method | defaults forward | defaults smoothed | tuned forward | tuned smoothed |")
     print("|---|---|---|---|---|")
-    for method in uwbimu_rs.FILTERS:
+    for method in args.methods:
         try:
             tuned = uwbimu_rs.tune(method, imu, ranges, anchors, smooth=False)["config"]
         except ValueError:  # uwb_ls, loose and planar filters: no prior innovations to tune by

@@ -1,6 +1,7 @@
 //! Every method on the scenarios of the robot loop (TDoA with per-pair biases and impossible
 //! values, UWB lost after the first second): horizontal RMSE against the truth, the final error,
-//! or the error that ended the run. Regenerates the tables of docs/streaming.md:
+//! the error that ended the run, or "no estimate" when a method gives none after the start-up
+//! (`uwb_ls` once UWB is lost). Regenerates the tables of docs/streaming.md:
 //!
 //! ```text
 //! cargo run --release --example robot_scenarios [scenario,…] [seeds]
@@ -24,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut cells = Vec::new();
             let mut input_name = "ranges";
             for given in [true, false] {
-                let (mut rmse, mut last, mut failed) = (0.0, 0.0, None);
+                let (mut rmse, mut last, mut failed, mut unscored) = (0.0, 0.0, None, false);
                 for seed in 0..seeds {
                     let s = zoo(name, seed)?;
                     let data = simulate(&s.sim)?;
@@ -64,12 +65,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             (p - (g.position + g.orientation * s.sim.lever_arm_m)).xy().norm()
                         })
                         .collect();
-                    let n = errors.len().max(1) as f64;
+                    if errors.is_empty() {
+                        unscored = true; // no estimate after the start-up (uwb_ls once UWB is lost)
+                        break;
+                    }
+                    let n = errors.len() as f64;
                     rmse += (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt() / seeds as f64;
-                    last += errors.last().copied().unwrap_or(f64::NAN) / seeds as f64;
+                    last += errors.last().copied().unwrap_or_default() / seeds as f64;
                 }
                 match failed {
                     Some(e) => cells.push(format!("error: {} | – ", e.chars().take(60).collect::<String>())),
+                    None if unscored => cells.push("no estimate | –".to_string()),
                     None => cells.push(format!("{rmse:.3} | {last:.3}")),
                 }
             }

@@ -13,6 +13,7 @@ out (``uwb_ls`` has no output there). Prints markdown tables.
 from __future__ import annotations
 
 import argparse
+from typing import Literal
 
 import polars as pl
 
@@ -21,7 +22,11 @@ from uwbimu_rs import sim
 
 
 def matrix(
-    seeds: int, start: str, settings: str, scenarios: list[str] | None, methods: list[str] | None
+    seeds: int,
+    start: Literal["given", "self"],
+    settings: Literal["matched", "defaults"],
+    scenarios: list[str] | None,
+    methods: list[str] | None,
 ) -> tuple[pl.DataFrame, pl.DataFrame]:
     """Two tables with one row per scenario and ``uwb_ls`` (mean RMSE, m) first: per method, the
     worst ratio to ``uwb_ls`` over the seeds, and the mean horizontal RMSE (m)."""

@@ -11,7 +11,7 @@ use uwbimu_rs::vocabulary::math::Vec3;
 /// The ARCKF paper's garage with a 6 s still start (the reference period), two rectangle laps and a
 /// magnetometer; `disturbed` adds two 20 s field disturbances of ~40 % of the field.
 fn garage_with_magnetometer(seed: u64, disturbed: bool) -> SimConfig {
-    let mut cfg = preset("seed002_rectangle", seed).expect("preset");
+    let mut cfg = preset("garage_rectangle", seed).expect("preset");
     let opts = DriveOptions { speed_mps: 0.5, still_s: 6.0, ..DriveOptions::default() };
     cfg.trajectory = Trajectory::rectangle(Vec3::new(1.0, 1.0, 0.85), 8.0, 3.0, 2, &opts).expect("trajectory");
     let disturbances = if disturbed {

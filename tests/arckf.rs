@@ -40,7 +40,7 @@ fn mean_rmse(name: &str, key: &str, value: f64) -> (f64, f64) {
 #[test]
 fn table6_arckf_resists_range_outliers_on_beacons_2_and_4() {
     let levels = [0.03, 0.05, 0.07, 0.10];
-    let rmse: Vec<(f64, f64)> = levels.iter().map(|&p| mean_rmse("seed002_figure8", "outlier_prob", p)).collect();
+    let rmse: Vec<(f64, f64)> = levels.iter().map(|&p| mean_rmse("garage_figure8", "outlier_prob", p)).collect();
     for (p, (c, a)) in levels.iter().zip(&rmse) {
         println!("{:>3.0} % outliers: CKF {c:.3} m, ARCKF {a:.3} m", p * 100.0);
     }
@@ -58,7 +58,7 @@ fn table4_arckf_below_ckf_with_acceleration_outliers() {
     // Measured (seeds 0–2) ARCKF 0.348 / 0.289 / 0.343 / 0.516 m for 1–4 outliers (CKF 0.400 /
     // 0.379 / 0.427 / 0.682 m).
     for (count, bound) in [(1, 0.42), (2, 0.35), (3, 0.42), (4, 0.62)] {
-        let (c, a) = mean_rmse("seed002_rectangle", "accel_outlier_count", count as f64);
+        let (c, a) = mean_rmse("garage_rectangle", "accel_outlier_count", count as f64);
         println!("{count} acceleration outlier(s): CKF {c:.3} m, ARCKF {a:.3} m");
         assert!(a < c && a < bound, "{count} outliers: ARCKF {a} vs CKF {c}");
     }
@@ -67,7 +67,7 @@ fn table4_arckf_below_ckf_with_acceleration_outliers() {
 #[test]
 fn arckf_fades_after_an_acceleration_jump_and_down_weights_outliers() {
     // Acceleration outliers: the prior is faded (eq. (42)) within 2 s of each jump, rarely otherwise.
-    let (data, _, arckf) = ckf_and_arckf("seed002_rectangle", 0, "accel_outlier_count", 2.0);
+    let (data, _, arckf) = ckf_and_arckf("garage_rectangle", 0, "accel_outlier_count", 2.0);
     let faded: Vec<f64> = arckf.updates.iter().filter(|u| u.report.prior_fading > 1.0).map(|u| u.t_s).collect();
     for &t in &data.accel_outlier_times {
         assert!(faded.iter().any(|&f| f > t && f < t + 2.0), "no fading after the jump at {t} s: {faded:?}");
@@ -81,7 +81,7 @@ fn arckf_fades_after_an_acceleration_jump_and_down_weights_outliers() {
     let faded_epochs = epochs.iter().filter(|t| faded.contains(t)).count();
     assert!(faded_epochs * 10 < epochs.len(), "{faded_epochs} of {} epochs faded", epochs.len());
     // Range outliers: the outlying ranges lose weight (eq. (41)), the clean ones keep it.
-    let (data, _, arckf) = ckf_and_arckf("seed002_figure8", 0, "outlier_prob", 0.1);
+    let (data, _, arckf) = ckf_and_arckf("garage_figure8", 0, "outlier_prob", 0.1);
     let mean_weight = |outlier: bool| {
         let w: Vec<f64> = arckf
             .updates

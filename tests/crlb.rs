@@ -28,7 +28,7 @@ fn truth_states(data: &SimData) -> Vec<NominalState> {
 fn crlb_equals_the_covariance_of_a_filter_linearised_at_the_truth() {
     // Noise-free IMU and exact ranges: an EKF started at the truth stays on it, so its Jacobians
     // are the truth's and its covariance recursion is the bound's.
-    let mut cfg = preset("seed000_los", 0).expect("preset");
+    let mut cfg = preset("hall_vehicle", 0).expect("preset");
     cfg.imu_noise = ImuNoise::none();
     cfg.uwb.range_std_m = 0.0;
     let data = simulate(&cfg).expect("sim");
@@ -62,7 +62,7 @@ fn crlb_equals_the_covariance_of_a_filter_linearised_at_the_truth() {
 fn filter_error_is_not_below_the_crlb() {
     let (mut mse, mut bound_sum, mut count) = (0.0, 0.0, 0.0);
     for seed in 0..6 {
-        let cfg = preset("seed000_los", seed).expect("preset");
+        let cfg = preset("hall_vehicle", seed).expect("preset");
         let data = simulate(&cfg).expect("sim");
         let config = paper_config(&cfg);
         let mut ekf = Ekf::new(data.anchors.clone(), &truth_initial(&data, Vec3::zeros()), config.clone()).expect("filter");

@@ -37,9 +37,9 @@ fn mechanization_on_noise_free_data_stays_within_1cm_over_60s() {
 }
 
 #[test]
-fn ekf_beats_uwb_only_on_seed000_without_nlos() {
+fn ekf_beats_uwb_only_on_hall_vehicle() {
     for seed in 0..3 {
-        let cfg = preset("seed000_los", seed).expect("preset");
+        let cfg = preset("hall_vehicle", seed).expect("preset");
         let data = simulate(&cfg).expect("sim");
         let fc = config_for(&cfg);
         let init = initialize(&data.imu, &data.ranges, &data.anchors, &fc).expect("self-init");
@@ -54,7 +54,7 @@ fn ekf_beats_uwb_only_on_seed000_without_nlos() {
         let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
         let ls = evaluate(&ft, &fp, &truth_t, &truth_p, false).expect("evaluate");
         println!("seed {seed}: ekf horizontal RMSE {ekf_rmse:.4} m, uwb_ls {:.4} m", ls.horizontal.rmse);
-        // Measured 0.073–0.078 m (README).
+        // Measured 0.073–0.078 m (docs/accuracy.md).
         assert!(ekf_rmse < 0.09, "seed {seed}: ekf horizontal RMSE {ekf_rmse} m");
         assert!(ekf_rmse < ls.horizontal.rmse, "seed {seed}: ekf {ekf_rmse} vs uwb_ls {}", ls.horizontal.rmse);
     }
@@ -92,7 +92,7 @@ fn covariance_stays_symmetric_positive_definite_over_10_minutes() {
 
 #[test]
 fn self_initialisation_recovers_pose_from_still_start_and_motion() {
-    let cfg = preset("seed000_los", 11).expect("preset");
+    let cfg = preset("hall_vehicle", 11).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let init = initialize(&data.imu, &data.ranges, &data.anchors, &config_for(&cfg)).expect("self-init");
     let truth = &data.truth[0];
@@ -110,7 +110,7 @@ fn self_initialisation_recovers_pose_from_still_start_and_motion() {
 #[test]
 fn upside_down_imu_needs_and_honours_imu_rotation() {
     let upside_down = uwbimu_rs::vocabulary::math::quat_exp(&Vec3::new(std::f64::consts::PI, 0.0, 0.0));
-    let mut cfg = preset("seed000_los", 3).expect("preset");
+    let mut cfg = preset("hall_vehicle", 3).expect("preset");
     cfg.imu_rotation = upside_down;
     let data = simulate(&cfg).expect("sim");
     let initial = truth_initial(&data, Vec3::zeros());
@@ -129,9 +129,9 @@ fn upside_down_imu_needs_and_honours_imu_rotation() {
 }
 
 #[test]
-fn ckf_tracks_the_seed002_rectangle_with_markov_biases() {
+fn ckf_tracks_the_garage_rectangle_with_markov_biases() {
     use uwbimu_rs::estimation::filters::Ckf;
-    let cfg = preset("seed002_rectangle", 1).expect("preset");
+    let cfg = preset("garage_rectangle", 1).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let fc = config_for(&cfg);
     let initial = truth_initial(&data, Vec3::zeros());
@@ -143,7 +143,7 @@ fn ckf_tracks_the_seed002_rectangle_with_markov_biases() {
         &run(&mut Ekf::new(data.anchors.clone(), &initial, fc).expect("ekf"), &data.imu, &data.ranges).expect("run").steps,
         &data,
     ));
-    println!("seed002 rectangle: ckf {ckf:.4} m, ekf {ekf:.4} m");
+    println!("garage_rectangle: ckf {ckf:.4} m, ekf {ekf:.4} m");
     // Same range linearisation; the Markov bias model (τ = 300 s) mismatches the simulator's
     // constant biases a little, so the CKF trails the EKF slightly but stays accurate.
     let fixes = uwb_ls(&data.ranges, &data.anchors, &LsConfig { range_std_m: fc_range_std(&cfg), ..LsConfig::default() });
@@ -151,6 +151,6 @@ fn ckf_tracks_the_seed002_rectangle_with_markov_biases() {
     let truth_p: Vec<Vec3> = data.truth.iter().map(|t| t.position).collect();
     let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
     let ls = evaluate(&ft, &fp, &truth_t, &truth_p, false).expect("evaluate").horizontal.rmse;
-    println!("seed002 rectangle: uwb_ls {ls:.4} m");
+    println!("garage_rectangle: uwb_ls {ls:.4} m");
     assert!(ckf < 0.15 && ckf < ls && ckf < 1.5 * ekf, "ckf {ckf} ekf {ekf} uwb_ls {ls}");
 }

@@ -1,6 +1,6 @@
 //! Property tests: the CDR decoder, the ros2msg parser and the MCAP reader never panic on random
 //! or mutated input; they return `Ok` or an `Err`. The case count follows `PROPTEST_CASES`
-//! (default 256); README "MCAP replay" reports a long run.
+//! (default 256); docs/mcap.md reports a long run.
 
 #![allow(clippy::unwrap_used)]
 

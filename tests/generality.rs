@@ -2,7 +2,7 @@
 //! initial state given and self-initialised, with matched settings and with the defaults, over
 //! three seeds. Every output must be finite and each method's horizontal RMSE at most 1.2× that
 //! of `uwb_ls` on the same run (1.5× self-initialised, after its first 10 s); the documented
-//! exceptions below have their own measured bound. The README's matrix comes from
+//! exceptions below have their own measured bound. The matrix of docs/accuracy.md comes from
 //! `python examples/zoo_matrix.py` (the same cells).
 
 #![allow(clippy::unwrap_used)]
@@ -14,7 +14,7 @@ use uwbimu_rs::app::sim::{UWB_LOST_NAMES, ZOO_NAMES};
 const SEEDS: [u64; 3] = [0, 1, 2];
 
 /// Cells that miss the bound, with the cause and a bound a margin above the worst ratio measured
-/// over seeds 0–5 (README, "Generality").
+/// over seeds 0–5 (docs/accuracy.md, "The generality matrix").
 const EXCEPTIONS: &[(&str, &str, Start, f64)] = &[
     // Two anchors biased by 0.4–0.9 m for 20–30 s at once: CRIEKF's plane constraint leaves the
     // horizontal position to absorb the whole bias, where the other filters and uwb_ls let part

@@ -38,14 +38,14 @@ fn isas(cfg: &ReplayConfig) -> Option<(Recording, PathBuf, Truth)> {
 fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     let cfg = config();
     let Some((rec, mcap, _)) = isas(&cfg) else { return };
-    // README: 4839 IMU messages, 970 RTLSStick messages with one range per anchor (5 anchors).
+    // docs/mcap.md: 4839 IMU messages, 970 RTLSStick messages with one range per anchor (5 anchors).
     assert_eq!(rec.imu.len(), 4839);
     let counts = &rec.stats.per_anchor;
     let total: usize = counts.values().map(|c| c.used + c.invalid).sum();
     assert_eq!(total, 970 * 5);
     let invalid: usize = counts.values().map(|c| c.invalid).sum();
     let share = invalid as f64 / total as f64;
-    assert!((0.08..0.16).contains(&share), "ra == 0 share {share} (README: ~12 %)");
+    assert!((0.08..0.16).contains(&share), "ra == 0 share {share} (docs/mcap.md: ~12 %)");
     assert_eq!(rec.ranges.len(), total - invalid);
     assert!(rec.imu.windows(2).all(|w| w[1].t_s > w[0].t_s));
     assert!(rec.ranges.windows(2).all(|w| w[1].t_s >= w[0].t_s));
@@ -72,7 +72,7 @@ fn riekf_follows_the_walk_within_a_quarter_metre() {
     let method = Method::parse(cfg.method.as_deref().unwrap_or("riekf")).unwrap();
     let r = replay(&rec, method, &cfg.config, None, false).unwrap();
     let (raw, aligned) = compare_with_truth(&r.trajectory(), &truth).unwrap();
-    // Measured: raw 0.160 m, aligned 0.121 m (see README "MCAP replay").
+    // Measured: raw 0.160 m, aligned 0.121 m (see docs/mcap.md).
     assert!(aligned.horizontal.rmse < 0.25, "aligned horizontal RMSE {} m", aligned.horizontal.rmse);
     assert!(raw.horizontal.rmse < 0.35, "raw horizontal RMSE {} m", raw.horizontal.rmse);
     assert!(aligned.horizontal.n > 4000, "evaluated {} steps", aligned.horizontal.n);
@@ -101,7 +101,7 @@ fn plain_ekf_is_hurt_by_the_gross_outliers() {
 fn every_method_holds_up_with_the_defaults() {
     // `config=None` on a real handheld log, self-initialised: within 2× uwb_ls after rigid
     // alignment (the bar; uwb_ls suffers from the ~24 m outliers) and within a margin of
-    // what each method measured (README, "Defaults on a real log").
+    // what each method measured (docs/accuracy.md, "Defaults on a real log").
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = uwbimu_rs::vocabulary::config::FilterConfig::default();
@@ -132,7 +132,7 @@ fn every_method_holds_up_with_the_defaults() {
         ("cekf2d", 0.38),
         // `best` forward: the riekf composition with the NLOS skew and the zero-velocity
         // constraint (0.121 m here, riekf 0.126; after the first 10 s 0.128 m forward and
-        // 0.076 m smoothed, README).
+        // 0.076 m smoothed, docs/accuracy.md).
         ("best", 0.14),
     ];
     assert_eq!(bounds.len() + 1, Method::ALL.len());

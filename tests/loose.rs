@@ -11,9 +11,9 @@ use uwbimu_rs::estimation::pipeline::run;
 use uwbimu_rs::vocabulary::math::Vec3;
 
 #[test]
-fn eskf_beats_uwb_only_on_seed004_scenario1() {
+fn eskf_beats_uwb_only_on_liu_2019_scenario1() {
     for seed in 0..3 {
-        let cfg = preset("seed004_s1", seed).expect("preset");
+        let cfg = preset("square_diagonal", seed).expect("preset");
         let data = simulate(&cfg).expect("sim");
         let mut fc = config_for(&cfg);
         // U(−0.2, 0.2) added to σ 0.1: total std √(0.1² + 0.4²/12) ≈ 0.15 m.
@@ -41,7 +41,7 @@ fn eskf_beats_uwb_only_on_seed004_scenario1() {
 /// One Liu et al. 2019 run of the three loose filters and `uwb_ls`: RMSEs `[uwb_ls, eskf, shaf, shfaf]`
 /// and the time after which each filter's error stays below 0.2 m. `paper`: the filters as printed (plain
 /// least-squares fix covariance, unbounded Sage–Husa); else this crate's defaults.
-fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, paper: bool) -> ([f64; 4], [f64; 3]) {
+fn square_diagonal_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, paper: bool) -> ([f64; 4], [f64; 3]) {
     use uwbimu_rs::estimation::filters::{Shaf, Shfaf};
     let cfg = preset(name, seed).expect("preset");
     let data = simulate(&cfg).expect("sim");
@@ -75,11 +75,11 @@ fn seed004_run(name: &str, seed: u64, start_offset: Vec3, noise_scale: f64, pape
 }
 
 #[test]
-fn seed004_scenario2_table1_over_five_seeds() {
+fn liu_2019_scenario2_table1_over_five_seeds() {
     let (mut paper, mut ours) = ([0.0; 4], [0.0; 4]);
     for seed in 0..5 {
-        let (p, _) = seed004_run("seed004_s2", seed, Vec3::zeros(), 1.0, true);
-        let (o, _) = seed004_run("seed004_s2", seed, Vec3::zeros(), 1.0, false);
+        let (p, _) = square_diagonal_run("square_diagonal_outliers", seed, Vec3::zeros(), 1.0, true);
+        let (o, _) = square_diagonal_run("square_diagonal_outliers", seed, Vec3::zeros(), 1.0, false);
         println!(
             "seed {seed}: as printed uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}; ours eskf {:.3} shaf {:.3} shfaf {:.3}",
             p[0], p[1], p[2], p[3], o[1], o[2], o[3]
@@ -103,16 +103,16 @@ fn seed004_scenario2_table1_over_five_seeds() {
 }
 
 #[test]
-fn seed004_scenario1_convergence() {
+fn liu_2019_scenario1_convergence() {
     for seed in 0..3 {
         // A large initial R (σ ×5): the fixed-R ESKF trusts the fixes little, the adaptive
         // filters learn the real noise.
-        let (rmse, settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, true);
+        let (rmse, settle) = square_diagonal_run("square_diagonal", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, true);
         println!(
             "seed {seed}: settled below 0.2 m after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s; RMSE uwb {:.3} eskf {:.3} shaf {:.3} shfaf {:.3}",
             settle[0], settle[1], settle[2], rmse[0], rmse[1], rmse[2], rmse[3]
         );
-        let (ours, ours_settle) = seed004_run("seed004_s1", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, false);
+        let (ours, ours_settle) = square_diagonal_run("square_diagonal", seed, Vec3::new(0.57, 0.0, 0.0), 25.0, false);
         println!(
             "   ours: settled after eskf {:.2} s, shaf {:.2} s, shfaf {:.2} s; RMSE eskf {:.3} shaf {:.3} shfaf {:.3}",
             ours_settle[0], ours_settle[1], ours_settle[2], ours[1], ours[2], ours[3]

@@ -124,7 +124,7 @@ fn calibration_errors() {
 
 #[test]
 fn per_anchor_fit_and_batch_preprocessing() {
-    let sim = uwbimu_rs::app::sim::preset("seed001", 3).expect("preset");
+    let sim = uwbimu_rs::app::sim::preset("lab_robot", 3).expect("preset");
     let mut data = uwbimu_rs::app::sim::simulate(&sim).expect("sim");
     // Distort anchors 0 and 3 by the inverse of a known calibration (solved per range by
     // Newton), then undo it with that calibration as preprocessing.

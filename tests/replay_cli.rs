@@ -23,7 +23,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn sim() -> SimData {
-    simulate(&preset("seed000_los", 3).unwrap()).unwrap()
+    simulate(&preset("hall_vehicle", 3).unwrap()).unwrap()
 }
 
 /// The simulated run as MCAP bytes (zstd or uncompressed chunks).

@@ -16,7 +16,7 @@ fn trace<F: InertialFilter>(filter: &mut F, data: &SimData) -> Trace {
 }
 
 fn nlos_data(seed: u64) -> (SimData, FilterConfig) {
-    let cfg = preset("seed000", seed).expect("preset");
+    let cfg = preset("hall_vehicle_nlos", seed).expect("preset");
     (simulate(&cfg).expect("sim"), paper_config(&cfg))
 }
 
@@ -37,7 +37,7 @@ fn riekf_with_one_iteration_equals_rekf() {
 
 #[test]
 fn without_outliers_riekf_is_the_iterated_ekf() {
-    let cfg = preset("seed000_los", 5).expect("preset");
+    let cfg = preset("hall_vehicle", 5).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let initial = truth_initial(&data, Vec3::zeros());
     let config = config_for(&cfg);
@@ -106,7 +106,7 @@ fn mean_max(steps: &[uwbimu_rs::estimation::pipeline::StepRecord], data: &SimDat
 }
 
 #[test]
-fn seed000_nlos_table_over_five_seeds() {
+fn li_wang_2020_nlos_table_over_five_seeds() {
     use uwbimu_rs::app::metrics::evaluate;
     use uwbimu_rs::estimation::filters::Criekf;
     use uwbimu_rs::estimation::init::initialize;
@@ -156,7 +156,7 @@ fn seed000_nlos_table_over_five_seeds() {
     ] {
         println!("{name:7} {mean:.3} / {max:.2}   [{:.2} / {:.2}]", paper.0, paper.1);
     }
-    // What reproduces (see README): the constrained robust filter is best, iterating helps the
+    // What reproduces (see docs/methods-detail.md): the constrained robust filter is best, iterating helps the
     // robust filter, and CRIEKF's worst case is far below the plain EKF's.
     assert!(criekf.0 <= riekf.0 && riekf.0 <= rekf.0, "CRIEKF {criekf:?} RIEKF {riekf:?} REKF {rekf:?}");
     // Absolute bounds a margin above the measured means 0.185 / 0.380 / 0.437 m and CRIEKF's
@@ -170,7 +170,7 @@ fn seed000_nlos_table_over_five_seeds() {
 fn adaptive_range_noise_learns_a_noisy_anchor() {
     use uwbimu_rs::app::sim::{NlosConfig, NlosWindow};
     // Anchor 2 is five times noisier than configured for the whole run (no bias).
-    let mut cfg = preset("seed000_los", 6).expect("preset");
+    let mut cfg = preset("hall_vehicle", 6).expect("preset");
     let end = cfg.trajectory.duration_s();
     cfg.uwb.nlos = Some(NlosConfig {
         windows: vec![NlosWindow { anchor: 2, start_s: 0.0, end_s: end }],
@@ -207,7 +207,7 @@ fn adaptive_range_noise_learns_a_noisy_anchor() {
     assert!(e_adaptive < e_fixed, "{e_adaptive} vs {e_fixed}");
     // The noisy anchor's variance is learnt near its true 26·σ²; the clean anchors' estimates
     // also rise (to 5–7·σ²: their innovations carry the state error the noisy anchor caused),
-    // so the gain in accuracy is small (README).
+    // so the gain in accuracy is small (docs/methods-detail.md).
     assert!(late(2) > 15.0 && late(2) > 3.0 * late(0).max(late(1)).max(late(3)));
 }
 

@@ -134,16 +134,16 @@ fn figure_eight_is_closed_after_each_lap() {
             .fold(f64::INFINITY, f64::min);
         assert!(min_d < 1e-3, "lap {k}: closest approach {min_d} m");
     }
-    // Speeds stay below ~1 m/s for the seed000 geometry.
+    // Speeds stay below ~1 m/s for the hall_vehicle geometry.
     let vmax = (0..1500).map(|i| traj.sample(f64::from(i) * 0.1).velocity.norm()).fold(0.0, f64::max);
     assert!(vmax < 1.0 && vmax > 0.8, "vmax {vmax}");
 }
 
 #[test]
 fn same_seed_reproduces_different_seed_differs() {
-    let a = simulate(&preset("seed000", 3).expect("test setup")).expect("test setup");
-    let b = simulate(&preset("seed000", 3).expect("test setup")).expect("test setup");
-    let c = simulate(&preset("seed000", 4).expect("test setup")).expect("test setup");
+    let a = simulate(&preset("hall_vehicle_nlos", 3).expect("test setup")).expect("test setup");
+    let b = simulate(&preset("hall_vehicle_nlos", 3).expect("test setup")).expect("test setup");
+    let c = simulate(&preset("hall_vehicle_nlos", 4).expect("test setup")).expect("test setup");
     assert_eq!(a, b);
     assert_eq!(a.truth, c.truth);
     assert_ne!(a.imu[10].accel, c.imu[10].accel);
@@ -193,7 +193,7 @@ fn tag_at(cfg: &SimConfig, t_s: f64) -> Vec3 {
 
 #[test]
 fn nlos_ranges_are_biased_los_ranges_are_not() {
-    let mut cfg = preset("seed000", 21).expect("test setup");
+    let mut cfg = preset("hall_vehicle_nlos", 21).expect("test setup");
     cfg.uwb.outlier_prob = 0.0;
     let data = simulate(&cfg).expect("test setup");
     let (mut los, mut nlos) = (Vec::new(), Vec::new());
@@ -341,14 +341,22 @@ fn presets_run_and_unknown_names_are_rejected() {
         assert_eq!(data.imu.len(), data.truth.len(), "{name}");
         assert!(data.ranges.iter().all(|r| r.range_m >= 0.0));
         assert!(data.ranges.windows(2).all(|w| w[0].t_s <= w[1].t_s));
-        let labels_ok = match *name {
-            "seed000_los" | "seed001" | "seed002_rectangle" | "seed004_s1" => data.range_labels.iter().all(|&l| l == LABEL_LOS),
-            "seed004_s2" | "seed002_figure8" => data.range_labels.contains(&LABEL_OUTLIER),
+        let labels_ok = match name {
+            "hall_vehicle" | "lab_robot" | "garage_rectangle" | "square_diagonal" => {
+                data.range_labels.iter().all(|&l| l == LABEL_LOS)
+            }
+            "square_diagonal_outliers" | "garage_figure8" => data.range_labels.contains(&LABEL_OUTLIER),
             _ => data.range_labels.contains(&LABEL_NLOS),
         };
         assert!(labels_ok, "{name}");
     }
-    let s1 = preset("seed004_s1", 0).expect("test setup");
+    for (name, alias) in uwbimu_rs::app::sim::PRESET_NAMES.iter().zip(uwbimu_rs::app::sim::PRESET_ALIASES) {
+        let (new, old) = (simulate(&preset(name, 2).expect("name")), simulate(&preset(alias, 2).expect("alias")));
+        let (new, old) = (new.expect("simulate"), old.expect("simulate"));
+        assert_eq!(new.ranges.len(), old.ranges.len(), "{alias}");
+        assert!(new.ranges.iter().zip(&old.ranges).all(|(a, b)| a.range_m.to_bits() == b.range_m.to_bits()), "{alias}");
+    }
+    let s1 = preset("square_diagonal", 0).expect("test setup");
     assert!((s1.uwb.rate_hz - 5.0).abs() < 1e-12 && s1.anchors.len() == 4);
     let data = simulate(&s1).expect("test setup");
     assert!(data.truth.iter().all(|t| t.position.z.abs() < 1e-12));
@@ -359,7 +367,7 @@ fn presets_run_and_unknown_names_are_rejected() {
 
 #[test]
 fn overrides_apply_and_unknown_keys_are_rejected() {
-    let mut cfg = preset("seed000", 0).expect("test setup");
+    let mut cfg = preset("hall_vehicle_nlos", 0).expect("test setup");
     cfg.apply_overrides(&[
         ("nlos", OverrideValue::Flag(false)),
         ("outlier_prob", OverrideValue::Number(0.0)),
@@ -371,7 +379,7 @@ fn overrides_apply_and_unknown_keys_are_rejected() {
     assert!(data.range_labels.iter().all(|&l| l == LABEL_LOS));
     assert_eq!(data.ranges.len(), 4 * (cfg.trajectory.duration_s() * 4.0).floor() as usize);
     // Switches go first, whatever the order given.
-    let mut cfg = preset("seed000_los", 0).expect("test setup");
+    let mut cfg = preset("hall_vehicle", 0).expect("test setup");
     cfg.apply_overrides(&[("nlos_bias_max_m", OverrideValue::Number(3.0)), ("nlos", OverrideValue::Flag(true))])
         .expect("test setup");
     assert!((cfg.uwb.nlos.as_ref().expect("test setup").bias_max_m - 3.0).abs() < 1e-12);

@@ -10,7 +10,7 @@ use uwbimu_rs::vocabulary::math::Vec3;
 
 #[test]
 fn smoothing_lowers_error_and_covariance() {
-    for (name, seed) in [("seed000_los", 1), ("seed000", 2)] {
+    for (name, seed) in [("hall_vehicle", 1), ("hall_vehicle_nlos", 2)] {
         let cfg = preset(name, seed).expect("preset");
         let data = simulate(&cfg).expect("sim");
         let initial = truth_initial(&data, Vec3::new(0.2, -0.2, 0.0));
@@ -20,8 +20,8 @@ fn smoothing_lowers_error_and_covariance() {
             (rms(&horizontal_errors(&trace.steps, &data)), rms(&horizontal_errors(&smoothed, &data)));
         println!("{name}: horizontal RMSE filtered {filtered_rmse:.4} m, smoothed {smoothed_rmse:.4} m");
         assert!(smoothed_rmse < filtered_rmse, "{name}: {smoothed_rmse} vs {filtered_rmse}");
-        // Measured: seed000_los 0.079 → 0.032 m, seed000 (NLOS) 0.567 → 0.359 m.
-        let bound = if name == "seed000_los" { 0.04 } else { 0.43 };
+        // Measured: hall_vehicle 0.079 → 0.032 m, hall_vehicle_nlos 0.567 → 0.359 m.
+        let bound = if name == "hall_vehicle" { 0.04 } else { 0.43 };
         assert!(smoothed_rmse < bound, "{name}: smoothed {smoothed_rmse}");
         for (f, s) in trace.steps.iter().zip(&smoothed) {
             assert_eq!(f.t_s, s.t_s);
@@ -39,7 +39,7 @@ fn smoothing_lowers_error_and_covariance() {
 
 #[test]
 fn recording_does_not_change_the_filter() {
-    let cfg = preset("seed000_los", 3).expect("preset");
+    let cfg = preset("hall_vehicle", 3).expect("preset");
     let data = simulate(&cfg).expect("sim");
     let initial = truth_initial(&data, Vec3::zeros());
     let plain = run(&mut Ekf::new(data.anchors.clone(), &initial, config_for(&cfg)).expect("filter"), &data.imu, &data.ranges)
@@ -55,7 +55,7 @@ fn smoothing_an_arckf_run_uses_its_faded_priors() {
     use uwbimu_rs::app::sim::OverrideValue;
     use uwbimu_rs::estimation::filters::{Arckf, InertialFilter};
     for seed in 0..3 {
-        let mut cfg = preset("seed002_rectangle", seed).expect("preset");
+        let mut cfg = preset("garage_rectangle", seed).expect("preset");
         cfg.apply_overrides(&[("accel_outlier_count", OverrideValue::Number(2.0))]).expect("override");
         let data = simulate(&cfg).expect("sim");
         // The paper's outliers reach the filter (the gate would drop those beyond ±16 g).

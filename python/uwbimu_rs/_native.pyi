@@ -66,6 +66,7 @@ __all__ = [
     "sim_preset",
     "simulate",
     "SIM_PRESET_NAMES",
+    "SIM_PRESET_ALIASES",
     "SIM_OVERRIDE_KEYS",
     "SIM_ZOO_NAMES",
     "sim_zoo",
@@ -795,7 +796,10 @@ def interpolate_positions(truth_t: _F64, truth_xyz: _F64, t: _F64) -> _F64:
 # --------------------------------------------------------------------------------------------
 
 SIM_PRESET_NAMES: list[str]
-"""Preset names accepted by :func:`sim_preset` (``"seed000"``, ``"seed000_los"``, ...)."""
+"""Preset names accepted by :func:`sim_preset` (``"hall_vehicle_nlos"``, ``"hall_vehicle"``, ...)."""
+
+SIM_PRESET_ALIASES: list[str]
+"""The former name of each of :data:`SIM_PRESET_NAMES` (same index), also accepted."""
 
 SIM_OVERRIDE_KEYS: list[str]
 """Override keys accepted by :func:`sim_preset` and :func:`simulate` (``"nlos"``, ...)."""

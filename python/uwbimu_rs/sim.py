@@ -21,6 +21,7 @@ from uwbimu_rs._native import Trajectory
 
 __all__ = [
     "OVERRIDE_KEYS",
+    "PRESET_ALIASES",
     "PRESET_NAMES",
     "PresetName",
     "SimResult",
@@ -34,11 +35,31 @@ __all__ = [
     "zoo_matrix",
 ]
 
-PresetName = Literal["seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"]
-"""Names accepted by :func:`preset`."""
+PresetName = Literal[
+    "hall_vehicle_nlos",
+    "hall_vehicle",
+    "lab_robot",
+    "lab_robot_nlos",
+    "garage_rectangle",
+    "garage_figure8",
+    "square_diagonal",
+    "square_diagonal_outliers",
+    "seed000",
+    "seed000_los",
+    "seed001",
+    "seed001_nlos",
+    "seed002_rectangle",
+    "seed002_figure8",
+    "seed004_s1",
+    "seed004_s2",
+]
+"""Names accepted by :func:`preset`: :data:`PRESET_NAMES`, then their former names :data:`PRESET_ALIASES`."""
 
 PRESET_NAMES: tuple[str, ...] = tuple(_native.SIM_PRESET_NAMES)
-"""Names accepted by :func:`preset`, from the native module."""
+"""Names accepted by :func:`preset`, each saying what it simulates, from the native module."""
+
+PRESET_ALIASES: tuple[str, ...] = tuple(_native.SIM_PRESET_ALIASES)
+"""The former name of each of :data:`PRESET_NAMES` (same index); :func:`preset` accepts them too."""
 
 OVERRIDE_KEYS: tuple[str, ...] = tuple(_native.SIM_OVERRIDE_KEYS)
 """Keys accepted as overrides by :func:`preset` and :func:`simulate`."""
@@ -160,13 +181,14 @@ def preset(name: PresetName, *, seed: int = 0, **overrides: float | bool) -> Sim
 
     Parameters
     ----------
-    name : {"seed000", "seed000_los", "seed001", "seed001_nlos", "seed002_rectangle", "seed002_figure8", "seed004_s1", "seed004_s2"}
-        ``seed000``: 4 anchors in a 10 m × 8 m hall (heights 0.8–2.2 m), figure-8 ×4, UWB 2 Hz
-        σ 0.1 m, IMU 100 Hz, 1–2 anchors randomly shielded (NLOS). ``seed000_los``: the same without
-        NLOS, outliers or dropouts. ``seed002_*``: the 10 m × 5 m garage site of the ARCKF paper,
+    name : str
+        One of :data:`PRESET_NAMES` (or its former name in :data:`PRESET_ALIASES`).
+        ``hall_vehicle_nlos``: 4 anchors in a 10 m × 8 m hall (heights 0.8–2.2 m), figure-8 ×4, UWB 2 Hz
+        σ 0.1 m, IMU 100 Hz, 1–2 anchors randomly shielded (NLOS). ``hall_vehicle``: the same without
+        NLOS, outliers or dropouts. ``garage_rectangle`` / ``garage_figure8``: the 10 m × 5 m garage site of the ARCKF paper,
         rectangle or figure-8 ×2 (the latter with 10 % outliers on beacons 2 and 4).
-        ``seed004_s1`` / ``seed004_s2``: the planar simulation of Liu et al. 2019 (anchors (−5,−1), (1,−1),
-        (1,5), (−5,5), 0.4 m/s along a diagonal, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2)); s2 adds gross
+        ``square_diagonal`` / ``square_diagonal_outliers``: the planar simulation of Liu et al. 2019 (anchors (−5,−1), (1,−1),
+        (1,5), (−5,5), 0.4 m/s along a diagonal, UWB 5 Hz σ 0.1 m + U(−0.2, 0.2)); the second adds gross
         outliers. The (0.57, 0) start of scenario 1 is a filter initial error, not part of the data.
     seed : int, default 0
         Seed of all random draws; the same seed gives identical output.
@@ -361,4 +383,5 @@ def zoo_matrix(
 
     chosen = [m for m in FILTERS if m != "uwb_ls"] if methods is None else list(methods)
     names = list(ZOO_NAMES) if scenarios is None else list(scenarios)
-    return pl.DataFrame(_native.sim_zoo_matrix(chosen, names, list(seeds), start, settings, config))
+    plain = None if config is None else dict(config)
+    return pl.DataFrame(_native.sim_zoo_matrix(chosen, names, list(seeds), start, settings, plain))

@@ -361,6 +361,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim_zoo_matrix, m)?)?;
     m.add("SIM_ZOO_NAMES", sim::ZOO_NAMES.to_vec())?;
     m.add("SIM_PRESET_NAMES", sim::PRESET_NAMES.to_vec())?;
+    m.add("SIM_PRESET_ALIASES", sim::PRESET_ALIASES.to_vec())?;
     m.add("SIM_OVERRIDE_KEYS", sim::OVERRIDE_KEYS.to_vec())?;
     Ok(())
 }

@@ -10,7 +10,7 @@ from uwbimu_rs import sim
 @pytest.fixture(scope="session")
 def los_run():
     """The Li & Wang 2020 preset without NLOS (figure-8 ×4, 4 anchors, UWB 2 Hz, IMU 100 Hz)."""
-    return sim.preset("seed000_los", seed=1)
+    return sim.preset("hall_vehicle", seed=1)
 
 
 @pytest.fixture(scope="session")

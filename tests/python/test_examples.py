@@ -25,10 +25,10 @@ def example(name: str):
     "script",
     [
         ["examples/demo.py", "--no-plot"],
-        ["examples/seed000_table1.py", "--seeds", "1"],
-        ["examples/seed004_table1.py", "--seeds", "1"],
-        ["examples/seed002_tables.py", "--seeds", "1"],
-        ["examples/seed001_compare.py", "--seeds", "1"],
+        ["examples/li_wang_2020_table1.py", "--seeds", "1"],
+        ["examples/liu_2019_table1.py", "--seeds", "1"],
+        ["examples/arckf_tables.py", "--seeds", "1"],
+        ["examples/wang_2018_compare.py", "--seeds", "1"],
         ["examples/zoo_matrix.py", "--seeds", "1", "--scenarios", "outage", "nlos_two"],
         ["benches/python_api.py", "--repeat", "1"],
     ],
@@ -42,15 +42,15 @@ def test_script_runs(script):
 
 def test_demo_ekf_beats_uwb_only():
     r = example("demo").results(seed=0)
-    los_ekf, los_ls = r[("seed000_los", "ekf")][0], r[("seed000_los", "uwb_ls")][0]
-    nlos_ekf, nlos_ls = r[("seed000", "ekf")][0], r[("seed000", "uwb_ls")][0]
+    los_ekf, los_ls = r[("hall_vehicle", "ekf")][0], r[("hall_vehicle", "uwb_ls")][0]
+    nlos_ekf, nlos_ls = r[("hall_vehicle_nlos", "ekf")][0], r[("hall_vehicle_nlos", "uwb_ls")][0]
     # Measured: LOS 0.073 vs 0.111 m, NLOS 0.590 vs 0.686 m RMSE.
     assert los_ekf.rmse < 0.75 * los_ls.rmse and los_ekf.rmse < 0.085
     assert nlos_ekf.rmse < nlos_ls.rmse and nlos_ekf.max < nlos_ls.max
 
 
-def test_seed000_table1_relations():
-    t = example("seed000_table1").table(seeds=5)
+def test_li_wang_2020_table1_relations():
+    t = example("li_wang_2020_table1").table(seeds=5)
     mean = {m: v[1] for m, v in t.items()}
     # README: CRIEKF ≤ RIEKF ≤ REKF in mean, CRIEKF far below UWB-only in mean and far below the
     # EKF in max; measured means 0.418 / 0.442 / 0.437 / 0.380 / 0.185 m, CRIEKF max 1.55 vs EKF 2.13.
@@ -59,8 +59,8 @@ def test_seed000_table1_relations():
     assert t["criekf"][2] < 0.8 * t["ekf"][2], t
 
 
-def test_seed004_table1_relations():
-    ex = example("seed004_table1")
+def test_liu_2019_table1_relations():
+    ex = example("liu_2019_table1")
     printed, ours = ex.scenario2(seeds=5, paper_form=True), ex.scenario2(seeds=5, paper_form=False)
     # As printed (measured uwb 1.129, eskf 0.710, shaf 0.796, shfaf 0.787 m): all filters below
     # UWB-only and SHFAF below SHAF; the paper's SHAF/SHFAF < ESKF does not reproduce.
@@ -73,8 +73,8 @@ def test_seed004_table1_relations():
         assert settled["shfaf"] <= settled["eskf"] < 20.0, settled
 
 
-def test_seed002_tables_relations():
-    ex = example("seed002_tables")
+def test_arckf_tables_relations():
+    ex = example("arckf_tables")
     t4, t6 = ex.table4(seeds=5), ex.table6(seeds=5)
     # Table 4 (measured ARCKF 0.32 / 0.30 / 0.35 / 0.42 m, CKF 0.33 / 0.38 / 0.41 / 0.62 m).
     for row, bound in zip(t4, (0.38, 0.36, 0.42, 0.50)):
@@ -84,9 +84,9 @@ def test_seed002_tables_relations():
     assert t6[-1]["ckf"] - t6[0]["ckf"] > 0.3 and t6[-1]["ckf"] > 5 * t6[-1]["arckf"], t6
 
 
-def test_seed001_compare_relations():
-    ex = example("seed001_compare")
-    los, nlos = ex.table("seed001", seeds=5), ex.table("seed001_nlos", seeds=5)
+def test_wang_2018_compare_relations():
+    ex = example("wang_2018_compare")
+    los, nlos = ex.table("lab_robot", seeds=5), ex.table("lab_robot_nlos", seeds=5)
     # LOS: the planar filters halve UWB-only's mean error (measured 0.012 vs 0.027 m per axis),
     # the 15-state filters quarter it (0.007 m), and the UKF equals the EKF.
     for m in ("ekf2d", "ukf2d", "cekf2d"):

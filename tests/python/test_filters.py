@@ -207,7 +207,7 @@ def test_self_init_without_uwb_fails_clearly(small):
 def test_robust_reports_on_nlos_data(filter_config):
     from uwbimu_rs import sim
 
-    run = sim.preset("seed000", seed=2)
+    run = sim.preset("hall_vehicle_nlos", seed=2)
     df, upd = uwbimu_rs.run_filter("riekf", run.imu, run.ranges, run.anchors, config=filter_config, updates=True)
     assert {"inflation", "down_weighted", "iterations"} <= set(upd.columns)
     assert upd["down_weighted"].dtype == pl.Boolean and upd["iterations"].dtype == pl.Int64
@@ -223,7 +223,7 @@ def test_robust_reports_on_nlos_data(filter_config):
 def test_constraint_switches_and_still_column(filter_config):
     from uwbimu_rs import sim
 
-    run = sim.preset("seed000_los", seed=0)
+    run = sim.preset("hall_vehicle", seed=0)
     cfg = uwbimu_rs.FilterConfig(**{**filter_config, "constraints.zupt": True})
     assert cfg.to_dict()["constraints"]["zupt"] is True
     df = uwbimu_rs.run_filter("ekf", run.imu, run.ranges, run.anchors, config=cfg)
@@ -273,7 +273,7 @@ def test_crlb_beside_the_filter_error(los_run, filter_config):
 def test_run_filters_in_parallel_equals_one_by_one(filter_config):
     from uwbimu_rs import sim
 
-    runs = [sim.preset("seed000", seed=s) for s in range(3)]
+    runs = [sim.preset("hall_vehicle_nlos", seed=s) for s in range(3)]
     many = uwbimu_rs.run_filters("riekf", [(r.imu, r.ranges, r.anchors) for r in runs], config=filter_config)
     assert len(many) == 3
     for r, df in zip(runs, many):
@@ -286,7 +286,7 @@ def test_run_filters_in_parallel_equals_one_by_one(filter_config):
 
 
 def test_ackf_uses_the_magnetometer_and_others_refuse_it():
-    run = uwbimu_rs.sim.preset("seed004_s1", seed=1)
+    run = uwbimu_rs.sim.preset("square_diagonal", seed=1)
     assert run.mag is not None
     df = uwbimu_rs.run_filter("ackf", run.imu, run.ranges, run.anchors, mag=run.mag, config={"aiding.reference_s": 1.5})
     err = uwbimu_rs.metrics.evaluate(df, run.truth).horizontal.rmse

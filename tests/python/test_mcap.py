@@ -135,7 +135,7 @@ def test_fixture_script_rejects_unknown_kinds(tmp_path):
 
 
 def test_simulator_recording_round_trip(tmp_path):
-    run = uwbimu_rs.sim.preset("seed000_los", seed=2)
+    run = uwbimu_rs.sim.preset("hall_vehicle", seed=2)
     path = tmp_path / "demo.mcap"
     uwbimu_rs.sim.write_mcap(run, path, range_std=0.1)
     data = uwbimu_rs.read_mcap(path)
@@ -177,7 +177,7 @@ def test_simulator_tdoa_round_trip_and_replay(tmp_path):
 
 
 def test_a_file_error_names_the_file_and_keeps_its_cause(tmp_path):
-    run = uwbimu_rs.sim.preset("seed000", seed=0)
+    run = uwbimu_rs.sim.preset("hall_vehicle_nlos", seed=0)
     target = tmp_path / "no_such_dir" / "out.mcap"
     with pytest.raises(FileNotFoundError, match="no_such_dir/out.mcap") as info:
         uwbimu_rs.sim.write_mcap(run, target)

@@ -1,6 +1,6 @@
 """Every list of method names agrees with the one registry (crates/uwbimu-app/src/methods.rs):
 ``FILTERS`` and ``METHODS`` come from it at run time; the stub's ``_MethodName``, the streaming
-classes (module, ``__all__``, stub) and the README's method table are checked against it here."""
+classes (module, ``__all__``, stub) and the method table of docs/methods-detail.md are checked against it here."""
 
 from __future__ import annotations
 
@@ -56,8 +56,8 @@ def test_streaming_classes_are_the_registry_rows_that_have_one() -> None:
     assert streaming == declared
 
 
-def test_readme_method_table_lists_every_method_once() -> None:
-    lines = (ROOT / "README.md").read_text().splitlines()
+def test_methods_detail_table_lists_every_method_once() -> None:
+    lines = (ROOT / "docs" / "methods-detail.md").read_text().splitlines()
     start = next(i for i, line in enumerate(lines) if re.match(r"\|\s*method\s*\|", line))
     rows = []
     for line in lines[start + 2 :]:

@@ -19,7 +19,7 @@ def test_preset_shapes_and_dtypes(name):
     assert r.imu.shape == (n, 7) and r.imu.dtype == np.float64
     assert r.ranges.ndim == 2 and r.ranges.shape[1] == 3 and r.ranges.dtype == np.float64
     assert r.range_labels.shape == (r.ranges.shape[0],) and r.range_labels.dtype == np.uint8
-    k = 6 if name.startswith("seed001") else 4
+    k = 6 if name.startswith("lab_robot") else 4
     assert r.anchors.shape == (k, 3)
     assert isinstance(r.truth, pl.DataFrame)
     assert r.truth.columns == TRUTH_COLUMNS and r.truth.height == n
@@ -28,22 +28,22 @@ def test_preset_shapes_and_dtypes(name):
     assert np.all(np.diff(r.imu[:, 0]) > 0)
     assert np.all(r.ranges[:, 2] >= 0)
     assert set(np.unique(r.ranges[:, 1])) <= set(range(k))
-    if name.startswith("seed004"):
+    if name.startswith("square_diagonal"):
         assert r.mag is not None and r.mag.shape == (n, 4)
     else:
         assert r.mag is None
 
 
 def test_still_start_senses_gravity():
-    r = sim.preset("seed000_los", seed=0, imu_noise=False)
+    r = sim.preset("hall_vehicle", seed=0, imu_noise=False)
     still = r.imu[r.imu[:, 0] < 1.9]
     np.testing.assert_allclose(still[:, 1:4], np.tile([0.0, 0.0, 9.80665], (len(still), 1)), atol=1e-12)
 
 
 def test_reproducible_by_seed():
-    a = sim.preset("seed000", seed=7)
-    b = sim.preset("seed000", seed=7)
-    c = sim.preset("seed000", seed=8)
+    a = sim.preset("hall_vehicle_nlos", seed=7)
+    b = sim.preset("hall_vehicle_nlos", seed=7)
+    c = sim.preset("hall_vehicle_nlos", seed=8)
     np.testing.assert_array_equal(a.imu, b.imu)
     np.testing.assert_array_equal(a.ranges, b.ranges)
     np.testing.assert_array_equal(a.range_labels, b.range_labels)
@@ -53,7 +53,7 @@ def test_reproducible_by_seed():
 
 
 def test_overrides_switch_nlos_off():
-    r = sim.preset("seed000", seed=2, nlos=False, outlier_prob=0.0, dropout_prob=0.0, uwb_rate_hz=4.0)
+    r = sim.preset("hall_vehicle_nlos", seed=2, nlos=False, outlier_prob=0.0, dropout_prob=0.0, uwb_rate_hz=4.0)
     assert np.all(r.range_labels == 0)
     assert r.nlos_windows.shape == (0, 4)
     duration = r.imu[-1, 0]
@@ -61,8 +61,8 @@ def test_overrides_switch_nlos_off():
 
 
 def test_stagger_jitter_and_late_start_overrides():
-    plain = sim.preset("seed000_los", seed=1)
-    r = sim.preset("seed000_los", seed=1, stagger_s=0.004, jitter_s=0.001, start_s=10.0)
+    plain = sim.preset("hall_vehicle", seed=1)
+    r = sim.preset("hall_vehicle", seed=1, stagger_s=0.004, jitter_s=0.001, start_s=10.0)
     # The log starts 10 s into the trajectory, already moving.
     assert r.imu[0, 0] >= 10.0 and plain.imu[0, 0] < 1.0
     first = r.truth.row(0, named=True)
@@ -75,17 +75,17 @@ def test_stagger_jitter_and_late_start_overrides():
         d = delay[a == k] - 0.004 * k
         assert d.min() >= -1e-9 and d.max() <= 0.001 + 1e-9, (k, d.min(), d.max())
     with pytest.raises(ValueError, match="stagger_s"):
-        sim.preset("seed000_los", stagger_s=-0.001)
+        sim.preset("hall_vehicle", stagger_s=-0.001)
 
 
 def test_name_literals_match_the_native_lists():
     # The type hints spell the names out; the native module is the source.
-    assert get_args(sim.PresetName) == sim.PRESET_NAMES
+    assert get_args(sim.PresetName) == sim.PRESET_NAMES + sim.PRESET_ALIASES
     assert get_args(sim.ZooName) == sim.ZOO_NAMES
 
 
 def test_unknown_preset_raises_value_error():
-    with pytest.raises(ValueError, match="seed000_los"):
+    with pytest.raises(ValueError, match="hall_vehicle"):
         sim.preset("seed003", seed=0)
     with pytest.raises(uwbimu_rs.ConfigError):
         sim.preset("nope")
@@ -93,14 +93,14 @@ def test_unknown_preset_raises_value_error():
 
 def test_unknown_override_raises_value_error_listing_keys():
     with pytest.raises(ValueError, match="range_std_m"):
-        sim.preset("seed000", seed=0, range_sigma=0.2)
+        sim.preset("hall_vehicle_nlos", seed=0, range_sigma=0.2)
     with pytest.raises(ValueError, match="outlier_prob"):
         sim.simulate(sim.Trajectory.diagonal([0, 0, 0], [1, 1, 0]), np.eye(3), bogus=1.0)
 
 
 def test_invalid_value_raises_value_error():
     with pytest.raises(ValueError, match="uwb.rate_hz"):
-        sim.preset("seed004_s1", uwb_rate_hz=-1.0)
+        sim.preset("square_diagonal", uwb_rate_hz=-1.0)
 
 
 def test_custom_trajectory_simulation():
@@ -124,3 +124,10 @@ def test_custom_trajectory_simulation():
     np.testing.assert_allclose(r2.imu[0, 1:4], [0.0, 0.0, -9.80665], atol=1e-12)
     with pytest.raises(ValueError):
         sim.simulate(traj, np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize("name, alias", list(zip(sim.PRESET_NAMES, sim.PRESET_ALIASES)))
+def test_a_former_preset_name_simulates_the_same_run(name, alias):
+    new, old = sim.preset(name, seed=2), sim.preset(alias, seed=2)
+    np.testing.assert_array_equal(new.imu, old.imu)
+    np.testing.assert_array_equal(new.ranges, old.ranges)

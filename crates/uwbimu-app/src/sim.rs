@@ -14,8 +14,8 @@
 //!   Gaussian and uniform noise, NLOS shielding windows (positive bias, extra noise, dropouts),
 //!   gross outliers and dropouts, staggered and jittered per-anchor times, per-anchor rates and
 //!   outages; each range is labelled LOS / NLOS / outlier.
-//! - **Presets** ([`preset`]): `seed000` (figure-8 ×4 in a hall, NLOS shielding), `seed000_los`,
-//!   `seed002_rectangle`, `seed002_figure8`, `seed004_s1`, `seed004_s2`.
+//! - **Presets** ([`preset`]): `hall_vehicle_nlos` (figure-8 ×4 in a hall, NLOS shielding), `hall_vehicle`,
+//!   `garage_rectangle`, `garage_figure8`, `square_diagonal`, `square_diagonal_outliers`.
 //! - **The scenario zoo** ([`zoo`]): deployment-like runs (staggered ranges, mixed rates,
 //!   coplanar and cuboid anchors, 20–1000 Hz IMUs, walking and flight, NLOS, outliers, outages,
 //!   survey errors) with the filter configuration matched to their sensors ([`matched_config`]).
@@ -43,7 +43,7 @@ pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
 pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
 pub use overlay::{Overlay, Sinusoid};
 pub(crate) use presets::hall_anchors;
-pub use presets::{preset, PRESET_NAMES};
+pub use presets::{preset, PRESET_ALIASES, PRESET_NAMES};
 pub use tdoa::TdoaConfig;
 pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Trajectory};
 pub use uwb::{
@@ -99,7 +99,7 @@ pub struct SimConfig {
 
 impl Default for SimConfig {
     /// 10 s still at the origin, 100 Hz consumer-MEMS IMU, g = 9.80665 m/s², lever arm
-    /// [0, 0, 0.05] m, aligned IMU, the four `seed000` hall anchors, 2 Hz LOS ranging with
+    /// [0, 0, 0.05] m, aligned IMU, the four `hall_vehicle_nlos` hall anchors, 2 Hz LOS ranging with
     /// σ = 0.1 m, no magnetometer, seed 0.
     fn default() -> Self {
         Self {
@@ -420,7 +420,7 @@ fn unknown_override(key: &str) -> Error {
 ///
 /// ```
 /// # use uwbimu_app::sim::{preset, simulate};
-/// let data = simulate(&preset("seed004_s1", 7)?)?;
+/// let data = simulate(&preset("square_diagonal", 7)?)?;
 /// assert_eq!(data.imu.len(), data.truth.len());
 /// assert_eq!(data.ranges.len(), data.range_labels.len());
 /// # Ok::<(), uwbimu_vocabulary::error::Error>(())

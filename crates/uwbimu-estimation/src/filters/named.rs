@@ -94,7 +94,7 @@ named_filter!(
     /// zero-velocity constraint of the CRIEKF (Li & Wang 2020 eqs. (13)–(19)), applied only while the
     /// still detector fires — so it costs nothing in motion — and the range test skewed against
     /// long ranges ([`BEST_NLOS_SKEW`]). The composition that measured best
-    /// across the simulated zoo and isas-walk1 (README "`best` and the isas-walk1 table"); the
+    /// across the simulated zoo and isas-walk1 (docs/accuracy.md, "`best` and the isas-walk1 table"); the
     /// batch method `best` adds self-initialisation and RTS smoothing.
     Best,
     |config| Composition {

@@ -8,7 +8,7 @@ The filters get the simulated sensors' settings (``run.config``), once as the pa
 default. Prints the horizontal RMSE per method beside the paper's values, and the time after
 which each filter's error stays below 0.2 m.
 
-    python examples/seed004_table1.py [--seeds 5]
+    python examples/liu_2019_table1.py [--seeds 5]
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ import argparse
 import numpy as np
 
 import uwbimu_rs
-from uwbimu_rs import metrics, sim
+from uwbimu_rs import MethodName, metrics, sim
 
-PAPER = {"uwb_ls": 0.8038, "eskf": 0.3904, "shaf": 0.3196, "shfaf": 0.1440}  # Table 1, absolute RMSE, m
+PAPER: dict[MethodName, float] = {"uwb_ls": 0.8038, "eskf": 0.3904, "shaf": 0.3196, "shfaf": 0.1440}  # Table 1, absolute RMSE, m
 AS_PRINTED = {"adaptive.loose_variance_factor": False, "sage_husa.bounded": False}
-LOOSE = ("eskf", "shaf", "shfaf")
+LOOSE: tuple[MethodName, ...] = ("eskf", "shaf", "shfaf")
 
 
 def initial_from(run, offset=(0.0, 0.0, 0.0)) -> dict:
@@ -34,7 +34,7 @@ def scenario2(seeds: int = 5, paper_form: bool = True) -> dict[str, float]:
     """Mean horizontal RMSE over seeds per method on scenario 2 (outliers), m."""
     rmse: dict[str, list[float]] = {m: [] for m in PAPER}
     for seed in range(seeds):
-        run = sim.preset("seed004_s2", seed=seed)
+        run = sim.preset("square_diagonal_outliers", seed=seed)
         config = {**run.config, **AS_PRINTED} if paper_form else dict(run.config)
         for method in PAPER:
             initial = None if method == "uwb_ls" else initial_from(run)
@@ -47,9 +47,9 @@ def scenario1(seeds: int = 5, paper_form: bool = True) -> list[dict[str, float]]
     """Per seed, the time (s) after which each loose filter's error stays below 0.2 m."""
     out = []
     for seed in range(seeds):
-        run = sim.preset("seed004_s1", seed=seed)
+        run = sim.preset("square_diagonal", seed=seed)
         config = {**run.config, "adaptive.loose_noise_scale": 25.0, **(AS_PRINTED if paper_form else {})}
-        settled = {}
+        settled: dict[str, float] = {}
         for method in LOOSE:
             df = uwbimu_rs.run_filter(method, run.imu, run.ranges, run.anchors, initial=initial_from(run, (0.57, 0, 0)), config=config)
             e = metrics.evaluate(df, run.truth).errors

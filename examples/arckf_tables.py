@@ -7,7 +7,7 @@ range errors U(1, 8) m on beacons 2 and 4. Every filter self-initialises from th
 seconds, with the simulated sensors' settings (``run.config``). Prints the horizontal RMSE of CKF,
 ARCKF and the RTS-smoothed ARCKF, averaged over seeds, beside the paper's values.
 
-    python examples/seed002_tables.py [--seeds 5]
+    python examples/arckf_tables.py [--seeds 5]
 """
 
 from __future__ import annotations
@@ -17,19 +17,20 @@ import argparse
 import numpy as np
 
 import uwbimu_rs
-from uwbimu_rs import metrics, sim
+from uwbimu_rs import MethodName, metrics, sim
 
 TABLE4 = {"ckf": [0.87, 1.26, 1.56, 2.27], "arckf": [0.49, 0.58, 0.79, 1.02]}  # m, 1–4 outliers
 TABLE6 = {"ckf": [0.67, 1.06, 1.36, 1.67], "arckf": [0.39, 0.45, 0.52, 0.59]}  # m, 3/5/7/10 %
 LABELS = ("ckf", "arckf", "arckf+rts")
 
 
-def mean_rmse(preset: str, seeds: int, **overrides: float) -> dict[str, float]:
+def mean_rmse(preset: sim.PresetName, seeds: int, **overrides: float) -> dict[str, float]:
     """Mean horizontal RMSE over seeds of ckf, arckf and the smoothed arckf."""
     runs = [sim.preset(preset, seed=s, **overrides) for s in range(seeds)]
     arrays = [(r.imu, r.ranges, r.anchors) for r in runs]
     out = {}
-    for label, method, smooth in (("ckf", "ckf", False), ("arckf", "arckf", False), ("arckf+rts", "arckf", True)):
+    rows: tuple[tuple[str, MethodName, bool], ...] = (("ckf", "ckf", False), ("arckf", "arckf", False), ("arckf+rts", "arckf", True))
+    for label, method, smooth in rows:
         frames = uwbimu_rs.run_filters(method, arrays, config=runs[0].config, smooth=smooth)
         out[label] = float(np.mean([metrics.evaluate(df, r.truth).horizontal.rmse for df, r in zip(frames, runs)]))
     return out
@@ -37,12 +38,12 @@ def mean_rmse(preset: str, seeds: int, **overrides: float) -> dict[str, float]:
 
 def table4(seeds: int = 5) -> list[dict[str, float]]:
     """Table 4 rows for 1–4 acceleration outliers."""
-    return [mean_rmse("seed002_rectangle", seeds, accel_outlier_count=n) for n in (1, 2, 3, 4)]
+    return [mean_rmse("garage_rectangle", seeds, accel_outlier_count=n) for n in (1, 2, 3, 4)]
 
 
 def table6(seeds: int = 5) -> list[dict[str, float]]:
     """Table 6 rows for 3 / 5 / 7 / 10 % range outliers."""
-    return [mean_rmse("seed002_figure8", seeds, outlier_prob=p) for p in (0.03, 0.05, 0.07, 0.10)]
+    return [mean_rmse("garage_figure8", seeds, outlier_prob=p) for p in (0.03, 0.05, 0.07, 0.10)]
 
 
 def show(title: str, columns: list[str], rows: list[dict[str, float]], paper: dict[str, list[float]]) -> None:

@@ -6,7 +6,7 @@ the simulator's LOS 0.1 m unless ``--range-std``), with the filters as the paper
 outage guard and heading hold off: ``AS_PRINTED``). Prints the min / mean / max horizontal error
 per method, averaged over seeds, beside the paper's values.
 
-    python examples/seed000_table1.py [--seeds 5] [--range-std 0.1]
+    python examples/li_wang_2020_table1.py [--seeds 5] [--range-std 0.1]
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import argparse
 import numpy as np
 
 import uwbimu_rs
-from uwbimu_rs import metrics, sim
+from uwbimu_rs import MethodName, metrics, sim
 
-PAPER = {  # Li & Wang 2020 Table 1: min / mean / max error, m
+PAPER: dict[MethodName, tuple[float, float, float]] = {  # Li & Wang 2020 Table 1: min / mean / max error, m
     "uwb_ls": (0.02, 0.36, 3.98),
     "ekf": (0.01, 0.30, 3.18),
     "rekf": (0.01, 0.28, 3.19),
@@ -31,11 +31,11 @@ AS_PRINTED = {"constraints.outage_zupt": False, "constraints.still_heading_hold"
 """Our additions switched off: the filters of the paper."""
 
 
-def table(seeds: int = 5, range_std: float | None = None) -> dict[str, tuple[float, float, float]]:
+def table(seeds: int = 5, range_std: float | None = None) -> dict[MethodName, tuple[float, float, float]]:
     """``{method: (min, mean, max)}`` of the horizontal error, m, averaged over seeds 0..seeds."""
-    stats: dict[str, list] = {m: [] for m in PAPER}
+    stats: dict[MethodName, list] = {m: [] for m in PAPER}
     for seed in range(seeds):
-        run = sim.preset("seed000", seed=seed)
+        run = sim.preset("hall_vehicle_nlos", seed=seed)
         config = {**run.config, **AS_PRINTED}
         if range_std is not None:
             config["ranging.range_std"] = range_std
@@ -43,7 +43,12 @@ def table(seeds: int = 5, range_std: float | None = None) -> dict[str, tuple[flo
             df = uwbimu_rs.run_filter(method, run.imu, run.ranges, run.anchors, config=config)
             e = metrics.evaluate(df, run.truth).errors["e_h"].to_numpy()
             stats[method].append((e.min(), e.mean(), e.max()))
-    return {m: tuple(float(v) for v in np.mean(rows, axis=0)) for m, rows in stats.items()}
+    return {m: _three(np.mean(rows, axis=0)) for m, rows in stats.items()}
+
+
+def _three(v: np.ndarray) -> tuple[float, float, float]:
+    """The three means as floats."""
+    return float(v[0]), float(v[1]), float(v[2])
 
 
 def main() -> None:

@@ -1,5 +1,5 @@
 //! Wang et al. 2018: the planar EKF / UKF / errors-complementary EKF and the 15-state UKF on simulated
-//! runs of the `seed001` presets (6 anchors, 4 m × 3 m, UWB 40 Hz σ 0.0514 m).
+//! runs of the `lab_robot` presets (6 anchors, 4 m × 3 m, UWB 40 Hz σ 0.0514 m).
 
 mod common;
 
@@ -49,7 +49,7 @@ fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::app::sim::SimConfig, config: &Fi
 #[test]
 fn planar_filters_halve_the_uwb_only_error_on_the_los_preset() {
     for seed in 0..3 {
-        let sim = preset("seed001", seed).expect("preset");
+        let sim = preset("lab_robot", seed).expect("preset");
         let data = simulate(&sim).expect("sim");
         let config = config_for(&sim);
         let ls = uwb_ls_mean(&data, &sim, &config);
@@ -80,7 +80,7 @@ fn planar_filters_halve_the_uwb_only_error_on_the_los_preset() {
 #[test]
 fn planar_filters_stay_below_uwb_only_on_the_nlos_preset() {
     for seed in 0..3 {
-        let sim = preset("seed001_nlos", seed).expect("preset");
+        let sim = preset("lab_robot_nlos", seed).expect("preset");
         let data = simulate(&sim).expect("sim");
         let config = config_for(&sim);
         let ls = uwb_ls_mean(&data, &sim, &config);
@@ -106,7 +106,7 @@ fn planar_filters_stay_below_uwb_only_on_the_nlos_preset() {
 /// unscented and linearised updates must agree.
 #[test]
 fn ukf2d_agrees_with_ekf2d_for_far_anchors() {
-    let mut sim = preset("seed001", 4).expect("preset");
+    let mut sim = preset("lab_robot", 4).expect("preset");
     sim.anchors = vec![
         Vec3::new(-100.0, -80.0, 1.0),
         Vec3::new(104.0, -80.0, 1.6),
@@ -124,19 +124,19 @@ fn ukf2d_agrees_with_ekf2d_for_far_anchors() {
     assert!(diff < 1e-3, "max difference {diff}");
     assert!((e_ekf - e_ukf).abs() < 0.01 * e_ekf);
     // Close to the anchors of Wang et al. 2018 the two differ measurably (the test can fail).
-    let near = simulate(&preset("seed001", 4).expect("preset")).expect("sim");
+    let near = simulate(&preset("lab_robot", 4).expect("preset")).expect("sim");
     let initial = truth_initial(&near, Vec3::new(0.1, -0.1, 0.0));
     let (a, b) = (steps(Method::Ekf2d, &near, Some(&initial), &config), steps(Method::Ukf2d, &near, Some(&initial), &config));
     let near_diff = a.iter().zip(&b).map(|(a, b)| (a.state.position - b.state.position).norm()).fold(0.0, f64::max);
     println!("anchors of Wang et al. 2018: max |ekf2d − ukf2d| {near_diff:.2e} m");
-    // README: the two differ by less than 3 mm on the anchors of Wang et al. 2018, more than far away.
+    // docs/papers.md: the two differ by less than 3 mm on the anchors of Wang et al. 2018, more than far away.
     assert!(near_diff > diff && near_diff < 3e-3, "{near_diff}");
 }
 
 /// With a window of one range the errors-complementary form with feedback is the EKF.
 #[test]
 fn cekf2d_with_window_one_is_ekf2d() {
-    let sim = preset("seed001_nlos", 1).expect("preset");
+    let sim = preset("lab_robot_nlos", 1).expect("preset");
     let data = simulate(&sim).expect("sim");
     let config = {
         let mut c = config_for(&sim);
@@ -153,7 +153,7 @@ fn cekf2d_with_window_one_is_ekf2d() {
 
 #[test]
 fn ukf_agrees_with_ekf_on_clean_runs() {
-    for (name, seed) in [("seed000_los", 0), ("seed000_los", 1), ("seed001", 0)] {
+    for (name, seed) in [("hall_vehicle", 0), ("hall_vehicle", 1), ("lab_robot", 0)] {
         let sim = preset(name, seed).expect("preset");
         let data = simulate(&sim).expect("sim");
         let config = config_for(&sim);
@@ -161,14 +161,14 @@ fn ukf_agrees_with_ekf_on_clean_runs() {
         let e_ekf = rms(&horizontal_errors(&steps(Method::Ekf, &data, Some(&initial), &config), &data));
         let e_ukf = rms(&horizontal_errors(&steps(Method::Ukf, &data, Some(&initial), &config), &data));
         println!("{name} seed {seed}: rmse ekf {e_ekf:.4} ukf {e_ukf:.4}");
-        // README: within 0.2 % (measured); asserted within 1 %.
+        // docs/papers.md: within 0.2 % (measured); asserted within 1 %.
         assert!((e_ukf - e_ekf).abs() <= 0.01 * e_ekf, "{name} seed {seed}: {e_ukf} vs {e_ekf}");
     }
 }
 
 #[test]
 fn ukf_covariance_stays_symmetric_positive_definite() {
-    let sim = preset("seed000_los", 2).expect("preset");
+    let sim = preset("hall_vehicle", 2).expect("preset");
     let data = simulate(&sim).expect("sim");
     let mut ukf = Ukf::new(data.anchors.clone(), &truth_initial(&data, Vec3::zeros()), config_for(&sim)).expect("filter");
     run(&mut ukf, &data.imu, &data.ranges).expect("run");
@@ -179,7 +179,7 @@ fn ukf_covariance_stays_symmetric_positive_definite() {
 
 #[test]
 fn bad_unscented_settings_are_config_errors() {
-    let sim = preset("seed001", 0).expect("preset");
+    let sim = preset("lab_robot", 0).expect("preset");
     let data = simulate(&sim).expect("sim");
     let mut config = FilterConfig::default();
     assert!(config.set("unscented.lambda", &uwbimu_rs::vocabulary::config::ConfigValue::Scalar(-4.0)).is_err());

@@ -15,7 +15,7 @@ C = ranging.SPEED_OF_LIGHT_MPS
 @pytest.fixture(scope="module")
 def lab():
     """The lab of Wang et al. 2018, line of sight (6 anchors, UWB 40 Hz σ 0.0514 m)."""
-    return sim.preset("seed001", seed=2)
+    return sim.preset("lab_robot", seed=2)
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +25,7 @@ def config(lab):
 
 
 @pytest.mark.parametrize("method", ["ekf2d", "ukf2d", "cekf2d", "ukf"])
-def test_seed001_methods_through_run_filter(lab, config, method):
+def test_wang_2018_methods_through_run_filter(lab, config, method):
     df = uwbimu_rs.run_filter(method, lab.imu, lab.ranges, lab.anchors, config={**config, "constraints.plane_height": 0.2})
     assert df.columns[:15] == ["t", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "std_x", "std_y", "std_z", "still"]
     assert df.height == lab.imu.shape[0]
