@@ -54,7 +54,7 @@ fn ekf_beats_uwb_only_on_hall_vehicle() {
         let (ft, fp): (Vec<f64>, Vec<Vec3>) = fixes.iter().map(|(t, f)| (*t, f.position)).unzip();
         let ls = evaluate(&ft, &fp, &truth_t, &truth_p, false).expect("evaluate");
         println!("seed {seed}: ekf horizontal RMSE {ekf_rmse:.4} m, uwb_ls {:.4} m", ls.horizontal.rmse);
-        // Measured 0.073–0.078 m (docs/accuracy.md).
+        // Measured 0.073–0.078 m (docs/papers.md).
         assert!(ekf_rmse < 0.09, "seed {seed}: ekf horizontal RMSE {ekf_rmse} m");
         assert!(ekf_rmse < ls.horizontal.rmse, "seed {seed}: ekf {ekf_rmse} vs uwb_ls {}", ls.horizontal.rmse);
     }
