@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs the main job on simulated demo data: uwb_ls and ekf on the Li & Wang 2020 preset, with an
-# accuracy table and a plot written to out/; then replays the recording written to out/demo.mcap
+# Runs the main job on simulated demo data: uwb_ls, ekf, riekf and best on the Li & Wang 2020 preset
+# (LOS and NLOS) via uwbimu_rs.compare, with accuracy tables and the report figures out/demo.png and
+# out/demo_los.png (docs/compare-and-plot.md); then replays the recording written to out/demo.mcap
 # with the uwbimu-replay binary (Foxglove output out/demo_replay.mcap, CSV out/demo_replay.csv).
 set -euo pipefail
 cd "$(dirname "$0")/.."

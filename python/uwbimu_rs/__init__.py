@@ -2,7 +2,8 @@
 
 Start with :func:`run_filter` (``"best"`` for real logs), :func:`replay` for MCAP recordings and
 the streaming classes (:class:`Best`, …) for a robot loop; :mod:`uwbimu_rs.sim` simulates runs and
-:mod:`uwbimu_rs.metrics` scores them.
+:mod:`uwbimu_rs.metrics` scores them; :func:`compare` runs several methods side by side and
+:mod:`uwbimu_rs.plot` draws the comparison.
 
 Conventions: navigation frame ENU (z up); accelerometer = specific force in the body frame
 (≈ [0, 0, +9.81] m/s² level and still); gyroscope rad/s; quaternions Hamilton [w, x, y, z]
@@ -14,9 +15,10 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
-from uwbimu_rs import metrics, ranging, sim
+from uwbimu_rs import metrics, plot, ranging, sim
 from uwbimu_rs._batch import crlb, initialize, run_filter, run_filters
 from uwbimu_rs._calibration import calibrate, tune
+from uwbimu_rs._compare import Comparison, MethodRun, compare
 from uwbimu_rs._native import (
     FILTERS,
     METHODS,
@@ -58,6 +60,7 @@ __all__ = [
     "Arckf",
     "Best",
     "Ckf",
+    "Comparison",
     "ConfigError",
     "Criekf",
     "Ekf",
@@ -66,6 +69,7 @@ __all__ = [
     "FormatError",
     "Iekf",
     "MappingError",
+    "MethodRun",
     "MethodName",
     "NumericalError",
     "Rekf",
@@ -78,9 +82,11 @@ __all__ = [
     "UwbImuError",
     "__version__",
     "calibrate",
+    "compare",
     "crlb",
     "initialize",
     "metrics",
+    "plot",
     "ranging",
     "read_mcap",
     "replay",

@@ -132,6 +132,42 @@ def run_filter(
     UserWarning
         An accelerometer that looks like g or a gyroscope that looks like deg/s.
     """
+    frame, upd = run_frames(
+        method,
+        imu,
+        ranges,
+        anchors,
+        initial=initial,
+        config=config,
+        covariance=covariance,
+        updates=updates,
+        smooth=smooth,
+        mag=mag,
+        tdoa=tdoa,
+    )
+    if updates:
+        if upd is None:
+            raise ValueError(f"method {method!r} has no range updates to report")
+        return frame, upd
+    return frame
+
+
+def run_frames(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: bool = False,
+    smooth: bool | None = None,
+    mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
+) -> tuple[pl.DataFrame, pl.DataFrame | None]:
+    """:func:`run_filter` for callers that take any method (private to the package): the updates
+    frame is None when not asked for or when the method has none (``uwb_ls``) instead of an error."""
     cols, upd, _info = _native.run_filter(
         method,
         imu,
@@ -145,15 +181,12 @@ def run_filter(
         mag=mag,
         tdoa=tdoa,
     )
-    frame = _frame(cols)
-    if updates:
-        if upd is None:
-            raise ValueError(f"method {method!r} has no range updates to report")
-        u = pl.DataFrame(upd).with_columns(
-            pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
-        )
-        return frame, u
-    return frame
+    if upd is None:
+        return _frame(cols), None
+    u = pl.DataFrame(upd).with_columns(
+        pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
+    )
+    return _frame(cols), u
 
 
 def run_filters(
