@@ -61,7 +61,7 @@ fn bench_replay(c: &mut Criterion) {
     group.bench_function("decode_and_replay_riekf", |b| {
         b.iter(|| {
             let rec = read(black_box(&bytes));
-            black_box(replay(&rec, Method::Riekf, &config, None, false).expect("replay"))
+            black_box(replay(&rec, Method::Riekf, &config, None, false, None).expect("replay"))
         })
     });
     group.finish();

@@ -46,7 +46,7 @@ fn isas_walk1() -> Result<(), Box<dyn std::error::Error>> {
 fn row(label: &str, rec: &Recording, truth: &[(f64, Vec3)]) -> Result<(), Box<dyn std::error::Error>> {
     let defaults = FilterConfig::default();
     let score = |name: &str| -> Result<f64, Box<dyn std::error::Error>> {
-        let r = replay(rec, Method::parse(name)?, &defaults, None, false)?;
+        let r = replay(rec, Method::parse(name)?, &defaults, None, false, None)?;
         let mut trajectory = r.trajectory();
         let t0 = trajectory.first().map_or(0.0, |p| p.0);
         trajectory.retain(|p| p.0 >= t0 + 10.0);

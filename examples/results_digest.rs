@@ -49,6 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             smooth,
                             mag: &[],
                             tdoa: &[],
+                            progress: None,
                         };
                         let digest = match run_method(method, &input) {
                             Ok(out) => format!("{:016x}", fnv1a(&format!("{out:?}"))),

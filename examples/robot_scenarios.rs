@@ -41,6 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         smooth: false,
                         mag: &[],
                         tdoa: if tdoa { &data.tdoa } else { &[] },
+                        progress: None,
                     };
                     let (steps, positions): (Vec<f64>, Vec<_>) = match run_method(method, &input) {
                         Ok(BatchOutput::Inertial { trace, .. }) => trace

@@ -54,6 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     smooth: false,
                     mag: &[],
                     tdoa: if tdoa { &data.tdoa } else { &[] },
+                    progress: None,
                 };
                 let (trace, init) = match run_method(method, &input) {
                     Ok(BatchOutput::Inertial { trace, init, .. }) => (trace, init),

@@ -49,5 +49,8 @@ pub use uwbimu_estimation as estimation;
 /// simulator, MCAP I/O and replay (crate `uwbimu_app`).
 pub use uwbimu_app as app;
 
+#[cfg(feature = "cli")]
+pub mod cli;
+
 #[cfg(feature = "python")]
 mod bindings;

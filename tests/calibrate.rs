@@ -30,6 +30,7 @@ fn known_biases_are_recovered() {
             smooth: true,
             mag: &[],
             tdoa: &[],
+            progress: None,
         };
         let with = calibrate_with_truth(&input, &tag).expect("with truth");
         let without = calibrate_without_truth(&input, Method::Riekf, 8).expect("without truth");

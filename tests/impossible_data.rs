@@ -30,6 +30,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, ranges: &[RangeMeasurement]
         smooth: false,
         mag: &[],
         tdoa: if tdoa { &data.tdoa } else { &[] },
+        progress: None,
     };
     match run_method(method, &input) {
         Ok(BatchOutput::Inertial { trace, .. }) => trace,

@@ -70,7 +70,7 @@ fn riekf_follows_the_walk_within_a_quarter_metre() {
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let method = Method::parse(cfg.method.as_deref().unwrap_or("riekf")).unwrap();
-    let r = replay(&rec, method, &cfg.config, None, false).unwrap();
+    let r = replay(&rec, method, &cfg.config, None, false, None).unwrap();
     let (raw, aligned) = compare_with_truth(&r.trajectory(), &truth).unwrap();
     // Measured: raw 0.160 m, aligned 0.121 m (see docs/mcap.md).
     assert!(aligned.horizontal.rmse < 0.25, "aligned horizontal RMSE {} m", aligned.horizontal.rmse);
@@ -90,7 +90,7 @@ fn plain_ekf_is_hurt_by_the_gross_outliers() {
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let max_err = |m: &str| {
-        let r = replay(&rec, Method::parse(m).unwrap(), &cfg.config, None, false).unwrap();
+        let r = replay(&rec, Method::parse(m).unwrap(), &cfg.config, None, false, None).unwrap();
         compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal.max
     };
     let (ekf, riekf) = (max_err("ekf"), max_err("riekf"));
@@ -106,7 +106,7 @@ fn every_method_holds_up_with_the_defaults() {
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = uwbimu_rs::vocabulary::config::FilterConfig::default();
     let aligned = |m: &str| {
-        let r = replay(&rec, Method::parse(m).unwrap(), &defaults, None, false).unwrap();
+        let r = replay(&rec, Method::parse(m).unwrap(), &defaults, None, false, None).unwrap();
         compare_with_truth(&r.trajectory(), &truth).unwrap().1.horizontal
     };
     let ls = aligned("uwb_ls").rmse;
@@ -160,7 +160,7 @@ fn planar_filters_hold_on_the_tilted_handheld_imu() {
     assert_eq!(rec.ranges.len() - clean.ranges.len(), 2);
     let defaults = uwbimu_rs::vocabulary::config::FilterConfig::default();
     let after_10_s = |rec: &Recording, m: &str| {
-        let r = replay(rec, Method::parse(m).unwrap(), &defaults, None, false).unwrap();
+        let r = replay(rec, Method::parse(m).unwrap(), &defaults, None, false, None).unwrap();
         let mut trajectory = r.trajectory();
         let t0 = trajectory[0].0;
         trajectory.retain(|p| p.0 >= t0 + 10.0);
@@ -192,6 +192,7 @@ fn range_biases_from_the_log_with_and_without_ground_truth() {
         smooth: true,
         mag: &[],
         tdoa: &[],
+        progress: None,
     };
     let with = calibrate_with_truth(&input, &truth).unwrap();
     let without = calibrate_without_truth(&input, Method::Riekf, 8).unwrap();
@@ -218,7 +219,7 @@ fn range_biases_from_the_log_with_and_without_ground_truth() {
         if let Some(cal) = cal {
             c.range_calibration = cal.range_calibration().unwrap();
         }
-        let r = replay(&rec, Method::Riekf, &c, None, false).unwrap();
+        let r = replay(&rec, Method::Riekf, &c, None, false, None).unwrap();
         let (raw, aligned) = compare_with_truth(&r.trajectory(), &truth).unwrap();
         println!("riekf defaults, calibration {name}: {:.3} / {:.3} m", raw.horizontal.rmse, aligned.horizontal.rmse);
         rmse.push(raw.horizontal.rmse);

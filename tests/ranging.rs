@@ -148,6 +148,7 @@ fn per_anchor_fit_and_batch_preprocessing() {
             smooth: false,
             mag: &[],
             tdoa: &[],
+            progress: None,
         };
         let BatchOutput::Inertial { trace, .. } = run_method(Method::Ekf2d, &input).expect("run") else { unreachable!() };
         let e: Vec<f64> =

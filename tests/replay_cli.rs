@@ -1,7 +1,8 @@
 //! The `uwbimu-replay` binary end to end: a simulated recording written as MCAP is replayed
 //! (statistics, RMSE, Foxglove MCAP and CSV output), and broken inputs (truncated file, bad magic,
 //! CRC mismatch, unknown encoding, a mapping that does not fit, missing topics, empty file) end
-//! with one clear message and exit code 2, never a panic.
+//! with one clear message and exit code 2, never a panic; `--json` prints one JSON object and
+//! `--help` lists every method of the registry.
 
 #![allow(clippy::unwrap_used)]
 
@@ -166,4 +167,45 @@ fn mappings_that_do_not_fit_the_real_log_are_reported() {
         b"[mapping]\nimu_topic = \"/waveshare_sense_hat_b\"\n[mapping.uwb]\ntopics = [\"/rtls_flares\"]\nrange = \"ranges[].range\"\n",
     );
     fails_with(&replay(&[isas.to_str().unwrap(), "--config", no_anchor_id.to_str().unwrap()]), "needs `anchor_id`");
+}
+
+#[test]
+fn json_prints_the_summary_as_one_object() {
+    let data = sim();
+    let file = write("sim_json.mcap", &sim_mcap(&data, true));
+    let truth = scratch("truth_units.csv");
+    let mut text = String::from("t_s,x_m,y_m,z_m\n");
+    for s in &data.truth {
+        text += &format!("{},{},{},{}\n", s.t_s, s.position.x, s.position.y, s.position.z);
+    }
+    std::fs::write(&truth, text).unwrap();
+    let csv = scratch("json_out.csv");
+    let (f, t, c) = (file.to_str().unwrap(), truth.to_str().unwrap(), csv.to_str().unwrap());
+    let out = replay(&[f, "--method", "ekf", "--ground-truth", t, "--csv", c, "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!((v["method"].as_str(), v["smoothed"].as_bool()), (Some("ekf"), Some(false)));
+    assert_eq!(v["n_imu"].as_u64(), Some(data.imu.len() as u64));
+    assert_eq!(v["outputs"], serde_json::json!([c]));
+    assert!(v["rmse_horizontal_m"].as_f64().is_some_and(|r| r > 0.0 && r < 0.14), "{v}");
+    let anchors = v["anchors"].as_array().unwrap();
+    let updates: u64 = anchors.iter().map(|a| a["accepted"].as_u64().unwrap() + a["rejected"].as_u64().unwrap()).sum();
+    assert!(anchors.len() == data.anchors.len() && updates > 0, "{v}");
+    // The same run in text says whether it smoothed.
+    let text = replay(&[f, "--method", "best", "--no-progress"]);
+    assert!(String::from_utf8_lossy(&text.stdout).contains("method: best (RTS-smoothed; --forward for the causal filter)"));
+}
+
+#[test]
+fn help_lists_every_method_of_the_registry() {
+    let out = replay(&["--help"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && stdout.contains("Usage: uwbimu-replay"), "{stdout}");
+    for name in uwbimu_rs::app::methods::Method::names() {
+        assert!(stdout.contains(&format!("- {name}:")), "{name} missing in:\n{stdout}");
+    }
+    assert_eq!(uwbimu_rs::cli::main_with_args(["uwbimu-replay", "--no-such-flag"]), 2);
+    assert_eq!(uwbimu_rs::cli::main_with_args(["uwbimu-replay", "/nonexistent/x.mcap"]), 2);
 }

@@ -46,6 +46,7 @@ fn run_rmse(
         smooth: false,
         mag: &[],
         tdoa: &data.tdoa,
+        progress: None,
     };
     let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &input) else { panic!("{method:?} failed") };
     let errors = horizontal_errors(&trace.steps, data);
@@ -135,6 +136,7 @@ fn a_confident_wrong_start_reacquires_on_a_tdoa_fix() {
                 smooth: false,
                 mag: &[],
                 tdoa: &data.tdoa,
+                progress: None,
             };
             let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &input) else { panic!("{method:?}") };
             let errors = horizontal_errors(&trace.steps, &data);
@@ -194,6 +196,7 @@ fn methods_that_do_not_take_tdoa_refuse_it_by_name() {
             smooth: false,
             mag: &[],
             tdoa: &data.tdoa,
+            progress: None,
         };
         let e = run_method(method, &input).expect_err("refused").to_string();
         assert!(e.contains("TDoA") && e.contains(method.name()) && e.contains("riekf"), "{e}");
@@ -227,7 +230,7 @@ fn every_sensor_at_unrelated_jittered_rates_streams_like_the_batch() {
     let mut config = s.config.clone();
     config.aiding.reference_s = 2.0;
     let initial = s.true_initial(&data).expect("initial");
-    let streams = Streams { imu: &data.imu, ranges: &data.ranges, mag: &mag, tdoa: &data.tdoa };
+    let streams = Streams { imu: &data.imu, ranges: &data.ranges, mag: &mag, tdoa: &data.tdoa, progress: None };
     let mut batch = Ackf::new(data.anchors.clone(), &initial, config.clone()).expect("ackf");
     let trace = run_streams(&mut batch, &streams).expect("every sensor, merged by time");
     let options = StreamOptions { reorder_window_s: 0.0, strict: true };

@@ -74,7 +74,7 @@ fn tdoa_round_trip_through_the_mapping_and_replay_with_rekf() {
     assert_eq!(halved.tdoa[3].tdoa_m, data.tdoa[3].tdoa_m * 0.5);
 
     let rec = read(&bytes, &Mapping::default()).unwrap();
-    let r = replay(&rec, Method::Rekf, &config, Some(&initial), false).unwrap();
+    let r = replay(&rec, Method::Rekf, &config, Some(&initial), false, None).unwrap();
     let t = r.tdoa.as_ref().unwrap();
     assert_eq!(t.accepted + t.down_weighted + t.rejected, rec.tdoa.len());
     assert!(r.anchors.iter().all(|a| a.accepted + a.down_weighted + a.rejected == 0));
@@ -84,12 +84,12 @@ fn tdoa_round_trip_through_the_mapping_and_replay_with_rekf() {
     assert!(raw.horizontal.rmse < REKF_TDOA_RMSE_BOUND_M, "horizontal RMSE {} m", raw.horizontal.rmse);
 
     // Self-initialised from TDoA fixes; methods without TDoA refuse them.
-    let own = replay(&rec, Method::Rekf, &config, None, false).unwrap();
+    let own = replay(&rec, Method::Rekf, &config, None, false, None).unwrap();
     let (own_raw, _) = compare_with_truth(&own.trajectory(), &truth).unwrap();
     println!("rekf on TDoA only, self-initialised: horizontal RMSE {:.4} m", own_raw.horizontal.rmse);
     // Measured 0.046 m (the heading is found from the first metres of motion).
     assert!(own_raw.horizontal.rmse < 0.06, "{}", own_raw.horizontal.rmse);
-    let e = replay(&rec, Method::Eskf, &config, Some(&initial), false).unwrap_err().to_string();
+    let e = replay(&rec, Method::Eskf, &config, Some(&initial), false, None).unwrap_err().to_string();
     assert!(e.contains("eskf does not take TDoA") && e.contains("rekf"), "{e}");
 }
 

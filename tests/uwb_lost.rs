@@ -29,6 +29,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, initial: Option<&InitialSta
         smooth: false,
         mag: &[],
         tdoa: if tdoa { &data.tdoa } else { &[] },
+        progress: None,
     };
     match run_method(method, &input) {
         Ok(BatchOutput::Inertial { trace, init, .. }) => (trace, init),

@@ -28,6 +28,7 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    progress: bool = False,
 ) -> pl.DataFrame: ...
 
 
@@ -45,6 +46,7 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    progress: bool = False,
 ) -> tuple[pl.DataFrame, pl.DataFrame]: ...
 
 
@@ -61,6 +63,7 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    progress: bool = False,
 ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
@@ -98,6 +101,9 @@ def run_filter(
         filter initialises itself from TDoA fixes) or with ranges. Taken by the methods whose
         ``METHODS[name]["takes"]`` lists ``"tdoa"`` (the tightly coupled ones) through their own noise policy (the robust ones down-weight TDoA
         outliers by χ² inflation); the others raise ValueError.
+    progress : bool, default False
+        Draw a one-line bar on stderr of the IMU samples processed (then "smoothing" during
+        the smoothing pass) while the run goes on.
     updates : bool
         Also return a DataFrame with one row per range or TDoA update
         (t, epoch_t, anchor, anchor_j, range, innovation, nis, accepted, weight, inflation,
@@ -180,6 +186,7 @@ def run_frames(
         smooth=smooth,
         mag=mag,
         tdoa=tdoa,
+        progress=progress,
     )
     if upd is None:
         return _frame(cols), None
@@ -197,6 +204,7 @@ def run_filters(
     config: FilterConfig | Mapping[str, Any] | None = None,
     covariance: bool = False,
     smooth: bool | None = None,
+    progress: bool = False,
 ) -> list[pl.DataFrame]:
     """Run one method over many recordings in parallel on all cores (GIL released).
 
@@ -211,6 +219,8 @@ def run_filters(
         One initial state per run (None entries self-initialise); None: all self-initialise.
     config, covariance, smooth
         As for :func:`run_filter`, shared by all runs.
+    progress : bool, default False
+        Draw a one-line bar on stderr of the IMU samples processed over all runs.
 
     Returns
     -------
@@ -219,7 +229,13 @@ def run_filters(
     """
     inits = None if initial is None else [_as_dict(i) for i in initial]
     outputs = _native.run_filters(
-        method, list(runs), initial=inits, config=_as_dict(config), covariance=covariance, smooth=smooth
+        method,
+        list(runs),
+        initial=inits,
+        config=_as_dict(config),
+        covariance=covariance,
+        smooth=smooth,
+        progress=progress,
     )
     return [_frame(cols) for cols, _upd, _info in outputs]
 

@@ -48,6 +48,9 @@ __all__ = [
     "FormatError",
     "read_mcap",
     "replay",
+    "read_truth",
+    "TRUTH_COLUMNS",
+    "replay_main",
     "write_mcap",
     "FilterConfig",
     "Ekf",
@@ -564,9 +567,11 @@ def run_filters(
     config: _ConfigArg = None,
     covariance: bool = False,
     smooth: bool | None = None,
+    progress: bool = False,
 ) -> list[tuple[dict[str, _F64], None, dict[str, Any]]]:
     """Run one method over many ``(imu, ranges, anchors)`` recordings in parallel (rayon, GIL
-    released); one ``(columns, None, info)`` per run, in order."""
+    released); one ``(columns, None, info)`` per run, in order. ``progress`` draws a bar of the
+    IMU samples processed (over all runs) on stderr."""
 
 def calibrate_log(
     imu: ArrayLike,
@@ -616,6 +621,7 @@ def run_filter(
     smooth: bool | None = None,
     mag: ArrayLike | None = None,
     tdoa: ArrayLike | None = None,
+    progress: bool = False,
 ) -> tuple[dict[str, _F64], dict[str, _F64] | None, dict[str, Any]]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
@@ -637,6 +643,8 @@ def run_filter(
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` (m²).
     updates : bool, default False
         Also return one row per range update (inertial methods only).
+    progress : bool, default False
+        Draw a one-line bar of the IMU samples processed on stderr while the run goes on.
 
     Returns
     -------
@@ -1072,12 +1080,29 @@ def replay(
     config: _ConfigArg = None,
     initial: dict[str, Any] | None = None,
     smooth: bool | None = None,
+    ground_truth: str | None = None,
+    progress: bool = False,
 ) -> tuple[dict[str, _F64], dict[str, Any]]:
     """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core) from
     ``initial`` (None: the config file's ``[initial]``, else self-initialisation from the
-    ranges or, without ranges, the TDoA). Returns ``(columns, info)``: the run_filter columns and per-anchor statistics,
-    ``tdoa`` counts when the recording has TDoA, mean NIS, read statistics and RMSE against
-    ground truth when mapped."""
+    ranges or, without ranges, the TDoA). ``mapping`` merges into the config file's
+    ``[mapping]`` key by key; ``ground_truth`` is a truth CSV (the CLI's ``--ground-truth``);
+    ``progress`` draws bars on stderr. Returns ``(columns, info)``: the run_filter columns and
+    the keys of the CLI's ``--json`` summary (method, smoothed, counts, per-anchor statistics,
+    ``tdoa`` counts when the recording has TDoA, mean NIS, RMSE against ground truth when
+    mapped) plus ``stats``, ``health`` and ``warnings``."""
+
+def read_truth(path: str) -> dict[str, _F64]:
+    """Read a ground-truth CSV (header ``t,x,y,z`` or ``t_s,x_m,y_m,z_m``, or none) into
+    float64 columns ``t, x, y, z`` (s, m), sorted by time. Raises ``FileNotFoundError`` for a
+    missing file and ``FormatError`` (an OSError) naming the line of a bad one."""
+
+TRUTH_COLUMNS: list[list[str]]
+"""The accepted names of the truth columns t, x, y, z: one list of spellings per column."""
+
+def replay_main(argv: list[str]) -> int:
+    """Run the ``uwbimu-replay`` command line with ``argv`` (``sys.argv``: the program, then its
+    arguments) with the GIL released; returns the exit status (0 success, 2 error)."""
 
 def write_mcap(
     path: str,

@@ -41,7 +41,11 @@ def read_mcap(
         ``{"imu_topic": "/imu", "uwb": {"topics": ["/uwb"], "range": "ranges[].range",
         "anchor_id": "ranges[].id", "valid": "ranges[].ra == 1"}}``, or for TDoA
         ``{"tdoa": {"topics": ["/tdoa"], "anchor_i": "idA", "anchor_j": "idB", "tdoa": "distanceDiff"}}``
-        (those field names are the defaults); replaces the file's mapping.
+        (those field names are the defaults). Merged into the config file's ``[mapping]``: a
+        key given overrides that key (``None`` clears it), nested tables (``uwb``, ``tdoa``,
+        ``anchors``, ``ground_truth``) merge key by key, and every key not given keeps the
+        file's value; e.g. ``{"ground_truth": {"file": "gt.csv"}}`` adds ground truth and keeps
+        the file's IMU and UWB mapping.
     config_file : str or path, optional
         A replay TOML file whose ``[mapping]`` is used.
 
@@ -90,6 +94,8 @@ def replay(
     config: FilterConfig | Mapping[str, Any] | None = None,
     initial: Mapping[str, Any] | None = None,
     smooth: bool | None = None,
+    ground_truth: str | os.PathLike[str] | None = None,
+    progress: bool = False,
 ) -> tuple[pl.DataFrame, dict[str, Any]]:
     """Replay an MCAP recording through one method (the core of the ``uwbimu-replay`` binary).
 
@@ -112,21 +118,31 @@ def replay(
         with TDoA.
     smooth : bool, optional
         Return RTS-smoothed estimates (inertial methods; None: only for ``"best"``).
+    ground_truth : str or path, optional
+        A ground-truth CSV, as the CLI's ``--ground-truth``: header ``t,x,y,z`` or
+        ``t_s,x_m,y_m,z_m`` (s, m; ``uwbimu_rs.metrics.TRUTH_COLUMNS``), or no header and those
+        four columns first. Overrides ``mapping["ground_truth"]["file"]``.
+    progress : bool, default False
+        Draw one-line bars on stderr while the file is read and the method runs.
 
     Returns
     -------
     (polars.DataFrame, dict)
-        The trajectory with the :func:`run_filter` columns, and ``info``: ``method``,
+        The trajectory with the :func:`run_filter` columns, and ``info`` with the keys of the
+        CLI's ``--json`` summary: ``method``, ``smoothed`` (bool: the trajectory is
+        RTS-smoothed), ``duration_s``, ``n_imu``, ``n_ranges``, ``n_tdoa``, ``n_ground_truth``,
         ``anchors`` (per anchor: id, accepted, down_weighted, rejected, for the ranges),
-        ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis``,
-        ``stats`` (as :func:`read_mcap`) and, when ground truth is mapped,
-        ``rmse_horizontal_m``, ``rmse_horizontal_aligned_m``, ``rmse_3d_m``,
-        ``rmse_3d_aligned_m`` (rigid SE(3) alignment).
+        ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis`` and,
+        with ground truth, ``rmse_steps``, ``rmse_horizontal_m``,
+        ``rmse_horizontal_aligned_m``, ``rmse_3d_m``, ``rmse_3d_aligned_m`` (m; rigid SE(3)
+        alignment); plus ``stats`` (as :func:`read_mcap`), ``health`` and ``warnings``.
 
     Raises
     ------
     OSError, ValueError
-        As :func:`read_mcap`; ``ConfigError`` for an unknown method or config key.
+        As :func:`read_mcap` (``FileNotFoundError`` for a missing ground-truth file,
+        ``FormatError`` naming the line of a bad one); ``ConfigError`` for an unknown method or
+        config key.
     """
     cols, info = _native.replay(
         os.fspath(path),
@@ -136,5 +152,7 @@ def replay(
         config=_as_dict(config),
         initial=_as_dict(initial),
         smooth=smooth,
+        ground_truth=None if ground_truth is None else os.fspath(ground_truth),
+        progress=progress,
     )
     return _frame(cols), info

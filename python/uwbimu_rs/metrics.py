@@ -6,6 +6,7 @@ Positions are navigation-frame (ENU) metres, times seconds. All computation happ
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Union
 
@@ -14,11 +15,17 @@ import polars as pl
 
 from uwbimu_rs import _native
 
-__all__ = ["Alignment", "ErrorStats", "Evaluation", "cdf", "evaluate", "nees"]
+__all__ = ["TRUTH_COLUMNS", "Alignment", "ErrorStats", "Evaluation", "cdf", "evaluate", "nees", "read_truth"]
 
 Trajectory = Union[pl.DataFrame, np.ndarray]
-"""A polars DataFrame with columns ``t, x, y, z`` (s, m), or an array whose first 4 columns are
-``t, x, y, z``."""
+"""A polars DataFrame with columns ``t, x, y, z`` (s, m; or ``t_s, x_m, y_m, z_m``, see
+:data:`TRUTH_COLUMNS`), or an array whose first 4 columns are ``t, x, y, z``."""
+
+TRUTH_COLUMNS: list[list[str]] = _native.TRUTH_COLUMNS
+"""The accepted names of the time (s) and position (m) columns, one list of spellings per column
+(``[["t", "t_s"], ["x", "x_m"], ["y", "y_m"], ["z", "z_m"]]``), declared once in Rust: ground-truth
+CSV headers (CLI ``--ground-truth``, ``replay(ground_truth=...)``, :func:`read_truth`) and the
+DataFrames :func:`evaluate` and :func:`nees` take."""
 
 _COV_COLUMNS = ("cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz")
 
@@ -86,10 +93,12 @@ class Evaluation:
 def _txyz(data: Trajectory, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Split a trajectory into times ``(N,)`` and positions ``(N, 3)`` as float64."""
     if isinstance(data, pl.DataFrame):
-        missing = [c for c in ("t", "x", "y", "z") if c not in data.columns]
+        found = [next((c for c in names if c in data.columns), None) for names in TRUTH_COLUMNS]
+        missing = [" or ".join(names) for names, c in zip(TRUTH_COLUMNS, found) if c is None]
         if missing:
-            raise ValueError(f"{name}: missing columns {missing}; expected t, x, y, z")
-        arr = data.select("t", "x", "y", "z").to_numpy().astype(np.float64, copy=False)
+            expected = ", ".join(" or ".join(names) for names in TRUTH_COLUMNS)
+            raise ValueError(f"{name}: missing columns {missing}; expected {expected}")
+        arr = data.select(found).to_numpy().astype(np.float64, copy=False)
     else:
         arr = np.asarray(data, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] < 4:
@@ -178,6 +187,31 @@ def nees(estimate: pl.DataFrame, truth: Trajectory) -> pl.DataFrame:
     cov = estimate.select(*_COV_COLUMNS).to_numpy().astype(np.float64, copy=False)[inside]
     values = _native.nees(np.ascontiguousarray(est_xyz[inside] - truth_at[inside]), np.ascontiguousarray(cov))
     return pl.DataFrame({"t": est_t[inside], "nees": values})
+
+
+def read_truth(path: str | os.PathLike[str]) -> pl.DataFrame:
+    """Read a ground-truth CSV file (the reader of the CLI's ``--ground-truth``).
+
+    Parameters
+    ----------
+    path : str or path
+        CSV with a header row naming the columns as in :data:`TRUTH_COLUMNS` (``t,x,y,z`` or
+        ``t_s,x_m,y_m,z_m``, any order, further columns ignored), or without a header and
+        ``t, x, y, z`` first.
+
+    Returns
+    -------
+    polars.DataFrame
+        Columns ``t`` (s, strictly increasing: sorted, repeated times dropped), ``x, y, z`` (m).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    OSError
+        Unreadable, or not a truth table (``uwbimu_rs.FormatError`` naming the file and line).
+    """
+    return pl.DataFrame(_native.read_truth(os.fspath(path)))
 
 
 def cdf(errors: np.ndarray | pl.Series) -> tuple[np.ndarray, np.ndarray]:

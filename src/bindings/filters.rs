@@ -22,6 +22,7 @@ use uwbimu_vocabulary::validate;
 
 use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table};
 use super::errors::PyResult;
+use crate::cli::progress::with_progress;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
 const MAG_LAYOUT: &str = "(N, 4) = t, mx, my, mz";
@@ -200,6 +201,7 @@ impl Log {
             smooth,
             mag: &[],
             tdoa: &[],
+            progress: None,
         }
     }
 }
@@ -642,9 +644,10 @@ fn covariance_array<'py>(py: Python<'py>, p: &ErrCov) -> PyResult<Bound<'py, PyA
 type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<'py, PyDict>);
 
 /// Runs a method over whole arrays with the GIL released. Returns `(columns, updates or None,
-/// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames).
+/// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames). `progress`
+/// draws a bar of the IMU samples processed on stderr.
 #[pyfunction]
-#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=None, mag=None, tdoa=None))]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=None, mag=None, tdoa=None, progress=false))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -659,6 +662,7 @@ fn run_filter<'py>(
     smooth: Option<bool>,
     mag: Option<&Bound<'py, PyAny>>,
     tdoa: Option<&Bound<'py, PyAny>>,
+    progress: bool,
 ) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
     let log = Log::read(imu, ranges, anchors, initial, config)?;
@@ -668,7 +672,8 @@ fn run_filter<'py>(
     };
     let tdoa = read_tdoa(tdoa, log.inputs.anchors.len())?;
     let input = BatchInput { mag: &mag, tdoa: &tdoa, ..log.batch(method.smooth(smooth)) };
-    let output = py.detach(|| run_method(method, &input))?;
+    let total = input.imu.len() as u64;
+    let output = py.detach(|| with_progress(progress, total, |p| run_method(method, &BatchInput { progress: p, ..input })))?;
     output_columns(py, output, covariance, updates)
 }
 
@@ -694,9 +699,11 @@ fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, u
 /// Runs one method over many recordings in parallel on all cores (rayon), with the GIL released.
 /// `runs` is a sequence of `(imu, ranges, anchors)`; `initial` is None or a sequence of the same
 /// length (each item a dict or None). Returns one `(columns, None, info)` per run, in order; the
-/// first failing run's error is raised.
+/// first failing run's error is raised. `progress` draws a bar of the IMU samples processed (over
+/// all runs) on stderr.
 #[pyfunction]
-#[pyo3(signature = (method, runs, *, initial=None, config=None, covariance=false, smooth=None))]
+#[pyo3(signature = (method, runs, *, initial=None, config=None, covariance=false, smooth=None, progress=false))]
+#[allow(clippy::too_many_arguments)] // the Python keyword arguments
 fn run_filters<'py>(
     py: Python<'py>,
     method: &str,
@@ -705,6 +712,7 @@ fn run_filters<'py>(
     config: Option<&Bound<'py, PyAny>>,
     covariance: bool,
     smooth: Option<bool>,
+    progress: bool,
 ) -> PyResult<Vec<BatchColumns<'py>>> {
     let method = Method::parse(method)?;
     let smooth = method.smooth(smooth);
@@ -731,21 +739,27 @@ fn run_filters<'py>(
         }
         _ => vec![None; inputs.len()],
     };
-    let batch: Vec<BatchInput<'_>> = inputs
-        .iter()
-        .zip(&initials)
-        .map(|(inp, init)| BatchInput {
-            imu: &inp.imu,
-            ranges: &inp.ranges,
-            anchors: &inp.anchors,
-            initial: init.as_ref(),
-            config: &config,
-            smooth,
-            mag: &[],
-            tdoa: &[],
+    let total = inputs.iter().map(|i| i.imu.len() as u64).sum();
+    let outputs = py.detach(|| {
+        with_progress(progress, total, |p| {
+            let batch: Vec<BatchInput<'_>> = inputs
+                .iter()
+                .zip(&initials)
+                .map(|(inp, init)| BatchInput {
+                    imu: &inp.imu,
+                    ranges: &inp.ranges,
+                    anchors: &inp.anchors,
+                    initial: init.as_ref(),
+                    config: &config,
+                    smooth,
+                    mag: &[],
+                    tdoa: &[],
+                    progress: p,
+                })
+                .collect();
+            run_many(method, &batch)
         })
-        .collect();
-    let outputs = py.detach(|| run_many(method, &batch));
+    });
     outputs.into_iter().map(|o| output_columns(py, o?, covariance, false)).collect()
 }
 

@@ -1,5 +1,6 @@
 //! Bindings of the MCAP reader and replay: `read_mcap` (columns of IMU, ranges, TDoA, anchors,
-//! ground truth) and `replay` (the `uwbimu-replay` core: read, self-initialise, filter, statistics).
+//! ground truth), `replay` (the `uwbimu-replay` core: read, self-initialise, filter, statistics)
+//! and `read_truth` (a ground-truth CSV).
 
 use std::path::{Path, PathBuf};
 
@@ -8,31 +9,41 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use uwbimu_app::columns::output_columns;
 use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_app::io::truth_file::{read_truth_csv, TRUTH_COLUMNS};
 use uwbimu_app::io::{read_recording_file, IoError, Mapping, ReadStats, Recording, ReplayConfig};
 use uwbimu_app::methods::BatchOutput;
-use uwbimu_app::replay::{compare_with_truth, replay as replay_recording, AnchorUpdateStats};
+use uwbimu_app::replay::replay as replay_recording;
 
 use super::convert::columns;
 use super::errors::PyResult;
 use super::filters::{read_config, read_inputs, read_optional_initial, read_tdoa};
+use crate::cli::progress::{with_progress, Bar};
 
-/// The replay settings from an optional TOML file and an optional mapping (JSON text).
+/// The replay settings from an optional TOML file with an optional mapping (JSON text) merged
+/// into its `[mapping]` ([`Mapping::merged_with_json`]).
 fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<ReplayConfig> {
     let mut cfg = match config_file {
         Some(p) => ReplayConfig::read(p)?,
         None => ReplayConfig::from_toml("", Path::new("."))?,
     };
     if let Some(m) = mapping_json {
-        cfg.mapping = Mapping::from_json(m)?;
+        cfg.mapping = cfg.mapping.merged_with_json(m)?;
     }
     Ok(cfg)
 }
 
-fn read(py: Python<'_>, path: &Path, mapping: &Mapping) -> PyResult<Recording> {
+fn missing_file(path: &Path) -> PyErr {
+    PyFileNotFoundError::new_err(format!("{}: no such file", path.display()))
+}
+
+/// Reads the recording with the GIL released; with `progress`, a bar of the bytes read on stderr.
+fn read(py: Python<'_>, path: &Path, mapping: &Mapping, progress: bool) -> PyResult<Recording> {
     if !path.exists() {
-        return Err(PyFileNotFoundError::new_err(format!("{}: no such file", path.display())).into());
+        return Err(missing_file(path).into());
     }
-    Ok(py.detach(|| read_recording_file(path, mapping, |_| {}))?)
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    let mut bar = progress.then(|| Bar::new("reading", size));
+    Ok(py.detach(|| read_recording_file(path, mapping, |n| bar.iter_mut().for_each(|b| b.update(n))))?)
 }
 
 fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict>> {
@@ -78,7 +89,7 @@ fn read_mcap<'py>(
     config_file: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cfg = settings(config_file.as_deref(), mapping)?;
-    let rec = read(py, &path, &cfg.mapping)?;
+    let rec = read(py, &path, &cfg.mapping, false)?;
     let out = PyDict::new(py);
     let col = |f: &dyn Fn(usize) -> f64, n: usize| (0..n).map(f).collect::<Vec<f64>>();
     let (imu, ranges, tdoa, gt) = (&rec.imu, &rec.ranges, &rec.tdoa, &rec.ground_truth);
@@ -143,21 +154,13 @@ fn read_mcap<'py>(
     Ok(out)
 }
 
-/// Update counts as a dict (id, accepted, down_weighted, rejected).
-fn update_stats_dict<'py>(py: Python<'py>, a: &AnchorUpdateStats) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("id", &a.id)?;
-    d.set_item("accepted", a.accepted)?;
-    d.set_item("down_weighted", a.down_weighted)?;
-    d.set_item("rejected", a.rejected)?;
-    Ok(d)
-}
-
-/// Reads an MCAP file and replays it through `method` (None: the config file's, else `riekf`)
+/// Reads an MCAP file and replays it through `method` (None: the config file's, else `best`)
 /// from `initial` (None: the config file's `[initial]`, else self-initialisation); the same core
-/// as the `uwbimu-replay` binary. Returns `(columns, info)`.
+/// as the `uwbimu-replay` binary. `ground_truth` is a truth CSV (the CLI's `--ground-truth`);
+/// `progress` draws bars on stderr. Returns `(columns, info)`; info holds the keys of the CLI's
+/// `--json` summary plus `stats`, `health` and `warnings`.
 #[pyfunction]
-#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, initial=None, smooth=None))]
+#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, initial=None, smooth=None, ground_truth=None, progress=false))]
 #[allow(clippy::too_many_arguments)] // the Python keyword arguments
 fn replay<'py>(
     py: Python<'py>,
@@ -168,6 +171,8 @@ fn replay<'py>(
     config: Option<&Bound<'py, PyAny>>,
     initial: Option<&Bound<'py, PyAny>>,
     smooth: Option<bool>,
+    ground_truth: Option<PathBuf>,
+    progress: bool,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let mut cfg = settings(config_file.as_deref(), mapping)?;
     if config.is_some_and(|c| !c.is_none()) {
@@ -176,35 +181,43 @@ fn replay<'py>(
     if let Some(i) = read_optional_initial(initial)? {
         cfg.initial = Some(i);
     }
+    if let Some(file) = ground_truth {
+        if !file.exists() {
+            return Err(missing_file(&file).into());
+        }
+        cfg.mapping.ground_truth.file = Some(file);
+    }
     let method = cfg.method_or(method)?;
     let smooth = method.smooth(smooth);
-    let rec = read(py, &path, &cfg.mapping)?;
-    let result = py.detach(|| replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth))?;
-    let info = PyDict::new(py);
-    info.set_item("method", method.name())?;
+    let rec = read(py, &path, &cfg.mapping, progress)?;
+    let result = py.detach(|| {
+        with_progress(progress, rec.imu.len() as u64, |p| {
+            replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth, p)
+        })
+    })?;
+    let summary = result.summary(&rec)?;
+    let text =
+        serde_json::to_string(&summary).map_err(|e| IoError::Format { what: "replay summary".into(), reason: e.to_string() })?;
+    let info = py.import("json")?.call_method1("loads", (text,))?.cast_into::<PyDict>().map_err(PyErr::from)?;
     info.set_item("stats", stats_dict(py, &rec.stats)?)?;
-    info.set_item("mean_nis", result.mean_nis)?;
     if let BatchOutput::Inertial { trace, warnings, .. } = &result.output {
         info.set_item("health", super::filters::health_dict(py, &trace.health)?)?;
         info.set_item("warnings", warnings.clone())?;
         super::errors::warn_all(py, warnings)?;
     }
-    let anchors = PyList::empty(py);
-    for a in &result.anchors {
-        anchors.append(update_stats_dict(py, a)?)?;
-    }
-    info.set_item("anchors", anchors)?;
-    if let Some(t) = &result.tdoa {
-        info.set_item("tdoa", update_stats_dict(py, t)?)?;
-    }
-    if !rec.ground_truth.is_empty() {
-        let (raw, aligned) = compare_with_truth(&result.trajectory(), &rec.ground_truth)?;
-        info.set_item("rmse_horizontal_m", raw.horizontal.rmse)?;
-        info.set_item("rmse_horizontal_aligned_m", aligned.horizontal.rmse)?;
-        info.set_item("rmse_3d_m", raw.three_d.rmse)?;
-        info.set_item("rmse_3d_aligned_m", aligned.three_d.rmse)?;
-    }
     Ok((columns(py, output_columns(&result.output, false))?, info))
+}
+
+/// Reads a ground-truth CSV (header `t,x,y,z` or `t_s,x_m,y_m,z_m`, or none) into columns
+/// `t, x, y, z` (s, m), sorted by time.
+#[pyfunction]
+fn read_truth<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    if !path.exists() {
+        return Err(missing_file(&path).into());
+    }
+    let truth = py.detach(|| read_truth_csv(&path))?;
+    let col = |f: fn(&(f64, uwbimu_vocabulary::math::Vec3)) -> f64| truth.iter().map(f).collect::<Vec<f64>>();
+    columns(py, vec![("t", col(|g| g.0)), ("x", col(|g| g.1.x)), ("y", col(|g| g.1.y)), ("z", col(|g| g.1.z))])
 }
 
 /// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
@@ -237,6 +250,9 @@ fn write_mcap(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(replay, m)?)?;
+    m.add_function(wrap_pyfunction!(read_truth, m)?)?;
+    // The accepted column names of a ground-truth table: one list of spellings per column.
+    m.add("TRUTH_COLUMNS", TRUTH_COLUMNS.iter().map(|names| names.to_vec()).collect::<Vec<_>>())?;
     m.add_function(wrap_pyfunction!(write_mcap, m)?)?;
     Ok(())
 }

@@ -2,6 +2,7 @@
 //! it converts and checks arrays, calls the core, maps errors and releases the GIL.
 
 mod calibrate;
+mod cli;
 mod convert;
 mod errors;
 mod filters;
@@ -21,6 +22,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MappingError", m.py().get_type::<errors::MappingError>())?;
     m.add("FormatError", m.py().get_type::<errors::FormatError>())?;
     calibrate::register(m)?;
+    cli::register(m)?;
     filters::register(m)?;
     io::register(m)?;
     metrics::register(m)?;

@@ -18,6 +18,7 @@ pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &
         smooth: false,
         mag: &[],
         tdoa: &[],
+        progress: None,
     }
 }
 

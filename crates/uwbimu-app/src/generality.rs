@@ -170,6 +170,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
         smooth: cell.method.smooths_by_default(),
         mag: &[],
         tdoa: &[],
+        progress: None,
     };
     let (t0, t1) = match (data.imu.first(), data.imu.last()) {
         (Some(a), Some(b)) => (a.t_s, b.t_s),

@@ -4,7 +4,7 @@ use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::gate::Gate;
 use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
-use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, StepRecord, Streams, Trace};
+use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, Progress, StepRecord, Streams, Trace};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_estimation::units::check_imu_units;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
@@ -293,6 +293,9 @@ pub struct BatchInput<'a> {
     pub mag: &'a [MagSample],
     /// TDoA, validated and time-ordered (tightly coupled inertial methods; empty if none).
     pub tdoa: &'a [TdoaMeasurement],
+    /// Counts the IMU samples the run has processed and marks its smoothing pass, for a progress
+    /// bar on another thread (None: not counted).
+    pub progress: Option<&'a Progress>,
 }
 
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
@@ -368,7 +371,7 @@ fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<Sel
 impl BatchInput<'_> {
     /// The input streams (IMU, ranges, magnetometer, TDoA).
     pub fn streams(&self) -> Streams<'_> {
-        Streams { imu: self.imu, ranges: self.ranges, mag: self.mag, tdoa: self.tdoa }
+        Streams { imu: self.imu, ranges: self.ranges, mag: self.mag, tdoa: self.tdoa, progress: self.progress }
     }
 }
 
@@ -378,7 +381,7 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let warnings = check_imu_units(input.imu)?;
     let (initial, init) = initial_state(input)?;
     let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
-    let trace = run_streams(&mut filter, &Streams { imu: input.imu, ranges: input.ranges, ..Streams::default() })?;
+    let trace = run_streams(&mut filter, &Streams { mag: &[], tdoa: &[], ..input.streams() })?;
     Ok(BatchOutput::Inertial { trace, init, smoothed: None, warnings })
 }
 
@@ -387,7 +390,7 @@ fn run_inertial<F: InertialFilter>(
     build: impl FnOnce(&InitialState) -> Result<F>,
     input: &BatchInput<'_>,
 ) -> Result<BatchOutput> {
-    let BatchInput { imu, ranges, smooth, mag, tdoa, .. } = *input;
+    let BatchInput { imu, ranges, smooth, mag, tdoa, progress, .. } = *input;
     let warnings = check_imu_units(imu)?;
     let (initial, init) = initial_state(input)?;
     let mut filter = build(&initial)?;
@@ -395,7 +398,14 @@ fn run_inertial<F: InertialFilter>(
         filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
     }
     let trace = run_streams(&mut filter, &input.streams())?;
-    let smoothed = if smooth { Some(smoothed_steps(&trace, filter.core())?) } else { None };
+    let smoothed = if smooth {
+        if let Some(p) = progress {
+            p.start_smoothing();
+        }
+        Some(smoothed_steps(&trace, filter.core())?)
+    } else {
+        None
+    };
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings })
 }
 

@@ -1,6 +1,9 @@
 //! Replay of a decoded recording through one method ([`crate::methods::run_method`]), with the
 //! per-anchor update statistics and the comparison with ground truth that the `uwbimu-replay`
-//! binary and `uwbimu_rs.replay` report.
+//! binary and `uwbimu_rs.replay` report ([`ReplaySummary`]).
+
+use serde::Serialize;
+use uwbimu_estimation::pipeline::Progress;
 
 use crate::io::IoResult as Result;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
@@ -13,7 +16,7 @@ use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::{evaluate, Evaluation};
 
 /// What the filter did with one anchor's ranges (or with the TDoA).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct AnchorUpdateStats {
     /// Anchor id (`tdoa` for the TDoA).
     pub id: String,
@@ -28,6 +31,8 @@ pub struct AnchorUpdateStats {
 /// The result of [`replay`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Replay {
+    /// The method that ran.
+    pub method: Method,
     /// The method's output.
     pub output: BatchOutput,
     /// Ranges per anchor, in anchor-index order (inertial methods; empty for `uwb_ls`).
@@ -51,11 +56,95 @@ impl Replay {
             BatchOutput::Multilateration(fixes) => fixes.iter().map(|(t, f)| (*t, f.position, None)).collect(),
         }
     }
+
+    /// Whether [`Replay::trajectory`] is RTS-smoothed.
+    pub fn smoothed(&self) -> bool {
+        matches!(self.output, BatchOutput::Inertial { smoothed: Some(_), .. })
+    }
+
+    /// The end figures of this replay of `rec`, with the errors against its ground truth when it
+    /// has some.
+    ///
+    /// # Errors
+    /// As [`compare_with_truth`].
+    pub fn summary(&self, rec: &Recording) -> Result<ReplaySummary> {
+        let rmse = if rec.ground_truth.is_empty() {
+            None
+        } else {
+            let (raw, aligned) = compare_with_truth(&self.trajectory(), &rec.ground_truth)?;
+            Some(TruthRmse {
+                rmse_steps: raw.horizontal.n,
+                rmse_horizontal_m: raw.horizontal.rmse,
+                rmse_horizontal_aligned_m: aligned.horizontal.rmse,
+                rmse_3d_m: raw.three_d.rmse,
+                rmse_3d_aligned_m: aligned.three_d.rmse,
+            })
+        };
+        Ok(ReplaySummary {
+            method: self.method.name(),
+            smoothed: self.smoothed(),
+            duration_s: rec.stats.duration_s(),
+            n_imu: rec.imu.len(),
+            n_ranges: rec.ranges.len(),
+            n_tdoa: rec.tdoa.len(),
+            n_ground_truth: rec.ground_truth.len(),
+            anchors: self.anchors.clone(),
+            tdoa: self.tdoa.clone(),
+            mean_nis: self.mean_nis,
+            rmse,
+        })
+    }
+}
+
+/// The end figures of a replay: what the CLI's `--json` prints and what `uwbimu_rs.replay`
+/// returns in its info dict, under the same keys (the field names).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ReplaySummary {
+    /// Method name.
+    pub method: &'static str,
+    /// Whether the trajectory is RTS-smoothed.
+    pub smoothed: bool,
+    /// Time between the first and the last message used, s.
+    pub duration_s: f64,
+    /// IMU samples read.
+    pub n_imu: usize,
+    /// Usable ranges read.
+    pub n_ranges: usize,
+    /// Usable TDoA read.
+    pub n_tdoa: usize,
+    /// Ground-truth samples read.
+    pub n_ground_truth: usize,
+    /// Per anchor: what the filter did with its ranges.
+    pub anchors: Vec<AnchorUpdateStats>,
+    /// What the filter did with the TDoA (only when the recording has some).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tdoa: Option<AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and TDoA (None when there were none).
+    pub mean_nis: Option<f64>,
+    /// The errors against ground truth (only with ground truth; its keys sit at the top level).
+    #[serde(flatten)]
+    pub rmse: Option<TruthRmse>,
+}
+
+/// Root-mean-square errors of a trajectory against ground truth ([`compare_with_truth`]), m.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TruthRmse {
+    /// Estimates inside the truth time span (the number of errors).
+    pub rmse_steps: usize,
+    /// Horizontal (x-y) RMSE, m.
+    pub rmse_horizontal_m: f64,
+    /// Horizontal RMSE after the rigid alignment onto the truth, m.
+    pub rmse_horizontal_aligned_m: f64,
+    /// 3-D RMSE, m.
+    pub rmse_3d_m: f64,
+    /// 3-D RMSE after the rigid alignment onto the truth, m.
+    pub rmse_3d_aligned_m: f64,
 }
 
 /// Runs `method` over the ranges and TDoA of `rec`, from `initial` (None: self-initialisation,
 /// from the ranges or else the TDoA) and gathers per-anchor statistics. A recording with TDoA
-/// needs a method that takes them ([`Method::takes_tdoa`]).
+/// needs a method that takes them ([`Method::takes_tdoa`]). `progress`, when given, counts the
+/// IMU samples processed ([`Progress`]).
 ///
 /// # Errors
 /// As [`run_method`]; [`CoreError::InsufficientData`] if the recording has no IMU samples, no
@@ -66,6 +155,7 @@ pub fn replay(
     config: &FilterConfig,
     initial: Option<&InitialState>,
     smooth: bool,
+    progress: Option<&Progress>,
 ) -> Result<Replay> {
     if rec.imu.is_empty() || (rec.ranges.is_empty() && rec.tdoa.is_empty()) {
         return Err(CoreError::InsufficientData(format!(
@@ -85,6 +175,7 @@ pub fn replay(
         smooth,
         mag: &[],
         tdoa: &rec.tdoa,
+        progress,
     };
     let output = run_method(method, &input)?;
     let mut anchors: Vec<AnchorUpdateStats> =
@@ -106,7 +197,7 @@ pub fn replay(
             }
         }
     }
-    Ok(Replay { output, anchors, tdoa, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
+    Ok(Replay { method, output, anchors, tdoa, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
 }
 
 /// Errors of a trajectory against ground truth: directly and after the least-squares rigid

@@ -22,8 +22,10 @@
 //! the repair counted and flagged. [`Stream`] adds what a robot loop needs: late data put back in
 //! order within a window, and self-initialisation on the data as it arrives.
 
+mod progress;
 mod stream;
 
+pub use progress::Progress;
 pub use stream::{self_initialize, Builder, Stream, StreamOptions, DEFAULT_REORDER_WINDOW_S};
 
 use uwbimu_vocabulary::config::GateConfig;
@@ -541,6 +543,8 @@ pub struct Streams<'a> {
     pub mag: &'a [MagSample],
     /// TDoA.
     pub tdoa: &'a [TdoaMeasurement],
+    /// Counts the IMU samples processed, for a progress bar (None: not counted).
+    pub progress: Option<&'a Progress>,
 }
 
 impl Streams<'_> {
@@ -579,6 +583,9 @@ pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Resul
     };
     for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
         pipeline.event(filter, &event)?;
+        if let (Event::Imu(_), Some(p)) = (&event, streams.progress) {
+            p.imu_sample();
+        }
     }
     pipeline.finish(filter)?;
     let mut updates = Vec::with_capacity(streams.ranges.len() + streams.tdoa.len());

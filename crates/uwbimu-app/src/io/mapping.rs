@@ -6,11 +6,11 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use crate::io::{IoError as Error, IoResult as Result};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 /// Which clock stamps a message.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum TimeSource {
     /// The header stamp when the message has a non-zero one, else the MCAP log time.
@@ -32,7 +32,7 @@ impl TimeSource {
 }
 
 /// Where `sensor_msgs/msg/Range` messages get their anchor id.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AnchorFrom {
     /// `header.frame_id`.
@@ -43,7 +43,7 @@ pub enum AnchorFrom {
 }
 
 /// How UWB range messages are read.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct UwbMapping {
     /// Range topics (empty: every channel with a recognised range schema, or the one channel
@@ -83,7 +83,7 @@ pub const TDOA_DEFAULT: &str = "distanceDiff";
 /// ‖p − a_i‖` — the Crazyflie convention: `distanceDiff` is the distance to anchor `idB` minus
 /// the distance to anchor `idA`. The defaults are the field names of the Crazyflie `estTDOA`
 /// event (`idA`, `idB`, `distanceDiff`), which the recordings we write also use.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TdoaMapping {
     /// TDoA topics (empty: every channel with our `uwbimu_msgs/msg/Tdoa` schema).
@@ -103,7 +103,7 @@ pub struct TdoaMapping {
 
 /// Where anchor positions come from (first match wins: `positions`, `file`, the MCAP metadata
 /// record `uwbimu.anchors`, the `topic`, positions carried by range messages).
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AnchorMapping {
     /// Inline positions: id → [x, y, z], m.
@@ -119,7 +119,7 @@ pub struct AnchorMapping {
 }
 
 /// Where ground truth comes from.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct GroundTruthMapping {
     /// A PoseStamped / TransformStamped / Odometry topic (or any message with a point at
@@ -128,12 +128,13 @@ pub struct GroundTruthMapping {
     /// Path of the position (default by schema: `pose.position`, `transform.translation`,
     /// `pose.pose.position`).
     pub position: Option<String>,
-    /// A CSV file `t_s, x, y, z` (header line optional).
+    /// A CSV file of time (s) and position (m); header row optional, column names as in
+    /// [`crate::io::truth_file::TRUTH_COLUMNS`].
     pub file: Option<PathBuf>,
 }
 
 /// The whole mapping.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Mapping {
     /// Clock used to order messages.
@@ -178,13 +179,21 @@ impl Default for Mapping {
 }
 
 impl Mapping {
-    /// Parses a mapping from JSON text (the Python `mapping=` dict).
+    /// This mapping with `overrides` (JSON text of a mapping table, the Python `mapping=` dict)
+    /// merged in: a key given replaces that key (`null` clears it), a nested table (`uwb`,
+    /// `anchors`, `ground_truth`, ...) merges key by key, and every other key keeps its value.
     ///
     /// # Errors
-    /// [`Error::Mapping`] for unknown keys or wrong types.
-    pub fn from_json(text: &str) -> Result<Self> {
-        let m: Self =
-            serde_json::from_str(text).map_err(|e| Error::Mapping { field: "mapping".into(), reason: e.to_string() })?;
+    /// [`Error::Mapping`] for text that is not a JSON object, unknown keys or wrong types.
+    pub fn merged_with_json(&self, overrides: &str) -> Result<Self> {
+        let mapping_error = |e: serde_json::Error| Error::Mapping { field: "mapping".into(), reason: e.to_string() };
+        let overrides: serde_json::Value = serde_json::from_str(overrides).map_err(mapping_error)?;
+        if !overrides.is_object() {
+            return Err(Error::Mapping { field: "mapping".into(), reason: format!("expected a table, got `{overrides}`") });
+        }
+        let mut merged = serde_json::to_value(self).map_err(mapping_error)?;
+        merge_json(&mut merged, overrides);
+        let m: Self = serde_json::from_value(merged).map_err(mapping_error)?;
         m.validate()
     }
 
@@ -207,5 +216,45 @@ impl Mapping {
             }
         }
         Ok(self)
+    }
+}
+
+/// Merges `overrides` into `base`: objects key by key (recursively), anything else replaced.
+fn merge_json(base: &mut serde_json::Value, overrides: serde_json::Value) {
+    match (base, overrides) {
+        (serde_json::Value::Object(base), serde_json::Value::Object(overrides)) => {
+            for (key, value) in overrides {
+                match base.get_mut(&key) {
+                    Some(slot) => merge_json(slot, value),
+                    None => {
+                        base.insert(key, value);
+                    }
+                }
+            }
+        }
+        (slot, value) => *slot = value,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_merge_key_by_key() {
+        let base = Mapping::default()
+            .merged_with_json(r#"{"imu_topic": "/imu", "uwb": {"topics": ["/uwb"], "scale": 0.001}}"#)
+            .unwrap_or_default();
+        let merged = base.merged_with_json(r#"{"uwb": {"range": "ranges[].range"}, "ground_truth": {"file": "gt.csv"}}"#);
+        let merged = merged.unwrap_or_default();
+        assert_eq!(merged.imu_topic.as_deref(), Some("/imu"));
+        assert_eq!((merged.uwb.topics.as_slice(), merged.uwb.scale), (["/uwb".to_string()].as_slice(), Some(0.001)));
+        assert_eq!(merged.uwb.range.as_deref(), Some("ranges[].range"));
+        assert_eq!(merged.ground_truth.file.as_deref(), Some(std::path::Path::new("gt.csv")));
+        let cleared = merged.merged_with_json(r#"{"imu_topic": null}"#).unwrap_or_default();
+        assert_eq!(cleared.imu_topic, None);
+        for bad in [r#"{"uwbb": {}}"#, r#"{"uwb": {"scale": -1}}"#, "[1]", "{"] {
+            assert!(matches!(base.merged_with_json(bad), Err(Error::Mapping { .. })), "{bad}");
+        }
     }
 }
