@@ -14,6 +14,7 @@ from uwbimu_rs._convert import plain as _as_dict
 from uwbimu_rs._native import FilterConfig
 from uwbimu_rs._typing import MethodName
 
+
 @overload
 def run_filter(
     method: MethodName,
@@ -69,7 +70,7 @@ def run_filter(
 
     Parameters
     ----------
-    method : str
+    method : MethodName
         One of ``uwbimu_rs.FILTERS``; ``uwbimu_rs.METHODS[name]["summary"]`` says what each is.
         ``"best"`` is the recommended method for real logs.
     imu : array (N, 7)
@@ -150,6 +151,7 @@ def run_filter(
         smooth=smooth,
         mag=mag,
         tdoa=tdoa,
+        progress=progress,
     )
     if updates:
         if upd is None:
@@ -171,6 +173,7 @@ def run_frames(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    progress: bool = False,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None]:
     """:func:`run_filter` for callers that take any method (private to the package): the updates
     frame is None when not asked for or when the method has none (``uwb_ls``) instead of an error."""
