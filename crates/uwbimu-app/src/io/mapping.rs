@@ -2,6 +2,8 @@
 //! messages, where anchor positions and ground truth come from, and the time source. Read from
 //! the `[mapping]` table of a replay TOML file, or from a Python dict (as JSON).
 
+mod check;
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -26,7 +28,7 @@ impl TimeSource {
         match s {
             "header" => Ok(Self::Header),
             "log" => Ok(Self::Log),
-            _ => Err(CoreError::UnknownOption { kind: "time source", got: s.into(), allowed: "header, log".into() }.into()),
+            _ => Err(CoreError::unknown_option("time source", s, ["header", "log"]).into()),
         }
     }
 }
@@ -181,10 +183,22 @@ impl Mapping {
     /// Parses a mapping from JSON text (the Python `mapping=` dict).
     ///
     /// # Errors
-    /// [`Error::Mapping`] for unknown keys or wrong types.
+    /// [`Error::Mapping`] for unknown keys or wrong types, naming the key path.
     pub fn from_json(text: &str) -> Result<Self> {
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| Error::Mapping { field: String::new(), reason: e.to_string() })?;
+        Self::from_value(value)
+    }
+
+    /// Reads a mapping from a tree of keys (a parsed JSON text or TOML table), checked key by
+    /// key first so that an error names the key path, what is allowed there and the closest key.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] for unknown keys, wrong types or bad numbers.
+    pub fn from_value(value: serde_json::Value) -> Result<Self> {
+        check::check(&value)?;
         let m: Self =
-            serde_json::from_str(text).map_err(|e| Error::Mapping { field: "mapping".into(), reason: e.to_string() })?;
+            serde_json::from_value(value).map_err(|e| Error::Mapping { field: String::new(), reason: e.to_string() })?;
         m.validate()
     }
 

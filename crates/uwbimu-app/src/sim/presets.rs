@@ -173,6 +173,6 @@ pub fn preset(name: &str, seed: u64) -> Result<SimConfig> {
         "seed002_figure8" => seed002(seed, true),
         "seed004_s1" => seed004(seed, false),
         "seed004_s2" => seed004(seed, true),
-        _ => Err(Error::UnknownOption { kind: "preset", got: name.to_string(), allowed: PRESET_NAMES.join(", ") }),
+        _ => Err(Error::unknown_option("preset", name, PRESET_NAMES.iter().copied())),
     }
 }
