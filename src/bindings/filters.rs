@@ -153,6 +153,7 @@ fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
             c.range_calibration = super::ranging::read_calibration(v)?;
             return Ok(());
         }
+        FilterConfig::check_key(key)?;
         let value = config_value(v).map_err(|reason| Error::InvalidConfig { field: key.to_string(), reason })?;
         Ok(c.set(key, &value)?)
     })?;

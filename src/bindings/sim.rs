@@ -138,7 +138,7 @@ impl PyTrajectory {
     /// `Trajectory(duration_s=40.0, start=[x, y, z], end=[x, y, z])` (positions, m).
     fn __repr__(&self) -> String {
         let at = |t_s: f64| {
-            let p: Vec<f64> = self.0.sample(t_s).position.iter().map(|x| (x * 1e3).round() / 1e3).collect();
+            let p: Vec<f64> = self.0.sample(t_s).position.iter().map(|x| (x * 1e3).round() / 1e3 + 0.0).collect();
             super::repr::floats(&p)
         };
         let d = self.0.duration_s();

@@ -40,6 +40,11 @@ def test_unknown_config_key_suggests_the_closest(still, key, suggestion):
         uwbimu_rs.FilterConfig(**{key: 0.2})
 
 
+def test_a_typo_in_the_key_is_reported_before_the_value_type(still):
+    with pytest.raises(ConfigError, match=r"unknown config `range_std` \(did you mean `ranging.range_std`\?\)"):
+        run(still, config={"range_std": "0.2"})
+
+
 def test_nested_config_keys_suggest_too(still):
     with pytest.raises(ConfigError, match=r"unknown config `ranging.rnage_std` \(did you mean `ranging.range_std`\?\)"):
         run(still, config={"ranging": {"rnage_std": 0.2}})

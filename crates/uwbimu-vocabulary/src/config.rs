@@ -163,6 +163,16 @@ impl FilterConfig {
         Err(Self::unknown(key))
     }
 
+    /// Checks that `key` is a section key (before its value is read, so that a typo in the key
+    /// is reported rather than the value's type); the error suggests the closest keys.
+    pub fn check_key(key: &str) -> Result<()> {
+        if Self::keys().iter().any(|k| k == key) {
+            Ok(())
+        } else {
+            Err(Self::unknown(key))
+        }
+    }
+
     fn unknown(key: &str) -> Error {
         let keys = Self::keys();
         Error::unknown_option("config", key, keys.iter().map(String::as_str))

@@ -45,6 +45,7 @@ fn config_value(v: &toml::Value) -> std::result::Result<ConfigValue, String> {
 
 /// Sets the `[config]` key `key` (`section.field`) from its TOML value.
 fn set_config(config: &mut FilterConfig, key: &str, v: &toml::Value) -> Result<()> {
+    FilterConfig::check_key(key)?;
     let value = config_value(v).map_err(|reason| CoreError::InvalidConfig { field: key.to_string(), reason })?;
     Ok(config.set(key, &value)?)
 }
