@@ -15,6 +15,7 @@ from typing import Any, Literal, TypedDict, TypeVar, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+import polars as pl
 
 __all__ = [
     "Ukf",
@@ -320,9 +321,15 @@ class _StreamingFilter:
         reorder_window_s: float | None = None,
         strict: bool = False,
     ) -> _S: ...
-    def smooth(self) -> dict[str, _F64]:
-        """RTS-smooth everything recorded (``record=True``): columns t, x, y, z, vx, vy, vz, qw, qx, qy,
-        qz, std_x, std_y, std_z, one row per propagation start plus the current time."""
+    def smooth(self) -> pl.DataFrame:
+        """RTS-smooth everything recorded (``record=True``).
+
+        Returns
+        -------
+        polars.DataFrame
+            The columns of :func:`uwbimu_rs.run_filter`'s frame (t, x, y, z, vx, vy, vz, qw, qx, qy,
+            qz, std_x, std_y, std_z, still, status), one row per propagation start (each IMU
+            sample and each epoch time between samples) plus the current time."""
 
     def add_imu(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]:
         """Take the IMU sample at time ``t``.

@@ -155,6 +155,27 @@ class SimResult:
     config: dict
     initial: dict
 
+    def __repr__(self) -> str:
+        """Shapes and a few figures, never the arrays: duration, IMU rate, ranges, anchors, NLOS."""
+        t = self.imu[:, 0]
+        duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+        rate = (len(t) - 1) / duration if duration > 0 else float("nan")
+        nlos = float(np.mean(self.range_labels == 1)) if len(self.range_labels) else 0.0
+        parts = [
+            f"duration_s={duration:.1f}",
+            f"imu_rate_hz={rate:.0f}",
+            f"imu={self.imu.shape}",
+            f"ranges={self.ranges.shape}",
+            f"anchors={len(self.anchors)}",
+            f"nlos_fraction={nlos:.3f}",
+            f"outliers={int(np.sum(self.range_labels == 2))}",
+        ]
+        if self.tdoa is not None:
+            parts.append(f"tdoa={self.tdoa.shape}")
+        if self.mag is not None:
+            parts.append(f"mag={self.mag.shape}")
+        return f"SimResult({', '.join(parts)})"
+
 
 def _result(d: dict) -> SimResult:
     return SimResult(

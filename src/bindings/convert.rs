@@ -4,7 +4,7 @@
 use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict};
+use pyo3::types::{PyBool, PyDict, PyString};
 use uwbimu_vocabulary::config::ConfigValue;
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::Vec3;
@@ -75,37 +75,54 @@ pub fn array<'py>(obj: &Bound<'py, PyAny>, name: &'static str) -> PyResult<PyRea
     Ok(converted.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?)
 }
 
-/// Converts a Python bool, number or sequence into a [`ConfigValue`] (`name` is the key, for errors).
-pub fn config_value(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<ConfigValue> {
+/// Converts a Python bool, number or sequence into a [`ConfigValue`]; the error is why it is
+/// not one, naming the value given (the caller names the key).
+pub fn config_value(obj: &Bound<'_, PyAny>) -> Result<ConfigValue, String> {
     if let Ok(b) = obj.cast::<PyBool>() {
         return Ok(ConfigValue::Flag(b.is_true()));
     }
     if let Ok(x) = obj.extract::<f64>() {
         return Ok(ConfigValue::Scalar(x));
     }
-    obj.extract::<Vec<f64>>().map(ConfigValue::Vector).map_err(|_| {
-        PyValueError::new_err(format!("`{name}`: expected a number or a sequence of numbers, got {}", type_name(obj))).into()
-    })
+    // A string is a sequence, but of characters: say what it is rather than "not numbers".
+    if !obj.is_instance_of::<PyString>() {
+        if let Ok(xs) = obj.extract::<Vec<f64>>() {
+            return Ok(ConfigValue::Vector(xs));
+        }
+    }
+    Err(format!("expected a number, True/False or a sequence of numbers, got {} {}", type_name(obj), short_repr(obj)))
 }
 
-fn type_name(obj: &Bound<'_, PyAny>) -> String {
+/// The name of `obj`'s type (`str`, `list`, …).
+pub fn type_name(obj: &Bound<'_, PyAny>) -> String {
     obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into())
 }
 
-/// Applies every item of a dict through `set` (a config's key/value setter).
-pub fn apply_dict(
-    dict: &Bound<'_, PyAny>,
-    what: &str,
-    mut set: impl FnMut(&str, &ConfigValue) -> Result<(), Error>,
-) -> PyResult<()> {
-    let dict =
-        dict.cast::<PyDict>().map_err(|_| PyValueError::new_err(format!("{what} must be a dict, got {}", type_name(dict))))?;
-    for (k, v) in dict.iter() {
-        let key: String = k.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
-        let value = config_value(&v, &key)?;
-        set(&key, &value)?;
+/// Longest value repr quoted in an error message, characters.
+const MAX_REPR: usize = 60;
+
+/// `repr(obj)`, cut to [`MAX_REPR`] characters (an error names the value, it does not dump it).
+pub fn short_repr(obj: &Bound<'_, PyAny>) -> String {
+    let r = obj.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+    if r.chars().count() > MAX_REPR {
+        format!("{}...", r.chars().take(MAX_REPR).collect::<String>())
+    } else {
+        r
     }
-    Ok(())
+}
+
+/// The items of a dict with string keys; `what` names the dict (e.g. `config`) in the
+/// [`Error::InvalidConfig`] for anything else.
+pub fn str_items<'py>(dict: &Bound<'py, PyAny>, what: &str) -> Result<Vec<(String, Bound<'py, PyAny>)>, Error> {
+    let invalid = |reason: String| Error::InvalidConfig { field: what.to_string(), reason };
+    let dict =
+        dict.cast::<PyDict>().map_err(|_| invalid(format!("expected a dict, got {} {}", type_name(dict), short_repr(dict))))?;
+    dict.iter()
+        .map(|(k, v)| match k.extract::<String>() {
+            Ok(key) => Ok((key, v)),
+            Err(_) => Err(invalid(format!("keys must be strings, got {} {}", type_name(&k), short_repr(&k)))),
+        })
+        .collect()
 }
 
 /// Calls `set(key, value)` for every entry of a configuration dict, a sub-dict `{section:
@@ -116,14 +133,10 @@ pub fn apply_nested_dict(
     what: &str,
     mut set: impl FnMut(&str, &Bound<'_, PyAny>) -> PyResult<()>,
 ) -> PyResult<()> {
-    let dict =
-        dict.cast::<PyDict>().map_err(|_| PyValueError::new_err(format!("{what} must be a dict, got {}", type_name(dict))))?;
-    for (k, v) in dict.iter() {
-        let key: String = k.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
+    for (key, v) in str_items(dict, what)? {
         match v.cast::<PyDict>() {
             Ok(section) if key != "range_calibration" => {
-                for (f, fv) in section.iter() {
-                    let field: String = f.extract().map_err(|_| PyValueError::new_err(format!("{what} keys must be strings")))?;
+                for (field, fv) in str_items(section.as_any(), &format!("{what}.{key}"))? {
                     set(&format!("{key}.{field}"), &fv)?;
                 }
             }

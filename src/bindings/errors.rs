@@ -79,7 +79,7 @@ impl From<BindingError> for PyErr {
 fn exception(e: Error) -> PyErr {
     let msg = e.to_string();
     match e {
-        Error::InvalidConfig { .. } | Error::UnknownOption { .. } => ConfigError::new_err(msg),
+        Error::InvalidConfig { .. } | Error::InvalidInitial { .. } | Error::UnknownOption { .. } => ConfigError::new_err(msg),
         Error::NotPositiveDefinite { .. } => NumericalError::new_err(msg),
         _ => UwbImuError::new_err(msg),
     }
@@ -104,6 +104,10 @@ fn io_exception(e: IoError) -> PyErr {
         IoError::Mcap { .. } => PyOSError::new_err(msg),
         IoError::Format { .. } => FormatError::new_err(msg),
         IoError::Mapping { .. } => MappingError::new_err(msg),
+        IoError::InFile { source, .. } => {
+            let inner = io_exception(*source);
+            Python::attach(|py| PyErr::from_type(inner.get_type(py), msg))
+        }
         _ => UwbImuError::new_err(msg),
     }
 }

@@ -20,8 +20,9 @@ use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasure
 use uwbimu_vocabulary::state::{ErrCov, NominalState, ERR_DIM};
 use uwbimu_vocabulary::validate;
 
-use super::convert::{apply_dict, apply_nested_dict, array, columns, config_value, config_value_to_py, table};
+use super::convert::{apply_nested_dict, array, columns, config_value, config_value_to_py, str_items, table};
 use super::errors::PyResult;
+use super::repr;
 use crate::cli::progress::with_progress;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
@@ -46,7 +47,7 @@ impl PyFilterConfig {
         }))
     }
 
-    /// The accepted keys, `section.field` (the flat keys of earlier versions are accepted too).
+    /// The accepted keys, `section.field` (a bare field name is refused, suggesting its key).
     #[staticmethod]
     fn keys() -> Vec<String> {
         FilterConfig::keys()
@@ -57,8 +58,20 @@ impl PyFilterConfig {
         config_dict(py, &self.0)
     }
 
+    /// The keys that differ from the defaults, as `FilterConfig(ranging.range_std=0.2, ...)`.
     fn __repr__(&self) -> String {
-        let items: Vec<String> = self.0.entries().iter().map(|(k, v)| format!("{k}={v:?}")).collect();
+        let defaults = FilterConfig::default().entries();
+        let mut items: Vec<String> = self
+            .0
+            .entries()
+            .into_iter()
+            .filter(|entry| !defaults.contains(entry))
+            .map(|(k, v)| format!("{k}={}", repr::config_value(&v)))
+            .collect();
+        let calibrated: Vec<String> = self.0.range_calibration.coefficients().keys().map(usize::to_string).collect();
+        if !calibrated.is_empty() {
+            items.push(format!("range_calibration=<anchors {}>", calibrated.join(", ")));
+        }
         format!("FilterConfig({})", items.join(", "))
     }
 }
@@ -141,7 +154,9 @@ fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
             c.range_calibration = super::ranging::read_calibration(v)?;
             return Ok(());
         }
-        Ok(c.set(key, &config_value(v, key)?)?)
+        FilterConfig::check_key(key)?;
+        let value = config_value(v).map_err(|reason| Error::InvalidConfig { field: key.to_string(), reason })?;
+        Ok(c.set(key, &value)?)
     })?;
     Ok(c)
 }
@@ -150,7 +165,10 @@ fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
 /// deviations and biases).
 fn read_initial(initial: &Bound<'_, PyAny>) -> PyResult<InitialState> {
     let mut s = InitialState::default();
-    apply_dict(initial, "initial", |key, v| s.set(key, v))?;
+    for (key, v) in str_items(initial, "initial")? {
+        let value = config_value(&v).map_err(|reason| Error::InvalidInitial { key: format!("initial.{key}"), reason })?;
+        s.set(&key, &value)?;
+    }
     Ok(s)
 }
 
@@ -284,26 +302,31 @@ impl From<UpdateRecord> for PyUpdateReport {
 
 #[pymethods]
 impl PyUpdateReport {
+    /// The report as `UpdateReport(t=1.25, anchor=2, range=4.013, nis=0.82, accepted=True, ...)`
+    /// (`anchor_j` only for a TDoA, the bias only with bias states).
     fn __repr__(&self) -> String {
-        format!(
-            "UpdateReport(t={}, epoch_t={}, anchor={}, anchor_j={:?}, range={}, innovation={}, nis={}, accepted={}, weight={}, inflation={}, down_weighted={}, iterations={}, prior_fading={}, reacquired={}, bias={}, bias_std={})",
-            self.t,
-            self.epoch_t,
-            self.anchor,
-            self.anchor_j,
-            self.range,
-            self.innovation,
-            self.nis,
-            self.accepted,
-            self.weight,
-            self.inflation,
-            self.down_weighted,
-            self.iterations,
-            self.prior_fading,
-            self.reacquired,
-            self.bias,
-            self.bias_std
-        )
+        let f = repr::float;
+        let mut items =
+            vec![format!("t={}", f(self.t)), format!("epoch_t={}", f(self.epoch_t)), format!("anchor={}", self.anchor)];
+        if let Some(j) = self.anchor_j {
+            items.push(format!("anchor_j={j}"));
+        }
+        items.extend([
+            format!("range={}", f(self.range)),
+            format!("innovation={}", f(self.innovation)),
+            format!("nis={}", f(self.nis)),
+            format!("accepted={}", repr::boolean(self.accepted)),
+            format!("weight={}", f(self.weight)),
+            format!("inflation={}", f(self.inflation)),
+            format!("down_weighted={}", repr::boolean(self.down_weighted)),
+            format!("iterations={}", self.iterations),
+            format!("prior_fading={}", f(self.prior_fading)),
+            format!("reacquired={}", repr::boolean(self.reacquired)),
+        ]);
+        if !self.bias.is_nan() {
+            items.push(format!("bias={}, bias_std={}", f(self.bias), f(self.bias_std)));
+        }
+        format!("UpdateReport({})", items.join(", "))
     }
 }
 
@@ -345,16 +368,18 @@ fn vec3_arg(call: &'static str, obj: &Bound<'_, PyAny>, name: &'static str) -> P
     }
 }
 
-/// An anchor index argument of the streaming call `call`: an integer in `0..count`.
-fn anchor_arg(call: &'static str, arg: &str, anchor: i64, count: usize) -> PyResult<usize> {
-    usize::try_from(anchor).ok().filter(|&a| a < count).ok_or_else(|| {
-        Error::BadArgument {
-            call,
-            arg: format!("{arg}={anchor}"),
-            reason: format!("is not an anchor index (there are {count} anchors: 0..{})", count.saturating_sub(1)),
-        }
-        .into()
-    })
+/// An anchor index argument of the streaming call `call`: a whole number in `0..count` (taken
+/// as a float, so that `1.5` is reported as not an integer rather than refused by the type).
+fn anchor_arg(call: &'static str, arg: &str, anchor: f64, count: usize) -> PyResult<usize> {
+    let last = count.saturating_sub(1);
+    let reason = if anchor.fract() != 0.0 || !anchor.is_finite() {
+        format!("is not a whole number (an anchor index is one of 0..{last}, there are {count} anchors)")
+    } else if anchor < 0.0 || anchor >= count as f64 {
+        format!("is not an anchor index (there are {count} anchors: 0..{last})")
+    } else {
+        return Ok(anchor as usize);
+    };
+    Err(Error::BadArgument { call, arg: format!("{arg}={anchor}"), reason }.into())
 }
 
 /// Initial room for recorded segments of a streaming filter (it grows as needed).
@@ -444,16 +469,15 @@ macro_rules! py_filter {
                 Ok(Self(stream))
             }
 
-            /// RTS-smooths everything seen so far (needs ``record=True``): a dict of columns
-            /// ``t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z``, one row per
-            /// propagation start (each IMU sample and each epoch time between samples) plus
-            /// the current time. Releases the GIL.
-            fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+            /// RTS-smooths everything seen so far (needs ``record=True``): a polars DataFrame
+            /// with the columns of ``run_filter``'s frame (``t, x, y, z, vx, vy, vz, qw, qx, qy,
+            /// qz, std_x, std_y, std_z, still, status``), one row per propagation start (each
+            /// IMU sample and each epoch time between samples) plus the current time. Releases
+            /// the GIL.
+            fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
                 let core = self.estimator("smooth")?.core();
                 let steps = py.detach(|| smoothed_nodes(core))?;
-                let mut cols = step_columns(&steps, false);
-                cols.retain(|(name, _)| *name != "still" && *name != "status");
-                columns(py, cols)
+                super::data_frame(py, columns(py, step_columns(&steps, false))?)
             }
 
             /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,)
@@ -467,7 +491,7 @@ macro_rules! py_filter {
             /// Takes a range (m) to anchor index `anchor` measured at `t` (s): it joins a range
             /// epoch by the epoch rule of the batch API. Returns the reports of the updates this
             /// call applied (an epoch it closed, if any).
-            fn add_range(&mut self, py: Python<'_>, t: f64, anchor: i64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
+            fn add_range(&mut self, py: Python<'_>, t: f64, anchor: f64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_range";
                 let anchor = anchor_arg(CALL, "anchor", anchor, self.anchor_count())?;
                 let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)? };
@@ -477,7 +501,7 @@ macro_rules! py_filter {
             /// Takes a TDoA `d_ij = |p - a_j| - |p - a_i|` (m) between anchor indices `i` and
             /// `j` measured at `t` (s), applied at its own time. The loosely coupled filters
             /// raise ValueError.
-            fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: i64, j: i64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
+            fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: f64, j: f64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_tdoa";
                 check_takes(CALL, stringify!($py), Input::Tdoa)?;
                 let count = self.anchor_count();
@@ -501,7 +525,7 @@ macro_rules! py_filter {
             /// Applies the ranges of one epoch, all measured at `t` (s), at once — bypassing the
             /// epoch rule and the plausibility gate: anchor indices (M,) and ranges (M,) m. The
             /// buffered data up to `t` and the open epoch are applied first. Returns the reports.
-            fn apply_ranges_now(&mut self, t: f64, anchors: Vec<i64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
+            fn apply_ranges_now(&mut self, t: f64, anchors: Vec<f64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "apply_ranges_now";
                 if anchors.len() != ranges.len() {
                     return Err(Error::BadArgument {
@@ -528,6 +552,18 @@ macro_rules! py_filter {
                 self.0.flush()?;
                 super::super::errors::warn_all(py, &self.0.take_warnings())?;
                 Ok(applied_reports(&mut self.0))
+            }
+
+            /// `Name(anchors=4, initialized=False, t=None)`: the anchor count, whether the
+            /// filter has its initial state, and the filter time, s.
+            fn __repr__(&self) -> String {
+                format!(
+                    "{}(anchors={}, initialized={}, t={})",
+                    stringify!($py),
+                    self.anchor_count(),
+                    repr::boolean(self.initialized()),
+                    repr::optional(self.time(), repr::float)
+                )
             }
 
             /// Ranges waiting in the open epoch.
@@ -620,6 +656,12 @@ mod classes {
     use super::*;
 
     uwbimu_app::for_each_streaming_filter!(streaming_class);
+}
+
+/// The polars DataFrame of native columns, built by the Python helper the batch functions use
+/// (`uwbimu_rs._convert.frame`: the same dtypes as `run_filter`'s frame).
+fn data_frame<'py>(py: Python<'py>, cols: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyAny>> {
+    Ok(py.import("uwbimu_rs._convert")?.getattr("frame")?.call1((cols,))?)
 }
 
 /// A nominal state as a dict: `position`, `velocity`, `orientation` (w, x, y, z), `accel_bias`,

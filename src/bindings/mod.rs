@@ -9,6 +9,7 @@ mod filters;
 mod io;
 mod metrics;
 mod ranging;
+mod repr;
 mod sim;
 
 use pyo3::prelude::*;

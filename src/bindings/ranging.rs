@@ -5,7 +5,6 @@
 use std::collections::BTreeMap;
 
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_estimation::ranging::calibration::{fit_cubic, fit_range_calibration};
@@ -13,7 +12,7 @@ use uwbimu_estimation::ranging::{distance_m, dw1000_elapsed_s, sds_twr_tof_s, ss
 use uwbimu_vocabulary::config::{Cubic, RangeCalibration};
 use uwbimu_vocabulary::error::Error;
 
-use super::convert::array;
+use super::convert::{array, short_repr};
 use super::errors::PyResult;
 
 /// The flat values of same-shaped arrays, with that shape.
@@ -146,22 +145,23 @@ fn calibration_fit_anchors<'py>(
 
 /// Reads `{anchor index: [c0, c1, c2, c3]}` into a calibration.
 pub fn read_calibration(obj: &Bound<'_, PyAny>) -> PyResult<RangeCalibration> {
-    let dict = obj
-        .cast::<PyDict>()
-        .map_err(|_| PyValueError::new_err("range_calibration: expected a dict {anchor index: [c0, c1, c2, c3]}"))?;
+    let invalid = |field: String, reason: String| Error::InvalidConfig { field, reason };
+    let dict = obj.cast::<PyDict>().map_err(|_| {
+        invalid(
+            "range_calibration".into(),
+            format!("expected a dict {{anchor index: [c0, c1, c2, c3]}}, got {}", short_repr(obj)),
+        )
+    })?;
     let mut by_anchor = BTreeMap::new();
     for (k, v) in dict.iter() {
-        let anchor: usize = k
-            .extract()
-            .map_err(|_| PyValueError::new_err(format!("range_calibration: key {k} is not an anchor index (int >= 0)")))?;
-        let c: Vec<f64> = v.extract().map_err(|_| {
-            PyValueError::new_err(format!("range_calibration[{anchor}]: expected 4 numbers [c0, c1, c2, c3], got {v}"))
+        let anchor: usize = k.extract().map_err(|_| {
+            invalid("range_calibration".into(), format!("key {} is not an anchor index (an int >= 0)", short_repr(&k)))
         })?;
+        let field = || format!("range_calibration[{anchor}]");
+        let c: Vec<f64> =
+            v.extract().map_err(|_| invalid(field(), format!("expected 4 numbers [c0, c1, c2, c3], got {}", short_repr(&v))))?;
         let c: Cubic = c.try_into().map_err(|c: Vec<f64>| {
-            PyValueError::new_err(format!(
-                "range_calibration[{anchor}]: expected 4 coefficients [c0, c1, c2, c3], got {}",
-                c.len()
-            ))
+            invalid(field(), format!("expected 4 coefficients [c0, c1, c2, c3], got {}: {c:?}", c.len()))
         })?;
         by_anchor.insert(anchor, c);
     }

@@ -135,8 +135,14 @@ impl PyTrajectory {
         )
     }
 
+    /// `Trajectory(duration_s=40.0, start=[x, y, z], end=[x, y, z])` (positions, m).
     fn __repr__(&self) -> String {
-        format!("Trajectory(duration_s={:.3})", self.0.duration_s())
+        let at = |t_s: f64| {
+            let p: Vec<f64> = self.0.sample(t_s).position.iter().map(|x| (x * 1e3).round() / 1e3 + 0.0).collect();
+            super::repr::floats(&p)
+        };
+        let d = self.0.duration_s();
+        format!("Trajectory(duration_s={}, start={}, end={})", super::repr::float(d), at(0.0), at(d))
     }
 }
 
@@ -153,7 +159,9 @@ fn collect_overrides(dicts: [Option<&Bound<'_, PyDict>>; 2]) -> PyResult<Vec<(St
                 match v.extract::<f64>() {
                     Ok(x) => OverrideValue::Number(x),
                     Err(_) => {
-                        return Err(Error::InvalidConfig { field: key, reason: "expected a bool or a number".into() }.into())
+                        let reason =
+                            format!("expected a bool or a number, got {} {}", convert::type_name(&v), convert::short_repr(&v));
+                        return Err(Error::InvalidConfig { field: key, reason }.into());
                     }
                 }
             };

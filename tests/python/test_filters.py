@@ -107,7 +107,7 @@ def small():
         (lambda i, r, a: (i, _set(r, (2, 2), np.nan), a), r"ranges: non-finite value NaN at row 2"),
         (lambda i, r, a: (_set(i, (10, 0), 0.05), r, a), r"imu: time 0.05 s at row 10 is not after"),
         (lambda i, r, a: (i, _set(r, (3, 0), 0.1), a), r"ranges: time 0.1 s at row 3"),
-        (lambda i, r, a: (i, _set(r, (1, 1), 4.0), a), r"anchor index 4 at row 1 is out of range \(there are 4 anchors\)"),
+        (lambda i, r, a: (i, _set(r, (1, 1), 4.0), a), r"anchor index 4 at row 1 is out of range \(there are 4 anchors: 0..3\)"),
         (lambda i, r, a: (i, _set(r, (1, 1), -1.0), a), r"anchor index -1 at row 1"),
         (lambda i, r, a: ([["a"] * 7], r, a), r"imu: cannot convert to a float64 array"),
     ],
@@ -168,7 +168,7 @@ def test_bad_config_values(small, config, pattern):
 
 def test_bad_initial_key(small):
     imu, ranges, anchors, initial = small
-    with pytest.raises(ValueError, match=r"unknown initial-state key `pos`; allowed: position"):
+    with pytest.raises(ValueError, match=r"unknown initial-state key `pos` \(did you mean `position` or `position_std`\?\); allowed: position"):
         uwbimu_rs.run_filter("ekf", imu, ranges, anchors, initial={"pos": [0, 0, 0]})
 
 

@@ -112,7 +112,7 @@ def test_errors(fixture_dir, tmp_path):
         uwbimu_rs.read_mcap(fixture_dir / "zstd.mcap", mapping={"uwb": {"topics": ["/uwb"], "range": "ranges[].range_cm"}})
     with pytest.raises(uwbimu_rs.MappingError, match="/nope"):
         uwbimu_rs.read_mcap(fixture_dir / "zstd.mcap", mapping={**VENDOR, "imu_topic": "/nope"})
-    with pytest.raises(ValueError, match="unknown field"):
+    with pytest.raises(uwbimu_rs.MappingError, match=r"`mapping.uwbb`: unknown key \(did you mean `uwb`\?\)"):
         uwbimu_rs.read_mcap(fixture_dir / "zstd.mcap", mapping={"uwbb": {}})
 
 
@@ -172,7 +172,7 @@ def test_simulator_tdoa_round_trip_and_replay(tmp_path):
         uwbimu_rs.replay(path, "eskf", config=run.config)
     with pytest.raises(uwbimu_rs.MappingError, match="has no field `distDiff`"):
         uwbimu_rs.read_mcap(path, mapping={"tdoa": {"tdoa": "distDiff"}})
-    with pytest.raises(ValueError, match="unknown field `anchor`"):
+    with pytest.raises(uwbimu_rs.MappingError, match=r"`mapping.tdoa.anchor`: unknown key \(did you mean `anchor_i` or `anchor_j`\?\)"):
         uwbimu_rs.read_mcap(path, mapping={"tdoa": {"anchor": "idA"}})
 
 

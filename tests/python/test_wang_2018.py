@@ -112,9 +112,9 @@ def test_calibration_fit_apply_and_preprocessing(lab, config):
 @pytest.mark.parametrize(
     ("calibration", "pattern"),
     [
-        ({9: [0, 1, 0, 0]}, "anchor index 9"),
+        ({9: [0, 1, 0, 0]}, r"range_calibration\[9\]`: there is no anchor 9"),
         ({0: [0, 1, 0]}, "4 coefficients"),
-        ({0: [float("nan"), 1, 0, 0]}, "non-finite"),
+        ({0: [float("nan"), 1, 0, 0]}, "coefficients must be finite"),
         ({"a": [0, 1, 0, 0]}, "not an anchor index"),
         ([0, 1, 0, 0], "expected a dict"),
         ({0: [-50.0, 1, 0, 0]}, "negative"),

@@ -41,7 +41,7 @@ impl Start {
         match name {
             "given" => Ok(Self::Given),
             "self" => Ok(Self::SelfInit),
-            _ => Err(Error::UnknownOption { kind: "start", got: name.into(), allowed: "given, self".into() }),
+            _ => Err(Error::unknown_option("start", name, ["given", "self"])),
         }
     }
 }
@@ -66,7 +66,7 @@ impl<'a> Settings<'a> {
             "matched" => Ok(Self::Matched),
             "defaults" => Ok(Self::Defaults),
             "custom" => Ok(Self::Custom(custom)),
-            _ => Err(Error::UnknownOption { kind: "settings", got: name.into(), allowed: "matched, defaults, custom".into() }),
+            _ => Err(Error::unknown_option("settings", name, ["matched", "defaults", "custom"])),
         }
     }
 }
@@ -122,7 +122,7 @@ pub fn cells<'a, S: AsRef<str>>(
     let mut out = Vec::with_capacity(scenarios.len() * seeds.len() * methods.len());
     for scenario in scenarios.iter().map(AsRef::as_ref) {
         if !ZOO_NAMES.contains(&scenario) {
-            return Err(Error::UnknownOption { kind: "zoo scenario", got: scenario.into(), allowed: ZOO_NAMES.join(", ") });
+            return Err(Error::unknown_option("zoo scenario", scenario, ZOO_NAMES.iter().copied()));
         }
         for &seed in seeds {
             out.extend(methods.iter().map(|&method| Cell { scenario, seed, method, start, settings }));

@@ -244,11 +244,11 @@ impl Method {
 
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
-        Self::ALL.iter().copied().find(|m| m.name() == name).ok_or_else(|| Error::UnknownOption {
-            kind: "method",
-            got: name.to_string(),
-            allowed: Self::names_where(|_| true),
-        })
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| Error::unknown_option("method", name, Self::ALL.iter().map(|m| m.name())))
     }
 }
 
@@ -334,11 +334,11 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 
 fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     if input.smooth && !method.smoothable() {
-        return Err(Error::UnknownOption {
-            kind: "smoothing method",
-            got: method.name().into(),
-            allowed: Method::names_where(Method::smoothable),
-        });
+        return Err(Error::unknown_option(
+            "smoothing method",
+            method.name(),
+            Method::ALL.iter().filter(|m| m.smoothable()).map(|m| m.name()),
+        ));
     }
     dispatch(method, input)
 }
@@ -419,6 +419,8 @@ mod tests {
             assert_eq!(Method::parse(name).map(Method::name), Ok(name));
         }
         assert!(matches!(Method::parse("rieks"), Err(Error::UnknownOption { .. })));
+        let e = Method::parse("rekff").unwrap_err().to_string();
+        assert!(e.starts_with("unknown method `rekff` (did you mean `rekf`"), "{e}");
     }
 
     #[test]

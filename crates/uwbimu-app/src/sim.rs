@@ -413,7 +413,7 @@ overrides! {
 }
 
 fn unknown_override(key: &str) -> Error {
-    Error::UnknownOption { kind: "override", got: key.to_string(), allowed: OVERRIDE_KEYS.join(", ") }
+    Error::unknown_option("override", key, OVERRIDE_KEYS.iter().copied())
 }
 
 /// Runs the simulator: validates `cfg`, then synthesises IMU, truth, magnetometer and ranges.

@@ -163,8 +163,19 @@ impl FilterConfig {
         Err(Self::unknown(key))
     }
 
+    /// Checks that `key` is a section key (before its value is read, so that a typo in the key
+    /// is reported rather than the value's type); the error suggests the closest keys.
+    pub fn check_key(key: &str) -> Result<()> {
+        if Self::keys().iter().any(|k| k == key) {
+            Ok(())
+        } else {
+            Err(Self::unknown(key))
+        }
+    }
+
     fn unknown(key: &str) -> Error {
-        Error::UnknownOption { kind: "config", got: key.to_string(), allowed: Self::keys().join(", ") }
+        let keys = Self::keys();
+        Error::unknown_option("config", key, keys.iter().map(String::as_str))
     }
 
     /// Checks every field against the same rules as [`FilterConfig::set`] (for configurations
@@ -269,8 +280,16 @@ impl InitialState {
         "gyro_bias_std",
     ];
 
-    /// Sets one field by name; standard deviations accept a scalar (all axes) or 3 numbers.
+    /// Sets one field by name; standard deviations accept a scalar (all axes) or 3 numbers. A
+    /// rejected value is an [`Error::InvalidInitial`] naming `initial.<key>`.
     pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+        self.set_field(key, value).map_err(|e| match e {
+            Error::InvalidConfig { reason, .. } => Error::InvalidInitial { key: format!("initial.{key}"), reason },
+            other => other,
+        })
+    }
+
+    fn set_field(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
         match key {
             "position" => self.position = vec3(key, value)?,
             "velocity" => self.velocity = vec3(key, value)?,
@@ -282,13 +301,7 @@ impl InitialState {
             "gyro_bias" => self.gyro_bias = vec3(key, value)?,
             "accel_bias_std" => self.accel_bias_std = Some(non_negative(key, value)?),
             "gyro_bias_std" => self.gyro_bias_std = Some(non_negative(key, value)?),
-            _ => {
-                return Err(Error::UnknownOption {
-                    kind: "initial-state key",
-                    got: key.to_string(),
-                    allowed: Self::KEYS.join(", "),
-                })
-            }
+            _ => return Err(Error::unknown_option("initial-state key", key, Self::KEYS)),
         }
         Ok(())
     }
@@ -303,6 +316,20 @@ mod tests {
         let mut c = FilterConfig::default();
         let e = c.set("ranging.range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
         assert!(e.contains("range_sdt") && e.contains("ranging.range_std") && e.contains("ranging.tdoa_std"), "{e}");
+        assert!(e.starts_with("unknown config `ranging.range_sdt` (did you mean `ranging.range_std`?); allowed: "), "{e}");
+        let flat = c.set("range_sdt", &ConfigValue::Scalar(0.1)).unwrap_err().to_string();
+        assert!(flat.starts_with("unknown config `range_sdt` (did you mean `ranging.range_std`?)"), "{flat}");
+    }
+
+    #[test]
+    fn initial_state_errors_name_the_initial_key() {
+        let mut s = InitialState::default();
+        let e = s.set("orientation", &ConfigValue::Vector(vec![0.0; 4])).unwrap_err().to_string();
+        assert!(e.starts_with("initial state `initial.orientation`: ") && e.contains("zero norm"), "{e}");
+        let e = s.set("orientation", &ConfigValue::Vector(vec![1.0, 0.0, 0.0])).unwrap_err().to_string();
+        assert!(e.contains("initial.orientation") && e.contains("expected 4 numbers, got 3"), "{e}");
+        let e = s.set("positon", &ConfigValue::Scalar(1.0)).unwrap_err().to_string();
+        assert!(e.contains("did you mean `position`?"), "{e}");
     }
 
     #[test]

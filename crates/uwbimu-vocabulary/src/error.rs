@@ -43,8 +43,20 @@ pub enum Error {
         got_s: f64,
     },
     /// A range refers to an anchor that does not exist.
-    #[error("{name}: anchor index {anchor} at row {row} is out of range (there are {count} anchors)")]
+    #[error("{name}: anchor index {anchor} at row {row} is out of range (there are {count} anchors: 0..{last})", last = .count.saturating_sub(1))]
     UnknownAnchor {
+        /// Which input.
+        name: &'static str,
+        /// Row index (0-based).
+        row: usize,
+        /// The anchor value as given.
+        anchor: f64,
+        /// Number of anchors.
+        count: usize,
+    },
+    /// An anchor index that is not a whole number.
+    #[error("{name}: the anchor column holds {anchor} at row {row}, not an anchor index (a whole number in 0..{last}, there are {count} anchors)", last = .count.saturating_sub(1))]
+    NonIntegerAnchor {
         /// Which input.
         name: &'static str,
         /// Row index (0-based).
@@ -62,8 +74,17 @@ pub enum Error {
         /// Why it was rejected.
         reason: String,
     },
-    /// An unknown string option (method name, preset, ...).
-    #[error("unknown {kind} `{got}`; allowed: {allowed}")]
+    /// A value of the initial state (`initial=`, the `[initial]` table) out of its domain.
+    #[error("initial state `{key}`: {reason}")]
+    InvalidInitial {
+        /// The key as the user wrote it, e.g. `initial.orientation`.
+        key: String,
+        /// Why it was rejected, naming the value given.
+        reason: String,
+    },
+    /// An unknown string option (method name, config key, preset, ...); build it with
+    /// [`Error::unknown_option`], which finds the suggestions.
+    #[error("unknown {kind} `{got}`{}; allowed: {allowed}", crate::suggest::phrase(.suggestions))]
     UnknownOption {
         /// What kind of option (e.g. `method`).
         kind: &'static str,
@@ -71,6 +92,8 @@ pub enum Error {
         got: String,
         /// Comma-separated list of accepted values.
         allowed: String,
+        /// The accepted values closest to `got` ([`crate::suggest::did_you_mean`]).
+        suggestions: Vec<String>,
     },
     /// Not enough data to do what was asked (e.g. initialise without any UWB epoch).
     #[error("insufficient data: {0}")]
@@ -107,6 +130,16 @@ pub enum Error {
     /// A streaming call out of order (e.g. an update before the first predict).
     #[error("{0}")]
     InvalidCall(String),
+}
+
+impl Error {
+    /// The error for an unknown `kind` of option `got`, listing the `allowed` values and
+    /// suggesting the closest ones.
+    pub fn unknown_option<'a>(kind: &'static str, got: &str, allowed: impl IntoIterator<Item = &'a str> + Clone) -> Self {
+        let suggestions = crate::suggest::did_you_mean(got, allowed.clone()).into_iter().map(String::from).collect();
+        let allowed = allowed.into_iter().collect::<Vec<_>>().join(", ");
+        Self::UnknownOption { kind, got: got.to_string(), allowed, suggestions }
+    }
 }
 
 /// Result with the crate's [`Error`].

@@ -7,4 +7,5 @@ pub mod error;
 pub mod math;
 pub mod records;
 pub mod state;
+pub mod suggest;
 pub mod validate;

@@ -103,13 +103,22 @@ pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasure
             return Err(Error::NonMonotonicTime { name: "ranges", row, prev_s: prev, got_s: r[0] });
         }
         prev = r[0];
-        let a = r[1];
-        if a < 0.0 || a.fract() != 0.0 || a >= anchor_count as f64 {
-            return Err(Error::UnknownAnchor { name: "ranges", row, anchor: a, count: anchor_count });
-        }
-        out.push(RangeMeasurement { t_s: r[0], anchor: a as usize, range_m: r[2] });
+        let anchor = anchor_index("ranges", row, r[1], anchor_count)?;
+        out.push(RangeMeasurement { t_s: r[0], anchor, range_m: r[2] });
     }
     Ok(out)
+}
+
+/// The anchor index `a` at `row` of the table `name`: a whole number in `0..anchor_count`
+/// ([`Error::NonIntegerAnchor`] otherwise, else [`Error::UnknownAnchor`]).
+pub fn anchor_index(name: &'static str, row: usize, a: f64, anchor_count: usize) -> Result<usize> {
+    if a.fract() != 0.0 {
+        return Err(Error::NonIntegerAnchor { name, row, anchor: a, count: anchor_count });
+    }
+    if a < 0.0 || a >= anchor_count as f64 {
+        return Err(Error::UnknownAnchor { name, row, anchor: a, count: anchor_count });
+    }
+    Ok(a as usize)
 }
 
 /// Validates TDoA rows `t, anchor i, anchor j, d_ij`: finite, time non-decreasing, both anchors
@@ -123,15 +132,12 @@ pub fn tdoa(rows: &[[f64; 4]], anchor_count: usize) -> Result<Vec<TdoaMeasuremen
             return Err(Error::NonMonotonicTime { name: "tdoa", row, prev_s: prev, got_s: r[0] });
         }
         prev = r[0];
-        for a in [r[1], r[2]] {
-            if a < 0.0 || a.fract() != 0.0 || a >= anchor_count as f64 {
-                return Err(Error::UnknownAnchor { name: "tdoa", row, anchor: a, count: anchor_count });
-            }
-        }
-        if r[1] == r[2] {
+        let (anchor_i, anchor_j) =
+            (anchor_index("tdoa", row, r[1], anchor_count)?, anchor_index("tdoa", row, r[2], anchor_count)?);
+        if anchor_i == anchor_j {
             return Err(Error::InvalidValue { name: "tdoa", row, value: r[1], reason: "anchor i and anchor j must differ" });
         }
-        out.push(TdoaMeasurement { t_s: r[0], anchor_i: r[1] as usize, anchor_j: r[2] as usize, tdoa_m: r[3] });
+        out.push(TdoaMeasurement { t_s: r[0], anchor_i, anchor_j, tdoa_m: r[3] });
     }
     Ok(out)
 }
@@ -150,7 +156,10 @@ mod tests {
     fn rejects_nan_and_bad_anchor() {
         assert!(matches!(ranges(&[[0.0, 0.0, f64::NAN]], 4), Err(Error::NonFinite { row: 0, col: 2, .. })));
         assert!(matches!(ranges(&[[0.0, 4.0, 1.0]], 4), Err(Error::UnknownAnchor { .. })));
-        assert!(matches!(ranges(&[[0.0, 1.5, 1.0]], 4), Err(Error::UnknownAnchor { .. })));
+        let e = ranges(&[[0.0, 1.0, 1.0], [0.1, 1.5, 1.0]], 4).unwrap_err();
+        assert!(matches!(e, Error::NonIntegerAnchor { row: 1, .. }), "{e}");
+        assert!(e.to_string().contains("anchor column holds 1.5 at row 1"), "{e}");
+        assert!(ranges(&[[0.0, 4.0, 1.0]], 4).unwrap_err().to_string().contains("0..3"));
         assert!(ranges(&[[0.0, 3.0, 1.0], [0.0, 2.0, 1.0]], 4).is_ok());
     }
 }

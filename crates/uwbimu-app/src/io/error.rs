@@ -39,12 +39,22 @@ pub enum IoError {
     },
     /// A topic/field mapping that does not fit the recording (missing topic, a field the schema
     /// does not have, a field of the wrong type).
-    #[error("mapping `{field}`: {reason}")]
+    #[error("`mapping{}{field}`: {reason}", if .field.is_empty() { "" } else { "." })]
     Mapping {
-        /// The mapping entry (e.g. `uwb.range`).
+        /// The mapping entry (e.g. `uwb.range`; empty for the whole mapping).
         field: String,
         /// Why it does not fit.
         reason: String,
+    },
+    /// An error in the file `path` (a replay TOML file): the message names the file, then the
+    /// key.
+    #[error("{path}: {source}")]
+    InFile {
+        /// The file.
+        path: String,
+        /// What is wrong in it.
+        #[source]
+        source: Box<IoError>,
     },
 }
 

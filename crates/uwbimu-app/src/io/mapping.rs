@@ -2,6 +2,8 @@
 //! messages, where anchor positions and ground truth come from, and the time source. Read from
 //! the `[mapping]` table of a replay TOML file, or from a Python dict (as JSON).
 
+mod check;
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -26,7 +28,7 @@ impl TimeSource {
         match s {
             "header" => Ok(Self::Header),
             "log" => Ok(Self::Log),
-            _ => Err(CoreError::UnknownOption { kind: "time source", got: s.into(), allowed: "header, log".into() }.into()),
+            _ => Err(CoreError::unknown_option("time source", s, ["header", "log"]).into()),
         }
     }
 }
@@ -184,16 +186,27 @@ impl Mapping {
     /// `anchors`, `ground_truth`, ...) merges key by key, and every other key keeps its value.
     ///
     /// # Errors
-    /// [`Error::Mapping`] for text that is not a JSON object, unknown keys or wrong types.
+    /// [`Error::Mapping`] for text that is not a JSON object, unknown keys or wrong types, naming
+    /// the key path of the overrides.
     pub fn merged_with_json(&self, overrides: &str) -> Result<Self> {
-        let mapping_error = |e: serde_json::Error| Error::Mapping { field: "mapping".into(), reason: e.to_string() };
-        let overrides: serde_json::Value = serde_json::from_str(overrides).map_err(mapping_error)?;
-        if !overrides.is_object() {
-            return Err(Error::Mapping { field: "mapping".into(), reason: format!("expected a table, got `{overrides}`") });
-        }
-        let mut merged = serde_json::to_value(self).map_err(mapping_error)?;
+        let overrides: serde_json::Value =
+            serde_json::from_str(overrides).map_err(|e| Error::Mapping { field: "mapping".into(), reason: e.to_string() })?;
+        check::check(&overrides)?;
+        let mut merged =
+            serde_json::to_value(self).map_err(|e| Error::Mapping { field: "mapping".into(), reason: e.to_string() })?;
         merge_json(&mut merged, overrides);
-        let m: Self = serde_json::from_value(merged).map_err(mapping_error)?;
+        Self::from_value(merged)
+    }
+
+    /// Reads a mapping from a tree of keys (a parsed JSON text or TOML table), checked key by
+    /// key first so that an error names the key path, what is allowed there and the closest key.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] for unknown keys, wrong types or bad numbers.
+    pub fn from_value(value: serde_json::Value) -> Result<Self> {
+        check::check(&value)?;
+        let m: Self =
+            serde_json::from_value(value).map_err(|e| Error::Mapping { field: String::new(), reason: e.to_string() })?;
         m.validate()
     }
 

@@ -30,18 +30,24 @@ fn config_error(reason: impl Into<String>) -> Error {
     CoreError::InvalidConfig { field: "replay file".into(), reason: reason.into() }.into()
 }
 
-/// A TOML value as a [`ConfigValue`].
-fn config_value(key: &str, v: &toml::Value) -> Result<ConfigValue> {
+/// A TOML value as a [`ConfigValue`]; the error is why it is not one (the caller names the key).
+fn config_value(v: &toml::Value) -> std::result::Result<ConfigValue, String> {
     let number = |x: &toml::Value| x.as_float().or_else(|| x.as_integer().map(|i| i as f64));
+    let wrong = || format!("expected a number, true/false or an array of numbers, got {v}");
     match v {
         toml::Value::Boolean(b) => Ok(ConfigValue::Flag(*b)),
-        toml::Value::Array(items) => items
-            .iter()
-            .map(|x| number(x).ok_or_else(|| config_error(format!("config `{key}`: expected numbers"))))
-            .collect::<Result<Vec<f64>>>()
-            .map(ConfigValue::Vector),
-        other => number(other).map(ConfigValue::Scalar).ok_or_else(|| config_error(format!("config `{key}`: expected a number"))),
+        toml::Value::Array(items) => {
+            items.iter().map(number).collect::<Option<Vec<f64>>>().map(ConfigValue::Vector).ok_or_else(wrong)
+        }
+        other => number(other).map(ConfigValue::Scalar).ok_or_else(wrong),
     }
+}
+
+/// Sets the `[config]` key `key` (`section.field`) from its TOML value.
+fn set_config(config: &mut FilterConfig, key: &str, v: &toml::Value) -> Result<()> {
+    FilterConfig::check_key(key)?;
+    let value = config_value(v).map_err(|reason| CoreError::InvalidConfig { field: key.to_string(), reason })?;
+    Ok(config.set(key, &value)?)
 }
 
 impl ReplayConfig {
@@ -71,11 +77,10 @@ impl ReplayConfig {
                             // A section table `[config.ranging]`: its keys are `ranging.<field>`.
                             Some(section) => {
                                 for (field, fv) in section {
-                                    let key = format!("{k}.{field}");
-                                    out.config.set(&key, &config_value(&key, fv)?)?;
+                                    set_config(&mut out.config, &format!("{k}.{field}"), fv)?;
                                 }
                             }
-                            None => out.config.set(k, &config_value(k, v)?)?,
+                            None => set_config(&mut out.config, k, v)?,
                         }
                     }
                 }
@@ -83,21 +88,20 @@ impl ReplayConfig {
                     let t = value.as_table().ok_or_else(|| config_error("`initial` must be a table"))?;
                     let initial = out.initial.get_or_insert_with(InitialState::default);
                     for (k, v) in t {
-                        initial.set(k, &config_value(k, v)?)?;
+                        let value = config_value(v)
+                            .map_err(|reason| CoreError::InvalidInitial { key: format!("initial.{k}"), reason })?;
+                        initial.set(k, &value)?;
                     }
                 }
                 "mapping" => {
-                    out.mapping = value
-                        .try_into()
-                        .map_err(|e: toml::de::Error| Error::Mapping { field: "mapping".into(), reason: e.to_string() })?;
+                    let tree = serde_json::to_value(value)
+                        .map_err(|e| Error::Mapping { field: String::new(), reason: e.to_string() })?;
+                    out.mapping = Mapping::from_value(tree)?;
                 }
                 other => {
-                    return Err(CoreError::UnknownOption {
-                        kind: "replay file key",
-                        got: other.into(),
-                        allowed: "method, config, initial, mapping".into(),
-                    }
-                    .into())
+                    return Err(
+                        CoreError::unknown_option("replay file key", other, ["method", "config", "initial", "mapping"]).into()
+                    )
                 }
             }
         }
@@ -117,6 +121,7 @@ impl ReplayConfig {
     pub fn read(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display().to_string(), e))?;
         Self::from_toml(&text, path.parent().unwrap_or(Path::new(".")))
+            .map_err(|e| Error::InFile { path: path.display().to_string(), source: Box::new(e) })
     }
 }
 
@@ -142,5 +147,22 @@ mod tests {
         assert_eq!((initial.position.y, initial.position_std.z), (2.0, 0.2));
         assert!(c.initial.is_none());
         assert!(ReplayConfig::from_toml("[initial]\npositon = [1, 2, 3]\n", Path::new(".")).is_err());
+    }
+
+    #[test]
+    fn errors_name_the_file_and_the_key() {
+        let dir = std::env::temp_dir().join(format!("uwbimu-replay-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bad.toml");
+        for (text, expected) in [
+            ("[mapping]\nimu_topc = \"/imu\"\n", "`mapping.imu_topc`: unknown key (did you mean `imu_topic`?)"),
+            ("[config]\nranging.range_std = \"0.2\"\n", "config `ranging.range_std`: expected a number"),
+            ("[initial]\norientation = [0, 0, 0, 0]\n", "initial state `initial.orientation`: quaternion"),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let e = ReplayConfig::read(&path).unwrap_err().to_string();
+            assert!(e.starts_with(&format!("{}: {expected}", path.display())), "{e}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

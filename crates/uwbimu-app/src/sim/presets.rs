@@ -200,6 +200,6 @@ fn square_diagonal(seed: u64, outliers: bool) -> Result<SimConfig> {
 pub fn preset(name: &str, seed: u64) -> Result<SimConfig> {
     match PRESETS.iter().find(|row| name == row.name || name == row.alias) {
         Some(row) => (row.build)(seed),
-        None => Err(Error::UnknownOption { kind: "preset", got: name.to_string(), allowed: PRESET_NAMES.join(", ") }),
+        None => Err(Error::unknown_option("preset", name, PRESET_NAMES.iter().chain(&PRESET_ALIASES).copied())),
     }
 }

@@ -464,7 +464,7 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
                 ..base
             }
         }
-        _ => return Err(Error::UnknownOption { kind: "zoo scenario", got: name.to_string(), allowed: ZOO_NAMES.join(", ") }),
+        _ => return Err(Error::unknown_option("zoo scenario", name, ZOO_NAMES.iter().copied())),
     };
     if sim.imu_noise != ImuNoise::consumer_mems() || sim.uwb.range_std_m != 0.1 {
         default_sensors = false;

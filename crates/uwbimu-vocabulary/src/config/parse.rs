@@ -11,8 +11,8 @@ pub fn scalar(field: &str, v: &ConfigValue) -> Result<f64> {
     match v {
         ConfigValue::Scalar(x) if x.is_finite() => Ok(*x),
         ConfigValue::Scalar(x) => Err(invalid(field, format!("must be finite, got {x}"))),
-        ConfigValue::Vector(_) => Err(invalid(field, "expected a number, got a sequence")),
-        ConfigValue::Flag(_) => Err(invalid(field, "expected a number, got a bool")),
+        ConfigValue::Vector(xs) => Err(invalid(field, format!("expected a number, got a sequence {xs:?}"))),
+        ConfigValue::Flag(b) => Err(invalid(field, format!("expected a number, got {}", py_bool(*b)))),
     }
 }
 
@@ -95,7 +95,17 @@ pub fn bounded_count(field: &str, v: &ConfigValue, lo: usize, hi: usize) -> Resu
 pub fn flag(field: &str, v: &ConfigValue) -> Result<bool> {
     match v {
         ConfigValue::Flag(b) => Ok(*b),
-        _ => Err(invalid(field, "expected True or False")),
+        ConfigValue::Scalar(x) => Err(invalid(field, format!("expected True or False, got {x}"))),
+        ConfigValue::Vector(xs) => Err(invalid(field, format!("expected True or False, got {xs:?}"))),
+    }
+}
+
+/// A bool as Python writes it.
+fn py_bool(b: bool) -> &'static str {
+    if b {
+        "True"
+    } else {
+        "False"
     }
 }
 
@@ -112,8 +122,9 @@ pub fn vector<const N: usize>(field: &str, v: &ConfigValue) -> Result<[f64; N]> 
             }
             Ok(out)
         }
-        ConfigValue::Vector(xs) => Err(invalid(field, format!("expected {N} numbers, got {}", xs.len()))),
-        ConfigValue::Scalar(_) | ConfigValue::Flag(_) => Err(invalid(field, format!("expected {N} numbers, got a single value"))),
+        ConfigValue::Vector(xs) => Err(invalid(field, format!("expected {N} numbers, got {}: {xs:?}", xs.len()))),
+        ConfigValue::Scalar(x) => Err(invalid(field, format!("expected {N} numbers, got a single value {x}"))),
+        ConfigValue::Flag(b) => Err(invalid(field, format!("expected {N} numbers, got {}", py_bool(*b)))),
     }
 }
 
@@ -139,7 +150,7 @@ pub fn vec3_or_scalar(field: &str, v: &ConfigValue) -> Result<Vec3> {
 /// A quaternion `[w, x, y, z]` (normalised; zero norm is an error).
 pub fn quaternion(field: &str, v: &ConfigValue) -> Result<Quat> {
     let a = vector::<4>(field, v)?;
-    quat_from_wxyz(a).ok_or_else(|| invalid(field, "quaternion [w, x, y, z] has zero norm"))
+    quat_from_wxyz(a).ok_or_else(|| invalid(field, format!("quaternion [w, x, y, z] has zero norm, got {a:?}")))
 }
 
 /// Gravity: a magnitude `g` (meaning `[0, 0, −g]`) or a 3-vector, m/s².

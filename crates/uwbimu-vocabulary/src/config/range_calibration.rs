@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 
 use crate::error::{Error, Result};
 use crate::records::RangeMeasurement;
+use crate::validate::invalid;
 
 /// Cubic coefficients `[c0, c1, c2, c3]`, ascending powers of the measured range (m).
 pub type Cubic = [f64; 4];
@@ -28,8 +29,8 @@ impl RangeCalibration {
     /// Builds a calibration from per-anchor coefficients; fails on non-finite coefficients.
     pub fn new(by_anchor: BTreeMap<usize, Cubic>) -> Result<Self> {
         for (anchor, c) in &by_anchor {
-            if let Some(col) = c.iter().position(|v| !v.is_finite()) {
-                return Err(Error::NonFinite { name: "range_calibration coefficients", row: *anchor, col, value: c[col] });
+            if c.iter().any(|v| !v.is_finite()) {
+                return Err(invalid(&format!("range_calibration[{anchor}]"), format!("coefficients must be finite, got {c:?}")));
             }
         }
         Ok(Self { by_anchor })
@@ -55,7 +56,10 @@ impl RangeCalibration {
     /// used far outside the range it was fitted on).
     pub fn apply(&self, ranges: &[RangeMeasurement], anchor_count: usize) -> Result<Vec<RangeMeasurement>> {
         if let Some((&anchor, _)) = self.by_anchor.iter().find(|(a, _)| **a >= anchor_count) {
-            return Err(Error::UnknownAnchor { name: "range_calibration", row: 0, anchor: anchor as f64, count: anchor_count });
+            return Err(invalid(
+                &format!("range_calibration[{anchor}]"),
+                format!("there is no anchor {anchor} (there are {anchor_count} anchors: 0..{})", anchor_count.saturating_sub(1)),
+            ));
         }
         ranges
             .iter()

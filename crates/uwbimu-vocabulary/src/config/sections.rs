@@ -64,7 +64,7 @@ pub trait Section {
 
 fn unknown_field<S: Section>(key: &str) -> Error {
     let allowed: Vec<String> = S::KEYS.iter().map(|k| format!("{}.{k}", S::NAME)).collect();
-    Error::UnknownOption { kind: "config", got: format!("{}.{key}", S::NAME), allowed: allowed.join(", ") }
+    Error::unknown_option("config", &format!("{}.{key}", S::NAME), allowed.iter().map(String::as_str))
 }
 
 /// Declares a section: `Name = "section" { /// doc  field: Type = default, parser; … }`.
