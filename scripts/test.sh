@@ -3,5 +3,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-cargo test --workspace --quiet
+cargo test --workspace --quiet --no-fail-fast
 .venv/bin/python -m pytest -q tests/python
