@@ -109,16 +109,10 @@ def _cell(value: Any) -> str:
 
 
 def _truth_frame(truth: pl.DataFrame | np.ndarray) -> pl.DataFrame:
-    """``truth`` as a frame of ``t, x, y, z`` (float64)."""
-    if isinstance(truth, pl.DataFrame):
-        missing = [c for c in ("t", "x", "y", "z") if c not in truth.columns]
-        if missing:
-            raise ValueError(f"truth: missing columns {missing}; expected t, x, y, z")
-        return truth.select(pl.col("t", "x", "y", "z").cast(pl.Float64))
-    arr = np.asarray(truth, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] < 4:
-        raise ValueError(f"truth: expected shape (N, >=4) with columns t, x, y, z, got {arr.shape}")
-    return pl.DataFrame({name: arr[:, i] for i, name in enumerate(("t", "x", "y", "z"))})
+    """``truth`` as a frame of ``t, x, y, z`` (float64), read and checked as
+    :func:`~uwbimu_rs.metrics.evaluate` reads it (either spelling of :data:`~uwbimu_rs.metrics.TRUTH_COLUMNS`)."""
+    t, xyz = metrics._txyz(truth, "truth")
+    return pl.DataFrame({"t": t, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]})
 
 
 def _check_methods(methods: Sequence[str]) -> list[MethodName]:

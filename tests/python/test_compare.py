@@ -126,3 +126,12 @@ def test_bad_input(short_nlos, methods, kwargs, error, match):
 
 def test_exported():
     assert {"compare", "Comparison", "MethodRun"} <= set(uwbimu_rs.__all__)
+
+
+def test_truth_with_unit_suffixed_columns_scores_the_same(short_nlos):
+    # The truth spellings of metrics.TRUTH_COLUMNS are accepted as by metrics.evaluate.
+    imu, ranges, anchors, truth, config, initial = short_nlos
+    plain = uwbimu_rs.compare(["ekf"], imu, ranges, anchors, truth=truth, config=config, initial=initial)
+    renamed = truth.select("t", "x", "y", "z").rename({"t": "t_s", "x": "x_m", "y": "y_m", "z": "z_m"})
+    suffixed = uwbimu_rs.compare(["ekf"], imu, ranges, anchors, truth=renamed, config=config, initial=initial)
+    assert plain.table.drop("time_s").equals(suffixed.table.drop("time_s"))
