@@ -66,6 +66,7 @@ __all__ = [
     "nees",
     "cdf",
     "interpolate_positions",
+    "chi2_quantile",
     "Trajectory",
     "sim_preset",
     "simulate",
@@ -787,6 +788,10 @@ def cdf(errors: _F64) -> tuple[_F64, _F64]:
     p : ndarray of float64, shape (N,)
         ``i / N`` for the i-th sorted error (1-based).
     """
+
+def chi2_quantile(dof: int, alpha: float) -> float:
+    """The χ² quantile with ``dof`` (≥ 1) degrees of freedom exceeded with probability ``alpha``
+    (0 < alpha < 1): ``chi2_quantile(1, 0.05)`` ≈ 3.841. Raises :class:`ConfigError` otherwise."""
 
 def interpolate_positions(truth_t: _F64, truth_xyz: _F64, t: _F64) -> _F64:
     """Truth positions linearly interpolated at the times ``t``.

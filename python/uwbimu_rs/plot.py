@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 import polars as pl
 
-from uwbimu_rs import metrics
+from uwbimu_rs import _native, metrics
 from uwbimu_rs._compare import Comparison, MethodRun
 
 if TYPE_CHECKING:
@@ -27,11 +27,11 @@ if TYPE_CHECKING:
 
 __all__ = ["biases", "error_cdf", "error_over_time", "nis", "report", "trajectories"]
 
-CHI2_1DOF_95 = 3.841
-"""χ²₁ 95 % quantile (the NIS of one range exceeds it 5 % of the time in a consistent filter)."""
-CHI2_1DOF_99 = 6.635
-"""χ²₁ 99 % quantile. Both hardcoded: scipy is not a dependency and the native layer does not
-export its ``chi2_quantile``."""
+CHI2_1DOF_95: float = _native.chi2_quantile(1, 0.05)
+"""χ²₁ 95 % quantile, 3.841 (the NIS of one range exceeds it 5 % of the time in a consistent filter),
+from the quantile function the robust tests use."""
+CHI2_1DOF_99: float = _native.chi2_quantile(1, 0.01)
+"""χ²₁ 99 % quantile, 6.635."""
 
 INNOVATION_WINDOW = 20
 """Range updates per anchor in the running mean of :func:`biases` without bias states
@@ -318,8 +318,8 @@ def nis(source: Comparison | pl.DataFrame, method: str | None = None) -> Figure:
     rejected = ranges.filter(~pl.col("accepted"))
     if rejected.height:
         ax.scatter(rejected["t"], rejected["nis"].clip(lower_bound=1e-6), s=30, marker="x", color="black", label="rejected", zorder=3)
-    ax.axhline(CHI2_1DOF_95, color="dimgrey", ls="--", lw=1.0, label="χ²₁ 95 % (3.84)")
-    ax.axhline(CHI2_1DOF_99, color="black", ls="--", lw=1.0, label="χ²₁ 99 % (6.63)")
+    ax.axhline(CHI2_1DOF_95, color="dimgrey", ls="--", lw=1.0, label=f"χ²₁ 95 % ({CHI2_1DOF_95:.2f})")
+    ax.axhline(CHI2_1DOF_99, color="black", ls="--", lw=1.0, label=f"χ²₁ 99 % ({CHI2_1DOF_99:.2f})")
     ax.set_yscale("log")
     ax.set_ylabel("NIS γ (dimensionless)")
     nis_values = ranges["nis"].to_numpy()

@@ -368,16 +368,17 @@ fn vec3_arg(call: &'static str, obj: &Bound<'_, PyAny>, name: &'static str) -> P
     }
 }
 
-/// An anchor index argument of the streaming call `call`: a whole number in `0..count` (taken
+/// An anchor index argument of the streaming call `call`: a whole number in `0..count` by the
+/// rule of the batch tables ([`validate::anchor_index`]), reported as the call's argument (taken
 /// as a float, so that `1.5` is reported as not an integer rather than refused by the type).
 fn anchor_arg(call: &'static str, arg: &str, anchor: f64, count: usize) -> PyResult<usize> {
     let last = count.saturating_sub(1);
-    let reason = if anchor.fract() != 0.0 || !anchor.is_finite() {
-        format!("is not a whole number (an anchor index is one of 0..{last}, there are {count} anchors)")
-    } else if anchor < 0.0 || anchor >= count as f64 {
-        format!("is not an anchor index (there are {count} anchors: 0..{last})")
-    } else {
-        return Ok(anchor as usize);
+    let reason = match validate::anchor_index(call, 0, anchor, count) {
+        Ok(index) => return Ok(index),
+        Err(Error::NonIntegerAnchor { .. }) => {
+            format!("is not a whole number (an anchor index is one of 0..{last}, there are {count} anchors)")
+        }
+        Err(_) => format!("is not an anchor index (there are {count} anchors: 0..{last})"),
     };
     Err(Error::BadArgument { call, arg: format!("{arg}={anchor}"), reason }.into())
 }

@@ -1,4 +1,5 @@
-//! Bindings of [`uwbimu_app::metrics`]: `evaluate`, `nees`, `cdf`, `interpolate_positions`.
+//! Bindings of [`uwbimu_app::metrics`]: `evaluate`, `nees`, `cdf`, `interpolate_positions`; and
+//! `chi2_quantile`, the χ² quantile the robust tests use, for plots and reports.
 
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -17,7 +18,16 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(nees, m)?)?;
     m.add_function(wrap_pyfunction!(cdf, m)?)?;
     m.add_function(wrap_pyfunction!(interpolate_positions, m)?)?;
+    m.add_function(wrap_pyfunction!(chi2_quantile, m)?)?;
     Ok(())
+}
+
+/// The χ² quantile with `dof` degrees of freedom exceeded with probability `alpha`
+/// ([`uwbimu_estimation::robust::chi2_quantile`]): the line a consistent filter's NIS crosses
+/// with that probability.
+#[pyfunction]
+fn chi2_quantile(dof: usize, alpha: f64) -> PyResult<f64> {
+    Ok(uwbimu_estimation::robust::chi2_quantile(dof, alpha)?)
 }
 
 /// Copies a float64 array that must be 1-D (e.g. times) into a vector.
