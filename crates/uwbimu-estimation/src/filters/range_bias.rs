@@ -2,7 +2,15 @@
 //! carries its own bias `b_a` and a bias common to all anchors `b_c`,
 //! `r_a = ‖p + R·l − a‖ + b_a + b_c + v`, each a random walk with its own σ
 //! (`range_bias.anchor_walk`, `range_bias.common_walk`, m/√s) from a zero-mean prior
-//! (`anchor_std`, `common_std`).
+//! (`anchor_std`, `common_std`). With `range_bias.anchor_time_constant` τ the anchors' biases are
+//! first-order Gauss–Markov processes instead, `b(t+Δt) = φ·b(t) + w`, `φ = exp(−Δt/τ)`,
+//! `Var w = anchor_std²·(1 − φ²)`: coloured range noise of stationary σ `anchor_std` that forgets
+//! itself in τ — the model of multipath that wanders with the body or the geometry, where a random
+//! walk is the model of a steady bias (τ → ∞).
+//!
+//! **Cost.** The augmented state has [`AUG_DIM`] = 32 dimensions whatever the anchor count, so a
+//! range update costs about four times the 15-state one (docs/performance.md); the Gauss–Markov
+//! decay adds one scaling of the cross-covariance per update.
 //!
 //! **Augmented filter** (the default scheme): the biases join the error state, which becomes
 //! [`AUG_DIM`] = 15 + [`BIAS_SLOTS`] long (δp, δv, δθ, δb_a, δb_g, then the anchors' biases in anchor
@@ -76,14 +84,34 @@ impl RangeBiasStates {
         Ok(Self { config, anchors, estimate: SVector::zeros(), covariance, time_s: None })
     }
 
-    /// Random-walk prediction of the bias covariance to `t_s` (`+ walk²·Δt` on the diagonal).
-    fn predict_to(&mut self, t_s: f64) {
+    /// Prediction of the biases to `t_s`: the anchors' slots as a random walk (`+ walk²·Δt` on the
+    /// diagonal) or, with `anchor_time_constant` τ, as a first-order Gauss–Markov process
+    /// (`b ← φ·b`, `φ = exp(−Δt/τ)`: the estimate, its rows of `cross` and of the bias covariance
+    /// scale by φ, and `anchor_std²·(1 − φ²)` joins the diagonal); the common slot as a random walk.
+    fn predict_to(&mut self, t_s: f64, cross: &mut BiasCross) {
         if let Some(t0) = self.time_s {
             let dt = (t_s - t0).max(0.0);
-            for a in 0..self.anchors {
-                self.covariance[(a, a)] += self.config.anchor_walk.powi(2) * dt;
+            let c = &self.config;
+            let (decay, driven) = match c.anchor_time_constant {
+                Some(tau) => {
+                    let phi = (-dt / tau).exp();
+                    (phi, c.anchor_std.powi(2) * (1.0 - phi * phi))
+                }
+                None => (1.0, c.anchor_walk.powi(2) * dt),
+            };
+            if decay != 1.0 {
+                let mut phi = SVector::<f64, BIAS_SLOTS>::from_element(1.0);
+                phi.rows_mut(0, self.anchors).fill(decay);
+                self.estimate.component_mul_assign(&phi);
+                for (j, f) in phi.iter().enumerate() {
+                    cross.column_mut(j).scale_mut(*f);
+                }
+                self.covariance.component_mul_assign(&(phi * phi.transpose()));
             }
-            self.covariance[(COMMON, COMMON)] += self.config.common_walk.powi(2) * dt;
+            for a in 0..self.anchors {
+                self.covariance[(a, a)] += driven;
+            }
+            self.covariance[(COMMON, COMMON)] += c.common_walk.powi(2) * dt;
         }
         self.time_s = Some(t_s);
     }
@@ -111,7 +139,7 @@ impl RangeBiasStates {
         cross: &mut BiasCross,
         step: impl FnOnce(&mut Cov<AUG_DIM>, &mut SVector<f64, AUG_DIM>, usize) -> Result<R>,
     ) -> Result<R> {
-        self.predict_to(t_s);
+        self.predict_to(t_s, cross);
         let mut joint = Cov::<AUG_DIM>::zeros();
         joint.fixed_view_mut::<ERR_DIM, ERR_DIM>(0, 0).copy_from(p);
         joint.fixed_view_mut::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM).copy_from(cross);

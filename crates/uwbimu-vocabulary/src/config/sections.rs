@@ -331,8 +331,13 @@ section! {
         anchor_std: f64 = 0.1, non_negative;
         /// Initial σ of the common bias, m.
         common_std: f64 = 0.1, non_negative;
-        /// Random walk of each anchor's bias, m/√s.
+        /// Random walk of each anchor's bias, m/√s (when `anchor_time_constant` is unset).
         anchor_walk: f64 = 1e-3, non_negative;
+        /// Time constant τ of each anchor's bias as a first-order Gauss–Markov process, s: between
+        /// ranges it decays by `exp(−Δt/τ)` and gains the driving noise that holds its σ at
+        /// `anchor_std` (coloured range noise: multipath that follows the body or the geometry).
+        /// Unset: a random walk of `anchor_walk` (a steady bias).
+        anchor_time_constant: Option<f64> = None, some_positive;
         /// Random walk of the common bias, m/√s.
         common_walk: f64 = 1e-3, non_negative;
     }
