@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     for method in args.methods:
         try:
             tuned = uwbimu_rs.tune(method, imu, ranges, anchors, smooth=False)["config"]
-        except ValueError:  # uwb_ls, loose and planar filters: no prior innovations to tune by
+        except ValueError:  # uwb_ls: no noise settings to tune
             tuned = None
         cells = []
         for label, config in (("defaults", None), ("tuned", tuned)):

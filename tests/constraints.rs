@@ -178,6 +178,8 @@ fn zoo_forward_rmse(method: uwbimu_rs::app::methods::Method, name: &str, seed: u
     // The outage guard off: it would give `riekf` the zero-velocity constraint in forklift's
     // 5 s outage too (riekf 1.02 → 0.16 m on seed 6), and the comparison is of the compositions.
     config.constraints.outage_zupt = false;
+    // `best`'s composition as declared: its choice of model on the log is tested in tests/select.rs.
+    config.model_selection.enabled = false;
     let input = uwbimu_rs::app::methods::BatchInput { smooth: false, ..common::batch(&data, None, &config) };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
     let errors = common::horizontal_errors(&trace.steps, &data);

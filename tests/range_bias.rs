@@ -89,13 +89,13 @@ fn bias_states_refuse_the_unscented_strategy_and_too_many_anchors() {
 }
 
 #[test]
-fn tuning_by_the_innovation_likelihood_finds_lower_noise_on_a_matched_imu() {
+fn tuning_by_held_out_ranges_finds_lower_noise_on_a_matched_imu() {
     // The zoo's IMU matches a datasheet, far below the library's default process noise.
     let s = sim::zoo("agv_loop", 9).expect("zoo");
     let data = sim::simulate(&s.sim).expect("sim");
     let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
     let input = common::batch(&data, None, &base);
-    let tuned = tune(Method::Riekf, &input, Objective::InnovationLikelihood, 2).expect("tune");
+    let tuned = tune(Method::Riekf, &input, Objective::HeldOutRanges, 2).expect("tune");
     assert!(tuned.score < tuned.initial_score);
     assert_eq!(tuned.trials.len(), 1 + 2 * 3 * 4);
     let before = rmse(&run_method(Method::Riekf, &input).expect("run"), &data);
@@ -108,7 +108,7 @@ fn tuning_by_the_innovation_likelihood_finds_lower_noise_on_a_matched_imu() {
     let tag: Vec<(f64, Vec3)> = data.truth.iter().map(|t| (t.t_s, t.position + t.orientation * s.sim.lever_arm_m)).collect();
     let by_truth = tune(Method::Riekf, &input, Objective::TruthRmse(&tag), 1).expect("tune");
     assert!(by_truth.score <= by_truth.initial_score && by_truth.score < 0.9 * before);
-    assert!(tune(Method::UwbLs, &input, Objective::InnovationLikelihood, 1).is_err());
+    assert!(tune(Method::UwbLs, &input, Objective::HeldOutRanges, 1).is_err());
 }
 
 #[test]

@@ -17,7 +17,7 @@ from importlib.metadata import version as _version
 
 from uwbimu_rs import metrics, plot, ranging, sim
 from uwbimu_rs._batch import crlb, initialize, run_filter, run_filters
-from uwbimu_rs._calibration import calibrate, tune
+from uwbimu_rs._calibration import calibrate, choose_model, tune
 from uwbimu_rs._compare import Comparison, MethodRun, compare
 from uwbimu_rs._native import (
     FILTERS,
@@ -82,6 +82,7 @@ __all__ = [
     "UwbImuError",
     "__version__",
     "calibrate",
+    "choose_model",
     "compare",
     "crlb",
     "initialize",

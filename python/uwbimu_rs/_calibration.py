@@ -1,4 +1,5 @@
-"""Learning from a log: per-anchor range biases, time offset and lever arm, noise settings."""
+"""Learning from a log: per-anchor range biases, time offset and lever arm, noise settings, the
+range-error model."""
 
 from __future__ import annotations
 
@@ -92,11 +93,11 @@ def tune(
     Coordinate search on a log scale over ``ins.accel_noise_density``,
     ``ins.gyro_noise_density`` and ``ranging.range_std`` (``rounds`` passes: factors 1/4 … 4,
     then 0.6 … 1.6), each candidate a whole run, the candidates of a step in parallel on all
-    cores. Without ``truth`` it maximises the likelihood of the innovations at the prior under a
-    Student-t law (ν = 4: an NLOS spike costs only its logarithm, so it does not inflate
-    ``range_std``); with ``truth`` it minimises the
-    horizontal RMSE of the tag track (smoothed when ``smooth``; the first 10 s left out when
-    self-initialised).
+    cores. Without ``truth`` it minimises the held-out range RMS — each anchor's ranges predicted
+    by a run without them, the criterion of :func:`choose_model` — which, unlike the innovation
+    likelihood, does not read range errors correlated in time as precision; with ``truth`` it
+    minimises the horizontal RMSE of the tag track (smoothed when ``smooth``; the first 10 s left
+    out when self-initialised).
 
     Parameters
     ----------
@@ -106,14 +107,15 @@ def tune(
         ``t, x, y, z`` of the tag in the navigation frame [s, m].
     rounds : int
         Passes over the three settings; 0 only scores ``config`` (e.g. to compare two model
-        choices, such as ``range_bias.states``, by their innovation likelihood).
+        choices, such as ``range_bias.states``, by their held-out range RMS). With ``rounds`` > 0
+        ``"best"`` first chooses its model (:func:`choose_model`) and is tuned with it.
 
     Returns
     -------
     dict
         ``config`` (the tuned configuration, nested dict, to pass as ``config=``), ``objective``
-        (``"innovation_likelihood"`` or ``"truth_rmse"``), ``initial_score`` and ``score`` (lower
-        is better: mean negative log-likelihood per range, or RMSE m), ``trials`` (polars
+        (``"held_out_ranges"`` or ``"truth_rmse"``), ``initial_score`` and ``score`` (lower
+        is better: held-out range RMS or RMSE, m), ``trials`` (polars
         DataFrame: the three settings and ``score`` of every candidate).
     """
     out = _native.tune_noise(
@@ -128,4 +130,51 @@ def tune(
         rounds=rounds,
     )
     out["trials"] = pl.DataFrame(out["trials"])
+    return out
+
+
+def choose_model(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """What ``best`` chooses on a log before it runs: the range-error model (white noise, a steady
+    bias per anchor, or a wandering Gauss–Markov one), the NLOS skew and ``range_std``.
+
+    Each candidate runs once per anchor without that anchor's ranges and is scored by how well it
+    predicts them (the held-out range RMS, m, each anchor's residuals centred on their median, the
+    half nearest it kept); a candidate must beat the current choice by 10 %. The same
+    computation ``run_filter("best", ...)`` makes: the returned ``config`` (selection off) given
+    to ``run_filter`` reproduces its run, and the streaming :class:`Best` takes it. Runs over the
+    first ``model_selection.window_s`` of the log (300 s), (6 + 2) candidates × up to 8 folds in
+    parallel. See docs/model-selection.md.
+
+    Parameters
+    ----------
+    method, imu, ranges, anchors, initial, config
+        As for :func:`run_filter`; ``config`` is the first candidate.
+
+    Returns
+    -------
+    dict
+        ``config`` (nested dict of the chosen configuration), ``overrides`` (``{key: value}`` it
+        changes against ``config``), ``chosen`` (label, None when no selection ran), ``reason``
+        (the scores behind it, or why no selection ran: fewer than 5 anchors, no ranges),
+        ``candidates`` (polars DataFrame: ``label``, ``score`` m, ``per_anchor`` list of m).
+
+    Raises
+    ------
+    ValueError
+        As :func:`run_filter`.
+    """
+    out = _native.choose_model(method, imu, ranges, anchors, initial=_as_dict(initial), config=_as_dict(config))
+    rows = out.pop("candidates")
+    out["candidates"] = pl.DataFrame(
+        {"label": [r["label"] for r in rows], "score": [r["score"] for r in rows], "per_anchor": [r["per_anchor"] for r in rows]},
+        schema={"label": pl.String, "score": pl.Float64, "per_anchor": pl.List(pl.Float64)},
+    )
     return out

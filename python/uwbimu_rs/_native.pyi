@@ -62,6 +62,7 @@ __all__ = [
     "METHODS",
     "calibrate_log",
     "tune_noise",
+    "choose_model",
     "evaluate",
     "nees",
     "cdf",
@@ -135,6 +136,9 @@ class _MethodRow(TypedDict):
     """Whether and when :func:`run_filter` RTS-smooths its run."""
     streaming_class: str | None
     """The name of its streaming class in ``uwbimu_rs``, if it has one."""
+    chooses_model: bool
+    """Whether :func:`run_filter` chooses its range-error model, NLOS skew and range noise on the
+    log first (:func:`choose_model`); its streaming class takes the choice as ``config``."""
     summary: str
     """One sentence: what it is and where it comes from."""
 
@@ -279,7 +283,9 @@ class _StreamingFilter:
     older data is counted (``health["late_dropped"]``) and dropped, or refused with
     ``strict=True``. Then the plausibility gate (``gate.*`` config keys): impossible
     measurements are counted in ``health["rejected"]``. Fed a whole log and flushed, a stream
-    equals :func:`run_filter` bit for bit, self-initialisation included.
+    equals :func:`run_filter` bit for bit, self-initialisation included (for ``best``, whose
+    batch run chooses its model on the log first, with the configuration
+    :func:`choose_model` returns: docs/model-selection.md).
 
     Parameters
     ----------
@@ -600,6 +606,19 @@ def calibrate_log(
     ``time_offset``, ``time_offset_std``, ``lever_arm``, ``lever_arm_std``, ``residual_rms``,
     ``config``."""
 
+def choose_model(
+    method: str,
+    imu: ArrayLike,
+    ranges: ArrayLike,
+    anchors: ArrayLike,
+    *,
+    initial: dict[str, Any] | None = None,
+    config: _ConfigArg = None,
+) -> dict[str, Any]:
+    """The range-error model, NLOS skew and range noise ``method`` chooses on a log by
+    leave-anchors-out prediction; the GIL is released. Returns ``config``, ``overrides``,
+    ``chosen``, ``reason``, ``candidates`` (dicts: label, score, per_anchor, overrides)."""
+
 def tune_noise(
     method: str,
     imu: ArrayLike,
@@ -612,7 +631,7 @@ def tune_noise(
     smooth: bool | None = None,
     rounds: int = 2,
 ) -> dict[str, Any]:
-    """Tune the noise settings of ``method`` on a log by the innovation likelihood (or the RMSE
+    """Tune the noise settings of ``method`` on a log by the held-out range RMS (or the RMSE
     against the tag's truth (N, 4)); the GIL is released. Returns ``config``, ``objective``,
     ``initial_score``, ``score``, ``keys``, ``trials`` columns."""
 

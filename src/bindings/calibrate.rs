@@ -1,16 +1,17 @@
 //! Python functions that learn settings from a log: the range-bias calibration
-//! (`uwbimu_app::calibrate`), time offset and lever arm (`uwbimu_app::offsets`) and the noise tuning
-//! (`uwbimu_app::tune`).
+//! (`uwbimu_app::calibrate`), time offset and lever arm (`uwbimu_app::offsets`), the noise tuning
+//! (`uwbimu_app::tune`) and the model selection of `best` (`uwbimu_app::select`).
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::calibrate::{calibrate_with_truth, calibrate_without_truth, BiasCalibration};
 use uwbimu_app::methods::Method;
 use uwbimu_app::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
+use uwbimu_app::select::{choose, ModelChoice};
 use uwbimu_app::tune::{tune, Objective, TUNED_KEYS};
 use uwbimu_vocabulary::math::Vec3;
 
-use super::convert::{array, columns, table};
+use super::convert::{array, columns, config_value_to_py, table};
 use super::errors::PyResult;
 use super::filters::{calibration_dict, config_dict, Log};
 
@@ -101,7 +102,7 @@ fn bias_dict<'py>(py: Python<'py>, result: &BiasCalibration) -> PyResult<Bound<'
     Ok(d)
 }
 
-/// Tunes the noise settings of `method` on a log (`uwbimu_app::tune`): by the innovation likelihood,
+/// Tunes the noise settings of `method` on a log (`uwbimu_app::tune`): by the held-out range RMS,
 /// or by the horizontal RMSE against `truth` (N, 4) = t, x, y, z when given. Returns a dict:
 /// `config` (the tuned configuration as a nested dict), `objective`, `initial_score`, `score`,
 /// `keys` and `trials` columns (one per tuned key, and `score`). The GIL is released; the
@@ -125,11 +126,11 @@ fn tune_noise<'py>(
     let log = Log::read(imu, ranges, anchors, initial, config)?;
     let truth = read_truth(truth)?;
     let input = log.batch(method.smooth(smooth));
-    let objective = truth.as_deref().map_or(Objective::InnovationLikelihood, Objective::TruthRmse);
+    let objective = truth.as_deref().map_or(Objective::HeldOutRanges, Objective::TruthRmse);
     let result = py.detach(|| tune(method, &input, objective, rounds))?;
     let d = PyDict::new(py);
     d.set_item("config", config_dict(py, &result.config)?)?;
-    d.set_item("objective", if truth.is_some() { "truth_rmse" } else { "innovation_likelihood" })?;
+    d.set_item("objective", if truth.is_some() { "truth_rmse" } else { "held_out_ranges" })?;
     d.set_item("initial_score", result.initial_score)?;
     d.set_item("score", result.score)?;
     d.set_item("keys", TUNED_KEYS.to_vec())?;
@@ -140,8 +141,58 @@ fn tune_noise<'py>(
     Ok(d)
 }
 
+/// The model `method` chooses on a log (`uwbimu_app::select::choose`) as a dict: `config` (nested),
+/// `overrides` (`{key: value}` changed against the input), `chosen` (its label), `reason`, and
+/// `candidates` (`label`, `score`, `per_anchor`, `overrides` per candidate, in the order tried).
+/// The GIL is released; the folds run on all cores.
+#[pyfunction]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None))]
+fn choose_model<'py>(
+    py: Python<'py>,
+    method: &str,
+    imu: &Bound<'py, PyAny>,
+    ranges: &Bound<'py, PyAny>,
+    anchors: &Bound<'py, PyAny>,
+    initial: Option<&Bound<'py, PyAny>>,
+    config: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method = Method::parse(method)?;
+    let log = Log::read(imu, ranges, anchors, initial, config)?;
+    let input = log.batch(false);
+    let choice = py.detach(|| choose(method, &input))?;
+    model_choice_dict(py, &choice)
+}
+
+/// A [`ModelChoice`] as the dict of `choose_model` (also in replay summaries).
+pub(super) fn model_choice_dict<'py>(py: Python<'py>, choice: &ModelChoice) -> PyResult<Bound<'py, PyDict>> {
+    let overrides = |pairs: &[(String, uwbimu_vocabulary::config::ConfigValue)]| -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in pairs {
+            d.set_item(k, config_value_to_py(py, v)?)?;
+        }
+        Ok(d)
+    };
+    let d = PyDict::new(py);
+    d.set_item("config", config_dict(py, &choice.config)?)?;
+    d.set_item("overrides", overrides(choice.overrides())?)?;
+    d.set_item("chosen", choice.chosen().map(|c| c.label.clone()))?;
+    d.set_item("reason", &choice.reason)?;
+    let candidates = pyo3::types::PyList::empty(py);
+    for c in &choice.candidates {
+        let row = PyDict::new(py);
+        row.set_item("label", &c.label)?;
+        row.set_item("score", c.score_m)?;
+        row.set_item("per_anchor", c.per_anchor_m.clone())?;
+        row.set_item("overrides", overrides(&c.overrides)?)?;
+        candidates.append(row)?;
+    }
+    d.set_item("candidates", candidates)?;
+    Ok(d)
+}
+
 /// Adds the calibration and tuning functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate_log, m)?)?;
+    m.add_function(wrap_pyfunction!(choose_model, m)?)?;
     Ok(m.add_function(wrap_pyfunction!(tune_noise, m)?)?)
 }

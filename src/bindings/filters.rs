@@ -724,7 +724,7 @@ fn run_filter<'py>(
 fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, updates: bool) -> PyResult<BatchColumns<'py>> {
     let info = PyDict::new(py);
     match output {
-        BatchOutput::Inertial { trace, init, smoothed, warnings } => {
+        BatchOutput::Inertial { trace, init, smoothed, warnings, .. } => {
             super::errors::warn_all(py, &warnings)?;
             info.set_item("ranges_before_start", trace.health.ranges_before_start)?;
             info.set_item("health", health_dict(py, &trace.health)?)?;
@@ -896,8 +896,8 @@ fn posterior_crlb<'py>(
 }
 
 /// The registry as Python sees it: `{name: {"takes": [...], "smoothing": "never" | "on_request" |
-/// "by_default", "streaming_class": str | None, "summary": str}}`, in registry order (the summary
-/// is the first sentence of the row's doc).
+/// "by_default", "streaming_class": str | None, "chooses_model": bool, "summary": str}}`, in
+/// registry order (the summary is the first sentence of the row's doc).
 fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let table = PyDict::new(py);
     for method in Method::ALL {
@@ -906,6 +906,7 @@ fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         row.set_item("takes", info.takes.iter().map(|i| i.name()).collect::<Vec<_>>())?;
         row.set_item("smoothing", info.smoothing.name())?;
         row.set_item("streaming_class", info.streaming_class)?;
+        row.set_item("chooses_model", method.chooses_its_model())?;
         row.set_item("summary", method.summary())?;
         table.set_item(info.name, row)?;
     }

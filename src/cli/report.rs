@@ -138,6 +138,9 @@ fn stats_lines(
             writeln!(out, "numerical repairs: {} (each skipped its measurement)", h.numerical_repairs)?;
         }
     }
+    if let Some(m) = &summary.model {
+        writeln!(out, "model: {}", m.reason)?;
+    }
     match summary.mean_nis {
         Some(n) => writeln!(out, "mean NIS: {n:.3} (1 for a consistent filter)")?,
         None => writeln!(out, "mean NIS: -")?,

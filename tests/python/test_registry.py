@@ -23,9 +23,10 @@ def test_filters_are_the_registry_rows_in_order() -> None:
     assert uwbimu_rs.FILTERS == list(uwbimu_rs.METHODS)
     assert len(set(uwbimu_rs.FILTERS)) == len(uwbimu_rs.FILTERS)
     for name, row in uwbimu_rs.METHODS.items():
-        assert set(row) == {"takes", "smoothing", "streaming_class", "summary"}, name
+        assert set(row) == {"takes", "smoothing", "streaming_class", "chooses_model", "summary"}, name
         assert "ranges" in row["takes"] and row["smoothing"] in {"never", "on_request", "by_default"}
         assert row["summary"].endswith("."), row["summary"]
+    assert [m for m, row in uwbimu_rs.METHODS.items() if row["chooses_model"]] == ["best"]
 
 
 def test_stub_method_names_are_the_registry() -> None:

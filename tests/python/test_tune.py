@@ -15,16 +15,21 @@ def _rmse(df: pl.DataFrame, run) -> float:
     return metrics.evaluate(df, run.truth).horizontal.rmse
 
 
-def test_tune_by_likelihood_returns_a_config_that_helps():
+def test_tune_by_held_out_ranges_returns_a_config_that_helps():
     run = sim.zoo("handheld_walk", seed=8)
     base = {"mounting": run.config["mounting"]}
     out = uwbimu_rs.tune("riekf", run.imu, run.ranges, run.anchors, config=base)
-    assert out["objective"] == "innovation_likelihood" and out["score"] < out["initial_score"]
+    assert out["objective"] == "held_out_ranges" and out["score"] < out["initial_score"]
     assert out["trials"].columns == [*out["keys"], "score"] and out["trials"].height == 25
     before = _rmse(uwbimu_rs.run_filter("riekf", run.imu, run.ranges, run.anchors, config=base), run)
     after = _rmse(uwbimu_rs.run_filter("riekf", run.imu, run.ranges, run.anchors, config=out["config"]), run)
-    # Measured on other seeds while building: handheld_walk seed 5 0.049 → 0.042 m.
-    assert after < 0.95 * before, (before, after)
+    # Measured: handheld_walk seeds 5, 8, 11, 14: 0.049 → 0.032, 0.044 → 0.037, 0.051 → 0.026,
+    # 0.047 → 0.027 m (the zoo's IMU is far better than the default process noise says).
+    assert after < 0.9 * before, (before, after)
+    # Without truth the score holds anchors out, so it needs five (each fold leaves four).
+    few = run.ranges[run.ranges[:, 1] < 4]
+    with pytest.raises(ValueError, match="5 anchors"):
+        uwbimu_rs.tune("riekf", run.imu, few, run.anchors[:4], config=base)
     with pytest.raises(ValueError, match="uwb_ls"):
         uwbimu_rs.tune("uwb_ls", run.imu, run.ranges, run.anchors)
 
@@ -51,22 +56,48 @@ def test_best_is_the_smoothed_riekf_composition_and_bias_states_report():
     assert plain["bias"].is_nan().all()
 
 
-def test_the_innovation_likelihood_tells_whether_bias_states_pay():
-    # rounds=0 scores the given configuration only. Constant per-anchor biases like a rig whose
-    # ranges are all short (−0.13 m + U(−0.18, 0.16) m): bias states lower the mean negative
-    # log-likelihood by 0.24–0.43 (measured on seeds 3–4 of drone_flight and handheld_walk);
-    # without biases they cost 0.001–0.004.
+def _biased_drone():
+    # Constant per-anchor biases like a rig whose ranges are all short (−0.13 m + U(−0.18, 0.16) m).
     run = sim.zoo("drone_flight", seed=5)
     biases = -0.13 + np.random.default_rng(105).uniform(-0.18, 0.16, len(run.anchors))
     biased = run.ranges.copy()
     biased[:, 2] += biases[biased[:, 1].astype(int)]
-    cfg = {"mounting": run.config["mounting"]}
+    return run, biased, {"mounting": run.config["mounting"]}
+
+
+def test_the_held_out_range_score_tells_whether_bias_states_pay():
+    # rounds=0 scores the given configuration only. Measured: with steady biases 0.110 → 0.082 m
+    # with bias states; without biases (seed 6) within 0.0002 m.
+    run, biased, cfg = _biased_drone()
     on = {**cfg, "range_bias": {"states": True}}
 
-    def nll(ranges, config):
+    def score(ranges, config):
         out = uwbimu_rs.tune("best", run.imu, ranges, run.anchors, config=config, rounds=0)
         assert out["score"] == out["initial_score"] and out["trials"].height == 1
         return out["score"]
 
-    assert nll(biased, cfg) - nll(biased, on) > 0.15
-    assert abs(nll(run.ranges, cfg) - nll(run.ranges, on)) < 0.01
+    assert score(biased, on) < 0.8 * score(biased, cfg)
+    assert abs(score(run.ranges, cfg) - score(run.ranges, on)) < 0.005
+
+
+def test_best_chooses_bias_states_where_they_pay_and_says_why():
+    run, biased, cfg = _biased_drone()
+    choice = uwbimu_rs.choose_model("best", run.imu, biased, run.anchors, config=cfg)
+    assert choice["chosen"].startswith("steady bias"), choice["reason"]
+    assert choice["config"]["range_bias"]["states"] is True
+    scores = choice["candidates"]
+    assert scores["label"][0] == "as configured" and scores.height == 8
+    chosen = scores.filter(pl.col("label") == choice["chosen"])["score"][0]
+    assert f"{chosen:.4f}" in choice["reason"]
+    plain = {**cfg, "model_selection": {"enabled": False}}
+    # Measured: forward 0.072 → 0.025 m, smoothed 0.068 → 0.012 m.
+    before = _rmse(uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=plain, smooth=False), run)
+    after = _rmse(uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=cfg, smooth=False), run)
+    assert after < 0.5 * before, (before, after)
+    # Without biases nothing pays: it stays the plain filter.
+    clean = uwbimu_rs.choose_model("best", run.imu, run.ranges, run.anchors, config=cfg)
+    assert not clean["config"]["range_bias"]["states"], clean["reason"]
+    # With four anchors each fold would leave three: it says so and keeps the configuration.
+    few = run.ranges[run.ranges[:, 1] < 4]
+    none = uwbimu_rs.choose_model("best", run.imu, few, run.anchors[:4], config=cfg)
+    assert none["chosen"] is None and "4 anchors" in none["reason"] and none["candidates"].height == 0

@@ -11,6 +11,10 @@
 //! - the time inside range outages (gaps of more than [`OUTAGE_GAP_S`] without any range), where
 //!   `uwb_ls` has no output; the error reached there is reported separately
 //!   ([`CellResult::outage_max_error_m`]).
+//!
+//! With matched or default settings the model selection ([`crate::select`]) is off: the matrix
+//! measures the compositions themselves (a selecting method would run each cell 8·F + 1 times);
+//! the selection is checked on its own rigs (tests/select.rs, docs/model-selection.md).
 
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::{Error, Result};
@@ -155,11 +159,14 @@ fn rms(v: &[f64]) -> f64 {
 pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
     let scenario: Scenario = zoo(cell.scenario, cell.seed)?;
     let data = simulate(&scenario.sim)?;
-    let config = match cell.settings {
+    let mut config = match cell.settings {
         Settings::Matched => scenario.config.clone(),
         Settings::Defaults => FilterConfig { mounting: scenario.config.mounting, ..FilterConfig::default() },
         Settings::Custom(c) => c.clone(),
     };
+    if !matches!(cell.settings, Settings::Custom(_)) {
+        config.model_selection.enabled = false;
+    }
     let initial = scenario.true_initial(&data)?;
     let input = BatchInput {
         imu: &data.imu,

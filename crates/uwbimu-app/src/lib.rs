@@ -15,6 +15,7 @@ pub mod offsets;
 pub mod parallel;
 #[cfg(feature = "io")]
 pub mod replay;
+pub mod select;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod tune;

@@ -12,6 +12,8 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
 
+use crate::select::ModelChoice;
+
 /// What a method takes besides IMU samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Input {
@@ -189,7 +191,9 @@ methods! {$
     ///
     /// RIEKF with its range test skewed against long ranges and the zero-velocity constraint while
     /// still ([`uwbimu_estimation::filters::Best`]), re-acquisition on divergence and
-    /// self-initialisation when no initial state is given.
+    /// self-initialisation when no initial state is given. Before it runs it chooses its
+    /// range-error model, NLOS skew and range noise on the log by held-out anchors
+    /// ([`crate::select`]).
     Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa], smoothing: ByDefault },
 }
 
@@ -224,6 +228,12 @@ impl Method {
     /// Whether to smooth: as `asked`, else the method's default ([`Method::smooths_by_default`]).
     pub fn smooth(self, asked: Option<bool>) -> bool {
         asked.unwrap_or(self.smooths_by_default())
+    }
+
+    /// Whether the batch method chooses its range-error model, NLOS skew and range noise on the
+    /// log ([`crate::select`]): `best`.
+    pub fn chooses_its_model(self) -> bool {
+        matches!(self, Self::Best)
     }
 
     /// Whether the method takes `input`.
@@ -269,6 +279,9 @@ pub enum BatchOutput {
         smoothed: Option<Vec<StepRecord>>,
         /// What the unit check of the IMU found suspicious ([`check_imu_units`]).
         warnings: Vec<String>,
+        /// The model the method chose on the log ([`crate::select`]; `best` with
+        /// `model_selection.enabled`), None for the others.
+        model: Option<Box<ModelChoice>>,
     },
     /// One UWB-only fix per solvable epoch: (epoch time s, fix).
     Multilateration(Vec<(f64, Fix)>),
@@ -332,7 +345,11 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
     run_calibrated(method, input)
 }
 
-fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+/// Runs `method` on measurements already calibrated; a method that chooses its model
+/// ([`Method::chooses_its_model`]) first chooses it ([`crate::select::choose`]) unless
+/// `model_selection.enabled` is off, and runs with the choice (with the input configuration when
+/// the selection fails, saying why in the reported choice).
+pub(crate) fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     if input.smooth && !method.smoothable() {
         return Err(Error::unknown_option(
             "smoothing method",
@@ -340,7 +357,21 @@ fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
             Method::ALL.iter().filter(|m| m.smoothable()).map(|m| m.name()),
         ));
     }
-    dispatch(method, input)
+    if !(method.chooses_its_model() && input.config.model_selection.enabled) {
+        return dispatch(method, input);
+    }
+    // A log the selection cannot score (no self-initialisation in its window, a failing fold)
+    // runs with the input configuration: choosing never costs a run.
+    let choice = crate::select::choose(method, input).unwrap_or_else(|e| {
+        let mut config = input.config.clone();
+        config.model_selection.enabled = false;
+        ModelChoice { config, candidates: Vec::new(), chosen: 0, reason: format!("no selection: {e}") }
+    });
+    let mut output = dispatch(method, &BatchInput { config: &choice.config, ..*input })?;
+    if let BatchOutput::Inertial { model, .. } = &mut output {
+        *model = Some(Box::new(choice));
+    }
+    Ok(output)
 }
 
 /// Runs `method` over many recordings, in parallel on all cores with the `parallel` feature
@@ -382,7 +413,7 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let (initial, init) = initial_state(input)?;
     let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
     let trace = run_streams(&mut filter, &Streams { mag: &[], tdoa: &[], ..input.streams() })?;
-    Ok(BatchOutput::Inertial { trace, init, smoothed: None, warnings })
+    Ok(BatchOutput::Inertial { trace, init, smoothed: None, warnings, model: None })
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
@@ -406,7 +437,7 @@ fn run_inertial<F: InertialFilter>(
     } else {
         None
     };
-    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings })
+    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use serde::Serialize;
 use uwbimu_estimation::pipeline::Progress;
 
 use crate::io::IoResult as Result;
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::PosePoint;
@@ -14,6 +14,7 @@ use uwbimu_vocabulary::records::PosePoint;
 use crate::io::Recording;
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::{evaluate, Evaluation};
+use crate::select::ModelChoice;
 
 /// What the filter did with one anchor's ranges (or with the TDoA).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -91,6 +92,10 @@ impl Replay {
             anchors: self.anchors.clone(),
             tdoa: self.tdoa.clone(),
             mean_nis: self.mean_nis,
+            model: match &self.output {
+                BatchOutput::Inertial { model: Some(m), .. } => Some(ModelSummary::of(m)),
+                _ => None,
+            },
             rmse,
         })
     }
@@ -121,9 +126,38 @@ pub struct ReplaySummary {
     pub tdoa: Option<AnchorUpdateStats>,
     /// Mean NIS of the applied ranges and TDoA (None when there were none).
     pub mean_nis: Option<f64>,
+    /// What the method chose on the log ([`crate::select`]; `best` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<ModelSummary>,
     /// The errors against ground truth (only with ground truth; its keys sit at the top level).
     #[serde(flatten)]
     pub rmse: Option<TruthRmse>,
+}
+
+/// A model choice ([`crate::select::ModelChoice`]) as a replay reports it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelSummary {
+    /// The chosen candidate's label (None when no selection ran).
+    pub chosen: Option<String>,
+    /// The scores behind the choice, or why no selection ran.
+    pub reason: String,
+    /// The settings it changed, as `key = value`.
+    pub overrides: Vec<String>,
+}
+
+impl ModelSummary {
+    fn of(choice: &ModelChoice) -> Self {
+        let value = |v: &ConfigValue| match v {
+            ConfigValue::Scalar(x) => x.to_string(),
+            ConfigValue::Flag(b) => b.to_string(),
+            ConfigValue::Vector(xs) => format!("{xs:?}"),
+        };
+        Self {
+            chosen: choice.chosen().map(|c| c.label.clone()),
+            reason: choice.reason.clone(),
+            overrides: choice.overrides().iter().map(|(k, v)| format!("{k} = {}", value(v))).collect(),
+        }
+    }
 }
 
 /// Root-mean-square errors of a trajectory against ground truth ([`compare_with_truth`]), m.

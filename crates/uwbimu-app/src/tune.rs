@@ -2,14 +2,10 @@
 //! search over [`TUNED_KEYS`] on a log scale, each candidate a whole run of the method, the
 //! candidates of one step run in parallel on all cores.
 //!
-//! **Without ground truth** the score is the mean negative log-likelihood of the innovations at
-//! the prior under a Student-t law with [`LIKELIHOOD_DOF`] degrees of freedom and scale `S_k`,
-//! `mean[½·ln S_k + (ν+1)/2 · ln(1 + γ_k/ν)]` (`γ_k = ε_k²/S_k`, `ε_k` the innovation of range `k`
-//! at the prior, `S_k = H·P⁻·Hᵀ + R` before any robust inflation; constants dropped). Maximising
-//! the innovation likelihood is the classical maximum-likelihood noise identification (prediction
-//! error decomposition of a Kalman filter's likelihood); the heavy tail makes an outlier cost
-//! only logarithmically, so NLOS spikes do not drive `range_std` up to cover them (a Huber loss,
-//! linear beyond 3 σ, did on the zoo's outlier scenario: docs/design-notes.md#tuning-likelihood).
+//! **Without ground truth** the score is the held-out range RMS of [`crate::select`]: each
+//! anchor's ranges predicted by a run without them (the criterion with which `best` chooses its
+//! model). The innovation likelihood this search used before reads correlated range errors as
+//! precision: on isas-walk1 it picked `range_std` 0.075 m (docs/model-selection.md).
 //!
 //! **With ground truth** (`(t, tag position)`) the score is the horizontal RMSE of the tag track
 //! (smoothed when the input asks for smoothing), leaving out the first [`SETTLE_S`] when the filter
@@ -22,6 +18,7 @@ use uwbimu_vocabulary::math::Vec3;
 
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::evaluate;
+use crate::select::{choose, held_out_score};
 
 /// Reads one tuned setting from a configuration.
 type Read = fn(&FilterConfig) -> f64;
@@ -39,17 +36,14 @@ pub const TUNED_KEYS: [&str; 3] = [TUNED[0].0, TUNED[1].0, TUNED[2].0];
 /// Factors tried around the current value of one setting, per round (coarse, then fine).
 const ROUND_FACTORS: [[f64; 4]; 2] = [[0.25, 0.5, 2.0, 4.0], [0.6, 0.8, 1.25, 1.6]];
 
-/// Degrees of freedom of the Student-t innovation likelihood.
-pub const LIKELIHOOD_DOF: f64 = 4.0;
-
 /// Time left out at the start of a self-initialised run when scoring against truth, s.
 pub const SETTLE_S: f64 = 10.0;
 
 /// What the search minimises.
 #[derive(Debug, Clone, Copy)]
 pub enum Objective<'a> {
-    /// Negative Student-t log-likelihood of the prior innovations (no ground truth).
-    InnovationLikelihood,
+    /// Held-out range RMS ([`crate::select::held_out_score`], no ground truth).
+    HeldOutRanges,
     /// Horizontal RMSE against the tag's true track `(t s, position m)`, time-ordered.
     TruthRmse(&'a [(f64, Vec3)]),
 }
@@ -90,19 +84,29 @@ fn with_values(base: &FilterConfig, values: [f64; 3]) -> Result<FilterConfig> {
 
 /// Tunes `method` on `input` (module doc): `rounds` passes over [`TUNED_KEYS`] (the first coarse,
 /// the rest fine), each key's candidates evaluated in parallel; a candidate replaces the current
-/// values only when it scores lower.
+/// values only when it scores lower. A method that chooses its model (`best`) chooses it first
+/// ([`choose`]) and is tuned with that model (its score is then the `initial_score`); the
+/// returned configuration has it written out and `model_selection.enabled` off. With `rounds` 0
+/// the input configuration is scored as given.
 pub fn tune(method: Method, input: &BatchInput<'_>, objective: Objective<'_>, rounds: usize) -> Result<Tuning> {
     if matches!(method, Method::UwbLs) {
         return Err(Error::InvalidCall("uwb_ls has no noise settings to tune; choose an inertial method".into()));
     }
+    let chosen;
+    let input = &if rounds > 0 && method.chooses_its_model() && input.config.model_selection.enabled {
+        let mut config = choose(method, input)?.config;
+        config.model_selection.enabled = false;
+        chosen = config;
+        BatchInput { config: &chosen, ..*input }
+    } else {
+        *input
+    };
     let mut current = values_of(input.config);
     let initial_score = score(method, input, input.config, objective)?;
     if !initial_score.is_finite() {
         return Err(Error::InvalidCall(format!(
-            "{} reports no prior innovations with the input configuration (the likelihood needs a tightly coupled \
-             filter: {}); pass truth to tune it by RMSE",
-            method.name(),
-            Method::names_where(Method::takes_tdoa)
+            "{} failed with the input configuration, so there is nothing to tune from",
+            method.name()
         )));
     }
     let mut best = initial_score;
@@ -136,38 +140,25 @@ fn score_all(method: Method, input: &BatchInput<'_>, configs: &[FilterConfig], o
     crate::parallel::map_all(configs, |c| score(method, input, c, objective).unwrap_or(f64::INFINITY))
 }
 
-/// The score of one configuration (module doc); NaN results count as +∞.
+/// The score of one configuration (module doc); NaN results count as +∞. A method that chooses
+/// its model runs with the model of `config` (its choice is made once, in [`tune`]).
 fn score(method: Method, input: &BatchInput<'_>, config: &FilterConfig, objective: Objective<'_>) -> Result<f64> {
-    let smooth = input.smooth && matches!(objective, Objective::TruthRmse(_));
-    let BatchOutput::Inertial { trace, smoothed, init, .. } = run_method(method, &BatchInput { config, smooth, ..*input })?
-    else {
-        return Err(Error::InvalidCall(format!("{} has no noise settings to tune", method.name())));
-    };
+    let mut config = config.clone();
+    config.model_selection.enabled = false;
     let s = match objective {
-        Objective::InnovationLikelihood => innovation_nll(trace.updates.iter().filter_map(|u| u.report.prior)),
+        Objective::HeldOutRanges => held_out_score(method, input, &config)?,
         Objective::TruthRmse(truth) => {
+            let BatchOutput::Inertial { trace, smoothed, init, .. } =
+                run_method(method, &BatchInput { config: &config, ..*input })?
+            else {
+                return Err(Error::InvalidCall(format!("{} has no noise settings to tune", method.name())));
+            };
             let steps = smoothed.as_deref().unwrap_or(&trace.steps);
             let from = steps.first().map_or(0.0, |s| s.t_s) + if init.is_some() { SETTLE_S } else { 0.0 };
             truth_rmse(steps, truth, &config.mounting.lever_arm, from)
         }
     };
     Ok(if s.is_finite() { s } else { f64::INFINITY })
-}
-
-/// `mean[½·ln S + (ν+1)/2 · ln(1 + γ/ν)]` over the `(ε, S)` pairs with a finite, positive `S`
-/// (module doc; NaN when there are none).
-pub fn innovation_nll(pairs: impl Iterator<Item = (f64, f64)>) -> f64 {
-    let nu = LIKELIHOOD_DOF;
-    let (mut sum, mut n) = (0.0, 0usize);
-    for (e, s) in pairs.filter(|(e, s)| e.is_finite() && s.is_finite() && *s > 0.0) {
-        sum += 0.5 * s.ln() + 0.5 * (nu + 1.0) * (e * e / s / nu).ln_1p();
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        sum / n as f64
-    }
 }
 
 /// Horizontal RMSE of the tag track (body position + R·lever arm) against `truth`
@@ -177,24 +168,4 @@ fn truth_rmse(steps: &[StepRecord], truth: &[(f64, Vec3)], lever_arm: &Vec3, fro
     let (est_t, est_p): (Vec<f64>, Vec<Vec3>) = kept.map(|s| (s.t_s, s.state.position + s.state.orientation * lever_arm)).unzip();
     let (truth_t, truth_p): (Vec<f64>, Vec<Vec3>) = truth.iter().copied().unzip();
     evaluate(&est_t, &est_p, &truth_t, &truth_p, false).map_or(f64::NAN, |e| e.horizontal.rmse)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_likelihood_is_student_t_and_an_outlier_costs_only_its_logarithm() {
-        let s: f64 = 0.04;
-        // γ = 1: ½ ln S + 5/2 ln(1 + 1/4).
-        let one = innovation_nll([(0.2, s)].into_iter());
-        assert!((one - (0.5 * s.ln() + 2.5 * 1.25f64.ln())).abs() < 1e-12);
-        // A 10 σ outlier (γ = 100) costs 2.5 ln 26 ≈ 8.1 over ½ ln S, not the Gaussian 50.
-        let far = innovation_nll([(2.0, s)].into_iter()) - 0.5 * s.ln();
-        assert!((far - 2.5 * 26f64.ln()).abs() < 1e-12 && far < 10.0);
-        // The likelihood prefers the right scale: for unit residuals, S = 1 beats S = 0.25 and 4.
-        let at = |s: f64| innovation_nll([(1.0, s), (-1.0, s)].into_iter());
-        assert!(at(1.0) < at(0.25) && at(1.0) < at(4.0));
-        assert!(innovation_nll([(f64::NAN, s), (0.1, 0.0)].into_iter()).is_nan());
-    }
 }

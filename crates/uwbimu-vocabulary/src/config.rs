@@ -19,8 +19,8 @@ use crate::math::{Quat, Vec3};
 
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
 pub use sections::{
-    check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig, MountingConfig,
-    PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, UnscentedConfig,
+    check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig, ModelSelectionConfig,
+    MountingConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, UnscentedConfig,
     DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M,
     MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
@@ -57,6 +57,8 @@ pub struct FilterConfig {
     pub adaptive: AdaptiveConfig,
     /// Range bias states.
     pub range_bias: RangeBiasConfig,
+    /// What `best` chooses on the log.
+    pub model_selection: ModelSelectionConfig,
     /// Sage–Husa estimator settings (Liu et al. 2019 eqs. (26)–(36)); the method chooses the variant.
     pub sage_husa: SageHusaSection,
     /// Unscented transform.
@@ -92,6 +94,7 @@ macro_rules! for_each_section {
             { let $s = $($r)+ c.constraints; $body },
             { let $s = $($r)+ c.adaptive; $body },
             { let $s = $($r)+ c.range_bias; $body },
+            { let $s = $($r)+ c.model_selection; $body },
             { let $s = $($r)+ c.sage_husa; $body },
             { let $s = $($r)+ c.unscented; $body },
             { let $s = $($r)+ c.planar; $body },

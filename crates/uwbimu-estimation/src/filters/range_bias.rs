@@ -165,3 +165,44 @@ impl RangeBiasStates {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_gauss_markov_bias_decays_and_keeps_its_stationary_sigma() {
+        let config = RangeBiasConfig { states: true, anchor_std: 0.1, anchor_time_constant: Some(2.0), ..Default::default() };
+        let mut b = RangeBiasStates::new(config, 3).expect("states");
+        let mut cross = BiasCross::zeros();
+        cross[(0, 1)] = 0.02;
+        cross[(0, COMMON)] = 0.03;
+        b.predict_to(0.0, &mut cross);
+        b.estimate[1] = 0.2;
+        b.covariance[(1, 2)] = 0.004;
+        b.covariance[(2, 1)] = 0.004;
+        b.predict_to(0.5, &mut cross);
+        let phi = (-0.5f64 / 2.0).exp();
+        // b ← φ·b; the stationary variance σ² stays σ²: φ²·σ² + σ²·(1 − φ²).
+        assert!((b.estimate[1] - 0.2 * phi).abs() < 1e-15);
+        assert!((b.covariance[(1, 1)] - 0.01).abs() < 1e-15);
+        assert!((b.covariance[(1, 2)] - 0.004 * phi * phi).abs() < 1e-15);
+        assert!((cross[(0, 1)] - 0.02 * phi).abs() < 1e-15);
+        // The common bias stays a random walk: no decay, + walk²·Δt.
+        assert_eq!(cross[(0, COMMON)], 0.03);
+        assert!((b.covariance[(COMMON, COMMON)] - (0.01 + 1e-6 * 0.5)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn without_a_time_constant_the_anchor_bias_is_a_random_walk() {
+        let config = RangeBiasConfig { states: true, anchor_std: 0.1, anchor_walk: 0.01, ..Default::default() };
+        let mut b = RangeBiasStates::new(config, 2).expect("states");
+        let mut cross = BiasCross::zeros();
+        cross[(3, 0)] = 0.05;
+        b.predict_to(1.0, &mut cross);
+        b.estimate[0] = 0.2;
+        b.predict_to(5.0, &mut cross);
+        assert_eq!((b.estimate[0], cross[(3, 0)]), (0.2, 0.05));
+        assert!((b.covariance[(0, 0)] - (0.01 + 1e-4 * 4.0)).abs() < 1e-15);
+    }
+}

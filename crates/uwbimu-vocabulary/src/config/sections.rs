@@ -344,6 +344,18 @@ section! {
 }
 
 section! {
+    /// What the batch `best` chooses on the log itself (`uwbimu_app::select`): the range-error
+    /// model, the NLOS skew and the range noise, by leave-anchors-out prediction. Other methods
+    /// and the streaming filters ignore it.
+    ModelSelectionConfig = "model_selection" {
+        /// Choose (off: run the configuration as given).
+        enabled: bool = true, flag;
+        /// The candidates see the first `window_s` of the log, s.
+        window_s: f64 = 300.0, positive;
+    }
+}
+
+section! {
     /// The unscented transform (Wang et al. 2018 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented
     /// composition.
     UnscentedConfig = "unscented" {

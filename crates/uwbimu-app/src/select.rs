@@ -1,0 +1,397 @@
+//! Model selection on the log itself (ours): which range-error model, NLOS skew and range noise a
+//! method runs with, chosen without ground truth by how well each candidate predicts ranges it
+//! was not given.
+//!
+//! **The criterion: leave-anchors-out prediction.** The anchors are dealt into
+//! `min(K, `[`MAX_FOLDS`]`)` folds (anchor `k` into fold `k mod F`). For each fold the candidate
+//! runs over the log without that fold's ranges; each held-out range `r` is then compared with the
+//! range the run predicts at its time, `e = r − ‖p_tag(t) − a‖` (`p_tag` the body position
+//! interpolated between IMU steps plus `R·lever arm`, from the forward pass even when the output
+//! is smoothed: on isas-walk1 the smoothed track's prediction preferred a `range_std` twice the
+//! one the truth prefers, the forward one did not — docs/model-selection.md). Per held-out
+//! anchor the residuals are centred on their median — a steady bias of the held-out anchor, which
+//! no candidate can know, is left out, as a rigid alignment leaves out a constant offset — and
+//! only the half of them nearest the median is kept ([`TRIM`]): NLOS on the held-out anchor is the
+//! same for every candidate, and a candidate whose track is pulled towards an NLOS anchor's long
+//! ranges predicts a nearby held-out NLOS anchor well for the wrong reason (with a tenth trimmed,
+//! zoo `walk_nlos` chose bias states that cost 11–43 %). The score is the RMS of the rest, pooled
+//! over the anchors as the mean of their mean squares, m.
+//!
+//! Why not the innovation likelihood: a filter fed correlated range errors tracks them with its
+//! position, so its innovations look small and white and the likelihood reads them as precision
+//! (it prefers a too small `range_std` and bias states that chase the errors). A held-out anchor's
+//! ranges never reach the filter, so chasing the other anchors' errors shows as a worse
+//! prediction of them.
+//!
+//! **The search** ([`choose`]): every range-error model of [`RANGE_ERRORS`] with every skew of
+//! [`SKEWS`] (the input configuration is the first candidate), then the winner's `range_std`
+//! scaled by [`RANGE_STD_FACTORS`]. A candidate replaces the current choice only when it scores
+//! lower by more than [`MARGIN`], so a log on which nothing pays keeps the plain filter. All runs
+//! of a stage run in parallel; the candidates see the first `model_selection.window_s` of the log,
+//! self-initialised once for all of them, scored from [`crate::tune::SETTLE_S`] after the start.
+//! The cost is `(6 + 2)·F` runs of the method over the window.
+
+use uwbimu_estimation::pipeline::{self_initialize, StepRecord};
+use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::RangeMeasurement;
+
+use crate::methods::{run_calibrated, BatchInput, BatchOutput, Method};
+
+/// Most folds of the leave-anchors-out prediction.
+pub const MAX_FOLDS: usize = 8;
+
+/// Fewest anchors for a selection: each fold leaves at least four. With four anchors each fold
+/// leaves three, whose runs are too unlike the four-anchor run to choose by (docs/model-selection.md).
+pub const MIN_ANCHORS: usize = 5;
+
+/// Share of each held-out anchor's largest centred residuals left out of its score: half, so
+/// that an anchor in NLOS for up to half of the log is scored on its line-of-sight ranges.
+pub const TRIM: f64 = 0.5;
+
+/// Relative improvement of the score a candidate needs to replace the current choice: on the
+/// rigs of docs/model-selection.md, candidates 3–10 % lower were as often worse as better.
+pub const MARGIN: f64 = 0.10;
+
+/// Fewest scored ranges for a held-out anchor to count.
+const MIN_SCORED: usize = 20;
+
+/// Time constant of the wandering range-error model, s.
+pub const WANDERING_TAU_S: f64 = 2.0;
+
+/// One option of a stage of the search: its name and how it changes a configuration.
+#[derive(Debug, Clone, Copy)]
+pub struct Choice {
+    /// What the option is, as reported.
+    pub name: &'static str,
+    apply: fn(&mut FilterConfig),
+}
+
+/// The range-error models: white noise only; a steady bias per anchor and a common one (random
+/// walks, [`uwbimu_estimation::filters::range_bias`]); a bias per anchor that wanders as a
+/// Gauss–Markov process of time constant [`WANDERING_TAU_S`].
+pub const RANGE_ERRORS: [Choice; 3] = [
+    Choice { name: "white", apply: |c| c.range_bias.states = false },
+    Choice {
+        name: "steady bias",
+        apply: |c| {
+            c.range_bias.states = true;
+            c.range_bias.anchor_time_constant = None;
+        },
+    },
+    Choice {
+        name: "wandering bias",
+        apply: |c| {
+            c.range_bias.states = true;
+            c.range_bias.anchor_time_constant = Some(WANDERING_TAU_S);
+        },
+    },
+];
+
+/// The NLOS skews of the range test: the configured one (the method's own when unset) and the
+/// symmetric test.
+pub const SKEWS: [Choice; 2] = [
+    Choice { name: "skew as configured", apply: |_| {} },
+    Choice { name: "symmetric test", apply: |c| c.robust.nlos_skew = Some(1.0) },
+];
+
+/// Factors tried on the chosen model's `ranging.range_std`.
+pub const RANGE_STD_FACTORS: [f64; 2] = [0.5, 2.0];
+
+/// A scored candidate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// What it is, e.g. `"steady bias, symmetric test"` or `"as configured, range_std ×2"`.
+    pub label: String,
+    /// The settings it changes against the input configuration.
+    pub overrides: Vec<(String, ConfigValue)>,
+    /// Its held-out range RMS (module doc), m; +∞ when a run failed.
+    pub score_m: f64,
+    /// The held-out RMS per anchor, m (NaN for an anchor with too few scored ranges).
+    pub per_anchor_m: Vec<f64>,
+}
+
+/// What [`choose`] decided.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelChoice {
+    /// The configuration to run: the input with the chosen candidate's overrides and
+    /// `model_selection.enabled` off, so that running it reproduces the choosing method's run.
+    pub config: FilterConfig,
+    /// Every candidate scored, in the order tried (the first is the input configuration); empty
+    /// when no selection was possible.
+    pub candidates: Vec<Candidate>,
+    /// Index of the chosen candidate in `candidates`.
+    pub chosen: usize,
+    /// Why: the chosen candidate's score against the input's, or why no selection ran.
+    pub reason: String,
+}
+
+impl ModelChoice {
+    /// The chosen candidate (None when no selection ran).
+    pub fn chosen(&self) -> Option<&Candidate> {
+        self.candidates.get(self.chosen)
+    }
+
+    /// The settings the choice changes against the input configuration.
+    pub fn overrides(&self) -> &[(String, ConfigValue)] {
+        self.chosen().map_or(&[], |c| &c.overrides)
+    }
+}
+
+/// The settings of `config` that differ from `base`.
+fn overrides_of(config: &FilterConfig, base: &FilterConfig) -> Vec<(String, ConfigValue)> {
+    let before = base.entries();
+    config.entries().into_iter().filter(|e| !before.contains(e)).collect()
+}
+
+/// The window of the log the candidates see, with one initial state for all of them.
+struct Window<'a> {
+    input: BatchInput<'a>,
+    initial: InitialState,
+    from_s: f64,
+}
+
+impl<'a> Window<'a> {
+    fn new(input: &BatchInput<'a>) -> Result<Self> {
+        let t0 = input.imu.first().map_or(0.0, |s| s.t_s);
+        let end = t0 + input.config.model_selection.window_s;
+        let imu = &input.imu[..input.imu.partition_point(|s| s.t_s <= end)];
+        let ranges = &input.ranges[..input.ranges.partition_point(|r| r.t_s <= end)];
+        let tdoa = &input.tdoa[..input.tdoa.partition_point(|m| m.t_s <= end)];
+        let mag = &input.mag[..input.mag.partition_point(|m| m.t_s <= end)];
+        let input = BatchInput { imu, ranges, tdoa, mag, progress: None, ..*input };
+        let (initial, from_s) = match input.initial {
+            Some(i) => (i.clone(), t0),
+            None => (self_initialize(&input.streams(), input.anchors, input.config)?.initial, t0 + crate::tune::SETTLE_S),
+        };
+        Ok(Self { input, initial, from_s })
+    }
+}
+
+/// Why no selection can run on `input`, if so.
+fn unselectable(input: &BatchInput<'_>) -> Option<String> {
+    let k = input.anchors.len();
+    if k < MIN_ANCHORS {
+        Some(format!("no selection: {k} anchors (it needs {MIN_ANCHORS}, so that each held-out fold leaves four)"))
+    } else if input.ranges.is_empty() {
+        Some("no selection: no ranges (the criterion predicts held-out ranges)".into())
+    } else {
+        None
+    }
+}
+
+/// Chooses the configuration `method` runs with on `input` (module doc). `input.config` is the
+/// starting point and the first candidate; with too few anchors or no ranges it is returned as
+/// is, with the reason.
+pub fn choose(method: Method, input: &BatchInput<'_>) -> Result<ModelChoice> {
+    let mut base = input.config.clone();
+    base.model_selection.enabled = false;
+    if let Some(reason) = unselectable(input) {
+        return Ok(ModelChoice { config: base, candidates: Vec::new(), chosen: 0, reason });
+    }
+    let window = Window::new(input)?;
+
+    let mut configs: Vec<(String, FilterConfig)> = vec![("as configured".into(), base.clone())];
+    for model in RANGE_ERRORS {
+        for skew in SKEWS {
+            let mut c = base.clone();
+            (model.apply)(&mut c);
+            (skew.apply)(&mut c);
+            if configs.iter().all(|(_, seen)| *seen != c) {
+                configs.push((format!("{}, {}", model.name, skew.name), c));
+            }
+        }
+    }
+    let mut candidates = score_all(method, &window, &configs, &base);
+    let mut chosen = pick(&candidates, 0);
+    let winner = configs[chosen].1.clone();
+    let stage2: Vec<(String, FilterConfig)> = RANGE_STD_FACTORS
+        .iter()
+        .map(|f| {
+            let mut c = winner.clone();
+            c.ranging.range_std *= f;
+            (format!("{}, range_std ×{f}", configs[chosen].0), c)
+        })
+        .collect();
+    candidates.extend(score_all(method, &window, &stage2, &base));
+    configs.extend(stage2);
+    chosen = pick(&candidates, chosen);
+    if !candidates[0].score_m.is_finite() {
+        return Err(Error::InvalidCall(format!(
+            "model selection: {} failed on the input configuration's held-out folds",
+            method.name()
+        )));
+    }
+    let (c, first) = (&candidates[chosen], &candidates[0]);
+    let reason = if chosen == 0 {
+        format!(
+            "kept the input configuration: held-out range RMS {:.4} m, no candidate {:.0} % lower",
+            first.score_m,
+            MARGIN * 100.0
+        )
+    } else {
+        format!("{}: held-out range RMS {:.4} m against {:.4} m as configured", c.label, c.score_m, first.score_m)
+    };
+    let config = configs.swap_remove(chosen).1;
+    Ok(ModelChoice { config, candidates, chosen, reason })
+}
+
+/// The index of the lowest-scoring candidate if it beats `current` by more than [`MARGIN`], else
+/// `current`.
+fn pick(candidates: &[Candidate], current: usize) -> usize {
+    let (best, score) = candidates.iter().enumerate().fold((current, candidates[current].score_m), |(i, s), (j, c)| {
+        if c.score_m < s {
+            (j, c.score_m)
+        } else {
+            (i, s)
+        }
+    });
+    if score < candidates[current].score_m * (1.0 - MARGIN) {
+        best
+    } else {
+        current
+    }
+}
+
+/// Scores every configuration, all folds of all of them in parallel.
+fn score_all(method: Method, window: &Window<'_>, configs: &[(String, FilterConfig)], base: &FilterConfig) -> Vec<Candidate> {
+    let folds = window.input.anchors.len().min(MAX_FOLDS);
+    let jobs: Vec<(usize, usize)> = (0..configs.len()).flat_map(|c| (0..folds).map(move |f| (c, f))).collect();
+    let results = crate::parallel::map_all(&jobs, |&(c, f)| fold_errors(method, window, &configs[c].1, f, folds));
+    configs
+        .iter()
+        .enumerate()
+        .map(|(c, (label, config))| {
+            let mut per_anchor = vec![f64::NAN; window.input.anchors.len()];
+            let mut failed = false;
+            for (job, result) in jobs.iter().zip(&results) {
+                match result {
+                    Ok(errors) if job.0 == c => {
+                        for &(anchor, ms) in errors {
+                            per_anchor[anchor] = ms;
+                        }
+                    }
+                    Err(_) if job.0 == c => failed = true,
+                    _ => {}
+                }
+            }
+            let scored: Vec<f64> = per_anchor.iter().copied().filter(|v| v.is_finite()).collect();
+            let score_m = if failed || scored.is_empty() {
+                f64::INFINITY
+            } else {
+                (scored.iter().sum::<f64>() / scored.len() as f64).sqrt()
+            };
+            Candidate {
+                label: label.clone(),
+                overrides: overrides_of(config, base),
+                score_m,
+                per_anchor_m: per_anchor.iter().map(|v| v.sqrt()).collect(),
+            }
+        })
+        .collect()
+}
+
+/// The held-out range score of `config` for `method` on the whole of `input` (module doc), m:
+/// the criterion of [`choose`] for one configuration, as [`crate::tune`] uses it. With too few
+/// anchors or no ranges it is an error saying so.
+pub fn held_out_score(method: Method, input: &BatchInput<'_>, config: &FilterConfig) -> Result<f64> {
+    if let Some(reason) = unselectable(input) {
+        return Err(Error::InvalidCall(format!("the held-out range score needs {MIN_ANCHORS} anchors and ranges ({reason})")));
+    }
+    let mut config = config.clone();
+    config.model_selection.enabled = false;
+    let window = Window::new(&BatchInput { config: &config, ..*input })?;
+    let scored = score_all(method, &window, &[(String::new(), config.clone())], &config);
+    Ok(scored[0].score_m)
+}
+
+/// Runs `method` with `config` without the anchors of fold `fold` and returns, per held-out anchor
+/// with enough scored ranges, its trimmed mean square of centred residuals (module doc), m².
+fn fold_errors(
+    method: Method,
+    window: &Window<'_>,
+    config: &FilterConfig,
+    fold: usize,
+    folds: usize,
+) -> Result<Vec<(usize, f64)>> {
+    let held = |anchor: usize| anchor % folds == fold;
+    let kept: Vec<RangeMeasurement> = window.input.ranges.iter().filter(|r| !held(r.anchor)).copied().collect();
+    let input = BatchInput { ranges: &kept, initial: Some(&window.initial), config, smooth: false, ..window.input };
+    let BatchOutput::Inertial { trace, .. } = run_calibrated(method, &input)? else {
+        return Err(Error::InvalidCall(format!("{} has no inertial track to predict ranges from", method.name())));
+    };
+    let steps = &trace.steps;
+    let lever = config.mounting.lever_arm;
+    let mut out = Vec::new();
+    for (anchor, a) in window.input.anchors.iter().enumerate().filter(|(k, _)| held(*k)) {
+        let mut residuals: Vec<f64> = window
+            .input
+            .ranges
+            .iter()
+            .filter(|r| r.anchor == anchor && r.t_s >= window.from_s)
+            .filter_map(|r| tag_at(steps, r.t_s, &lever).map(|p| r.range_m - (p - a).norm()))
+            .collect();
+        if residuals.len() >= MIN_SCORED {
+            out.push((anchor, trimmed_centred_mean_square(&mut residuals)));
+        }
+    }
+    Ok(out)
+}
+
+/// The tag position at `t_s`: the body position interpolated linearly between the steps around
+/// it, plus the earlier step's `R·lever_arm` (None outside the steps or for a non-finite state).
+fn tag_at(steps: &[StepRecord], t_s: f64, lever: &Vec3) -> Option<Vec3> {
+    let i = steps.partition_point(|s| s.t_s <= t_s);
+    let (a, b) = (steps.get(i.checked_sub(1)?)?, steps.get(i).unwrap_or(steps.get(i - 1)?));
+    let w = if b.t_s > a.t_s { (t_s - a.t_s) / (b.t_s - a.t_s) } else { 0.0 };
+    let p = a.state.position.lerp(&b.state.position, w) + a.state.orientation * lever;
+    p.iter().all(|v| v.is_finite()).then_some(p)
+}
+
+/// Centres `e` on its median, drops the [`TRIM`] share of it farthest from the median and returns
+/// the mean square of the rest.
+fn trimmed_centred_mean_square(e: &mut [f64]) -> f64 {
+    e.sort_by(f64::total_cmp);
+    let n = e.len();
+    let median = if n % 2 == 1 { e[n / 2] } else { 0.5 * (e[n / 2 - 1] + e[n / 2]) };
+    let mut sq: Vec<f64> = e.iter().map(|v| (v - median).powi(2)).collect();
+    sq.sort_by(f64::total_cmp);
+    let kept = ((n as f64) * (1.0 - TRIM)).ceil().max(1.0) as usize;
+    sq[..kept.min(n)].iter().sum::<f64>() / kept.min(n) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_residual_score_ignores_a_constant_and_the_half_farthest_from_the_median() {
+        // A constant offset (a steady bias of the held-out anchor) does not count.
+        let mut e: Vec<f64> = (0..100).map(|k| 0.3 + if k % 2 == 0 { 0.1 } else { -0.1 }).collect();
+        assert!((trimmed_centred_mean_square(&mut e) - 0.01).abs() < 1e-12);
+        // Forty NLOS ranges 0.5 m long among 60 of ±0.1 m: the median moves to 0.1 and the half
+        // nearest it is 30 residuals of 0 and 20 of −0.2 m (the NLOS ones, 0.4 away, are dropped):
+        // mean square 0.016 m².
+        let mut e: Vec<f64> = (0..100)
+            .map(|k| {
+                if k < 40 {
+                    0.5
+                } else if k % 2 == 0 {
+                    0.1
+                } else {
+                    -0.1
+                }
+            })
+            .collect();
+        assert!((trimmed_centred_mean_square(&mut e) - 0.016).abs() < 1e-12, "{}", trimmed_centred_mean_square(&mut e));
+    }
+
+    #[test]
+    fn a_candidate_must_beat_the_current_one_by_the_margin() {
+        let c = |s: f64| Candidate { label: String::new(), overrides: Vec::new(), score_m: s, per_anchor_m: Vec::new() };
+        assert_eq!(pick(&[c(0.10), c(0.095), c(0.091)], 0), 0);
+        assert_eq!(pick(&[c(0.10), c(0.095), c(0.089)], 0), 2);
+        assert_eq!(pick(&[c(0.10), c(f64::INFINITY)], 0), 0);
+    }
+}
