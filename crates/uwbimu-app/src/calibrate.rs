@@ -25,6 +25,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::track::tag_at;
 
 /// Robust σ per median absolute deviation of a Gaussian.
 const MAD_TO_SIGMA: f64 = 1.4826;
@@ -129,10 +130,7 @@ fn track_residuals<'a>(
 ) -> impl Iterator<Item = (usize, f64)> + 'a {
     let lever_arm = config.mounting.lever_arm;
     input.ranges.iter().filter_map(move |r| {
-        let k = steps.partition_point(|s| s.t_s <= r.t_s);
-        let (a, b) = (steps.get(k.checked_sub(1)?)?, steps.get(k)?);
-        let w = (r.t_s - a.t_s) / (b.t_s - a.t_s);
-        let tag = a.state.position + (b.state.position - a.state.position) * w + a.state.orientation * lever_arm;
+        let tag = tag_at(steps, r.t_s, &lever_arm)?;
         let corrected = config.range_calibration.correct(r.anchor, r.range_m);
         Some((r.anchor, corrected - (tag - input.anchors[r.anchor]).norm()))
     })

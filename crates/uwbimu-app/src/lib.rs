@@ -18,4 +18,5 @@ pub mod replay;
 pub mod select;
 #[cfg(feature = "sim")]
 pub mod sim;
+pub mod track;
 pub mod tune;

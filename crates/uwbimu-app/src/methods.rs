@@ -70,12 +70,15 @@ pub struct MethodInfo {
     pub smoothing: Smoothing,
     /// Its streaming class in Python (`uwbimu_rs.<class>`), if it has one.
     pub streaming_class: Option<&'static str>,
+    /// Whether the batch method chooses its range-error model, NLOS skew and range noise on the
+    /// log ([`crate::select`]); a row says `chooses_model: true`, the others leave it out.
+    pub chooses_model: bool,
     /// Its doc comment (one line per doc line): the composition and where it comes from.
     pub doc: &'static str,
 }
 
-/// Declares the method registry: one row per method — variant, name, how it runs, what it takes
-/// and its smoothing, with its doc; an inertial method's filter is also its streaming class.
+/// Declares the method registry: one row per method — variant, name, how it runs, what it takes,
+/// its smoothing and whether it chooses its model, with its doc; an inertial method's filter is also its streaming class.
 /// From the rows come [`Method`], [`Method::ALL`], [`Method::info`] (names, parsing,
 /// capabilities, error lists), the dispatch of [`run_method`], and the macro
 /// [`for_each_streaming_filter!`](crate::for_each_streaming_filter) with which the Python
@@ -87,7 +90,8 @@ macro_rules! methods {
             name: $name:literal,
             run: $run:ident $(($ty:ident))?,
             takes: [$($input:ident),+],
-            smoothing: $smoothing:ident $(,)?
+            smoothing: $smoothing:ident
+            $(, chooses_model: $chooses:literal)? $(,)?
         }
     ),+ $(,)?) => {
         /// A method name accepted by the batch API, one per row of the registry.
@@ -108,6 +112,7 @@ macro_rules! methods {
                         takes: &[$(Input::$input),+],
                         smoothing: Smoothing::$smoothing,
                         streaming_class: methods!(@class $run $($ty)?),
+                        chooses_model: methods!(@chooses $($chooses)?),
                         doc: concat!($($doc, "\n"),+),
                     },)+
                 }
@@ -133,6 +138,8 @@ macro_rules! methods {
             };
         }
     };
+    (@chooses) => { false };
+    (@chooses $chooses:literal) => { $chooses };
     (@class inertial $ty:ident) => { Some(stringify!($ty)) };
     (@class $run:ident $($ty:ident)?) => { None };
     (@run $input:ident, multilateration) => {{
@@ -194,7 +201,7 @@ methods! {$
     /// self-initialisation when no initial state is given. Before it runs it chooses its
     /// range-error model, NLOS skew and range noise on the log by held-out anchors
     /// ([`crate::select`]).
-    Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa], smoothing: ByDefault },
+    Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa], smoothing: ByDefault, chooses_model: true },
 }
 
 impl Method {
@@ -231,9 +238,9 @@ impl Method {
     }
 
     /// Whether the batch method chooses its range-error model, NLOS skew and range noise on the
-    /// log ([`crate::select`]): `best`.
+    /// log ([`crate::select`]; its registry row).
     pub fn chooses_its_model(self) -> bool {
-        matches!(self, Self::Best)
+        self.info().chooses_model
     }
 
     /// Whether the method takes `input`.
@@ -389,7 +396,7 @@ fn plausible_ranges(input: &BatchInput<'_>) -> Vec<RangeMeasurement> {
 
 /// The given initial state, or the self-initialisation's ([`self_initialize`]: the decision a
 /// self-initialising streaming filter reaches on the same data).
-fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<SelfInit>>)> {
+pub(crate) fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Option<Box<SelfInit>>)> {
     Ok(match input.initial {
         Some(i) => (i.clone(), None),
         None => {

@@ -7,15 +7,14 @@
 //! runs over the log without that fold's ranges; each held-out range `r` is then compared with the
 //! range the run predicts at its time, `e = r − ‖p_tag(t) − a‖` (`p_tag` the body position
 //! interpolated between IMU steps plus `R·lever arm`, from the forward pass even when the output
-//! is smoothed: on isas-walk1 the smoothed track's prediction preferred a `range_std` twice the
-//! one the truth prefers, the forward one did not — docs/model-selection.md). Per held-out
+//! is smoothed: the smoothed track's prediction misled the choice of `range_std`). Per held-out
 //! anchor the residuals are centred on their median — a steady bias of the held-out anchor, which
 //! no candidate can know, is left out, as a rigid alignment leaves out a constant offset — and
 //! only the half of them nearest the median is kept ([`TRIM`]): NLOS on the held-out anchor is the
 //! same for every candidate, and a candidate whose track is pulled towards an NLOS anchor's long
-//! ranges predicts a nearby held-out NLOS anchor well for the wrong reason (with a tenth trimmed,
-//! zoo `walk_nlos` chose bias states that cost 11–43 %). The score is the RMS of the rest, pooled
-//! over the anchors as the mean of their mean squares, m.
+//! ranges predicts a nearby held-out NLOS anchor well for the wrong reason. The score is the RMS
+//! of the rest, pooled over the anchors as the mean of their mean squares, m. The figures behind
+//! each constant are in docs/model-selection.md.
 //!
 //! Why not the innovation likelihood: a filter fed correlated range errors tracks them with its
 //! position, so its innovations look small and white and the likelihood reads them as precision
@@ -31,13 +30,12 @@
 //! self-initialised once for all of them, scored from [`crate::tune::SETTLE_S`] after the start.
 //! The cost is `(6 + 2)·F` runs of the method over the window.
 
-use uwbimu_estimation::pipeline::{self_initialize, StepRecord};
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
-use crate::methods::{run_calibrated, BatchInput, BatchOutput, Method};
+use crate::methods::{initial_state, run_calibrated, BatchInput, BatchOutput, Method};
+use crate::track::tag_at;
 
 /// Most folds of the leave-anchors-out prediction.
 pub const MAX_FOLDS: usize = 8;
@@ -50,8 +48,8 @@ pub const MIN_ANCHORS: usize = 5;
 /// that an anchor in NLOS for up to half of the log is scored on its line-of-sight ranges.
 pub const TRIM: f64 = 0.5;
 
-/// Relative improvement of the score a candidate needs to replace the current choice: on the
-/// rigs of docs/model-selection.md, candidates 3–10 % lower were as often worse as better.
+/// Relative improvement of the score a candidate needs to replace the current choice (smaller
+/// improvements went either way on the rigs of docs/model-selection.md).
 pub const MARGIN: f64 = 0.10;
 
 /// Fewest scored ranges for a held-out anchor to count.
@@ -161,10 +159,8 @@ impl<'a> Window<'a> {
         let tdoa = &input.tdoa[..input.tdoa.partition_point(|m| m.t_s <= end)];
         let mag = &input.mag[..input.mag.partition_point(|m| m.t_s <= end)];
         let input = BatchInput { imu, ranges, tdoa, mag, progress: None, ..*input };
-        let (initial, from_s) = match input.initial {
-            Some(i) => (i.clone(), t0),
-            None => (self_initialize(&input.streams(), input.anchors, input.config)?.initial, t0 + crate::tune::SETTLE_S),
-        };
+        let (initial, init) = initial_state(&input)?;
+        let from_s = t0 + if init.is_some() { crate::tune::SETTLE_S } else { 0.0 };
         Ok(Self { input, initial, from_s })
     }
 }
@@ -257,23 +253,19 @@ fn pick(candidates: &[Candidate], current: usize) -> usize {
 /// Scores every configuration, all folds of all of them in parallel.
 fn score_all(method: Method, window: &Window<'_>, configs: &[(String, FilterConfig)], base: &FilterConfig) -> Vec<Candidate> {
     let folds = window.input.anchors.len().min(MAX_FOLDS);
+    // Candidate-major: the results of candidate `c` are `results[c·folds .. (c+1)·folds]`.
     let jobs: Vec<(usize, usize)> = (0..configs.len()).flat_map(|c| (0..folds).map(move |f| (c, f))).collect();
     let results = crate::parallel::map_all(&jobs, |&(c, f)| fold_errors(method, window, &configs[c].1, f, folds));
     configs
         .iter()
-        .enumerate()
-        .map(|(c, (label, config))| {
+        .zip(results.chunks(folds))
+        .map(|((label, config), folds)| {
             let mut per_anchor = vec![f64::NAN; window.input.anchors.len()];
             let mut failed = false;
-            for (job, result) in jobs.iter().zip(&results) {
+            for result in folds {
                 match result {
-                    Ok(errors) if job.0 == c => {
-                        for &(anchor, ms) in errors {
-                            per_anchor[anchor] = ms;
-                        }
-                    }
-                    Err(_) if job.0 == c => failed = true,
-                    _ => {}
+                    Ok(errors) => errors.iter().for_each(|&(anchor, ms)| per_anchor[anchor] = ms),
+                    Err(_) => failed = true,
                 }
             }
             let scored: Vec<f64> = per_anchor.iter().copied().filter(|v| v.is_finite()).collect();
@@ -337,16 +329,6 @@ fn fold_errors(
         }
     }
     Ok(out)
-}
-
-/// The tag position at `t_s`: the body position interpolated linearly between the steps around
-/// it, plus the earlier step's `R·lever_arm` (None outside the steps or for a non-finite state).
-fn tag_at(steps: &[StepRecord], t_s: f64, lever: &Vec3) -> Option<Vec3> {
-    let i = steps.partition_point(|s| s.t_s <= t_s);
-    let (a, b) = (steps.get(i.checked_sub(1)?)?, steps.get(i).unwrap_or(steps.get(i - 1)?));
-    let w = if b.t_s > a.t_s { (t_s - a.t_s) / (b.t_s - a.t_s) } else { 0.0 };
-    let p = a.state.position.lerp(&b.state.position, w) + a.state.orientation * lever;
-    p.iter().all(|v| v.is_finite()).then_some(p)
 }
 
 /// Centres `e` on its median, drops the [`TRIM`] share of it farthest from the median and returns

@@ -5,7 +5,7 @@
 //! **Without ground truth** the score is the held-out range RMS of [`crate::select`]: each
 //! anchor's ranges predicted by a run without them (the criterion with which `best` chooses its
 //! model). The innovation likelihood this search used before reads correlated range errors as
-//! precision: on isas-walk1 it picked `range_std` 0.075 m (docs/model-selection.md).
+//! precision (docs/model-selection.md).
 //!
 //! **With ground truth** (`(t, tag position)`) the score is the horizontal RMSE of the tag track
 //! (smoothed when the input asks for smoothing), leaving out the first [`SETTLE_S`] when the filter
@@ -94,9 +94,7 @@ pub fn tune(method: Method, input: &BatchInput<'_>, objective: Objective<'_>, ro
     }
     let chosen;
     let input = &if rounds > 0 && method.chooses_its_model() && input.config.model_selection.enabled {
-        let mut config = choose(method, input)?.config;
-        config.model_selection.enabled = false;
-        chosen = config;
+        chosen = choose(method, input)?.config;
         BatchInput { config: &chosen, ..*input }
     } else {
         *input
