@@ -5,6 +5,7 @@
 //! (`uwbimu_rs._native.replay_main`, installed as `uwbimu-replay` by `pip install`).
 
 mod args;
+mod interrupt;
 pub(crate) mod progress;
 mod report;
 
@@ -14,15 +15,18 @@ use std::time::Instant;
 
 use clap::Parser;
 use uwbimu_app::columns::output_columns;
+use uwbimu_app::io::atomic_file::write_atomically;
 use uwbimu_app::io::csv_out::write_columns_csv;
 use uwbimu_app::io::foxglove_out::write_trajectory_mcap;
 use uwbimu_app::io::read_recording_file;
 use uwbimu_app::io::{IoError as Error, IoResult as Result};
 use uwbimu_app::methods::BatchOutput;
 use uwbimu_app::replay::replay;
+use uwbimu_estimation::pipeline::Progress;
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use args::Args;
+use interrupt::Interrupt;
 use progress::{with_progress, Bar};
 
 /// Files smaller than this are read without a progress bar (it would only flash), bytes.
@@ -30,7 +34,9 @@ const READ_BAR_MIN_BYTES: u64 = 8 << 20;
 
 /// Runs `uwbimu-replay` with `args` (the first is the program, as in `std::env::args_os`) and
 /// returns its exit status: 0 on success (also for `--help` and `--version`), 2 for a command
-/// line clap rejects or any error, which prints one message on stderr.
+/// line clap rejects or any error, which prints one message on stderr; 128 + the signal number
+/// (130 SIGINT, 143 SIGTERM) for a replay interrupted by a signal, whose outputs hold what was
+/// processed before it.
 pub fn main_with_args<I, T>(args: I) -> u8
 where
     I: IntoIterator<Item = T>,
@@ -44,7 +50,7 @@ where
         }
     };
     match run(&args) {
-        Ok(()) => 0,
+        Ok(status) => status,
         Err(e) => {
             eprintln!("uwbimu-replay: error: {e}");
             2
@@ -52,7 +58,8 @@ where
     }
 }
 
-fn run(args: &Args) -> Result<()> {
+fn run(args: &Args) -> Result<u8> {
+    let interrupt = Interrupt::install()?;
     let (cfg, method, smooth) = args.settings()?;
     let size = std::fs::metadata(&args.file).map_err(|e| Error::io(args.file.display(), e))?.len();
     let bars = !args.no_progress && std::io::stderr().is_terminal();
@@ -60,14 +67,18 @@ fn run(args: &Args) -> Result<()> {
     let start = Instant::now();
     let rec = read_recording_file(&args.file, &cfg.mapping, |n| reading.iter_mut().for_each(|b| b.update(n)))?;
     let read_s = start.elapsed().as_secs_f64();
+    if let Some(w) = rec.stats.end.warning(&args.file.display().to_string()) {
+        eprintln!("uwbimu-replay: warning: {w}");
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if !args.json {
         report::found(&mut out, &args.file, &cfg, &rec)?;
     }
     let start = Instant::now();
-    let result = with_progress(bars, rec.imu.len() as u64, |progress| {
-        replay(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth, progress)
+    let progress = Progress::with_cancel_flag(interrupt.flag());
+    let result = with_progress(bars, rec.imu.len() as u64, &progress, |progress| {
+        replay(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth, Some(progress))
     })
     .map_err(|e| match e {
         Error::Core(CoreError::InvalidCall(reason)) if !rec.tdoa.is_empty() && !method.takes_tdoa() => {
@@ -76,6 +87,14 @@ fn run(args: &Args) -> Result<()> {
         other => other,
     })?;
     let filter_s = start.elapsed().as_secs_f64();
+    let trajectory = result.trajectory();
+    let interrupted = interrupt.received();
+    if let Some((signal, status)) = interrupted {
+        if trajectory.is_empty() {
+            eprintln!("uwbimu-replay: interrupted by {signal} before the filter produced anything: nothing written");
+            return Ok(status);
+        }
+    }
     if let BatchOutput::Inertial { warnings, .. } = &result.output {
         for w in warnings {
             eprintln!("uwbimu-replay: warning: {w}");
@@ -86,11 +105,9 @@ fn run(args: &Args) -> Result<()> {
         report::stats(&mut out, &rec, &result, &summary, (read_s, filter_s))?;
     }
     let mut outputs = Vec::new();
-    let trajectory = result.trajectory();
     if let Some(path) = &args.out {
         let label = path.display().to_string();
-        let file = std::fs::File::create(path).map_err(|e| Error::io(&label, e))?;
-        write_trajectory_mcap(std::io::BufWriter::new(file), &label, &trajectory, 1.0, 0.2)?;
+        write_atomically(path, |file| write_trajectory_mcap(file, &label, &trajectory, 1.0, 0.2))?;
         if !args.json {
             report::wrote(
                 &mut out,
@@ -110,5 +127,14 @@ fn run(args: &Args) -> Result<()> {
     if args.json {
         report::json(&mut out, &summary, &outputs)?;
     }
-    Ok(())
+    let Some((signal, status)) = interrupted else { return Ok(0) };
+    let last_s = trajectory.last().map_or(0.0, |p| p.0);
+    let written = if outputs.is_empty() { "no output asked for".to_string() } else { format!("wrote {}", outputs.join(", ")) };
+    eprintln!(
+        "uwbimu-replay: interrupted by {signal} at t = {last_s:.3} s, after {} of {} IMU samples ({}): {written}",
+        progress.imu_done(),
+        rec.imu.len(),
+        if result.smoothed() { "smoothed" } else { "forward track, not smoothed" },
+    );
+    Ok(status)
 }

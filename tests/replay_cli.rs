@@ -9,13 +9,16 @@
 mod common;
 
 use std::collections::BTreeMap;
-use std::io::Cursor;
+use std::io::{BufRead, BufReader, Cursor};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
 
-use uwbimu_rs::app::io::mcap_read::{read_mcap, McapEvent};
+use uwbimu_rs::app::io::atomic_file::partial_path;
+use uwbimu_rs::app::io::mcap_read::{read_mcap, McapEnd, McapEvent};
 use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
-use uwbimu_rs::app::sim::{preset, simulate, SimData};
+use uwbimu_rs::app::sim::{preset, simulate, SimData, Trajectory};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("uwbimu_cli_{}", std::process::id()));
@@ -85,15 +88,20 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
     // The Foxglove file: three JSON channels with the exact schema names.
     let bytes = std::fs::read(&out_mcap).unwrap();
     let mut schemas = BTreeMap::new();
+    let mut path_poses = 0usize;
     read_mcap(
         Cursor::new(&bytes),
         bytes.len() as u64,
         "out",
         |e| {
-            if let McapEvent::Message { channel, .. } = e {
+            if let McapEvent::Message { channel, data, .. } = e {
                 let s = channel.schema.as_ref().unwrap();
                 assert_eq!((s.encoding.as_str(), channel.message_encoding.as_str()), ("jsonschema", "json"));
                 *schemas.entry(s.name.clone()).or_insert(0usize) += 1;
+                if s.name == "foxglove.PosesInFrame" {
+                    let v: serde_json::Value = serde_json::from_slice(data).unwrap();
+                    path_poses += v["poses"].as_array().unwrap().len();
+                }
             }
             Ok(())
         },
@@ -102,7 +110,16 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
     .unwrap();
     assert_eq!(schemas["foxglove.PoseInFrame"], data.imu.len());
     assert_eq!(schemas["foxglove.FrameTransform"], data.imu.len());
-    assert!(schemas["foxglove.PosesInFrame"] > 1);
+    // The path comes in one-second segments that join (each starts at the previous one's last
+    // pose): every 0.2 s pose once, plus one repeat per segment — linear in the log, not quadratic.
+    let segments = schemas["foxglove.PosesInFrame"];
+    let duration = data.imu.last().unwrap().t_s - data.imu[0].t_s;
+    assert!((segments as f64 - duration).abs() <= 2.0, "{segments} segments over {duration} s");
+    let decimated = (duration / 0.2).round() as usize;
+    assert!(
+        path_poses.abs_diff(decimated + segments) <= 2 + decimated / 20,
+        "{path_poses} poses, {decimated} + {segments} expected"
+    );
 }
 
 fn write(name: &str, bytes: &[u8]) -> PathBuf {
@@ -118,7 +135,7 @@ fn run_on(path: &Path) -> Output {
 #[test]
 fn broken_files_exit_with_code_2_and_a_clear_message() {
     let good = sim_mcap(&sim(), true);
-    fails_with(&run_on(&write("truncated.mcap", &good[..good.len() / 2])), "truncated");
+    fails_with(&run_on(&write("truncated.mcap", &good[..12])), "truncated");
     let mut bad_magic = good.clone();
     bad_magic[1] = b'X';
     fails_with(&run_on(&write("magic.mcap", &bad_magic)), "magic");
@@ -129,6 +146,38 @@ fn broken_files_exit_with_code_2_and_a_clear_message() {
     let at = plain.len() / 2;
     plain[at] ^= 0x40;
     fails_with(&run_on(&write("crc.mcap", &plain)), "CRC mismatch");
+}
+
+/// The `--json` summary of a replay that succeeded, and its stderr.
+fn json_run(path: &Path) -> (serde_json::Value, String) {
+    let out = replay(&[path.to_str().unwrap(), "--method", "ekf", "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success() && !stderr.contains("panicked"), "{stderr}");
+    (serde_json::from_slice(&out.stdout).unwrap(), stderr)
+}
+
+#[test]
+fn a_recording_whose_recorder_died_replays_up_to_its_last_complete_record() {
+    let good = sim_mcap(&sim(), true);
+    let (full, stderr) = json_run(&write("complete.mcap", &good));
+    assert_eq!(full["truncated_bytes"].as_u64(), Some(0));
+    assert!(!stderr.contains("warning"), "{stderr}");
+    // Without the data end, the summary and the footer (a recorder killed after its last chunk):
+    // the footer's summary offset, 8 + 29 bytes from the end, says where the summary starts.
+    let footer = good.len() - 8 - 29;
+    let summary_start = u64::from_le_bytes(good[footer + 9..footer + 17].try_into().unwrap()) as usize;
+    let data_end = summary_start - 13;
+    let (footerless, stderr) = json_run(&write("footerless.mcap", &good[..data_end]));
+    assert!(stderr.contains("warning") && stderr.contains("ends before its footer"), "{stderr}");
+    assert_eq!(footerless["n_imu"], full["n_imu"], "every message is intact");
+    assert_eq!(footerless["n_ranges"], full["n_ranges"]);
+    assert_eq!(footerless["truncated_bytes"].as_u64(), Some(0), "nothing lost: the cut is at a record boundary");
+    // Cut inside the data: the torn chunk is lost, the chunks before it replay.
+    let (torn, stderr) = json_run(&write("torn.mcap", &good[..good.len() * 3 / 5]));
+    assert!(stderr.contains("ends before its footer"), "{stderr}");
+    let (n, all) = (torn["n_imu"].as_u64().unwrap(), full["n_imu"].as_u64().unwrap());
+    assert!(n > all / 4 && n < all, "{n} of {all} IMU samples");
+    assert!(torn["truncated_bytes"].as_u64().is_some_and(|b| b > 0), "{torn}");
 }
 
 #[test]
@@ -208,4 +257,71 @@ fn help_lists_every_method_of_the_registry() {
     }
     assert_eq!(uwbimu_rs::cli::main_with_args(["uwbimu-replay", "--no-such-flag"]), 2);
     assert_eq!(uwbimu_rs::cli::main_with_args(["uwbimu-replay", "/nonexistent/x.mcap"]), 2);
+}
+
+/// A 25-minute drive at 200 Hz (300 000 IMU samples): long enough to be interrupted mid-run.
+fn long_mcap() -> PathBuf {
+    let mut cfg = preset("hall_vehicle", 5).unwrap();
+    cfg.trajectory = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 37.0, 40, 10.0).unwrap();
+    cfg.imu_rate_hz = 200.0;
+    write("long.mcap", &sim_mcap(&simulate(&cfg).unwrap(), true))
+}
+
+/// Rows of a CSV output (without its header) and messages per schema of a Foxglove output; both
+/// must be complete files.
+fn outputs_of(csv: &Path, mcap: &Path) -> (usize, BTreeMap<String, usize>) {
+    let rows = std::fs::read_to_string(csv).unwrap().lines().count() - 1;
+    let bytes = std::fs::read(mcap).unwrap();
+    let mut schemas = BTreeMap::new();
+    let end = read_mcap(
+        Cursor::new(&bytes),
+        bytes.len() as u64,
+        "out",
+        |e| {
+            if let McapEvent::Message { channel, .. } = e {
+                *schemas.entry(channel.schema.as_ref().unwrap().name.clone()).or_insert(0usize) += 1;
+            }
+            Ok(())
+        },
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(end, McapEnd::Complete, "the output has its footer");
+    (rows, schemas)
+}
+
+#[test]
+fn a_signal_stops_the_replay_and_the_outputs_hold_what_was_processed() {
+    let file = long_mcap();
+    for (signal, status, method) in [("INT", 130, "best"), ("TERM", 143, "ekf --smooth")] {
+        let (csv, out) = (scratch(&format!("sig{signal}.csv")), scratch(&format!("sig{signal}.mcap")));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_uwbimu-replay"))
+            .args([file.to_str().unwrap(), "--csv", csv.to_str().unwrap(), "--out", out.to_str().unwrap(), "--method"])
+            .args(method.split(' '))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The `read:` line comes once the file is read, just before the filter starts.
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        while !line.starts_with("read:") {
+            line.clear();
+            assert!(stdout.read_line(&mut line).unwrap() > 0, "the replay ended before filtering");
+        }
+        std::thread::sleep(Duration::from_millis(300));
+        let killed = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status().unwrap();
+        assert!(killed.success());
+        let _ = std::io::copy(&mut stdout, &mut std::io::sink());
+        let done = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(status), "{stderr}");
+        assert!(stderr.contains(&format!("interrupted by SIG{signal} at t = ")) && !stderr.contains("panicked"), "{stderr}");
+        let (rows, schemas) = outputs_of(&csv, &out);
+        let done_imu: usize = stderr.split("after ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(rows > 0 && rows < 300_000, "{rows} rows: {stderr}");
+        assert_eq!(rows, done_imu, "one row per IMU sample processed: {stderr}");
+        assert_eq!(schemas["foxglove.PoseInFrame"], rows);
+        assert!(!partial_path(&csv).exists() && !partial_path(&out).exists());
+    }
 }

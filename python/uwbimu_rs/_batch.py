@@ -133,6 +133,8 @@ def run_filter(
         config key (the message names the array, row and column or the allowed values), IMU
         times that cannot be seconds. A negative or impossible measurement inside good data is
         not an error: the plausibility gate drops it (``gate.*`` config keys).
+    KeyboardInterrupt
+        Ctrl-C while the method runs (honoured within 0.1 s; the run is cancelled).
 
     Warns
     -----

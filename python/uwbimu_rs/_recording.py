@@ -59,13 +59,17 @@ def read_mcap(
         ``tdoa``; ``anchors``: id, x, y, z (m); ``ground_truth``: t, x, y, z (empty when not mapped);
         ``stats``: dict (topics with schema, count and role; duration_s; reordered;
         late_dropped; invalid_per_anchor; anchor_source; tdoa_unknown_anchor and
-        tdoa_unknown_ids (TDoA dropped for an anchor without a position); tdoa_bad_value; ...).
+        tdoa_unknown_ids (TDoA dropped for an anchor without a position); tdoa_bad_value;
+        messages; complete (False for a file cut before its footer); ...).
+
+    A file cut before its footer (a recorder that died) is read up to its last complete record
+    with a ``UserWarning`` saying how many bytes were lost.
 
     Raises
     ------
     FileNotFoundError, OSError
-        Missing, unreadable or corrupt file (``FormatError``, an OSError, for bad magic,
-        truncation, CRC mismatch, unknown encoding).
+        Missing, unreadable or corrupt file (``FormatError``, an OSError, for bad magic, a file
+        that ends before its first message, CRC mismatch, unknown encoding).
     ValueError
         A mapping that does not fit the file (``MappingError``: missing topic, unknown field).
     """
@@ -131,7 +135,7 @@ def replay(
         The trajectory with the :func:`run_filter` columns, and ``info`` with the keys of the
         CLI's ``--json`` summary: ``method``, ``smoothed`` (bool: the trajectory is
         RTS-smoothed), ``duration_s``, ``n_imu``, ``n_ranges``, ``n_tdoa``, ``n_ground_truth``,
-        ``anchors`` (per anchor: id, accepted, down_weighted, rejected, for the ranges),
+        ``truncated_bytes`` (bytes lost at the end of a file cut before its footer), ``anchors`` (per anchor: id, accepted, down_weighted, rejected, for the ranges),
         ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis`` and,
         with ground truth, ``rmse_steps``, ``rmse_horizontal_m``,
         ``rmse_horizontal_aligned_m``, ``rmse_3d_m``, ``rmse_3d_aligned_m`` (m; rigid SE(3)
@@ -143,6 +147,8 @@ def replay(
         As :func:`read_mcap` (``FileNotFoundError`` for a missing ground-truth file,
         ``FormatError`` naming the line of a bad one); ``ConfigError`` for an unknown method or
         config key.
+    KeyboardInterrupt
+        Ctrl-C while the method runs (honoured within 0.1 s).
     """
     cols, info = _native.replay(
         os.fspath(path),

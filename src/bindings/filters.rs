@@ -22,8 +22,8 @@ use uwbimu_vocabulary::validate;
 
 use super::convert::{apply_nested_dict, array, columns, config_value, config_value_to_py, str_items, table};
 use super::errors::PyResult;
+use super::interruptible::run_interruptible;
 use super::repr;
-use crate::cli::progress::with_progress;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
 const MAG_LAYOUT: &str = "(N, 4) = t, mx, my, mz";
@@ -716,7 +716,7 @@ fn run_filter<'py>(
     let tdoa = read_tdoa(tdoa, log.inputs.anchors.len())?;
     let input = BatchInput { mag: &mag, tdoa: &tdoa, ..log.batch(method.smooth(smooth)) };
     let total = input.imu.len() as u64;
-    let output = py.detach(|| with_progress(progress, total, |p| run_method(method, &BatchInput { progress: p, ..input })))?;
+    let output = run_interruptible(py, progress, total, |p| run_method(method, &BatchInput { progress: Some(p), ..input }))??;
     output_columns(py, output, covariance, updates)
 }
 
@@ -783,26 +783,24 @@ fn run_filters<'py>(
         _ => vec![None; inputs.len()],
     };
     let total = inputs.iter().map(|i| i.imu.len() as u64).sum();
-    let outputs = py.detach(|| {
-        with_progress(progress, total, |p| {
-            let batch: Vec<BatchInput<'_>> = inputs
-                .iter()
-                .zip(&initials)
-                .map(|(inp, init)| BatchInput {
-                    imu: &inp.imu,
-                    ranges: &inp.ranges,
-                    anchors: &inp.anchors,
-                    initial: init.as_ref(),
-                    config: &config,
-                    smooth,
-                    mag: &[],
-                    tdoa: &[],
-                    progress: p,
-                })
-                .collect();
-            run_many(method, &batch)
-        })
-    });
+    let outputs = run_interruptible(py, progress, total, |p| {
+        let batch: Vec<BatchInput<'_>> = inputs
+            .iter()
+            .zip(&initials)
+            .map(|(inp, init)| BatchInput {
+                imu: &inp.imu,
+                ranges: &inp.ranges,
+                anchors: &inp.anchors,
+                initial: init.as_ref(),
+                config: &config,
+                smooth,
+                mag: &[],
+                tdoa: &[],
+                progress: Some(p),
+            })
+            .collect();
+        run_many(method, &batch)
+    })?;
     outputs.into_iter().map(|o| output_columns(py, o?, covariance, false)).collect()
 }
 

@@ -8,6 +8,7 @@ use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use uwbimu_app::columns::output_columns;
+use uwbimu_app::io::mcap_read::McapEnd;
 use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_app::io::truth_file::{read_truth_csv, TRUTH_COLUMNS};
 use uwbimu_app::io::{read_recording_file, IoError, Mapping, ReadStats, Recording, ReplayConfig};
@@ -17,7 +18,8 @@ use uwbimu_app::replay::replay as replay_recording;
 use super::convert::columns;
 use super::errors::PyResult;
 use super::filters::{read_config, read_inputs, read_optional_initial, read_tdoa};
-use crate::cli::progress::{with_progress, Bar};
+use super::interruptible::run_interruptible;
+use crate::cli::progress::Bar;
 
 /// The replay settings from an optional TOML file with an optional mapping (JSON text) merged
 /// into its `[mapping]` ([`Mapping::merged_with_json`]).
@@ -43,7 +45,11 @@ fn read(py: Python<'_>, path: &Path, mapping: &Mapping, progress: bool) -> PyRes
     }
     let size = std::fs::metadata(path).map_or(0, |m| m.len());
     let mut bar = progress.then(|| Bar::new("reading", size));
-    Ok(py.detach(|| read_recording_file(path, mapping, |n| bar.iter_mut().for_each(|b| b.update(n))))?)
+    let rec = py.detach(|| read_recording_file(path, mapping, |n| bar.iter_mut().for_each(|b| b.update(n))))?;
+    if let Some(w) = rec.stats.end.warning(&path.display().to_string()) {
+        super::errors::warn_all(py, &[w])?;
+    }
+    Ok(rec)
 }
 
 fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict>> {
@@ -69,6 +75,8 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict
     d.set_item("tdoa_bad_value", s.tdoa_bad_value)?;
     d.set_item("anchor_source", s.anchor_source)?;
     d.set_item("log_time_stamps", s.log_time_stamps)?;
+    d.set_item("messages", s.messages)?;
+    d.set_item("complete", s.end == McapEnd::Complete)?;
     let invalid = PyDict::new(py);
     for (id, c) in &s.per_anchor {
         invalid.set_item(id, c.invalid)?;
@@ -190,11 +198,9 @@ fn replay<'py>(
     let method = cfg.method_or(method)?;
     let smooth = method.smooth(smooth);
     let rec = read(py, &path, &cfg.mapping, progress)?;
-    let result = py.detach(|| {
-        with_progress(progress, rec.imu.len() as u64, |p| {
-            replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth, p)
-        })
-    })?;
+    let result = run_interruptible(py, progress, rec.imu.len() as u64, |p| {
+        replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth, Some(p))
+    })??;
     let summary = result.summary(&rec)?;
     let text =
         serde_json::to_string(&summary).map_err(|e| IoError::Format { what: "replay summary".into(), reason: e.to_string() })?;

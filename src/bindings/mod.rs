@@ -6,6 +6,7 @@ mod cli;
 mod convert;
 mod errors;
 mod filters;
+mod interruptible;
 mod io;
 mod metrics;
 mod ranging;

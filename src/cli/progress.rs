@@ -36,14 +36,12 @@ impl Bar {
     }
 }
 
-/// Runs `run` with a [`Progress`] to count into when `enabled`, while a reporter thread draws it
+/// Runs `run` with `progress` to count into while, when `bars`, a reporter thread draws it
 /// against `total` IMU samples ("filtering", then "smoothing" once the smoothing pass begins).
-/// Without `enabled`, `run` gets None and nothing is drawn.
-pub(crate) fn with_progress<T>(enabled: bool, total: u64, run: impl FnOnce(Option<&Progress>) -> T) -> T {
-    if !enabled {
-        return run(None);
+pub(crate) fn with_progress<T>(bars: bool, total: u64, progress: &Progress, run: impl FnOnce(&Progress) -> T) -> T {
+    if !bars {
+        return run(progress);
     }
-    let progress = Progress::default();
     let done = std::sync::atomic::AtomicBool::new(false);
     std::thread::scope(|scope| {
         let reporter = scope.spawn(|| {
@@ -67,7 +65,7 @@ pub(crate) fn with_progress<T>(enabled: bool, total: u64, run: impl FnOnce(Optio
                 eprintln!(" done");
             }
         });
-        let out = run(Some(&progress));
+        let out = run(progress);
         done.store(true, std::sync::atomic::Ordering::Relaxed);
         reporter.thread().unpark();
         // The reporter only draws; if it panicked, the run's result still stands.

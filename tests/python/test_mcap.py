@@ -97,11 +97,30 @@ def test_replay_returns_the_run_filter_columns(fixture_dir):
     assert fixes.columns[-2:] == ["n_ranges", "residual_rms"]
 
 
+def test_a_recording_cut_short_reads_up_to_its_last_complete_record(fixture_dir, tmp_path):
+    whole = (fixture_dir / "zstd.mcap").read_bytes()
+    full = uwbimu_rs.read_mcap(fixture_dir / "zstd.mcap", mapping=VENDOR)
+    assert full["stats"]["complete"]
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole[: len(whole) * 3 // 4])
+    with pytest.warns(UserWarning, match=r"ends before its footer .* bytes after it are lost"):
+        part = uwbimu_rs.read_mcap(cut, mapping=VENDOR)
+    assert not part["stats"]["complete"]
+    n, total = len(part["imu"]["t"]), len(full["imu"]["t"])
+    assert 0 < n < total
+    assert part["stats"]["messages"] < full["stats"]["messages"]
+    # What was read is the start of the complete file, sample for sample.
+    assert part["imu"]["t"].to_list() == full["imu"]["t"][:n].to_list()
+    with pytest.warns(UserWarning, match="ends before its footer"):
+        _, info = uwbimu_rs.replay(cut, "ekf", mapping=VENDOR)
+    assert info["truncated_bytes"] > 0 and info["n_imu"] == n
+
+
 def test_errors(fixture_dir, tmp_path):
     with pytest.raises(FileNotFoundError):
         uwbimu_rs.read_mcap(tmp_path / "missing.mcap")
     truncated = tmp_path / "truncated.mcap"
-    truncated.write_bytes((fixture_dir / "zstd.mcap").read_bytes()[:5000])
+    truncated.write_bytes((fixture_dir / "zstd.mcap").read_bytes()[:12])
     with pytest.raises(OSError, match="truncated|end of file"):
         uwbimu_rs.read_mcap(truncated, mapping=VENDOR)
     with pytest.raises(uwbimu_rs.FormatError, match="magic"):

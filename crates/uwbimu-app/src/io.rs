@@ -6,6 +6,7 @@
 //! ([`recording_out`]), CSV ([`csv_out`]).
 
 pub mod anchors;
+pub mod atomic_file;
 pub mod cdr;
 pub mod csv_out;
 mod error;

@@ -436,11 +436,16 @@ fn run_inertial<F: InertialFilter>(
         filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
     }
     let trace = run_streams(&mut filter, &input.streams())?;
-    let smoothed = if smooth {
+    // A cancelled run keeps its forward steps so far; it is not smoothed.
+    let cancelled = || progress.is_some_and(Progress::cancelled);
+    let smoothed = if smooth && !cancelled() {
         if let Some(p) = progress {
             p.start_smoothing();
         }
-        Some(smoothed_steps(&trace, filter.core())?)
+        match smoothed_steps(&trace, filter.core(), progress) {
+            Err(Error::Interrupted { .. }) => None,
+            other => Some(other?),
+        }
     } else {
         None
     };

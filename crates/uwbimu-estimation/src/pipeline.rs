@@ -582,6 +582,9 @@ pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Resul
         return Ok(Trace::default());
     };
     for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
+        if streams.progress.is_some_and(Progress::cancelled) {
+            break;
+        }
         pipeline.event(filter, &event)?;
         if let (Event::Imu(_), Some(p)) = (&event, streams.progress) {
             p.imu_sample();
@@ -603,14 +606,15 @@ pub fn run_smoothed<F: InertialFilter>(
 ) -> Result<(Trace, Vec<StepRecord>)> {
     filter.core_mut().start_recording(imu.len() + ranges.len());
     let trace = run(filter, imu, ranges)?;
-    let smoothed = smoothed_steps(&trace, filter.core())?;
+    let smoothed = smoothed_steps(&trace, filter.core(), None)?;
     Ok((trace, smoothed))
 }
 
 /// RTS-smooths what `core` recorded during the run that produced `trace` and returns one
-/// smoothed record per IMU step of `trace` (the node starting at each step's time).
-pub fn smoothed_steps(trace: &Trace, core: &InertialCore) -> Result<Vec<StepRecord>> {
-    let nodes = smooth_recording(core)?;
+/// smoothed record per IMU step of `trace` (the node starting at each step's time). Gives up with
+/// [`Error::Interrupted`] once `progress` is cancelled ([`Progress::cancel`]).
+pub fn smoothed_steps(trace: &Trace, core: &InertialCore, progress: Option<&Progress>) -> Result<Vec<StepRecord>> {
+    let nodes = smooth_recording(core, &|| progress.is_some_and(Progress::cancelled))?;
     let mut k = 0;
     Ok(trace
         .steps
@@ -631,7 +635,7 @@ pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
     if core.segments().is_empty() {
         return Err(Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()));
     }
-    Ok(smooth_recording(core)?
+    Ok(smooth_recording(core, &|| false)?
         .iter()
         .map(|n| StepRecord {
             t_s: n.t_s,
@@ -644,11 +648,11 @@ pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
 }
 
 /// Smooths what `core` recorded since [`InertialCore::start_recording`]; one node per recorded
-/// propagation start plus the current state.
-pub fn smooth_recording(core: &InertialCore) -> Result<Vec<SmoothedNode>> {
+/// propagation start plus the current state. `stop` as in [`rts_smooth`].
+pub fn smooth_recording(core: &InertialCore, stop: &dyn Fn() -> bool) -> Result<Vec<SmoothedNode>> {
     let Some(t_s) = core.time_s() else {
         return Err(Error::InvalidCall("nothing to smooth: the filter has not started".into()));
     };
     let last = SmoothedNode { t_s, state: *core.state(), covariance: *core.covariance() };
-    rts_smooth(core.segments(), last, core.ins())
+    rts_smooth(core.segments(), last, core.ins(), stop)
 }

@@ -31,12 +31,24 @@ pub struct SmoothedNode {
     pub covariance: ErrCov,
 }
 
+/// Segments smoothed between two looks at the stop flag of [`rts_smooth`].
+const STOP_CHECK_SEGMENTS: usize = 1024;
+
 /// Smooths a recording: node `i < n` is the posterior at the start of `segments[i]`, node `n` is
-/// `last` (the final posterior). Returns the `n + 1` smoothed nodes in time order. Fails if a
-/// predicted covariance is not positive definite.
-pub fn rts_smooth(segments: &[Segment], last: SmoothedNode, ins: &InsConfig) -> Result<Vec<SmoothedNode>> {
+/// `last` (the final posterior). Returns the `n + 1` smoothed nodes in time order. `stop` is
+/// asked every 1024 segments whether to give up. Fails if a predicted
+/// covariance is not positive definite, or with [`Error::Interrupted`] when `stop` says so.
+pub fn rts_smooth(
+    segments: &[Segment],
+    last: SmoothedNode,
+    ins: &InsConfig,
+    stop: &dyn Fn() -> bool,
+) -> Result<Vec<SmoothedNode>> {
     let mut out = vec![last; segments.len() + 1];
     for (i, seg) in segments.iter().enumerate().rev() {
+        if i % STOP_CHECK_SEGMENTS == 0 && stop() {
+            return Err(Error::Interrupted { what: "RTS smoothing" });
+        }
         let phi = Transition::new(&seg.state, &seg.interval, ins);
         let q = ProcessNoise::new(ins, seg.interval.dt_s);
         let x_pred = propagate_nominal(&seg.state, &seg.interval, ins);

@@ -98,6 +98,12 @@ pub enum Error {
     /// Not enough data to do what was asked (e.g. initialise without any UWB epoch).
     #[error("insufficient data: {0}")]
     InsufficientData(String),
+    /// The run was asked to stop (Ctrl-C, a signal) before it finished.
+    #[error("interrupted during {what}")]
+    Interrupted {
+        /// The pass that stopped, e.g. `RTS smoothing`.
+        what: &'static str,
+    },
     /// A matrix that must be positive definite is not (e.g. an innovation covariance).
     #[error("numerical failure in {what}: matrix not positive definite")]
     NotPositiveDefinite {

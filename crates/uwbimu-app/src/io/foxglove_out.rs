@@ -1,8 +1,12 @@
 //! Writes an estimated trajectory as an MCAP file that Foxglove opens: JSON channels with
 //! `jsonschema` schemas named `foxglove.PoseInFrame` (one per step, `/uwbimu/pose`),
-//! `foxglove.PosesInFrame` (the decimated path so far, once a second, `/uwbimu/path`) and
+//! `foxglove.PosesInFrame` (the decimated path in segments, `/uwbimu/path`) and
 //! `foxglove.FrameTransform` (`map` → `base_link`, `/tf`). The header profile is "" because
 //! the channels are JSON, not CDR.
+//!
+//! The file grows linearly with the trajectory: each path message holds only the poses since the
+//! previous one (starting at its last pose, so the segments join), never the whole path again.
+//! Foxglove's 3D panel shows the whole path when the topic's decay time is long enough.
 
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
@@ -49,8 +53,8 @@ fn pose_json(p: &Vec3, q: &Quat) -> serde_json::Value {
 }
 
 /// Writes `trajectory` (time s, position m, orientation; identity when absent) to `sink`.
-/// `label` names the output in errors; the path is published every `path_period_s` with poses
-/// spaced at least `path_spacing_s` apart.
+/// `label` names the output in errors; a path segment is published every `path_period_s` (and
+/// at the end) with poses spaced at least `path_spacing_s` apart.
 ///
 /// # Errors
 /// [`Error::Io`] if writing fails.
@@ -95,6 +99,8 @@ pub fn write_trajectory_mcap<W: Write + Seek>(
         if t - last_path_msg >= path_period_s || k + 1 == trajectory.len() {
             put(path_ch, json!({"timestamp": stamp, "frame_id": "map", "poses": path}))?;
             last_path_msg = *t;
+            // The next segment starts where this one ends.
+            path.drain(..path.len().saturating_sub(1));
         }
     }
     w.finish().map_err(err)?;

@@ -1,8 +1,12 @@
 //! Streaming MCAP reading with the `mcap` crate's sans-io [`LinearReader`]: chunked or not,
 //! indexed or not, zstd / lz4 / uncompressed; bytes are pulled through `std::io::Read`, so memory
-//! stays bounded by one chunk and a truncated file is an error, never a SIGBUS (no mmap).
+//! stays bounded by one chunk and a truncated file is never a SIGBUS (no mmap).
 //! Chunks are decompressed here (zstd, lz4), bounded by their declared size; chunk and
 //! data-section CRCs are checked.
+//!
+//! A file that ends early — a recorder that died before writing the footer, or a last chunk cut
+//! short — is read up to its last complete record and reported as [`McapEnd::Truncated`], as
+//! `mcap recover` does; corruption inside the file (a CRC mismatch, a bad length) stays an error.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -59,6 +63,36 @@ pub enum McapEvent<'a> {
         /// Its key/value pairs.
         entries: &'a BTreeMap<String, String>,
     },
+}
+
+/// How a read MCAP stream ended.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum McapEnd {
+    /// The footer was read: the file is complete.
+    #[default]
+    Complete,
+    /// The file ends before its footer; everything up to `intact_bytes` (the end of the last
+    /// complete record) was read, the rest is lost.
+    Truncated {
+        /// Bytes of the file read as complete records.
+        intact_bytes: u64,
+        /// The file's size, bytes.
+        size: u64,
+    },
+}
+
+impl McapEnd {
+    /// The warning a replay prints for a truncated file (None when complete).
+    pub fn warning(&self, label: &str) -> Option<String> {
+        match self {
+            Self::Complete => None,
+            Self::Truncated { intact_bytes, size } => Some(format!(
+                "{label} ends before its footer (the recorder stopped?): read up to the last complete record, \
+                 {intact_bytes} of {size} bytes; the {} bytes after it are lost",
+                size - intact_bytes
+            )),
+        }
+    }
 }
 
 /// Largest record or decompressed chunk accepted, bytes (guards allocations on corrupt lengths).
@@ -146,11 +180,13 @@ fn chunk_records(header: &ChunkHeader, data: &[u8], limit: usize, label: &str) -
 
 /// Reads an MCAP stream of `size` bytes from `source`, calling `on_event` for channels, messages
 /// and metadata in file order and `progress` with the bytes read so far. `label` names the source
-/// in errors.
+/// in errors. Returns how the stream ended: complete, or truncated after its last complete record
+/// (see the module doc).
 ///
 /// # Errors
-/// [`Error::Format`] for anything that is not a complete, well-formed MCAP file (bad magic,
-/// truncation, CRC mismatch, unknown compression, a message on an undeclared channel);
+/// [`Error::Format`] for anything that is not a well-formed MCAP file (bad magic, a file that
+/// ends before any record after the magic, CRC mismatch, unknown compression, a message on an
+/// undeclared channel);
 /// [`Error::Io`] for read failures; errors of `on_event` as they are.
 pub fn read_mcap<R: Read>(
     mut source: R,
@@ -158,7 +194,7 @@ pub fn read_mcap<R: Read>(
     label: &str,
     mut on_event: impl FnMut(McapEvent<'_>) -> Result<()>,
     mut progress: impl FnMut(u64),
-) -> Result<()> {
+) -> Result<McapEnd> {
     if size == 0 {
         return Err(format_error(label, "the file is empty (not an MCAP file)"));
     }
@@ -170,8 +206,17 @@ pub fn read_mcap<R: Read>(
     let mut reader = LinearReader::new_with_options(options);
     let mut registry = Registry { schemas: HashMap::new(), channels: HashMap::new() };
     let mut read_total = 0u64;
+    // The end of the last complete record (bytes read minus what the reader still holds).
+    let mut intact = 0u64;
+    let mut records = 0u64;
     while let Some(event) = reader.next_event() {
-        match event.map_err(|e| format_error(label, describe(&e)))? {
+        let event = match event {
+            Err(mcap::McapError::UnexpectedEof) if records > 0 => {
+                return Ok(McapEnd::Truncated { intact_bytes: intact, size });
+            }
+            other => other.map_err(|e| format_error(label, describe(&e)))?,
+        };
+        match event {
             LinearReadEvent::ReadRequest(need) => {
                 // Never ask for more than what is left of the file (corrupt lengths).
                 let want = need.min((size.saturating_sub(read_total)).max(1) as usize).clamp(1, 1 << 20);
@@ -181,6 +226,8 @@ pub fn read_mcap<R: Read>(
                 progress(read_total);
             }
             LinearReadEvent::Record { opcode, data } => {
+                records += 1;
+                intact = read_total;
                 match mcap::parse_record(opcode, data).map_err(|e| format_error(label, describe(&e)))? {
                     Record::Chunk { header, data } => {
                         let records = chunk_records(&header, &data, limit, label)?;
@@ -204,7 +251,7 @@ pub fn read_mcap<R: Read>(
             }
         }
     }
-    Ok(())
+    Ok(McapEnd::Complete)
 }
 
 /// A message for an `mcap` error that says what it means to a user.
@@ -220,7 +267,11 @@ fn describe(e: &mcap::McapError) -> String {
 ///
 /// # Errors
 /// [`Error::Io`] if the file cannot be opened; otherwise as [`read_mcap`].
-pub fn read_mcap_file(path: &Path, on_event: impl FnMut(McapEvent<'_>) -> Result<()>, progress: impl FnMut(u64)) -> Result<()> {
+pub fn read_mcap_file(
+    path: &Path,
+    on_event: impl FnMut(McapEvent<'_>) -> Result<()>,
+    progress: impl FnMut(u64),
+) -> Result<McapEnd> {
     let label = path.display().to_string();
     let io = |e: std::io::Error| Error::io(label.clone(), e);
     let file = File::open(path).map_err(io)?;

@@ -11,7 +11,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 
 use crate::io::anchors::{parse_anchor_metadata, read_anchor_file, AnchorTable, ANCHORS_METADATA};
-use crate::io::mcap_read::{read_mcap, ChannelInfo, McapEvent};
+use crate::io::mcap_read::{read_mcap, ChannelInfo, McapEnd, McapEvent};
 use crate::io::reorder::ReorderBuffer;
 use crate::io::topics::{AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawRange, RawTdoa, TdoaDecoder};
 use crate::io::truth_file::read_truth_csv;
@@ -101,6 +101,11 @@ pub struct ReadStats {
     pub anchor_source: &'static str,
     /// Messages whose stamp came from the MCAP log time.
     pub log_time_stamps: usize,
+    /// Messages read (every channel).
+    pub messages: usize,
+    /// Whether the file was complete or ended early ([`McapEnd`]; its messages up to the last
+    /// complete record are used).
+    pub end: McapEnd,
 }
 
 impl ReadStats {
@@ -254,6 +259,7 @@ impl Reader<'_> {
             }
             McapEvent::Metadata { .. } => {}
             McapEvent::Message { channel, log_time_ns, data } => {
+                self.stats.messages += 1;
                 if let Some(t) = self.stats.topics.iter_mut().find(|t| t.topic == channel.topic) {
                     t.count += 1;
                 }
@@ -342,7 +348,13 @@ pub fn read_recording<R: std::io::Read>(
         range_scratch: Vec::new(),
         tdoa_scratch: Vec::new(),
     };
-    read_mcap(source, size, label, |e| r.on_event(e), progress)?;
+    r.stats.end = read_mcap(source, size, label, |e| r.on_event(e), progress)?;
+    if r.stats.end != McapEnd::Complete && r.stats.messages == 0 {
+        return Err(Error::Format {
+            what: label.to_string(),
+            reason: "unexpected end of file (truncated?) before any complete message".into(),
+        });
+    }
     r.buffer.finish(|t, i| r.released.push(t, i));
     r.stats.late_dropped = r.buffer.late;
     r.stats.reordered = r.buffer.reordered;

@@ -1,18 +1,39 @@
 //! How far a batch run has got, for a progress bar drawn by another thread: the loop bumps a
 //! counter per IMU sample (one relaxed atomic add, no allocation) and the method runner marks the
-//! start of the smoothing pass.
+//! start of the smoothing pass. The other way, another thread (a signal handler, Python's Ctrl-C
+//! check) can ask the runs to stop: the loop then ends after the event it is on, with the steps
+//! so far ([`Progress::cancel`]).
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 
 /// Progress of one or more batch runs, shared with a reporter thread: the IMU samples the forward
-/// passes have processed, and whether a backward (RTS smoothing) pass has begun.
+/// passes have processed, whether a backward (RTS smoothing) pass has begun, and whether the runs
+/// were asked to stop.
 #[derive(Debug, Default)]
 pub struct Progress {
     imu_done: AtomicU64,
     smoothing: AtomicBool,
+    cancel: Arc<AtomicBool>,
 }
 
 impl Progress {
+    /// A progress whose runs stop once `cancel` is set (e.g. by a signal handler).
+    pub fn with_cancel_flag(cancel: Arc<AtomicBool>) -> Self {
+        Self { cancel, ..Self::default() }
+    }
+
+    /// Asks the runs to stop: each forward pass ends after its current event (with the steps so
+    /// far) and no smoothing pass begins or goes on.
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether the runs were asked to stop.
+    pub fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+
     /// IMU samples processed so far (over every run that shares this counter).
     pub fn imu_done(&self) -> u64 {
         self.imu_done.load(Ordering::Relaxed)
