@@ -1,5 +1,6 @@
-//! Property tests: the CDR decoder, the ros2msg parser and the MCAP reader never panic on random
-//! or mutated input; they return `Ok` or an `Err`. The case count follows `PROPTEST_CASES`
+//! Property tests: the CDR decoder, the ros2msg parser, the MCAP reader, the replay TOML parser
+//! (method, `[config]`, `[initial]`, `[mapping]`) and the JSON mapping overrides never panic on
+//! random or mutated input; they return `Ok` or an `Err`. The case count follows `PROPTEST_CASES`
 //! (default 256); docs/mcap.md reports a long run.
 
 #![allow(clippy::unwrap_used)]
@@ -13,7 +14,7 @@ use uwbimu_rs::app::io::cdr::decode;
 use uwbimu_rs::app::io::msg_schema::MsgSchema;
 use uwbimu_rs::app::io::read_recording;
 use uwbimu_rs::app::io::recording_out::{imu_cdr, write_recording_mcap, RecordingStreams, IMU_MSG};
-use uwbimu_rs::app::io::{Mapping, UwbMapping};
+use uwbimu_rs::app::io::{Mapping, ReplayConfig, UwbMapping};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::records::{ImuSample, RangeMeasurement};
 
@@ -67,7 +68,80 @@ fn read(bytes: &[u8]) {
     }
 }
 
+/// Lines of replay TOML: real keys and sections, wrong types, extreme values, unknown keys.
+fn toml_line() -> impl Strategy<Value = String> {
+    prop_oneof![
+        Just("method = \"best\"".to_string()),
+        Just("method = 3".to_string()),
+        Just("[config]".to_string()),
+        Just("[config.ranging]".to_string()),
+        Just("[config.ins]".to_string()),
+        Just("[initial]".to_string()),
+        Just("[mapping]".to_string()),
+        Just("[mapping.uwb]".to_string()),
+        Just("[mapping.anchors]".to_string()),
+        Just("range_std = 0.15".to_string()),
+        Just("range_std = -1e308".to_string()),
+        Just("range_std = nan".to_string()),
+        Just("range_std = \"wide\"".to_string()),
+        Just("accel_noise_density = [1, 2, 3]".to_string()),
+        Just("ins.accel_noise_density = inf".to_string()),
+        Just("position = [1, 2]".to_string()),
+        Just("orientation = [0, 0, 0, 0]".to_string()),
+        Just("topics = [\"/uwb\", 7]".to_string()),
+        Just("range = \"ranges[].range\"".to_string()),
+        Just("range = \"ranges[[].\"".to_string()),
+        Just("valid = \"ranges[].ra == \"".to_string()),
+        Just("time_source = \"later\"".to_string()),
+        Just("reorder_window_s = -5".to_string()),
+        Just("file = \"/nonexistent/anchors.csv\"".to_string()),
+        Just("A0 = [0, 0, 1e400]".to_string()),
+        "[a-z_.]{1,12} = [0-9eE.+-]{1,8}",
+        "[\\[\\]a-z_.=\" 0-9]{0,20}",
+    ]
+}
+
+/// JSON mapping overrides: nested tables with known and unknown keys, wrong types, nulls.
+fn mapping_json() -> impl Strategy<Value = String> {
+    let value = prop_oneof![
+        Just("null".to_string()),
+        Just("1e308".to_string()),
+        Just("-1".to_string()),
+        Just("\"x\"".to_string()),
+        Just("[\"/uwb\"]".to_string()),
+        Just("{}".to_string()),
+        Just("{\"topics\": 3}".to_string()),
+        Just("{\"range\": \"ranges[].\"}".to_string()),
+        Just("true".to_string()),
+    ];
+    let key = prop_oneof![
+        Just("imu_topic"),
+        Just("uwb"),
+        Just("tdoa"),
+        Just("anchors"),
+        Just("ground_truth"),
+        Just("time_source"),
+        Just("reorder_window_s"),
+        Just("unknown_key"),
+    ];
+    proptest::collection::vec((key, value), 0..5).prop_map(|pairs| {
+        let body: Vec<String> = pairs.iter().map(|(k, v)| format!("\"{k}\": {v}")).collect();
+        format!("{{{}}}", body.join(", "))
+    })
+}
+
 proptest! {
+    #[test]
+    fn replay_toml_parser_never_panics(lines in proptest::collection::vec(toml_line(), 0..10)) {
+        let _ = ReplayConfig::from_toml(&lines.join("\n"), std::path::Path::new("."));
+    }
+
+    #[test]
+    fn mapping_overrides_never_panic(json in mapping_json(), raw in "[{}\\[\\]\":, a-z0-9]{0,30}") {
+        let _ = Mapping::default().merged_with_json(&json);
+        let _ = Mapping::default().merged_with_json(&raw);
+    }
+
     #[test]
     fn cdr_decoder_never_panics_on_random_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..400), which in 0usize..2, kind in 0u8..8) {
         let mut b = bytes;

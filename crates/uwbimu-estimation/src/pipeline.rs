@@ -137,6 +137,10 @@ pub trait Estimator: Filter {
     /// Whether the state is finite and plausible ([`crate::repair::is_plausible_state`]) and the
     /// covariance finite with a non-negative diagonal.
     fn is_sound(&self) -> bool;
+    /// Whether the covariance has a Cholesky factor (positive definite to working precision):
+    /// checked after each update, where a filter's covariance can lose definiteness (the
+    /// predictions keep it).
+    fn is_positive_definite(&self) -> bool;
     /// Makes the covariance symmetric positive definite ([`crate::repair::repair_covariance`]).
     fn repair_covariance(&mut self);
     /// Remembers the state and covariance as the last good ones (after an update that passed).
@@ -194,6 +198,10 @@ impl<F: InertialFilter> Estimator for F {
     fn is_sound(&self) -> bool {
         let core = self.core();
         crate::repair::is_plausible_state(core.state()) && crate::repair::is_sound_covariance(core.covariance())
+    }
+
+    fn is_positive_definite(&self) -> bool {
+        self.core().covariance().cholesky().is_some()
     }
 
     fn repair_covariance(&mut self) {
@@ -267,12 +275,13 @@ struct Tally {
 
 impl Tally {
     /// Runs one step of `est` (`step`) so that a numerical failure cannot end the run: on a
-    /// [`Error::NotPositiveDefinite`] or an unsound result the state and covariance from before
+    /// [`Error::NotPositiveDefinite`], an unsound result or a covariance that is no longer positive
+    /// definite ([`Estimator::is_positive_definite`]) the state and covariance from before
     /// are put back and the covariance repaired. Returns whether the step was applied.
     fn guarded<E: Estimator>(&mut self, est: &mut E, step: impl FnOnce(&mut E) -> Result<()>) -> Result<bool> {
         let before = est.snapshot();
         match step(est) {
-            Ok(()) if est.is_sound() => {
+            Ok(()) if est.is_sound() && est.is_positive_definite() => {
                 est.mark_good();
                 return Ok(true);
             }
@@ -624,7 +633,7 @@ pub fn smoothed_steps(trace: &Trace, core: &InertialCore, progress: Option<&Prog
                 k += 1;
             }
             let n = &nodes[k];
-            StepRecord { state: n.state, position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(), ..*step }
+            StepRecord { state: n.state, position_cov: n.position_cov, ..*step }
         })
         .collect())
 }
@@ -637,13 +646,7 @@ pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
     }
     Ok(smooth_recording(core, &|| false)?
         .iter()
-        .map(|n| StepRecord {
-            t_s: n.t_s,
-            state: n.state,
-            position_cov: n.covariance.fixed_view::<3, 3>(POS, POS).into_owned(),
-            still: false,
-            status: 0,
-        })
+        .map(|n| StepRecord { t_s: n.t_s, state: n.state, position_cov: n.position_cov, still: false, status: 0 })
         .collect())
 }
 
@@ -653,6 +656,5 @@ pub fn smooth_recording(core: &InertialCore, stop: &dyn Fn() -> bool) -> Result<
     let Some(t_s) = core.time_s() else {
         return Err(Error::InvalidCall("nothing to smooth: the filter has not started".into()));
     };
-    let last = SmoothedNode { t_s, state: *core.state(), covariance: *core.covariance() };
-    rts_smooth(core.segments(), last, core.ins(), stop)
+    rts_smooth(core.segments(), (t_s, *core.state(), *core.covariance()), core.ins(), stop)
 }

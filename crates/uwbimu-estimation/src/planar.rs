@@ -345,6 +345,10 @@ impl Estimator for PlanarFilter {
             && crate::repair::is_sound_covariance(&self.covariance)
     }
 
+    fn is_positive_definite(&self) -> bool {
+        self.covariance.cholesky().is_some()
+    }
+
     fn repair_covariance(&mut self) {
         crate::repair::repair_covariance(&mut self.covariance);
     }

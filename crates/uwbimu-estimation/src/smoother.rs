@@ -9,50 +9,64 @@
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
 //! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
-//! uses dense 15×15 products.
+//! uses dense 15×15 products. Memory per propagation: the segment keeps its covariance as the
+//! upper triangle ([`uwbimu_vocabulary::state::PackedErrCov`], lossless), and a smoothed node
+//! keeps only the position block; the full smoothed covariance lives only from one node to the
+//! next.
 
 use uwbimu_vocabulary::config::InsConfig;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::symmetrize;
-use uwbimu_vocabulary::state::{ErrCov, NominalState};
+use uwbimu_vocabulary::math::{symmetrize, Mat3};
+use uwbimu_vocabulary::state::{ErrCov, NominalState, POS};
 
 use crate::filters::Segment;
 use crate::ins::{propagate_nominal, ProcessNoise, Transition};
 use crate::robust::fade_position_velocity;
 
-/// A smoothed estimate at one node of the recording.
+/// Segments smoothed between two looks at the stop flag of [`rts_smooth`].
+const STOP_CHECK_SEGMENTS: usize = 1024;
+
+/// A smoothed estimate at one node of the recording: the state and the position block of its
+/// covariance (the full covariance is carried only from node to node in the backward pass, so a
+/// node costs 0.2 kB, not 2 kB).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SmoothedNode {
     /// Time, s.
     pub t_s: f64,
     /// Smoothed nominal state.
     pub state: NominalState,
-    /// Smoothed error covariance.
-    pub covariance: ErrCov,
+    /// Position block of the smoothed error covariance, m².
+    pub position_cov: Mat3,
 }
 
-/// Segments smoothed between two looks at the stop flag of [`rts_smooth`].
-const STOP_CHECK_SEGMENTS: usize = 1024;
-
 /// Smooths a recording: node `i < n` is the posterior at the start of `segments[i]`, node `n` is
-/// `last` (the final posterior). Returns the `n + 1` smoothed nodes in time order. `stop` is
-/// asked every 1024 segments whether to give up. Fails if a predicted
+/// the final posterior (`t_s`, `state`, `covariance`). Returns the `n + 1` smoothed nodes in time
+/// order. `stop` is asked every 1024 segments whether to give up. Fails if a predicted
 /// covariance is not positive definite, or with [`Error::Interrupted`] when `stop` says so.
 pub fn rts_smooth(
     segments: &[Segment],
-    last: SmoothedNode,
+    last: (f64, NominalState, ErrCov),
     ins: &InsConfig,
     stop: &dyn Fn() -> bool,
 ) -> Result<Vec<SmoothedNode>> {
-    let mut out = vec![last; segments.len() + 1];
+    let (t_s, last_state, last_covariance) = last;
+    let node = |t_s: f64, state: NominalState, p: &ErrCov| SmoothedNode {
+        t_s,
+        state,
+        position_cov: p.fixed_view::<3, 3>(POS, POS).into_owned(),
+    };
+    let mut out = vec![node(t_s, last_state, &last_covariance); segments.len() + 1];
+    // The smoothed covariance of the node after the one being smoothed.
+    let mut next_covariance = last_covariance;
     for (i, seg) in segments.iter().enumerate().rev() {
         if i % STOP_CHECK_SEGMENTS == 0 && stop() {
             return Err(Error::Interrupted { what: "RTS smoothing" });
         }
+        let seg_covariance = seg.covariance.unpack();
         let phi = Transition::new(&seg.state, &seg.interval, ins);
         let q = ProcessNoise::new(ins, seg.interval.dt_s);
         let x_pred = propagate_nominal(&seg.state, &seg.interval, ins);
-        let mut p_pred = phi.propagate_covariance(&seg.covariance, &q);
+        let mut p_pred = phi.propagate_covariance(&seg_covariance, &q);
         if seg.prior_fading != 1.0 {
             fade_position_velocity(&mut p_pred, seg.prior_fading);
         }
@@ -61,13 +75,13 @@ pub fn rts_smooth(
         }
         let chol = p_pred.cholesky().ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
         // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.
-        let gain = chol.solve(&(phi.to_dense() * seg.covariance)).transpose();
-        let next = out[i + 1];
+        let gain = chol.solve(&(phi.to_dense() * seg_covariance)).transpose();
         let mut state = seg.state;
-        state.inject(&(gain * next.state.boxminus(&x_pred)));
-        let mut covariance = seg.covariance + gain * (next.covariance - p_pred) * gain.transpose();
+        state.inject(&(gain * out[i + 1].state.boxminus(&x_pred)));
+        let mut covariance = seg_covariance + gain * (next_covariance - p_pred) * gain.transpose();
         symmetrize(&mut covariance);
-        out[i] = SmoothedNode { t_s: seg.t_s, state, covariance };
+        out[i] = node(seg.t_s, state, &covariance);
+        next_covariance = covariance;
     }
     Ok(out)
 }

@@ -24,6 +24,44 @@ pub type ErrVec = nalgebra::SVector<f64, ERR_DIM>;
 /// 15×15 error-state covariance.
 pub type ErrCov = Cov<ERR_DIM>;
 
+/// Entries of the upper triangle of an [`ErrCov`].
+const PACKED_LEN: usize = ERR_DIM * (ERR_DIM + 1) / 2;
+
+/// An error covariance kept as its upper triangle (120 of 225 entries), for the records a run
+/// keeps per step (the smoother's [`ErrCov`] per propagation). [`PackedErrCov::unpack`] returns
+/// the symmetric matrix whose upper triangle was packed: lossless for a symmetric covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PackedErrCov([f64; PACKED_LEN]);
+
+impl PackedErrCov {
+    /// Packs the upper triangle of `p`, column by column.
+    pub fn pack(p: &ErrCov) -> Self {
+        let mut out = [0.0; PACKED_LEN];
+        let mut k = 0;
+        for j in 0..ERR_DIM {
+            for i in 0..=j {
+                out[k] = p[(i, j)];
+                k += 1;
+            }
+        }
+        Self(out)
+    }
+
+    /// The symmetric covariance.
+    pub fn unpack(&self) -> ErrCov {
+        let mut p = ErrCov::zeros();
+        let mut k = 0;
+        for j in 0..ERR_DIM {
+            for i in 0..=j {
+                p[(i, j)] = self.0[k];
+                p[(j, i)] = self.0[k];
+                k += 1;
+            }
+        }
+        p
+    }
+}
+
 /// Initial diagonal covariance with per-slot standard deviations.
 pub fn diagonal_covariance(std: [Vec3; 5]) -> ErrCov {
     let mut p = ErrCov::zeros();
@@ -80,5 +118,18 @@ impl NominalState {
         d.fixed_rows_mut::<3>(BA).copy_from(&(self.accel_bias - other.accel_bias));
         d.fixed_rows_mut::<3>(BG).copy_from(&(self.gyro_bias - other.gyro_bias));
         d
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_packed_covariance_unpacks_to_the_same_symmetric_matrix() {
+        let a = ErrCov::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 - 5.0);
+        let p = a * a.transpose();
+        assert_eq!(PackedErrCov::pack(&p).unpack(), p);
+        assert!(std::mem::size_of::<PackedErrCov>() * 15 < std::mem::size_of::<ErrCov>() * 8);
     }
 }

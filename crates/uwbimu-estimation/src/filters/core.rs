@@ -4,7 +4,7 @@
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
+use uwbimu_vocabulary::state::{ErrCov, NominalState, PackedErrCov, POS, VEL};
 
 use crate::filters::range_bias::BiasCross;
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
@@ -39,8 +39,8 @@ pub struct Segment {
     pub t_s: f64,
     /// Posterior nominal state at the start.
     pub state: NominalState,
-    /// Posterior error covariance at the start.
-    pub covariance: ErrCov,
+    /// Posterior error covariance at the start (its upper triangle).
+    pub covariance: PackedErrCov,
     /// The IMU interval propagated over.
     pub interval: ImuInterval,
     /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
@@ -147,7 +147,7 @@ impl InertialCore {
             rec.push(Segment {
                 t_s,
                 state: self.state,
-                covariance: self.covariance,
+                covariance: PackedErrCov::pack(&self.covariance),
                 interval: *imu,
                 prior_fading: 1.0,
                 prior_widening: None,
