@@ -49,7 +49,20 @@ fn known_biases_are_recovered() {
             println!("    relative {relative:+.3} (true {truth_relative:+.3})");
             assert!((relative - truth_relative).abs() < 0.095, "log {}", o.bias_m);
             assert!(truth_relative.abs() < 0.05 || relative.signum() == truth_relative.signum());
+            // Each error held to its measured figure (tests/figures/calibrate.csv).
+            let a = w.anchor;
+            common::figures::hold_one("calibrate", &format!("with_truth,{seed},{a},bias_error"), (w.bias_m - b).abs());
+            common::figures::hold_one(
+                "calibrate",
+                &format!("from_log,{seed},{a},relative_bias_error"),
+                (relative - truth_relative).abs(),
+            );
         }
         assert!((with.common_offset_m - mean).abs() < 0.01);
+        common::figures::hold_one(
+            "calibrate",
+            &format!("with_truth,{seed},common_offset_error"),
+            (with.common_offset_m - mean).abs(),
+        );
     }
 }

@@ -4,9 +4,16 @@
 //! of `uwb_ls` on the same run (1.5× self-initialised, after its first 10 s); the documented
 //! exceptions below have their own measured bound. The matrix of docs/accuracy.md comes from
 //! `python examples/zoo_matrix.py` (the same cells).
+//!
+//! Each cell is also held to its own measured figure (`tests/figures/generality.csv`, every
+//! cell's RMSE and `uwb_ls`'s; [`common::figures`]): a 10 % regression of any method on any
+//! scenario fails. `bash scripts/update_test_bounds.sh` re-measures it and lists what moved.
 
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
+use common::figures;
 use uwbimu_rs::app::generality::{cells, run_cell, run_cells, Cell, Settings, Start};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::sim::{UWB_LOST_NAMES, ZOO_NAMES};
@@ -40,12 +47,25 @@ fn scenarios() -> Vec<&'static str> {
     ZOO_NAMES.iter().copied().filter(|n| !UWB_LOST_NAMES.contains(n)).collect()
 }
 
+fn key(cell: &Cell<'_>) -> String {
+    format!("{:?},{:?},{},{},{}", cell.start, cell.settings, cell.method.name(), cell.scenario, cell.seed)
+}
+
 fn check(start: Start, settings: Settings<'static>) {
     let names = scenarios();
     let cells: Vec<Cell<'_>> = cells(&Method::ALL[1..], &names, &SEEDS, start, settings).unwrap();
+    let results = run_cells(&cells);
+    // Each cell's RMSE and uwb_ls's on the same run, held to their stored figures.
+    let measured: Vec<(String, f64)> = cells
+        .iter()
+        .zip(&results)
+        .filter_map(|(c, r)| r.as_ref().ok().map(|r| [(key(c), r.rmse_m), (format!("{},uwb_ls", key(c)), r.uwb_ls_rmse_m)]))
+        .flatten()
+        .collect();
+    let regressions = figures::hold("generality", &measured);
     let failures: Vec<String> = cells
         .iter()
-        .zip(run_cells(&cells))
+        .zip(results)
         .filter_map(|(cell, result)| {
             let name = cell.method.name();
             match result {
@@ -62,6 +82,7 @@ fn check(start: Start, settings: Settings<'static>) {
                 Err(e) => Some(format!("{name} on {} seed {}: {e}", cell.scenario, cell.seed)),
             }
         })
+        .chain(regressions)
         .collect();
     assert!(failures.is_empty(), "{start:?} {settings:?}: {} cells fail:\n{}", failures.len(), failures.join("\n"));
 }
@@ -81,6 +102,28 @@ fn every_filter_holds_up_on_the_zoo_with_the_defaults() {
     // The zoo's sensors are those the defaults describe (consumer MEMS IMU, σ ≈ 0.1 m ranges).
     check(Start::Given, Settings::Defaults);
     check(Start::SelfInit, Settings::Defaults);
+}
+
+#[test]
+fn the_stored_figures_catch_a_filter_without_its_robust_policy_or_its_imu() {
+    // `iekf` is `riekf` without its robust policy, `uwb_ls` a filter without an IMU: their stored
+    // figures must fail `riekf`'s bounds — `iekf` on the scenarios with gross outliers
+    // (measured 12–15× riekf on `outliers`), `uwb_ls` on every scenario but the three whose
+    // NLOS biases last tens of seconds, where riekf is only 1.02–1.21× better than uwb_ls
+    // (nlos_one, nlos_two, walk_nlos seeds 1–2).
+    let stored = figures::stored("generality");
+    let figure = |key: String| stored.get(&key).copied().unwrap_or_else(|| panic!("no stored figure {key}"));
+    for scenario in scenarios().into_iter().filter(|s| !["nlos_one", "nlos_two", "walk_nlos"].contains(s)) {
+        for seed in SEEDS {
+            let bound = figures::bound(figure(format!("Given,Matched,riekf,{scenario},{seed}")));
+            let uwb_ls = figure(format!("Given,Matched,riekf,{scenario},{seed},uwb_ls"));
+            assert!(uwb_ls > bound, "{scenario} seed {seed}: uwb_ls {uwb_ls} m within riekf's bound {bound} m");
+            if ["outliers", "corridor"].contains(&scenario) {
+                let iekf = figure(format!("Given,Matched,iekf,{scenario},{seed}"));
+                assert!(iekf > bound, "{scenario} seed {seed}: iekf {iekf} m within riekf's bound {bound} m");
+            }
+        }
+    }
 }
 
 #[test]

@@ -164,6 +164,17 @@ fn li_wang_2020_nlos_table_over_five_seeds() {
     assert!(criekf.0 < 0.22 && riekf.0 < 0.44 && rekf.0 < 0.5 && criekf.1 < 1.8, "{criekf:?} {riekf:?} {rekf:?}");
     assert!(criekf.0 < uwb.0, "CRIEKF {criekf:?} vs UWB {uwb:?}");
     assert!(criekf.1 < 0.8 * ekf.1, "CRIEKF max {} vs EKF max {}", criekf.1, ekf.1);
+    // The README's claim: RIEKF below EKF in mean and in max.
+    assert!(riekf.0 < ekf.0 && riekf.1 < ekf.1, "RIEKF {riekf:?} vs EKF {ekf:?}");
+    // Every figure held to its measured value (tests/figures/robust.csv).
+    let measured: Vec<(String, f64)> = [("uwb_ls", uwb), ("ekf", ekf), ("rekf", rekf), ("riekf", riekf), ("criekf", criekf)]
+        .iter()
+        .flat_map(|(name, (mean, max))| {
+            [(format!("li_wang_2020_nlos,{name},mean"), *mean), (format!("li_wang_2020_nlos,{name},max"), *max)]
+        })
+        .collect();
+    let failures = common::figures::hold("robust", &measured);
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]

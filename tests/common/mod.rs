@@ -1,6 +1,8 @@
 //! Helpers shared by the filter integration tests.
 #![allow(dead_code)]
 
+pub mod figures;
+
 use uwbimu_rs::app::methods::BatchInput;
 use uwbimu_rs::app::sim::{SimConfig, SimData};
 use uwbimu_rs::estimation::pipeline::StepRecord;
