@@ -89,6 +89,7 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
     let bytes = std::fs::read(&out_mcap).unwrap();
     let mut schemas = BTreeMap::new();
     let mut path_poses = 0usize;
+    let mut poses: Vec<[f64; 4]> = Vec::new();
     read_mcap(
         Cursor::new(&bytes),
         bytes.len() as u64,
@@ -98,9 +99,14 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
                 let s = channel.schema.as_ref().unwrap();
                 assert_eq!((s.encoding.as_str(), channel.message_encoding.as_str()), ("jsonschema", "json"));
                 *schemas.entry(s.name.clone()).or_insert(0usize) += 1;
+                let v: serde_json::Value = serde_json::from_slice(data).unwrap();
                 if s.name == "foxglove.PosesInFrame" {
-                    let v: serde_json::Value = serde_json::from_slice(data).unwrap();
                     path_poses += v["poses"].as_array().unwrap().len();
+                }
+                if s.name == "foxglove.PoseInFrame" {
+                    let (p, t) = (&v["pose"]["position"], &v["timestamp"]);
+                    let t_s = t["sec"].as_f64().unwrap() + t["nsec"].as_f64().unwrap() * 1e-9;
+                    poses.push([t_s, p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap(), p["z"].as_f64().unwrap()]);
                 }
             }
             Ok(())
@@ -109,6 +115,13 @@ fn replays_a_simulated_recording_and_writes_foxglove_and_csv() {
     )
     .unwrap();
     assert_eq!(schemas["foxglove.PoseInFrame"], data.imu.len());
+    // The poses are the CSV's trajectory, row for row (time to the nanosecond of the stamp;
+    // positions to 1e-12 m, serde_json's parser rounds the last bit).
+    for (pose, row) in poses.iter().zip(csv.lines().skip(1)) {
+        let row: Vec<f64> = row.split(',').take(4).map(|v| v.parse().unwrap()).collect();
+        let close = pose.iter().zip(&row).zip([1e-9, 1e-12, 1e-12, 1e-12]).all(|((a, b), tol)| (a - b).abs() < tol);
+        assert!(close, "pose {pose:?} vs CSV {row:?}");
+    }
     assert_eq!(schemas["foxglove.FrameTransform"], data.imu.len());
     // The path comes in one-second segments that join (each starts at the previous one's last
     // pose): every 0.2 s pose once, plus one repeat per segment — linear in the log, not quadratic.

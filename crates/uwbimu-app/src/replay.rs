@@ -92,7 +92,7 @@ impl Replay {
             n_ground_truth: rec.ground_truth.len(),
             truncated_bytes: match rec.stats.end {
                 McapEnd::Complete => 0,
-                McapEnd::Truncated { intact_bytes, size } => size - intact_bytes,
+                McapEnd::Truncated { intact_bytes, size } => size.saturating_sub(intact_bytes),
             },
             anchors: self.anchors.clone(),
             tdoa: self.tdoa.clone(),

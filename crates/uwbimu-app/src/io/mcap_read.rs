@@ -89,7 +89,7 @@ impl McapEnd {
             Self::Truncated { intact_bytes, size } => Some(format!(
                 "{label} ends before its footer (the recorder stopped?): read up to the last complete record, \
                  {intact_bytes} of {size} bytes; the {} bytes after it are lost",
-                size - intact_bytes
+                size.saturating_sub(*intact_bytes)
             )),
         }
     }
