@@ -11,7 +11,6 @@ use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::PosePoint;
 
-use crate::io::mcap_read::McapEnd;
 use crate::io::Recording;
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::{evaluate, Evaluation};
@@ -90,10 +89,7 @@ impl Replay {
             n_ranges: rec.ranges.len(),
             n_tdoa: rec.tdoa.len(),
             n_ground_truth: rec.ground_truth.len(),
-            truncated_bytes: match rec.stats.end {
-                McapEnd::Complete => 0,
-                McapEnd::Truncated { intact_bytes, size } => size.saturating_sub(intact_bytes),
-            },
+            truncated_bytes: rec.stats.end.lost_bytes(),
             anchors: self.anchors.clone(),
             tdoa: self.tdoa.clone(),
             mean_nis: self.mean_nis,
@@ -125,7 +121,7 @@ pub struct ReplaySummary {
     /// Ground-truth samples read.
     pub n_ground_truth: usize,
     /// Bytes lost at the end of a recording that ends before its footer (0 for a complete file;
-    /// [`McapEnd::Truncated`]).
+    /// [`crate::io::mcap_read::McapEnd::lost_bytes`]).
     pub truncated_bytes: u64,
     /// Per anchor: what the filter did with its ranges.
     pub anchors: Vec<AnchorUpdateStats>,

@@ -82,6 +82,14 @@ pub enum McapEnd {
 }
 
 impl McapEnd {
+    /// Bytes after the last complete record (0 for a complete file).
+    pub fn lost_bytes(&self) -> u64 {
+        match self {
+            Self::Complete => 0,
+            Self::Truncated { intact_bytes, size } => size.saturating_sub(*intact_bytes),
+        }
+    }
+
     /// The warning a replay prints for a truncated file (None when complete).
     pub fn warning(&self, label: &str) -> Option<String> {
         match self {
@@ -89,7 +97,7 @@ impl McapEnd {
             Self::Truncated { intact_bytes, size } => Some(format!(
                 "{label} ends before its footer (the recorder stopped?): read up to the last complete record, \
                  {intact_bytes} of {size} bytes; the {} bytes after it are lost",
-                size.saturating_sub(*intact_bytes)
+                self.lost_bytes()
             )),
         }
     }
