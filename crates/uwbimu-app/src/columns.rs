@@ -12,32 +12,60 @@ pub type Columns = Vec<(&'static str, Vec<f64>)>;
 const COV_ENTRIES: [(&str, usize, usize); 6] =
     [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)];
 
-/// One row per step: `t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z, still,
-/// status` (`status`: the bits of [`StepRecord::status`]), then the position covariance entries
-/// when `covariance`.
-pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
-    let col = |f: &dyn Fn(&StepRecord) -> f64| s.iter().map(f).collect::<Vec<f64>>();
-    let mut cols = vec![
-        ("t", col(&|r| r.t_s)),
-        ("x", col(&|r| r.state.position.x)),
-        ("y", col(&|r| r.state.position.y)),
-        ("z", col(&|r| r.state.position.z)),
-        ("vx", col(&|r| r.state.velocity.x)),
-        ("vy", col(&|r| r.state.velocity.y)),
-        ("vz", col(&|r| r.state.velocity.z)),
-        ("qw", col(&|r| r.state.orientation.w)),
-        ("qx", col(&|r| r.state.orientation.i)),
-        ("qy", col(&|r| r.state.orientation.j)),
-        ("qz", col(&|r| r.state.orientation.k)),
-        ("std_x", col(&|r| r.position_cov[(0, 0)].sqrt())),
-        ("std_y", col(&|r| r.position_cov[(1, 1)].sqrt())),
-        ("std_z", col(&|r| r.position_cov[(2, 2)].sqrt())),
-        ("still", col(&|r| f64::from(u8::from(r.still)))),
-        ("status", col(&|r| f64::from(r.status))),
-    ];
+/// A column of [`step_columns`]: its name and its value in a [`StepRecord`].
+type StepField = (&'static str, fn(&StepRecord) -> f64);
+
+/// The step columns before the covariance entries.
+const STEP_FIELDS: [StepField; 16] = [
+    ("t", |r| r.t_s),
+    ("x", |r| r.state.position.x),
+    ("y", |r| r.state.position.y),
+    ("z", |r| r.state.position.z),
+    ("vx", |r| r.state.velocity.x),
+    ("vy", |r| r.state.velocity.y),
+    ("vz", |r| r.state.velocity.z),
+    ("qw", |r| r.state.orientation.w),
+    ("qx", |r| r.state.orientation.i),
+    ("qy", |r| r.state.orientation.j),
+    ("qz", |r| r.state.orientation.k),
+    ("std_x", |r| r.position_cov[(0, 0)].sqrt()),
+    ("std_y", |r| r.position_cov[(1, 1)].sqrt()),
+    ("std_z", |r| r.position_cov[(2, 2)].sqrt()),
+    ("still", |r| f64::from(u8::from(r.still))),
+    ("status", |r| f64::from(r.status)),
+];
+
+/// The names of the step columns ([`step_columns`]), in order: `t, x, y, z, vx, vy, vz, qw,
+/// qx, qy, qz, std_x, std_y, std_z, still, status`, then `cov_xx, cov_xy, cov_xz, cov_yy,
+/// cov_yz, cov_zz` when `covariance`.
+pub fn step_column_names(covariance: bool) -> Vec<&'static str> {
+    let mut names: Vec<&'static str> = STEP_FIELDS.iter().map(|f| f.0).collect();
     if covariance {
-        for (name, i, j) in COV_ENTRIES {
-            cols.push((name, col(&|r| r.position_cov[(i, j)])));
+        names.extend(COV_ENTRIES.iter().map(|c| c.0));
+    }
+    names
+}
+
+/// Replaces the contents of `out` with the step columns' values of `record`, in the order of
+/// [`step_column_names`]`(covariance)`.
+pub fn step_row(record: &StepRecord, covariance: bool, out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(STEP_FIELDS.iter().map(|f| f.1(record)));
+    if covariance {
+        out.extend(COV_ENTRIES.iter().map(|&(_, i, j)| record.position_cov[(i, j)]));
+    }
+}
+
+/// One row per step ([`step_row`]) under the names of [`step_column_names`]: `t`, position,
+/// velocity, orientation (`qw, qx, qy, qz`), position standard deviations, `still`, `status`
+/// (the bits of [`StepRecord::status`]), then the position covariance entries when `covariance`.
+pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
+    let mut cols: Columns = step_column_names(covariance).into_iter().map(|name| (name, Vec::with_capacity(s.len()))).collect();
+    let mut row = Vec::with_capacity(cols.len());
+    for record in s {
+        step_row(record, covariance, &mut row);
+        for ((_, values), value) in cols.iter_mut().zip(&row) {
+            values.push(*value);
         }
     }
     cols
@@ -98,5 +126,55 @@ pub fn output_columns(output: &BatchOutput, covariance: bool) -> Columns {
     match output {
         BatchOutput::Inertial { trace, smoothed, .. } => step_columns(smoothed.as_deref().unwrap_or(&trace.steps), covariance),
         BatchOutput::Multilateration(fixes) => fix_columns(fixes, covariance),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use uwbimu_vocabulary::math::{Mat3, Quat, Vec3};
+    use uwbimu_vocabulary::state::NominalState;
+
+    use super::*;
+
+    fn record(k: usize) -> StepRecord {
+        let s = k as f64;
+        let a = Mat3::from_fn(|i, j| ((i * 3 + j + k) % 5) as f64 * 0.1);
+        StepRecord {
+            t_s: 0.01 * s,
+            state: NominalState {
+                position: Vec3::new(s, -2.0 * s, 0.5),
+                velocity: Vec3::new(0.1, s.sin(), -s),
+                orientation: Quat::from_euler_angles(0.1 * s, -0.2, 0.3),
+                accel_bias: Vec3::zeros(),
+                gyro_bias: Vec3::zeros(),
+            },
+            position_cov: a * a.transpose() + Mat3::identity(),
+            still: k % 2 == 0,
+            status: (k % 8) as u8,
+        }
+    }
+
+    #[test]
+    fn step_rows_are_the_step_columns_transposed() {
+        let records: Vec<StepRecord> = (0..7).map(record).collect();
+        for covariance in [false, true] {
+            let cols = step_columns(&records, covariance);
+            let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
+            assert_eq!(names, step_column_names(covariance));
+            let mut row = Vec::new();
+            for (r, rec) in records.iter().enumerate() {
+                step_row(rec, covariance, &mut row);
+                let column_values: Vec<f64> = cols.iter().map(|c| c.1[r]).collect();
+                assert_eq!(row, column_values, "row {r}, covariance {covariance}");
+            }
+        }
+        let names = step_column_names(true).join(",");
+        let expected = "t,x,y,z,vx,vy,vz,qw,qx,qy,qz,std_x,std_y,std_z,still,status,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz";
+        assert_eq!(names, expected);
+        let first = &step_columns(&records[..1], true);
+        let rec = &records[0];
+        assert_eq!(first[7].1[0], rec.state.orientation.w);
+        assert_eq!(first[12].1[0], rec.position_cov[(1, 1)].sqrt());
+        assert_eq!(first[17].1[0], rec.position_cov[(0, 1)]);
     }
 }

@@ -1,30 +1,41 @@
 //! Accuracy metrics against ground truth: truth interpolation, error statistics, empirical CDF,
-//! rigid (SE(3)) alignment and NEES.
+//! rigid (SE(3)) alignment and NEES, and the streaming RMS errors of [`TruthErrors`].
 //!
 //! Positions are navigation-frame (ENU) metres, times seconds. Horizontal error is the x–y norm,
 //! 3-D error the full norm.
+
+use std::collections::VecDeque;
 
 use nalgebra::Cholesky;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::percentile;
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 
-/// Rejects the first non-finite value of a scalar series.
-fn check_finite_scalars(name: &'static str, values: &[f64]) -> Result<()> {
-    match values.iter().position(|v| !v.is_finite()) {
-        Some(row) => Err(Error::NonFinite { name, row, col: 0, value: values[row] }),
+/// Rejects a non-finite value in row `row` of the scalar series `name`.
+fn check_finite_scalar(name: &'static str, row: usize, value: f64) -> Result<()> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::NonFinite { name, row, col: 0, value })
+    }
+}
+
+/// Rejects a non-finite component of row `row` of the 3-vector series `name`.
+fn check_finite_vector(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(col) => Err(Error::NonFinite { name, row, col, value: v[col] }),
         None => Ok(()),
     }
 }
 
+/// Rejects the first non-finite value of a scalar series.
+fn check_finite_scalars(name: &'static str, values: &[f64]) -> Result<()> {
+    values.iter().enumerate().try_for_each(|(row, &v)| check_finite_scalar(name, row, v))
+}
+
 /// Rejects the first non-finite component of a series of 3-vectors.
 fn check_finite_vectors(name: &'static str, values: &[Vec3]) -> Result<()> {
-    for (row, v) in values.iter().enumerate() {
-        if let Some(col) = v.iter().position(|x| !x.is_finite()) {
-            return Err(Error::NonFinite { name, row, col, value: v[col] });
-        }
-    }
-    Ok(())
+    values.iter().enumerate().try_for_each(|(row, v)| check_finite_vector(name, row, v))
 }
 
 /// Rejects two series of different lengths.
@@ -67,11 +78,16 @@ pub fn interpolate_positions(truth_t: &[f64], truth_p: &[Vec3], t: &[f64]) -> Re
             if k == truth_t.len() {
                 return Some(truth_p[k - 1]);
             }
-            let (t0, t1) = (truth_t[k - 1], truth_t[k]);
-            let alpha = (ti - t0) / (t1 - t0);
-            Some(truth_p[k - 1] + (truth_p[k] - truth_p[k - 1]) * alpha)
+            Some(interpolate_between((truth_t[k - 1], &truth_p[k - 1]), (truth_t[k], &truth_p[k]), ti))
         })
         .collect())
+}
+
+/// The point at `t` on the segment from `(t0, p0)` to `(t1, p1)`:
+/// `p0 + (t − t0)/(t1 − t0) · (p1 − p0)`.
+fn interpolate_between((t0, p0): (f64, &Vec3), (t1, p1): (f64, &Vec3), t: f64) -> Vec3 {
+    let alpha = (t - t0) / (t1 - t0);
+    p0 + (p1 - p0) * alpha
 }
 
 /// Summary statistics of a series of error magnitudes (m).
@@ -161,13 +177,30 @@ pub fn rigid_alignment(est: &[Vec3], truth: &[Vec3]) -> Result<RigidTransform> {
     check_same_len("truth", truth.len(), est.len(), 3)?;
     check_finite_vectors("est", est)?;
     check_finite_vectors("truth", truth)?;
-    if est.len() < 3 {
-        return Err(Error::InsufficientData(format!("rigid alignment needs at least 3 points, got {}", est.len())));
-    }
+    check_alignable(est.len())?;
     let n = est.len() as f64;
     let est_mean = est.iter().sum::<Vec3>() / n;
     let truth_mean = truth.iter().sum::<Vec3>() / n;
     let cross: Mat3 = est.iter().zip(truth).map(|(e, g)| (g - truth_mean) * (e - est_mean).transpose()).sum();
+    let rotation = kabsch_rotation(&cross)?;
+    Ok(RigidTransform { rotation, translation: truth_mean - rotation * est_mean })
+}
+
+/// Rejects a rigid alignment of fewer than 3 points.
+fn check_alignable(points: usize) -> Result<()> {
+    if points < 3 {
+        return Err(Error::InsufficientData(format!("rigid alignment needs at least 3 points, got {points}")));
+    }
+    Ok(())
+}
+
+/// The rotation `R` minimising `Σ ‖R·(e_i − ē) − (g_i − ḡ)‖²` given the cross-covariance
+/// `C = Σ (g_i − ḡ)(e_i − ē)ᵀ = U·S·Vᵀ`: `R = U·diag(1, 1, det(U·Vᵀ))·Vᵀ` (reflection-safe).
+///
+/// # Errors
+/// [`Error::InsufficientData`] if the SVD does not converge or `C` has rank < 2 (collinear
+/// points: the rotation is not unique).
+fn kabsch_rotation(cross: &Mat3) -> Result<Mat3> {
     let svd = cross.svd(true, true);
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Err(Error::InsufficientData("rigid alignment: SVD did not converge".into()));
@@ -179,8 +212,7 @@ pub fn rigid_alignment(est: &[Vec3], truth: &[Vec3]) -> Result<RigidTransform> {
     }
     let mut d = Mat3::identity();
     d[(2, 2)] = (u * v_t).determinant().signum();
-    let rotation = u * d * v_t;
-    Ok(RigidTransform { rotation, translation: truth_mean - rotation * est_mean })
+    Ok(u * d * v_t)
 }
 
 /// Normalised estimation error squared `ε_i = e_iᵀ·P_i⁻¹·e_i` for each error `e_i` (m) and
@@ -271,10 +303,227 @@ pub fn evaluate(est_t: &[f64], est_p: &[Vec3], truth_t: &[f64], truth_p: &[Vec3]
     })
 }
 
+/// The root-mean-square errors of [`TruthErrors`]: those of [`evaluate`] without and with the
+/// rigid alignment (`horizontal.rmse`, `three_d.rmse`), m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthRmse {
+    /// Number of estimates inside the truth time span.
+    pub n: usize,
+    /// RMS of the horizontal (x–y) errors, m.
+    pub rmse_horizontal_m: f64,
+    /// RMS of the horizontal errors after the least-squares rigid alignment, m.
+    pub rmse_horizontal_aligned_m: f64,
+    /// RMS of the 3-D errors, m.
+    pub rmse_3d_m: f64,
+    /// RMS of the 3-D errors after the least-squares rigid alignment, m.
+    pub rmse_3d_aligned_m: f64,
+}
+
+/// Running centroids and centred second moments of matched (estimate `e`, truth `g`) pairs,
+/// updated per pair in Welford's manner (never from uncentred sums, which lose the digits of the
+/// errors under large coordinates).
+#[derive(Debug, Clone, Default)]
+struct PairMoments {
+    n: usize,
+    est_mean: Vec3,
+    truth_mean: Vec3,
+    /// `Σ (e − ē)(e − ē)ᵀ`.
+    est_est: Mat3,
+    /// `Σ (g − ḡ)(g − ḡ)ᵀ`.
+    truth_truth: Mat3,
+    /// `Σ (g − ḡ)(e − ē)ᵀ`, the cross-covariance of [`kabsch_rotation`].
+    truth_est: Mat3,
+}
+
+impl PairMoments {
+    fn push(&mut self, e: &Vec3, g: &Vec3) {
+        self.n += 1;
+        let n = self.n as f64;
+        let (de, dg) = (e - self.est_mean, g - self.truth_mean);
+        self.est_mean += de / n;
+        self.truth_mean += dg / n;
+        // With δ the deviation from the previous mean, the co-moment grows by (n−1)/n · δ_x·δ_yᵀ.
+        let w = (n - 1.0) / n;
+        self.est_est += de * de.transpose() * w;
+        self.truth_truth += dg * dg.transpose() * w;
+        self.truth_est += dg * de.transpose() * w;
+    }
+
+    /// `Σ r_i·r_iᵀ` of the residuals `r_i = R·(e_i − ē) − (g_i − ḡ)` of the estimates aligned by
+    /// `rotation` (with the optimal translation `ḡ − R·ē`), in closed form:
+    /// `R·S_ee·Rᵀ − R·S_geᵀ − S_ge·Rᵀ + S_gg`.
+    fn aligned_residual_scatter(&self, rotation: &Mat3) -> Mat3 {
+        let cross = rotation * self.truth_est.transpose();
+        rotation * self.est_est * rotation.transpose() - cross - cross.transpose() + self.truth_truth
+    }
+}
+
+/// The errors of an estimated trajectory against ground truth in one streaming pass, with the
+/// figures of [`evaluate`] (RMS only, [`TruthRmse`]) in memory that does not grow with the run.
+///
+/// Truth samples come through [`Self::push_truth`] in strictly increasing time, estimates
+/// through [`Self::push_estimate`] in non-decreasing time, interleaved in any order. Each
+/// estimate is compared with the truth interpolated linearly at its time as
+/// [`interpolate_positions`] does; estimates outside the truth time span are not counted. An
+/// estimate later than the newest truth sample waits until a later one arrives (or
+/// [`Self::end_truth`], [`Self::finish`]), and truth samples are kept until no estimate can need
+/// them: the memory held is the estimates ahead of the truth and the truth ahead of the
+/// estimates, so pushing truth a little ahead of the estimates, and ending it when it ends,
+/// keeps both small.
+#[derive(Debug, Clone, Default)]
+pub struct TruthErrors {
+    /// The truth samples estimates may still need: from the last one at or before the latest
+    /// matched estimate on.
+    truth: VecDeque<(f64, Vec3)>,
+    truth_pushed: usize,
+    /// Whether [`Self::end_truth`] was called.
+    truth_ended: bool,
+    /// Estimates at or after the newest truth sample, waiting for the one after them.
+    waiting: VecDeque<(f64, Vec3)>,
+    estimates_pushed: usize,
+    latest_estimate_s: Option<f64>,
+    /// `Σ (Δx² + Δy²)` of the matched estimates' raw errors, m².
+    raw_horizontal_sq: f64,
+    /// `Σ ‖Δp‖²` of the matched estimates' raw errors, m².
+    raw_3d_sq: f64,
+    moments: PairMoments,
+}
+
+impl TruthErrors {
+    /// An accumulator with no truth and no estimate.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds the truth position `p` (m) at `t_s` (s), later than the previous truth sample.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for a non-finite value (`truth_t`, `truth_p`),
+    /// [`Error::NonMonotonicTime`] if `t_s` is not later than the previous truth time,
+    /// [`Error::InvalidCall`] after [`Self::end_truth`]; the sample is then ignored.
+    pub fn push_truth(&mut self, t_s: f64, p: Vec3) -> Result<()> {
+        if self.truth_ended {
+            return Err(Error::InvalidCall("a truth sample pushed after end_truth".into()));
+        }
+        let row = self.truth_pushed;
+        check_finite_scalar("truth_t", row, t_s)?;
+        check_finite_vector("truth_p", row, &p)?;
+        if let Some(&(prev_s, _)) = self.truth.back() {
+            if t_s <= prev_s {
+                return Err(Error::NonMonotonicTime { name: "truth_t", row, prev_s, got_s: t_s });
+            }
+        }
+        self.truth.push_back((t_s, p));
+        self.truth_pushed += 1;
+        self.match_waiting();
+        Ok(())
+    }
+
+    /// Adds the estimated position `p` (m) at `t_s` (s), not earlier than the previous estimate.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for a non-finite value (`est_t`, `est_p`),
+    /// [`Error::NonMonotonicTime`] if `t_s` is earlier than the previous estimate time; the
+    /// estimate is then ignored.
+    pub fn push_estimate(&mut self, t_s: f64, p: Vec3) -> Result<()> {
+        let row = self.estimates_pushed;
+        check_finite_scalar("est_t", row, t_s)?;
+        check_finite_vector("est_p", row, &p)?;
+        if let Some(prev_s) = self.latest_estimate_s.filter(|&prev_s| t_s < prev_s) {
+            return Err(Error::NonMonotonicTime { name: "est_t", row, prev_s, got_s: t_s });
+        }
+        self.latest_estimate_s = Some(t_s);
+        self.estimates_pushed += 1;
+        self.waiting.push_back((t_s, p));
+        self.match_waiting();
+        if self.truth_ended {
+            self.match_at_truth_end();
+        }
+        Ok(())
+    }
+
+    /// Declares that no truth sample follows: the estimates at the last truth time are matched
+    /// with it, and those after it, now and later, are dropped at once instead of waiting for
+    /// [`Self::finish`].
+    pub fn end_truth(&mut self) {
+        self.truth_ended = true;
+        self.match_at_truth_end();
+    }
+
+    /// The root-mean-square errors of the estimates inside the truth time span, raw and after
+    /// the least-squares rigid alignment ([`rigid_alignment`]) of those estimates onto the
+    /// interpolated truth; the alignment's residuals come in closed form from the moments.
+    ///
+    /// # Errors
+    /// [`Error::InsufficientData`] if no estimate lies inside the truth time span, or the
+    /// alignment is impossible (fewer than 3 such estimates, collinear ones).
+    pub fn finish(mut self) -> Result<TruthRmse> {
+        self.match_at_truth_end();
+        let n = self.moments.n;
+        if n == 0 {
+            return Err(Error::InsufficientData("no estimate lies inside the truth time span".into()));
+        }
+        check_alignable(n)?;
+        let rotation = kabsch_rotation(&self.moments.truth_est)?;
+        let residuals = self.moments.aligned_residual_scatter(&rotation);
+        let rms = |sum_sq: f64| (sum_sq.max(0.0) / n as f64).sqrt();
+        Ok(TruthRmse {
+            n,
+            rmse_horizontal_m: rms(self.raw_horizontal_sq),
+            rmse_horizontal_aligned_m: rms(residuals[(0, 0)] + residuals[(1, 1)]),
+            rmse_3d_m: rms(self.raw_3d_sq),
+            rmse_3d_aligned_m: rms(residuals.trace()),
+        })
+    }
+
+    /// Matches the waiting estimates earlier than the newest truth sample.
+    fn match_waiting(&mut self) {
+        let Some(&(newest_s, _)) = self.truth.back() else { return };
+        while let Some((t, p)) = self.waiting.front().copied().filter(|e| e.0 < newest_s) {
+            self.waiting.pop_front();
+            if let Some(g) = self.truth_at(t) {
+                self.add_match(&p, &g);
+            }
+        }
+    }
+
+    /// Matches the waiting estimates, all at or after the newest truth sample, as if no truth
+    /// followed: those at its time with it, the later ones not at all.
+    fn match_at_truth_end(&mut self) {
+        let last = self.truth.back().copied();
+        while let Some((t, p)) = self.waiting.pop_front() {
+            if let Some((_, g)) = last.filter(|g| g.0 == t) {
+                self.add_match(&p, &g);
+            }
+        }
+    }
+
+    /// The truth interpolated at `t`, earlier than the newest truth sample and not earlier than
+    /// the previous call's; `None` before the first truth sample. Drops the samples before the
+    /// segment holding `t`, which later estimates cannot need.
+    fn truth_at(&mut self, t: f64) -> Option<Vec3> {
+        if t < self.truth.front()?.0 {
+            return None;
+        }
+        while self.truth.get(1).is_some_and(|next| next.0 <= t) {
+            self.truth.pop_front();
+        }
+        let (&(t0, p0), &(t1, p1)) = (self.truth.front()?, self.truth.get(1)?);
+        Some(interpolate_between((t0, &p0), (t1, &p1), t))
+    }
+
+    fn add_match(&mut self, e: &Vec3, g: &Vec3) {
+        let d = e - g;
+        self.raw_horizontal_sq += d.x * d.x + d.y * d.y;
+        self.raw_3d_sq += d.norm_squared();
+        self.moments.push(e, g);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use nalgebra::Rotation3;
-    use rand::SeedableRng;
+    use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, StandardNormal};
 
@@ -411,5 +660,154 @@ mod tests {
         assert!((tf.rotation - rot).norm() < 1e-9);
         let raw = evaluate(&truth_t, &est_p, &truth_t, &truth_p, false).unwrap();
         assert!(raw.three_d.max > 1.0);
+    }
+
+    /// A random smooth path (sums of sinusoids per axis) at times `t`.
+    fn random_path(rng: &mut ChaCha8Rng, t: &[f64]) -> Vec<Vec3> {
+        let terms: Vec<[f64; 9]> = (0..3).map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))).collect();
+        t.iter()
+            .map(|&t| {
+                Vec3::from_fn(|axis, _| {
+                    let scale = if axis == 2 { 0.5 } else { 4.0 };
+                    terms
+                        .iter()
+                        .map(|c| scale * c[3 * axis] * (t * (0.2 + c[3 * axis + 1].abs()) + 3.0 * c[3 * axis + 2]).sin())
+                        .sum()
+                })
+            })
+            .collect()
+    }
+
+    struct Streams {
+        est_t: Vec<f64>,
+        est_p: Vec<Vec3>,
+        truth_t: Vec<f64>,
+        truth_p: Vec<Vec3>,
+    }
+
+    /// Estimates at 200 Hz over 0–20 s with 5 cm noise; truth at 120 Hz over 1.3–18.7 s, the
+    /// same path rotated and moved by `offset`.
+    fn streams(seed: u64, offset: Vec3) -> Streams {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let est_t: Vec<f64> = (0..=4000).map(|k| k as f64 / 200.0).collect();
+        let truth_t: Vec<f64> = (0..=2088).map(|k| 1.3 + k as f64 / 120.0).collect();
+        let rotation = Rotation3::from_euler_angles(0.02, -0.03, 0.8).into_inner();
+        let truth_p =
+            random_path(&mut ChaCha8Rng::seed_from_u64(seed + 1), &truth_t).iter().map(|g| rotation * g + offset).collect();
+        let est_p = random_path(&mut ChaCha8Rng::seed_from_u64(seed + 1), &est_t)
+            .iter()
+            .map(|e| {
+                let noise: Vec3 = Vec3::from_fn(|_, _| StandardNormal.sample(&mut rng));
+                e + noise * 0.05
+            })
+            .collect();
+        Streams { est_t, est_p, truth_t, truth_p }
+    }
+
+    /// Streams `s` through [`TruthErrors`], each estimate after the truth up to `lead_s` past it
+    /// (`f64::INFINITY`: all truth first; `f64::NEG_INFINITY`: all estimates first), the truth
+    /// ended when it runs out. Also gives the most samples buffered once the truth has begun.
+    fn stream_errors(s: &Streams, lead_s: f64) -> Result<(TruthRmse, usize)> {
+        let mut acc = TruthErrors::new();
+        let mut truth = s.truth_t.iter().zip(&s.truth_p).peekable();
+        let mut most_buffered = 0;
+        for (&t, p) in s.est_t.iter().zip(&s.est_p) {
+            while let Some((&tt, g)) = truth.next_if(|g| *g.0 <= t + lead_s) {
+                acc.push_truth(tt, *g)?;
+            }
+            if truth.peek().is_none() {
+                acc.end_truth();
+            }
+            acc.push_estimate(t, *p)?;
+            if !acc.truth.is_empty() {
+                most_buffered = most_buffered.max(acc.truth.len() + acc.waiting.len());
+            }
+        }
+        truth.try_for_each(|(&tt, g)| acc.push_truth(tt, *g))?;
+        Ok((acc.finish()?, most_buffered))
+    }
+
+    fn assert_close(got: f64, expected: f64, what: &str) {
+        assert!((got - expected).abs() <= 1e-9 * expected.abs(), "{what}: {got} vs {expected}");
+    }
+
+    fn assert_streamed_matches_evaluate(s: &Streams) {
+        let raw = evaluate(&s.est_t, &s.est_p, &s.truth_t, &s.truth_p, false).unwrap();
+        let aligned = evaluate(&s.est_t, &s.est_p, &s.truth_t, &s.truth_p, true).unwrap();
+        for lead_s in [0.05, 0.0, f64::INFINITY, f64::NEG_INFINITY] {
+            let (got, _) = stream_errors(s, lead_s).unwrap();
+            assert_eq!(got.n, raw.three_d.n);
+            assert_close(got.rmse_horizontal_m, raw.horizontal.rmse, "horizontal");
+            assert_close(got.rmse_3d_m, raw.three_d.rmse, "3-D");
+            assert_close(got.rmse_horizontal_aligned_m, aligned.horizontal.rmse, "horizontal aligned");
+            assert_close(got.rmse_3d_aligned_m, aligned.three_d.rmse, "3-D aligned");
+        }
+    }
+
+    #[test]
+    fn streamed_errors_equal_evaluate() {
+        let s = streams(21, Vec3::new(-1.5, 2.0, 0.3));
+        assert!(s.est_t[0] < s.truth_t[0] && s.est_t[4000] > s.truth_t[2088]);
+        assert_streamed_matches_evaluate(&s);
+        // The alignment removes the rotation: what is left is about the noise.
+        let (got, most_buffered) = stream_errors(&s, 0.05).unwrap();
+        assert!(got.rmse_3d_m > 1.0 && got.rmse_3d_aligned_m < 0.1, "{got:?}");
+        // Truth 50 ms ahead at 120 Hz: about 7 truth samples held, no estimate waiting long.
+        assert!(most_buffered <= 10, "{most_buffered} samples buffered");
+    }
+
+    #[test]
+    fn streamed_errors_equal_evaluate_far_from_the_origin() {
+        let s = streams(22, Vec3::new(1000.0, -1000.0, 1000.0));
+        assert_streamed_matches_evaluate(&s);
+    }
+
+    #[test]
+    fn streamed_errors_count_the_truth_span_ends_and_samples_exactly() {
+        // Estimates before, at and between truth samples, at the last one and after it.
+        let truth_t = [1.0, 2.0, 3.0, 4.0];
+        let truth_p = [Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 2.0, 0.0), Vec3::new(0.0, 1.0, 1.0)];
+        let est_t = [0.5_f64, 1.0, 1.5, 2.0, 2.0, 2.5, 3.0, 3.75, 4.0, 4.5];
+        let est_p: Vec<Vec3> = est_t.iter().map(|&t| Vec3::new(t.sin(), 0.3 * t, t.cos())).collect();
+        let s = Streams { est_t: est_t.to_vec(), est_p, truth_t: truth_t.to_vec(), truth_p: truth_p.to_vec() };
+        assert_eq!(stream_errors(&s, 0.0).unwrap().0.n, 8);
+        assert_streamed_matches_evaluate(&s);
+    }
+
+    #[test]
+    fn streamed_errors_refuse_bad_input() {
+        let mut acc = TruthErrors::new();
+        acc.push_truth(1.0, Vec3::zeros()).unwrap();
+        assert!(matches!(acc.push_truth(1.0, Vec3::zeros()), Err(Error::NonMonotonicTime { name: "truth_t", row: 1, .. })));
+        assert!(matches!(acc.push_truth(f64::NAN, Vec3::zeros()), Err(Error::NonFinite { name: "truth_t", row: 1, .. })));
+        let bad = Vec3::new(0.0, f64::INFINITY, 0.0);
+        assert!(matches!(acc.push_truth(2.0, bad), Err(Error::NonFinite { name: "truth_p", row: 1, col: 1, .. })));
+        acc.push_estimate(1.5, Vec3::zeros()).unwrap();
+        assert!(matches!(acc.push_estimate(1.4, Vec3::zeros()), Err(Error::NonMonotonicTime { name: "est_t", row: 1, .. })));
+        assert!(matches!(acc.push_estimate(1.6, bad), Err(Error::NonFinite { name: "est_p", row: 1, col: 1, .. })));
+        acc.push_estimate(1.5, Vec3::zeros()).unwrap();
+        acc.end_truth();
+        assert!(matches!(acc.push_truth(3.0, Vec3::zeros()), Err(Error::InvalidCall(_))));
+    }
+
+    #[test]
+    fn streamed_errors_need_three_non_collinear_estimates_in_the_truth_span() {
+        let finish = |est_t: &[f64], est_p: &dyn Fn(f64) -> Vec3| {
+            let mut acc = TruthErrors::new();
+            for k in 0..=10 {
+                acc.push_truth(f64::from(k), Vec3::new(f64::from(k), f64::from(k * k), 0.0)).unwrap();
+            }
+            for &t in est_t {
+                acc.push_estimate(t, est_p(t)).unwrap();
+            }
+            acc.finish()
+        };
+        let spread = |t: f64| Vec3::new(t, t.sin(), t.cos());
+        assert!(matches!(finish(&[], &spread), Err(Error::InsufficientData(_))));
+        assert!(matches!(finish(&[-1.0, 10.5], &spread), Err(Error::InsufficientData(_))));
+        assert!(matches!(finish(&[1.0, 2.0], &spread), Err(Error::InsufficientData(_))));
+        assert!(matches!(finish(&[1.0, 2.0, 3.0, 4.0], &|t| Vec3::new(t, 0.0, 0.0)), Err(Error::InsufficientData(_))));
+        assert_eq!(finish(&[1.0, 2.0, 3.0, 4.0], &spread).unwrap().n, 4);
+        assert!(matches!(TruthErrors::new().finish(), Err(Error::InsufficientData(_))));
     }
 }
