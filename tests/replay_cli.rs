@@ -338,3 +338,38 @@ fn a_signal_stops_the_replay_and_the_outputs_hold_what_was_processed() {
         assert!(!partial_path(&csv).exists() && !partial_path(&out).exists());
     }
 }
+
+/// A drive of `minutes` at 200 Hz (the `long_mcap` drive, shorter or longer).
+fn drive_mcap(name: &str, minutes: f64) -> PathBuf {
+    let mut cfg = preset("hall_vehicle", 5).unwrap();
+    let loops = (minutes * 60.0 / 37.0).ceil() as u32;
+    cfg.trajectory = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, 37.0, loops, 10.0).unwrap();
+    cfg.imu_rate_hz = 200.0;
+    write(name, &sim_mcap(&simulate(&cfg).unwrap(), true))
+}
+
+/// The peak resident memory of one replay with both outputs, from its `--json` summary, bytes.
+fn peak_rss(file: &Path, method: &[&str]) -> u64 {
+    let (csv, out) = (scratch("rss.csv"), scratch("rss.mcap"));
+    let done = replay(
+        &[&[file.to_str().unwrap(), "--json", "--csv", csv.to_str().unwrap(), "--out", out.to_str().unwrap()], method].concat(),
+    );
+    assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&done.stdout).unwrap();
+    assert_eq!(summary["interrupted"], serde_json::Value::Null);
+    summary["peak_rss_bytes"].as_u64().unwrap()
+}
+
+#[test]
+fn replay_memory_does_not_grow_with_the_log() {
+    if !Path::new("/proc/self/status").exists() {
+        eprintln!("skipped: no /proc/self/status to read the peak memory from");
+        return;
+    }
+    let (short, long) = (drive_mcap("drive2.mcap", 2.0), drive_mcap("drive8.mcap", 8.0));
+    for method in [&["--method", "ekf"][..], &["--method", "best"][..]] {
+        let (a, b) = (peak_rss(&short, method), peak_rss(&long, method));
+        // Four times the samples (96 000): a replay keeping ~400 B per sample would add 29 MB.
+        assert!(b <= a + a / 8 + (2 << 20), "{method:?}: peak {} MB on 2 min, {} MB on 8 min", a >> 20, b >> 20);
+    }
+}

@@ -1,19 +1,24 @@
 //! Bindings of the MCAP reader and replay: `read_mcap` (columns of IMU, ranges, TDoA, anchors,
-//! ground truth), `replay` (the `uwbimu-replay` core: read, self-initialise, filter, statistics)
-//! and `read_truth` (a ground-truth CSV).
+//! ground truth), `replay` (the `uwbimu-replay` core, streamed from the file: survey,
+//! self-initialise, filter, statistics; only the output columns are kept) and `read_truth` (a
+//! ground-truth CSV).
 
 use std::path::{Path, PathBuf};
 
 use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use uwbimu_app::columns::output_columns;
+use uwbimu_app::columns::{output_columns, step_column_names, step_row};
 use uwbimu_app::io::mcap_read::McapEnd;
 use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_app::io::truth_file::{read_truth_csv, TRUTH_COLUMNS};
-use uwbimu_app::io::{read_recording_file, IoError, Mapping, ReadStats, Recording, ReplayConfig};
-use uwbimu_app::methods::BatchOutput;
+use uwbimu_app::io::{
+    read_recording_file, survey_recording_file, IoError, Mapping, ReadStats, Recording, RecordingSurvey, ReplayConfig,
+};
+use uwbimu_app::methods::Method;
 use uwbimu_app::replay::replay as replay_recording;
+use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
+use uwbimu_app::replay::ReplaySummary;
 
 use super::convert::columns;
 use super::errors::PyResult;
@@ -40,16 +45,40 @@ fn missing_file(path: &Path) -> PyErr {
 
 /// Reads the recording with the GIL released; with `progress`, a bar of the bytes read on stderr.
 fn read(py: Python<'_>, path: &Path, mapping: &Mapping, progress: bool) -> PyResult<Recording> {
+    let rec = with_read_bar(py, path, progress, |bar| read_recording_file(path, mapping, bar))?;
+    warn_if_truncated(py, path, &rec.stats)?;
+    Ok(rec)
+}
+
+/// The first pass of a streamed replay ([`survey_recording_file`]), as [`read`].
+fn survey(py: Python<'_>, path: &Path, mapping: &Mapping, progress: bool) -> PyResult<RecordingSurvey> {
+    let survey = with_read_bar(py, path, progress, |bar| survey_recording_file(path, mapping, bar))?;
+    warn_if_truncated(py, path, &survey.stats)?;
+    Ok(survey)
+}
+
+/// Runs `read` on `path` with the GIL released, giving it the progress callback of a bar of the
+/// bytes read (with `progress`); fails first if there is no such file.
+fn with_read_bar<T: Send>(
+    py: Python<'_>,
+    path: &Path,
+    progress: bool,
+    read: impl FnOnce(&mut dyn FnMut(u64)) -> uwbimu_app::io::IoResult<T> + Send,
+) -> PyResult<T> {
     if !path.exists() {
         return Err(missing_file(path).into());
     }
     let size = std::fs::metadata(path).map_or(0, |m| m.len());
     let mut bar = progress.then(|| Bar::new("reading", size));
-    let rec = py.detach(|| read_recording_file(path, mapping, |n| bar.iter_mut().for_each(|b| b.update(n))))?;
-    if let Some(w) = rec.stats.end.warning(&path.display().to_string()) {
+    Ok(py.detach(|| read(&mut |n| bar.iter_mut().for_each(|b| b.update(n))))?)
+}
+
+/// Warns (a `UserWarning`) when the recording ended before its footer.
+fn warn_if_truncated(py: Python<'_>, path: &Path, stats: &ReadStats) -> PyResult<()> {
+    if let Some(w) = stats.end.warning(&path.display().to_string()) {
         super::errors::warn_all(py, &[w])?;
     }
-    Ok(rec)
+    Ok(())
 }
 
 fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict>> {
@@ -197,20 +226,61 @@ fn replay<'py>(
     }
     let method = cfg.method_or(method)?;
     let smooth = method.smooth(smooth);
-    let rec = read(py, &path, &cfg.mapping, progress)?;
+    if method == Method::UwbLs {
+        return replay_whole(py, &path, &cfg, method, smooth, progress);
+    }
+    let survey = survey(py, &path, &cfg.mapping, progress)?;
+    let names = step_column_names(false);
+    let mut values: Vec<Vec<f64>> = vec![Vec::with_capacity(survey.n_imu); names.len()];
+    let dir = std::env::temp_dir();
+    let result = run_interruptible(py, progress, survey.n_imu as u64, |p| {
+        let input = StreamedInput {
+            path: &path,
+            mapping: &cfg.mapping,
+            survey: &survey,
+            config: &cfg.config,
+            initial: cfg.initial.as_ref(),
+            smooth,
+            progress: Some(p),
+            spill_dir: &dir,
+        };
+        let mut row = Vec::with_capacity(names.len());
+        replay_streamed(method, &input, &mut |s| {
+            step_row(s, false, &mut row);
+            values.iter_mut().zip(&row).for_each(|(column, v)| column.push(*v));
+            Ok(())
+        })
+    })??;
+    let info = info_dict(py, &result.summary(method, &survey), &survey.stats)?;
+    info.set_item("health", super::filters::health_dict(py, &result.health)?)?;
+    info.set_item("warnings", result.warnings.clone())?;
+    super::errors::warn_all(py, &result.warnings)?;
+    Ok((columns(py, names.into_iter().zip(values).collect())?, info))
+}
+
+/// The info dict of a replay: the summary's keys, and `stats` (what reading found).
+fn info_dict<'py>(py: Python<'py>, summary: &ReplaySummary, stats: &ReadStats) -> PyResult<Bound<'py, PyDict>> {
+    let text =
+        serde_json::to_string(summary).map_err(|e| IoError::Format { what: "replay summary".into(), reason: e.to_string() })?;
+    let info = py.import("json")?.call_method1("loads", (text,))?.cast_into::<PyDict>().map_err(PyErr::from)?;
+    info.set_item("stats", stats_dict(py, stats)?)?;
+    Ok(info)
+}
+
+/// [`replay`] of a method that needs no IMU (`uwb_ls`): reads the whole recording.
+fn replay_whole<'py>(
+    py: Python<'py>,
+    path: &Path,
+    cfg: &ReplayConfig,
+    method: Method,
+    smooth: bool,
+    progress: bool,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    let rec = read(py, path, &cfg.mapping, progress)?;
     let result = run_interruptible(py, progress, rec.imu.len() as u64, |p| {
         replay_recording(&rec, method, &cfg.config, cfg.initial.as_ref(), smooth, Some(p))
     })??;
-    let summary = result.summary(&rec)?;
-    let text =
-        serde_json::to_string(&summary).map_err(|e| IoError::Format { what: "replay summary".into(), reason: e.to_string() })?;
-    let info = py.import("json")?.call_method1("loads", (text,))?.cast_into::<PyDict>().map_err(PyErr::from)?;
-    info.set_item("stats", stats_dict(py, &rec.stats)?)?;
-    if let BatchOutput::Inertial { trace, warnings, .. } = &result.output {
-        info.set_item("health", super::filters::health_dict(py, &trace.health)?)?;
-        info.set_item("warnings", warnings.clone())?;
-        super::errors::warn_all(py, warnings)?;
-    }
+    let info = info_dict(py, &result.summary(&rec)?, &rec.stats)?;
     Ok((columns(py, output_columns(&result.output, false))?, info))
 }
 

@@ -5,22 +5,39 @@
 use std::io::Write;
 
 use uwbimu_app::io::{IoError as Error, IoResult as Result};
-use uwbimu_app::io::{Recording, ReplayConfig, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
-use uwbimu_app::methods::BatchOutput;
-use uwbimu_app::replay::{Replay, ReplaySummary};
+use uwbimu_app::io::{ReadStats, ReplayConfig, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
+use uwbimu_app::methods::Method;
+use uwbimu_app::replay::ReplaySummary;
+use uwbimu_estimation::pipeline::Health;
 
 /// A failed write to stdout (e.g. a closed pipe) as an error naming it.
 fn stdout_error(e: std::io::Error) -> Error {
     Error::io("stdout", e)
 }
 
-/// The topics, mapping, counts and ordering statistics of the file read.
-pub(super) fn found(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig, rec: &Recording) -> Result<()> {
-    found_lines(out, file, cfg, rec).map_err(stdout_error)
+/// What the reading found: its statistics and the records the filter gets.
+pub(super) struct Found<'a> {
+    /// The read statistics.
+    pub stats: &'a ReadStats,
+    /// IMU samples.
+    pub imu: usize,
+    /// Usable ranges.
+    pub ranges: usize,
+    /// Usable TDoA.
+    pub tdoa: usize,
+    /// Anchors with a position.
+    pub anchors: usize,
+    /// Ground-truth samples.
+    pub truth: usize,
 }
 
-fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig, rec: &Recording) -> std::io::Result<()> {
-    let s = &rec.stats;
+/// The topics, mapping, counts and ordering statistics of the file read.
+pub(super) fn found(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig, found: &Found<'_>) -> Result<()> {
+    found_lines(out, file, cfg, found).map_err(stdout_error)
+}
+
+fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig, rec: &Found<'_>) -> std::io::Result<()> {
+    let s = rec.stats;
     writeln!(out, "file: {}", file.display())?;
     writeln!(out, "{:<36} {:<44} {:<10} {:>8}  use", "topic", "schema", "encoding", "messages")?;
     for t in &s.topics {
@@ -40,7 +57,7 @@ fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig,
         u.anchor_position.as_deref().unwrap_or("-"),
         u.scale.unwrap_or(1.0)
     )?;
-    if !rec.tdoa.is_empty() {
+    if rec.tdoa > 0 {
         let t = &m.tdoa;
         writeln!(
             out,
@@ -54,12 +71,7 @@ fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig,
     writeln!(
         out,
         "read: {} IMU samples, {} ranges, {} TDoA, {} anchors (from {}), {} ground-truth samples",
-        rec.imu.len(),
-        rec.ranges.len(),
-        rec.tdoa.len(),
-        rec.anchors.len(),
-        s.anchor_source,
-        rec.ground_truth.len()
+        rec.imu, rec.ranges, rec.tdoa, rec.anchors, s.anchor_source, rec.truth
     )?;
     writeln!(
         out,
@@ -80,9 +92,8 @@ fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig,
 }
 
 /// The method line, e.g. `method: best (RTS-smoothed; --forward for the causal filter)`.
-fn method_line(result: &Replay) -> String {
-    let m = result.method;
-    let how = match (result.smoothed(), m.smooths_by_default(), m.smoothable()) {
+fn method_line(m: Method, smoothed: bool) -> String {
+    let how = match (smoothed, m.smooths_by_default(), m.smoothable()) {
         (true, true, _) => " (RTS-smoothed; --forward for the causal filter)",
         (true, false, _) => " (RTS-smoothed, --smooth)",
         (false, true, _) => " (causal filter, --forward; smoothed by default)",
@@ -92,28 +103,28 @@ fn method_line(result: &Replay) -> String {
     format!("method: {}{how}", m.name())
 }
 
-/// The method, the timings, per-anchor statistics, health, mean NIS and RMSE.
+/// The method, the timings, per-anchor statistics, health (inertial methods), mean NIS and RMSE.
 pub(super) fn stats(
     out: &mut impl Write,
-    rec: &Recording,
-    result: &Replay,
+    (method, read): (Method, &ReadStats),
     summary: &ReplaySummary,
+    health: Option<&Health>,
     timing: (f64, f64),
 ) -> Result<()> {
-    stats_lines(out, rec, result, summary, timing).map_err(stdout_error)
+    stats_lines(out, (method, read), summary, health, timing).map_err(stdout_error)
 }
 
 fn stats_lines(
     out: &mut impl Write,
-    rec: &Recording,
-    result: &Replay,
+    (method, stats): (Method, &ReadStats),
     summary: &ReplaySummary,
+    health: Option<&Health>,
     (read_s, filter_s): (f64, f64),
 ) -> std::io::Result<()> {
-    writeln!(out, "{}; read {read_s:.2} s, filter {filter_s:.2} s", method_line(result))?;
+    writeln!(out, "{}; read {read_s:.2} s, filter {filter_s:.2} s", method_line(method, summary.smoothed))?;
     writeln!(out, "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}", "anchor", "invalid", "accepted", "down-weighted", "rejected", "bad")?;
-    for a in summary.anchors.iter().filter(|_| !rec.ranges.is_empty()) {
-        let read = rec.stats.per_anchor.get(&a.id).copied().unwrap_or_default();
+    for a in summary.anchors.iter().filter(|_| summary.n_ranges > 0) {
+        let read = stats.per_anchor.get(&a.id).copied().unwrap_or_default();
         writeln!(
             out,
             "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
@@ -124,11 +135,10 @@ fn stats_lines(
         writeln!(
             out,
             "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
-            t.id, "-", t.accepted, t.down_weighted, t.rejected, rec.stats.tdoa_bad_value
+            t.id, "-", t.accepted, t.down_weighted, t.rejected, stats.tdoa_bad_value
         )?;
     }
-    if let BatchOutput::Inertial { trace, .. } = &result.output {
-        let h = &trace.health;
+    if let Some(h) = health {
         let rejected: Vec<String> =
             h.rejected.by_kind().filter(|(_, n)| *n > 0).map(|(k, n)| format!("{n} {}", k.name())).collect();
         if !rejected.is_empty() {
@@ -160,11 +170,24 @@ pub(super) fn wrote(out: &mut impl Write, line: &str) -> Result<()> {
     writeln!(out, "{line}").map_err(stdout_error)
 }
 
-/// The summary as one JSON object (one line), with `outputs`: the paths written.
-pub(super) fn json(out: &mut impl Write, summary: &ReplaySummary, outputs: &[String]) -> Result<()> {
+/// The summary as one JSON object (one line), with `outputs` (the paths written),
+/// `interrupted` (the signal that stopped the replay, or null) and `peak_rss_bytes` (the
+/// process's peak resident memory so far, where the system says it: Linux; else null).
+pub(super) fn json(out: &mut impl Write, summary: &ReplaySummary, outputs: &[String], interrupted: Option<&str>) -> Result<()> {
     let mut value = serde_json::to_value(summary).map_err(|e| Error::Format { what: "summary".into(), reason: e.to_string() })?;
     if let Some(object) = value.as_object_mut() {
         object.insert("outputs".into(), outputs.into());
+        object.insert("interrupted".into(), interrupted.into());
+        object.insert("peak_rss_bytes".into(), peak_rss_bytes().into());
     }
     writeln!(out, "{value}").map_err(stdout_error)
+}
+
+/// The peak resident set size of this process, bytes (`VmHWM` of `/proc/self/status`; None
+/// where there is no such file).
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.trim_start_matches("VmHWM:").trim().trim_end_matches("kB").trim().parse().ok()?;
+    Some(kb * 1024)
 }

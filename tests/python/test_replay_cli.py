@@ -64,11 +64,15 @@ def test_json_summary_equals_replay_info(recording):
     frame, info = uwbimu_rs.replay(recording["mcap"], config_file=recording["toml"], ground_truth=recording["truth"])
     assert summary["outputs"] == [str(csv)] and csv.exists()
     assert summary["method"] == info["method"] == "ekf" and summary["smoothed"] is info["smoothed"] is False
-    for key in ("rmse_horizontal_m", "rmse_horizontal_aligned_m", "rmse_3d_m", "rmse_3d_aligned_m", "mean_nis"):
-        assert abs(summary[key] - info[key]) <= 1e-12, key
-    # Every key of the summary but `outputs` is in the info dict, with the same value.
+    # The command line streams the file and adds the errors up as they go: the same figures to
+    # rounding (tests/streamed_replay.rs holds the steps to 1e-9).
+    figures = ("rmse_horizontal_m", "rmse_horizontal_aligned_m", "rmse_3d_m", "rmse_3d_aligned_m", "mean_nis")
+    for key in figures:
+        assert abs(summary[key] - info[key]) <= 1e-9, key
+    assert summary["interrupted"] is None and summary["peak_rss_bytes"] > 0
+    # Every other key of the summary but the command line's own is in the info dict, with the same value.
     for key, value in summary.items():
-        if key != "outputs":
+        if key not in ("outputs", "interrupted", "peak_rss_bytes") + figures:
             assert info[key] == value, key
     assert summary["n_imu"] == frame.height and summary["n_ground_truth"] > 0
     assert sum(a["accepted"] + a["down_weighted"] + a["rejected"] for a in summary["anchors"]) == summary["n_ranges"]
@@ -153,7 +157,7 @@ def test_isas_walk1_json_and_replay_agree_on_the_real_log():
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     _, info = uwbimu_rs.replay(ISAS / "isas-walk1.mcap", config_file=config, ground_truth=truth)
-    assert abs(summary["rmse_horizontal_aligned_m"] - info["rmse_horizontal_aligned_m"]) <= 1e-12
+    assert abs(summary["rmse_horizontal_aligned_m"] - info["rmse_horizontal_aligned_m"]) <= 1e-9
     assert summary["rmse_horizontal_aligned_m"] < 0.25
     np.testing.assert_equal(summary["n_imu"], 4839)
     assert pl.DataFrame(metrics.read_truth(truth)).height > 3000

@@ -19,6 +19,7 @@ mod recording;
 pub mod recording_out;
 pub mod reorder;
 mod replay_config;
+pub mod spill;
 pub mod topics;
 pub mod truth_file;
 
@@ -27,5 +28,8 @@ pub use mapping::{
     AnchorFrom, AnchorMapping, GroundTruthMapping, Mapping, TdoaMapping, TimeSource, UwbMapping, TDOA_ANCHOR_I_DEFAULT,
     TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
 };
-pub use recording::{read_recording, read_recording_file, ReadStats, Recording};
+pub use recording::{
+    read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, ReadStats, RecordItem,
+    Recording, RecordingSurvey,
+};
 pub use replay_config::ReplayConfig;

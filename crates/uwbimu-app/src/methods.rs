@@ -126,6 +126,19 @@ macro_rules! methods {
             }
         }
 
+        /// Replays a recording streamed from its file with `method` ([`crate::replay::streamed`]);
+        /// `uwb_ls` is not streamed (it needs no IMU: the whole-recording replay serves it).
+        #[cfg(feature = "io")]
+        pub(crate) fn dispatch_streamed(
+            method: Method,
+            input: &crate::replay::streamed::StreamedInput<'_>,
+            on_step: &mut dyn FnMut(&uwbimu_estimation::pipeline::StepRecord) -> crate::io::IoResult<()>,
+        ) -> crate::io::IoResult<crate::replay::streamed::StreamedReplay> {
+            match method {
+                $(Method::$variant => methods!(@stream method, input, on_step, $run $($ty)?),)+
+            }
+        }
+
         /// Calls `$callback!(run [Type], [extra…], "doc", …)` once for every method: `run` how it
         /// runs (`inertial`, `planar`, `multilateration`), `Type` its filter in
         /// `uwbimu_estimation::filters` when it is inertial (its streaming class), `extra` the
@@ -150,6 +163,24 @@ macro_rules! methods {
         run_inertial(|i| uwbimu_estimation::filters::$ty::new($input.anchors.to_vec(), i, $input.config.clone()), $input)
     };
     (@run $input:ident, planar $kind:ident) => { run_planar(PlanarKind::$kind, $input) };
+    (@stream $method:ident, $input:ident, $on_step:ident, multilateration) => {
+        Err(Error::InvalidCall(format!("{} is not streamed: replay the whole recording", $method.name())).into())
+    };
+    (@stream $method:ident, $input:ident, $on_step:ident, inertial $ty:ident) => {{
+        use uwbimu_estimation::filters::InertialFilter as _;
+        let kind = crate::replay::streamed::FilterKind {
+            build: uwbimu_estimation::filters::$ty::new,
+            core: |f: &mut uwbimu_estimation::filters::$ty| Some(f.core_mut()),
+        };
+        crate::replay::streamed::run($method, $input, &kind, $on_step)
+    }};
+    (@stream $method:ident, $input:ident, $on_step:ident, planar $kind:ident) => {{
+        let kind = crate::replay::streamed::FilterKind {
+            build: |anchors, initial, config| PlanarFilter::new(PlanarKind::$kind, anchors, initial, &config),
+            core: |_: &mut PlanarFilter| None,
+        };
+        crate::replay::streamed::run($method, $input, &kind, $on_step)
+    }};
 }
 
 methods! {$
@@ -321,20 +352,7 @@ pub struct BatchInput<'a> {
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    if !input.mag.is_empty() && !method.takes(Input::Magnetometer) {
-        return Err(Error::InvalidCall(format!(
-            "magnetometer data given, but {} does not use a magnetometer (these do: {})",
-            method.name(),
-            Method::names_where(|m| m.takes(Input::Magnetometer))
-        )));
-    }
-    if !input.tdoa.is_empty() && !method.takes_tdoa() {
-        return Err(Error::InvalidCall(format!(
-            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {})",
-            method.name(),
-            Method::names_where(Method::takes_tdoa)
-        )));
-    }
+    check_inputs(method, false, !input.mag.is_empty(), !input.tdoa.is_empty())?;
     let offset = input.config.ranging.time_offset_s;
     if offset != 0.0 {
         let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
@@ -357,28 +375,54 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 /// `model_selection.enabled` is off, and runs with the choice (with the input configuration when
 /// the selection fails, saying why in the reported choice).
 pub(crate) fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    if input.smooth && !method.smoothable() {
+    check_inputs(method, input.smooth, false, false)?;
+    if !(method.chooses_its_model() && input.config.model_selection.enabled) {
+        return dispatch(method, input);
+    }
+    let choice = choose_or_keep(method, input);
+    let mut output = dispatch(method, &BatchInput { config: &choice.config, ..*input })?;
+    if let BatchOutput::Inertial { model, .. } = &mut output {
+        *model = Some(Box::new(choice));
+    }
+    Ok(output)
+}
+
+/// Fails when `method` is asked to smooth and cannot, or is given a magnetometer (`mag`) or TDoA
+/// (`tdoa`) it does not take; the message lists the methods that can.
+pub(crate) fn check_inputs(method: Method, smooth: bool, mag: bool, tdoa: bool) -> Result<()> {
+    if mag && !method.takes(Input::Magnetometer) {
+        return Err(Error::InvalidCall(format!(
+            "magnetometer data given, but {} does not use a magnetometer (these do: {})",
+            method.name(),
+            Method::names_where(|m| m.takes(Input::Magnetometer))
+        )));
+    }
+    if tdoa && !method.takes_tdoa() {
+        return Err(Error::InvalidCall(format!(
+            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {})",
+            method.name(),
+            Method::names_where(Method::takes_tdoa)
+        )));
+    }
+    if smooth && !method.smoothable() {
         return Err(Error::unknown_option(
             "smoothing method",
             method.name(),
             Method::ALL.iter().filter(|m| m.smoothable()).map(|m| m.name()),
         ));
     }
-    if !(method.chooses_its_model() && input.config.model_selection.enabled) {
-        return dispatch(method, input);
-    }
-    // A log the selection cannot score (no self-initialisation in its window, a failing fold)
-    // runs with the input configuration: choosing never costs a run.
-    let choice = crate::select::choose(method, input).unwrap_or_else(|e| {
+    Ok(())
+}
+
+/// The model `method` chooses on `input` ([`crate::select::choose`]); on a log the selection
+/// cannot score (no self-initialisation in its window, a failing fold) the input configuration,
+/// saying why: choosing never costs a run.
+pub(crate) fn choose_or_keep(method: Method, input: &BatchInput<'_>) -> ModelChoice {
+    crate::select::choose(method, input).unwrap_or_else(|e| {
         let mut config = input.config.clone();
         config.model_selection.enabled = false;
         ModelChoice { config, candidates: Vec::new(), chosen: 0, reason: format!("no selection: {e}") }
-    });
-    let mut output = dispatch(method, &BatchInput { config: &choice.config, ..*input })?;
-    if let BatchOutput::Inertial { model, .. } = &mut output {
-        *model = Some(Box::new(choice));
-    }
-    Ok(output)
+    })
 }
 
 /// Runs `method` over many recordings, in parallel on all cores with the `parallel` feature

@@ -1,9 +1,12 @@
 //! Replay of a decoded recording through one method ([`crate::methods::run_method`]), with the
 //! per-anchor update statistics and the comparison with ground truth that the `uwbimu-replay`
-//! binary and `uwbimu_rs.replay` report ([`ReplaySummary`]).
+//! binary and `uwbimu_rs.replay` report ([`ReplaySummary`]); and the same replay streamed from
+//! the file, in memory that does not grow with it ([`streamed`]).
+
+pub mod streamed;
 
 use serde::Serialize;
-use uwbimu_estimation::pipeline::Progress;
+use uwbimu_estimation::pipeline::{Progress, UpdateRecord};
 
 use crate::io::IoResult as Result;
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
@@ -150,7 +153,7 @@ pub struct ModelSummary {
 }
 
 impl ModelSummary {
-    fn of(choice: &ModelChoice) -> Self {
+    pub(crate) fn of(choice: &ModelChoice) -> Self {
         let value = |v: &ConfigValue| match v {
             ConfigValue::Scalar(x) => x.to_string(),
             ConfigValue::Flag(b) => b.to_string(),
@@ -216,26 +219,54 @@ pub fn replay(
         progress,
     };
     let output = run_method(method, &input)?;
-    let mut anchors: Vec<AnchorUpdateStats> =
-        rec.anchor_ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect();
-    let mut tdoa = (!rec.tdoa.is_empty()).then(|| AnchorUpdateStats { id: "tdoa".into(), ..AnchorUpdateStats::default() });
-    let (mut nis_sum, mut nis_n) = (0.0, 0usize);
+    let mut tally = UpdateTally::new(&rec.anchor_ids, !rec.tdoa.is_empty());
     if let BatchOutput::Inertial { trace, .. } = &output {
-        for u in &trace.updates {
-            let counts = if u.anchor_j.is_some() { tdoa.as_mut() } else { anchors.get_mut(u.anchor) };
-            let Some(a) = counts else { continue };
-            match (u.report.accepted, u.report.down_weighted) {
-                (true, false) => a.accepted += 1,
-                (true, true) => a.down_weighted += 1,
-                (false, _) => a.rejected += 1,
-            }
-            if u.report.accepted && u.report.nis.is_finite() {
-                nis_sum += u.report.nis;
-                nis_n += 1;
-            }
+        trace.updates.iter().for_each(|u| tally.add(u));
+    }
+    let (anchors, tdoa, mean_nis) = tally.finish();
+    Ok(Replay { method, output, anchors, tdoa, mean_nis })
+}
+
+/// What the filter did with each anchor's ranges and with the TDoA, and the mean NIS of what it
+/// applied, counted update by update.
+#[derive(Debug, Clone)]
+pub(crate) struct UpdateTally {
+    anchors: Vec<AnchorUpdateStats>,
+    tdoa: Option<AnchorUpdateStats>,
+    nis_sum: f64,
+    nis_n: usize,
+}
+
+impl UpdateTally {
+    /// Counts for the anchors `ids` (in anchor-index order) and, when `tdoa`, for the TDoA.
+    pub(crate) fn new(ids: &[String], tdoa: bool) -> Self {
+        Self {
+            anchors: ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect(),
+            tdoa: tdoa.then(|| AnchorUpdateStats { id: "tdoa".into(), ..AnchorUpdateStats::default() }),
+            nis_sum: 0.0,
+            nis_n: 0,
         }
     }
-    Ok(Replay { method, output, anchors, tdoa, mean_nis: (nis_n > 0).then(|| nis_sum / nis_n as f64) })
+
+    /// Counts one applied (or refused) update.
+    pub(crate) fn add(&mut self, u: &UpdateRecord) {
+        let counts = if u.anchor_j.is_some() { self.tdoa.as_mut() } else { self.anchors.get_mut(u.anchor) };
+        let Some(a) = counts else { return };
+        match (u.report.accepted, u.report.down_weighted) {
+            (true, false) => a.accepted += 1,
+            (true, true) => a.down_weighted += 1,
+            (false, _) => a.rejected += 1,
+        }
+        if u.report.accepted && u.report.nis.is_finite() {
+            self.nis_sum += u.report.nis;
+            self.nis_n += 1;
+        }
+    }
+
+    /// Per anchor, the TDoA, and the mean NIS (None when nothing was applied).
+    pub(crate) fn finish(self) -> (Vec<AnchorUpdateStats>, Option<AnchorUpdateStats>, Option<f64>) {
+        (self.anchors, self.tdoa, (self.nis_n > 0).then(|| self.nis_sum / self.nis_n as f64))
+    }
 }
 
 /// Errors of a trajectory against ground truth: directly and after the least-squares rigid

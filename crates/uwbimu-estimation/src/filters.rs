@@ -95,7 +95,7 @@ use uwbimu_vocabulary::records::{MagSample, Observation, TdoaMeasurement};
 use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
-pub use self::core::{InertialCore, ReacquisitionWidening, Segment};
+pub use self::core::{InertialCore, ReacquisitionWidening, Segment, SEGMENT_FLAT_LEN};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
 pub(crate) use self::tight::check_ranges;

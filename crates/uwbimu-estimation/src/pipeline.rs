@@ -494,6 +494,14 @@ impl Pipeline {
         self.steps.as_mut().map(std::mem::take).unwrap_or_default()
     }
 
+    /// Moves the steps recorded since the last call into `out` (nothing when not recording), so a
+    /// long run can write them out as it goes.
+    pub fn move_steps(&mut self, out: &mut Vec<StepRecord>) {
+        if let Some(steps) = self.steps.as_mut() {
+            out.append(steps);
+        }
+    }
+
     /// What the loop counted so far.
     pub fn health(&self) -> Health {
         self.tally.health

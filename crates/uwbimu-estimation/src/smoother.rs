@@ -49,19 +49,44 @@ pub fn rts_smooth(
     ins: &InsConfig,
     stop: &dyn Fn() -> bool,
 ) -> Result<Vec<SmoothedNode>> {
+    let mut out = Vec::with_capacity(segments.len() + 1);
+    rts_smooth_backward(segments.iter().rev().map(|s| Ok::<_, Error>(*s)), last, ins, stop, |node| {
+        out.push(node);
+        Ok(())
+    })?;
+    out.reverse();
+    Ok(out)
+}
+
+/// The backward pass of [`rts_smooth`] over segments given newest first (`segments_newest_first`,
+/// e.g. read back from a file; an `Err` item ends the pass with that error): `emit` gets the
+/// final node first, then one node per segment, newest first. Memory is one 15×15 covariance,
+/// whatever the length of the recording. `E` is the caller's error type (the I/O errors of a
+/// file-backed recording), which the smoother's own errors convert into.
+///
+/// # Errors
+/// As [`rts_smooth`]; the errors of `segments_newest_first` and `emit` as they are.
+pub fn rts_smooth_backward<E: From<Error>>(
+    segments_newest_first: impl Iterator<Item = std::result::Result<Segment, E>>,
+    last: (f64, NominalState, ErrCov),
+    ins: &InsConfig,
+    stop: &dyn Fn() -> bool,
+    mut emit: impl FnMut(SmoothedNode) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
     let (t_s, last_state, last_covariance) = last;
     let node = |t_s: f64, state: NominalState, p: &ErrCov| SmoothedNode {
         t_s,
         state,
         position_cov: p.fixed_view::<3, 3>(POS, POS).into_owned(),
     };
-    let mut out = vec![node(t_s, last_state, &last_covariance); segments.len() + 1];
-    // The smoothed covariance of the node after the one being smoothed.
-    let mut next_covariance = last_covariance;
-    for (i, seg) in segments.iter().enumerate().rev() {
-        if i % STOP_CHECK_SEGMENTS == 0 && stop() {
-            return Err(Error::Interrupted { what: "RTS smoothing" });
+    emit(node(t_s, last_state, &last_covariance))?;
+    // The smoothed state and covariance of the node after the one being smoothed.
+    let (mut next_state, mut next_covariance) = (last_state, last_covariance);
+    for (k, seg) in segments_newest_first.enumerate() {
+        if k % STOP_CHECK_SEGMENTS == 0 && stop() {
+            return Err(Error::Interrupted { what: "RTS smoothing" }.into());
         }
+        let seg = seg?;
         let seg_covariance = seg.covariance.unpack();
         let phi = Transition::new(&seg.state, &seg.interval, ins);
         let q = ProcessNoise::new(ins, seg.interval.dt_s);
@@ -77,11 +102,11 @@ pub fn rts_smooth(
         // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.
         let gain = chol.solve(&(phi.to_dense() * seg_covariance)).transpose();
         let mut state = seg.state;
-        state.inject(&(gain * out[i + 1].state.boxminus(&x_pred)));
+        state.inject(&(gain * next_state.boxminus(&x_pred)));
         let mut covariance = seg_covariance + gain * (next_covariance - p_pred) * gain.transpose();
         symmetrize(&mut covariance);
-        out[i] = node(seg.t_s, state, &covariance);
-        next_covariance = covariance;
+        emit(node(seg.t_s, state, &covariance))?;
+        (next_state, next_covariance) = (state, covariance);
     }
-    Ok(out)
+    Ok(())
 }

@@ -25,7 +25,7 @@ pub type ErrVec = nalgebra::SVector<f64, ERR_DIM>;
 pub type ErrCov = Cov<ERR_DIM>;
 
 /// Entries of the upper triangle of an [`ErrCov`].
-const PACKED_LEN: usize = ERR_DIM * (ERR_DIM + 1) / 2;
+pub const PACKED_LEN: usize = ERR_DIM * (ERR_DIM + 1) / 2;
 
 /// An error covariance kept as its upper triangle (120 of 225 entries), for the records a run
 /// keeps per step (the smoother's [`ErrCov`] per propagation). [`PackedErrCov::unpack`] returns
@@ -45,6 +45,16 @@ impl PackedErrCov {
             }
         }
         Self(out)
+    }
+
+    /// The packed entries (the upper triangle column by column), e.g. to store them.
+    pub fn entries(&self) -> &[f64; PACKED_LEN] {
+        &self.0
+    }
+
+    /// The packed covariance of `entries` as [`PackedErrCov::entries`] gave them.
+    pub fn from_entries(entries: [f64; PACKED_LEN]) -> Self {
+        Self(entries)
     }
 
     /// The symmetric covariance.
@@ -89,7 +99,30 @@ pub struct NominalState {
     pub gyro_bias: Vec3,
 }
 
+/// Numbers in the flat form of a [`NominalState`] ([`NominalState::to_flat`]).
+pub const STATE_FLAT_LEN: usize = 16;
+
 impl NominalState {
+    /// The state as numbers, bit for bit (to store it): position, velocity, quaternion
+    /// `w, x, y, z`, accelerometer bias, gyroscope bias.
+    pub fn to_flat(&self) -> [f64; STATE_FLAT_LEN] {
+        let (p, v, q, ba, bg) =
+            (&self.position, &self.velocity, self.orientation.quaternion(), &self.accel_bias, &self.gyro_bias);
+        [p.x, p.y, p.z, v.x, v.y, v.z, q.w, q.i, q.j, q.k, ba.x, ba.y, ba.z, bg.x, bg.y, bg.z]
+    }
+
+    /// The state [`NominalState::to_flat`] gave `v` for (the quaternion taken as stored).
+    pub fn from_flat(v: &[f64; STATE_FLAT_LEN]) -> Self {
+        let v3 = |k: usize| Vec3::new(v[k], v[k + 1], v[k + 2]);
+        Self {
+            position: v3(0),
+            velocity: v3(3),
+            orientation: Quat::new_unchecked(nalgebra::Quaternion::new(v[6], v[7], v[8], v[9])),
+            accel_bias: v3(10),
+            gyro_bias: v3(13),
+        }
+    }
+
     /// Whether every component is finite.
     pub fn is_finite(&self) -> bool {
         let q = self.orientation.coords;

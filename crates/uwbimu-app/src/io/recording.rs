@@ -1,21 +1,25 @@
 //! Reads one MCAP file through a [`Mapping`] into time-ordered IMU samples, ranges and TDoA
 //! (anchor ids turned into anchor indices), anchor positions and ground truth, with statistics of what was
 //! found, dropped and reordered. Messages are decoded as they stream past; only the small decoded
-//! records are kept.
+//! records are kept ([`read_recording`]), or none of them: [`survey_recording_file`] learns the
+//! anchors and the statistics in a first pass, and [`stream_recording_file`] then gives the
+//! records one by one in time order, in memory that does not grow with the file.
+
+mod reader;
+mod survey;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-use crate::io::{IoError as Error, IoResult as Result};
+use crate::io::mcap_read::McapEnd;
+use crate::io::truth_file::read_truth_csv;
+use crate::io::{IoError as Error, IoResult as Result, Mapping};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 
-use crate::io::anchors::{parse_anchor_metadata, read_anchor_file, AnchorTable, ANCHORS_METADATA};
-use crate::io::mcap_read::{read_mcap, ChannelInfo, McapEnd, McapEvent};
-use crate::io::reorder::ReorderBuffer;
-use crate::io::topics::{AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawRange, RawTdoa, TdoaDecoder};
-use crate::io::truth_file::read_truth_csv;
-use crate::io::{Mapping, TimeSource};
+use reader::{read_pass, Item, ItemSink};
+use survey::{settle, Collected, Converter, Survey};
+pub use survey::{AnchorLayout, RecordItem};
 
 /// What a topic was used for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -136,190 +140,6 @@ pub struct Recording {
     pub stats: ReadStats,
 }
 
-/// A decoded, time-stamped item waiting in the reorder buffer.
-enum Item {
-    Imu(Vec3, Vec3),
-    Range(RawRange),
-    Tdoa(RawTdoa),
-    Truth(Vec3),
-}
-
-/// The decoder chosen for a channel.
-enum Role {
-    Imu(Box<ImuDecoder>),
-    Uwb(Box<RangeDecoder>),
-    Tdoa(Box<TdoaDecoder>),
-    Anchors(Box<AnchorListDecoder>),
-    Truth(Box<PoseDecoder>),
-    Ignored,
-}
-
-struct Reader<'m> {
-    mapping: &'m Mapping,
-    roles: BTreeMap<u16, Role>,
-    stats: ReadStats,
-    buffer: ReorderBuffer<Item>,
-    released: Released,
-    metadata_anchors: Option<BTreeMap<String, Vec3>>,
-    topic_anchors: BTreeMap<String, Vec3>,
-    /// Why a candidate UWB channel was not used (when no topic was named).
-    uwb_misfit: Option<Error>,
-    /// The items of the message being read.
-    items: Vec<Item>,
-    range_scratch: Vec<RawRange>,
-    tdoa_scratch: Vec<RawTdoa>,
-}
-
-/// The decoded items in time order, as the reorder buffer releases them.
-#[derive(Default)]
-struct Released {
-    imu: Vec<(i64, Vec3, Vec3)>,
-    ranges: Vec<(i64, RawRange)>,
-    tdoa: Vec<(i64, RawTdoa)>,
-    truth: Vec<(f64, Vec3)>,
-}
-
-impl Released {
-    fn push(&mut self, t: i64, item: Item) {
-        match item {
-            Item::Imu(a, g) => self.imu.push((t, a, g)),
-            Item::Range(r) => self.ranges.push((t, r)),
-            Item::Tdoa(m) => self.tdoa.push((t, m)),
-            Item::Truth(p) => self.truth.push((t as f64 * 1e-9, p)),
-        }
-    }
-}
-
-impl Reader<'_> {
-    fn role_for(&mut self, channel: &ChannelInfo) -> Result<Role> {
-        let m = self.mapping;
-        let schema_name = channel.schema.as_ref().map_or("", |s| s.name.as_str());
-        let topic = channel.topic.as_str();
-        let is_imu = match &m.imu_topic {
-            Some(t) => t == topic,
-            None => schema_name == "sensor_msgs/msg/Imu",
-        };
-        if is_imu {
-            if self.roles.values().any(|r| matches!(r, Role::Imu(_))) {
-                return Err(Error::Mapping {
-                    field: "imu_topic".into(),
-                    reason: format!("several sensor_msgs/msg/Imu topics (at least `{topic}`): name one with imu_topic"),
-                });
-            }
-            return Ok(Role::Imu(Box::new(ImuDecoder::new(channel)?)));
-        }
-        if m.uwb.topics.iter().any(|t| t == topic) {
-            return Ok(Role::Uwb(Box::new(RangeDecoder::new(channel, &m.uwb)?)));
-        }
-        if m.tdoa.topics.iter().any(|t| t == topic) || (m.tdoa.topics.is_empty() && TdoaDecoder::recognises(channel)) {
-            return Ok(Role::Tdoa(Box::new(TdoaDecoder::new(channel, &m.tdoa)?)));
-        }
-        if m.anchors.topic.as_deref() == Some(topic) {
-            return Ok(Role::Anchors(Box::new(AnchorListDecoder::new(channel, &m.anchors)?)));
-        }
-        if m.ground_truth.topic.as_deref() == Some(topic) {
-            return Ok(Role::Truth(Box::new(PoseDecoder::new(channel, &m.ground_truth)?)));
-        }
-        if m.uwb.topics.is_empty() && (RangeDecoder::recognises(channel) || m.uwb.range.is_some()) {
-            match RangeDecoder::new(channel, &m.uwb) {
-                Ok(d) => return Ok(Role::Uwb(Box::new(d))),
-                Err(e) => self.uwb_misfit = Some(e),
-            }
-        }
-        Ok(Role::Ignored)
-    }
-
-    fn on_event(&mut self, event: McapEvent<'_>) -> Result<()> {
-        match event {
-            McapEvent::Channel(c) => {
-                let role = self.role_for(c)?;
-                let role_tag = match role {
-                    Role::Imu(_) => TopicRole::Imu,
-                    Role::Uwb(_) => TopicRole::Uwb,
-                    Role::Tdoa(_) => TopicRole::Tdoa,
-                    Role::Anchors(_) => TopicRole::Anchors,
-                    Role::Truth(_) => TopicRole::GroundTruth,
-                    Role::Ignored => TopicRole::Ignored,
-                };
-                self.roles.insert(c.id, role);
-                let schema = c.schema.as_ref().map_or(String::new(), |s| s.name.clone());
-                match self.stats.topics.iter_mut().find(|t| t.topic == c.topic) {
-                    Some(t) => t.role = role_tag,
-                    None => self.stats.topics.push(TopicStats {
-                        topic: c.topic.clone(),
-                        schema,
-                        encoding: c.message_encoding.clone(),
-                        count: 0,
-                        role: role_tag,
-                    }),
-                }
-            }
-            McapEvent::Metadata { name, entries } if name == ANCHORS_METADATA => {
-                self.metadata_anchors = Some(parse_anchor_metadata(entries)?);
-            }
-            McapEvent::Metadata { .. } => {}
-            McapEvent::Message { channel, log_time_ns, data } => {
-                self.stats.messages += 1;
-                if let Some(t) = self.stats.topics.iter_mut().find(|t| t.topic == channel.topic) {
-                    t.count += 1;
-                }
-                let in_topic = |e: Error| match e {
-                    Error::Format { what, reason } => {
-                        Error::Format { what: format!("topic `{}`: {what}", channel.topic), reason }
-                    }
-                    other => other,
-                };
-                let log_ns = i64::try_from(log_time_ns).unwrap_or(i64::MAX);
-                self.items.clear();
-                let stamp = match self.roles.get(&channel.id) {
-                    Some(Role::Imu(d)) => {
-                        let (s, a, g) = d.decode(data).map_err(in_topic)?;
-                        self.items.push(Item::Imu(a, g));
-                        s
-                    }
-                    Some(Role::Truth(d)) => {
-                        let (s, p) = d.decode(data).map_err(in_topic)?;
-                        self.items.push(Item::Truth(p));
-                        s
-                    }
-                    Some(Role::Anchors(d)) => {
-                        for (id, p) in d.decode(data).map_err(in_topic)? {
-                            self.topic_anchors.entry(id).or_insert(p);
-                        }
-                        return Ok(());
-                    }
-                    Some(Role::Uwb(d)) => {
-                        let s = d.decode(data, &mut self.range_scratch).map_err(in_topic)?;
-                        self.items.extend(self.range_scratch.drain(..).map(Item::Range));
-                        s
-                    }
-                    Some(Role::Tdoa(d)) => {
-                        let s = d.decode(data, &mut self.tdoa_scratch).map_err(in_topic)?;
-                        self.items.extend(self.tdoa_scratch.drain(..).map(Item::Tdoa));
-                        s
-                    }
-                    Some(Role::Ignored) | None => return Ok(()),
-                };
-                let t = self.stamp(stamp, log_ns);
-                for item in self.items.drain(..) {
-                    self.buffer.push(t, item, |t, i| self.released.push(t, i));
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn stamp(&mut self, header_ns: Option<i64>, log_ns: i64) -> i64 {
-        match (self.mapping.time_source, header_ns) {
-            (TimeSource::Header, Some(t)) => t,
-            _ => {
-                self.stats.log_time_stamps += 1;
-                log_ns
-            }
-        }
-    }
-}
-
 /// Reads an MCAP stream (`size` bytes; `label` names it in errors) through `mapping`;
 /// `progress` gets the bytes read so far. Relative anchor / ground-truth file paths in the mapping
 /// are taken as they are (relative to the working directory).
@@ -334,32 +154,33 @@ pub fn read_recording<R: std::io::Read>(
     mapping: &Mapping,
     progress: impl FnMut(u64),
 ) -> Result<Recording> {
-    let window_ns = (mapping.reorder_window_s * 1e9).round() as i64;
-    let mut r = Reader {
-        mapping,
-        roles: BTreeMap::new(),
-        stats: ReadStats::default(),
-        buffer: ReorderBuffer::new(window_ns),
-        released: Released::default(),
-        metadata_anchors: None,
-        topic_anchors: BTreeMap::new(),
-        uwb_misfit: None,
-        items: Vec::new(),
-        range_scratch: Vec::new(),
-        tdoa_scratch: Vec::new(),
-    };
-    r.stats.end = read_mcap(source, size, label, |e| r.on_event(e), progress)?;
-    if r.stats.end != McapEnd::Complete && r.stats.messages == 0 {
-        return Err(Error::Format {
-            what: label.to_string(),
-            reason: "unexpected end of file (truncated?) before any complete message".into(),
-        });
+    let pass = read_pass(source, size, label, mapping, Collected::default(), progress)?;
+    let (layout, stats) = settle(mapping, &pass, &pass.sink.survey)?;
+    let collected = pass.sink;
+    let mut converter = Converter::new(&layout, false);
+    let mut rec = Recording { stats, ..Recording::default() };
+    for (t, item) in collected.ranging {
+        match converter.convert(t, item) {
+            Some(RecordItem::Range(r, variance)) => {
+                rec.ranges.push(r);
+                rec.range_variances.push(variance);
+            }
+            Some(RecordItem::Tdoa(m)) => rec.tdoa.push(m),
+            _ => {}
+        }
     }
-    r.buffer.finish(|t, i| r.released.push(t, i));
-    r.stats.late_dropped = r.buffer.late;
-    r.stats.reordered = r.buffer.reordered;
-    check_topics(&mut r)?;
-    assemble(r)
+    for (t, accel, gyro) in collected.imu {
+        if let Some(RecordItem::Imu(s)) = converter.convert(t, Item::Imu(accel, gyro)) {
+            rec.imu.push(s);
+        }
+    }
+    rec.ground_truth = match &mapping.ground_truth.file {
+        Some(f) => read_truth_csv(f)?,
+        None => collected.truth.into_iter().map(|(t, p)| (t as f64 * 1e-9, p)).collect(),
+    };
+    rec.anchor_ids = layout.ids;
+    rec.anchors = layout.positions;
+    Ok(rec)
 }
 
 /// [`read_recording`] on a file path.
@@ -367,173 +188,95 @@ pub fn read_recording<R: std::io::Read>(
 /// # Errors
 /// As [`read_recording`]; [`Error::Io`] if the file cannot be opened.
 pub fn read_recording_file(path: &Path, mapping: &Mapping, progress: impl FnMut(u64)) -> Result<Recording> {
+    let (file, size, label) = open(path)?;
+    read_recording(file, size, &label, mapping, progress)
+}
+
+fn open(path: &Path) -> Result<(std::io::BufReader<std::fs::File>, u64, String)> {
     let label = path.display().to_string();
     let io = |e: std::io::Error| Error::io(label.clone(), e);
     let file = std::fs::File::open(path).map_err(io)?;
     let size = file.metadata().map_err(io)?.len();
-    read_recording(std::io::BufReader::with_capacity(1 << 16, file), size, &label, mapping, progress)
+    Ok((std::io::BufReader::with_capacity(1 << 16, file), size, label))
 }
 
-fn topic_list(r: &Reader<'_>) -> String {
-    let names: Vec<String> = r.stats.topics.iter().map(|t| format!("{} ({})", t.topic, t.schema)).collect();
-    if names.is_empty() {
-        "none".into()
-    } else {
-        names.join(", ")
-    }
+/// What a first pass over a recording learnt without keeping its records
+/// ([`survey_recording_file`]): enough to stream it ([`stream_recording_file`]) and to report on it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordingSurvey {
+    /// The anchors the filters get.
+    pub anchors: AnchorLayout,
+    /// The read statistics, as [`Recording::stats`] of the same file.
+    pub stats: ReadStats,
+    /// IMU samples the stream will give.
+    pub n_imu: usize,
+    /// Usable ranges it will give.
+    pub n_ranges: usize,
+    /// Usable TDoA it will give.
+    pub n_tdoa: usize,
+    /// Times of the first and the last IMU sample, s.
+    pub imu_span_s: Option<(f64, f64)>,
+    /// Ground-truth samples (of the truth file, else of the topic).
+    pub n_ground_truth: usize,
+    /// Ground truth from the mapping's truth file (None: from the topic, streamed, if any).
+    pub truth_file: Option<Vec<(f64, Vec3)>>,
 }
 
-fn check_topics(r: &mut Reader<'_>) -> Result<()> {
-    let misfit = r.uwb_misfit.take();
-    let r = &*r;
-    let m = r.mapping;
-    let has = |role: TopicRole| r.stats.topics.iter().any(|t| t.role == role);
-    let missing = |field: &str, what: String| Error::Mapping {
-        field: field.into(),
-        reason: format!("{what}; topics in the file: {}", topic_list(r)),
-    };
-    if !has(TopicRole::Imu) {
-        return Err(match &m.imu_topic {
-            Some(t) => missing("imu_topic", format!("topic `{t}` not found")),
-            None => missing("imu_topic", "no sensor_msgs/msg/Imu topic".into()),
-        });
-    }
-    for (field, topics) in [("uwb.topics", &m.uwb.topics), ("tdoa.topics", &m.tdoa.topics)] {
-        for t in topics {
-            if !r.stats.topics.iter().any(|s| &s.topic == t) {
-                return Err(missing(field, format!("topic `{t}` not found")));
-            }
-        }
-    }
-    if !has(TopicRole::Uwb) && !has(TopicRole::Tdoa) {
-        return Err(match misfit {
-            Some(e) => e,
-            None => missing(
-                "uwb.topics",
-                "no UWB range or TDoA topic (name one in uwb.topics / tdoa.topics, or give field paths such as uwb.range)".into(),
-            ),
-        });
-    }
-    for (field, topic) in [("anchors.topic", &m.anchors.topic), ("ground_truth.topic", &m.ground_truth.topic)] {
-        if let Some(t) = topic {
-            if !r.stats.topics.iter().any(|s| &s.topic == t) {
-                return Err(missing(field, format!("topic `{t}` not found")));
-            }
-        }
-    }
+/// The first pass of a streamed read: reads `path` through `mapping` keeping only counts, spans
+/// and anchor positions; `progress` gets the bytes read so far.
+///
+/// # Errors
+/// As [`read_recording_file`].
+pub fn survey_recording_file(path: &Path, mapping: &Mapping, progress: impl FnMut(u64)) -> Result<RecordingSurvey> {
+    let (file, size, label) = open(path)?;
+    let pass = read_pass(file, size, &label, mapping, Survey::default(), progress)?;
+    let (anchors, stats) = settle(mapping, &pass, &pass.sink)?;
+    let n_ranges = stats.per_anchor.values().map(|c| c.used).sum();
+    let n_tdoa = pass.sink.tdoa_used(&anchors);
+    let truth_file = mapping.ground_truth.file.as_deref().map(read_truth_csv).transpose()?;
+    Ok(RecordingSurvey {
+        n_ground_truth: truth_file.as_ref().map_or(pass.sink.truth_count(), Vec::len),
+        n_imu: pass.sink.imu_count(),
+        imu_span_s: pass.sink.imu_span_s(),
+        anchors,
+        stats,
+        n_ranges,
+        n_tdoa,
+        truth_file,
+    })
+}
+
+/// The second pass of a streamed read: reads `path` through `mapping` again and gives `on_item`
+/// every record, in time order — the IMU samples, ranges and TDoA of [`read_recording_file`]
+/// (each kind in the same order) and the ground truth of the topic — with the anchor indices of
+/// `survey` (from [`survey_recording_file`] on the same file and mapping). Memory holds one
+/// chunk and the reorder window. An error of `on_item` ends the read and is returned.
+///
+/// # Errors
+/// As [`read_recording_file`]; the errors of `on_item` as they are.
+pub fn stream_recording_file(
+    path: &Path,
+    mapping: &Mapping,
+    survey: &RecordingSurvey,
+    on_item: impl FnMut(RecordItem) -> Result<()>,
+) -> Result<()> {
+    let (file, size, label) = open(path)?;
+    let sink = Streamed { converter: Converter::new(&survey.anchors, survey.truth_file.is_none()), on_item };
+    read_pass(file, size, &label, mapping, sink, |_| {})?;
     Ok(())
 }
 
-/// Anchor positions by the mapping's priority; returns the table and where it came from.
-fn anchor_table(r: &Reader<'_>) -> Result<(AnchorTable, &'static str)> {
-    let m = &r.mapping.anchors;
-    let mut table = AnchorTable::default();
-    let (given, source): (Option<BTreeMap<String, Vec3>>, &'static str) = if let Some(p) = &m.positions {
-        (Some(p.iter().map(|(k, v)| (k.clone(), Vec3::from(*v))).collect()), "mapping")
-    } else if let Some(f) = &m.file {
-        (Some(read_anchor_file(f)?), "file")
-    } else if let Some(md) = &r.metadata_anchors {
-        (Some(md.clone()), "metadata uwbimu.anchors")
-    } else if !r.topic_anchors.is_empty() {
-        (Some(r.topic_anchors.clone()), "anchor topic")
-    } else {
-        (None, "range messages")
-    };
-    if let Some(g) = given {
-        for (id, p) in g {
-            table.set_if_unknown(&id, p);
-        }
-    } else {
-        for (_, raw) in &r.released.ranges {
-            if let Some(p) = raw.anchor_position {
-                if p.iter().all(|v| v.is_finite()) {
-                    table.set_if_unknown(&raw.anchor_id, p);
-                }
-            }
-        }
-    }
-    if !table.any_position() {
-        return Err(Error::Mapping {
-            field: "anchors".into(),
-            reason: "no anchor positions: give anchors.file / anchors.positions, an `uwbimu.anchors` metadata record, \
-                     an anchors.topic, or uwb.anchor_position"
-                .into(),
-        });
-    }
-    Ok((table, source))
+/// The sink of [`stream_recording_file`].
+struct Streamed<'a, F> {
+    converter: Converter<'a>,
+    on_item: F,
 }
 
-fn assemble(r: Reader<'_>) -> Result<Recording> {
-    let (table, source) = anchor_table(&r)?;
-    let mut rec = Recording { stats: r.stats.clone(), ..Recording::default() };
-    rec.stats.anchor_source = source;
-    // Filter anchor indices: table entries with a position, in table order.
-    let mut filter_index = vec![None; table.ids().len()];
-    for (i, id) in table.ids().iter().enumerate() {
-        if let Some(p) = table.position(i) {
-            filter_index[i] = Some(rec.anchors.len());
-            rec.anchors.push(p);
-            rec.anchor_ids.push(id.clone());
+impl<F: FnMut(RecordItem) -> Result<()>> ItemSink for Streamed<'_, F> {
+    fn item(&mut self, t_ns: i64, item: Item) -> Result<()> {
+        match self.converter.convert(t_ns, item) {
+            Some(record) => (self.on_item)(record),
+            None => Ok(()),
         }
     }
-    let index_of: BTreeMap<&str, usize> =
-        table.ids().iter().enumerate().filter_map(|(i, id)| Some((id.as_str(), filter_index[i]?))).collect();
-    let mut span: Option<(i64, i64)> = None;
-    let mut widen = |t: i64| span = Some(span.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
-    for (t, raw) in &r.released.ranges {
-        let counts = rec.stats.per_anchor.entry(raw.anchor_id.clone()).or_default();
-        if !raw.valid {
-            counts.invalid += 1;
-            continue;
-        }
-        if !(raw.range_m.is_finite() && raw.range_m >= 0.0) {
-            counts.bad_value += 1;
-            continue;
-        }
-        let Some(&anchor) = index_of.get(raw.anchor_id.as_str()) else {
-            rec.stats.unknown_anchor += 1;
-            continue;
-        };
-        counts.used += 1;
-        widen(*t);
-        rec.ranges.push(RangeMeasurement { t_s: *t as f64 * 1e-9, anchor, range_m: raw.range_m });
-        rec.range_variances.push(raw.variance_m2.unwrap_or(f64::NAN));
-    }
-    for (t, raw) in &r.released.tdoa {
-        if !raw.tdoa_m.is_finite() || raw.anchor_i == raw.anchor_j {
-            rec.stats.tdoa_bad_value += 1;
-            continue;
-        }
-        let (Some(&anchor_i), Some(&anchor_j)) = (index_of.get(raw.anchor_i.as_str()), index_of.get(raw.anchor_j.as_str()))
-        else {
-            rec.stats.tdoa_unknown_anchor += 1;
-            for id in [&raw.anchor_i, &raw.anchor_j] {
-                if !index_of.contains_key(id.as_str()) {
-                    rec.stats.tdoa_unknown_ids.insert(id.clone());
-                }
-            }
-            continue;
-        };
-        widen(*t);
-        rec.tdoa.push(TdoaMeasurement { t_s: *t as f64 * 1e-9, anchor_i, anchor_j, tdoa_m: raw.tdoa_m });
-    }
-    let mut last: Option<i64> = None;
-    for (t, accel, gyro) in &r.released.imu {
-        if last == Some(*t) {
-            rec.stats.imu_duplicates += 1;
-            continue;
-        }
-        if !(accel.iter().chain(gyro.iter()).all(|v| v.is_finite())) {
-            return Err(Error::Format { what: "IMU".into(), reason: format!("non-finite sample at t = {} ns", t) });
-        }
-        last = Some(*t);
-        widen(*t);
-        rec.imu.push(ImuSample { t_s: *t as f64 * 1e-9, accel: *accel, gyro: *gyro });
-    }
-    rec.stats.span_ns = span;
-    rec.ground_truth = match &r.mapping.ground_truth.file {
-        Some(f) => read_truth_csv(f)?,
-        None => r.released.truth,
-    };
-    Ok(rec)
 }

@@ -37,12 +37,16 @@ fn header_indices(header: &str) -> std::result::Result<[usize; 4], String> {
 /// [`Error::Io`] if unreadable; [`Error::Format`] naming the file and line for a header without
 /// the truth columns, a row whose values are not finite numbers, or a file without samples.
 pub fn read_truth_csv(path: &Path) -> Result<Vec<(f64, Vec3)>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display().to_string(), e))?;
+    use std::io::BufRead;
+    let io = |e: std::io::Error| Error::io(path.display().to_string(), e);
+    let file = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
     let bad = |reason: String| Error::Format { what: format!("ground truth {}", path.display()), reason };
     let mut columns = [0, 1, 2, 3];
     let mut first_row = true;
     let mut out = Vec::new();
-    for (n, line) in text.lines().enumerate() {
+    for (n, line) in file.lines().enumerate() {
+        let line = line.map_err(io)?;
+        let line = line.as_str();
         if line.trim().is_empty() {
             continue;
         }

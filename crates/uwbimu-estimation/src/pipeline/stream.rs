@@ -21,7 +21,7 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, Observation};
 
-use super::{Estimator, Event, Health, Pipeline, Streams, UpdateRecord};
+use super::{Estimator, Event, Health, Pipeline, StepRecord, Streams, UpdateRecord};
 use crate::gate::Gate;
 use crate::init::{SelfInit, SelfInitializer};
 use crate::units::{check_imu_units, check_window as unit_check_window, UNIT_CHECK_SAMPLES};
@@ -62,6 +62,7 @@ pub struct Stream<E> {
     late_dropped: usize,
     unit_samples: Option<Vec<ImuSample>>,
     warnings: Vec<String>,
+    records_steps: bool,
 }
 
 // The running variant is the steady state, kept inline; the waiting one is boxed.
@@ -167,6 +168,23 @@ impl<E: Estimator> Stream<E> {
             late_dropped: 0,
             unit_samples: Some(Vec::new()),
             warnings: Vec::new(),
+            records_steps: false,
+        }
+    }
+
+    /// Records one [`StepRecord`] per IMU sample from now on (also the steps replayed once a
+    /// self-initialising stream starts), for [`Stream::move_steps`].
+    pub fn record_steps(&mut self) {
+        self.records_steps = true;
+        if let Phase::Running { pipeline, .. } = &mut self.phase {
+            pipeline.record_steps(0);
+        }
+    }
+
+    /// Moves the steps recorded since the last call into `out` ([`Stream::record_steps`]).
+    pub fn move_steps(&mut self, out: &mut Vec<StepRecord>) {
+        if let Phase::Running { pipeline, .. } = &mut self.phase {
+            pipeline.move_steps(out);
         }
     }
 
@@ -263,6 +281,9 @@ impl<E: Estimator> Stream<E> {
         };
         let mut estimator = (w.build)(&init.initial)?;
         let mut pipeline = Pipeline::for_estimator(&estimator)?;
+        if self.records_steps {
+            pipeline.record_steps(w.events.len());
+        }
         for event in &w.events {
             pipeline.event(&mut estimator, event)?;
         }
@@ -274,6 +295,26 @@ impl<E: Estimator> Stream<E> {
     /// if still waiting (stays waiting when there is no solvable UWB epoch yet), and applies the
     /// open epoch.
     pub fn flush(&mut self) -> Result<()> {
+        self.release_all()?;
+        match &mut self.phase {
+            Phase::Running { estimator, pipeline, .. } => pipeline.flush(estimator),
+            _ => Ok(()),
+        }
+    }
+
+    /// The end of the input for good, as a batch run ends ([`Pipeline::finish`]): like
+    /// [`Stream::flush`], but the last IMU sample's step is recorded before the open epoch is
+    /// applied.
+    pub fn finish(&mut self) -> Result<()> {
+        self.release_all()?;
+        match &mut self.phase {
+            Phase::Running { estimator, pipeline, .. } => pipeline.finish(estimator),
+            _ => Ok(()),
+        }
+    }
+
+    /// Releases every buffered event and, if still waiting, initialises on what was seen.
+    fn release_all(&mut self) -> Result<()> {
         self.check_units("flush", None, true)?;
         self.release_until(f64::INFINITY)?;
         if let Phase::Waiting(w) = &self.phase {
@@ -283,10 +324,7 @@ impl<E: Estimator> Stream<E> {
                 Err(e) => return Err(e),
             }
         }
-        match &mut self.phase {
-            Phase::Running { estimator, pipeline, .. } => pipeline.flush(estimator),
-            _ => Ok(()),
-        }
+        Ok(())
     }
 
     /// Applies `ranges` (anchor, m), all measured at `t_s`, at once as one epoch — bypassing the

@@ -55,27 +55,33 @@ impl RangeCalibration {
     /// `anchor_count`, or a calibrated range comes out negative or non-finite (the polynomial
     /// used far outside the range it was fitted on).
     pub fn apply(&self, ranges: &[RangeMeasurement], anchor_count: usize) -> Result<Vec<RangeMeasurement>> {
-        if let Some((&anchor, _)) = self.by_anchor.iter().find(|(a, _)| **a >= anchor_count) {
-            return Err(invalid(
+        self.check_anchors(anchor_count)?;
+        ranges.iter().enumerate().map(|(row, r)| self.apply_one(row, r)).collect()
+    }
+
+    /// Fails if a calibrated anchor index is not below `anchor_count` (as [`RangeCalibration::apply`]).
+    pub fn check_anchors(&self, anchor_count: usize) -> Result<()> {
+        match self.by_anchor.iter().find(|(a, _)| **a >= anchor_count) {
+            Some((&anchor, _)) => Err(invalid(
                 &format!("range_calibration[{anchor}]"),
                 format!("there is no anchor {anchor} (there are {anchor_count} anchors: 0..{})", anchor_count.saturating_sub(1)),
-            ));
+            )),
+            None => Ok(()),
         }
-        ranges
-            .iter()
-            .enumerate()
-            .map(|(row, r)| {
-                let range_m = self.correct(r.anchor, r.range_m);
-                if !(range_m.is_finite() && range_m >= 0.0) {
-                    return Err(Error::InvalidValue {
-                        name: "calibrated ranges",
-                        row,
-                        value: range_m,
-                        reason: "the calibration polynomial gives a negative or non-finite range",
-                    });
-                }
-                Ok(RangeMeasurement { range_m, ..*r })
-            })
-            .collect()
+    }
+
+    /// The calibrated range `r`, row `row` of its input (as [`RangeCalibration::apply`], after
+    /// [`RangeCalibration::check_anchors`]).
+    pub fn apply_one(&self, row: usize, r: &RangeMeasurement) -> Result<RangeMeasurement> {
+        let range_m = self.correct(r.anchor, r.range_m);
+        if !(range_m.is_finite() && range_m >= 0.0) {
+            return Err(Error::InvalidValue {
+                name: "calibrated ranges",
+                row,
+                value: range_m,
+                reason: "the calibration polynomial gives a negative or non-finite range",
+            });
+        }
+        Ok(RangeMeasurement { range_m, ..*r })
     }
 }

@@ -1,0 +1,704 @@
+//! A replay streamed from the file: the records are decoded, filtered and handed on one by one
+//! ([`replay_streamed`]), so memory stays bounded however long the log. It computes what the
+//! whole-recording replay ([`super::replay`] of [`crate::methods::run_method`]) computes on the
+//! same file, step for step:
+//!
+//! - the events reach the filter in the batch order (time, then IMU, TDoA, range at equal times),
+//!   after the range time offset and calibration of the configuration;
+//! - a method that chooses its model ([`crate::select`]) keeps the first
+//!   `model_selection.window_s` of events, chooses on them as the batch run does on the same
+//!   window, and then runs from the start with its choice;
+//! - self-initialisation is the streaming filter's ([`Stream::self_initializing`]), which equals
+//!   the batch decision;
+//! - smoothing keeps the forward pass's segments and steps in temporary files ([`Spill`]) and
+//!   runs the RTS pass over them newest first ([`rts_smooth_backward`]): the output equals the
+//!   batch smoother's, at the cost of about 1.7 kB of disk per IMU sample while it runs.
+//!
+//! Errors against ground truth are accumulated as the steps go out ([`TruthErrors`]).
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+use std::path::Path;
+
+use uwbimu_estimation::filters::{InertialCore, Segment, SEGMENT_FLAT_LEN};
+use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
+use uwbimu_estimation::smoother::{rts_smooth_backward, SmoothedNode};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::error::Error as CoreError;
+use uwbimu_vocabulary::math::{Mat3, Vec3};
+use uwbimu_vocabulary::records::{ImuSample, Observation, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::state::{NominalState, STATE_FLAT_LEN};
+
+use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
+use crate::io::spill::Spill;
+use crate::io::{stream_recording_file, IoResult as Result, Mapping, RecordItem, RecordingSurvey};
+use crate::methods::{BatchInput, Method};
+use crate::metrics::TruthErrors;
+use crate::select::ModelChoice;
+
+/// What [`replay_streamed`] is given besides the method.
+#[derive(Debug, Clone, Copy)]
+pub struct StreamedInput<'a> {
+    /// The recording.
+    pub path: &'a Path,
+    /// How to read it.
+    pub mapping: &'a Mapping,
+    /// Its first pass ([`crate::io::survey_recording_file`] with `mapping`).
+    pub survey: &'a RecordingSurvey,
+    /// Filter settings.
+    pub config: &'a FilterConfig,
+    /// Initial state (None: self-initialisation).
+    pub initial: Option<&'a InitialState>,
+    /// RTS-smooth the run.
+    pub smooth: bool,
+    /// Counts the IMU samples processed; its cancel flag stops the run (None: neither).
+    pub progress: Option<&'a Progress>,
+    /// Where a smoothed run keeps its temporary files.
+    pub spill_dir: &'a Path,
+}
+
+/// What [`replay_streamed`] found, besides the steps it handed on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamedReplay {
+    /// Whether the steps are RTS-smoothed (false also for a cancelled smoothed run).
+    pub smoothed: bool,
+    /// Steps handed on.
+    pub steps: u64,
+    /// Time of the last step, s.
+    pub last_t_s: Option<f64>,
+    /// Ranges per anchor, in anchor-index order.
+    pub anchors: Vec<AnchorUpdateStats>,
+    /// The TDoA, when the recording has any.
+    pub tdoa: Option<AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and TDoA.
+    pub mean_nis: Option<f64>,
+    /// What the method chose on the log (methods that choose their model).
+    pub model: Option<ModelChoice>,
+    /// What the unit check of the IMU found suspicious.
+    pub warnings: Vec<String>,
+    /// The errors against ground truth, when the recording has some.
+    pub rmse: Option<TruthRmse>,
+    /// What the loop counted.
+    pub health: Health,
+    /// Whether the run stopped early on the progress's cancel flag.
+    pub cancelled: bool,
+}
+
+impl StreamedReplay {
+    /// The end figures of this replay of the recording `survey` describes, as
+    /// [`super::Replay::summary`] gives them for the whole-recording replay.
+    pub fn summary(&self, method: Method, survey: &RecordingSurvey) -> ReplaySummary {
+        ReplaySummary {
+            method: method.name(),
+            smoothed: self.smoothed,
+            duration_s: survey.stats.duration_s(),
+            n_imu: survey.n_imu,
+            n_ranges: survey.n_ranges,
+            n_tdoa: survey.n_tdoa,
+            n_ground_truth: survey.n_ground_truth,
+            truncated_bytes: survey.stats.end.lost_bytes(),
+            anchors: self.anchors.clone(),
+            tdoa: self.tdoa.clone(),
+            mean_nis: self.mean_nis,
+            model: self.model.as_ref().map(ModelSummary::of),
+            rmse: self.rmse,
+        }
+    }
+}
+
+/// Numbers in a stored step ([`step_to_flat`]).
+const STEP_FLAT_LEN: usize = 1 + STATE_FLAT_LEN + 9 + 2;
+
+/// A step as numbers, bit for bit: time, state ([`NominalState::to_flat`]), position covariance
+/// (column-major), still, status.
+fn step_to_flat(s: &StepRecord) -> [f64; STEP_FLAT_LEN] {
+    let mut out = [0.0; STEP_FLAT_LEN];
+    out[0] = s.t_s;
+    out[1..=STATE_FLAT_LEN].copy_from_slice(&s.state.to_flat());
+    out[1 + STATE_FLAT_LEN..STEP_FLAT_LEN - 2].copy_from_slice(s.position_cov.as_slice());
+    out[STEP_FLAT_LEN - 2] = f64::from(u8::from(s.still));
+    out[STEP_FLAT_LEN - 1] = f64::from(s.status);
+    out
+}
+
+/// The step [`step_to_flat`] gave `v` for.
+fn step_from_flat(v: &[f64; STEP_FLAT_LEN]) -> StepRecord {
+    let mut state = [0.0; STATE_FLAT_LEN];
+    state.copy_from_slice(&v[1..=STATE_FLAT_LEN]);
+    StepRecord {
+        t_s: v[0],
+        state: NominalState::from_flat(&state),
+        position_cov: Mat3::from_column_slice(&v[1 + STATE_FLAT_LEN..STEP_FLAT_LEN - 2]),
+        still: v[STEP_FLAT_LEN - 2] != 0.0,
+        status: v[STEP_FLAT_LEN - 1] as u8,
+    }
+}
+
+/// Puts the events of the reader (in time order) into the batch order after the range time
+/// offset: an event is released once no later input can come before it, i.e. once an input
+/// `|offset|` newer than it has arrived ([`Event::rank`] breaks ties as the batch merge does).
+/// Shifted measurements outside the IMU span are dropped, as the batch run drops them, and so is
+/// everything after the last IMU sample.
+struct Ordered {
+    heap: BinaryHeap<Reverse<Held>>,
+    offset_s: f64,
+    imu_span_s: (f64, f64),
+    newest_s: f64,
+    arrivals: u64,
+    calibrated: usize,
+}
+
+struct Held {
+    t_s: f64,
+    rank: u8,
+    arrival: u64,
+    event: Event,
+}
+
+impl Held {
+    fn key(&self) -> (f64, u8, u64) {
+        (self.t_s, self.rank, self.arrival)
+    }
+}
+
+impl PartialEq for Held {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Held {}
+impl PartialOrd for Held {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Held {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        let (a, b) = (self.key(), other.key());
+        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
+    }
+}
+
+impl Ordered {
+    fn new(config: &FilterConfig, imu_span_s: (f64, f64)) -> Self {
+        Self {
+            heap: BinaryHeap::new(),
+            offset_s: config.ranging.time_offset_s,
+            imu_span_s,
+            newest_s: f64::NEG_INFINITY,
+            arrivals: 0,
+            calibrated: 0,
+        }
+    }
+
+    /// Takes the reader's next event (at its own time `t_s`), then releases what it can into `out`.
+    fn push(&mut self, config: &FilterConfig, event: Event, out: &mut Vec<Event>) -> Result<()> {
+        self.newest_s = self.newest_s.max(event.t_s());
+        let shifted = match event {
+            Event::Imu(_) => Some(Ok(event)),
+            Event::Range(r) => self.shift(r.t_s).map(|t_s| {
+                let r = RangeMeasurement { t_s, ..r };
+                self.calibrated += 1;
+                config.range_calibration.apply_one(self.calibrated - 1, &r).map(Event::Range)
+            }),
+            Event::Observation(Observation::Tdoa(m)) => {
+                self.shift(m.t_s).map(|t_s| Ok(Event::Observation(Observation::Tdoa(TdoaMeasurement { t_s, ..m }))))
+            }
+            Event::Observation(Observation::Magnetometer(_)) => None,
+        }
+        .transpose()?;
+        if let Some(event) = shifted.filter(|e| e.t_s() <= self.imu_span_s.1) {
+            self.arrivals += 1;
+            self.heap.push(Reverse(Held { t_s: event.t_s(), rank: event.rank(), arrival: self.arrivals, event }));
+        }
+        self.release(self.newest_s - self.offset_s.abs(), out);
+        Ok(())
+    }
+
+    /// A measurement's time after the offset; None when the offset moves it out of the IMU span.
+    fn shift(&self, t_s: f64) -> Option<f64> {
+        if self.offset_s == 0.0 {
+            return Some(t_s);
+        }
+        let t = t_s + self.offset_s;
+        (t >= self.imu_span_s.0 && t <= self.imu_span_s.1).then_some(t)
+    }
+
+    /// Releases the events before `bound_s` (all with +∞) in order into `out`.
+    fn release(&mut self, bound_s: f64, out: &mut Vec<Event>) {
+        while self.heap.peek().is_some_and(|h| h.0.t_s < bound_s) {
+            if let Some(Reverse(h)) = self.heap.pop() {
+                out.push(h.event);
+            }
+        }
+    }
+}
+
+/// The events of the first `window_s` of the log, kept for the model selection.
+struct Prefix {
+    end_s: f64,
+    events: Vec<Event>,
+}
+
+impl Prefix {
+    /// The model chosen on the kept events ([`crate::methods::choose_or_keep`] on them as arrays).
+    fn choose(&self, method: Method, input: &StreamedInput<'_>) -> ModelChoice {
+        let (mut imu, mut ranges, mut tdoa) = (Vec::<ImuSample>::new(), Vec::new(), Vec::new());
+        for e in &self.events {
+            match e {
+                Event::Imu(s) => imu.push(*s),
+                Event::Range(r) => ranges.push(*r),
+                Event::Observation(Observation::Tdoa(m)) => tdoa.push(*m),
+                Event::Observation(Observation::Magnetometer(_)) => {}
+            }
+        }
+        let batch = BatchInput {
+            imu: &imu,
+            ranges: &ranges,
+            anchors: &input.survey.anchors.positions,
+            initial: input.initial,
+            config: input.config,
+            smooth: false,
+            mag: &[],
+            tdoa: &tdoa,
+            progress: None,
+        };
+        crate::methods::choose_or_keep(method, &batch)
+    }
+}
+
+/// Where the steps go: straight out (forward), or to a file for the RTS pass (smoothed).
+enum StepsOut<'f> {
+    Forward { on_step: &'f mut dyn FnMut(&StepRecord) -> Result<()>, truth: Box<TruthMatch<'f>> },
+    Spilled { steps: Spill<STEP_FLAT_LEN>, segments: Spill<SEGMENT_FLAT_LEN>, truth: Spill<4> },
+}
+
+/// Ground truth matched to the steps in time order: each step's truth is interpolated between
+/// the truth samples around it ([`TruthErrors`]), so the truth up to the step's time is given
+/// before the step — from the truth file (held once, by the survey) or from the samples queued as
+/// the topic gives them. With the count of truth samples known, the matcher learns when the truth
+/// ends, and steps after it are not held.
+struct TruthMatch<'t> {
+    errors: TruthErrors,
+    file: &'t [(f64, Vec3)],
+    queue: VecDeque<(f64, Vec3)>,
+    remaining: usize,
+    any: bool,
+}
+
+impl<'t> TruthMatch<'t> {
+    /// A matcher for `count` truth samples (0: none, nothing is matched), those of `file` first.
+    fn new(count: usize, file: &'t [(f64, Vec3)]) -> Self {
+        Self { errors: TruthErrors::new(), file, queue: VecDeque::new(), remaining: count, any: count > 0 }
+    }
+
+    fn truth(&mut self, t_s: f64, p: Vec3) {
+        self.queue.push_back((t_s, p));
+    }
+
+    /// The next truth sample, if it is not later than `t_s`.
+    fn next_until(&mut self, t_s: f64) -> Option<(f64, Vec3)> {
+        if let Some((&g, rest)) = self.file.split_first().filter(|(g, _)| g.0 <= t_s) {
+            self.file = rest;
+            return Some(g);
+        }
+        let next = self.queue.front().copied().filter(|g| g.0 <= t_s);
+        if next.is_some() {
+            self.queue.pop_front();
+        }
+        next
+    }
+
+    fn give(&mut self, t_s: f64, p: Vec3) -> Result<()> {
+        self.errors.push_truth(t_s, p)?;
+        self.remaining = self.remaining.saturating_sub(1);
+        if self.remaining == 0 {
+            self.errors.end_truth();
+        }
+        Ok(())
+    }
+
+    fn estimate(&mut self, t_s: f64, p: &Vec3) -> Result<()> {
+        if !self.any {
+            return Ok(());
+        }
+        while let Some((t, g)) = self.next_until(t_s) {
+            self.give(t, g)?;
+        }
+        self.errors.push_estimate(t_s, *p)?;
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<Option<TruthRmse>> {
+        if !self.any {
+            return Ok(None);
+        }
+        while let Some((t, g)) = self.next_until(f64::INFINITY) {
+            self.give(t, g)?;
+        }
+        let e = self.errors.finish()?;
+        Ok(Some(TruthRmse {
+            rmse_steps: e.n,
+            rmse_horizontal_m: e.rmse_horizontal_m,
+            rmse_horizontal_aligned_m: e.rmse_horizontal_aligned_m,
+            rmse_3d_m: e.rmse_3d_m,
+            rmse_3d_aligned_m: e.rmse_3d_aligned_m,
+        }))
+    }
+}
+
+/// The filter of one streamed replay: how to build it and where its INS core is (None: nothing to
+/// smooth, the planar filters).
+pub(crate) struct FilterKind<E> {
+    /// Builds the filter for the anchors, from the initial state, with the configuration.
+    pub build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_vocabulary::error::Result<E>,
+    /// Its INS core, to record and smooth.
+    pub core: fn(&mut E) -> Option<&mut InertialCore>,
+}
+
+/// The state of a run while the events stream past.
+struct Run<'a, 'f, E> {
+    method: Method,
+    input: &'a StreamedInput<'a>,
+    kind: &'a FilterKind<E>,
+    prefix: Option<Prefix>,
+    stream: Option<Stream<E>>,
+    model: Option<ModelChoice>,
+    out: StepsOut<'f>,
+    tally: UpdateTally,
+    steps: Vec<StepRecord>,
+    updates: Vec<UpdateRecord>,
+    segments: Vec<Segment>,
+    handed_on: u64,
+    last_t_s: Option<f64>,
+}
+
+impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
+    /// Builds the stream with the chosen (or given) configuration.
+    fn start(&mut self, config: &FilterConfig) -> Result<()> {
+        let anchors = self.input.survey.anchors.positions.clone();
+        let options = StreamOptions { reorder_window_s: 0.0, strict: true };
+        let (build, core, smooth) = (self.kind.build, self.kind.core, self.input.smooth);
+        let make = move |anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig| {
+            let mut filter = build(anchors, initial, config)?;
+            if smooth {
+                if let Some(c) = core(&mut filter) {
+                    c.start_recording(1024);
+                }
+            }
+            Ok(filter)
+        };
+        let mut stream = match self.input.initial {
+            Some(initial) => Stream::new(make(anchors, initial, config.clone())?, options)?,
+            None => {
+                let (a, c) = (anchors.clone(), config.clone());
+                let builder: Builder<E> = Box::new(move |initial| make(a.clone(), initial, c.clone()));
+                Stream::self_initializing(anchors, config.clone(), builder, options)?
+            }
+        };
+        stream.record_steps();
+        self.stream = Some(stream);
+        Ok(())
+    }
+
+    /// Takes one released event.
+    fn event(&mut self, event: Event) -> Result<()> {
+        if let Some(prefix) = self.prefix.as_mut() {
+            if event.t_s() <= prefix.end_s {
+                prefix.events.push(event);
+                return Ok(());
+            }
+            self.choose()?;
+        }
+        self.feed(event)
+    }
+
+    /// Chooses the model on the kept events, starts the stream and feeds them to it.
+    fn choose(&mut self) -> Result<()> {
+        let Some(prefix) = self.prefix.take() else { return Ok(()) };
+        let choice = prefix.choose(self.method, self.input);
+        self.start(&choice.config)?;
+        self.model = Some(choice);
+        for e in prefix.events {
+            self.feed(e)?;
+        }
+        Ok(())
+    }
+
+    fn feed(&mut self, event: Event) -> Result<()> {
+        let Some(stream) = self.stream.as_mut() else { return Ok(()) };
+        let imu = matches!(event, Event::Imu(_));
+        stream.push("replay", event)?;
+        if let (true, Some(p)) = (imu, self.input.progress) {
+            p.imu_sample();
+        }
+        self.collect(false)
+    }
+
+    /// Hands on the steps, updates and settled segments the stream produced (`last`: at the end).
+    fn collect(&mut self, last: bool) -> Result<()> {
+        let Some(stream) = self.stream.as_mut() else { return Ok(()) };
+        stream.move_steps(&mut self.steps);
+        stream.take_applied(&mut self.updates);
+        for u in self.updates.drain(..) {
+            self.tally.add(&u);
+        }
+        if let StepsOut::Spilled { segments, .. } = &mut self.out {
+            if let Some(core) = stream.estimator_mut().and_then(self.kind.core) {
+                core.move_recorded_segments(last, &mut self.segments);
+            }
+            for s in self.segments.drain(..) {
+                segments.push(&s.to_flat())?;
+            }
+        }
+        for s in self.steps.drain(..) {
+            self.handed_on += 1;
+            self.last_t_s = Some(s.t_s);
+            match &mut self.out {
+                StepsOut::Forward { on_step, truth } => {
+                    truth.estimate(s.t_s, &s.state.position)?;
+                    on_step(&s)?;
+                }
+                StepsOut::Spilled { steps, .. } => steps.push(&step_to_flat(&s))?,
+            }
+        }
+        Ok(())
+    }
+
+    fn truth(&mut self, t_s: f64, p: Vec3) -> Result<()> {
+        match &mut self.out {
+            StepsOut::Forward { truth, .. } => truth.truth(t_s, p),
+            StepsOut::Spilled { truth, .. } => truth.push(&[t_s, p.x, p.y, p.z])?,
+        }
+        Ok(())
+    }
+}
+
+/// Hands on `steps` (oldest first) to `on_step`, matching each with the truth of `truth` (in
+/// time order) first.
+fn hand_on(
+    steps: impl Iterator<Item = Result<StepRecord>>,
+    truth: impl Iterator<Item = Result<(f64, Vec3)>>,
+    matcher: &mut TruthMatch,
+    on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
+) -> Result<()> {
+    let mut truth = truth.peekable();
+    for step in steps {
+        let step = step?;
+        while let Some(g) = truth.next_if(|g| g.as_ref().map_or(true, |(t, _)| *t <= step.t_s)) {
+            let (t, g) = g?;
+            matcher.truth(t, g);
+        }
+        matcher.estimate(step.t_s, &step.state.position)?;
+        on_step(&step)?;
+    }
+    for g in truth {
+        let (t, g) = g?;
+        matcher.truth(t, g);
+    }
+    Ok(())
+}
+
+/// Smooths the spilled run newest first ([`rts_smooth_backward`]) and keeps the smoothed steps,
+/// newest first, in a new spill: each step takes the first node at or after its time, as the
+/// batch smoother's steps do.
+fn smooth_spilled(
+    core: &InertialCore,
+    steps: &mut Spill<STEP_FLAT_LEN>,
+    segments: &mut Spill<SEGMENT_FLAT_LEN>,
+    dir: &Path,
+    stop: &dyn Fn() -> bool,
+) -> Result<Spill<STEP_FLAT_LEN>> {
+    let Some(t_s) = core.time_s() else {
+        return Err(CoreError::InvalidCall("nothing to smooth: the filter has not started".into()).into());
+    };
+    let mut out = Spill::<STEP_FLAT_LEN>::create(dir, "smoothed steps")?;
+    let mut newest_first = steps.newest_first()?.peekable();
+    let smoothed = |step: &[f64; STEP_FLAT_LEN], node: &SmoothedNode| {
+        step_to_flat(&StepRecord { state: node.state, position_cov: node.position_cov, ..step_from_flat(step) })
+    };
+    let mut later: Option<SmoothedNode> = None;
+    let segments_newest_first = segments.newest_first()?.map(|r| r.map(|v| Segment::from_flat(&v)));
+    rts_smooth_backward(segments_newest_first, (t_s, *core.state(), *core.covariance()), core.ins(), stop, |node| {
+        if let Some(later) = &later {
+            while let Some(step) = newest_first.next_if(|s| s.as_ref().is_ok_and(|s| s[0] > node.t_s)) {
+                out.push(&smoothed(&step?, later))?;
+            }
+        }
+        later = Some(node);
+        Ok(())
+    })?;
+    if let Some(first) = &later {
+        for step in newest_first {
+            out.push(&smoothed(&step?, first))?;
+        }
+    }
+    Ok(out)
+}
+
+/// Replays the recording of `input` through `method` (an inertial or planar filter) as the
+/// whole-recording replay does, reading the file once more and handing each output step to
+/// `on_step` in time order: the forward step as soon as the events at its time are in, or, when
+/// smoothing, the smoothed steps after the RTS pass. When the progress's cancel flag is raised the
+/// run stops after the current event and hands on the forward steps so far (not smoothed).
+///
+/// # Errors
+/// As [`crate::methods::run_method`] and the file's read; [`crate::io::IoError::Io`] when the
+/// temporary files of smoothing cannot be written.
+pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
+    method: Method,
+    input: &StreamedInput<'_>,
+    kind: &FilterKind<E>,
+    on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
+) -> Result<StreamedReplay> {
+    let survey = input.survey;
+    crate::methods::check_inputs(method, input.smooth, false, survey.n_tdoa > 0)?;
+    let Some(imu_span_s) = survey.imu_span_s.filter(|_| survey.n_ranges + survey.n_tdoa > 0) else {
+        return Err(CoreError::InsufficientData(format!(
+            "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
+            survey.n_imu, survey.n_ranges, survey.n_tdoa
+        ))
+        .into());
+    };
+    input.config.range_calibration.check_anchors(survey.anchors.positions.len())?;
+    let dir = input.spill_dir;
+    let out = if input.smooth {
+        StepsOut::Spilled {
+            steps: Spill::create(dir, "forward steps")?,
+            segments: Spill::create(dir, "smoothing segments")?,
+            truth: Spill::create(dir, "ground truth")?,
+        }
+    } else {
+        let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
+        StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) }
+    };
+    let choosing = method.chooses_its_model() && input.config.model_selection.enabled;
+    // A log the selection cannot score for its anchors or its lack of ranges needs no window
+    // kept: the choice (the input configuration, and why) comes at once.
+    let scorable = survey.anchors.positions.len() >= crate::select::MIN_ANCHORS && survey.n_ranges > 0;
+    let selecting = choosing && scorable;
+    let mut run = Run {
+        method,
+        input,
+        kind,
+        prefix: selecting.then(|| Prefix { end_s: imu_span_s.0 + input.config.model_selection.window_s, events: Vec::new() }),
+        stream: None,
+        model: None,
+        out,
+        tally: UpdateTally::new(&survey.anchors.ids, survey.n_tdoa > 0),
+        steps: Vec::new(),
+        updates: Vec::new(),
+        segments: Vec::new(),
+        handed_on: 0,
+        last_t_s: None,
+    };
+    if choosing && !scorable {
+        let empty = Prefix { end_s: imu_span_s.0, events: Vec::new() };
+        let choice = empty.choose(method, input);
+        run.start(&choice.config)?;
+        run.model = Some(choice);
+    } else if !selecting {
+        run.start(input.config)?;
+    }
+    let mut ordered = Ordered::new(input.config, imu_span_s);
+    let mut released = Vec::new();
+    let cancelled = || input.progress.is_some_and(Progress::cancelled);
+    let read = stream_recording_file(input.path, input.mapping, survey, |item| {
+        if cancelled() {
+            return Err(CoreError::Interrupted { what: "replay" }.into());
+        }
+        let event = match item {
+            RecordItem::Imu(s) => Event::Imu(s),
+            RecordItem::Range(r, _) => Event::Range(r),
+            RecordItem::Tdoa(m) => Event::Observation(Observation::Tdoa(m)),
+            RecordItem::Truth(t, p) => return run.truth(t, p),
+        };
+        ordered.push(input.config, event, &mut released)?;
+        released.drain(..).try_for_each(|e| run.event(e))
+    });
+    let cancelled_run = match read {
+        Ok(()) => false,
+        Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => true,
+        Err(e) => return Err(e),
+    };
+    if !cancelled_run {
+        ordered.release(f64::INFINITY, &mut released);
+        released.drain(..).try_for_each(|e| run.event(e))?;
+    }
+    run.choose()?;
+    let Some(stream) = run.stream.as_mut() else {
+        return Err(CoreError::InvalidCall("the stream was not started".into()).into());
+    };
+    stream.finish()?;
+    if stream.estimator().is_none() && !cancelled_run {
+        return Err(CoreError::InsufficientData(
+            "the filter could not initialise itself: no UWB epoch solvable for a position (give an initial state)".into(),
+        )
+        .into());
+    }
+    run.collect(true)?;
+    let Run { stream, model, out, tally, handed_on, last_t_s, .. } = run;
+    let Some(mut stream) = stream else { return Err(CoreError::InvalidCall("the stream was not started".into()).into()) };
+    let (anchors, tdoa, mean_nis) = tally.finish();
+    let (rmse, smoothed) = match out {
+        StepsOut::Forward { truth, .. } => (truth.finish()?, false),
+        StepsOut::Spilled { mut steps, mut segments, truth: mut truth_spill } => {
+            let core = stream.estimator_mut().and_then(kind.core);
+            let smoothed = match core.filter(|_| !cancelled_run) {
+                Some(core) => {
+                    if let Some(p) = input.progress {
+                        p.start_smoothing();
+                    }
+                    match smooth_spilled(core, &mut steps, &mut segments, dir, &cancelled) {
+                        Ok(s) => Some(s),
+                        Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
+                        Err(e) => return Err(e),
+                    }
+                }
+                None => None,
+            };
+            let spilled_truth = truth_spill.oldest_first()?.map(|r| r.map(|v| (v[0], Vec3::new(v[1], v[2], v[3]))));
+            let mut matcher = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
+            let was_smoothed = smoothed.is_some();
+            match smoothed {
+                // The smoothed steps were kept newest first: read back newest first, they come oldest first.
+                Some(mut s) => {
+                    hand_on(s.newest_first()?.map(|r| r.map(|v| step_from_flat(&v))), spilled_truth, &mut matcher, on_step)?
+                }
+                None => {
+                    hand_on(steps.oldest_first()?.map(|r| r.map(|v| step_from_flat(&v))), spilled_truth, &mut matcher, on_step)?
+                }
+            }
+            (matcher.finish()?, was_smoothed)
+        }
+    };
+    Ok(StreamedReplay {
+        smoothed,
+        steps: handed_on,
+        last_t_s,
+        anchors,
+        tdoa,
+        mean_nis,
+        model,
+        warnings: stream.take_warnings(),
+        rmse,
+        health: stream.health(),
+        cancelled: cancelled_run,
+    })
+}
+
+/// Replays a recording streamed from its file through `method`, in memory bounded whatever the
+/// file's length (module doc): each output step goes to `on_step` in time order, and the result
+/// has the figures of [`super::Replay::summary`]. `uwb_ls`, which needs no IMU, is not streamed:
+/// replay the whole recording ([`super::replay`]).
+///
+/// # Errors
+/// As [`super::replay`]; [`crate::io::IoError::Io`] when the temporary files of smoothing cannot be
+/// written in `input.spill_dir`; the errors of `on_step` as they are.
+pub fn replay_streamed(
+    method: Method,
+    input: &StreamedInput<'_>,
+    on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
+) -> Result<StreamedReplay> {
+    crate::methods::dispatch_streamed(method, input, on_step)
+}
