@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 import pytest
+from figures import hold
 
 import uwbimu_rs
 from uwbimu_rs import metrics, sim
@@ -26,6 +27,9 @@ def test_tune_by_held_out_ranges_returns_a_config_that_helps():
     # Measured: handheld_walk seeds 5, 8, 11, 14: 0.049 → 0.032, 0.044 → 0.037, 0.051 → 0.026,
     # 0.047 → 0.027 m (the zoo's IMU is far better than the default process noise says).
     assert after < 0.9 * before, (before, after)
+    # The tuned run and the held-out score it was chosen by, each held to its measured figure.
+    hold("python", "tune,handheld_walk,8,riekf,tuned_rmse", after)
+    hold("python", "tune,handheld_walk,8,riekf,held_out_score", out["score"])
     # Without truth the score holds anchors out, so it needs five (each fold leaves four).
     few = run.ranges[run.ranges[:, 1] < 4]
     with pytest.raises(ValueError, match="5 anchors"):

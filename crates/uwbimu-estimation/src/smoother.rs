@@ -9,7 +9,7 @@
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
 //! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
-//! uses dense 15×15 products. Memory per propagation: the segment keeps its covariance as the
+//! uses dense 15×15 products, but for `Φ·P`, taken by Φ's blocks. Memory per propagation: the segment keeps its covariance as the
 //! upper triangle ([`uwbimu_vocabulary::state::PackedErrCov`], lossless), and a smoothed node
 //! keeps only the position block; the full smoothed covariance lives only from one node to the
 //! next.
@@ -100,7 +100,7 @@ pub fn rts_smooth_backward<E: From<Error>>(
         }
         let chol = p_pred.cholesky().ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
         // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.
-        let gain = chol.solve(&(phi.to_dense() * seg_covariance)).transpose();
+        let gain = chol.solve(&phi.apply_rows(&seg_covariance)).transpose();
         let mut state = seg.state;
         state.inject(&(gain * next_state.boxminus(&x_pred)));
         let mut covariance = seg_covariance + gain * (next_covariance - p_pred) * gain.transpose();
