@@ -72,8 +72,8 @@ pub fn posterior_crlb(
     for k in 0..imu.len() {
         if k > 0 {
             let interval = ImuInterval::between(&imu[k - 1], &imu[k], &config.mounting.imu_rotation);
-            bound = Transition::new(&truth[k - 1], &interval, &config.ins)
-                .propagate_covariance(&bound, &ProcessNoise::new(&config.ins, interval.dt_s));
+            Transition::new(&truth[k - 1], &interval, &config.ins)
+                .propagate_covariance(&mut bound, &ProcessNoise::new(&config.ins, interval.dt_s));
         }
         let mut dx = ErrVec::zeros();
         while next < ranges.len() && ranges[next].t_s <= imu[k].t_s {

@@ -139,43 +139,96 @@ impl Transition {
         out
     }
 
-    /// `Φ·P·Φᵀ + Q` (Li & Wang 2020 eq. (9), Liu et al. 2019 eq. (18)), exploiting the block structure:
-    /// `M = Φ·P` by block rows, then `M·Φᵀ` only for the δp, δv, δθ columns of the δp, δv, δθ
-    /// rows (the bias rows of Φ are diagonal, so their columns are scaled); the rest follows by
-    /// symmetry.
-    pub fn propagate_covariance(&self, p: &ErrCov, q: &ProcessNoise) -> ErrCov {
-        const NAV: usize = BA; // δp, δv, δθ: the first 9 slots
-        let m = self.apply_rows(p);
-        let col = |j: usize| m.fixed_view::<NAV, 3>(0, j);
-        let mut out = m;
-        out.fixed_view_mut::<NAV, 3>(0, POS)
-            .copy_from(&(col(POS) + col(VEL) * self.p_v + col(ATT) * self.p_att.transpose() + col(BA) * self.p_ba.transpose()));
-        out.fixed_view_mut::<NAV, 3>(0, VEL).copy_from(
-            &(col(VEL) + col(ATT) * self.v_att.transpose() + col(BA) * self.v_ba.transpose() + col(BG) * self.v_bg.transpose()),
-        );
-        out.fixed_view_mut::<NAV, 3>(0, ATT)
-            .copy_from(&(col(ATT) * self.att_att.transpose() + col(BG) * self.att_bg.transpose()));
-        for j in 0..3 {
-            for i in 0..ERR_DIM {
-                out[(i, BA + j)] = m[(i, BA + j)] * self.ba_ba;
-                out[(i, BG + j)] = m[(i, BG + j)] * self.bg_bg;
+    /// `Φ·P·Φᵀ + Q` (Li & Wang 2020 eq. (9), Liu et al. 2019 eq. (18)) on the 3×3 blocks of `P`
+    /// (δp, δv, δθ, δb_a, δb_g): `M = Φ·P` for the block rows that are not a scaled copy (δp, δv,
+    /// δθ), then `M·Φᵀ` for the upper block triangle only, each block from the non-zero blocks of
+    /// Φ; the lower triangle is the mirror. Overwrites `p`, which must be symmetric (the blocks
+    /// are read from either triangle).
+    pub fn propagate_covariance(&self, p: &mut ErrCov, q: &ProcessNoise) {
+        let blk = |i: usize, j: usize| -> Mat3 { p.fixed_view::<3, 3>(3 * i, 3 * j).into_owned() };
+        let (ba_ba, bg_bg) = (self.ba_ba, self.bg_bg);
+        // m[i][j]: block (i, j) of M = Φ·P for block rows δp, δv, δθ, where the upper triangle of
+        // M·Φᵀ reads it (row δv from column δv on, row δθ from column δθ on; zero elsewhere).
+        let m_block = |i: usize, j: usize| -> Mat3 {
+            match i {
+                0 => blk(0, j) + blk(1, j) * self.p_v + self.p_att * blk(2, j) + self.p_ba * blk(3, j),
+                1 if j >= 1 => blk(1, j) + self.v_att * blk(2, j) + self.v_ba * blk(3, j) + self.v_bg * blk(4, j),
+                2 if j >= 2 => self.att_att * blk(2, j) + self.att_bg * blk(4, j),
+                _ => Mat3::zeros(),
+            }
+        };
+        let m: [[Mat3; 5]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| m_block(i, j)));
+        let (p33, p34, p44) = (blk(3, 3), blk(3, 4), blk(4, 4));
+        let out = p;
+        // Block (i, j ≥ i) of M·Φᵀ (plus Q on the diagonal) and its mirror (i, j).
+        let mut put = |i: usize, j: usize, mut b: Mat3, var: f64| {
+            if i == j {
+                for k in 0..3 {
+                    b[(k, k)] += var;
+                }
+                for c in 0..3 {
+                    for r in (c + 1)..3 {
+                        b[(r, c)] = b[(c, r)];
+                    }
+                }
+            } else {
+                out.fixed_view_mut::<3, 3>(3 * j, 3 * i).copy_from(&b.transpose());
+            }
+            out.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&b);
+        };
+        let trap = q.trapezoid;
+        let var = |v: f64| if trap { 0.0 } else { v };
+        let m0 = &m[0];
+        put(0, 0, m0[0] + m0[1] * self.p_v + m0[2] * self.p_att.transpose() + m0[3] * self.p_ba.transpose(), 0.0);
+        for (i, mi) in m.iter().enumerate() {
+            if i <= 1 {
+                let b = mi[1] + mi[2] * self.v_att.transpose() + mi[3] * self.v_ba.transpose() + mi[4] * self.v_bg.transpose();
+                put(i, 1, b, if i == 1 { var(q.vel_var) } else { 0.0 });
+            }
+            let b = mi[2] * self.att_att.transpose() + mi[4] * self.att_bg.transpose();
+            put(i, 2, b, if i == 2 { var(q.att_var) } else { 0.0 });
+            put(i, 3, mi[3] * ba_ba, 0.0);
+            put(i, 4, mi[4] * bg_bg, 0.0);
+        }
+        put(3, 3, p33 * (ba_ba * ba_ba), var(q.accel_bias_var));
+        put(3, 4, p34 * (ba_ba * bg_bg), 0.0);
+        put(4, 4, p44 * (bg_bg * bg_bg), var(q.gyro_bias_var));
+        if trap {
+            self.add_trapezoid_noise(out, q);
+        }
+    }
+
+    /// Adds the ARCKF paper's eq. (28), `Q_k = ½(Φ·G·Q·Gᵀ + G·Q·Gᵀ·Φᵀ)`, to `out`, by the blocks:
+    /// `G·Q·Gᵀ` is diagonal with one variance per block (0 for δp) and Φ is block upper
+    /// triangular, so block (I, J > I) is `½·Φ_IJ·q_J` and block (I, I) is `q_I·(Φ_II + Φ_IIᵀ)/2`.
+    fn add_trapezoid_noise(&self, out: &mut ErrCov, q: &ProcessNoise) {
+        let (qv, qa, qba, qbg) = (q.vel_var, q.att_var, q.accel_bias_var, q.gyro_bias_var);
+        let eye = Mat3::identity();
+        let blocks = [
+            (VEL, VEL, eye * qv),
+            (ATT, ATT, self.att_att * qa),
+            (BA, BA, eye * (self.ba_ba * qba)),
+            (BG, BG, eye * (self.bg_bg * qbg)),
+            (POS, VEL, eye * (self.p_v * qv)),
+            (POS, ATT, self.p_att * qa),
+            (POS, BA, self.p_ba * qba),
+            (VEL, ATT, self.v_att * qa),
+            (VEL, BA, self.v_ba * qba),
+            (VEL, BG, self.v_bg * qbg),
+            (ATT, BG, self.att_bg * qbg),
+        ];
+        for (i, j, phi_q) in blocks {
+            if i == j {
+                let mut b = out.fixed_view_mut::<3, 3>(i, i);
+                b += 0.5 * (phi_q + phi_q.transpose());
+            } else {
+                let half = 0.5 * phi_q;
+                let mut upper = out.fixed_view_mut::<3, 3>(i, j);
+                upper += half;
+                let mut lower = out.fixed_view_mut::<3, 3>(j, i);
+                lower += half.transpose();
             }
         }
-        if q.trapezoid {
-            // The ARCKF paper's eq. (28): Q_k = ½(Φ·G·Q·Gᵀ + G·Q·Gᵀ·Φᵀ).
-            let phi_q = self.apply_rows(&q.continuous());
-            out += 0.5 * (phi_q + phi_q.transpose());
-        } else {
-            out += q.continuous();
-        }
-        // Upper triangle is now exact (the bias block and bias columns of M are already final);
-        // mirror it into the lower triangle.
-        for j in 0..ERR_DIM {
-            for i in (j + 1)..ERR_DIM {
-                out[(i, j)] = out[(j, i)];
-            }
-        }
-        out
     }
 
     /// The dense 15×15 Φ (for tests, smoothers and documentation; the filters use

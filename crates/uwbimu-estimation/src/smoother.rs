@@ -91,7 +91,8 @@ pub fn rts_smooth_backward<E: From<Error>>(
         let phi = Transition::new(&seg.state, &seg.interval, ins);
         let q = ProcessNoise::new(ins, seg.interval.dt_s);
         let x_pred = propagate_nominal(&seg.state, &seg.interval, ins);
-        let mut p_pred = phi.propagate_covariance(&seg_covariance, &q);
+        let mut p_pred = seg_covariance;
+        phi.propagate_covariance(&mut p_pred, &q);
         if seg.prior_fading != 1.0 {
             fade_position_velocity(&mut p_pred, seg.prior_fading);
         }

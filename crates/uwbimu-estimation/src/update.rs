@@ -84,7 +84,7 @@ impl UpdateReport {
 /// (37)–(38)), `dx ← dx + K·(residual − h·dx)`, and the Joseph covariance
 /// `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ` (Liu et al. 2019 eq. (39) in Joseph form), evaluated through its
 /// rank-one structure as `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for
-/// any gain; O(n²), symmetric by construction).
+/// any gain), written `P − K·wᵀ − w·Kᵀ` with `w = c − S·K/2`: O(n²), symmetric by construction.
 ///
 /// Generic over the state dimension N (15 for the INS error state, 4 for the planar filters of
 /// Wang et al. 2018). Returns the innovation variance `S`. Fails if `S` is not positive.
@@ -110,7 +110,7 @@ pub fn schmidt_step<const N: usize>(
     r_var: f64,
     estimated: usize,
 ) -> Result<f64> {
-    let c = *p * h;
+    let c = times_sparse(p, h);
     let s = h.dot(&c) + r_var;
     if !(s > 0.0 && s.is_finite()) {
         return Err(Error::NotPositiveDefinite { what: "scalar innovation covariance" });
@@ -118,14 +118,30 @@ pub fn schmidt_step<const N: usize>(
     let mut k = c / s;
     k.rows_mut(estimated, N - estimated).fill(0.0);
     *dx += k * (residual - h.dot(dx));
-    for j in 0..N {
-        for i in 0..=j {
-            let v = p[(i, j)] - k[i] * c[j] - c[i] * k[j] + s * k[i] * k[j];
-            p[(i, j)] = v;
-            p[(j, i)] = v;
+    // P − K·cᵀ − c·Kᵀ + s·K·Kᵀ = P − K·wᵀ − w·Kᵀ with w = c − (s/2)·K, column by column over
+    // the whole matrix; each entry is the expression symmetric in (i, j) `k_i·w_j + w_i·k_j`, so
+    // P stays exactly symmetric.
+    let w = c - (0.5 * s) * k;
+    let (k_all, w_all) = (k.as_slice(), w.as_slice());
+    for (j, col) in p.as_mut_slice().chunks_exact_mut(N).enumerate() {
+        let (kj, wj) = (k_all[j], w_all[j]);
+        for ((pij, &ki), &wi) in col.iter_mut().zip(k_all).zip(w_all) {
+            *pij -= ki * wj + wi * kj;
         }
     }
     Ok(s)
+}
+
+/// `P·h` over the non-zero entries of `h` only (a range Jacobian has 6 of 15): the columns of `P`
+/// are added in the order the dense product adds them, so the result is the dense product's.
+pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = SVector::<f64, N>::zeros();
+    for (j, &hj) in h.iter().enumerate() {
+        if hj != 0.0 {
+            out.axpy(hj, &p.column(j), 1.0);
+        }
+    }
+    out
 }
 
 /// Injects δx into the nominal state (Li & Wang 2020 eq. (19), Liu et al. 2019 eq. (40)) and applies the reset

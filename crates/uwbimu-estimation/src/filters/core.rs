@@ -220,7 +220,7 @@ impl InertialCore {
             *cross = phi.apply_rows(cross);
         }
         self.state = propagate_nominal(&self.state, imu, &self.ins);
-        self.covariance = phi.propagate_covariance(&self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
+        phi.propagate_covariance(&mut self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
     }
 
     /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (the ARCKF paper's

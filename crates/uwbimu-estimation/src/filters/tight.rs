@@ -23,7 +23,7 @@ use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, tested_nis, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
 use crate::robust::{SageHusa, SageHusaConfig, SageHusaVariant};
-use crate::update::{inject_and_reset, parameter_rows, schmidt_step, UpdateReport};
+use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
 
 /// A tightly coupled UWB/IMU error-state filter.
 ///
@@ -270,7 +270,7 @@ impl TightFilter {
     fn nis_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> Option<f64> {
         let (x, p) = (self.core.state(), self.core.covariance());
         let pred = m.predict(x, &self.anchors, &self.config.mounting.lever_arm)?;
-        Some((m.value() - pred.value).powi(2) / (pred.jacobian.dot(&(p * pred.jacobian)) + r_var))
+        Some((m.value() - pred.value).powi(2) / (pred.jacobian.dot(&times_sparse(p, &pred.jacobian)) + r_var))
     }
 
     /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
@@ -630,8 +630,10 @@ impl KalmanEpoch<'_> {
         param_h: impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
         estimated: usize,
     ) -> Result<u32> {
-        let (prior, p_prior, params_prior) = (*x, *p_out, *params);
-        let (mut op, mut p_post, mut params_op) = (prior, p_prior, params_prior);
+        let (prior, params_prior) = (*x, *params);
+        // `p_out` holds the prior until the end; `p_post` is the covariance of the last iterate
+        // after the first iteration.
+        let (mut op, mut p_post, mut params_op) = (prior, None::<Cov<N>>, params_prior);
         let mut iterations = 0;
         // The previous iterate (operating point, covariance, step), to fall back on when the
         // iteration stops contracting.
@@ -640,7 +642,7 @@ impl KalmanEpoch<'_> {
             iterations += 1;
             let mut dx = params_prior - params_op;
             dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
-            let mut p = p_prior;
+            let mut p = *p_out;
             for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
                 let Some(pred) = m.predict(&op, self.anchors, &self.lever_arm) else {
                     *report = UpdateReport::skipped();
@@ -654,7 +656,7 @@ impl KalmanEpoch<'_> {
                     residual -= hb.dot(&params_op);
                     h += hb;
                 }
-                let hph = h.dot(&(p_post * h));
+                let hph = h.dot(&times_sparse(p_post.as_ref().unwrap_or(p_out), &h));
                 // A lone TDoA fits itself after one iteration, so its γ at the next operating
                 // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
                 let kept = (iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. })).then_some(report.inflation);
@@ -680,7 +682,7 @@ impl KalmanEpoch<'_> {
             previous = Some((op, params_op, p, dx));
             op.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
             params_op += parameter_rows(&dx);
-            p_post = p;
+            p_post = Some(p);
         }
         Ok(iterations)
     }
