@@ -157,7 +157,12 @@ impl Transition {
                 _ => Mat3::zeros(),
             }
         };
-        let m: [[Mat3; 5]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| m_block(i, j)));
+        let mut m = [[Mat3::zeros(); 5]; 3];
+        for (i, row) in m.iter_mut().enumerate() {
+            for (j, b) in row.iter_mut().enumerate() {
+                *b = m_block(i, j);
+            }
+        }
         let (p33, p34, p44) = (blk(3, 3), blk(3, 4), blk(4, 4));
         let out = p;
         // Block (i, j ≥ i) of M·Φᵀ (plus Q on the diagonal) and its mirror (i, j).
