@@ -146,18 +146,26 @@ pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<
 
 /// Injects δx into the nominal state (Li & Wang 2020 eq. (19), Liu et al. 2019 eq. (40)) and applies the reset
 /// Jacobian `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new
-/// nominal state (the error mean is reset to zero).
+/// nominal state (the error mean is reset to zero). `P` must be symmetric; it stays so exactly.
 ///
 /// Generic over the dimension: an augmented error state ([`crate::filters::range_bias`]) holds the
 /// 15 INS error states first; the parameter states past them are left to the caller.
 pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
     x.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
     let g: Mat3 = Mat3::identity() - skew(&(0.5 * dx.fixed_rows::<3>(ATT).into_owned()));
+    // G·P·Gᵀ changes the attitude rows and columns only: the rows become G·P[δθ, :], the
+    // columns outside the attitude block their mirror (P is symmetric), and the attitude block
+    // G·P[δθ, δθ]·Gᵀ, made exactly symmetric.
     let rows = g * p.fixed_rows::<3>(ATT);
     p.fixed_rows_mut::<3>(ATT).copy_from(&rows);
-    let cols = p.fixed_columns::<3>(ATT) * g.transpose();
-    p.fixed_columns_mut::<3>(ATT).copy_from(&cols);
-    symmetrize(p);
+    for j in (0..N).filter(|j| !(ATT..ATT + 3).contains(j)) {
+        for a in 0..3 {
+            p[(j, ATT + a)] = rows[(a, j)];
+        }
+    }
+    let mut block = rows.fixed_columns::<3>(ATT) * g.transpose();
+    symmetrize(&mut block);
+    p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&block);
 }
 
 /// The parameter rows (past the 15 INS error states) of an augmented vector, zero elsewhere: the
