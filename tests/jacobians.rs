@@ -82,12 +82,14 @@ fn block_propagation_equals_dense_product() {
     let p = a * a.transpose();
     let q = ProcessNoise::new(&cfg.ins, imu.dt_s);
     let phi = t.to_dense();
-    let mut dense = phi * p * phi.transpose();
+    // G·Q·Gᵀ: white noise on δv and δθ, bias noise on δb_a and δb_g, nothing on δp.
+    let mut qc = ErrCov::zeros();
     for (off, var) in [(VEL, q.vel_var), (ATT, q.att_var), (BA, q.accel_bias_var), (BG, q.gyro_bias_var)] {
         for i in 0..3 {
-            dense[(off + i, off + i)] += var;
+            qc[(off + i, off + i)] = var;
         }
     }
+    let dense = phi * p * phi.transpose() + qc;
     let propagated = |q: &ProcessNoise| {
         let mut out = p;
         t.propagate_covariance(&mut out, q);
@@ -96,7 +98,6 @@ fn block_propagation_equals_dense_product() {
     assert!((propagated(&q) - dense).abs().max() < 1e-12);
     // The ARCKF paper's eq. (28): ½(Φ·Q + Q·Φᵀ) instead of Q.
     let trap = ProcessNoise { trapezoid: true, ..q };
-    let qc = q.continuous();
     let dense_trap = phi * p * phi.transpose() + 0.5 * (phi * qc + qc * phi.transpose());
     assert!((propagated(&trap) - dense_trap).abs().max() < 1e-12);
     assert!((dense_trap - dense).abs().max() > 1e-12);

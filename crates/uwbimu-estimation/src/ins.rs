@@ -17,7 +17,7 @@ use nalgebra::SMatrix;
 use uwbimu_vocabulary::config::InsConfig;
 use uwbimu_vocabulary::math::{quat_exp, skew, Mat3, Quat, Vec3};
 use uwbimu_vocabulary::records::ImuSample;
-use uwbimu_vocabulary::state::{diagonal_covariance, ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
+use uwbimu_vocabulary::state::{ErrCov, NominalState, ATT, BA, BG, ERR_DIM, POS, VEL};
 
 /// Bias-uncorrected IMU readings in the body frame at the two ends of one integration interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -165,12 +165,9 @@ impl Transition {
         }
         let (p33, p34, p44) = (blk(3, 3), blk(3, 4), blk(4, 4));
         let out = p;
-        // Block (i, j ≥ i) of M·Φᵀ (plus Q on the diagonal) and its mirror (i, j).
-        let mut put = |i: usize, j: usize, mut b: Mat3, var: f64| {
+        // Block (i, j ≥ i) of M·Φᵀ and its mirror (j, i).
+        let mut put = |i: usize, j: usize, mut b: Mat3| {
             if i == j {
-                for k in 0..3 {
-                    b[(k, k)] += var;
-                }
                 for c in 0..3 {
                     for r in (c + 1)..3 {
                         b[(r, c)] = b[(c, r)];
@@ -181,25 +178,27 @@ impl Transition {
             }
             out.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&b);
         };
-        let trap = q.trapezoid;
-        let var = |v: f64| if trap { 0.0 } else { v };
         let m0 = &m[0];
-        put(0, 0, m0[0] + m0[1] * self.p_v + m0[2] * self.p_att.transpose() + m0[3] * self.p_ba.transpose(), 0.0);
+        put(0, 0, m0[0] + m0[1] * self.p_v + m0[2] * self.p_att.transpose() + m0[3] * self.p_ba.transpose());
         for (i, mi) in m.iter().enumerate() {
             if i <= 1 {
-                let b = mi[1] + mi[2] * self.v_att.transpose() + mi[3] * self.v_ba.transpose() + mi[4] * self.v_bg.transpose();
-                put(i, 1, b, if i == 1 { var(q.vel_var) } else { 0.0 });
+                put(i, 1, mi[1] + mi[2] * self.v_att.transpose() + mi[3] * self.v_ba.transpose() + mi[4] * self.v_bg.transpose());
             }
-            let b = mi[2] * self.att_att.transpose() + mi[4] * self.att_bg.transpose();
-            put(i, 2, b, if i == 2 { var(q.att_var) } else { 0.0 });
-            put(i, 3, mi[3] * ba_ba, 0.0);
-            put(i, 4, mi[4] * bg_bg, 0.0);
+            put(i, 2, mi[2] * self.att_att.transpose() + mi[4] * self.att_bg.transpose());
+            put(i, 3, mi[3] * ba_ba);
+            put(i, 4, mi[4] * bg_bg);
         }
-        put(3, 3, p33 * (ba_ba * ba_ba), var(q.accel_bias_var));
-        put(3, 4, p34 * (ba_ba * bg_bg), 0.0);
-        put(4, 4, p44 * (bg_bg * bg_bg), var(q.gyro_bias_var));
-        if trap {
+        put(3, 3, p33 * (ba_ba * ba_ba));
+        put(3, 4, p34 * (ba_ba * bg_bg));
+        put(4, 4, p44 * (bg_bg * bg_bg));
+        if q.trapezoid {
             self.add_trapezoid_noise(out, q);
+        } else {
+            for (slot, var) in q.variances() {
+                for k in slot..slot + 3 {
+                    out[(k, k)] += var;
+                }
+            }
         }
     }
 
@@ -291,15 +290,9 @@ impl ProcessNoise {
         }
     }
 
-    /// `G·Q·Gᵀ` as a 15×15 matrix (diagonal: the rotations in G cancel for isotropic noise).
-    pub fn continuous(&self) -> ErrCov {
-        let v = |x: f64| Vec3::repeat(x);
-        diagonal_covariance([
-            v(0.0),
-            v(self.vel_var.sqrt()),
-            v(self.att_var.sqrt()),
-            v(self.accel_bias_var.sqrt()),
-            v(self.gyro_bias_var.sqrt()),
-        ])
+    /// `G·Q·Gᵀ` by its diagonal blocks (the rotations in G cancel for isotropic noise): the first
+    /// slot of each noisy block (δv, δθ, δb_a, δb_g) and its variance per axis; δp has none.
+    pub fn variances(&self) -> [(usize, f64); 4] {
+        [(VEL, self.vel_var), (ATT, self.att_var), (BA, self.accel_bias_var), (BG, self.gyro_bias_var)]
     }
 }

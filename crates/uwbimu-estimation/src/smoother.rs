@@ -9,10 +9,10 @@
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
 //! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
-//! uses dense 15×15 products, but for `Φ·P`, taken by Φ's blocks. Memory per propagation: the segment keeps its covariance as the
-//! upper triangle ([`uwbimu_vocabulary::state::PackedErrCov`], lossless), and a smoothed node
-//! keeps only the position block; the full smoothed covariance lives only from one node to the
-//! next.
+//! uses dense 15×15 products, but for `Φ·P`, taken by Φ's blocks. Memory per propagation: the
+//! segment keeps its covariance as the upper triangle
+//! ([`uwbimu_vocabulary::state::PackedErrCov`], lossless), and a smoothed node keeps only the
+//! position block; the full smoothed covariance lives only from one node to the next.
 
 use uwbimu_vocabulary::config::InsConfig;
 use uwbimu_vocabulary::error::{Error, Result};

@@ -35,7 +35,7 @@ use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, ERR_DIM, POS, VEL};
 
 use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::InertialCore;
-use crate::update::{inject_and_reset, parameter_rows, schmidt_step};
+use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse};
 
 pub use still::{Rest, StillDetector, DETECTOR_BLOCK_S};
 
@@ -319,7 +319,7 @@ impl ConstraintRows {
             let mut h = SVector::<f64, N>::zeros();
             h.fixed_rows_mut::<ERR_DIM>(0).copy_from(h15);
             let r = residual - h.dot(&dx);
-            if *gated && r * r / (h.dot(&(*p * h)) + var) > CONSTRAINT_GATE {
+            if *gated && r * r / (h.dot(&times_sparse(p, &h)) + var) > CONSTRAINT_GATE {
                 continue;
             }
             schmidt_step(&mut dx, p, &h, *residual, *var, estimated)?;
