@@ -16,21 +16,14 @@ use uwbimu_rs::vocabulary::records::{Observation, RangeMeasurement, TdoaMeasurem
 /// (with criterion's large batches every update started from a cold filter).
 const WARM_BATCH: BatchSize = BatchSize::NumIterations(8);
 
-fn anchors() -> Vec<Vec3> {
-    vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, 0.0, 1.0), Vec3::new(10.0, 8.0, 2.2), Vec3::new(0.0, 8.0, 0.8)]
-}
+#[path = "common/rig.rs"]
+mod rig;
 
 /// A filter constructor of the shape shared by the named filters.
 type Build<F> = Box<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_rs::vocabulary::error::Result<F>>;
 
 fn setup<F: Estimator>(build: &Build<F>) -> F {
-    let initial = InitialState { position: Vec3::new(4.0, 3.0, 0.3), ..InitialState::default() };
-    let config = {
-        let mut c = FilterConfig::default();
-        c.mounting.lever_arm = Vec3::new(0.0, 0.0, 0.05);
-        c
-    };
-    let mut f = build(anchors(), &initial, config).expect("valid filter");
+    let mut f = build(rig::anchors(), &rig::initial(), rig::config()).expect("valid filter");
     f.predict(0.0, &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.1)).expect("first sample");
     f
 }
@@ -39,8 +32,7 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
     let build = &build;
     let mut group = c.benchmark_group(name);
     group.throughput(Throughput::Elements(1));
-    let accel = Vec3::new(0.2, -0.1, 9.8);
-    let gyro = Vec3::new(0.01, -0.02, 0.3);
+    let (accel, gyro) = rig::IMU;
     group.bench_function("predict", |b| {
         let mut f = setup(build);
         let mut t = 0.0;
@@ -60,8 +52,7 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
             WARM_BATCH,
         )
     });
-    // One epoch of four ranges, one of them 1 m long (an NLOS-like outlier).
-    let epoch = [(0, 5.1), (1, 6.3), (2, 8.2), (3, 6.4)];
+    let epoch = rig::EPOCH;
     group.throughput(Throughput::Elements(epoch.len() as u64));
     group.bench_function("update_epoch_4", |b| {
         b.iter_batched_ref(

@@ -4,29 +4,27 @@
 //!
 //! ```text
 //! cargo run --release --example instruction_counts -- <filter> <call> <n>
+//! cargo run --release --example instruction_counts -- list
 //! ```
 //!
 //! `filter` is a streaming filter's type name (`Ekf`, `Riekf`, … ; `Ekf2d` etc. for the planar
-//! filters), `call` one of `predict` (an IMU sample at 100 Hz), `range` (one range at the filter
+//! filters; `list` prints them all, from the method registry), `call` one of `predict` (an IMU sample at 100 Hz), `range` (one range at the filter
 //! time), `epoch` (four ranges, one 1 m long, at the filter time) or `restore` (what `range` and
 //! `epoch` do before each call: copy the filter back to its state after set-up, so that every
-//! update does the same work).
+//! update does the same work). The rig is the criterion benches' (`benches/common/rig.rs`).
 
 use uwbimu_rs::estimation::pipeline::Estimator;
 use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_rs::estimation::update::UpdateReport;
-use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
-use uwbimu_rs::vocabulary::math::Vec3;
 
-fn anchors() -> Vec<Vec3> {
-    vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, 0.0, 1.0), Vec3::new(10.0, 8.0, 2.2), Vec3::new(0.0, 8.0, 0.8)]
-}
+#[path = "../benches/common/rig.rs"]
+mod rig;
 
 fn run<F: Estimator + Clone>(mut set_up: F, call: &str, n: usize) -> Result<(), Box<dyn std::error::Error>> {
-    let (accel, gyro) = (Vec3::new(0.2, -0.1, 9.8), Vec3::new(0.01, -0.02, 0.3));
+    let (accel, gyro) = rig::IMU;
     set_up.predict(0.0, &accel, &gyro)?;
     let mut f = set_up.clone();
-    let epoch = [(0, 5.1), (1, 6.3), (2, 8.2), (3, 6.4)];
+    let epoch = rig::EPOCH;
     let mut reports = [UpdateReport::skipped(); 4];
     for k in 0..n {
         match call {
@@ -49,30 +47,37 @@ fn run<F: Estimator + Clone>(mut set_up: F, call: &str, n: usize) -> Result<(), 
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [filter, call, n] = args.as_slice() else {
-        return Err("usage: instruction_counts <filter> <call> <n>".into());
+    let (list, filter, call, n) = match args.as_slice() {
+        [l] if l == "list" => (true, "", "", 0),
+        [filter, call, n] => (false, filter.as_str(), call.as_str(), n.parse()?),
+        _ => return Err("usage: instruction_counts <filter> <call> <n> | list".into()),
     };
-    let n: usize = n.parse()?;
-    let initial = InitialState { position: Vec3::new(4.0, 3.0, 0.3), ..InitialState::default() };
-    let mut config = FilterConfig::default();
-    config.mounting.lever_arm = Vec3::new(0.0, 0.0, 0.05);
+    let (initial, config) = (rig::initial(), rig::config());
     let mut found = false;
     macro_rules! dispatch {
         (inertial $ty:ident, [], $($doc:literal),+) => {
-            if filter == stringify!($ty) {
+            if list {
+                println!(stringify!($ty));
+            } else if filter == stringify!($ty) {
                 found = true;
-                run(uwbimu_rs::estimation::filters::$ty::new(anchors(), &initial, config.clone())?, call, n)?;
+                run(uwbimu_rs::estimation::filters::$ty::new(rig::anchors(), &initial, config.clone())?, call, n)?;
             }
         };
         (planar $kind:ident, [], $($doc:literal),+) => {
-            if *filter == format!("{}2d", stringify!($kind)) {
+            let name = format!("{}2d", stringify!($kind));
+            if list {
+                println!("{name}");
+            } else if filter == name {
                 found = true;
-                run(PlanarFilter::new(PlanarKind::$kind, anchors(), &initial, &config)?, call, n)?;
+                run(PlanarFilter::new(PlanarKind::$kind, rig::anchors(), &initial, &config)?, call, n)?;
             }
         };
         (multilateration, [], $($doc:literal),+) => {};
     }
     uwbimu_rs::app::for_each_streaming_filter!(dispatch);
+    if list {
+        return Ok(());
+    }
     if !found {
         return Err(format!("unknown filter {filter:?} (a streaming filter's type name, e.g. Ekf, Riekf, Ekf2d)").into());
     }

@@ -3,7 +3,7 @@
 # examples/instruction_counts.rs under valgrind's callgrind at two call counts and prints the
 # difference per call; `range` and `epoch` have the cost of restoring the filter before each call
 # taken off. Needs valgrind (Debian package `valgrind`). Usage:
-#   bash scripts/instruction_counts.sh [Filter ...]      (default: Ekf Riekf Best Ckf Arckf Ukf Ekf2d)
+#   bash scripts/instruction_counts.sh [Filter ...]      (default: every streaming filter)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v valgrind > /dev/null || { echo "valgrind is not installed (apt install valgrind)" >&2; exit 1; }
@@ -18,7 +18,7 @@ per_call() { # filter call -> instructions per call
     echo $(( ($(count "$1" "$2" $n2) - $(count "$1" "$2" $n1)) / (n2 - n1) ))
 }
 filters=("$@")
-[ ${#filters[@]} -gt 0 ] || filters=(Ekf Riekf Best Ckf Arckf Ukf Ekf2d)
+[ ${#filters[@]} -gt 0 ] || mapfile -t filters < <("$bin" list)
 echo "| filter | predict | range | epoch of 4 |"
 echo "|---|---|---|---|"
 for f in "${filters[@]}"; do

@@ -9,22 +9,20 @@ use stats_alloc::{Region, StatsAlloc, INSTRUMENTED_SYSTEM};
 use uwbimu_rs::estimation::pipeline::Estimator;
 use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_rs::estimation::update::UpdateReport;
-use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;
 
 #[global_allocator]
 static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
 
-fn anchors() -> Vec<Vec3> {
-    vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, 0.0, 1.0), Vec3::new(10.0, 8.0, 2.2), Vec3::new(0.0, 8.0, 0.8)]
-}
+#[path = "../benches/common/rig.rs"]
+mod rig;
 
 /// IMU samples at 100 Hz of a tag turning slowly in place, with an epoch of the four anchors'
 /// ranges every 10th sample (anchor 2 one metre long every third epoch); returns the
 /// allocations made from sample `counted_from` on.
 fn allocations<F: Estimator>(mut f: F, samples: usize, counted_from: usize) -> usize {
-    let tag = Vec3::new(4.0, 3.0, 0.3);
-    let positions = anchors();
+    let tag = rig::initial().position;
+    let positions = rig::anchors();
     let mut region = None;
     for k in 0..samples {
         if k == counted_from {
@@ -45,23 +43,17 @@ fn allocations<F: Estimator>(mut f: F, samples: usize, counted_from: usize) -> u
     region.map_or(0, |r| r.change().allocations + r.change().reallocations)
 }
 
-fn config() -> FilterConfig {
-    let mut c = FilterConfig::default();
-    c.mounting.lever_arm = Vec3::new(0.0, 0.0, 0.05);
-    c
-}
-
 #[test]
 fn predict_and_epoch_updates_do_not_allocate() {
-    let initial = InitialState { position: Vec3::new(4.0, 3.0, 0.3), ..InitialState::default() };
+    let initial = rig::initial();
     let mut found: Vec<(&str, usize)> = Vec::new();
     macro_rules! check {
         (inertial $ty:ident, [], $($doc:literal),+) => {{
-            let f = uwbimu_rs::estimation::filters::$ty::new(anchors(), &initial, config()).expect("filter");
+            let f = uwbimu_rs::estimation::filters::$ty::new(rig::anchors(), &initial, rig::config()).expect("filter");
             found.push((stringify!($ty), allocations(f, 3000, 1000)));
         }};
         (planar $kind:ident, [], $($doc:literal),+) => {{
-            let f = PlanarFilter::new(PlanarKind::$kind, anchors(), &initial, &config()).expect("filter");
+            let f = PlanarFilter::new(PlanarKind::$kind, rig::anchors(), &initial, &rig::config()).expect("filter");
             found.push((concat!(stringify!($kind), " (planar)"), allocations(f, 3000, 1000)));
         }};
         (multilateration, [], $($doc:literal),+) => {};
