@@ -10,7 +10,7 @@ mkdir -p target && rm -f "$skipped_log"
 status=0
 UWBIMU_SKIPPED_LOG="$skipped_log" cargo test --workspace --quiet --no-fail-fast || status=$?
 if [ -s "$skipped_log" ]; then
-    echo "Rust: $(sort -u "$skipped_log" | wc -l) tests skipped:"
+    echo "Rust: $(cut -d: -f1 "$skipped_log" | sort -u | wc -l) tests skipped:"
     sort -u "$skipped_log" | sed 's/^/  skipped: /'
 else
     echo "Rust: 0 tests skipped"

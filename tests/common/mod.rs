@@ -87,7 +87,9 @@ pub fn isas_walk1(name: &str) -> Option<std::path::PathBuf> {
     if let Ok(log) = std::env::var("UWBIMU_SKIPPED_LOG") {
         use std::io::Write;
         if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) {
-            let _ = writeln!(f, "{message}");
+            // One write per line: parallel tests append to the same file, and `writeln!` would
+            // write the message and its newline apart, so that lines of two tests could mix.
+            let _ = f.write_all(format!("{message}\n").as_bytes());
         }
     }
     None
