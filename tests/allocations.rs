@@ -63,7 +63,7 @@ fn predict_and_epoch_updates_do_not_allocate() {
     let allocating: Vec<&str> = found.iter().filter(|(_, n)| *n > 0).map(|(name, _)| *name).collect();
     // Not yet allocation-free: the ARCKF robustness factors (arckf; ackf shares its update) come
     // from an L1 fix of the epoch, and the loosely coupled filters from a least-squares fix,
-    // both built on Vecs in `multilateration` (30 and 73 allocations per epoch, measured).
+    // both built on Vecs in `multilateration` (the counts are in docs/performance.md).
     // Every other filter allocates nothing; a filter fixed or newly allocating fails here.
     assert_eq!(
         allocating,
