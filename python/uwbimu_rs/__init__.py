@@ -3,7 +3,7 @@
 Start with :func:`run_filter` (``"best"`` for real logs), :func:`replay` for MCAP recordings and
 the streaming classes (:class:`Best`, …) for a robot loop; :mod:`uwbimu_rs.sim` simulates runs and
 :mod:`uwbimu_rs.metrics` scores them; :func:`compare` runs several methods side by side and
-:mod:`uwbimu_rs.plot` draws the comparison.
+:mod:`uwbimu_rs.plot` draws the comparison; :mod:`uwbimu_rs.fleet` replays many logs on Ray.
 
 Conventions: navigation frame ENU (z up); accelerometer = specific force in the body frame
 (≈ [0, 0, +9.81] m/s² level and still); gyroscope rad/s; quaternions Hamilton [w, x, y, z]
@@ -15,7 +15,7 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
-from uwbimu_rs import metrics, plot, ranging, sim
+from uwbimu_rs import fleet, metrics, plot, ranging, sim
 from uwbimu_rs._batch import crlb, initialize, run_filter, run_filters
 from uwbimu_rs._calibration import calibrate, choose_model, tune
 from uwbimu_rs._compare import Comparison, MethodRun, compare
@@ -85,6 +85,7 @@ __all__ = [
     "choose_model",
     "compare",
     "crlb",
+    "fleet",
     "initialize",
     "metrics",
     "plot",

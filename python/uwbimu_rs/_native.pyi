@@ -1109,6 +1109,7 @@ def replay(
     mapping: str | None = None,
     config_file: str | None = None,
     config: _ConfigArg = None,
+    overrides: dict[str, Any] | None = None,
     initial: dict[str, Any] | None = None,
     smooth: bool | None = None,
     ground_truth: str | None = None,
@@ -1117,7 +1118,8 @@ def replay(
     """Read an MCAP file and replay it through ``method`` (the ``uwbimu-replay`` core) from
     ``initial`` (None: the config file's ``[initial]``, else self-initialisation from the
     ranges or, without ranges, the TDoA). ``mapping`` merges into the config file's
-    ``[mapping]`` key by key; ``ground_truth`` is a truth CSV (the CLI's ``--ground-truth``);
+    ``[mapping]`` key by key; ``config`` replaces its ``[config]`` and ``overrides`` sets its
+    keys over the result; ``ground_truth`` is a truth CSV (the CLI's ``--ground-truth``);
     ``progress`` draws bars on stderr. Returns ``(columns, info)``: the run_filter columns and
     the keys of the CLI's ``--json`` summary (method, smoothed, counts, per-anchor statistics,
     ``tdoa`` counts when the recording has TDoA, mean NIS, RMSE against ground truth when

@@ -96,6 +96,7 @@ def replay(
     mapping: Mapping[str, Any] | None = None,
     config_file: str | os.PathLike[str] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
+    overrides: Mapping[str, Any] | None = None,
     initial: Mapping[str, Any] | None = None,
     smooth: bool | None = None,
     ground_truth: str | os.PathLike[str] | None = None,
@@ -114,6 +115,10 @@ def replay(
         ``[initial]``.
     config : FilterConfig or dict, optional
         Filter settings; replaces the config file's ``[config]``.
+    overrides : dict, optional
+        Settings set over that configuration (the config file's ``[config]``, or ``config``),
+        every other key kept: ``{"ranging.range_std": 0.2}`` or ``{"ranging": {"range_std": 0.2}}``
+        (what :func:`uwbimu_rs.fleet.sweep` varies).
     initial : dict, optional
         Initial state as for :func:`run_filter`; replaces the config file's ``[initial]``. None
         and no ``[initial]``: self-initialisation (from the ranges, or from the TDoA of a
@@ -156,6 +161,7 @@ def replay(
         mapping=_mapping_json(mapping),
         config_file=None if config_file is None else os.fspath(config_file),
         config=_as_dict(config),
+        overrides=_as_dict(overrides),
         initial=_as_dict(initial),
         smooth=smooth,
         ground_truth=None if ground_truth is None else os.fspath(ground_truth),

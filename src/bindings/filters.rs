@@ -149,6 +149,13 @@ pub(super) fn read_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<FilterC
 /// `{anchor index: [c0, c1, c2, c3]}`, every other value a number, bool or sequence.
 fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
     let mut c = FilterConfig::default();
+    apply_config_dict(&mut c, obj)?;
+    Ok(c)
+}
+
+/// Sets the keys of a config dict (as [`config_from_dict`] reads it) on `c`; keys not in the
+/// dict keep their values.
+pub(super) fn apply_config_dict(c: &mut FilterConfig, obj: &Bound<'_, PyAny>) -> PyResult<()> {
     apply_nested_dict(obj, "config", |key, v| {
         if key == "range_calibration" {
             c.range_calibration = super::ranging::read_calibration(v)?;
@@ -157,8 +164,7 @@ fn config_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<FilterConfig> {
         FilterConfig::check_key(key)?;
         let value = config_value(v).map_err(|reason| Error::InvalidConfig { field: key.to_string(), reason })?;
         Ok(c.set(key, &value)?)
-    })?;
-    Ok(c)
+    })
 }
 
 /// Reads `initial` (a dict with `position`, `velocity`, `orientation`, optional standard

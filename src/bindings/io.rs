@@ -193,11 +193,12 @@ fn read_mcap<'py>(
 
 /// Reads an MCAP file and replays it through `method` (None: the config file's, else `best`)
 /// from `initial` (None: the config file's `[initial]`, else self-initialisation); the same core
-/// as the `uwbimu-replay` binary. `ground_truth` is a truth CSV (the CLI's `--ground-truth`);
+/// as the `uwbimu-replay` binary. `config` replaces the config file's `[config]`; `overrides`
+/// (a config dict) sets its keys over the result. `ground_truth` is a truth CSV (the CLI's `--ground-truth`);
 /// `progress` draws bars on stderr. Returns `(columns, info)`; info holds the keys of the CLI's
 /// `--json` summary plus `stats`, `health` and `warnings`.
 #[pyfunction]
-#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, initial=None, smooth=None, ground_truth=None, progress=false))]
+#[pyo3(signature = (path, method=None, *, mapping=None, config_file=None, config=None, overrides=None, initial=None, smooth=None, ground_truth=None, progress=false))]
 #[allow(clippy::too_many_arguments)] // the Python keyword arguments
 fn replay<'py>(
     py: Python<'py>,
@@ -206,6 +207,7 @@ fn replay<'py>(
     mapping: Option<&str>,
     config_file: Option<PathBuf>,
     config: Option<&Bound<'py, PyAny>>,
+    overrides: Option<&Bound<'py, PyAny>>,
     initial: Option<&Bound<'py, PyAny>>,
     smooth: Option<bool>,
     ground_truth: Option<PathBuf>,
@@ -214,6 +216,9 @@ fn replay<'py>(
     let mut cfg = settings(config_file.as_deref(), mapping)?;
     if config.is_some_and(|c| !c.is_none()) {
         cfg.config = read_config(config)?;
+    }
+    if let Some(keys) = overrides.filter(|o| !o.is_none()) {
+        super::filters::apply_config_dict(&mut cfg.config, keys)?;
     }
     if let Some(i) = read_optional_initial(initial)? {
         cfg.initial = Some(i);

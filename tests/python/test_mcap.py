@@ -201,3 +201,18 @@ def test_a_file_error_names_the_file_and_keeps_its_cause(tmp_path):
     with pytest.raises(FileNotFoundError, match="no_such_dir/out.mcap") as info:
         uwbimu_rs.sim.write_mcap(run, target)
     assert isinstance(info.value.__cause__, OSError) and "No such file" in str(info.value.__cause__)
+
+
+def test_replay_overrides_set_keys_over_the_config_file(tmp_path):
+    run = uwbimu_rs.sim.preset("hall_vehicle_nlos", seed=4)
+    log = tmp_path / "run.mcap"
+    uwbimu_rs.sim.write_mcap(run, log)
+    site = tmp_path / "site.toml"
+    site.write_text('method = "riekf"\n[config.ins]\naccel_noise_density = 0.5\n')
+    over, over_info = uwbimu_rs.replay(log, config_file=site, overrides={"ranging": {"range_std": 0.3}})
+    both, both_info = uwbimu_rs.replay(log, "riekf", config={"ins.accel_noise_density": 0.5, "ranging.range_std": 0.3})
+    assert over.equals(both) and over_info["mean_nis"] == both_info["mean_nis"]
+    replaced, _ = uwbimu_rs.replay(log, config_file=site, config={"ranging.range_std": 0.3})
+    assert not replaced.equals(over), "config= replaces the file's [config]: its IMU noise is gone"
+    with pytest.raises(uwbimu_rs.ConfigError, match="ranging.range_stdd"):
+        uwbimu_rs.replay(log, config_file=site, overrides={"ranging.range_stdd": 0.3})
