@@ -10,13 +10,16 @@
 //! from the L2 fix), whose residuals drive the ARCKF robustness factor.
 //!
 //! Nothing here panics: degenerate input (too few ranges, collinear or coplanar anchors, unknown
-//! anchor indices, non-finite values) gives `None`. Allocation per epoch is accepted; this is
-//! not the filters' hot path.
+//! anchor indices, non-finite values) gives `None`. The range fixes ([`solve_epoch`],
+//! [`l1_solve_epoch`]) do not allocate for epochs of up to 8 ranges (a larger epoch allocates its
+//! linear system): the loosely coupled filters and the ARCKF call them every epoch.
 
 mod l1;
 pub mod tdoa;
 
-use nalgebra::{Cholesky, DMatrix, DVector, Matrix2, SymmetricEigen, Vector2};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Cholesky, Const, DefaultAllocator, Dim, DimDiff, DimMin, DimMinimum, DimSub, Dyn, Matrix2, OMatrix, OVector};
+use nalgebra::{SymmetricEigen, Vector2, U1, U2, U3};
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::config::DEFAULT_EPOCH_WINDOW_S;
 use uwbimu_vocabulary::math::{Mat3, Vec3};
@@ -179,6 +182,13 @@ fn well_conditioned(min: f64, max: f64, rcond: f64) -> bool {
     max > 0.0 && min > max * rcond
 }
 
+/// Rows of the linear seed's system (one per range after the first) held on the stack: an epoch
+/// of up to 8 ranges is solved without allocating, a larger one allocates its system. The rows
+/// beyond the epoch's are zero, which leaves the solution and the singular values unchanged; and
+/// below 8 rows nalgebra's SVD adds the zero rows' terms after the epoch's, in the same order as
+/// for the unpadded system, so both give the same result to the bit.
+const STACK_ROWS: usize = 7;
+
 /// Linear least-squares seed with its condition number (Liu et al. 2019 eqs. (10)–(13)).
 ///
 /// Coordinates are shifted so the first anchor is the origin (this leaves eqs. (10)–(12)
@@ -201,17 +211,51 @@ fn linear_solve(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Option<
         None => r * r,
     };
     let r0_sq = sq(&origin, r0);
-    let rows = obs.len() - 1;
-    let mut g = DMatrix::<f64>::zeros(rows, dim);
-    let mut b = DVector::<f64>::zeros(rows);
-    for (row, &(ai, ri)) in obs[1..].iter().enumerate() {
+    let rows = obs[1..].iter().map(|&(ai, ri)| {
         let a = anchors[ai];
         let d = a - origin; // a_i − a_1 in shifted coordinates
-        for c in 0..dim {
-            g[(row, c)] = -2.0 * d[c]; // 2·(a_1 − a_i)
-        }
         let d_norm_sq: f64 = d.iter().take(dim).map(|v| v * v).sum();
-        b[row] = sq(&a, ri) - r0_sq - d_norm_sq; // ‖a_1‖² = 0 after the shift
+        (-2.0 * d, sq(&a, ri) - r0_sq - d_norm_sq) // 2·(a_1 − a_i); ‖a_1‖² = 0 after the shift
+    });
+    let (x, condition) = match (planar_height_m.is_some(), obs.len() - 1 <= STACK_ROWS) {
+        (true, true) => least_squares(rows, Const::<STACK_ROWS>, U2),
+        (false, true) => least_squares(rows, Const::<STACK_ROWS>, U3),
+        (_, false) => least_squares(rows, Dyn(obs.len() - 1), Dyn(dim)),
+    }?;
+    let mut p = origin;
+    p.x += x.x;
+    p.y += x.y;
+    match planar_height_m {
+        Some(h) => p.z = h,
+        None => p.z += x.z,
+    }
+    p.iter().all(|v| v.is_finite()).then_some((p, condition))
+}
+
+/// The least-squares solution `x` of `G·x = b` (by SVD) and the condition number of `G`, where
+/// `G` has `nrows × ncols` entries (2 or 3 columns) and `rows` gives its first rows `(g_i, b_i)`
+/// (the first `ncols` entries of `g_i` are used), the remaining ones being zero; `x.z = 0` with
+/// two columns. `None` if `G` is rank-deficient (relative singular value below [`RANK_RCOND`]).
+fn least_squares<R, C>(rows: impl Iterator<Item = (Vec3, f64)>, nrows: R, ncols: C) -> Option<(Vec3, f64)>
+where
+    R: DimMin<C>,
+    C: Dim,
+    DimMinimum<R, C>: DimSub<U1>,
+    DefaultAllocator: Allocator<R, C>
+        + Allocator<C>
+        + Allocator<R>
+        + Allocator<DimDiff<DimMinimum<R, C>, U1>>
+        + Allocator<DimMinimum<R, C>, C>
+        + Allocator<R, DimMinimum<R, C>>
+        + Allocator<DimMinimum<R, C>>,
+{
+    let mut g = OMatrix::<f64, R, C>::zeros_generic(nrows, ncols);
+    let mut b = OVector::<f64, R>::zeros_generic(nrows, U1);
+    for (row, (g_row, b_row)) in rows.enumerate() {
+        for c in 0..ncols.value() {
+            g[(row, c)] = g_row[c];
+        }
+        b[row] = b_row;
     }
     let svd = g.svd(true, true);
     let s_max = svd.singular_values.max();
@@ -219,15 +263,10 @@ fn linear_solve(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Option<
     if !well_conditioned(s_min, s_max, RANK_RCOND) {
         return None;
     }
-    let x = svd.solve(&b, s_max * RANK_RCOND).ok()?;
-    let mut p = origin;
-    p.x += x[0];
-    p.y += x[1];
-    match planar_height_m {
-        Some(h) => p.z = h,
-        None => p.z += x[2],
-    }
-    p.iter().all(|v| v.is_finite()).then_some((p, s_max / s_min))
+    let solution = svd.solve(&b, s_max * RANK_RCOND).ok()?;
+    let mut x = Vec3::zeros();
+    x.iter_mut().zip(solution.iter()).for_each(|(x, s)| *x = *s);
+    Some((x, s_max / s_min))
 }
 
 /// Closed-form linear multilateration (Liu et al. 2019 eqs. (10)–(13)): differences the squared ranges
@@ -243,16 +282,12 @@ pub fn linear_fix(anchors: &[Vec3], obs: &[(usize, f64)], planar_height_m: Optio
     linear_solve(anchors, obs, planar_height_m).map(|(p, _)| p)
 }
 
-/// Range residuals `e_i = ‖p − a_i‖ − r_i` (m) and their Jacobian rows `∂e_i/∂p = (p − a_i)ᵀ/‖p − a_i‖`
-/// (Liu et al. 2019 eqs. (6)–(8)); `None` if `p` coincides with an anchor.
-fn residuals_and_jacobian(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> Option<Vec<(f64, Vec3)>> {
-    obs.iter()
-        .map(|&(a, r)| {
-            let d = p - anchors[a];
-            let n = d.norm();
-            (n > MIN_ANCHOR_DISTANCE_M).then(|| (n - r, d / n))
-        })
-        .collect()
+/// Range residual `e = ‖p − a‖ − r` (m) of the range `r` to the anchor `a` and its Jacobian row
+/// `∂e/∂p = (p − a)ᵀ/‖p − a‖` (Liu et al. 2019 eqs. (6)–(8)); `None` if `p` coincides with the anchor.
+fn residual_and_jacobian(anchor: &Vec3, range_m: f64, p: &Vec3) -> Option<(f64, Vec3)> {
+    let d = p - anchor;
+    let n = d.norm();
+    (n > MIN_ANCHOR_DISTANCE_M).then(|| (n - range_m, d / n))
 }
 
 /// Normal equations `JᵀJ` (3×3) and `Jᵀe` plus the residual sum of squares at `p`.
@@ -260,7 +295,8 @@ fn normal_equations(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> Option<
     let mut jtj = Mat3::zeros();
     let mut jte = Vec3::zeros();
     let mut sse = 0.0;
-    for (e, j) in residuals_and_jacobian(anchors, obs, p)? {
+    for &(a, r) in obs {
+        let (e, j) = residual_and_jacobian(&anchors[a], r, p)?;
         jtj += j * j.transpose();
         jte += j * e;
         sse += e * e;
@@ -604,18 +640,44 @@ mod tests {
         let anchors = room_anchors();
         let p = Vec3::new(4.0, 3.0, 1.2);
         let obs = exact_obs(&anchors, &Vec3::new(4.5, 2.0, 1.0));
-        let analytic = residuals_and_jacobian(&anchors, &obs, &p).unwrap();
         let h = 1e-6;
-        for k in 0..3 {
-            let mut dp = Vec3::zeros();
-            dp[k] = h;
-            let plus = residuals_and_jacobian(&anchors, &obs, &(p + dp)).unwrap();
-            let minus = residuals_and_jacobian(&anchors, &obs, &(p - dp)).unwrap();
-            for i in 0..obs.len() {
-                let numeric = (plus[i].0 - minus[i].0) / (2.0 * h);
-                assert!((numeric - analytic[i].1[k]).abs() < 1e-8, "row {i} col {k}");
+        for (i, &(a, r)) in obs.iter().enumerate() {
+            let (_, analytic) = residual_and_jacobian(&anchors[a], r, &p).unwrap();
+            for k in 0..3 {
+                let mut dp = Vec3::zeros();
+                dp[k] = h;
+                let (plus, _) = residual_and_jacobian(&anchors[a], r, &(p + dp)).unwrap();
+                let (minus, _) = residual_and_jacobian(&anchors[a], r, &(p - dp)).unwrap();
+                let numeric = (plus - minus) / (2.0 * h);
+                assert!((numeric - analytic[k]).abs() < 1e-8, "row {i} col {k}");
             }
         }
+    }
+
+    #[test]
+    fn stack_and_heap_systems_give_the_same_seed() {
+        // Up to STACK_ROWS rows the linear system lives on the stack (zero rows below), beyond
+        // it on the heap: the same solution and condition number to the bit.
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut coordinate = || rng.random_range(-20.0..20.0);
+        for n in 2..=STACK_ROWS {
+            for _ in 0..50 {
+                let rows: Vec<(Vec3, f64)> =
+                    (0..n).map(|_| (Vec3::new(coordinate(), coordinate(), coordinate()), 3.0 * coordinate())).collect();
+                let planar = least_squares(rows.iter().copied(), Const::<STACK_ROWS>, U2);
+                assert_eq!(planar, least_squares(rows.iter().copied(), Dyn(n), Dyn(2)), "{rows:?}");
+                if n >= 3 {
+                    let spatial = least_squares(rows.iter().copied(), Const::<STACK_ROWS>, U3);
+                    assert_eq!(spatial, least_squares(rows.iter().copied(), Dyn(n), Dyn(3)), "{rows:?}");
+                }
+            }
+        }
+        // An epoch of more ranges than the stack holds is solved all the same.
+        let anchors: Vec<Vec3> =
+            (0..12).map(|i| Vec3::new(f64::from(i % 4) * 3.0, f64::from(i / 4) * 4.0, 0.5 + f64::from(i % 3))).collect();
+        let p = Vec3::new(4.2, 3.1, 1.3);
+        let fix = solve_epoch(&anchors, &exact_obs(&anchors, &p), &LsConfig::default()).expect("fix");
+        assert!(!fix.planar && (fix.position - p).norm() < 1e-6, "{fix:?}");
     }
 
     /// Sample covariance of the fixes against the truth `p` (zero-mean errors assumed).

@@ -61,6 +61,8 @@ pub struct TightFilter {
     range_bias: Option<RangeBiasStates>,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
     epoch: Vec<ScalarMeasurement>,
+    /// Scratch for one epoch's robustness factors (as `epoch`).
+    factors: Vec<RobustnessFactor>,
 }
 
 /// How the linearised problem of an epoch is solved.
@@ -233,6 +235,7 @@ impl TightFilter {
             core,
             config,
             epoch: Vec::with_capacity(anchors.len()),
+            factors: Vec::with_capacity(anchors.len()),
             anchors,
             policy: composition.policy,
             strategy,
@@ -245,24 +248,21 @@ impl TightFilter {
         })
     }
 
-    /// Robustness factors `Cu_i` of one epoch (the ARCKF paper's eqs. (33)–(37)) from the L1 fit of its
-    /// ranges in the plane of the predicted tag height (the ARCKF paper's §3.1 works in the plane; the
-    /// height comes from the INS); for `ResidualWeighted` with two ranges, from the two-range
-    /// rule of the ACKF paper instead. Allocates (the L1 fit does); UWB epochs are far rarer than
-    /// IMU samples.
-    fn robustness(&self, ranges: &[(usize, f64)]) -> Vec<RobustnessFactor> {
-        let config = &self.config;
+    /// Appends to `factors` the robustness factors `Cu_i` of one epoch (the ARCKF paper's
+    /// eqs. (33)–(37)) from the L1 fit of its ranges in the plane of the predicted tag height (the
+    /// ARCKF paper's §3.1 works in the plane; the height comes from the INS); for
+    /// `ResidualWeighted` with two ranges, from the two-range rule of the ACKF paper instead.
+    fn robustness(&self, ranges: &[(usize, f64)], factors: &mut Vec<RobustnessFactor>) {
+        let range_std = self.config.ranging.range_std;
         if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
             let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
-            return vec![
-                robustness_factor(r1, res[0], config.ranging.range_std),
-                robustness_factor(r2, res[1], config.ranging.range_std),
-            ];
+            factors.extend([robustness_factor(r1, res[0], range_std), robustness_factor(r2, res[1], range_std)]);
+            return;
         }
-        let tag = tag_position(self.core.state(), &config.mounting.lever_arm);
-        let ls = LsConfig { range_std_m: config.ranging.range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
+        let tag = tag_position(self.core.state(), &self.config.mounting.lever_arm);
+        let ls = LsConfig { range_std_m: range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
         let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
-        robustness_factors(ranges, fix.as_ref().map(|f| f.residuals_m.as_slice()), config.ranging.range_std)
+        factors.extend(robustness_factors(ranges, fix.map(|f| f.residuals_m(&self.anchors, ranges)), range_std));
     }
 
     /// γ of one measurement against the prior with noise variance `r_var` (Li & Wang 2020 eq. (37));
@@ -364,23 +364,29 @@ impl TightFilter {
             }
         }
         // ARCKF (the ARCKF paper's Algorithm 1): robustness factors and the fading of the prior.
-        let (factors, fading) = match self.policy {
+        let mut factors = std::mem::take(&mut self.factors);
+        factors.clear();
+        let (weighted, fading) = match self.policy {
             RangeNoisePolicy::AdaptiveRobust { threshold } => {
-                let factors = self.robustness(ranges);
+                self.robustness(ranges, &mut factors);
                 let fading = self.epoch_fading(ranges, &factors, threshold);
                 if fading > 1.0 {
                     self.core.fade_prior(fading);
                 }
-                (Some(factors), fading)
+                (true, fading)
             }
-            RangeNoisePolicy::ResidualWeighted => (Some(self.robustness(ranges)), 1.0),
-            _ => (None, 1.0),
+            RangeNoisePolicy::ResidualWeighted => {
+                self.robustness(ranges, &mut factors);
+                (true, 1.0)
+            }
+            _ => (false, 1.0),
         };
         let mut epoch = std::mem::take(&mut self.epoch);
         epoch.clear();
         epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
-        let solved = self.solve(&epoch, reports, factors.as_deref(), fading);
+        let solved = self.solve(&epoch, reports, weighted.then_some(factors.as_slice()), fading);
         self.epoch = epoch;
+        self.factors = factors;
         solved
     }
 

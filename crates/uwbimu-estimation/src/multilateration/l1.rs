@@ -12,7 +12,7 @@
 use nalgebra::{Cholesky, Matrix2, SymmetricEigen, Vector2};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 
-use super::{obs_valid, residuals_and_jacobian, solve_epoch, well_conditioned, LsConfig, NORMAL_RCOND};
+use super::{obs_valid, residual_and_jacobian, solve_epoch, well_conditioned, LsConfig, NORMAL_RCOND};
 
 /// Step halvings tried per IRLS iteration before the iterate counts as converged.
 const MAX_HALVINGS: usize = 30;
@@ -38,17 +38,25 @@ impl Default for L1Config {
 }
 
 /// One L1 multilateration fix (the ARCKF paper's eq. (34)).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct L1Fix {
     /// Estimated tag position `argmin_p Σ_i |‖p − a_i‖ − r_i|`, navigation frame (ENU), m.
     pub position: Vec3,
-    /// Range residuals `Δr_i = r_i − ‖p − a_i‖` at the fix (measured minus fitted, so that
-    /// `r_i = ‖p − a_i‖ + Δr_i` as in the ARCKF paper's §3.1), m, in observation order.
-    pub residuals_m: Vec<f64>,
     /// IRLS iterations taken.
     pub iterations: usize,
     /// Whether the height was held fixed (planar mode).
     pub planar: bool,
+}
+
+impl L1Fix {
+    /// Range residuals `Δr_i = r_i − ‖p − a_i‖` of `obs` at the fix, m, in their order (measured
+    /// minus fitted, so that `r_i = ‖p − a_i‖ + Δr_i` as in the ARCKF paper's §3.1). `anchors` and
+    /// `obs` are those the fix was computed from (its residuals are then finite); computed on the
+    /// fly, nothing is stored. NaN for an anchor index outside `anchors`.
+    pub fn residuals_m<'a>(&self, anchors: &'a [Vec3], obs: &'a [(usize, f64)]) -> impl ExactSizeIterator<Item = f64> + 'a {
+        let p = self.position;
+        obs.iter().map(move |&(a, r)| anchors.get(a).map_or(f64::NAN, |anchor| r - (p - anchor).norm()))
+    }
 }
 
 /// Huber-shaped cost `Σ ρ(e_i)` minimised by IRLS with weight floor `eps` (see the module doc);
@@ -96,10 +104,10 @@ fn solve_normal(jtwj: &Mat3, rhs: &Vec3, planar: bool) -> Option<Vec3> {
 /// * Planar (`Some(h)`): z fixed to `h` m (the ARCKF paper works in the plane with the height known);
 ///   distances stay 3-D, `‖(x, y, h) − a_i‖`; needs ≥ 2 ranges.
 ///
-/// Returns the position and the residuals `Δr_i = r_i − ‖p − a_i‖` (m). Returns `None` on
-/// degenerate input: too few ranges, unknown anchor index, negative or non-finite range,
-/// non-finite `start` or height, `ε ≤ 0`, singular `JᵀWJ`, an iterate on an anchor, or a
-/// non-finite result.
+/// Returns the position, at which the residuals `Δr_i = r_i − ‖p − a_i‖` (m) are finite
+/// ([`L1Fix::residuals_m`]). Returns `None` on degenerate input: too few ranges, unknown anchor
+/// index, negative or non-finite range, non-finite `start` or height, `ε ≤ 0`, singular `JᵀWJ`,
+/// an iterate on an anchor, or a non-finite result.
 pub fn l1_fix(
     anchors: &[Vec3],
     obs: &[(usize, f64)],
@@ -126,7 +134,8 @@ pub fn l1_fix(
     while iterations < cfg.max_iterations {
         let mut jtwj = Mat3::zeros();
         let mut jtwe = Vec3::zeros();
-        for (e, j) in residuals_and_jacobian(anchors, obs, &p)? {
+        for &(a, r) in obs {
+            let (e, j) = residual_and_jacobian(&anchors[a], r, &p)?;
             let w = 1.0 / e.abs().max(eps);
             jtwj += j * j.transpose() * w;
             jtwe += j * (w * e);
@@ -155,9 +164,9 @@ pub fn l1_fix(
             break;
         }
     }
-    let residuals_m: Vec<f64> = obs.iter().map(|&(a, r)| r - (p - anchors[a]).norm()).collect();
-    let finite = p.iter().chain(residuals_m.iter()).all(|v| v.is_finite());
-    finite.then_some(L1Fix { position: p, residuals_m, iterations, planar })
+    let fix = L1Fix { position: p, iterations, planar };
+    let finite = p.iter().all(|v| v.is_finite()) && fix.residuals_m(anchors, obs).all(f64::is_finite);
+    finite.then_some(fix)
 }
 
 /// L1 fix of one epoch (the ARCKF paper's eqs. (33)–(34)): the mode (planar or 3-D) and a first start come
@@ -173,7 +182,6 @@ pub fn l1_solve_epoch(anchors: &[Vec3], obs: &[(usize, f64)], ls_cfg: &LsConfig,
     let height = l2.planar.then_some(l2.position.z);
     let start = match height {
         Some(h) => circle_intersections(anchors, obs, h)
-            .into_iter()
             .chain(std::iter::once(l2.position))
             .map(|p| (abs_cost(anchors, obs, &p), p))
             .min_by(|a, b| a.0.total_cmp(&b.0))
@@ -190,33 +198,33 @@ fn abs_cost(anchors: &[Vec3], obs: &[(usize, f64)], p: &Vec3) -> f64 {
 
 /// Every intersection, in the plane `z = h`, of two range circles (centre: the anchor's foot
 /// point, radius `√(r² − (h − z_a)²)`); ranges shorter than the height difference are skipped.
-fn circle_intersections(anchors: &[Vec3], obs: &[(usize, f64)], h: f64) -> Vec<Vec3> {
-    let circles: Vec<(f64, f64, f64)> = obs
-        .iter()
-        .filter_map(|&(a, r)| {
-            let dz = h - anchors[a].z;
-            let rho2 = r * r - dz * dz;
-            (rho2 > 0.0).then(|| (anchors[a].x, anchors[a].y, rho2.sqrt()))
-        })
-        .collect();
-    let mut points = Vec::new();
-    for (i, &(x1, y1, r1)) in circles.iter().enumerate() {
-        for &(x2, y2, r2) in &circles[i + 1..] {
-            let (dx, dy) = (x2 - x1, y2 - y1);
-            let d = dx.hypot(dy);
-            if d < 1e-9 {
-                continue;
-            }
-            // Distance from centre 1 along the centre line, and the half chord (0 when the
-            // circles miss each other: the closest point between them).
-            let a = (r1 * r1 - r2 * r2 + d * d) / (2.0 * d);
-            let half = (r1 * r1 - a * a).max(0.0).sqrt();
-            let (mx, my) = (x1 + a * dx / d, y1 + a * dy / d);
-            points.push(Vec3::new(mx - half * dy / d, my + half * dx / d, h));
-            points.push(Vec3::new(mx + half * dy / d, my - half * dx / d, h));
-        }
+/// Pairs in observation order, two points per pair of distinct centres.
+fn circle_intersections<'a>(anchors: &'a [Vec3], obs: &'a [(usize, f64)], h: f64) -> impl Iterator<Item = Vec3> + 'a {
+    let circle = move |&(a, r): &(usize, f64)| {
+        let dz = h - anchors[a].z;
+        let rho2 = r * r - dz * dz;
+        (rho2 > 0.0).then(|| (anchors[a].x, anchors[a].y, rho2.sqrt()))
+    };
+    obs.iter().enumerate().filter_map(move |(i, o)| Some((i, circle(o)?))).flat_map(move |(i, first)| {
+        obs[i + 1..].iter().filter_map(circle).filter_map(move |second| circle_pair(first, second, h)).flatten()
+    })
+}
+
+/// The two intersections, in the plane `z = h`, of the circles `(x, y, radius)` `first` and
+/// `second` (the closest points between them when they miss each other); `None` for concentric
+/// circles.
+fn circle_pair((x1, y1, r1): (f64, f64, f64), (x2, y2, r2): (f64, f64, f64), h: f64) -> Option<[Vec3; 2]> {
+    let (dx, dy) = (x2 - x1, y2 - y1);
+    let d = dx.hypot(dy);
+    if d < 1e-9 {
+        return None;
     }
-    points
+    // Distance from centre 1 along the centre line, and the half chord (0 when the circles miss
+    // each other: the closest point between them).
+    let a = (r1 * r1 - r2 * r2 + d * d) / (2.0 * d);
+    let half = (r1 * r1 - a * a).max(0.0).sqrt();
+    let (mx, my) = (x1 + a * dx / d, y1 + a * dy / d);
+    Some([Vec3::new(mx - half * dy / d, my + half * dx / d, h), Vec3::new(mx + half * dy / d, my - half * dx / d, h)])
 }
 
 #[cfg(test)]
@@ -242,8 +250,9 @@ mod tests {
         let fix = l1_fix(&anchors, &obs, p + Vec3::new(1.0, -0.8, 0.5), None, &L1Config::default()).unwrap();
         assert!(!fix.planar);
         assert!((fix.position - p).norm() < 1e-6, "{fix:?}");
-        assert_eq!(fix.residuals_m.len(), obs.len());
-        assert!(fix.residuals_m.iter().all(|r| r.abs() < 1e-6), "{:?}", fix.residuals_m);
+        let residuals: Vec<f64> = fix.residuals_m(&anchors, &obs).collect();
+        assert_eq!(residuals.len(), obs.len());
+        assert!(residuals.iter().all(|r| r.abs() < 1e-6), "{residuals:?}");
         let from_l2 = l1_solve_epoch(&anchors, &obs, &LsConfig::default(), &L1Config::default()).unwrap();
         assert!((from_l2.position - p).norm() < 1e-6);
     }
@@ -256,7 +265,7 @@ mod tests {
         let fix = l1_fix(&anchors, &obs, Vec3::new(5.0, 4.0, 0.0), Some(1.1), &L1Config::default()).unwrap();
         assert!(fix.planar);
         assert!((fix.position - p).norm() < 1e-6, "{fix:?}");
-        assert!(fix.residuals_m.iter().all(|r| r.abs() < 1e-6));
+        assert!(fix.residuals_m(&anchors, &obs).all(|r| r.abs() < 1e-6));
         let cfg = LsConfig { planar_height_m: Some(1.1), ..LsConfig::default() };
         let from_l2 = l1_solve_epoch(&anchors, &obs, &cfg, &L1Config::default()).unwrap();
         assert!(from_l2.planar);
@@ -276,11 +285,12 @@ mod tests {
         let l1 = l1_solve_epoch(anchors, &obs, ls_cfg, &L1Config::default()).unwrap();
         let (err_l1, err_l2) = ((l1.position - p).norm(), (l2.position - p).norm());
         assert!(err_l1 < 0.1 && err_l1 < 0.2 * err_l2, "L1 {l1:?} error {err_l1} m, L2 {l2:?} error {err_l2} m");
-        let biased = l1.residuals_m[BIASED];
+        let residuals: Vec<f64> = l1.residuals_m(anchors, &obs).collect();
+        let biased = residuals[BIASED];
         assert!(biased > 1.7, "biased residual {biased}");
-        let others = l1.residuals_m.iter().enumerate().filter(|&(i, _)| i != BIASED).map(|(_, r)| r.abs());
+        let others = residuals.iter().enumerate().filter(|&(i, _)| i != BIASED).map(|(_, r)| r.abs());
         let largest_other = others.fold(0.0, f64::max);
-        assert!(biased > 10.0 * largest_other, "{:?}", l1.residuals_m);
+        assert!(biased > 10.0 * largest_other, "{residuals:?}");
         // The L1 fix is a minimum of E(p) (eq. (33)), below the L2 fix's cost.
         let cost = abs_cost(anchors, &obs, &l1.position);
         assert!(cost < abs_cost(anchors, &obs, &l2.position));
@@ -331,7 +341,8 @@ mod tests {
         let mut obs = exact_obs(&anchors, &p);
         obs[0].1 += 1.5;
         let fix = l1_fix(&anchors, &obs, p, Some(1.0), &L1Config::default()).unwrap();
-        assert!((fix.residuals_m[0] - 1.5).abs() < 1e-3, "{:?}", fix.residuals_m);
+        let residuals: Vec<f64> = fix.residuals_m(&anchors, &obs).collect();
+        assert!((residuals[0] - 1.5).abs() < 1e-3, "{residuals:?}");
     }
 
     #[test]
@@ -350,12 +361,11 @@ mod tests {
                     obs[bad].1 += 3.0;
                     let fix = l1_solve_epoch(&anchors, &obs, &ls, &L1Config::default()).unwrap();
                     let best = circle_intersections(&anchors, &obs, 0.9)
-                        .iter()
-                        .map(|c| abs_cost(&anchors, &obs, c))
+                        .map(|c| abs_cost(&anchors, &obs, &c))
                         .fold(f64::INFINITY, f64::min);
                     assert!(abs_cost(&anchors, &obs, &fix.position) <= best + 1e-3, "tag {p:?}: not the global optimum");
                     cases += 1;
-                    if fix.residuals_m[bad] > 2.9 && (fix.position - p).norm() < 0.01 {
+                    if fix.residuals_m(&anchors, &obs).nth(bad).is_some_and(|r| r > 2.9) && (fix.position - p).norm() < 0.01 {
                         isolated += 1;
                     }
                 }

@@ -108,19 +108,28 @@ pub fn two_range_residuals(anchor_1: &Vec3, range_1_m: f64, anchor_2: &Vec3, ran
 ///   ([`crate::multilateration::L1Fix::residuals_m`]), or `None` if there is no L1 fix.
 /// * `range_std_m`: σ of one range, m (the `3σ` of eq. (37)).
 ///
-/// For each range, `Cu_i = e^{|Δr_i|}` if below `Cu_max`, else `Cu_max` (eq. (35)), with
-/// `Cu_max = e^{f(d_i) + 3σ}` (eq. (37)). `d_i` is the tag–beacon distance, taken as the fitted
-/// distance `‖p̂ − a_i‖ = r_i − Δr_i` (the paper's true distance `r_i` in `r'_i = r_i + Δr_i`),
-/// so a biased range does not raise its own cap. With fewer than 3 ranges, no residuals, or a
-/// residual count that differs from `obs.len()`, every `Cu_i = 1` (the ARCKF paper's §3.1) and `d_i` is the
-/// measured range. A non-finite residual counts as capped.
-pub fn robustness_factors(obs: &[(usize, f64)], residuals_m: Option<&[f64]>, range_std_m: f64) -> Vec<RobustnessFactor> {
-    match residuals_m {
-        Some(res) if obs.len() >= 3 && res.len() == obs.len() => {
-            obs.iter().zip(res).map(|(&(_, r), &dr)| robustness_factor(r, dr, range_std_m)).collect()
-        }
-        _ => obs.iter().map(|&(_, r)| RobustnessFactor { cu: 1.0, cu_max: cu_max(r, range_std_m) }).collect(),
-    }
+/// Yields, for each range in order, `Cu_i = e^{|Δr_i|}` if below `Cu_max`, else `Cu_max`
+/// (eq. (35)), with `Cu_max = e^{f(d_i) + 3σ}` (eq. (37)). `d_i` is the tag–beacon distance, taken
+/// as the fitted distance `‖p̂ − a_i‖ = r_i − Δr_i` (the paper's true distance `r_i` in
+/// `r'_i = r_i + Δr_i`), so a biased range does not raise its own cap. With fewer than 3 ranges,
+/// no residuals, or a residual count that differs from `obs.len()`, every `Cu_i = 1` (the ARCKF
+/// paper's §3.1) and `d_i` is the measured range. A non-finite residual counts as capped.
+pub fn robustness_factors<'a, I>(
+    obs: &'a [(usize, f64)],
+    residuals_m: Option<I>,
+    range_std_m: f64,
+) -> impl Iterator<Item = RobustnessFactor> + 'a
+where
+    I: IntoIterator<Item = f64>,
+    I::IntoIter: ExactSizeIterator + 'a,
+{
+    let usable = residuals_m.map(IntoIterator::into_iter).filter(|res| obs.len() >= 3 && res.len() == obs.len());
+    // One residual for every range, or none at all.
+    let mut residuals = usable.into_iter().flatten();
+    obs.iter().map(move |&(_, r)| match residuals.next() {
+        Some(dr) => robustness_factor(r, dr, range_std_m),
+        None => RobustnessFactor { cu: 1.0, cu_max: cu_max(r, range_std_m) },
+    })
 }
 
 /// Fading factor `λ ≥ 1` of the prior covariance for one epoch (the ARCKF paper's eq. (42)), with the
@@ -183,7 +192,7 @@ mod tests {
         // Fitted distances r − Δr = 5, 5, 5, 3 m.
         let obs = [(0, 5.05), (1, 4.9), (2, 7.0), (3, 3.0)];
         let res = [0.05, -0.1, 2.0, 0.0];
-        let f = robustness_factors(&obs, Some(&res), sigma);
+        let f: Vec<_> = robustness_factors(&obs, Some(res), sigma).collect();
         assert_eq!(f.len(), 4);
         let cap5 = 1.766_559_778; // e^{f(5) + 0.3}
         let cap3 = 1.648_394_475; // e^{f(3) + 0.3}
@@ -202,7 +211,7 @@ mod tests {
         // The cap sits at |Δr| = f(d) + 3σ.
         let edge = ranging_error_m(5.0) + 3.0 * sigma;
         let obs = [(0, 5.0 + edge - 1e-6), (1, 5.0 + edge + 1e-6), (2, 5.0)];
-        let f = robustness_factors(&obs, Some(&[edge - 1e-6, edge + 1e-6, 0.0]), sigma);
+        let f: Vec<_> = robustness_factors(&obs, Some([edge - 1e-6, edge + 1e-6, 0.0]), sigma).collect();
         assert!(!f[0].is_capped() && f[1].is_capped());
     }
 
@@ -210,13 +219,13 @@ mod tests {
     fn cu_is_one_without_three_ranges_or_residuals() {
         let sigma = 0.1;
         let obs = [(0, 5.0), (1, 3.0)];
-        let f = robustness_factors(&obs, Some(&[2.0, -1.0]), sigma);
+        let f: Vec<_> = robustness_factors(&obs, Some([2.0, -1.0]), sigma).collect();
         assert!(f.iter().all(|x| x.cu == 1.0 && !x.is_capped()));
         assert!((f[0].cu_max - 1.766_559_778).abs() < 1e-8, "{:?}", f[0]);
         let obs = [(0, 5.0), (1, 3.0), (2, 4.0)];
-        assert!(robustness_factors(&obs, None, sigma).iter().all(|x| x.cu == 1.0));
-        assert!(robustness_factors(&obs, Some(&[1.0, 1.0]), sigma).iter().all(|x| x.cu == 1.0));
-        assert!(robustness_factors(&[], None, sigma).is_empty());
+        assert!(robustness_factors(&obs, None::<[f64; 0]>, sigma).all(|x| x.cu == 1.0));
+        assert!(robustness_factors(&obs, Some([1.0, 1.0]), sigma).all(|x| x.cu == 1.0));
+        assert_eq!(robustness_factors(&[], None::<[f64; 0]>, sigma).count(), 0);
     }
 
     #[test]
