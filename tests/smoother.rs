@@ -4,7 +4,7 @@ mod common;
 
 use common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate};
-use uwbimu_rs::estimation::filters::{Ekf, Riekf};
+use uwbimu_rs::estimation::filters::{Ekf, InertialFilter, Riekf};
 use uwbimu_rs::estimation::pipeline::{run, run_smoothed};
 use uwbimu_rs::vocabulary::math::Vec3;
 
@@ -53,7 +53,7 @@ fn recording_does_not_change_the_filter() {
 #[test]
 fn smoothing_an_arckf_run_uses_its_faded_priors() {
     use uwbimu_rs::app::sim::OverrideValue;
-    use uwbimu_rs::estimation::filters::{Arckf, InertialFilter};
+    use uwbimu_rs::estimation::filters::Arckf;
     for seed in 0..3 {
         let mut cfg = preset("garage_rectangle", seed).expect("preset");
         cfg.apply_overrides(&[("accel_outlier_count", OverrideValue::Number(2.0))]).expect("override");
@@ -63,7 +63,8 @@ fn smoothing_an_arckf_run_uses_its_faded_priors() {
         config.gate.accel_range = 1e4;
         let mut arckf = Arckf::new(data.anchors.clone(), &truth_initial(&data, Vec3::zeros()), config).expect("arckf");
         let (trace, smoothed) = run_smoothed(&mut arckf, &data.imu, &data.ranges).expect("run");
-        assert!(arckf.core().segments().iter().any(|s| s.prior_fading > 1.0), "seed {seed}: no fading recorded");
+        let record = arckf.core().smoothing_record().expect("recorded");
+        assert!(record.segments.iter().any(|s| s.prior_fading > 1.0), "seed {seed}: no fading recorded");
         let (filtered_rmse, smoothed_rmse) =
             (rms(&horizontal_errors(&trace.steps, &data)), rms(&horizontal_errors(&smoothed, &data)));
         println!("seed {seed}: ARCKF horizontal RMSE filtered {filtered_rmse:.4} m, smoothed {smoothed_rmse:.4} m");
@@ -102,4 +103,48 @@ fn smoothing_bridges_a_range_outage() {
         assert!(trace.updates.iter().any(|u| u.report.reacquired && u.t_s > 50.0), "seed {seed}: no re-acquisition");
         assert!(smoothed < 0.08 && smoothed < 0.5 * filtered, "seed {seed}: {smoothed} vs {filtered}");
     }
+}
+
+/// Bytes of a smoothing record in its flat form (what a spilled replay writes), what the same
+/// run took when every segment carried its posterior with the packed covariance, and with the
+/// whole 15×15 covariance (the record issue 24 measured at about 2 kB per IMU sample).
+fn record_bytes(record: &uwbimu_rs::estimation::filters::SmoothingRecord) -> [usize; 3] {
+    use uwbimu_rs::estimation::filters::{CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
+    use uwbimu_rs::vocabulary::state::{ERR_DIM, PACKED_LEN};
+    let n = record.segments.len();
+    let kept = n * SEGMENT_FLAT_LEN + record.checkpoints.len() * CHECKPOINT_FLAT_LEN;
+    let packed = n * (SEGMENT_FLAT_LEN - 1 + CHECKPOINT_FLAT_LEN);
+    [kept, packed, packed + n * (ERR_DIM * ERR_DIM - PACKED_LEN)].map(|numbers| 8 * numbers)
+}
+
+#[test]
+fn the_record_keeps_a_posterior_only_where_an_update_changed_it() {
+    use uwbimu_rs::app::sim::zoo;
+    // Rigs of other IMU and UWB rates (20–200 Hz IMU, 2–50 Hz UWB), staggered and jittered
+    // ranges, outages: the record's bytes per IMU sample against a record of every posterior.
+    let mut report = Vec::new();
+    for name in ["agv_loop", "handheld_walk", "drone_flight", "imu_20hz", "mixed_rates", "outage", "forklift"] {
+        let scenario = zoo(name, 1).expect("zoo");
+        let data = simulate(&scenario.sim).expect("sim");
+        let mut ekf =
+            Riekf::new(data.anchors.clone(), &truth_initial(&data, Vec3::zeros()), scenario.config.clone()).expect("filter");
+        run_smoothed(&mut ekf, &data.imu, &data.ranges).expect("run");
+        let record = ekf.core().smoothing_record().expect("recorded");
+        let [kept, packed, full] = record_bytes(record);
+        let share = |of: usize| kept as f64 / of as f64;
+        report.push(format!(
+            "{name}: {:.0} B per IMU sample; every posterior {:.0} B packed ({:.0} %), {:.0} B whole ({:.0} %); {:.2} checkpoints per IMU sample",
+            kept as f64 / data.imu.len() as f64,
+            packed as f64 / data.imu.len() as f64,
+            100.0 * share(packed),
+            full as f64 / data.imu.len() as f64,
+            100.0 * share(full),
+            record.checkpoints.len() as f64 / data.imu.len() as f64
+        ));
+        // A checkpoint per update time and per 64 segments, no more; measured 10–18 % of the
+        // whole-covariance record and 18–31 % of the packed one (docs/performance.md).
+        assert!(record.checkpoints.len() <= data.ranges.len() + record.segments.len() / 64 + 1, "{name}");
+        assert!(share(full) < 0.2 && share(packed) < 0.34, "{name}: {}", report.last().expect("line"));
+    }
+    println!("{}", report.join("\n"));
 }

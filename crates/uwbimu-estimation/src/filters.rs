@@ -85,6 +85,7 @@ mod named;
 pub mod range_bias;
 pub mod reacquire;
 pub mod sigma_points;
+mod smoothing_record;
 mod tight;
 
 use uwbimu_vocabulary::config::FilterConfig;
@@ -95,9 +96,10 @@ use uwbimu_vocabulary::records::{MagSample, Observation, TdoaMeasurement};
 use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
-pub use self::core::{InertialCore, ReacquisitionWidening, Segment, SEGMENT_FLAT_LEN};
+pub use self::core::{InertialCore, ReacquisitionWidening};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
+pub use self::smoothing_record::{Checkpoint, Segment, SmoothingRecord, CHECKPOINT_EVERY, CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
 pub(crate) use self::tight::check_ranges;
 pub use self::tight::{
     BiasModel, Composition, ConstraintSwitches, TightFilter, UpdateStrategy, DEFAULT_BIAS_TAU_S, SIGMA_POINTS,

@@ -35,7 +35,7 @@ use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasure
 use uwbimu_vocabulary::state::{NominalState, POS};
 
 use crate::epoch::{align_to_reference, EpochAssembler};
-use crate::filters::{Filter, InertialCore, InertialFilter};
+use crate::filters::{Filter, InertialCore, InertialFilter, SmoothingRecord};
 use crate::gate::{Gate, GateCounts};
 use crate::models::range::tag_position;
 use crate::smoother::{rts_smooth, SmoothedNode};
@@ -649,7 +649,7 @@ pub fn smoothed_steps(trace: &Trace, core: &InertialCore, progress: Option<&Prog
 /// The smoothed track of a streaming filter: one record per node of [`smooth_recording`] (each
 /// propagation start and the current time), `still` false. Fails when nothing was recorded.
 pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
-    if core.segments().is_empty() {
+    if !core.smoothing_record().is_some_and(|r| !r.segments.is_empty()) {
         return Err(Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()));
     }
     Ok(smooth_recording(core, &|| false)?
@@ -664,5 +664,7 @@ pub fn smooth_recording(core: &InertialCore, stop: &dyn Fn() -> bool) -> Result<
     let Some(t_s) = core.time_s() else {
         return Err(Error::InvalidCall("nothing to smooth: the filter has not started".into()));
     };
-    rts_smooth(core.segments(), (t_s, *core.state(), *core.covariance()), core.ins(), stop)
+    let empty = SmoothingRecord::default();
+    let record = core.smoothing_record().unwrap_or(&empty);
+    rts_smooth(record, (t_s, *core.state(), *core.covariance()), core.ins(), stop)
 }

@@ -12,7 +12,7 @@
 //!   the batch decision;
 //! - smoothing keeps the forward pass's segments and steps in temporary files ([`Spill`]) and
 //!   runs the RTS pass over them newest first ([`rts_smooth_backward`]): the output equals the
-//!   batch smoother's, at the cost of about 1.7 kB of disk per IMU sample while it runs.
+//!   batch smoother's, at the cost of temporary disk while it runs (docs/replay.md has the figure).
 //!
 //! Errors against ground truth are accumulated as the steps go out ([`TruthErrors`]).
 
@@ -20,7 +20,7 @@ use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
 use std::path::Path;
 
-use uwbimu_estimation::filters::{InertialCore, Segment, SEGMENT_FLAT_LEN};
+use uwbimu_estimation::filters::{Checkpoint, InertialCore, Segment, SmoothingRecord, CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
 use uwbimu_estimation::smoother::{rts_smooth_backward, SmoothedNode};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
@@ -270,7 +270,16 @@ impl Prefix {
 /// Where the steps go: straight out (forward), or to a file for the RTS pass (smoothed).
 enum StepsOut<'f> {
     Forward { on_step: &'f mut dyn FnMut(&StepRecord) -> Result<()>, truth: Box<TruthMatch<'f>> },
-    Spilled { steps: Spill<STEP_FLAT_LEN>, segments: Spill<SEGMENT_FLAT_LEN>, truth: Spill<4> },
+    Spilled(Box<Spills>),
+}
+
+/// The temporary files of a smoothed run: the forward steps, the smoothing record (segments and
+/// checkpoints, [`SmoothingRecord`]) and the ground truth.
+struct Spills {
+    steps: Spill<STEP_FLAT_LEN>,
+    segments: Spill<SEGMENT_FLAT_LEN>,
+    checkpoints: Spill<CHECKPOINT_FLAT_LEN>,
+    truth: Spill<4>,
 }
 
 /// Ground truth matched to the steps in time order: each step's truth is interpolated between
@@ -368,7 +377,7 @@ struct Run<'a, 'f, E> {
     tally: UpdateTally,
     steps: Vec<StepRecord>,
     updates: Vec<UpdateRecord>,
-    segments: Vec<Segment>,
+    record: SmoothingRecord,
     handed_on: u64,
     last_t_s: Option<f64>,
 }
@@ -443,12 +452,15 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
         for u in self.updates.drain(..) {
             self.tally.add(&u);
         }
-        if let StepsOut::Spilled { segments, .. } = &mut self.out {
+        if let StepsOut::Spilled(spills) = &mut self.out {
             if let Some(core) = stream.estimator_mut().and_then(self.kind.core) {
-                core.move_recorded_segments(last, &mut self.segments);
+                core.move_recorded_segments(last, &mut self.record);
             }
-            for s in self.segments.drain(..) {
-                segments.push(&s.to_flat())?;
+            for s in self.record.segments.drain(..) {
+                spills.segments.push(&s.to_flat())?;
+            }
+            for c in self.record.checkpoints.drain(..) {
+                spills.checkpoints.push(&c.to_flat())?;
             }
         }
         for s in self.steps.drain(..) {
@@ -459,7 +471,7 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
                     truth.estimate(s.t_s, &s.state.position)?;
                     on_step(&s)?;
                 }
-                StepsOut::Spilled { steps, .. } => steps.push(&step_to_flat(&s))?,
+                StepsOut::Spilled(spills) => spills.steps.push(&step_to_flat(&s))?,
             }
         }
         Ok(())
@@ -468,7 +480,7 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
     fn truth(&mut self, t_s: f64, p: Vec3) -> Result<()> {
         match &mut self.out {
             StepsOut::Forward { truth, .. } => truth.truth(t_s, p),
-            StepsOut::Spilled { truth, .. } => truth.push(&[t_s, p.x, p.y, p.z])?,
+            StepsOut::Spilled(spills) => spills.truth.push(&[t_s, p.x, p.y, p.z])?,
         }
         Ok(())
     }
@@ -505,7 +517,7 @@ fn hand_on(
 fn smooth_spilled(
     core: &InertialCore,
     steps: &mut Spill<STEP_FLAT_LEN>,
-    segments: &mut Spill<SEGMENT_FLAT_LEN>,
+    (segments, checkpoints): (&mut Spill<SEGMENT_FLAT_LEN>, &mut Spill<CHECKPOINT_FLAT_LEN>),
     dir: &Path,
     stop: &dyn Fn() -> bool,
 ) -> Result<Spill<STEP_FLAT_LEN>> {
@@ -519,15 +531,23 @@ fn smooth_spilled(
     };
     let mut later: Option<SmoothedNode> = None;
     let segments_newest_first = segments.newest_first()?.map(|r| r.map(|v| Segment::from_flat(&v)));
-    rts_smooth_backward(segments_newest_first, (t_s, *core.state(), *core.covariance()), core.ins(), stop, |node| {
-        if let Some(later) = &later {
-            while let Some(step) = newest_first.next_if(|s| s.as_ref().is_ok_and(|s| s[0] > node.t_s)) {
-                out.push(&smoothed(&step?, later))?;
+    let checkpoints_newest_first = checkpoints.newest_first()?.map(|r| r.map(|v| Checkpoint::from_flat(&v)));
+    rts_smooth_backward(
+        segments_newest_first,
+        checkpoints_newest_first,
+        (t_s, *core.state(), *core.covariance()),
+        core.ins(),
+        stop,
+        |node| {
+            if let Some(later) = &later {
+                while let Some(step) = newest_first.next_if(|s| s.as_ref().is_ok_and(|s| s[0] > node.t_s)) {
+                    out.push(&smoothed(&step?, later))?;
+                }
             }
-        }
-        later = Some(node);
-        Ok(())
-    })?;
+            later = Some(node);
+            Ok(())
+        },
+    )?;
     if let Some(first) = &later {
         for step in newest_first {
             out.push(&smoothed(&step?, first))?;
@@ -563,11 +583,12 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     input.config.range_calibration.check_anchors(survey.anchors.positions.len())?;
     let dir = input.spill_dir;
     let out = if input.smooth {
-        StepsOut::Spilled {
+        StepsOut::Spilled(Box::new(Spills {
             steps: Spill::create(dir, "forward steps")?,
             segments: Spill::create(dir, "smoothing segments")?,
+            checkpoints: Spill::create(dir, "smoothing checkpoints")?,
             truth: Spill::create(dir, "ground truth")?,
-        }
+        }))
     } else {
         let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
         StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) }
@@ -588,7 +609,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         tally: UpdateTally::new(&survey.anchors.ids, survey.n_tdoa > 0),
         steps: Vec::new(),
         updates: Vec::new(),
-        segments: Vec::new(),
+        record: SmoothingRecord::default(),
         handed_on: 0,
         last_t_s: None,
     };
@@ -642,14 +663,15 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     let (anchors, tdoa, mean_nis) = tally.finish();
     let (rmse, smoothed) = match out {
         StepsOut::Forward { truth, .. } => (truth.finish()?, false),
-        StepsOut::Spilled { mut steps, mut segments, truth: mut truth_spill } => {
+        StepsOut::Spilled(spills) => {
+            let Spills { mut steps, mut segments, mut checkpoints, truth: mut truth_spill } = *spills;
             let core = stream.estimator_mut().and_then(kind.core);
             let smoothed = match core.filter(|_| !cancelled_run) {
                 Some(core) => {
                     if let Some(p) = input.progress {
                         p.start_smoothing();
                     }
-                    match smooth_spilled(core, &mut steps, &mut segments, dir, &cancelled) {
+                    match smooth_spilled(core, &mut steps, (&mut segments, &mut checkpoints), dir, &cancelled) {
                         Ok(s) => Some(s),
                         Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
                         Err(e) => return Err(e),

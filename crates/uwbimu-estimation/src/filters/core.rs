@@ -4,8 +4,9 @@
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::state::{ErrCov, NominalState, PackedErrCov, PACKED_LEN, POS, STATE_FLAT_LEN, VEL};
+use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
 
+use super::smoothing_record::{Recorder, SmoothingRecord};
 use crate::filters::range_bias::BiasCross;
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::robust::fade_position_velocity;
@@ -23,94 +24,13 @@ pub struct InertialCore {
     held_accel: Vec3,
     held_gyro: Vec3,
     imu_count: usize,
-    recording: Option<Vec<Segment>>,
+    /// What the RTS pass needs of the run, when recording (boxed: it holds a covariance).
+    recording: Option<Box<Recorder>>,
     /// Cross-covariance of the error state with parameter states the owner keeps (range biases,
     /// constant between measurements): propagated as `Φ·P_xb`. Boxed: 2 kB that a filter
     /// without parameter states should not carry inline.
     cross: Option<Box<BiasCross>>,
     last_good: Option<Box<(NominalState, ErrCov)>>,
-}
-
-/// One recorded propagation, for smoothing: the posterior at its start and the IMU interval
-/// (Φ, Q and the prediction are recomputed from them in the backward pass).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Segment {
-    /// Time at the start, s.
-    pub t_s: f64,
-    /// Posterior nominal state at the start.
-    pub state: NominalState,
-    /// Posterior error covariance at the start (its upper triangle).
-    pub covariance: PackedErrCov,
-    /// The IMU interval propagated over.
-    pub interval: ImuInterval,
-    /// Fading factor `λ` applied to the position–velocity block of the covariance predicted at
-    /// the end of this segment (the ARCKF paper's eq. (42), [`InertialCore::fade_prior`]); 1 if none.
-    pub prior_fading: f64,
-    /// The re-acquisition widening of that predicted covariance, after the fading
-    /// ([`InertialCore::widen_prior`], [`crate::filters::reacquire`]); None if none.
-    pub prior_widening: Option<ReacquisitionWidening>,
-}
-
-/// Numbers in the flat form of a [`Segment`] ([`Segment::to_flat`]).
-pub const SEGMENT_FLAT_LEN: usize = 1 + STATE_FLAT_LEN + PACKED_LEN + 13 + 1 + 5;
-
-impl Segment {
-    /// The segment as numbers, bit for bit (to keep a long recording in a file): time, state
-    /// ([`NominalState::to_flat`]), packed covariance, interval (dt, specific force and rate at
-    /// start and end), fading, and the widening (a 0/1 flag, the discrepancy, the horizon).
-    pub fn to_flat(&self) -> [f64; SEGMENT_FLAT_LEN] {
-        let i = &self.interval;
-        let (flag, d, horizon) = match &self.prior_widening {
-            Some(w) => (1.0, w.discrepancy, w.horizon_s),
-            None => (0.0, Vec3::zeros(), 0.0),
-        };
-        let parts: [&[f64]; 11] = [
-            &[self.t_s],
-            &self.state.to_flat(),
-            self.covariance.entries(),
-            &[i.dt_s],
-            i.accel_start.as_slice(),
-            i.accel_end.as_slice(),
-            i.gyro_start.as_slice(),
-            i.gyro_end.as_slice(),
-            &[self.prior_fading, flag],
-            d.as_slice(),
-            &[horizon],
-        ];
-        let mut out = [0.0; SEGMENT_FLAT_LEN];
-        let mut k = 0;
-        for part in parts {
-            out[k..k + part.len()].copy_from_slice(part);
-            k += part.len();
-        }
-        out
-    }
-
-    /// The segment [`Segment::to_flat`] gave `v` for.
-    pub fn from_flat(v: &[f64; SEGMENT_FLAT_LEN]) -> Self {
-        let v3 = |k: usize| Vec3::new(v[k], v[k + 1], v[k + 2]);
-        let mut state = [0.0; STATE_FLAT_LEN];
-        state.copy_from_slice(&v[1..1 + STATE_FLAT_LEN]);
-        let c = 1 + STATE_FLAT_LEN;
-        let mut packed = [0.0; PACKED_LEN];
-        packed.copy_from_slice(&v[c..c + PACKED_LEN]);
-        let i = c + PACKED_LEN;
-        let w = i + 14;
-        Self {
-            t_s: v[0],
-            state: NominalState::from_flat(&state),
-            covariance: PackedErrCov::from_entries(packed),
-            interval: ImuInterval {
-                dt_s: v[i],
-                accel_start: v3(i + 1),
-                accel_end: v3(i + 4),
-                gyro_start: v3(i + 7),
-                gyro_end: v3(i + 10),
-            },
-            prior_fading: v[i + 13],
-            prior_widening: (v[w] != 0.0).then(|| ReacquisitionWidening { discrepancy: v3(w + 1), horizon_s: v[w + 4] }),
-        }
-    }
 }
 
 fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
@@ -205,15 +125,8 @@ impl InertialCore {
     }
 
     fn propagate(&mut self, imu: &ImuInterval) {
-        if let (Some(rec), Some(t_s)) = (self.recording.as_mut(), self.time_s) {
-            rec.push(Segment {
-                t_s,
-                state: self.state,
-                covariance: PackedErrCov::pack(&self.covariance),
-                interval: *imu,
-                prior_fading: 1.0,
-                prior_widening: None,
-            });
+        if let (Some(rec), Some(t_s)) = (self.recording.as_deref_mut(), self.time_s) {
+            rec.start(t_s, &self.state, &self.covariance, imu);
         }
         let phi = Transition::new(&self.state, imu, &self.ins);
         if let Some(cross) = self.cross.as_deref_mut() {
@@ -221,6 +134,9 @@ impl InertialCore {
         }
         self.state = propagate_nominal(&self.state, imu, &self.ins);
         phi.propagate_covariance(&mut self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
+        if let Some(rec) = self.recording.as_deref_mut() {
+            rec.predicted(&self.state, &self.covariance);
+        }
     }
 
     /// Fades the current (prior) covariance by `λ ≥ 1` in its position–velocity block (the ARCKF paper's
@@ -229,7 +145,7 @@ impl InertialCore {
     /// time multiply.
     pub fn fade_prior(&mut self, lambda: f64) {
         fade_position_velocity(&mut self.covariance, lambda);
-        if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
+        if let Some(last) = self.recording.as_deref_mut().and_then(|r| r.record.segments.last_mut()) {
             last.prior_fading *= lambda;
         }
     }
@@ -240,7 +156,7 @@ impl InertialCore {
     /// the note).
     pub fn widen_prior(&mut self, widening: &ReacquisitionWidening) {
         widening.apply(&mut self.covariance);
-        if let Some(last) = self.recording.as_mut().and_then(|r| r.last_mut()) {
+        if let Some(last) = self.recording.as_deref_mut().and_then(|r| r.record.segments.last_mut()) {
             last.prior_widening = Some(*widening);
         }
     }
@@ -269,27 +185,28 @@ impl InertialCore {
     }
 
     /// Starts recording every propagation for a later RTS pass ([`crate::smoother`]), with room
-    /// for `capacity` segments (≈ 2.2 kB each; one per IMU sample plus one per measurement time
-    /// between samples). Recording is the only thing that allocates while filtering, and only when
-    /// switched on.
+    /// for `capacity` segments (one per IMU sample plus one per measurement time between
+    /// samples; a [`super::smoothing_record::Segment`] is 0.2 kB, a checkpoint 1.1 kB, one per
+    /// update and at least one per 64 segments). Recording is the only thing that allocates while
+    /// filtering, and only when switched on.
     pub fn start_recording(&mut self, capacity: usize) {
-        self.recording = Some(Vec::with_capacity(capacity));
+        self.recording = Some(Box::new(Recorder::new(capacity)));
     }
 
     /// Moves the recorded segments that no later call can change — all but the last, which a
-    /// fading or widening of the current prior still notes on — into `out`, so that a long run's
-    /// recording can be kept elsewhere (a file) while it goes on. With `all`, the last one too:
-    /// at the end of the run. The segments left in the core then start after the ones moved.
-    pub fn move_recorded_segments(&mut self, all: bool, out: &mut Vec<Segment>) {
-        if let Some(rec) = self.recording.as_mut() {
-            let settled = rec.len() - usize::from(!all).min(rec.len());
-            out.extend(rec.drain(..settled));
+    /// fading or widening of the current prior still notes on — and their checkpoints into
+    /// `out`, so that a long run's recording can be kept elsewhere (a file) while it goes on.
+    /// With `all`, the last one too: at the end of the run. The segments left in the core then
+    /// start after the ones moved.
+    pub fn move_recorded_segments(&mut self, all: bool, out: &mut SmoothingRecord) {
+        if let Some(rec) = self.recording.as_deref_mut() {
+            rec.move_settled(all, out);
         }
     }
 
-    /// The recorded segments (empty when not recording).
-    pub fn segments(&self) -> &[Segment] {
-        self.recording.as_deref().unwrap_or(&[])
+    /// What was recorded since [`InertialCore::start_recording`] (None when not recording).
+    pub fn smoothing_record(&self) -> Option<&SmoothingRecord> {
+        self.recording.as_deref().map(|r| &r.record)
     }
 
     /// The process model section it was built with.
@@ -404,39 +321,6 @@ mod tests {
 
     use super::*;
     use crate::update::leading_rows_step;
-
-    #[test]
-    fn a_segment_survives_its_flat_form_bit_for_bit() {
-        let mut p = ErrCov::identity();
-        for k in 0..uwbimu_vocabulary::state::ERR_DIM {
-            for j in 0..=k {
-                p[(j, k)] = 0.01 * (k * 15 + j) as f64 + 1e-17;
-                p[(k, j)] = p[(j, k)];
-            }
-        }
-        let v = |a: f64| Vec3::new(a, -2.0 * a, a / 3.0);
-        let state = NominalState {
-            position: v(1.1),
-            velocity: v(0.3),
-            orientation: uwbimu_vocabulary::math::Quat::from_euler_angles(0.1, -0.2, 2.9),
-            accel_bias: v(0.01),
-            gyro_bias: v(1e-4),
-        };
-        let interval = ImuInterval { dt_s: 0.005, accel_start: v(9.8), accel_end: v(9.7), gyro_start: v(0.2), gyro_end: v(0.25) };
-        for widening in [None, Some(ReacquisitionWidening { discrepancy: v(0.7), horizon_s: f64::INFINITY })] {
-            let seg = Segment {
-                t_s: 1234.5678,
-                state,
-                covariance: PackedErrCov::pack(&p),
-                interval,
-                prior_fading: 1.3,
-                prior_widening: widening,
-            };
-            let back = Segment::from_flat(&seg.to_flat());
-            assert_eq!(back, seg);
-            assert_eq!(back.to_flat().map(f64::to_bits), seg.to_flat().map(f64::to_bits));
-        }
-    }
 
     /// A tight prior widened for a discrepancy `d`, then a precise fix at `d` (linear position
     /// measurement): returns the error-state correction and the posterior covariance.
