@@ -147,7 +147,13 @@ impl FilterConfig {
 
     /// Every section key, `section.field`, in declaration order.
     pub fn keys() -> Vec<String> {
-        Self::key_docs().into_iter().map(|k| k.key).collect()
+        Self::key_list().to_vec()
+    }
+
+    /// [`FilterConfig::keys`], built once (checking a key must not format every key's docs).
+    fn key_list() -> &'static [String] {
+        static KEYS: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+        KEYS.get_or_init(|| Self::key_docs().into_iter().map(|k| k.key).collect())
     }
 
     /// Sets one field by its key, `section.field`. The value is validated; an unknown key is an
@@ -169,7 +175,7 @@ impl FilterConfig {
     /// Checks that `key` is a section key (before its value is read, so that a typo in the key
     /// is reported rather than the value's type); the error suggests the closest keys.
     pub fn check_key(key: &str) -> Result<()> {
-        if Self::keys().iter().any(|k| k == key) {
+        if Self::key_list().iter().any(|k| k == key) {
             Ok(())
         } else {
             Err(Self::unknown(key))
@@ -177,8 +183,7 @@ impl FilterConfig {
     }
 
     fn unknown(key: &str) -> Error {
-        let keys = Self::keys();
-        Error::unknown_option("config", key, keys.iter().map(String::as_str))
+        Error::unknown_option("config", key, Self::key_list().iter().map(String::as_str))
     }
 
     /// Checks every field against the same rules as [`FilterConfig::set`] (for configurations
