@@ -139,6 +139,23 @@ impl Transition {
         out
     }
 
+    /// `M ← Φ·M` in place for the columns `c` of a `15 × C` matrix whose bit `c` is set in
+    /// `columns` (the others are left as they are: a cross-covariance's unused parameter slots,
+    /// which stay zero), each column by the non-trivial blocks of Φ with the sums of
+    /// [`Transition::apply_rows`].
+    pub fn apply_columns<const C: usize>(&self, m: &mut SMatrix<f64, ERR_DIM, C>, columns: u64) {
+        for c in (0..C).filter(|&c| columns >> c & 1 == 1) {
+            let v = |i: usize| m.fixed_view::<3, 1>(i, c).into_owned();
+            let pos = v(POS) + v(VEL) * self.p_v + self.p_att * v(ATT) + self.p_ba * v(BA);
+            let vel = v(VEL) + self.v_att * v(ATT) + self.v_ba * v(BA) + self.v_bg * v(BG);
+            let att = self.att_att * v(ATT) + self.att_bg * v(BG);
+            let (ba, bg) = (v(BA) * self.ba_ba, v(BG) * self.bg_bg);
+            for (i, block) in [(POS, pos), (VEL, vel), (ATT, att), (BA, ba), (BG, bg)] {
+                m.fixed_view_mut::<3, 1>(i, c).copy_from(&block);
+            }
+        }
+    }
+
     /// `Φ·P·Φᵀ + Q` (Li & Wang 2020 eq. (9), Liu et al. 2019 eq. (18)) on the 3×3 blocks of `P`
     /// (δp, δv, δθ, δb_a, δb_g): `M = Φ·P` for the block rows that are not a scaled copy (δp, δv,
     /// δθ), then `M·Φᵀ` for the upper block triangle only, each block from the non-zero blocks of

@@ -30,6 +30,8 @@ pub struct InertialCore {
     /// constant between measurements): propagated as `Φ·P_xb`. Boxed: 2 kB that a filter
     /// without parameter states should not carry inline.
     cross: Option<Box<BiasCross>>,
+    /// The columns of `cross` in use (bit `c` for column `c`); the others stay zero.
+    cross_columns: u64,
     last_good: Option<Box<(NominalState, ErrCov)>>,
 }
 
@@ -70,6 +72,7 @@ impl InertialCore {
             imu_count: 0,
             recording: None,
             cross: None,
+            cross_columns: 0,
             last_good: None,
         })
     }
@@ -130,7 +133,7 @@ impl InertialCore {
         }
         let phi = Transition::new(&self.state, imu, &self.ins);
         if let Some(cross) = self.cross.as_deref_mut() {
-            *cross = phi.apply_rows(cross);
+            phi.apply_columns(cross, self.cross_columns);
         }
         self.state = propagate_nominal(&self.state, imu, &self.ins);
         phi.propagate_covariance(&mut self.covariance, &ProcessNoise::new(&self.ins, imu.dt_s));
@@ -162,9 +165,11 @@ impl InertialCore {
     }
 
     /// Starts carrying the cross-covariance with parameter states ([`crate::filters::range_bias`]),
-    /// zero at first; the core propagates it with Φ at every prediction.
-    pub fn track_cross_covariance(&mut self) {
+    /// zero at first; the core propagates its columns in use (bit `c` of `columns` for column
+    /// `c`; the owner keeps the others zero) with Φ at every prediction.
+    pub fn track_cross_covariance(&mut self, columns: u64) {
         self.cross = Some(Box::new(BiasCross::zeros()));
+        self.cross_columns = columns;
     }
 
     /// The nominal state, the error covariance and the cross-covariance with parameter states

@@ -84,6 +84,12 @@ impl RangeBiasStates {
         Ok(Self { config, anchors, estimate: SVector::zeros(), covariance, time_s: None })
     }
 
+    /// The bias slots in use, bit `s` for slot `s`: one per anchor and the common one; the
+    /// other slots' rows and columns stay zero.
+    pub fn slots_in_use(&self) -> u64 {
+        ((1u64 << self.anchors) - 1) | (1 << COMMON)
+    }
+
     /// Prediction of the biases to `t_s`: the anchors' slots as a random walk (`+ walk²·Δt` on the
     /// diagonal) or, with `anchor_time_constant` τ, as a first-order Gauss–Markov process
     /// (`b ← φ·b`, `φ = exp(−Δt/τ)`: the estimate, its rows of `cross` and of the bias covariance

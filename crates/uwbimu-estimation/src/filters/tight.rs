@@ -226,8 +226,9 @@ impl TightFilter {
                     "range_bias.states needs a Kalman update strategy (single or iterated), not the unscented one".into(),
                 ));
             }
-            core.track_cross_covariance();
-            Some(RangeBiasStates::new(config.range_bias, anchors.len())?)
+            let states = RangeBiasStates::new(config.range_bias, anchors.len())?;
+            core.track_cross_covariance(states.slots_in_use());
+            Some(states)
         } else {
             None
         };
