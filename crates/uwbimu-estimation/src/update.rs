@@ -120,11 +120,15 @@ pub fn schmidt_step<const N: usize>(
     *dx += k * (residual - h.dot(dx));
     // P − K·cᵀ − c·Kᵀ + s·K·Kᵀ = P − K·wᵀ − w·Kᵀ with w = c − (s/2)·K, column by column over
     // the whole matrix; each entry is the expression symmetric in (i, j) `k_i·w_j + w_i·k_j`, so
-    // P stays exactly symmetric.
+    // P stays exactly symmetric. A column whose `k_j` and `w_j` are zero (a state the measurement
+    // is uncorrelated with, such as an unused parameter slot) would only subtract zeros: skipped.
     let w = c - (0.5 * s) * k;
     let (k_all, w_all) = (k.as_slice(), w.as_slice());
     for (j, col) in p.as_mut_slice().chunks_exact_mut(N).enumerate() {
         let (kj, wj) = (k_all[j], w_all[j]);
+        if kj == 0.0 && wj == 0.0 {
+            continue;
+        }
         for ((pij, &ki), &wi) in col.iter_mut().zip(k_all).zip(w_all) {
             *pij -= ki * wj + wi * kj;
         }
