@@ -19,6 +19,7 @@ import itertools
 import json
 import logging
 import os
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -93,6 +94,7 @@ def replay(
     num_cpus: int | None = None,
     force: bool = False,
     max_retries: int = 3,
+    progress: bool = False,
 ) -> pl.DataFrame:
     """Replay every log through ``method`` as Ray tasks; trajectories to Parquet, one summary row each.
 
@@ -128,6 +130,8 @@ def replay(
         Recompute logs whose output already exists.
     max_retries : int, default 3
         Times a task lost with its worker (a crashed or killed process, a lost node) is retried.
+    progress : bool, default False
+        Draw a line on stderr as logs finish (done / all, failed, logs per second).
 
     Returns
     -------
@@ -154,7 +158,7 @@ def replay(
     pending = [k for k, row in enumerate(rows) if row is None]
     if pending:
         out_root.mkdir(parents=True, exist_ok=True)
-        for k, row in zip(pending, _run_tasks([jobs[k] for k in pending], address, num_cpus, max_retries)):
+        for k, row in zip(pending, _run_tasks([jobs[k] for k in pending], address, num_cpus, max_retries, progress)):
             rows[k] = row
     return _frame([row for row in rows if row is not None], SUMMARY_COLUMNS)
 
@@ -172,6 +176,7 @@ def sweep(
     address: str | None = None,
     num_cpus: int | None = None,
     max_retries: int = 3,
+    progress: bool = False,
 ) -> pl.DataFrame:
     """Run every configuration of ``configs`` on every log of ``datasets`` as Ray tasks, one table.
 
@@ -190,7 +195,7 @@ def sweep(
         ``{"ranging": {"range_std": 0.2}}``; ``{}`` is the base configuration.
     datasets : sequence of str or path
         The MCAP logs (each once).
-    config_file, mapping, config, smooth, ground_truth, address, num_cpus, max_retries
+    config_file, mapping, config, smooth, ground_truth, address, num_cpus, max_retries, progress
         As for :func:`replay`.
 
     Returns
@@ -212,7 +217,7 @@ def sweep(
     keys = list(dict.fromkeys(key for point in points for key in point))
     pairs = list(itertools.product(range(len(points)), logs))
     jobs = [settings.job(log, None, _truth_for(ground_truth, log), points[k]) for k, log in pairs]
-    rows = _run_tasks(jobs, address, num_cpus, max_retries) if jobs else []
+    rows = _run_tasks(jobs, address, num_cpus, max_retries, progress) if jobs else []
     settings_columns = {key: _setting_column([p.get(key) for p in points]) for key in keys}
     columns: dict[str, tuple[Any, str]] = {"config": (pl.Int64, "index into configs")}
     columns.update({key: (dtype, "setting") for key, (dtype, _) in settings_columns.items()})
@@ -473,27 +478,47 @@ def _connect(address: str | None, num_cpus: int | None) -> ModuleType:
     return ray
 
 
-def _run_tasks(jobs: list[dict[str, Any]], address: str | None, num_cpus: int | None, max_retries: int) -> list[dict[str, Any]]:
-    """Runs the jobs as Ray tasks of one CPU (one Rust thread each); rows in job order. A task
-    Ray gives up on (its worker lost ``max_retries`` + 1 times) becomes a failed row."""
+def _run_tasks(
+    jobs: list[dict[str, Any]], address: str | None, num_cpus: int | None, max_retries: int, progress: bool
+) -> list[dict[str, Any]]:
+    """Runs the jobs as Ray tasks of one CPU (one Rust thread each) and collects the rows as the
+    tasks finish; rows in job order. A task Ray gives up on (its worker lost ``max_retries`` + 1
+    times) becomes a failed row. ``progress`` draws a line on stderr as rows come in."""
     if max_retries < 0:
         raise ValueError(f"fleet: max_retries must be ≥ 0, got {max_retries}")
     ray = _connect(address, num_cpus)
     task = ray.remote(num_cpus=1, max_retries=max_retries)(_replay_log)
     refs = [task.remote(job) for job in jobs]
-    rows = []
+    index = {ref: k for k, ref in enumerate(refs)}
+    rows: list[dict[str, Any]] = [{} for _ in jobs]
+    pending, failed, start = list(refs), 0, time.perf_counter()
     try:
-        for job, ref in zip(jobs, refs):
-            try:
-                rows.append(ray.get(ref))
-            except ray.exceptions.RayError as e:
-                reason = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-                rows.append({"path": job["path"], "output": None, "reused": False, "status": "failed", "error": f"{type(e).__name__}: {reason}"})
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                k = index[ref]
+                rows[k] = _task_row(ray, ref, jobs[k])
+                failed += rows[k]["status"] == "failed"
+            if progress:
+                finished = len(jobs) - len(pending)
+                rate = finished / max(time.perf_counter() - start, 1e-9)
+                end = "\n" if not pending else ""
+                print(f"\rfleet: {finished}/{len(jobs)} logs, {failed} failed, {rate:.1f} logs/s", end=end, file=sys.stderr, flush=True)
     except KeyboardInterrupt:
-        for ref in refs:
+        for ref in pending:
             ray.cancel(ref, force=True)
         raise
     return rows
+
+
+def _task_row(ray: ModuleType, ref: Any, job: dict[str, Any]) -> dict[str, Any]:
+    """The row a finished task returned, or a failed row with Ray's error (a task lost for good)."""
+    try:
+        row: dict[str, Any] = ray.get(ref)
+    except ray.exceptions.RayError as e:
+        reason = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        return {"path": job["path"], "output": None, "reused": False, "status": "failed", "error": f"{type(e).__name__}: {reason}"}
+    return row
 
 
 def _frame(rows: list[dict[str, Any]], columns: Mapping[str, tuple[Any, str]]) -> pl.DataFrame:

@@ -176,6 +176,13 @@ def test_sweep_grid_over_logs_equals_serial_runs(local_ray, logs):
     assert nis["mean_nis"][0] > 2 * nis["mean_nis"][1], "a 3× larger range σ must shrink the NIS"
 
 
+def test_progress_line_counts_logs_and_failures(local_ray, logs, tmp_path, capsys):
+    paths, _, corrupt, _ = logs
+    fleet.replay(paths[:3] + [corrupt], "ekf", out_dir=tmp_path, progress=True)
+    err = capsys.readouterr().err
+    assert "fleet: 1/4 logs" in err and err.rstrip().split("\r")[-1].startswith("fleet: 4/4 logs, 1 failed, ")
+
+
 def test_bad_arguments_fail_before_any_task(logs, tmp_path):
     paths = logs[0][:2]
     with pytest.raises(uwbimu_rs.ConfigError, match="unknown method 'ekff'"):
