@@ -316,7 +316,7 @@ def _checked_overrides(point: Mapping[str, Any], index: int) -> dict[str, Any]:
     """A configuration of a sweep as flat dotted keys; ConfigError (naming it) for an unknown key."""
     flat: dict[str, Any] = {}
     for key, value in point.items():
-        if isinstance(value, Mapping):
+        if isinstance(value, Mapping) and key != "range_calibration":  # a section of fields
             flat.update({f"{key}.{field}": v for field, v in value.items()})
         else:
             flat[key] = value

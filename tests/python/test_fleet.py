@@ -172,6 +172,10 @@ def test_sweep_grid_over_logs_equals_serial_runs(local_ray, logs):
         _, info = uwbimu_rs.replay(row["path"], "riekf", config=configs[row["config"]], ground_truth=truth[row["path"]])
         assert row["rmse_horizontal_m"] == info["rmse_horizontal_m"]
         assert row["mean_nis"] == info["mean_nis"]
+    # A setting whose value is a mapping (a range calibration) is a setting, not a section.
+    identity = fleet.sweep("ekf", [{"range_calibration": {0: [0.0, 1.0, 0.0, 0.0]}}], paths[:1])
+    assert identity["status"].to_list() == ["ok"] and identity["range_calibration"][0] == '{"0": [0.0, 1.0, 0.0, 0.0]}'
+    assert identity["mean_nis"][0] == uwbimu_rs.replay(paths[0], "ekf")[1]["mean_nis"]
     nis = table.filter(pl.col("status") == "ok").group_by("config").agg(pl.col("mean_nis").mean()).sort("config")
     assert nis["mean_nis"][0] > 2 * nis["mean_nis"][1], "a 3× larger range σ must shrink the NIS"
 
@@ -197,6 +201,7 @@ def test_bad_arguments_fail_before_any_task(logs, tmp_path):
         fleet.replay(paths, "ekf", out_dir=tmp_path, address="auto", num_cpus=2, force=True)
     with pytest.raises(ValueError, match="no values"):
         fleet.grid({"ranging.range_std": []})
+
     assert not any(tmp_path.iterdir()), "nothing is written for rejected arguments"
 
 
