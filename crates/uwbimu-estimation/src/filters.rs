@@ -82,6 +82,7 @@ pub mod constraints;
 mod core;
 mod loose;
 mod named;
+mod pending;
 pub mod range_bias;
 pub mod reacquire;
 pub mod sigma_points;
@@ -96,9 +97,10 @@ use uwbimu_vocabulary::records::{MagSample, Observation, TdoaMeasurement};
 use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
-pub use self::core::{InertialCore, ReacquisitionWidening};
+pub use self::core::{CoreSnapshot, InertialCore, ReacquisitionWidening};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
+pub use self::pending::PendingPropagation;
 pub use self::smoothing_record::{Checkpoint, Segment, SmoothingRecord, CHECKPOINT_EVERY, CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
 pub(crate) use self::tight::check_ranges;
 pub use self::tight::{

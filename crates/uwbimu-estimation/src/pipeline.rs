@@ -185,14 +185,14 @@ impl<F: InertialFilter> Estimator for F {
         self.config().gate
     }
 
-    type Snapshot = (NominalState, uwbimu_vocabulary::state::ErrCov);
+    type Snapshot = crate::filters::CoreSnapshot;
 
     fn snapshot(&self) -> Self::Snapshot {
-        (*self.core().state(), *self.core().covariance())
+        self.core().snapshot()
     }
 
     fn restore(&mut self, snapshot: &Self::Snapshot) {
-        self.core_mut().restore(&snapshot.0, &snapshot.1);
+        self.core_mut().restore(snapshot);
     }
 
     fn is_sound(&self) -> bool {

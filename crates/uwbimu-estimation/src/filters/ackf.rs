@@ -136,6 +136,7 @@ impl Filter for Ackf {
         // Specific force expected in steady motion: −g_n plus the centripetal term ω × v.
         let expected = self.gravity + (x.orientation * (w_body - x.gyro_bias)).cross(&x.velocity);
         // Gravity says nothing about the heading: while still it is held, as in the range updates.
+        self.inner.core_mut().flush_covariance();
         let hold = self.inner.hold_heading();
         self.vector_update(&f_body, &expected, VectorSensor::Accelerometer, self.aiding.gravity_std)?;
         if let Some(hold) = hold {

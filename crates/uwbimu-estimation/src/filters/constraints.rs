@@ -183,6 +183,7 @@ impl Constraints {
         let zupt = self.still && (self.zupt || outage);
         let rows = self.rows_due(x, speed, zupt);
         if rows.len > 0 {
+            core.flush_covariance();
             let hold = self.hold_heading(core);
             let (x, p, cross) = core.parts_mut();
             match (bias, cross) {
@@ -262,7 +263,8 @@ pub struct HeadingHold {
 }
 
 impl HeadingHold {
-    /// The hold of `core`'s heading as it is now.
+    /// The hold of `core`'s heading as it is now (its covariance as of its last propagation: the
+    /// caller flushes a pending one first, [`InertialCore::flush_covariance`]).
     pub fn new(core: &InertialCore) -> Self {
         let prior = core.state().orientation;
         let up = prior.inverse() * Vec3::z();

@@ -6,6 +6,7 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
 
+use super::pending::PendingPropagation;
 use super::smoothing_record::{Recorder, SmoothingRecord};
 use crate::filters::range_bias::BiasCross;
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
@@ -33,6 +34,20 @@ pub struct InertialCore {
     /// The columns of `cross` in use (bit `c` for column `c`); the others stay zero.
     cross_columns: u64,
     last_good: Option<Box<(NominalState, ErrCov)>>,
+    /// IMU intervals not yet applied to the covariance (`ins.covariance_interval_s` > 0).
+    pending: Option<PendingPropagation>,
+}
+
+/// What a step may change and a failed one must put back ([`InertialCore::snapshot`]): the state,
+/// the covariance and the propagation still pending on it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoreSnapshot {
+    /// Nominal state.
+    pub state: NominalState,
+    /// Error covariance, as of its last propagation.
+    pub covariance: ErrCov,
+    /// The IMU intervals not yet applied to it.
+    pub pending: Option<PendingPropagation>,
 }
 
 fn check_finite3(name: &'static str, row: usize, v: &Vec3) -> Result<()> {
@@ -74,6 +89,7 @@ impl InertialCore {
             cross: None,
             cross_columns: 0,
             last_good: None,
+            pending: None,
         })
     }
 
@@ -112,6 +128,7 @@ impl InertialCore {
 
     /// Propagates to a measurement time `t_s` ≥ the filter time with the held IMU sample
     /// (zero-order hold), so a measurement between IMU samples is applied at its own time.
+    /// With the covariance at a filter rate, the covariance is brought to `t_s` too.
     pub fn advance_to(&mut self, t_s: f64) -> Result<()> {
         let t0 = uwbimu_vocabulary::validate::measurement_time(self.time_s, t_s, self.imu_count)?;
         if t_s > t0 {
@@ -124,10 +141,35 @@ impl InertialCore {
             });
             self.time_s = Some(t_s);
         }
+        self.flush_covariance();
         Ok(())
     }
 
+    /// Applies the IMU intervals pending on the covariance (`ins.covariance_interval_s`), so it
+    /// is the covariance at the filter time; nothing when none is pending.
+    pub fn flush_covariance(&mut self) {
+        if let Some(pending) = self.pending.take() {
+            pending.apply(&mut self.covariance, &self.ins);
+        }
+    }
+
+    /// Whether the covariance is propagated at a filter rate: configured, and neither a
+    /// smoothing record (which needs every propagation) nor a cross-covariance is kept.
+    fn at_filter_rate(&self) -> bool {
+        self.ins.covariance_interval_s > 0.0 && self.recording.is_none() && self.cross.is_none()
+    }
+
     fn propagate(&mut self, imu: &ImuInterval) {
+        if self.at_filter_rate() {
+            let pending = self.pending.get_or_insert_with(|| PendingPropagation::new(self.state));
+            pending.add(imu);
+            let due = pending.dt_s() >= self.ins.covariance_interval_s * (1.0 - 1e-9);
+            self.state = propagate_nominal(&self.state, imu, &self.ins);
+            if due {
+                self.flush_covariance();
+            }
+            return;
+        }
         if let (Some(rec), Some(t_s)) = (self.recording.as_deref_mut(), self.time_s) {
             rec.start(t_s, &self.state, &self.covariance, imu);
         }
@@ -147,6 +189,7 @@ impl InertialCore {
     /// recorded segment, so that the RTS pass predicts the same prior. Several fadings at one
     /// time multiply.
     pub fn fade_prior(&mut self, lambda: f64) {
+        self.flush_covariance();
         fade_position_velocity(&mut self.covariance, lambda);
         if let Some(last) = self.recording.as_deref_mut().and_then(|r| r.record.segments.last_mut()) {
             last.prior_fading *= lambda;
@@ -158,6 +201,7 @@ impl InertialCore {
     /// recorded segment for the RTS pass (one per segment: a later one at the same time replaces
     /// the note).
     pub fn widen_prior(&mut self, widening: &ReacquisitionWidening) {
+        self.flush_covariance();
         widening.apply(&mut self.covariance);
         if let Some(last) = self.recording.as_deref_mut().and_then(|r| r.record.segments.last_mut()) {
             last.prior_widening = Some(*widening);
@@ -168,6 +212,7 @@ impl InertialCore {
     /// zero at first; the core propagates its columns in use (bit `c` of `columns` for column
     /// `c`; the owner keeps the others zero) with Φ at every prediction.
     pub fn track_cross_covariance(&mut self, columns: u64) {
+        self.flush_covariance();
         self.cross = Some(Box::new(BiasCross::zeros()));
         self.cross_columns = columns;
     }
@@ -175,6 +220,7 @@ impl InertialCore {
     /// The nominal state, the error covariance and the cross-covariance with parameter states
     /// (None unless tracked), to update them jointly.
     pub fn parts_mut(&mut self) -> (&mut NominalState, &mut ErrCov, Option<&mut BiasCross>) {
+        self.flush_covariance();
         (&mut self.state, &mut self.covariance, self.cross.as_deref_mut())
     }
 
@@ -195,6 +241,7 @@ impl InertialCore {
     /// update and at least one per 64 segments). Recording is the only thing that allocates while
     /// filtering, and only when switched on.
     pub fn start_recording(&mut self, capacity: usize) {
+        self.flush_covariance();
         self.recording = Some(Box::new(Recorder::new(capacity)));
     }
 
@@ -229,7 +276,9 @@ impl InertialCore {
         &self.state
     }
 
-    /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g).
+    /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), as of its last
+    /// propagation: at the filter time, but for up to `ins.covariance_interval_s` of IMU samples
+    /// not yet applied when that is set ([`InertialCore::flush_covariance`]).
     pub fn covariance(&self) -> &ErrCov {
         &self.covariance
     }
@@ -239,15 +288,21 @@ impl InertialCore {
         self.time_s
     }
 
-    /// Puts back a state and covariance taken before a step that failed
+    /// The state, the covariance and the propagation pending on it, to put back after a step
+    /// that fails ([`InertialCore::restore`]).
+    pub fn snapshot(&self) -> CoreSnapshot {
+        CoreSnapshot { state: self.state, covariance: self.covariance, pending: self.pending }
+    }
+
+    /// Puts back a [`InertialCore::snapshot`] taken before a step that failed
     /// ([`crate::pipeline::Estimator::restore`]); the parameter cross-covariance is kept.
-    pub fn restore(&mut self, state: &NominalState, covariance: &ErrCov) {
-        self.state = *state;
-        self.covariance = *covariance;
+    pub fn restore(&mut self, snapshot: &CoreSnapshot) {
+        (self.state, self.covariance, self.pending) = (snapshot.state, snapshot.covariance, snapshot.pending);
     }
 
     /// Remembers the state and covariance as the last good ones (after an update that passed).
     pub fn mark_good(&mut self) {
+        self.flush_covariance();
         match self.last_good.as_mut() {
             Some(good) => **good = (self.state, self.covariance),
             None => self.last_good = Some(Box::new((self.state, self.covariance))),
@@ -259,7 +314,7 @@ impl InertialCore {
     pub fn fall_back(&mut self) -> bool {
         match self.last_good.as_deref() {
             Some((x, p)) => {
-                (self.state, self.covariance) = (*x, *p);
+                (self.state, self.covariance, self.pending) = (*x, *p, None);
                 true
             }
             None => false,
@@ -268,6 +323,7 @@ impl InertialCore {
 
     /// Makes the covariance symmetric positive definite ([`crate::repair::repair_covariance`]).
     pub fn repair_covariance(&mut self) {
+        self.flush_covariance();
         crate::repair::repair_covariance(&mut self.covariance);
     }
 
@@ -277,6 +333,7 @@ impl InertialCore {
     /// whatever the step does to `P` (the correlation is forgotten, a conservative choice). The
     /// motion constraints update the joint covariance instead ([`Self::parts_mut`]).
     pub fn state_and_covariance_mut(&mut self) -> (&mut NominalState, &mut ErrCov) {
+        self.flush_covariance();
         if let Some(cross) = self.cross.as_mut() {
             cross.fill(0.0);
         }

@@ -188,6 +188,11 @@ section! {
         /// Discretise the process noise as the ARCKF paper's eq. (28), `½(Φ·GQGᵀ + GQGᵀ·Φᵀ)`, instead of
         /// adding `G·Q·Gᵀ` (always on in ckf and arckf).
         trapezoidal_process_noise: bool = false, flag;
+        /// Propagate the covariance at this interval, s, with the IMU samples in between averaged
+        /// into one interval (the nominal state still follows every sample), as autopilot EKFs do;
+        /// 0: at every IMU sample. Updates bring the covariance to their time first; a smoothed
+        /// run or one with range-bias states propagates it at every sample whatever this says.
+        covariance_interval_s: f64 = 0.0, non_negative;
         /// Gravity in the navigation frame, m/s² (a magnitude `g` means `[0, 0, −g]`).
         gravity: Vec3 = Vec3::new(0.0, 0.0, -9.80665), gravity;
     }
