@@ -464,7 +464,8 @@ class _StreamingFilter:
     @property
     def covariance(self) -> _F64:
         """Error-state covariance, shape (15, 15), order δp, δv, δθ, δb_a, δb_g (a copy); raises
-        before the filter is initialised."""
+        before the filter is initialised. With ``ins.covariance_interval_s`` set, the covariance
+        as of its last propagation (up to that interval of IMU samples behind the state)."""
 
 
 
