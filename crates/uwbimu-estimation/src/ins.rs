@@ -125,33 +125,40 @@ impl Transition {
         }
     }
 
+    /// Block row `i` (0–4: δp, δv, δθ, δb_a, δb_g) of `Φ·M` for a matrix of 15 rows whose
+    /// 3-row block `k` is `block(k)`, from the non-zero blocks of Φ only (no dense 15×15 product):
+    /// the one expression of Φ's rows that [`Transition::apply_rows`],
+    /// [`Transition::apply_columns`] and [`Transition::propagate_covariance`] share.
+    fn block_row<const C: usize>(&self, i: usize, block: impl Fn(usize) -> SMatrix<f64, 3, C>) -> SMatrix<f64, 3, C> {
+        match i {
+            0 => block(0) + block(1) * self.p_v + self.p_att * block(2) + self.p_ba * block(3),
+            1 => block(1) + self.v_att * block(2) + self.v_ba * block(3) + self.v_bg * block(4),
+            2 => self.att_att * block(2) + self.att_bg * block(4),
+            3 => block(3) * self.ba_ba,
+            _ => block(4) * self.bg_bg,
+        }
+    }
+
     /// Computes `Φ·M` for any `15 × C` matrix (the covariance, or its cross-covariance with
-    /// parameter states, [`crate::filters::range_bias`]) using only the non-trivial blocks of Φ (no
-    /// dense 15×15 product).
+    /// parameter states, [`crate::filters::range_bias`]) by the non-zero blocks of Φ (no dense 15×15 product).
     pub fn apply_rows<const C: usize>(&self, m: &SMatrix<f64, ERR_DIM, C>) -> SMatrix<f64, ERR_DIM, C> {
-        let row = |i: usize| m.fixed_rows::<3>(i);
         let mut out = *m;
-        out.fixed_rows_mut::<3>(POS).copy_from(&(row(POS) + row(VEL) * self.p_v + self.p_att * row(ATT) + self.p_ba * row(BA)));
-        out.fixed_rows_mut::<3>(VEL).copy_from(&(row(VEL) + self.v_att * row(ATT) + self.v_ba * row(BA) + self.v_bg * row(BG)));
-        out.fixed_rows_mut::<3>(ATT).copy_from(&(self.att_att * row(ATT) + self.att_bg * row(BG)));
-        out.fixed_rows_mut::<3>(BA).copy_from(&(row(BA) * self.ba_ba));
-        out.fixed_rows_mut::<3>(BG).copy_from(&(row(BG) * self.bg_bg));
+        for i in 0..5 {
+            out.fixed_rows_mut::<3>(3 * i).copy_from(&self.block_row(i, |k| m.fixed_rows::<3>(3 * k).into_owned()));
+        }
         out
     }
 
     /// `M ← Φ·M` in place for the columns `c` of a `15 × C` matrix whose bit `c` is set in
     /// `columns` (the others are left as they are: a cross-covariance's unused parameter slots,
-    /// which stay zero), each column by the non-trivial blocks of Φ with the sums of
-    /// [`Transition::apply_rows`].
+    /// which stay zero), each column by the non-zero blocks of Φ (no dense 15×15 product).
     pub fn apply_columns<const C: usize>(&self, m: &mut SMatrix<f64, ERR_DIM, C>, columns: u64) {
         for c in (0..C).filter(|&c| columns >> c & 1 == 1) {
-            let v = |i: usize| m.fixed_view::<3, 1>(i, c).into_owned();
-            let pos = v(POS) + v(VEL) * self.p_v + self.p_att * v(ATT) + self.p_ba * v(BA);
-            let vel = v(VEL) + self.v_att * v(ATT) + self.v_ba * v(BA) + self.v_bg * v(BG);
-            let att = self.att_att * v(ATT) + self.att_bg * v(BG);
-            let (ba, bg) = (v(BA) * self.ba_ba, v(BG) * self.bg_bg);
-            for (i, block) in [(POS, pos), (VEL, vel), (ATT, att), (BA, ba), (BG, bg)] {
-                m.fixed_view_mut::<3, 1>(i, c).copy_from(&block);
+            // Block row i of Φ reads blocks i and below only, so each can be written in place in
+            // order.
+            for i in 0..5 {
+                let rows = self.block_row(i, |k| m.fixed_view::<3, 1>(3 * k, c).into_owned());
+                m.fixed_view_mut::<3, 1>(3 * i, c).copy_from(&rows);
             }
         }
     }
@@ -167,11 +174,10 @@ impl Transition {
         // m[i][j]: block (i, j) of M = Φ·P for block rows δp, δv, δθ, where the upper triangle of
         // M·Φᵀ reads it (row δv from column δv on, row δθ from column δθ on; zero elsewhere).
         let m_block = |i: usize, j: usize| -> Mat3 {
-            match i {
-                0 => blk(0, j) + blk(1, j) * self.p_v + self.p_att * blk(2, j) + self.p_ba * blk(3, j),
-                1 if j >= 1 => blk(1, j) + self.v_att * blk(2, j) + self.v_ba * blk(3, j) + self.v_bg * blk(4, j),
-                2 if j >= 2 => self.att_att * blk(2, j) + self.att_bg * blk(4, j),
-                _ => Mat3::zeros(),
+            if j >= i {
+                self.block_row(i, |k| blk(k, j))
+            } else {
+                Mat3::zeros()
             }
         };
         let mut m = [[Mat3::zeros(); 5]; 3];
