@@ -107,7 +107,7 @@ fn smoothing_bridges_a_range_outage() {
 
 /// Bytes of a smoothing record in its flat form (what a spilled replay writes), what the same
 /// run took when every segment carried its posterior with the packed covariance, and with the
-/// whole 15×15 covariance (the record issue 24 measured at about 2 kB per IMU sample).
+/// whole 15×15 covariance (the record before either).
 fn record_bytes(record: &uwbimu_rs::estimation::filters::SmoothingRecord) -> [usize; 3] {
     use uwbimu_rs::estimation::filters::{CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
     use uwbimu_rs::vocabulary::state::{ERR_DIM, PACKED_LEN};
@@ -141,8 +141,8 @@ fn the_record_keeps_a_posterior_only_where_an_update_changed_it() {
             100.0 * share(full),
             record.checkpoints.len() as f64 / data.imu.len() as f64
         ));
-        // A checkpoint per update time and per 64 segments, no more; measured 10–18 % of the
-        // whole-covariance record and 18–31 % of the packed one (docs/performance.md).
+        // A checkpoint per update time and per 64 segments, no more; the bounds sit above the
+        // figures of docs/performance.md ("Smoothing memory").
         assert!(record.checkpoints.len() <= data.ranges.len() + record.segments.len() / 64 + 1, "{name}");
         assert!(share(full) < 0.2 && share(packed) < 0.34, "{name}: {}", report.last().expect("line"));
     }

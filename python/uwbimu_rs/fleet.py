@@ -245,10 +245,22 @@ def grid(axes: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
 
 
 class _Settings:
-    """The inputs every task of a fleet shares, checked once before any task runs."""
+    """The inputs every task of a fleet shares, checked once before any task runs, with the digest
+    of them that each log's input key starts from."""
 
     def __init__(self, method: str | None, config_file: str | None, mapping: dict[str, Any] | None, config: Any, smooth: bool | None):
         self.method, self.config_file, self.mapping, self.config, self.smooth = method, config_file, mapping, config, smooth
+        from uwbimu_rs import __version__
+
+        shared = {
+            "config_file": None if config_file is None else hashlib.sha256(Path(config_file).read_bytes()).hexdigest(),
+            "version": __version__,
+            "method": method,
+            "mapping": mapping,
+            "config": config,
+            "smooth": smooth,
+        }
+        self.digest = _digest(shared)
 
     @classmethod
     def checked(cls, method: str | None, config_file: _PathLike | None, mapping: Mapping[str, Any] | None, config: Any, smooth: bool | None) -> _Settings:
@@ -264,7 +276,9 @@ class _Settings:
         return cls(method, file, None if mapping is None else dict(mapping), plain_config, smooth)
 
     def job(self, log: str, output: Path | None, truth: str | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
-        """One task's inputs, with the key that says whether an earlier output is still valid."""
+        """One task's inputs, with the key that says whether an earlier output is still valid: the
+        shared digest, the log's and the ground truth's size and modification time, the
+        overrides."""
         job = {
             "path": log,
             "output": None if output is None else os.fspath(output),
@@ -276,7 +290,8 @@ class _Settings:
             "smooth": self.smooth,
             "ground_truth": truth,
         }
-        job["key"] = _input_key(job) if output is not None else None
+        own = {"shared": self.digest, "log": _file_stamp(log), "truth": _file_stamp(truth), "overrides": overrides}
+        job["key"] = _digest(own) if output is not None else None
         return job
 
 
@@ -358,26 +373,9 @@ def _file_stamp(path: str | None) -> list[Any] | None:
     return [os.path.abspath(path), st.st_size, st.st_mtime_ns]
 
 
-def _input_key(job: dict[str, Any]) -> str:
-    """A digest of everything an output depends on: inputs, file stamps and the package version."""
-    config_text = None
-    if job["config_file"] is not None:
-        config_text = hashlib.sha256(Path(job["config_file"]).read_bytes()).hexdigest()
-    parts = {
-        "log": _file_stamp(job["path"]),
-        "truth": _file_stamp(job["ground_truth"]),
-        "config_file": config_text,
-        "version": _package_version(),
-        **{k: job[k] for k in ("method", "mapping", "config", "overrides", "smooth")},
-    }
+def _digest(parts: dict[str, Any]) -> str:
+    """SHA-256 of the parts as sorted JSON (numpy values as lists)."""
     return hashlib.sha256(json.dumps(parts, sort_keys=True, default=_jsonable).encode()).hexdigest()
-
-
-def _package_version() -> str:
-    """The installed uwbimu_rs version (part of the input key)."""
-    from uwbimu_rs import __version__
-
-    return __version__
 
 
 def _summary_path(output: str) -> Path:
