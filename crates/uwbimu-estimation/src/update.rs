@@ -3,7 +3,7 @@
 
 use nalgebra::SVector;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{skew, symmetrize, Cov, Mat3};
+use uwbimu_vocabulary::math::{skew, symmetrize, Cov, Mat3, Vec3};
 use uwbimu_vocabulary::state::{ErrCov, ErrVec, NominalState, ATT, ERR_DIM};
 
 /// What happened to one measurement: a typed form of what the filter decided.
@@ -156,18 +156,27 @@ pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<
 /// 15 INS error states first; the parameter states past them are left to the caller.
 pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
     x.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
-    let g: Mat3 = Mat3::identity() - skew(&(0.5 * dx.fixed_rows::<3>(ATT).into_owned()));
-    // G·P·Gᵀ changes the attitude rows and columns only: the rows become G·P[δθ, :], the
-    // columns outside the attitude block their mirror (P is symmetric), and the attitude block
-    // G·P[δθ, δθ]·Gᵀ, made exactly symmetric.
-    let rows = g * p.fixed_rows::<3>(ATT);
-    p.fixed_rows_mut::<3>(ATT).copy_from(&rows);
-    for j in (0..N).filter(|j| !(ATT..ATT + 3).contains(j)) {
-        for a in 0..3 {
-            p[(j, ATT + a)] = rows[(a, j)];
+    let h: Vec3 = 0.5 * dx.fixed_rows::<3>(ATT).into_owned();
+    let g: Mat3 = Mat3::identity() - skew(&h);
+    // G·P·Gᵀ changes the attitude rows and columns only: column by column, the attitude rows
+    // become G·P[δθ, j] (G = [[1, h_z, −h_y], [−h_z, 1, h_x], [h_y, −h_x, 1]], the products and
+    // sums of the 3×3 matrix product in its order), mirrored into the attitude columns outside
+    // the attitude block (P is symmetric); the attitude block G·P[δθ, δθ]·Gᵀ, made exactly
+    // symmetric.
+    let mut att_rows = Mat3::zeros();
+    for j in 0..N {
+        let (b0, b1, b2) = (p[(ATT, j)], p[(ATT + 1, j)], p[(ATT + 2, j)]);
+        let row = [b0 + h.z * b1 - h.y * b2, -h.z * b0 + b1 + h.x * b2, h.y * b0 - h.x * b1 + b2];
+        if (ATT..ATT + 3).contains(&j) {
+            att_rows.column_mut(j - ATT).copy_from_slice(&row);
+        } else {
+            for (a, v) in row.into_iter().enumerate() {
+                p[(ATT + a, j)] = v;
+                p[(j, ATT + a)] = v;
+            }
         }
     }
-    let mut block = rows.fixed_columns::<3>(ATT) * g.transpose();
+    let mut block = att_rows * g.transpose();
     symmetrize(&mut block);
     p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&block);
 }

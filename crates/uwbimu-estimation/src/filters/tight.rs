@@ -6,9 +6,9 @@
 use nalgebra::{SMatrix, SVector};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{Cov, Vec3};
+use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{Observation, TdoaMeasurement};
-use uwbimu_vocabulary::state::{ErrVec, NominalState, ERR_DIM};
+use uwbimu_vocabulary::state::{ErrVec, ERR_DIM};
 
 use crate::filters::constraints::Constraints;
 use crate::filters::range_bias::RangeBiasStates;
@@ -16,14 +16,18 @@ use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, Tdoa
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::range::tag_position;
-use crate::models::scalar::ScalarMeasurement;
+use crate::models::scalar::{ScalarMeasurement, ScalarPrediction};
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
 use crate::robust::NoiseBounds;
 use crate::robust::{
     prior_fading, robustness_factor, robustness_factors, tested_nis, two_range_residuals, RangeNoisePolicy, RobustnessFactor,
 };
 use crate::robust::{SageHusa, SageHusaConfig, SageHusaVariant};
-use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
+use crate::update::{inject_and_reset, times_sparse, UpdateReport};
+
+mod kalman_epoch;
+
+use self::kalman_epoch::{KalmanEpoch, PriorPredictions};
 
 /// A tightly coupled UWB/IMU error-state filter.
 ///
@@ -63,6 +67,24 @@ pub struct TightFilter {
     epoch: Vec<ScalarMeasurement>,
     /// Scratch for one epoch's robustness factors (as `epoch`).
     factors: Vec<RobustnessFactor>,
+    /// Scratch for one epoch's measurements predicted at the prior (as `epoch`).
+    at_prior: Vec<Option<PriorPrediction>>,
+}
+
+/// A measurement predicted at the prior of its epoch, with its predicted variance `h·P⁻·hᵀ` over
+/// the 15 INS error states: computed once per epoch for the divergence watch, the ARCKF fading
+/// and the first iteration of the update.
+#[derive(Debug, Clone, Copy)]
+struct PriorPrediction {
+    prediction: ScalarPrediction,
+    hph: f64,
+}
+
+impl PriorPrediction {
+    /// γ of measured value `value` with noise variance `r_var` (Li & Wang 2020 eq. (37)).
+    fn nis(&self, value: f64, r_var: f64) -> f64 {
+        (value - self.prediction.value).powi(2) / (self.hph + r_var)
+    }
 }
 
 /// How the linearised problem of an epoch is solved.
@@ -237,6 +259,7 @@ impl TightFilter {
             config,
             epoch: Vec::with_capacity(anchors.len()),
             factors: Vec::with_capacity(anchors.len()),
+            at_prior: Vec::with_capacity(anchors.len()),
             anchors,
             policy: composition.policy,
             strategy,
@@ -266,34 +289,40 @@ impl TightFilter {
         factors.extend(robustness_factors(ranges, fix.map(|f| f.residuals_m(&self.anchors, ranges)), range_std));
     }
 
-    /// γ of one measurement against the prior with noise variance `r_var` (Li & Wang 2020 eq. (37));
-    /// None when the tag sits on an anchor.
-    fn nis_at_prior(&self, m: &ScalarMeasurement, r_var: f64) -> Option<f64> {
+    /// One measurement predicted at the prior with `h·P⁻·hᵀ`; None when the tag sits on an anchor.
+    fn predict_at_prior(&self, m: &ScalarMeasurement) -> Option<PriorPrediction> {
         let (x, p) = (self.core.state(), self.core.covariance());
-        let pred = m.predict(x, &self.anchors, &self.config.mounting.lever_arm)?;
-        Some((m.value() - pred.value).powi(2) / (pred.jacobian.dot(&times_sparse(p, &pred.jacobian)) + r_var))
+        let prediction = m.predict(x, &self.anchors, &self.config.mounting.lever_arm)?;
+        Some(PriorPrediction { hph: prediction.jacobian.dot(&times_sparse(p, &prediction.jacobian)), prediction })
     }
 
-    /// How many of an epoch's ranges fail their `χ²₁` test at the prior with the nominal range
-    /// noise (for the divergence watch, [`crate::filters::reacquire`]).
-    fn failed_at_prior(&self, ranges: &[(usize, f64)]) -> usize {
+    /// How many of an epoch's measurements, predicted at the prior as `at_prior`, fail their
+    /// `χ²₁` test with the nominal range noise (for the divergence watch,
+    /// [`crate::filters::reacquire`]).
+    fn failed_at_prior(&self, measurements: &[ScalarMeasurement], at_prior: &[Option<PriorPrediction>]) -> usize {
         let r_var = self.config.ranging.range_std.powi(2);
-        ranges
+        measurements
             .iter()
-            .filter(|&&(anchor, range_m)| {
-                self.nis_at_prior(&ScalarMeasurement::Range { anchor, range_m }, r_var).is_some_and(|nis| nis > RANGE_FAIL_NIS)
-            })
+            .zip(at_prior)
+            .filter(|(m, pred)| pred.is_some_and(|pred| pred.nis(m.value(), r_var) > RANGE_FAIL_NIS))
             .count()
     }
 
     /// Fading factor of the prior for one epoch (the ARCKF paper's eqs. (38)–(42), [`prior_fading`]): each
     /// range's γ against the prior with `R_i = σ²·Cu_i`.
-    fn epoch_fading(&self, ranges: &[(usize, f64)], factors: &[RobustnessFactor], threshold: f64) -> f64 {
+    fn epoch_fading(
+        &self,
+        measurements: &[ScalarMeasurement],
+        at_prior: &[Option<PriorPrediction>],
+        factors: &[RobustnessFactor],
+        threshold: f64,
+    ) -> f64 {
         let range_std = self.config.ranging.range_std;
-        let nis = ranges.iter().zip(factors).map(|(&(anchor, range_m), f)| {
-            let range = ScalarMeasurement::Range { anchor, range_m };
-            (*f, self.nis_at_prior(&range, f.range_var_m2(range_std)).unwrap_or(f64::NAN))
-        });
+        let nis = measurements
+            .iter()
+            .zip(at_prior)
+            .zip(factors)
+            .map(|((m, pred), f)| (*f, pred.map_or(f64::NAN, |pred| pred.nis(m.value(), f.range_var_m2(range_std)))));
         prior_fading(nis, threshold)
     }
 }
@@ -355,8 +384,31 @@ impl TightFilter {
     /// Applies one checked epoch of ranges at the filter time (re-acquisition, robustness, the
     /// strategy's update).
     fn apply_ranges(&mut self, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        let mut epoch = std::mem::take(&mut self.epoch);
+        epoch.clear();
+        epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
+        let mut at_prior = std::mem::take(&mut self.at_prior);
+        at_prior.clear();
+        at_prior.extend(epoch.iter().map(|m| self.predict_at_prior(m)));
+        let mut factors = std::mem::take(&mut self.factors);
+        factors.clear();
+        let applied = self.apply_epoch(ranges, &epoch, &at_prior, &mut factors, reports);
+        (self.epoch, self.at_prior, self.factors) = (epoch, at_prior, factors);
+        applied
+    }
+
+    /// [`TightFilter::apply_ranges`] on the epoch's measurements, predicted at the prior as
+    /// `at_prior`; `factors` is scratch for the robustness factors.
+    fn apply_epoch(
+        &mut self,
+        ranges: &[(usize, f64)],
+        epoch: &[ScalarMeasurement],
+        at_prior: &[Option<PriorPrediction>],
+        factors: &mut Vec<RobustnessFactor>,
+        reports: &mut [UpdateReport],
+    ) -> Result<()> {
         if self.reacquire {
-            let failed = self.failed_at_prior(ranges);
+            let failed = self.failed_at_prior(epoch, at_prior);
             if let Some((innovation, nis)) =
                 reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
             {
@@ -365,44 +417,38 @@ impl TightFilter {
             }
         }
         // ARCKF (the ARCKF paper's Algorithm 1): robustness factors and the fading of the prior.
-        let mut factors = std::mem::take(&mut self.factors);
-        factors.clear();
         let (weighted, fading) = match self.policy {
             RangeNoisePolicy::AdaptiveRobust { threshold } => {
-                self.robustness(ranges, &mut factors);
-                let fading = self.epoch_fading(ranges, &factors, threshold);
+                self.robustness(ranges, factors);
+                let fading = self.epoch_fading(epoch, at_prior, factors, threshold);
                 if fading > 1.0 {
                     self.core.fade_prior(fading);
                 }
                 (true, fading)
             }
             RangeNoisePolicy::ResidualWeighted => {
-                self.robustness(ranges, &mut factors);
+                self.robustness(ranges, factors);
                 (true, 1.0)
             }
             _ => (false, 1.0),
         };
-        let mut epoch = std::mem::take(&mut self.epoch);
-        epoch.clear();
-        epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
-        let solved = self.solve(&epoch, reports, weighted.then_some(factors.as_slice()), fading);
-        self.epoch = epoch;
-        self.factors = factors;
-        solved
+        self.solve(epoch, at_prior, reports, weighted.then_some(factors.as_slice()), fading)
     }
 
     /// Applies one checked TDoA at the filter time (re-acquisition, the strategy's update).
     fn apply_tdoa(&mut self, m: &TdoaMeasurement) -> Result<UpdateReport> {
         let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+        let at_prior = [self.predict_at_prior(&tdoa)];
         if self.reacquire {
-            let failed = self.nis_at_prior(&tdoa, self.config.ranging.tdoa_std.powi(2)).is_some_and(|nis| nis > RANGE_FAIL_NIS);
+            let r_var = self.config.ranging.tdoa_std.powi(2);
+            let failed = at_prior[0].is_some_and(|pred| pred.nis(tdoa.value(), r_var) > RANGE_FAIL_NIS);
             let watch = &mut self.tdoa_watch;
             if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
                 return Ok(UpdateReport::reacquired(innovation, nis));
             }
         }
         let mut report = [UpdateReport::skipped()];
-        self.solve(&[tdoa], &mut report, None, 1.0)?;
+        self.solve(&[tdoa], &at_prior, &mut report, None, 1.0)?;
         Ok(report[0])
     }
 }
@@ -426,19 +472,21 @@ impl InertialFilter for TightFilter {
 }
 
 impl TightFilter {
-    /// Solves one epoch of scalar measurements with the filter's strategy; `factors` are the
+    /// Solves one epoch of scalar measurements with the filter's strategy; `at_prior` are the
+    /// measurements predicted at the prior (before the fading), `factors` the
     /// robustness factors `Cu_k` (the ARCKF paper's eq. (38)) of the measurements, `fading` the prior's
     /// fading factor already applied (the ARCKF paper's eq. (42)).
     fn solve(
         &mut self,
         measurements: &[ScalarMeasurement],
+        at_prior: &[Option<PriorPrediction>],
         reports: &mut [UpdateReport],
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
     ) -> Result<()> {
         match self.strategy {
             Strategy::Iterated { max_iterations, tolerance } => {
-                self.solve_iterated(measurements, reports, factors, fading, max_iterations, tolerance)?;
+                self.solve_iterated(measurements, at_prior, reports, factors, fading, max_iterations, tolerance)?;
             }
             Strategy::Unscented(weights) => self.solve_unscented(&weights, measurements, reports, factors, fading)?,
         }
@@ -451,9 +499,11 @@ impl TightFilter {
     /// The Kalman strategy (see [`TightFilter`]): Gauss–Newton iterations of sequential scalar
     /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step. With
     /// range bias states, over the augmented error state ([`crate::filters::range_bias`]).
+    #[allow(clippy::too_many_arguments)]
     fn solve_iterated(
         &mut self,
         measurements: &[ScalarMeasurement],
+        at_prior: &[Option<PriorPrediction>],
         reports: &mut [UpdateReport],
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
@@ -467,6 +517,8 @@ impl TightFilter {
             noise: EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading),
             max_iterations,
             tolerance,
+            // A faded prior is no longer the covariance the predictions' h·P·hᵀ were taken on.
+            at_prior: PriorPredictions { predictions: at_prior, hph_valid: fading == 1.0 },
         };
         let (x, p, cross) = self.core.parts_mut();
         let iterations = match (self.range_bias.as_mut(), cross) {
@@ -609,89 +661,6 @@ impl<'a> EpochNoise<'a> {
             None => self.policy.inflation(tested_nis(nis, *residual, m.is_range(), self.nlos_skew)),
         };
         NoiseDecision { base_var, inflation, nis, nominal_var }
-    }
-}
-
-/// What the Kalman strategy needs from the filter for one epoch.
-struct KalmanEpoch<'a> {
-    anchors: &'a [Vec3],
-    lever_arm: Vec3,
-    noise: EpochNoise<'a>,
-    max_iterations: u32,
-    tolerance: f64,
-}
-
-impl KalmanEpoch<'_> {
-    /// The iterations of [`TightFilter::solve_iterated`] over an error state of dimension `N`:
-    /// the 15 INS error states, then parameters that enter the measurements linearly with
-    /// Jacobian `param_h(m)` (zero in the first 15 rows) and value `params` (updated in place);
-    /// only the first `estimated` states get a gain ([`schmidt_step`]). Returns the iterations.
-    #[allow(clippy::too_many_arguments)]
-    fn iterate<const N: usize>(
-        &mut self,
-        x: &mut NominalState,
-        p_out: &mut Cov<N>,
-        params: &mut SVector<f64, N>,
-        measurements: &[ScalarMeasurement],
-        reports: &mut [UpdateReport],
-        param_h: impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
-        estimated: usize,
-    ) -> Result<u32> {
-        let (prior, params_prior) = (*x, *params);
-        // `p_out` holds the prior until the end; `p_post` is the covariance of the last iterate
-        // after the first iteration.
-        let (mut op, mut p_post, mut params_op) = (prior, None::<Cov<N>>, params_prior);
-        let mut iterations = 0;
-        // The previous iterate (operating point, covariance, step), to fall back on when the
-        // iteration stops contracting.
-        let mut previous: Option<(NominalState, SVector<f64, N>, Cov<N>, SVector<f64, N>)> = None;
-        loop {
-            iterations += 1;
-            let mut dx = params_prior - params_op;
-            dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
-            let mut p = *p_out;
-            for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
-                let Some(pred) = m.predict(&op, self.anchors, &self.lever_arm) else {
-                    *report = UpdateReport::skipped();
-                    continue;
-                };
-                let mut residual = m.value() - pred.value;
-                let mut h = SVector::<f64, N>::zeros();
-                h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);
-                if N > ERR_DIM {
-                    let hb = param_h(m);
-                    residual -= hb.dot(&params_op);
-                    h += hb;
-                }
-                let hph = h.dot(&times_sparse(p_post.as_ref().unwrap_or(p_out), &h));
-                // A lone TDoA fits itself after one iteration, so its γ at the next operating
-                // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
-                let kept = (iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. })).then_some(report.inflation);
-                let noise = self.noise.decide(k, m, &mut residual, hph, iterations == 1, kept);
-                let prior = if iterations == 1 { Some((residual, hph + noise.base_var)) } else { report.prior };
-                schmidt_step(&mut dx, &mut p, &h, residual, noise.variance(), estimated)?;
-                *report = noise.report(residual, iterations);
-                report.prior = prior;
-            }
-            let step = dx.norm();
-            if let Some((mut op_prev, params_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, _, d)| step > d.norm()) {
-                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
-                // to thousands of radians): keep the previous iterate.
-                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
-                (*x, *p_out, *params) = (op_prev, p_prev, params_prev + parameter_rows(&dx_prev));
-                break;
-            }
-            if iterations >= self.max_iterations || step < self.tolerance {
-                inject_and_reset(&mut op, &mut p, &dx);
-                (*x, *p_out, *params) = (op, p, params_op + parameter_rows(&dx));
-                break;
-            }
-            previous = Some((op, params_op, p, dx));
-            op.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
-            params_op += parameter_rows(&dx);
-            p_post = Some(p);
-        }
-        Ok(iterations)
     }
 }
 

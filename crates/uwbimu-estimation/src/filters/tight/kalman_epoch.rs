@@ -1,0 +1,209 @@
+//! The Kalman strategy of [`super::TightFilter`] for one epoch: Gauss–Newton iterations of
+//! sequential scalar steps at an operating point (Li & Wang 2020 Algorithm 1; one iteration is
+//! the single EKF step).
+
+use nalgebra::SVector;
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::math::{Cov, Vec3};
+use uwbimu_vocabulary::state::{NominalState, ERR_DIM};
+
+use super::{EpochNoise, PriorPrediction};
+use crate::models::scalar::ScalarMeasurement;
+use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
+
+/// What the Kalman strategy needs from the filter for one epoch.
+pub(super) struct KalmanEpoch<'a> {
+    pub(super) anchors: &'a [Vec3],
+    pub(super) lever_arm: Vec3,
+    pub(super) noise: EpochNoise<'a>,
+    pub(super) max_iterations: u32,
+    pub(super) tolerance: f64,
+    pub(super) at_prior: PriorPredictions<'a>,
+}
+
+/// The measurements of an epoch predicted at its prior (one per measurement, in order), and
+/// whether their `h·P⁻·hᵀ` is over the covariance the update starts from (not after a fading).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct PriorPredictions<'a> {
+    pub(super) predictions: &'a [Option<PriorPrediction>],
+    pub(super) hph_valid: bool,
+}
+
+/// The covariance γ is tested against in one pass over an epoch (Li & Wang 2020 eq. (37) at the
+/// prior, eq. (39) at later iterates).
+#[derive(Clone, Copy)]
+enum Against<'c, const N: usize> {
+    /// The prior, whose `h·P⁻·hᵀ` the prior predictions carry (the 15 INS error states only).
+    PriorPredicted,
+    /// This covariance (the prior's copy, or the posterior of the previous iterate).
+    Covariance(&'c Cov<N>),
+}
+
+impl<const N: usize> Against<'_, N> {
+    /// `h·P·hᵀ` of a measurement with Jacobian `h`, whose prior prediction is `at_prior` (at
+    /// the first iterate).
+    fn hph(&self, h: &SVector<f64, N>, at_prior: Option<PriorPrediction>) -> Result<f64> {
+        match (*self, at_prior) {
+            (Self::PriorPredicted, Some(c)) => Ok(c.hph),
+            (Self::PriorPredicted, None) => Err(Error::InvalidCall("the first iterate's γ needs the prior predictions".into())),
+            (Self::Covariance(p), _) => Ok(h.dot(&times_sparse(p, h))),
+        }
+    }
+}
+
+impl KalmanEpoch<'_> {
+    /// The iterations of the Kalman strategy over an error state of dimension `N`: the 15 INS
+    /// error states, then parameters that enter the measurements linearly with Jacobian
+    /// `param_h(m)` (zero in the first 15 rows) and value `params` (updated in place); only the
+    /// first `estimated` states get a gain ([`schmidt_step`]). Returns the iterations.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn iterate<const N: usize>(
+        &mut self,
+        x: &mut NominalState,
+        p_out: &mut Cov<N>,
+        params: &mut SVector<f64, N>,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        param_h: impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        estimated: usize,
+    ) -> Result<u32> {
+        let (prior, params_prior) = (*x, *params);
+        let prior_hph = N == ERR_DIM && self.at_prior.hph_valid;
+        if self.max_iterations == 1 && prior_hph {
+            // The single EKF step needs the prior covariance for nothing but the γ the prior
+            // predictions carry: it steps in place (the error starts at zero, the operating
+            // point being the prior).
+            let mut dx = SVector::<f64, N>::zeros();
+            self.pass(
+                &prior,
+                &params_prior,
+                &mut dx,
+                p_out,
+                Against::PriorPredicted,
+                measurements,
+                reports,
+                1,
+                &param_h,
+                estimated,
+            )?;
+            inject_and_reset(x, p_out, &dx);
+            *params = params_prior + parameter_rows(&dx);
+            return Ok(1);
+        }
+        // `p_out` holds the prior until the end; `p_post` is the covariance of the last iterate
+        // after the first iteration.
+        let (mut op, mut p_post, mut params_op) = (prior, None::<Cov<N>>, params_prior);
+        let mut iterations = 0;
+        // The previous iterate (operating point, covariance, step), to fall back on when the
+        // iteration stops contracting.
+        let mut previous: Option<(NominalState, SVector<f64, N>, Cov<N>, SVector<f64, N>)> = None;
+        loop {
+            iterations += 1;
+            let mut dx = params_prior - params_op;
+            dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
+            let mut p = *p_out;
+            let against = match &p_post {
+                Some(post) => Against::Covariance(post),
+                None if prior_hph => Against::PriorPredicted,
+                None => Against::Covariance(p_out),
+            };
+            self.pass(&op, &params_op, &mut dx, &mut p, against, measurements, reports, iterations, &param_h, estimated)?;
+            let step = dx.norm();
+            if let Some((mut op_prev, params_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, _, d)| step > d.norm()) {
+                // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
+                // to thousands of radians): keep the previous iterate.
+                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
+                (*x, *p_out, *params) = (op_prev, p_prev, params_prev + parameter_rows(&dx_prev));
+                break;
+            }
+            if iterations >= self.max_iterations || step < self.tolerance {
+                inject_and_reset(&mut op, &mut p, &dx);
+                (*x, *p_out, *params) = (op, p, params_op + parameter_rows(&dx));
+                break;
+            }
+            previous = Some((op, params_op, p, dx));
+            op.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
+            params_op += parameter_rows(&dx);
+            p_post = Some(p);
+        }
+        Ok(iterations)
+    }
+
+    /// Linearises measurement `k`, `m`, at `op` (parameters `params_op`): its prior prediction
+    /// at the first iterate, else predicted at `op`. Returns the prior prediction (first
+    /// iterate), the innovation less the parameters' part and the Jacobian row; None when the
+    /// tag sits on an anchor.
+    #[allow(clippy::type_complexity)]
+    fn linearise<const N: usize>(
+        &self,
+        k: usize,
+        m: &ScalarMeasurement,
+        op: &NominalState,
+        params_op: &SVector<f64, N>,
+        iterations: u32,
+        param_h: &impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+    ) -> Option<(Option<PriorPrediction>, f64, SVector<f64, N>)> {
+        let at_prior = if iterations == 1 { self.at_prior.predictions.get(k).copied().flatten() } else { None };
+        let pred = if iterations == 1 { at_prior.map(|c| c.prediction) } else { m.predict(op, self.anchors, &self.lever_arm) }?;
+        let mut residual = m.value() - pred.value;
+        let mut h = SVector::<f64, N>::zeros();
+        h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);
+        if N > ERR_DIM {
+            let hb = param_h(m);
+            residual -= hb.dot(params_op);
+            h += hb;
+        }
+        Some((at_prior, residual, h))
+    }
+
+    /// The noise policy's decision for measurement `k`, `m`, with innovation `residual`
+    /// (corrected in place by the adaptive range noise) and predicted variance `hph`, written
+    /// into `report`; returns the variance to step with.
+    fn decide(
+        &mut self,
+        k: usize,
+        m: &ScalarMeasurement,
+        residual: &mut f64,
+        hph: f64,
+        iterations: u32,
+        report: &mut UpdateReport,
+    ) -> f64 {
+        // A lone TDoA fits itself after one iteration, so its γ at the next operating
+        // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
+        let kept = (iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. })).then_some(report.inflation);
+        let noise = self.noise.decide(k, m, residual, hph, iterations == 1, kept);
+        let prior = if iterations == 1 { Some((*residual, hph + noise.base_var)) } else { report.prior };
+        *report = noise.report(*residual, iterations);
+        report.prior = prior;
+        noise.variance()
+    }
+
+    /// One pass of sequential scalar Joseph steps over the epoch's measurements linearised at
+    /// `op` (parameters `params_op`), accumulating the error `dx` and stepping `p`, each γ tested
+    /// against `against` (iteration `iterations`, 1 at the prior).
+    #[allow(clippy::too_many_arguments)]
+    fn pass<const N: usize>(
+        &mut self,
+        op: &NominalState,
+        params_op: &SVector<f64, N>,
+        dx: &mut SVector<f64, N>,
+        p: &mut Cov<N>,
+        against: Against<'_, N>,
+        measurements: &[ScalarMeasurement],
+        reports: &mut [UpdateReport],
+        iterations: u32,
+        param_h: &impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        estimated: usize,
+    ) -> Result<()> {
+        for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
+            let Some((at_prior, mut residual, h)) = self.linearise(k, m, op, params_op, iterations, param_h) else {
+                *report = UpdateReport::skipped();
+                continue;
+            };
+            let hph = against.hph(&h, at_prior)?;
+            let variance = self.decide(k, m, &mut residual, hph, iterations, report);
+            schmidt_step(dx, p, &h, residual, variance, estimated)?;
+        }
+        Ok(())
+    }
+}
