@@ -33,7 +33,7 @@ use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::{quat_exp, Cov, Vec3};
 use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, ERR_DIM, POS, VEL};
 
-use crate::filters::range_bias::RangeBiasStates;
+use crate::filters::range_bias::{JointStep, RangeBiasStates};
 use crate::filters::InertialCore;
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse};
 
@@ -187,9 +187,7 @@ impl Constraints {
             let hold = self.hold_heading(core);
             let (x, p, cross) = core.parts_mut();
             match (bias, cross) {
-                (Some(bias), Some(cross)) => {
-                    bias.joint_step(t, p, cross, |joint, params, estimated| rows.apply(x, joint, params, estimated))?
-                }
+                (Some(bias), Some(cross)) => bias.joint_step(t, p, cross, RowsAt { rows: &rows, x })?,
                 _ => rows.apply(x, p, &mut ErrVec::zeros(), ERR_DIM)?,
             }
             if let Some(hold) = hold {
@@ -329,5 +327,21 @@ impl ConstraintRows {
         inject_and_reset(x, p, &dx);
         *params += parameter_rows(&dx);
         Ok(())
+    }
+}
+
+/// Constraint rows to apply at a state, as a [`JointStep`] over the joint state of range bias
+/// states (the rows have no bias part).
+struct RowsAt<'r> {
+    rows: &'r ConstraintRows,
+    x: &'r mut NominalState,
+}
+
+impl JointStep for RowsAt<'_> {
+    type Output = ();
+
+    /// [`ConstraintRows::apply`] over the joint state.
+    fn step<const N: usize>(self, p: &mut Cov<N>, params: &mut SVector<f64, N>, estimated: usize) -> Result<()> {
+        self.rows.apply(self.x, p, params, estimated)
     }
 }

@@ -8,13 +8,14 @@
 //! itself in τ — the model of multipath that wanders with the body or the geometry, where a random
 //! walk is the model of a steady bias (τ → ∞).
 //!
-//! **Cost.** The augmented state has [`AUG_DIM`] = 32 dimensions whatever the anchor count, so a
-//! range update costs about four times the 15-state one (docs/performance.md); the Gauss–Markov
-//! decay adds one scaling of the cross-covariance per update.
+//! **Cost.** An update works on the INS states and the bias slots in use, in a joint state of 20
+//! (up to 4 anchors), 24 (up to 8) or 32 dimensions (docs/performance.md has the figures); the
+//! Gauss–Markov decay adds one scaling of the cross-covariance per update.
 //!
-//! **Augmented filter** (the default scheme): the biases join the error state, which becomes
-//! [`AUG_DIM`] = 15 + [`BIAS_SLOTS`] long (δp, δv, δθ, δb_a, δb_g, then the anchors' biases in anchor
-//! order, then the common bias, in the last slot). The INS core propagates the cross-covariance
+//! **Augmented filter** (the default scheme): the biases join the error state (δp, δv, δθ, δb_a,
+//! δb_g, then the anchors' biases in anchor order, then the common bias, last), kept as
+//! [`BIAS_SLOTS`] slots beside the 15 INS states and joined for each update in as few dimensions
+//! as the anchor count needs (at most [`AUG_DIM`] = 15 + [`BIAS_SLOTS`]). The INS core propagates the cross-covariance
 //! `P_xb ← Φ·P_xb` at every prediction ([`crate::filters::InertialCore::track_cross_covariance`]); the bias
 //! covariance grows by `walk²·Δt` between epochs; each range's Jacobian gains `∂r/∂b_a =
 //! ∂r/∂b_c = 1`, and the scalar Kalman steps of the epoch run over the whole augmented state.
@@ -48,7 +49,7 @@ pub const MAX_BIASED_ANCHORS: usize = 16;
 /// Bias slots: one per anchor and the common bias (the last).
 pub const BIAS_SLOTS: usize = MAX_BIASED_ANCHORS + 1;
 
-/// Dimension of the augmented error state.
+/// Largest dimension of the joint error state (16 anchors).
 pub const AUG_DIM: usize = ERR_DIM + BIAS_SLOTS;
 
 /// Cross-covariance of the 15-state error with the bias slots.
@@ -56,6 +57,16 @@ pub type BiasCross = SMatrix<f64, ERR_DIM, BIAS_SLOTS>;
 
 /// Slot of the common bias.
 const COMMON: usize = MAX_BIASED_ANCHORS;
+
+/// An update over a joint error state of any dimension `N` ([`RangeBiasStates::joint_step`]
+/// chooses it from the anchor count): the 15 INS states, then the bias slots.
+pub trait JointStep {
+    /// What the step returns.
+    type Output;
+    /// Updates the joint covariance `p` and the parameter values `params` (the bias rows; the
+    /// first 15 are zero), with a gain on the first `estimated` states only.
+    fn step<const N: usize>(self, p: &mut Cov<N>, params: &mut SVector<f64, N>, estimated: usize) -> Result<Self::Output>;
+}
 
 /// The bias estimates and their covariance (the cross-covariance lives in the INS core).
 #[derive(Debug, Clone)]
@@ -122,43 +133,76 @@ impl RangeBiasStates {
         self.time_s = Some(t_s);
     }
 
-    /// `∂z/∂b` of one measurement in the bias slots of the augmented state: 1 for the range's
-    /// anchor and the common bias; 0 for a TDoA.
-    pub fn jacobian(m: &ScalarMeasurement) -> SVector<f64, AUG_DIM> {
+    /// `∂z/∂b` of one measurement in the bias slots of a joint error state of dimension `N`
+    /// ([`RangeBiasStates::joint_step`]: the anchors' slots from row 15, the common one last): 1
+    /// for the range's anchor and the common bias; 0 for a TDoA.
+    pub fn jacobian<const N: usize>(m: &ScalarMeasurement) -> SVector<f64, N> {
         let mut h = SVector::zeros();
         if let ScalarMeasurement::Range { anchor, .. } = *m {
             h[ERR_DIM + anchor] = 1.0;
-            h[ERR_DIM + COMMON] = 1.0;
+            h[N - 1] = 1.0;
         }
         h
     }
 
-    /// One step over the augmented error state at `t_s`: the biases are predicted to `t_s`, the
-    /// joint covariance `[[P, P_xb], [P_xbᵀ, P_bb]]` and the bias estimates (in the bias slots of
-    /// an augmented vector, zero elsewhere) are handed to `step` with the number of states that
-    /// get a gain (all, or the 15 INS states in the consider scheme), and taken back into `p`,
-    /// `cross` and the biases.
-    pub fn joint_step<R>(
+    /// One step over the augmented error state at `t_s`: the biases are predicted to `t_s`, and
+    /// the joint covariance `[[P, P_xb], [P_xbᵀ, P_bb]]` of the slots in use and the bias
+    /// estimates (in the bias rows of a joint vector, zero elsewhere) are handed to `step` with
+    /// the number of states that get a gain (all, or the 15 INS states in the consider scheme),
+    /// and taken back into `p`, `cross` and the biases. The joint state holds the 15 INS states,
+    /// the anchors' slots and the common one last, in the smallest of 20, 24 or 32 dimensions
+    /// that fits the anchor count: the step costs what the anchors in use need, not
+    /// [`AUG_DIM`]'s (the spare rows and columns between the anchors and the common slot are
+    /// zero and stay so).
+    pub fn joint_step<S: JointStep>(
         &mut self,
         t_s: f64,
         p: &mut SMatrix<f64, ERR_DIM, ERR_DIM>,
         cross: &mut BiasCross,
-        step: impl FnOnce(&mut Cov<AUG_DIM>, &mut SVector<f64, AUG_DIM>, usize) -> Result<R>,
-    ) -> Result<R> {
+        step: S,
+    ) -> Result<S::Output> {
         self.predict_to(t_s, cross);
-        let mut joint = Cov::<AUG_DIM>::zeros();
+        match self.anchors {
+            0..=4 => self.step_in::<{ ERR_DIM + 5 }, S>(p, cross, step),
+            5..=8 => self.step_in::<{ ERR_DIM + 9 }, S>(p, cross, step),
+            _ => self.step_in::<AUG_DIM, S>(p, cross, step),
+        }
+    }
+
+    /// [`RangeBiasStates::joint_step`] in a joint state of dimension `N` (≥ 16 + the anchors).
+    fn step_in<const N: usize, S: JointStep>(
+        &mut self,
+        p: &mut SMatrix<f64, ERR_DIM, ERR_DIM>,
+        cross: &mut BiasCross,
+        step: S,
+    ) -> Result<S::Output> {
+        // Slot s of the 17 kept here → row of the joint state: the anchors', then the common one.
+        let row = |s: usize| if s == COMMON { N - 1 } else { ERR_DIM + s };
+        let live = (0..self.anchors).chain([COMMON]);
+        let mut joint = Cov::<N>::zeros();
+        let mut estimate = SVector::<f64, N>::zeros();
         joint.fixed_view_mut::<ERR_DIM, ERR_DIM>(0, 0).copy_from(p);
-        joint.fixed_view_mut::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM).copy_from(cross);
-        joint.fixed_view_mut::<BIAS_SLOTS, ERR_DIM>(ERR_DIM, 0).copy_from(&cross.transpose());
-        joint.fixed_view_mut::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM).copy_from(&self.covariance);
-        let mut estimate = SVector::<f64, AUG_DIM>::zeros();
-        estimate.fixed_rows_mut::<BIAS_SLOTS>(ERR_DIM).copy_from(&self.estimate);
-        let estimated = if self.config.consider { ERR_DIM } else { AUG_DIM };
-        let out = step(&mut joint, &mut estimate, estimated)?;
-        self.estimate.copy_from(&estimate.fixed_rows::<BIAS_SLOTS>(ERR_DIM));
+        for s in live.clone() {
+            let j = row(s);
+            let column = cross.column(s);
+            joint.fixed_view_mut::<ERR_DIM, 1>(0, j).copy_from(&column);
+            joint.fixed_view_mut::<1, ERR_DIM>(j, 0).tr_copy_from(&column);
+            for t in live.clone() {
+                joint[(row(t), j)] = self.covariance[(t, s)];
+            }
+            estimate[j] = self.estimate[s];
+        }
+        let estimated = if self.config.consider { ERR_DIM } else { N };
+        let out = step.step(&mut joint, &mut estimate, estimated)?;
         p.copy_from(&joint.fixed_view::<ERR_DIM, ERR_DIM>(0, 0));
-        cross.copy_from(&joint.fixed_view::<ERR_DIM, BIAS_SLOTS>(0, ERR_DIM));
-        self.covariance.copy_from(&joint.fixed_view::<BIAS_SLOTS, BIAS_SLOTS>(ERR_DIM, ERR_DIM));
+        for s in live.clone() {
+            let j = row(s);
+            cross.column_mut(s).copy_from(&joint.fixed_view::<ERR_DIM, 1>(0, j));
+            for t in live.clone() {
+                self.covariance[(t, s)] = joint[(row(t), j)];
+            }
+            self.estimate[s] = estimate[j];
+        }
         Ok(out)
     }
 

@@ -27,7 +27,7 @@ use crate::update::{inject_and_reset, times_sparse, UpdateReport};
 
 mod kalman_epoch;
 
-use self::kalman_epoch::{KalmanEpoch, PriorPredictions};
+use self::kalman_epoch::{BiasedEpoch, KalmanEpoch, PriorPredictions};
 
 /// A tightly coupled UWB/IMU error-state filter.
 ///
@@ -522,9 +522,9 @@ impl TightFilter {
         };
         let (x, p, cross) = self.core.parts_mut();
         let iterations = match (self.range_bias.as_mut(), cross) {
-            (Some(bias), Some(cross)) => bias.joint_step(time_s, p, cross, |joint, params, estimated| {
-                epoch.iterate(x, joint, params, measurements, reports, RangeBiasStates::jacobian, estimated)
-            })?,
+            (Some(bias), Some(cross)) => {
+                bias.joint_step(time_s, p, cross, BiasedEpoch { epoch: &mut epoch, x, measurements, reports })?
+            }
             _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_| ErrVec::zeros(), ERR_DIM)?,
         };
         for r in reports.iter_mut().filter(|r| r.accepted) {

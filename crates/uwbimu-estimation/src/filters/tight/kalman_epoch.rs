@@ -8,6 +8,7 @@ use uwbimu_vocabulary::math::{Cov, Vec3};
 use uwbimu_vocabulary::state::{NominalState, ERR_DIM};
 
 use super::{EpochNoise, PriorPrediction};
+use crate::filters::range_bias::{JointStep, RangeBiasStates};
 use crate::models::scalar::ScalarMeasurement;
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
 
@@ -19,6 +20,25 @@ pub(super) struct KalmanEpoch<'a> {
     pub(super) max_iterations: u32,
     pub(super) tolerance: f64,
     pub(super) at_prior: PriorPredictions<'a>,
+}
+
+/// The Kalman strategy's epoch over the joint state of the range bias states
+/// ([`RangeBiasStates::joint_step`] chooses its dimension).
+pub(super) struct BiasedEpoch<'e, 'a> {
+    pub(super) epoch: &'e mut KalmanEpoch<'a>,
+    pub(super) x: &'e mut NominalState,
+    pub(super) measurements: &'e [ScalarMeasurement],
+    pub(super) reports: &'e mut [UpdateReport],
+}
+
+impl JointStep for BiasedEpoch<'_, '_> {
+    type Output = u32;
+
+    /// [`KalmanEpoch::iterate`] over the joint state, the biases entering the ranges with
+    /// [`RangeBiasStates::jacobian`]. Returns the iterations.
+    fn step<const N: usize>(self, p: &mut Cov<N>, params: &mut SVector<f64, N>, estimated: usize) -> Result<u32> {
+        self.epoch.iterate(self.x, p, params, self.measurements, self.reports, RangeBiasStates::jacobian::<N>, estimated)
+    }
 }
 
 /// The measurements of an epoch predicted at its prior (one per measurement, in order), and
