@@ -85,6 +85,7 @@ mod named;
 mod pending;
 pub mod range_bias;
 pub mod reacquire;
+mod scratch;
 pub mod sigma_points;
 mod smoothing_record;
 mod tight;

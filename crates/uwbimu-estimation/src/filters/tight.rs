@@ -13,6 +13,7 @@ use uwbimu_vocabulary::state::{ErrVec, ERR_DIM};
 use crate::filters::constraints::Constraints;
 use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
+use crate::filters::scratch::Scratch;
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::models::range::tag_position;
@@ -63,12 +64,13 @@ pub struct TightFilter {
     /// Whether the watches run and re-acquire ([`Composition::reacquire`]).
     reacquire: bool,
     range_bias: Option<RangeBiasStates>,
-    /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch).
-    epoch: Vec<ScalarMeasurement>,
+    /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch,
+    /// in a clone too).
+    epoch: Scratch<ScalarMeasurement>,
     /// Scratch for one epoch's robustness factors (as `epoch`).
-    factors: Vec<RobustnessFactor>,
+    factors: Scratch<RobustnessFactor>,
     /// Scratch for one epoch's measurements predicted at the prior (as `epoch`).
-    at_prior: Vec<Option<PriorPrediction>>,
+    at_prior: Scratch<Option<PriorPrediction>>,
 }
 
 /// A measurement predicted at the prior of its epoch, with its predicted variance `h·P⁻·hᵀ` over
@@ -257,9 +259,9 @@ impl TightFilter {
         Ok(Self {
             core,
             config,
-            epoch: Vec::with_capacity(anchors.len()),
-            factors: Vec::with_capacity(anchors.len()),
-            at_prior: Vec::with_capacity(anchors.len()),
+            epoch: Scratch::with_capacity(anchors.len()),
+            factors: Scratch::with_capacity(anchors.len()),
+            at_prior: Scratch::with_capacity(anchors.len()),
             anchors,
             policy: composition.policy,
             strategy,
@@ -384,16 +386,15 @@ impl TightFilter {
     /// Applies one checked epoch of ranges at the filter time (re-acquisition, robustness, the
     /// strategy's update).
     fn apply_ranges(&mut self, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
-        let mut epoch = std::mem::take(&mut self.epoch);
-        epoch.clear();
+        let mut epoch = self.epoch.take_cleared();
         epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
-        let mut at_prior = std::mem::take(&mut self.at_prior);
-        at_prior.clear();
+        let mut at_prior = self.at_prior.take_cleared();
         at_prior.extend(epoch.iter().map(|m| self.predict_at_prior(m)));
-        let mut factors = std::mem::take(&mut self.factors);
-        factors.clear();
+        let mut factors = self.factors.take_cleared();
         let applied = self.apply_epoch(ranges, &epoch, &at_prior, &mut factors, reports);
-        (self.epoch, self.at_prior, self.factors) = (epoch, at_prior, factors);
+        self.epoch.put_back(epoch);
+        self.at_prior.put_back(at_prior);
+        self.factors.put_back(factors);
         applied
     }
 
