@@ -83,8 +83,8 @@ impl UpdateReport {
 /// measurement `residual ≈ h·δx + v`, `v ~ N(0, r_var)`: gain `K = P·hᵀ/S` (Liu et al. 2019 eqs.
 /// (37)–(38)), `dx ← dx + K·(residual − h·dx)`, and the Joseph covariance
 /// `(I − K·h)·P·(I − K·h)ᵀ + K·r·Kᵀ` (Liu et al. 2019 eq. (39) in Joseph form), evaluated through its
-/// rank-one structure as `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ` (the same matrix for
-/// any gain), written `P − K·wᵀ − w·Kᵀ` with `w = c − S·K/2`: O(n²), symmetric by construction.
+/// rank-one structure: `P − K·cᵀ − c·Kᵀ + (h·c + r)·K·Kᵀ` with `c = P·hᵀ`, which for the Kalman
+/// gain is `P − c·cᵀ/S`: O(n²), symmetric by construction.
 ///
 /// Generic over the state dimension N (15 for the INS error state, 4 for the planar filters of
 /// Wang et al. 2018). Returns the innovation variance `S`. Fails if `S` is not positive.
@@ -118,19 +118,30 @@ pub fn schmidt_step<const N: usize>(
     let mut k = c / s;
     k.rows_mut(estimated, N - estimated).fill(0.0);
     *dx += k * (residual - h.dot(dx));
-    // P − K·cᵀ − c·Kᵀ + s·K·Kᵀ = P − K·wᵀ − w·Kᵀ with w = c − (s/2)·K, column by column over
-    // the whole matrix; each entry is the expression symmetric in (i, j) `k_i·w_j + w_i·k_j`, so
-    // P stays exactly symmetric. A column whose `k_j` and `w_j` are zero (a state the measurement
-    // is uncorrelated with, such as an unused parameter slot) would only subtract zeros: skipped.
-    let w = c - (0.5 * s) * k;
-    let (k_all, w_all) = (k.as_slice(), w.as_slice());
-    for (j, col) in p.as_mut_slice().chunks_exact_mut(N).enumerate() {
-        let (kj, wj) = (k_all[j], w_all[j]);
-        if kj == 0.0 && wj == 0.0 {
-            continue;
+    let columns = p.as_mut_slice().chunks_exact_mut(N).enumerate();
+    if estimated == N {
+        // With the Kalman gain K = c/S the Joseph form is P − c·cᵀ/S = P − u·uᵀ, u = c/√S: one
+        // product per entry, `u_i·u_j` the same in (i, j) and (j, i), so P stays exactly
+        // symmetric. A column whose `u_j` is zero (a state the measurement is uncorrelated with,
+        // such as an unused parameter slot) would only subtract zeros: skipped.
+        let u = c / s.sqrt();
+        let u_all = u.as_slice();
+        for (j, col) in columns.filter(|&(j, _)| u_all[j] != 0.0) {
+            let uj = u_all[j];
+            for (pij, &ui) in col.iter_mut().zip(u_all) {
+                *pij -= ui * uj;
+            }
         }
-        for ((pij, &ki), &wi) in col.iter_mut().zip(k_all).zip(w_all) {
-            *pij -= ki * wj + wi * kj;
+    } else {
+        // A gain with zeroed rows: P − K·cᵀ − c·Kᵀ + S·K·Kᵀ = P − K·wᵀ − w·Kᵀ with
+        // w = c − (S/2)·K, each entry the expression symmetric in (i, j) `k_i·w_j + w_i·k_j`.
+        let w = c - (0.5 * s) * k;
+        let (k_all, w_all) = (k.as_slice(), w.as_slice());
+        for (j, col) in columns.filter(|&(j, _)| k_all[j] != 0.0 || w_all[j] != 0.0) {
+            let (kj, wj) = (k_all[j], w_all[j]);
+            for ((pij, &ki), &wi) in col.iter_mut().zip(k_all).zip(w_all) {
+                *pij -= ki * wj + wi * kj;
+            }
         }
     }
     Ok(s)
