@@ -22,17 +22,22 @@ pub fn table<const C: usize>(
     if shape.len() != 2 || shape[1] != C {
         return Err(Error::Shape { name, expected: layout.to_string(), got: format!("{shape:?}") });
     }
-    let view = arr.as_array();
-    Ok(view
-        .outer_iter()
-        .map(|row| {
-            let mut r = [0.0; C];
-            for (dst, src) in r.iter_mut().zip(row.iter()) {
-                *dst = *src;
+    // A C-contiguous array (what `array` makes) is read as one slice of rows; another layout row
+    // by row through its view.
+    let mut rows = vec![[0.0; C]; shape[0]];
+    match arr.as_slice() {
+        Ok(flat) if arr.is_c_contiguous() => {
+            for (dst, src) in rows.iter_mut().zip(flat.chunks_exact(C)) {
+                dst.copy_from_slice(src);
             }
-            r
-        })
-        .collect())
+        }
+        _ => {
+            for (dst, src) in rows.iter_mut().zip(arr.as_array().outer_iter()) {
+                dst.iter_mut().zip(src.iter()).for_each(|(d, s)| *d = *s);
+            }
+        }
+    }
+    Ok(rows)
 }
 
 /// Copies an `(N, 3)` float64 array into points (m).

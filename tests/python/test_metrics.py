@@ -7,7 +7,7 @@ import polars as pl
 import pytest
 
 from uwbimu_rs import NumericalError, UwbImuError
-from uwbimu_rs import metrics
+from uwbimu_rs import _native, metrics
 
 
 def _traj(t, xyz):
@@ -80,3 +80,21 @@ def test_nees_uses_covariance_columns():
         metrics.nees(est.drop("cov_yz"), truth)
     with pytest.raises(NumericalError):
         metrics.nees(est.with_columns(cov_zz=pl.lit(-1.0)), truth)
+
+
+def test_tables_are_read_by_rows_in_any_memory_layout():
+    # The native side reads a C-ordered table as one slice of rows and any other layout row by
+    # row: Fortran order, a strided view and C order must give the NEES numpy computes.
+    rng = np.random.default_rng(0)
+    errors = rng.normal(size=(40, 3))
+    sigma = rng.uniform(0.5, 2.0, size=(40, 3))
+    cov = np.column_stack([sigma[:, 0] ** 2, np.zeros(40), np.zeros(40), sigma[:, 1] ** 2, np.zeros(40), sigma[:, 2] ** 2])
+    expected = np.sum((errors / sigma) ** 2, axis=1)
+    wide = np.zeros((40, 6))
+    wide[:, ::2] = errors
+    for e, c in [
+        (np.ascontiguousarray(errors), np.ascontiguousarray(cov)),
+        (np.asfortranarray(errors), np.asfortranarray(cov)),
+        (wide[:, ::2], cov[:, :]),
+    ]:
+        np.testing.assert_allclose(_native.nees(e, c), expected, rtol=1e-12)

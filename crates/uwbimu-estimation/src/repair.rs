@@ -50,7 +50,11 @@ pub fn is_plausible_state(x: &NominalState) -> bool {
 
 /// Whether `p` is finite with a non-negative diagonal (a cheap test run after every step).
 pub fn is_sound_covariance<const N: usize>(p: &SMatrix<f64, N, N>) -> bool {
-    (0..N).all(|i| p[(i, i)].is_finite() && p[(i, i)] >= 0.0)
+    // Branch-free (it runs after every step): `d·0` is 0 for a finite `d` and NaN otherwise, and
+    // the smallest diagonal entry (`f64::min` ignores a NaN) must not be negative.
+    let diagonal = (0..N).map(|i| p[(i, i)]);
+    let zero = diagonal.clone().fold(0.0, |acc, d| acc + d * 0.0);
+    zero == 0.0 && diagonal.fold(f64::INFINITY, f64::min) >= 0.0
 }
 
 #[cfg(test)]
@@ -82,5 +86,47 @@ mod tests {
         p[(2, 2)] = f64::NAN;
         assert!(!repair_covariance(&mut p));
         assert!(!is_sound_covariance(&p));
+    }
+
+    #[test]
+    fn a_covariance_is_sound_only_with_a_finite_non_negative_diagonal() {
+        let good = Matrix3::new(2.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.5);
+        assert!(is_sound_covariance(&good));
+        for bad in [-1e-12, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for i in 0..3 {
+                let mut p = good;
+                p[(i, i)] = bad;
+                assert!(!is_sound_covariance(&p), "{bad} at {i}");
+            }
+        }
+        let mut off = good;
+        off[(0, 1)] = f64::NAN; // only the diagonal is checked here (cheap, after every step)
+        assert!(is_sound_covariance(&off));
+    }
+
+    #[test]
+    fn a_state_is_plausible_only_when_every_value_is_finite() {
+        use uwbimu_vocabulary::math::Vec3;
+        let x = NominalState {
+            position: Vec3::new(1.0, 2.0, 0.5),
+            velocity: Vec3::zeros(),
+            orientation: uwbimu_vocabulary::math::Quat::identity(),
+            accel_bias: Vec3::zeros(),
+            gyro_bias: Vec3::zeros(),
+        };
+        assert!(is_plausible_state(&x));
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for field in 0..5 {
+                let mut y = x;
+                match field {
+                    0 => y.position.y = bad,
+                    1 => y.velocity.z = bad,
+                    2 => y.accel_bias.x = bad,
+                    3 => y.gyro_bias.z = bad,
+                    _ => y.orientation = nalgebra::UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(1.0, 0.0, bad, 0.0)),
+                }
+                assert!(!is_plausible_state(&y), "{bad} in field {field}");
+            }
+        }
     }
 }
