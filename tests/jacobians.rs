@@ -3,7 +3,7 @@
 
 use uwbimu_rs::estimation::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use uwbimu_rs::estimation::models::range::predict_range;
-use uwbimu_rs::estimation::update::{inject_and_reset, scalar_step};
+use uwbimu_rs::estimation::update::{inject_and_reset, scalar_step, schmidt_step};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InsConfig};
 use uwbimu_rs::vocabulary::math::{quat_exp, skew, Quat, Vec3};
 use uwbimu_rs::vocabulary::state::{ErrCov, ErrVec, NominalState, ATT, BA, BG, ERR_DIM, VEL};
@@ -153,6 +153,31 @@ fn joseph_update_equals_definition() {
     assert!(h.dot(&(p * h)) < h.dot(&(p0 * h)));
     let q: Quat = x.orientation;
     assert!((q.norm() - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn consider_step_equals_the_joseph_form_of_its_gain() {
+    // The Schmidt (consider) step zeroes the gain of the states from `estimated` on; its
+    // covariance must be the Joseph form of that gain (the plain Kalman step's `P − c·cᵀ/S` is
+    // not valid for it).
+    let x = example_state();
+    let a = ErrCov::from_fn(|i, j| ((i * 3 + j * 5) % 7) as f64 * 0.03 + if i == j { 0.4 } else { 0.0 });
+    let p0 = a * a.transpose();
+    let h = predict_range(&x, &Vec3::new(4.0, 3.0, 2.2), &Vec3::new(0.0, 0.0, 0.05)).expect("ok").jacobian;
+    let (innov, r, estimated) = (0.3, 0.01, BA);
+    let (mut p, mut dx) = (p0, ErrVec::zeros());
+    let s = schmidt_step(&mut dx, &mut p, &h, innov, r, estimated).expect("update");
+    let mut k = p0 * h / s;
+    k.rows_mut(estimated, ERR_DIM - estimated).fill(0.0);
+    let ikh = ErrCov::identity() - k * h.transpose();
+    let joseph = ikh * p0 * ikh.transpose() + k * k.transpose() * r;
+    assert!((dx - k * innov).norm() < 1e-15);
+    assert!((p - joseph).abs().max() < 1e-12, "{}", (p - joseph).abs().max());
+    assert_eq!(p, p.transpose());
+    // It is not the Kalman step's covariance: the two forms are not interchangeable.
+    let (mut p_kalman, mut dx_kalman) = (p0, ErrVec::zeros());
+    scalar_step(&mut dx_kalman, &mut p_kalman, &h, innov, r).expect("update");
+    assert!((p - p_kalman).abs().max() > 1e-6);
 }
 
 /// The reset Jacobian: for a true state `x₀ ⊞ e`, the error about the corrected state
