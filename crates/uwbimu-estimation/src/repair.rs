@@ -2,6 +2,7 @@
 //! linearisation): the step after a numerical failure, so one measurement never ends a run.
 
 use nalgebra::{DMatrix, SMatrix};
+use uwbimu_vocabulary::math::all_finite;
 use uwbimu_vocabulary::state::NominalState;
 
 /// Relative floor of the eigenvalues after a repair (times the largest), and the absolute floor.
@@ -50,11 +51,9 @@ pub fn is_plausible_state(x: &NominalState) -> bool {
 
 /// Whether `p` is finite with a non-negative diagonal (a cheap test run after every step).
 pub fn is_sound_covariance<const N: usize>(p: &SMatrix<f64, N, N>) -> bool {
-    // Branch-free (it runs after every step): `d·0` is 0 for a finite `d` and NaN otherwise, and
-    // the smallest diagonal entry (`f64::min` ignores a NaN) must not be negative.
+    // Branch-free (it runs after every step); the smallest diagonal entry must not be negative.
     let diagonal = (0..N).map(|i| p[(i, i)]);
-    let zero = diagonal.clone().fold(0.0, |acc, d| acc + d * 0.0);
-    zero == 0.0 && diagonal.fold(f64::INFINITY, f64::min) >= 0.0
+    all_finite(diagonal.clone()) && diagonal.fold(f64::INFINITY, f64::min) >= 0.0
 }
 
 #[cfg(test)]

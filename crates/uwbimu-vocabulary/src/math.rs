@@ -23,6 +23,13 @@ pub fn quat_exp(rotation_vector: &Vec3) -> Quat {
     Quat::from_scaled_axis(*rotation_vector)
 }
 
+/// Whether every value is finite, without a branch per value (for checks that run after every
+/// filter step): `v·0` is 0 for a finite `v` and NaN for an infinite or NaN one, so the sum of
+/// the products is 0 exactly when all are finite.
+pub fn all_finite(values: impl IntoIterator<Item = f64>) -> bool {
+    values.into_iter().fold(0.0, |acc, v| acc + v * 0.0) == 0.0
+}
+
 /// Replaces `m` by `(m + mᵀ)/2`, removing round-off asymmetry from a covariance.
 pub fn symmetrize<const N: usize>(m: &mut Cov<N>) {
     for i in 0..N {

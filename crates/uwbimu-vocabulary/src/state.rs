@@ -125,10 +125,8 @@ impl NominalState {
 
     /// Whether every component is finite.
     pub fn is_finite(&self) -> bool {
-        // Branch-free (it runs after every step): `c·0` is 0 for a finite `c` and NaN otherwise.
         let vectors = [self.position, self.velocity, self.accel_bias, self.gyro_bias];
-        let zero = vectors.iter().flat_map(|v| v.iter()).chain(self.orientation.coords.iter()).fold(0.0, |acc, c| acc + c * 0.0);
-        zero == 0.0
+        crate::math::all_finite(vectors.iter().flat_map(|v| v.iter()).chain(self.orientation.coords.iter()).copied())
     }
 
     /// Injects an error-state correction into the nominal state (Li & Wang 2020 eq. (19),
