@@ -116,9 +116,11 @@ pub fn schmidt_step<const N: usize>(
         return Err(Error::NotPositiveDefinite { what: "scalar innovation covariance" });
     }
     let mut k = c / s;
-    k.rows_mut(estimated, N - estimated).fill(0.0);
+    if estimated < N {
+        k.rows_mut(estimated, N - estimated).fill(0.0);
+    }
     *dx += k * (residual - h.dot(dx));
-    let columns = p.as_mut_slice().chunks_exact_mut(N).enumerate();
+    let columns = &mut p.data.0;
     if estimated == N {
         // With the Kalman gain K = c/S the Joseph form is P − c·cᵀ/S = P − u·uᵀ, u = c/√S: one
         // product per entry, `u_i·u_j` the same in (i, j) and (j, i), so P stays exactly
@@ -126,10 +128,11 @@ pub fn schmidt_step<const N: usize>(
         // such as an unused parameter slot) would only subtract zeros: skipped.
         let u = c / s.sqrt();
         let u_all = u.as_slice();
-        for (j, col) in columns.filter(|&(j, _)| u_all[j] != 0.0) {
-            let uj = u_all[j];
-            for (pij, &ui) in col.iter_mut().zip(u_all) {
-                *pij -= ui * uj;
+        for (j, &uj) in u_all.iter().enumerate() {
+            if uj != 0.0 {
+                for (pij, &ui) in columns[j].iter_mut().zip(u_all) {
+                    *pij -= ui * uj;
+                }
             }
         }
     } else {
@@ -137,10 +140,11 @@ pub fn schmidt_step<const N: usize>(
         // w = c − (S/2)·K, each entry the expression symmetric in (i, j) `k_i·w_j + w_i·k_j`.
         let w = c - (0.5 * s) * k;
         let (k_all, w_all) = (k.as_slice(), w.as_slice());
-        for (j, col) in columns.filter(|&(j, _)| k_all[j] != 0.0 || w_all[j] != 0.0) {
-            let (kj, wj) = (k_all[j], w_all[j]);
-            for ((pij, &ki), &wi) in col.iter_mut().zip(k_all).zip(w_all) {
-                *pij -= ki * wj + wi * kj;
+        for (j, (&kj, &wj)) in k_all.iter().zip(w_all).enumerate() {
+            if kj != 0.0 || wj != 0.0 {
+                for ((pij, &ki), &wi) in columns[j].iter_mut().zip(k_all).zip(w_all) {
+                    *pij -= ki * wj + wi * kj;
+                }
             }
         }
     }
@@ -151,9 +155,12 @@ pub fn schmidt_step<const N: usize>(
 /// are added in the order the dense product adds them, so the result is the dense product's.
 pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<f64, N> {
     let mut out = SVector::<f64, N>::zeros();
-    for (j, &hj) in h.iter().enumerate() {
+    let columns = &p.data.0;
+    for (j, &hj) in h.as_slice().iter().enumerate() {
         if hj != 0.0 {
-            out.axpy(hj, &p.column(j), 1.0);
+            for (o, &pij) in out.iter_mut().zip(&columns[j]) {
+                *o += hj * pij;
+            }
         }
     }
     out
@@ -166,26 +173,27 @@ pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<
 /// Generic over the dimension: an augmented error state ([`crate::filters::range_bias`]) holds the
 /// 15 INS error states first; the parameter states past them are left to the caller.
 pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
-    x.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
-    let h: Vec3 = 0.5 * dx.fixed_rows::<3>(ATT).into_owned();
+    x.inject(dx);
+    let h = Vec3::new(0.5 * dx[ATT], 0.5 * dx[ATT + 1], 0.5 * dx[ATT + 2]);
     let g: Mat3 = Mat3::identity() - skew(&h);
     // G·P·Gᵀ changes the attitude rows and columns only: column by column, the attitude rows
     // become G·P[δθ, j] (G = [[1, h_z, −h_y], [−h_z, 1, h_x], [h_y, −h_x, 1]], the products and
     // sums of the 3×3 matrix product in its order), mirrored into the attitude columns outside
     // the attitude block (P is symmetric); the attitude block G·P[δθ, δθ]·Gᵀ, made exactly
     // symmetric.
+    let rotate = |b: &[f64]| [b[0] + h.z * b[1] - h.y * b[2], -h.z * b[0] + b[1] + h.x * b[2], h.y * b[0] - h.x * b[1] + b[2]];
     let mut att_rows = Mat3::zeros();
-    for j in 0..N {
-        let (b0, b1, b2) = (p[(ATT, j)], p[(ATT + 1, j)], p[(ATT + 2, j)]);
-        let row = [b0 + h.z * b1 - h.y * b2, -h.z * b0 + b1 + h.x * b2, h.y * b0 - h.x * b1 + b2];
-        if (ATT..ATT + 3).contains(&j) {
-            att_rows.column_mut(j - ATT).copy_from_slice(&row);
-        } else {
-            for (a, v) in row.into_iter().enumerate() {
-                p[(ATT + a, j)] = v;
-                p[(j, ATT + a)] = v;
-            }
+    let entries = p.as_mut_slice();
+    for j in (0..N).filter(|j| !(ATT..ATT + 3).contains(j)) {
+        let row = rotate(&entries[j * N + ATT..j * N + ATT + 3]);
+        entries[j * N + ATT..j * N + ATT + 3].copy_from_slice(&row);
+        for (a, v) in row.into_iter().enumerate() {
+            entries[(ATT + a) * N + j] = v;
         }
+    }
+    for a in 0..3 {
+        let j = (ATT + a) * N + ATT;
+        att_rows.column_mut(a).copy_from_slice(&rotate(&entries[j..j + 3]));
     }
     let mut block = att_rows * g.transpose();
     symmetrize(&mut block);

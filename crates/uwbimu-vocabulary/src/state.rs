@@ -130,14 +130,17 @@ impl NominalState {
     }
 
     /// Injects an error-state correction into the nominal state (Li & Wang 2020 eq. (19),
-    /// Liu et al. 2019 eq. (39)): sums for p, v, biases and `q ← q ⊗ exp(δθ)`.
-    pub fn inject(&mut self, dx: &ErrVec) {
-        self.position += dx.fixed_rows::<3>(POS);
-        self.velocity += dx.fixed_rows::<3>(VEL);
-        let dtheta: Vec3 = dx.fixed_rows::<3>(ATT).into_owned();
-        self.orientation *= crate::math::quat_exp(&dtheta);
-        self.accel_bias += dx.fixed_rows::<3>(BA);
-        self.gyro_bias += dx.fixed_rows::<3>(BG);
+    /// Liu et al. 2019 eq. (39)): sums for p, v, biases and `q ← q ⊗ exp(δθ)`. `dx` holds the
+    /// 15 INS error states in its first rows (`N ≥ ERR_DIM`: an augmented error state's
+    /// parameter rows past them are ignored).
+    pub fn inject<const N: usize>(&mut self, dx: &nalgebra::SVector<f64, N>) {
+        const { assert!(N >= ERR_DIM, "an error state holds the 15 INS error states first") };
+        let row3 = |at: usize| Vec3::new(dx[at], dx[at + 1], dx[at + 2]);
+        self.position += row3(POS);
+        self.velocity += row3(VEL);
+        self.orientation *= crate::math::quat_exp(&row3(ATT));
+        self.accel_bias += row3(BA);
+        self.gyro_bias += row3(BG);
     }
 
     /// The error-state difference `self ⊖ other`: sums for p, v, biases and

@@ -110,41 +110,46 @@ impl KalmanEpoch<'_> {
             *params = params_prior + parameter_rows(&dx);
             return Ok(1);
         }
-        // `p_out` holds the prior until the end; `p_post` is the covariance of the last iterate
-        // after the first iteration.
-        let (mut op, mut p_post, mut params_op) = (prior, None::<Cov<N>>, params_prior);
+        // `p_out` holds the prior until the end. Two covariances take turns: `work` is the
+        // iterate being computed, `last` the previous iterate's posterior (γ is tested against
+        // it after the first iteration, and it is the fallback); they swap places, not contents.
+        let (mut op, mut params_op) = (prior, params_prior);
+        let (mut first, mut second) = (*p_out, *p_out);
+        let (mut work, mut last) = (&mut first, &mut second);
         let mut iterations = 0;
-        // The previous iterate (operating point, covariance, step), to fall back on when the
-        // iteration stops contracting.
-        let mut previous: Option<(NominalState, SVector<f64, N>, Cov<N>, SVector<f64, N>)> = None;
+        // The previous iterate (operating point, parameters, step; its covariance is `last`), to
+        // fall back on when the iteration stops contracting.
+        let mut previous: Option<(NominalState, SVector<f64, N>, SVector<f64, N>)> = None;
         loop {
             iterations += 1;
             let mut dx = params_prior - params_op;
             dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
-            let mut p = *p_out;
-            let against = match &p_post {
-                Some(post) => Against::Covariance(post),
+            if previous.is_some() {
+                work.copy_from(p_out);
+            }
+            let against = match previous {
+                Some(_) => Against::Covariance(last),
                 None if prior_hph => Against::PriorPredicted,
                 None => Against::Covariance(p_out),
             };
-            self.pass(&op, &params_op, &mut dx, &mut p, against, measurements, reports, iterations, &param_h, estimated)?;
+            self.pass(&op, &params_op, &mut dx, work, against, measurements, reports, iterations, &param_h, estimated)?;
             let step = dx.norm();
-            if let Some((mut op_prev, params_prev, mut p_prev, dx_prev)) = previous.filter(|(_, _, _, d)| step > d.norm()) {
+            if let Some((mut op_prev, params_prev, dx_prev)) = previous.filter(|(_, _, d)| step > d.norm()) {
                 // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
                 // to thousands of radians): keep the previous iterate.
-                inject_and_reset(&mut op_prev, &mut p_prev, &dx_prev);
-                (*x, *p_out, *params) = (op_prev, p_prev, params_prev + parameter_rows(&dx_prev));
+                inject_and_reset(&mut op_prev, last, &dx_prev);
+                (*x, *p_out, *params) = (op_prev, *last, params_prev + parameter_rows(&dx_prev));
                 break;
             }
             if iterations >= self.max_iterations || step < self.tolerance {
-                inject_and_reset(&mut op, &mut p, &dx);
-                (*x, *p_out, *params) = (op, p, params_op + parameter_rows(&dx));
+                inject_and_reset(&mut op, work, &dx);
+                (*x, *p_out, *params) = (op, *work, params_op + parameter_rows(&dx));
                 break;
             }
-            previous = Some((op, params_op, p, dx));
-            op.inject(&dx.fixed_rows::<ERR_DIM>(0).into_owned());
+            previous = Some((op, params_op, dx));
+            op.inject(&dx);
             params_op += parameter_rows(&dx);
-            p_post = Some(p);
+            std::mem::swap(&mut work, &mut last);
         }
         Ok(iterations)
     }
