@@ -181,19 +181,22 @@ pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx
     // sums of the 3×3 matrix product in its order), mirrored into the attitude columns outside
     // the attitude block (P is symmetric); the attitude block G·P[δθ, δθ]·Gᵀ, made exactly
     // symmetric.
-    let rotate = |b: &[f64]| [b[0] + h.z * b[1] - h.y * b[2], -h.z * b[0] + b[1] + h.x * b[2], h.y * b[0] - h.x * b[1] + b[2]];
-    let mut att_rows = Mat3::zeros();
-    let entries = p.as_mut_slice();
-    for j in (0..N).filter(|j| !(ATT..ATT + 3).contains(j)) {
-        let row = rotate(&entries[j * N + ATT..j * N + ATT + 3]);
-        entries[j * N + ATT..j * N + ATT + 3].copy_from_slice(&row);
+    let rotate = |b: [f64; 3]| [b[0] + h.z * b[1] - h.y * b[2], -h.z * b[0] + b[1] + h.x * b[2], h.y * b[0] - h.x * b[1] + b[2]];
+    let columns = &mut p.data.0;
+    let mut reset_column = |j: usize| {
+        let col = &mut columns[j];
+        let row = rotate([col[ATT], col[ATT + 1], col[ATT + 2]]);
+        col[ATT..ATT + 3].copy_from_slice(&row);
         for (a, v) in row.into_iter().enumerate() {
-            entries[(ATT + a) * N + j] = v;
+            columns[ATT + a][j] = v;
         }
-    }
+    };
+    (0..ATT).for_each(&mut reset_column);
+    (ATT + 3..N).for_each(&mut reset_column);
+    let mut att_rows = Mat3::zeros();
     for a in 0..3 {
-        let j = (ATT + a) * N + ATT;
-        att_rows.column_mut(a).copy_from_slice(&rotate(&entries[j..j + 3]));
+        let col = &columns[ATT + a];
+        att_rows.column_mut(a).copy_from_slice(&rotate([col[ATT], col[ATT + 1], col[ATT + 2]]));
     }
     let mut block = att_rows * g.transpose();
     symmetrize(&mut block);
