@@ -143,8 +143,8 @@ impl Transition {
     /// parameter states, [`crate::filters::range_bias`]) by the non-zero blocks of Φ (no dense 15×15 product).
     pub fn apply_rows<const C: usize>(&self, m: &SMatrix<f64, ERR_DIM, C>) -> SMatrix<f64, ERR_DIM, C> {
         let mut out = *m;
-        for i in 0..5 {
-            out.fixed_rows_mut::<3>(3 * i).copy_from(&self.block_row(i, |k| m.fixed_rows::<3>(3 * k).into_owned()));
+        for column in out.data.0.iter_mut() {
+            *column = self.times_column(column);
         }
         out
     }
@@ -153,14 +153,19 @@ impl Transition {
     /// `columns` (the others are left as they are: a cross-covariance's unused parameter slots,
     /// which stay zero), each column by the non-zero blocks of Φ (no dense 15×15 product).
     pub fn apply_columns<const C: usize>(&self, m: &mut SMatrix<f64, ERR_DIM, C>, columns: u64) {
-        for c in (0..C).filter(|&c| columns >> c & 1 == 1) {
-            // Block row i of Φ reads blocks i and below only, so each can be written in place in
-            // order.
-            for i in 0..5 {
-                let rows = self.block_row(i, |k| m.fixed_view::<3, 1>(3 * k, c).into_owned());
-                m.fixed_view_mut::<3, 1>(3 * i, c).copy_from(&rows);
-            }
+        for (_, column) in m.data.0.iter_mut().enumerate().filter(|&(c, _)| columns >> c & 1 == 1) {
+            *column = self.times_column(column);
         }
+    }
+
+    /// `Φ·v` for one column of 15 rows, block row by block row ([`Transition::block_row`]).
+    fn times_column(&self, v: &[f64; ERR_DIM]) -> [f64; ERR_DIM] {
+        let mut out = [0.0; ERR_DIM];
+        for i in 0..5 {
+            let rows = self.block_row(i, |k| Vec3::new(v[3 * k], v[3 * k + 1], v[3 * k + 2]));
+            out[3 * i..3 * i + 3].copy_from_slice(rows.as_slice());
+        }
+        out
     }
 
     /// `Φ·P·Φᵀ + Q` (Li & Wang 2020 eq. (9), Liu et al. 2019 eq. (18)) on the 3×3 blocks of `P`

@@ -12,19 +12,22 @@
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
 //! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
-//! uses dense 15×15 products, but for `Φ·P`, taken by Φ's blocks. Memory: the record (0.2 kB per
+//! uses dense 15×15 products (the factorisations on column arrays, `dense`), but for `Φ·P`, taken by Φ's blocks. Memory: the record (0.2 kB per
 //! segment, 1.1 kB per checkpoint), one run of posteriors (at most
 //! [`crate::filters::CHECKPOINT_EVERY`]) and, per smoothed node, the state and the position block;
 //! the full smoothed covariance lives only from one node to the next.
 
 use uwbimu_vocabulary::config::InsConfig;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{symmetrize, Mat3};
+use uwbimu_vocabulary::math::Mat3;
 use uwbimu_vocabulary::state::{ErrCov, NominalState, POS};
 
 use crate::filters::{Checkpoint, Segment, SmoothingRecord, CHECKPOINT_EVERY};
 use crate::ins::{propagate_nominal, ProcessNoise, Transition};
 use crate::robust::fade_position_velocity;
+use dense::{cholesky_lower, plus_congruence, solve_right};
+
+mod dense;
 
 /// Segments smoothed between two looks at the stop flag of [`rts_smooth`].
 const STOP_CHECK_SEGMENTS: usize = 1024;
@@ -166,13 +169,13 @@ fn smooth_segment(
             (propagate_nominal(x, &seg.interval, ins), p_pred)
         }
     };
-    let chol = p_pred.cholesky().ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
-    // Cᵀ = (P⁻)⁻¹·Φ·P, since P and P⁻ are symmetric.
-    let gain = chol.solve(&phi.apply_rows(p)).transpose();
+    let factor = cholesky_lower(&p_pred).ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
+    // C = P·Φᵀ·(P⁻)⁻¹ solves C·P⁻ = (Φ·P)ᵀ, since P is symmetric.
+    let mut gain = phi.apply_rows(p).transpose();
+    solve_right(&factor, &mut gain);
     let mut state = *x;
     state.inject(&(gain * next.0.boxminus(&x_pred)));
-    let mut covariance = p + gain * (next.1 - p_pred) * gain.transpose();
-    symmetrize(&mut covariance);
+    let covariance = plus_congruence(p, &gain, &(next.1 - p_pred));
     Ok((state, covariance))
 }
 
