@@ -153,8 +153,10 @@ impl Transition {
     /// `columns` (the others are left as they are: a cross-covariance's unused parameter slots,
     /// which stay zero), each column by the non-zero blocks of Φ (no dense 15×15 product).
     pub fn apply_columns<const C: usize>(&self, m: &mut SMatrix<f64, ERR_DIM, C>, columns: u64) {
-        for (_, column) in m.data.0.iter_mut().enumerate().filter(|&(c, _)| columns >> c & 1 == 1) {
-            *column = self.times_column(column);
+        for (c, column) in m.data.0.iter_mut().enumerate() {
+            if columns >> c & 1 == 1 {
+                *column = self.times_column(column);
+            }
         }
     }
 

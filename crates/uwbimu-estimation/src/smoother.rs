@@ -12,8 +12,8 @@
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
 //! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
-//! uses dense 15×15 products (the factorisations on column arrays, `dense`), but for `Φ·P`, taken by Φ's blocks. Memory: the record (0.2 kB per
-//! segment, 1.1 kB per checkpoint), one run of posteriors (at most
+//! uses dense 15×15 products on column arrays (`dense`), but for `Φ·P`, taken by Φ's blocks.
+//! Memory: the record (0.2 kB per segment, 1.1 kB per checkpoint), one run of posteriors (at most
 //! [`crate::filters::CHECKPOINT_EVERY`]) and, per smoothed node, the state and the position block;
 //! the full smoothed covariance lives only from one node to the next.
 

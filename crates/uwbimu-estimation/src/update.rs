@@ -3,7 +3,7 @@
 
 use nalgebra::SVector;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{skew, symmetrize, Cov, Mat3, Vec3};
+use uwbimu_vocabulary::math::{add_scaled, skew, symmetrize, Cov, Mat3, Vec3};
 use uwbimu_vocabulary::state::{ErrCov, ErrVec, NominalState, ATT, ERR_DIM};
 
 /// What happened to one measurement: a typed form of what the filter decided.
@@ -126,13 +126,10 @@ pub fn schmidt_step<const N: usize>(
         // product per entry, `u_i·u_j` the same in (i, j) and (j, i), so P stays exactly
         // symmetric. A column whose `u_j` is zero (a state the measurement is uncorrelated with,
         // such as an unused parameter slot) would only subtract zeros: skipped.
-        let u = c / s.sqrt();
-        let u_all = u.as_slice();
-        for (j, &uj) in u_all.iter().enumerate() {
+        let u = (c / s.sqrt()).data.0[0];
+        for (j, &uj) in u.iter().enumerate() {
             if uj != 0.0 {
-                for (pij, &ui) in columns[j].iter_mut().zip(u_all) {
-                    *pij -= ui * uj;
-                }
+                add_scaled(&mut columns[j], -uj, &u);
             }
         }
     } else {
@@ -154,16 +151,13 @@ pub fn schmidt_step<const N: usize>(
 /// `P·h` over the non-zero entries of `h` only (a range Jacobian has 6 of 15): the columns of `P`
 /// are added in the order the dense product adds them, so the result is the dense product's.
 pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<f64, N> {
-    let mut out = SVector::<f64, N>::zeros();
-    let columns = &p.data.0;
-    for (j, &hj) in h.as_slice().iter().enumerate() {
+    let mut out = [0.0; N];
+    for (column, &hj) in p.data.0.iter().zip(h.as_slice()) {
         if hj != 0.0 {
-            for (o, &pij) in out.iter_mut().zip(&columns[j]) {
-                *o += hj * pij;
-            }
+            add_scaled(&mut out, hj, column);
         }
     }
-    out
+    SVector::from(out)
 }
 
 /// Injects δx into the nominal state (Li & Wang 2020 eq. (19), Liu et al. 2019 eq. (40)) and applies the reset

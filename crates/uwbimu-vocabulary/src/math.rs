@@ -30,6 +30,14 @@ pub fn all_finite(values: impl IntoIterator<Item = f64>) -> bool {
     values.into_iter().fold(0.0, |acc, v| acc + v * 0.0) == 0.0
 }
 
+/// `out ← out + a·column` over a whole column of a matrix's column arrays (an axpy the compiler
+/// vectorises: the length is known).
+pub fn add_scaled<const N: usize>(out: &mut [f64; N], a: f64, column: &[f64; N]) {
+    for (o, &c) in out.iter_mut().zip(column) {
+        *o += a * c;
+    }
+}
+
 /// Replaces `m` by `(m + mᵀ)/2`, removing round-off asymmetry from a covariance.
 pub fn symmetrize<const N: usize>(m: &mut Cov<N>) {
     for i in 0..N {

@@ -4,7 +4,7 @@
 //! of a contiguous column, so the loops vectorise; nalgebra's generic ones step through one
 //! scalar at a time.
 
-use uwbimu_vocabulary::math::{symmetrize, Cov};
+use uwbimu_vocabulary::math::{add_scaled, symmetrize, Cov};
 
 /// The lower Cholesky factor `L` of the symmetric positive-definite `a` (`a = L·Lᵀ`, read from
 /// its lower triangle; the strict upper triangle of `L` is zero), column by column (left-looking):
@@ -44,14 +44,14 @@ pub fn solve_right<const N: usize>(l: &Cov<N>, b: &mut Cov<N>) {
     for k in 0..N {
         let mut w = columns[k];
         for (i, column) in columns[..k].iter().enumerate() {
-            subtract_scaled(&mut w, factor[i][k], column);
+            add_scaled(&mut w, -factor[i][k], column);
         }
         columns[k] = w.map(|v| v / factor[k][k]);
     }
     for k in (0..N).rev() {
         let mut x = columns[k];
         for (i, column) in columns.iter().enumerate().skip(k + 1) {
-            subtract_scaled(&mut x, factor[k][i], column);
+            add_scaled(&mut x, -factor[k][i], column);
         }
         columns[k] = x.map(|v| v / factor[k][k]);
     }
@@ -62,29 +62,18 @@ pub fn solve_right<const N: usize>(l: &Cov<N>, b: &mut Cov<N>) {
 pub fn plus_congruence<const N: usize>(p: &Cov<N>, c: &Cov<N>, d: &Cov<N>) -> Cov<N> {
     let mut m = Cov::<N>::zeros();
     for (m_j, d_j) in m.data.0.iter_mut().zip(&d.data.0) {
-        let mut column = [0.0; N];
         for (c_k, &d_kj) in c.data.0.iter().zip(d_j) {
-            subtract_scaled(&mut column, -d_kj, c_k);
+            add_scaled(m_j, d_kj, c_k);
         }
-        *m_j = column;
     }
     let mut out = *p;
     for (j, out_j) in out.data.0.iter_mut().enumerate() {
-        let mut column = *out_j;
         for (m_k, c_k) in m.data.0.iter().zip(&c.data.0) {
-            subtract_scaled(&mut column, -c_k[j], m_k);
+            add_scaled(out_j, c_k[j], m_k);
         }
-        *out_j = column;
     }
     symmetrize(&mut out);
     out
-}
-
-/// `out ← out − a·column`.
-fn subtract_scaled<const N: usize>(out: &mut [f64; N], a: f64, column: &[f64; N]) {
-    for (o, &c) in out.iter_mut().zip(column) {
-        *o -= a * c;
-    }
 }
 
 #[cfg(test)]
