@@ -16,6 +16,7 @@ import argparse
 import sys
 import tomllib
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import polars as pl
@@ -101,6 +102,37 @@ def row(name: str, imu, ranges, anchors, truth, config: dict, aligned: bool) -> 
     return f"| {name} | {chosen} | {score} | " + " | ".join(cells) + " |"
 
 
+def rig_runs(rigs: list[str], seeds: list[int]):
+    """`(label, imu, ranges, anchors, truth, config)` of each rig and seed: the zoo scenario (or
+    preset, or one of RATES) with the rig's errors added to its ranges, and the rig's mounting (a
+    preset's whole configuration)."""
+    for rig in rigs:
+        scenario, _, kind = rig.partition("+")
+        scenario, overrides = RATES.get(scenario, (scenario, {}))
+        for seed in seeds:
+            zoo = scenario in sim.ZOO_NAMES
+            run = (
+                sim.zoo(cast(sim.ZooName, scenario), seed=seed, **overrides)
+                if zoo
+                else sim.preset(cast(sim.PresetName, scenario), seed=seed)
+            )
+            config = {"mounting": run.config["mounting"]} if zoo else dict(run.config)
+            ranges = added_errors(run.ranges, len(run.anchors), kind, seed)
+            yield f"{rig} s{seed}", run.imu, ranges, run.anchors, run.truth, config
+
+
+def isas_walk1():
+    """`(imu, ranges, anchors, truth)` of isas-walk1, or None (said on stderr) when ../shared is absent."""
+    if not (ISAS / "isas-walk1.mcap").exists():
+        print(f"skipped isas-walk1: {ISAS} is not present", file=sys.stderr)
+        return None
+    mapping = tomllib.loads((ROOT / "examples" / "isas-walk1.toml").read_text())["mapping"]
+    mapping["ground_truth"] = {"file": str(ISAS / "gt_anchor_frame.csv")}
+    d = uwbimu_rs.read_mcap(ISAS / "isas-walk1.mcap", mapping=mapping)
+    imu, anchors = d["imu"].to_numpy(), d["anchors"].select("x", "y", "z").to_numpy()
+    return imu, d["ranges"].select("t", "anchor", "range").to_numpy(), anchors, d["ground_truth"]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="*", default=[25, 26])
@@ -108,24 +140,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     print("| rig | `best` chose | held-out score plain → chosen (m) | forward off → on | smoothed off → on |")
     print("|---|---|---|---|---|")
-    for rig in args.rigs:
-        scenario, _, kind = rig.partition("+")
-        scenario, overrides = RATES.get(scenario, (scenario, {}))
-        for seed in args.seeds:
-            zoo = scenario in sim.ZOO_NAMES
-            run = sim.zoo(scenario, seed=seed, **overrides) if zoo else sim.preset(scenario, seed=seed)
-            config = {"mounting": run.config["mounting"]} if zoo else dict(run.config)
-            ranges = added_errors(run.ranges, len(run.anchors), kind, seed)
-            print(row(f"{rig} s{seed}", run.imu, ranges, run.anchors, run.truth, config, aligned=False), flush=True)
-    if not (ISAS / "isas-walk1.mcap").exists():
-        print(f"skipped isas-walk1: {ISAS} is not present", file=sys.stderr)
-        return 0
-    mapping = tomllib.loads((ROOT / "examples" / "isas-walk1.toml").read_text())["mapping"]
-    mapping["ground_truth"] = {"file": str(ISAS / "gt_anchor_frame.csv")}
-    d = uwbimu_rs.read_mcap(ISAS / "isas-walk1.mcap", mapping=mapping)
-    imu, anchors = d["imu"].to_numpy(), d["anchors"].select("x", "y", "z").to_numpy()
-    ranges = d["ranges"].select("t", "anchor", "range").to_numpy()
-    print(row("isas-walk1 (aligned)", imu, ranges, anchors, d["ground_truth"], {}, aligned=True))
+    for name, imu, ranges, anchors, truth, config in rig_runs(args.rigs, args.seeds):
+        print(row(name, imu, ranges, anchors, truth, config, aligned=False), flush=True)
+    walk = isas_walk1()
+    if walk is not None:
+        imu, ranges, anchors, truth = walk
+        print(row("isas-walk1 (aligned)", imu, ranges, anchors, truth, {}, aligned=True))
     return 0
 
 

@@ -36,6 +36,8 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("constraints.outage_zupt_after_s", "the rig has no UWB outage"),
     ("model_selection.enabled", "the selection keeps the input configuration on this rig"),
     ("model_selection.window_s", "the selection keeps the input configuration on this rig"),
+    ("smoothing.outlier_passes", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
+    ("smoothing.outlier_sigmas", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
 ];
 
 /// Settings a key needs to act, set in both runs: the bias parameters act only with bias states,

@@ -178,22 +178,11 @@ fn planar_filters_hold_on_the_tilted_handheld_imu() {
 #[test]
 fn range_biases_from_the_log_with_and_without_ground_truth() {
     use uwbimu_rs::app::calibrate::{calibrate_with_truth, calibrate_without_truth};
-    use uwbimu_rs::app::methods::BatchInput;
     use uwbimu_rs::vocabulary::config::FilterConfig;
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = FilterConfig::default();
-    let input = BatchInput {
-        imu: &rec.imu,
-        ranges: &rec.ranges,
-        anchors: &rec.anchors,
-        initial: None,
-        config: &defaults,
-        smooth: true,
-        mag: &[],
-        tdoa: &[],
-        progress: None,
-    };
+    let input = common::recording_batch(&rec, &defaults, true);
     let with = calibrate_with_truth(&input, &truth).unwrap();
     let without = calibrate_without_truth(&input, Method::Riekf, 8).unwrap();
     let mut worst = 0.0f64;

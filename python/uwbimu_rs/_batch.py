@@ -91,7 +91,9 @@ def run_filter(
         Add position covariance columns ``cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz`` [m²].
     smooth : bool, optional
         Return the Rauch–Tung–Striebel smoothed estimates (same columns) instead of the filtered
-        ones (None: only for ``"best"``) (inertial methods only; the updates frame stays the forward pass's).
+        ones (None: only for ``"best"``) (inertial methods only; the updates frame stays the forward
+        pass's — with ``smoothing.outlier_passes``, on by default in ``"best"``, that of the last
+        pass, without the ranges the robust smoothing left out).
     mag : numpy.ndarray, shape (N, 4), optional
         Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
         only ``ackf`` uses them (geomagnetic aiding of the ACKF paper), other methods raise ValueError.

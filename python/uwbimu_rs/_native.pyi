@@ -336,7 +336,9 @@ class _StreamingFilter:
         polars.DataFrame
             The columns of :func:`uwbimu_rs.run_filter`'s frame (t, x, y, z, vx, vy, vz, qw, qx, qy,
             qz, std_x, std_y, std_z, still, status), one row per propagation start (each IMU
-            sample and each epoch time between samples) plus the current time."""
+            sample and each epoch time between samples) plus the current time. The plain RTS
+            pass: the batch ``best``'s robust smoothing (``smoothing.outlier_passes``) needs the
+            whole log again."""
 
     def add_imu(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]:
         """Take the IMU sample at time ``t``.

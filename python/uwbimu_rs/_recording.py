@@ -141,7 +141,9 @@ def replay(
         CLI's ``--json`` summary: ``method``, ``smoothed`` (bool: the trajectory is
         RTS-smoothed), ``duration_s``, ``n_imu``, ``n_ranges``, ``n_tdoa``, ``n_ground_truth``,
         ``truncated_bytes`` (bytes lost at the end of a file cut before its footer), ``anchors`` (per anchor: id, accepted, down_weighted, rejected, for the ranges),
-        ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis`` and,
+        ``tdoa`` (the same counts for the TDoA, when the recording has any), ``mean_nis``,
+        ``smoothing_left_out`` (ranges the robust smoothing of a smoothed ``best`` left out;
+        the anchor counts are those of its last pass), ``model`` (``best``'s choice) and,
         with ground truth, ``rmse_steps``, ``rmse_horizontal_m``,
         ``rmse_horizontal_aligned_m``, ``rmse_3d_m``, ``rmse_3d_aligned_m`` (m; rigid SE(3)
         alignment); plus ``stats`` (as :func:`read_mcap`), ``health`` and ``warnings``.

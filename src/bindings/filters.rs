@@ -479,8 +479,9 @@ macro_rules! py_filter {
             /// RTS-smooths everything seen so far (needs ``record=True``): a polars DataFrame
             /// with the columns of ``run_filter``'s frame (``t, x, y, z, vx, vy, vz, qw, qx, qy,
             /// qz, std_x, std_y, std_z, still, status``), one row per propagation start (each
-            /// IMU sample and each epoch time between samples) plus the current time. Releases
-            /// the GIL.
+            /// IMU sample and each epoch time between samples) plus the current time. The plain
+            /// RTS pass: the batch `best`'s robust smoothing (`smoothing.outlier_passes`) needs
+            /// the whole log again. Releases the GIL.
             fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
                 let core = self.estimator("smooth")?.core();
                 let steps = py.detach(|| smoothed_nodes(core))?;
@@ -839,7 +840,8 @@ fn init_info_items(d: &Bound<'_, PyDict>, s: &SelfInit) -> PyResult<()> {
 }
 
 /// What a run or stream counted, as a dict: `rejected` ({gate kind: count}), `numerical_repairs`,
-/// `ranges_before_start`, `reordered`, `late_dropped`.
+/// `ranges_before_start`, `reordered`, `late_dropped`, `smoothing_left_out` (a smoothed batch
+/// run's robust smoothing; 0 for a stream).
 pub(super) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let rejected = PyDict::new(py);
@@ -851,6 +853,7 @@ pub(super) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'p
     d.set_item("ranges_before_start", h.ranges_before_start)?;
     d.set_item("reordered", h.reordered)?;
     d.set_item("late_dropped", h.late_dropped)?;
+    d.set_item("smoothing_left_out", h.smoothing_left_out)?;
     Ok(d)
 }
 

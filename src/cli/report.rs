@@ -151,6 +151,13 @@ fn stats_lines(
     if let Some(m) = &summary.model {
         writeln!(out, "model: {}", m.reason)?;
     }
+    if summary.smoothing_left_out > 0 {
+        writeln!(
+            out,
+            "robust smoothing: {} ranges left out, far longer than the smoothed track predicts",
+            summary.smoothing_left_out
+        )?;
+    }
     match summary.mean_nis {
         Some(n) => writeln!(out, "mean NIS: {n:.3} (1 for a consistent filter)")?,
         None => writeln!(out, "mean NIS: -")?,

@@ -3,6 +3,7 @@
 
 pub mod figures;
 
+use uwbimu_rs::app::io::Recording;
 use uwbimu_rs::app::methods::BatchInput;
 use uwbimu_rs::app::sim::{SimConfig, SimData};
 use uwbimu_rs::estimation::pipeline::StepRecord;
@@ -18,6 +19,21 @@ pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &
         initial,
         config,
         smooth: false,
+        mag: &[],
+        tdoa: &[],
+        progress: None,
+    }
+}
+
+/// The batch input over a recording read from its file: ranges only, forward pass unless `smooth`.
+pub fn recording_batch<'a>(rec: &'a Recording, config: &'a FilterConfig, smooth: bool) -> BatchInput<'a> {
+    BatchInput {
+        imu: &rec.imu,
+        ranges: &rec.ranges,
+        anchors: &rec.anchors,
+        initial: None,
+        config,
+        smooth,
         mag: &[],
         tdoa: &[],
         progress: None,

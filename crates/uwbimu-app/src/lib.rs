@@ -12,6 +12,7 @@ pub mod io;
 pub mod methods;
 pub mod metrics;
 pub mod offsets;
+pub mod outlier_smoothing;
 pub mod parallel;
 #[cfg(feature = "io")]
 pub mod replay;

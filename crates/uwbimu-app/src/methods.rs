@@ -7,11 +7,12 @@ use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
 use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, Progress, StepRecord, Streams, Trace};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_estimation::units::check_imu_units;
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
 
+use crate::outlier_smoothing::{mark_long_ranges, ResidualWalk};
 use crate::select::ModelChoice;
 
 /// What a method takes besides IMU samples.
@@ -171,6 +172,7 @@ macro_rules! methods {
         let kind = crate::replay::streamed::FilterKind {
             build: uwbimu_estimation::filters::$ty::new,
             core: |f: &mut uwbimu_estimation::filters::$ty| Some(f.core_mut()),
+            smoothing: |f: &uwbimu_estimation::filters::$ty| f.config().smoothing,
         };
         crate::replay::streamed::run($method, $input, &kind, $on_step)
     }};
@@ -178,6 +180,7 @@ macro_rules! methods {
         let kind = crate::replay::streamed::FilterKind {
             build: |anchors, initial, config| PlanarFilter::new(PlanarKind::$kind, anchors, initial, &config),
             core: |_: &mut PlanarFilter| None,
+            smoothing: |_: &PlanarFilter| SmoothingConfig::default(),
         };
         crate::replay::streamed::run($method, $input, &kind, $on_step)
     }};
@@ -468,14 +471,53 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
-fn run_inertial<F: InertialFilter>(
-    build: impl FnOnce(&InitialState) -> Result<F>,
+/// A smoothed run whose filter runs with `smoothing.outlier_passes` > 0 then leaves out the ranges
+/// its smoothed track calls NLOS and runs again (initialised as a log without them would be),
+/// until no range is added or the passes are spent ([`crate::outlier_smoothing`]); it returns
+/// the last complete pass (the one before, if a log without them cannot start), with the ranges
+/// left out counted in its health.
+fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    let warnings = check_imu_units(input.imu)?;
+    let (initial, mut init) = initial_state(input)?;
+    let (mut trace, mut smoothed, smoothing) = run_pass(&build, &initial, input)?;
+    let passes = smoothing.outlier_passes.unwrap_or(0);
+    let mut left_out = vec![false; if passes > 0 { input.ranges.len() } else { 0 }];
+    let quiet = input.progress.map(Progress::sharing_cancel);
+    for _ in 0..passes {
+        let Some(steps) = smoothed.as_deref() else { break };
+        let mut walk = ResidualWalk::new(input.ranges, input.anchors, input.config.mounting.lever_arm);
+        steps.iter().for_each(|s| walk.push(s));
+        if mark_long_ranges(&walk.finish(), input.ranges, smoothing.outlier_sigmas, &mut left_out) == 0 {
+            break;
+        }
+        let kept: Vec<RangeMeasurement> = input.ranges.iter().zip(&left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
+        let again_input = BatchInput { ranges: &kept, progress: quiet.as_ref(), ..*input };
+        // A log that cannot start without the ranges left out keeps the pass before.
+        let again = initial_state(&again_input)
+            .and_then(|(initial, init)| run_pass(&build, &initial, &again_input).map(|pass| (pass, init)));
+        let ((again, again_smoothed, _), again_init) = match again {
+            Err(Error::InsufficientData(_)) => break,
+            other => other?,
+        };
+        if again_smoothed.is_none() || quiet.as_ref().is_some_and(Progress::cancelled) {
+            break;
+        }
+        (trace, smoothed, init) = (again, again_smoothed, again_init);
+        trace.health.smoothing_left_out = input.ranges.len() - kept.len();
+    }
+    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
+}
+
+/// One pass of [`run_inertial`] from `initial`: the forward run, its RTS-smoothed steps when
+/// smoothing was asked for (None when the run was cancelled), and the smoothing settings the
+/// filter runs with (its composition's where the configuration leaves them unset).
+fn run_pass<F: InertialFilter>(
+    build: &impl Fn(&InitialState) -> Result<F>,
+    initial: &InitialState,
     input: &BatchInput<'_>,
-) -> Result<BatchOutput> {
+) -> Result<(Trace, Option<Vec<StepRecord>>, SmoothingConfig)> {
     let BatchInput { imu, ranges, smooth, mag, tdoa, progress, .. } = *input;
-    let warnings = check_imu_units(imu)?;
-    let (initial, init) = initial_state(input)?;
-    let mut filter = build(&initial)?;
+    let mut filter = build(initial)?;
     if smooth {
         filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
     }
@@ -493,7 +535,7 @@ fn run_inertial<F: InertialFilter>(
     } else {
         None
     };
-    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
+    Ok((trace, smoothed, filter.config().smoothing))
 }
 
 #[cfg(test)]

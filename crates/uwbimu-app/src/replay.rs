@@ -100,6 +100,10 @@ impl Replay {
                 BatchOutput::Inertial { model: Some(m), .. } => Some(ModelSummary::of(m)),
                 _ => None,
             },
+            smoothing_left_out: match &self.output {
+                BatchOutput::Inertial { trace, .. } => trace.health.smoothing_left_out,
+                BatchOutput::Multilateration(_) => 0,
+            },
             rmse,
         })
     }
@@ -136,6 +140,10 @@ pub struct ReplaySummary {
     /// What the method chose on the log ([`crate::select`]; `best` only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub model: Option<ModelSummary>,
+    /// Ranges the robust smoothing left out as far longer than the smoothed track predicts
+    /// (`smoothing.outlier_passes`, [`crate::outlier_smoothing`]; 0 for a forward run). The
+    /// per-anchor counts are those of the last pass, which did not see them.
+    pub smoothing_left_out: usize,
     /// The errors against ground truth (only with ground truth; its keys sit at the top level).
     #[serde(flatten)]
     pub rmse: Option<TruthRmse>,

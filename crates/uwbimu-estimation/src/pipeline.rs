@@ -81,6 +81,9 @@ pub struct Health {
     pub reordered: usize,
     /// Streamed measurements older than the reorder window allows (dropped).
     pub late_dropped: usize,
+    /// Ranges a smoothed batch run left out as far longer than its smoothed track predicts, and
+    /// ran again without (`smoothing.outlier_passes`, `uwbimu_app::outlier_smoothing`).
+    pub smoothing_left_out: usize,
 }
 
 /// One applied range or TDoA and what the filter did with it.

@@ -20,9 +20,10 @@ use crate::math::{Quat, Vec3};
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
 pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig, ModelSelectionConfig,
-    MountingConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, UnscentedConfig,
-    DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M,
-    MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
+    MountingConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, SmoothingConfig,
+    UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M,
+    DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY,
+    MAX_ZUPT_WINDOW,
 };
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
@@ -59,6 +60,8 @@ pub struct FilterConfig {
     pub range_bias: RangeBiasConfig,
     /// What `best` chooses on the log.
     pub model_selection: ModelSelectionConfig,
+    /// Robust smoothing of the batch runs.
+    pub smoothing: SmoothingConfig,
     /// Sage–Husa estimator settings (Liu et al. 2019 eqs. (26)–(36)); the method chooses the variant.
     pub sage_husa: SageHusaSection,
     /// Unscented transform.
@@ -95,6 +98,7 @@ macro_rules! for_each_section {
             { let $s = $($r)+ c.adaptive; $body },
             { let $s = $($r)+ c.range_bias; $body },
             { let $s = $($r)+ c.model_selection; $body },
+            { let $s = $($r)+ c.smoothing; $body },
             { let $s = $($r)+ c.sage_husa; $body },
             { let $s = $($r)+ c.unscented; $body },
             { let $s = $($r)+ c.planar; $body },

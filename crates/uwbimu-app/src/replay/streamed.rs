@@ -23,7 +23,7 @@ use std::path::Path;
 use uwbimu_estimation::filters::{Checkpoint, InertialCore, Segment, SmoothingRecord, CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
 use uwbimu_estimation::smoother::{rts_smooth_backward, SmoothedNode};
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, Observation, RangeMeasurement, TdoaMeasurement};
@@ -34,6 +34,7 @@ use crate::io::spill::Spill;
 use crate::io::{stream_recording_file, IoResult as Result, Mapping, RecordItem, RecordingSurvey};
 use crate::methods::{BatchInput, Method};
 use crate::metrics::TruthErrors;
+use crate::outlier_smoothing::{mark_long_ranges, ResidualWalk};
 use crate::select::ModelChoice;
 
 /// What [`replay_streamed`] is given besides the method.
@@ -101,6 +102,7 @@ impl StreamedReplay {
             tdoa: self.tdoa.clone(),
             mean_nis: self.mean_nis,
             model: self.model.as_ref().map(ModelSummary::of),
+            smoothing_left_out: self.health.smoothing_left_out,
             rmse: self.rmse,
         }
     }
@@ -267,10 +269,25 @@ impl Prefix {
     }
 }
 
+/// Where a replay's output steps go, in time order.
+type StepSink<'f> = &'f mut dyn FnMut(&StepRecord) -> Result<()>;
+
 /// Where the steps go: straight out (forward), or to a file for the RTS pass (smoothed).
 enum StepsOut<'f> {
-    Forward { on_step: &'f mut dyn FnMut(&StepRecord) -> Result<()>, truth: Box<TruthMatch<'f>> },
+    Forward { on_step: StepSink<'f>, truth: Box<TruthMatch<'f>> },
     Spilled(Box<Spills>),
+}
+
+impl StepsOut<'_> {
+    /// The temporary files of a smoothed run, created in `dir`.
+    fn spilled(dir: &Path) -> Result<Self> {
+        Ok(Self::Spilled(Box::new(Spills {
+            steps: Spill::create(dir, "forward steps")?,
+            segments: Spill::create(dir, "smoothing segments")?,
+            checkpoints: Spill::create(dir, "smoothing checkpoints")?,
+            truth: Spill::create(dir, "ground truth")?,
+        })))
+    }
 }
 
 /// The temporary files of a smoothed run: the forward steps, the smoothing record (segments and
@@ -363,6 +380,9 @@ pub(crate) struct FilterKind<E> {
     pub build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_vocabulary::error::Result<E>,
     /// Its INS core, to record and smooth.
     pub core: fn(&mut E) -> Option<&mut InertialCore>,
+    /// The smoothing settings it runs with (its composition's where the configuration leaves
+    /// them unset).
+    pub smoothing: fn(&E) -> SmoothingConfig,
 }
 
 /// The state of a run while the events stream past.
@@ -559,8 +579,12 @@ fn smooth_spilled(
 /// Replays the recording of `input` through `method` (an inertial or planar filter) as the
 /// whole-recording replay does, reading the file once more and handing each output step to
 /// `on_step` in time order: the forward step as soon as the events at its time are in, or, when
-/// smoothing, the smoothed steps after the RTS pass. When the progress's cancel flag is raised the
-/// run stops after the current event and hands on the forward steps so far (not smoothed).
+/// smoothing, the smoothed steps after the RTS pass. A smoothed run whose filter runs with
+/// `smoothing.outlier_passes` > 0 reads the file again without the ranges its smoothed track
+/// calls NLOS, as the batch runner does ([`crate::outlier_smoothing`]), and hands on the last
+/// pass; it keeps the ranges (24 B each) in memory meanwhile. When the progress's cancel flag is
+/// raised the run stops after the current event and hands on the forward steps so far (not
+/// smoothed).
 ///
 /// # Errors
 /// As [`crate::methods::run_method`] and the file's read; [`crate::io::IoError::Io`] when the
@@ -581,19 +605,96 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         .into());
     };
     input.config.range_calibration.check_anchors(survey.anchors.positions.len())?;
-    let dir = input.spill_dir;
-    let out = if input.smooth {
-        StepsOut::Spilled(Box::new(Spills {
-            steps: Spill::create(dir, "forward steps")?,
-            segments: Spill::create(dir, "smoothing segments")?,
-            checkpoints: Spill::create(dir, "smoothing checkpoints")?,
-            truth: Spill::create(dir, "ground truth")?,
-        }))
-    } else {
+    if !input.smooth {
         let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
-        StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) }
-    };
-    let choosing = method.chooses_its_model() && input.config.model_selection.enabled;
+        let out = StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) };
+        return run_pass(method, input, kind, imu_span_s, out, &mut RangesOfPass::default(), None)?.finish(survey, None);
+    }
+    let mut ranges = RangesOfPass { kept: Some(Vec::new()), left_out: Vec::new(), seen: 0 };
+    let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None)?;
+    pass.smooth(input, kind.core)?;
+    let (all, mut left_out) = (ranges.kept.take().unwrap_or_default(), vec![false; ranges.seen]);
+    let smoothing = pass.stream.estimator().map(kind.smoothing);
+    let quiet = input.progress.map(Progress::sharing_cancel);
+    for _ in 0..smoothing.and_then(|s| s.outlier_passes).unwrap_or(0) {
+        let (Some(smoothing), Some(smoothed)) = (smoothing, pass.smoothed.as_mut()) else { break };
+        let mut walk = ResidualWalk::new(&all, &survey.anchors.positions, input.config.mounting.lever_arm);
+        // Kept newest first, the smoothed steps come back oldest first.
+        for v in smoothed.newest_first()? {
+            walk.push(&step_from_flat(&v?));
+        }
+        if mark_long_ranges(&walk.finish(), &all, smoothing.outlier_sigmas, &mut left_out) == 0 {
+            break;
+        }
+        let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
+        let mut again_ranges = RangesOfPass { kept: None, left_out: left_out.clone(), seen: 0 };
+        let out = StepsOut::spilled(input.spill_dir)?;
+        // A log that cannot start without the ranges left out keeps the pass before.
+        let mut again = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, pass.model.as_ref()) {
+            Err(crate::io::IoError::Core(CoreError::InsufficientData(_))) => break,
+            other => other?,
+        };
+        again.smooth(&again_input, kind.core)?;
+        if again.smoothed.is_none() || quiet.as_ref().is_some_and(Progress::cancelled) {
+            break;
+        }
+        pass = again;
+        pass.left_out = left_out.iter().filter(|o| **o).count();
+    }
+    pass.finish(survey, Some(on_step))
+}
+
+/// The ranges of one pass of [`run`], by their order in the stream: those to leave out, and all
+/// of them kept when `kept` is Some (the first pass, for the residuals).
+#[derive(Debug, Default)]
+struct RangesOfPass {
+    kept: Option<Vec<RangeMeasurement>>,
+    left_out: Vec<bool>,
+    seen: usize,
+}
+
+impl RangesOfPass {
+    /// Whether the released `event` goes to the filter (a range left out does not).
+    fn passes(&mut self, event: &Event) -> bool {
+        let Event::Range(r) = event else { return true };
+        let k = self.seen;
+        self.seen += 1;
+        if let Some(kept) = self.kept.as_mut() {
+            kept.push(*r);
+        }
+        !self.left_out.get(k).copied().unwrap_or(false)
+    }
+}
+
+/// One pass of [`run`] read to the end of the file — its steps handed on when forward, spilled
+/// and then smoothed by [`Pass::smooth`] otherwise — before [`Pass::finish`].
+struct Pass<'f, E> {
+    stream: Stream<E>,
+    model: Option<ModelChoice>,
+    out: StepsOut<'f>,
+    tally: UpdateTally,
+    handed_on: u64,
+    last_t_s: Option<f64>,
+    cancelled: bool,
+    /// The smoothed steps, newest first ([`smooth_spilled`]).
+    smoothed: Option<Spill<STEP_FLAT_LEN>>,
+    /// Ranges the pass left out ([`Health::smoothing_left_out`]).
+    left_out: usize,
+}
+
+/// Reads the file once through `method` into `out`, leaving out and keeping ranges as `ranges`
+/// says, with the model `chosen` on an earlier pass (None: chosen now, when the method chooses).
+fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
+    method: Method,
+    input: &StreamedInput<'_>,
+    kind: &FilterKind<E>,
+    imu_span_s: (f64, f64),
+    out: StepsOut<'f>,
+    ranges: &mut RangesOfPass,
+    chosen: Option<&ModelChoice>,
+) -> Result<Pass<'f, E>> {
+    let survey = input.survey;
+    let choosing = chosen.is_none() && method.chooses_its_model() && input.config.model_selection.enabled;
     // A log the selection cannot score for its anchors or its lack of ranges needs no window
     // kept: the choice (the input configuration, and why) comes at once.
     let scorable = survey.anchors.positions.len() >= crate::select::MIN_ANCHORS && survey.n_ranges > 0;
@@ -613,7 +714,10 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         handed_on: 0,
         last_t_s: None,
     };
-    if choosing && !scorable {
+    if let Some(choice) = chosen {
+        run.start(&choice.config)?;
+        run.model = Some(choice.clone());
+    } else if choosing && !scorable {
         let empty = Prefix { end_s: imu_span_s.0, events: Vec::new() };
         let choice = empty.choose(method, input);
         run.start(&choice.config)?;
@@ -635,7 +739,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
             RecordItem::Truth(t, p) => return run.truth(t, p),
         };
         ordered.push(input.config, event, &mut released)?;
-        released.drain(..).try_for_each(|e| run.event(e))
+        released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))
     });
     let cancelled_run = match read {
         Ok(()) => false,
@@ -644,7 +748,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     };
     if !cancelled_run {
         ordered.release(f64::INFINITY, &mut released);
-        released.drain(..).try_for_each(|e| run.event(e))?;
+        released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))?;
     }
     run.choose()?;
     let Some(stream) = run.stream.as_mut() else {
@@ -659,54 +763,74 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     }
     run.collect(true)?;
     let Run { stream, model, out, tally, handed_on, last_t_s, .. } = run;
-    let Some(mut stream) = stream else { return Err(CoreError::InvalidCall("the stream was not started".into()).into()) };
-    let (anchors, tdoa, mean_nis) = tally.finish();
-    let (rmse, smoothed) = match out {
-        StepsOut::Forward { truth, .. } => (truth.finish()?, false),
-        StepsOut::Spilled(spills) => {
-            let Spills { mut steps, mut segments, mut checkpoints, truth: mut truth_spill } = *spills;
-            let core = stream.estimator_mut().and_then(kind.core);
-            let smoothed = match core.filter(|_| !cancelled_run) {
-                Some(core) => {
-                    if let Some(p) = input.progress {
-                        p.start_smoothing();
-                    }
-                    match smooth_spilled(core, &mut steps, (&mut segments, &mut checkpoints), dir, &cancelled) {
-                        Ok(s) => Some(s),
-                        Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
-                        Err(e) => return Err(e),
-                    }
-                }
-                None => None,
-            };
-            let spilled_truth = truth_spill.oldest_first()?.map(|r| r.map(|v| (v[0], Vec3::new(v[1], v[2], v[3]))));
-            let mut matcher = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
-            let was_smoothed = smoothed.is_some();
-            match smoothed {
-                // The smoothed steps were kept newest first: read back newest first, they come oldest first.
-                Some(mut s) => {
-                    hand_on(s.newest_first()?.map(|r| r.map(|v| step_from_flat(&v))), spilled_truth, &mut matcher, on_step)?
-                }
-                None => {
-                    hand_on(steps.oldest_first()?.map(|r| r.map(|v| step_from_flat(&v))), spilled_truth, &mut matcher, on_step)?
-                }
-            }
-            (matcher.finish()?, was_smoothed)
+    let Some(stream) = stream else { return Err(CoreError::InvalidCall("the stream was not started".into()).into()) };
+    Ok(Pass { stream, model, out, tally, handed_on, last_t_s, cancelled: cancelled_run, smoothed: None, left_out: 0 })
+}
+
+impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
+    /// RTS-smooths a spilled pass that ran to the end ([`smooth_spilled`]); a cancelled smoothing
+    /// leaves it unsmoothed.
+    fn smooth(&mut self, input: &StreamedInput<'_>, core: fn(&mut E) -> Option<&mut InertialCore>) -> Result<()> {
+        let StepsOut::Spilled(spills) = &mut self.out else { return Ok(()) };
+        let Some(core) = self.stream.estimator_mut().and_then(core).filter(|_| !self.cancelled) else { return Ok(()) };
+        if let Some(p) = input.progress {
+            p.start_smoothing();
         }
-    };
-    Ok(StreamedReplay {
-        smoothed,
-        steps: handed_on,
-        last_t_s,
-        anchors,
-        tdoa,
-        mean_nis,
-        model,
-        warnings: stream.take_warnings(),
-        rmse,
-        health: stream.health(),
-        cancelled: cancelled_run,
-    })
+        let cancelled = || input.progress.is_some_and(Progress::cancelled);
+        let Spills { steps, segments, checkpoints, .. } = &mut **spills;
+        self.smoothed = match smooth_spilled(core, steps, (segments, checkpoints), input.spill_dir, &cancelled) {
+            Ok(s) => Some(s),
+            Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
+            Err(e) => return Err(e),
+        };
+        Ok(())
+    }
+
+    /// Hands on a spilled pass's steps to `on_step` (the smoothed ones when there are), oldest
+    /// first, and returns what the pass found.
+    fn finish(mut self, survey: &RecordingSurvey, on_step: Option<StepSink<'_>>) -> Result<StreamedReplay> {
+        let (anchors, tdoa, mean_nis) = self.tally.finish();
+        let (rmse, smoothed) = match self.out {
+            StepsOut::Forward { truth, .. } => (truth.finish()?, false),
+            StepsOut::Spilled(spills) => {
+                let Some(on_step) = on_step else {
+                    return Err(CoreError::InvalidCall("a spilled pass needs a step sink".into()).into());
+                };
+                let Spills { mut steps, truth: mut truth_spill, .. } = *spills;
+                let spilled_truth = truth_spill.oldest_first()?.map(|r| r.map(|v| (v[0], Vec3::new(v[1], v[2], v[3]))));
+                let mut matcher = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
+                let was_smoothed = self.smoothed.is_some();
+                match self.smoothed.take() {
+                    // The smoothed steps were kept newest first: read back newest first, they come oldest first.
+                    Some(mut s) => {
+                        hand_on(s.newest_first()?.map(|r| r.map(|v| step_from_flat(&v))), spilled_truth, &mut matcher, on_step)?
+                    }
+                    None => hand_on(
+                        steps.oldest_first()?.map(|r| r.map(|v| step_from_flat(&v))),
+                        spilled_truth,
+                        &mut matcher,
+                        on_step,
+                    )?,
+                }
+                (matcher.finish()?, was_smoothed)
+            }
+        };
+        let mut health = self.stream.health();
+        health.smoothing_left_out = self.left_out;
+        Ok(StreamedReplay {
+            smoothed,
+            steps: self.handed_on,
+            last_t_s: self.last_t_s,
+            anchors,
+            tdoa,
+            mean_nis,
+            model: self.model,
+            warnings: self.stream.take_warnings(),
+            rmse,
+            health,
+            cancelled: self.cancelled,
+        })
+    }
 }
 
 /// Replays a recording streamed from its file through `method`, in memory bounded whatever the

@@ -89,17 +89,24 @@ named_filter!(
 /// isas-walk1 (figures: docs/design-notes.md#best-nlos-skew).
 pub const BEST_NLOS_SKEW: f64 = 4.0;
 
+/// The re-smoothing passes of `best`'s smoothed batch run unless `smoothing.outlier_passes` is
+/// set: the ranges its smoothed track calls NLOS are left out and the log run again, up to three
+/// times (figures: docs/model-selection.md#robust-smoothing).
+pub const BEST_OUTLIER_PASSES: u32 = 3;
+
 named_filter!(
     /// `best` (ours): the RIEKF composition (Li & Wang 2020 Algorithm 1, eqs. (39)–(40)) with the
     /// zero-velocity constraint of the CRIEKF (Li & Wang 2020 eqs. (13)–(19)), applied only while the
     /// still detector fires — so it costs nothing in motion — and the range test skewed against
-    /// long ranges ([`BEST_NLOS_SKEW`]). The composition that measured best
+    /// long ranges ([`BEST_NLOS_SKEW`]); its smoothed batch run re-smooths without the ranges the
+    /// smoothed track calls NLOS ([`BEST_OUTLIER_PASSES`]). The composition that measured best
     /// across the simulated zoo and isas-walk1 (docs/accuracy.md, "`best` and the isas-walk1 table"); the
     /// batch method `best` adds self-initialisation and RTS smoothing.
     Best,
     |config| Composition {
         constraints: ConstraintSwitches::ZUPT,
         nlos_skew: Some(BEST_NLOS_SKEW),
+        outlier_passes: BEST_OUTLIER_PASSES,
         ..Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
     }
 );

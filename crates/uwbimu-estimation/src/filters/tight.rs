@@ -123,6 +123,9 @@ pub struct Composition {
     /// Watch for divergence and re-acquire on a UWB-only fix ([`crate::filters::reacquire`],
     /// ours): the divergence watch of ranges and the TDoA watch.
     pub reacquire: bool,
+    /// Re-smoothing passes of a smoothed batch run when `smoothing.outlier_passes` is unset (0:
+    /// the plain RTS pass; the batch runner applies them, `uwbimu_app::outlier_smoothing`).
+    pub outlier_passes: u32,
 }
 
 /// The INS bias model of a composition.
@@ -170,12 +173,13 @@ impl Composition {
             constraints: ConstraintSwitches::NONE,
             nlos_skew: None,
             reacquire: true,
+            outlier_passes: 0,
         }
     }
 
     /// `config` with the row's settings applied: its constraints switched on, its NLOS skew where
-    /// `robust.nlos_skew` is unset, the complementary bias model's τ where unset and its process
-    /// noise.
+    /// `robust.nlos_skew` is unset, its re-smoothing passes where `smoothing.outlier_passes` is
+    /// unset, the complementary bias model's τ where unset and its process noise.
     pub fn configure(&self, mut config: FilterConfig) -> FilterConfig {
         if self.biases == BiasModel::Complementary {
             config.ins.accel_bias_tau = config.ins.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
@@ -186,6 +190,9 @@ impl Composition {
         (c.zupt, c.pseudo_velocity, c.plane) = (c.zupt || on.zupt, c.pseudo_velocity || on.pseudo_velocity, c.plane || on.plane);
         if let Some(skew) = self.nlos_skew {
             config.robust.nlos_skew.get_or_insert(skew);
+        }
+        if self.outlier_passes > 0 {
+            config.smoothing.outlier_passes.get_or_insert(self.outlier_passes);
         }
         config
     }

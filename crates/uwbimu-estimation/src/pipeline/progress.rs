@@ -23,6 +23,12 @@ impl Progress {
         Self { cancel, ..Self::default() }
     }
 
+    /// A progress that counts on its own but stops with this one (the same cancel flag): for the
+    /// extra passes of a run, which a reporter of this one's samples does not see.
+    pub fn sharing_cancel(&self) -> Self {
+        Self::with_cancel_flag(Arc::clone(&self.cancel))
+    }
+
     /// Asks the runs to stop: each forward pass ends after its current event (with the steps so
     /// far) and no smoothing pass begins or goes on.
     pub fn cancel(&self) {

@@ -77,6 +77,11 @@ pub fn some_at_least_one(field: &str, v: &ConfigValue) -> Result<Option<f64>> {
     at_least_one(field, v).map(Some)
 }
 
+/// A whole number in `0..=hi` that makes an optional field set.
+pub fn some_whole(field: &str, v: &ConfigValue, hi: u32) -> Result<Option<u32>> {
+    bounded_count(field, v, 0, hi as usize).map(|n| Some(n as u32))
+}
+
 /// A whole number ≥ 1 (given as a float from Python).
 pub fn count(field: &str, v: &ConfigValue) -> Result<u32> {
     bounded_count(field, v, 1, u32::MAX as usize).map(|n| n as u32)
@@ -194,6 +199,12 @@ impl ToValue for u32 {
 impl ToValue for Option<f64> {
     fn to_value(&self) -> Option<ConfigValue> {
         self.map(ConfigValue::Scalar)
+    }
+}
+
+impl ToValue for Option<u32> {
+    fn to_value(&self) -> Option<ConfigValue> {
+        self.map(|n| ConfigValue::Scalar(f64::from(n)))
     }
 }
 

@@ -5,7 +5,7 @@
 
 use crate::config::parse::{
     at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
-    quaternion, scalar, some_at_least_one, some_positive, some_scalar, vec3, ToValue,
+    quaternion, scalar, some_at_least_one, some_positive, some_scalar, some_whole, vec3, ToValue,
 };
 use crate::config::ConfigValue;
 use crate::error::{Error, Result};
@@ -359,6 +359,24 @@ section! {
         window_s: f64 = 300.0, positive;
     }
 }
+
+section! {
+    /// Robust smoothing of the batch runs (ours, `uwbimu_app::outlier_smoothing`): after the RTS
+    /// pass, the ranges far longer than the smoothed track predicts are left out and the log is
+    /// filtered and smoothed again. Forward runs and the streaming filters ignore it.
+    SmoothingConfig = "smoothing" {
+        /// Re-smoothing passes at most (0: the plain RTS pass). Unset: the method's own — 3 in
+        /// `best`, 0 in the others.
+        outlier_passes: Option<u32> = None, |f, v| some_whole(f, v, MAX_OUTLIER_PASSES);
+        /// A range is left out when it is longer than the smoothed track predicts by more than this
+        /// many robust σ (1.4826·MAD) of its anchor's residuals above their median, and by more
+        /// than 0.1 m.
+        outlier_sigmas: f64 = 3.0, positive;
+    }
+}
+
+/// Largest `smoothing.outlier_passes`: every pass is a whole filtered and smoothed run.
+pub const MAX_OUTLIER_PASSES: u32 = 10;
 
 section! {
     /// The unscented transform (Wang et al. 2018 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented
