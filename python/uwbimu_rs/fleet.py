@@ -61,6 +61,7 @@ SUMMARY_COLUMNS: dict[str, tuple[Any, str]] = {
     "numerical_repairs": (pl.Int64, "covariance repairs (health)"),
     "late_dropped": (pl.Int64, "measurements too late to be used (health)"),
     "reordered": (pl.Int64, "messages put back in time order (health)"),
+    "smoothing_left_out": (pl.Int64, "ranges the robust smoothing of a smoothed `best` left out (health)"),
     "model": (pl.String, "the range-error model `best` chose (null for other methods)"),
     "model_reason": (pl.String, "the scores behind that choice"),
     "model_overrides": (pl.String, "the settings the choice changed, as JSON"),
@@ -76,7 +77,7 @@ SUMMARY_COLUMNS: dict[str, tuple[Any, str]] = {
 _SWEEP_OMITS = ("output", "reused")
 _REPLAY_KEYWORDS = ("mapping", "config_file", "config", "overrides", "smooth", "ground_truth")
 _COUNTS = ("accepted", "down_weighted", "rejected")
-_HEALTH = ("numerical_repairs", "late_dropped", "reordered")
+_HEALTH = ("numerical_repairs", "late_dropped", "reordered", "smoothing_left_out")
 _RMSE = ("rmse_horizontal_m", "rmse_horizontal_aligned_m", "rmse_3d_m", "rmse_3d_aligned_m")
 
 
