@@ -480,7 +480,7 @@ fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, i
     let warnings = check_imu_units(input.imu)?;
     let (initial, mut init) = initial_state(input)?;
     let (mut trace, mut smoothed, smoothing) = run_pass(&build, &initial, input)?;
-    let passes = smoothing.outlier_passes.unwrap_or(0);
+    let passes = smoothing.outlier_passes_or_zero();
     let mut left_out = vec![false; if passes > 0 { input.ranges.len() } else { 0 }];
     let quiet = input.progress.map(Progress::sharing_cancel);
     for _ in 0..passes {

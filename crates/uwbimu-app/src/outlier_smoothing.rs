@@ -14,7 +14,7 @@
 //! range, and short outliers are few and left to the forward filter's test.
 //!
 //! The residual of a range is taken against the track linearly interpolated between the two
-//! steps around its time, plus the earlier step's `R·lever_arm` ([`crate::track::tag_at`]);
+//! steps around its time, plus the earlier step's `R·lever_arm` ([`crate::track::tag_between`]);
 //! [`ResidualWalk`] computes it from steps handed over oldest first, so a run that never holds
 //! its steps (the streamed replay) computes the same numbers as one that does.
 
@@ -23,6 +23,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
 use crate::calibrate::median_and_robust_sigma;
+use crate::track::tag_between;
 
 /// A range is left out only when it is at least this much longer than its anchor's median
 /// residual, m: the robust σ of a clean anchor is a few centimetres, and three of them would cut
@@ -63,11 +64,10 @@ impl<'a> ResidualWalk<'a> {
     pub fn push(&mut self, step: &StepRecord) {
         while let Some(r) = self.ranges.get(self.next).filter(|r| r.t_s < step.t_s) {
             if let Some(a) = self.previous.as_ref().filter(|a| r.t_s >= a.t_s) {
-                let w = (r.t_s - a.t_s) / (step.t_s - a.t_s);
-                let tag = a.state.position + (step.state.position - a.state.position) * w + a.state.orientation * self.lever_arm;
-                let anchor = self.anchors.get(r.anchor).filter(|_| tag.iter().all(|v| v.is_finite()));
-                self.residuals[self.next] = anchor.map(|anchor| {
-                    let (line, distance) = ((tag - anchor).normalize(), (tag - anchor).norm());
+                let tag = tag_between(a, step, r.t_s, &self.lever_arm);
+                self.residuals[self.next] = tag.zip(self.anchors.get(r.anchor)).map(|(tag, anchor)| {
+                    let offset = tag - anchor;
+                    let (distance, line) = (offset.norm(), offset.normalize());
                     Residual {
                         range_m: r.range_m - distance,
                         track_var: (line.transpose() * a.position_cov * line)[(0, 0)].max(0.0),

@@ -610,13 +610,13 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         let out = StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) };
         return run_pass(method, input, kind, imu_span_s, out, &mut RangesOfPass::default(), None)?.finish(survey, None);
     }
-    let mut ranges = RangesOfPass { kept: Some(Vec::new()), left_out: Vec::new(), seen: 0 };
+    let mut ranges = RangesOfPass { kept: Some(Vec::new()), left_out: &[], seen: 0 };
     let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None)?;
     pass.smooth(input, kind.core)?;
     let (all, mut left_out) = (ranges.kept.take().unwrap_or_default(), vec![false; ranges.seen]);
     let smoothing = pass.stream.estimator().map(kind.smoothing);
     let quiet = input.progress.map(Progress::sharing_cancel);
-    for _ in 0..smoothing.and_then(|s| s.outlier_passes).unwrap_or(0) {
+    for _ in 0..smoothing.map_or(0, |s| s.outlier_passes_or_zero()) {
         let (Some(smoothing), Some(smoothed)) = (smoothing, pass.smoothed.as_mut()) else { break };
         let mut walk = ResidualWalk::new(&all, &survey.anchors.positions, input.config.mounting.lever_arm);
         // Kept newest first, the smoothed steps come back oldest first.
@@ -627,7 +627,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
             break;
         }
         let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
-        let mut again_ranges = RangesOfPass { kept: None, left_out: left_out.clone(), seen: 0 };
+        let mut again_ranges = RangesOfPass { kept: None, left_out: &left_out, seen: 0 };
         let out = StepsOut::spilled(input.spill_dir)?;
         // A log that cannot start without the ranges left out keeps the pass before.
         let mut again = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, pass.model.as_ref()) {
@@ -647,13 +647,13 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
 /// The ranges of one pass of [`run`], by their order in the stream: those to leave out, and all
 /// of them kept when `kept` is Some (the first pass, for the residuals).
 #[derive(Debug, Default)]
-struct RangesOfPass {
+struct RangesOfPass<'a> {
     kept: Option<Vec<RangeMeasurement>>,
-    left_out: Vec<bool>,
+    left_out: &'a [bool],
     seen: usize,
 }
 
-impl RangesOfPass {
+impl RangesOfPass<'_> {
     /// Whether the released `event` goes to the filter (a range left out does not).
     fn passes(&mut self, event: &Event) -> bool {
         let Event::Range(r) = event else { return true };
@@ -690,7 +690,7 @@ fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     kind: &FilterKind<E>,
     imu_span_s: (f64, f64),
     out: StepsOut<'f>,
-    ranges: &mut RangesOfPass,
+    ranges: &mut RangesOfPass<'_>,
     chosen: Option<&ModelChoice>,
 ) -> Result<Pass<'f, E>> {
     let survey = input.survey;

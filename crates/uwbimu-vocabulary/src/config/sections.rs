@@ -375,6 +375,13 @@ section! {
     }
 }
 
+impl SmoothingConfig {
+    /// The re-smoothing passes in force: `outlier_passes`, or 0 (the plain RTS pass) when unset.
+    pub fn outlier_passes_or_zero(&self) -> u32 {
+        self.outlier_passes.unwrap_or(0)
+    }
+}
+
 /// Largest `smoothing.outlier_passes`: every pass is a whole filtered and smoothed run.
 pub const MAX_OUTLIER_PASSES: u32 = 10;
 
