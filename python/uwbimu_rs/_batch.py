@@ -10,6 +10,7 @@ import polars as pl
 
 from uwbimu_rs import _native
 from uwbimu_rs._convert import frame as _frame
+from uwbimu_rs._convert import model_choice as _model_choice
 from uwbimu_rs._convert import plain as _as_dict
 from uwbimu_rs._native import FilterConfig
 from uwbimu_rs._typing import MethodName
@@ -30,6 +31,7 @@ def run_filter(
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
     progress: bool = False,
+    info: Literal[False] = False,
 ) -> pl.DataFrame: ...
 
 
@@ -48,7 +50,46 @@ def run_filter(
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
     progress: bool = False,
+    info: Literal[False] = False,
 ) -> tuple[pl.DataFrame, pl.DataFrame]: ...
+
+
+@overload
+def run_filter(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: Literal[False] = False,
+    smooth: bool | None = None,
+    mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
+    progress: bool = False,
+    info: Literal[True],
+) -> tuple[pl.DataFrame, dict[str, Any]]: ...
+
+
+@overload
+def run_filter(
+    method: MethodName,
+    imu: np.ndarray,
+    ranges: np.ndarray,
+    anchors: np.ndarray,
+    *,
+    initial: Mapping[str, Any] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    updates: Literal[True],
+    smooth: bool | None = None,
+    mag: np.ndarray | None = None,
+    tdoa: np.ndarray | None = None,
+    progress: bool = False,
+    info: Literal[True],
+) -> tuple[pl.DataFrame, pl.DataFrame, dict[str, Any]]: ...
 
 
 def run_filter(
@@ -65,7 +106,13 @@ def run_filter(
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
     progress: bool = False,
-) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
+    info: bool = False,
+) -> (
+    pl.DataFrame
+    | tuple[pl.DataFrame, pl.DataFrame]
+    | tuple[pl.DataFrame, dict[str, Any]]
+    | tuple[pl.DataFrame, pl.DataFrame, dict[str, Any]]
+):
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
     Parameters
@@ -114,6 +161,14 @@ def run_filter(
         the anchor's range bias estimate after the update with ``range_bias.states`` (NaN without); a TDoA row has ``anchor`` = i,
         ``anchor_j`` = j and ``range`` = d_ij, a range row ``anchor_j`` = −1. Ranges within the
         epoch window (``epoch_window_s``) form one epoch, updated jointly.
+    info : bool
+        Also return what the run counted and chose, as a dict (last in the tuple):
+        ``health`` (``rejected`` {gate kind: count}, ``numerical_repairs``,
+        ``ranges_before_start``, ``reordered``, ``late_dropped``, ``smoothing_left_out``: the
+        ranges the robust smoothing left out), ``ranges_before_start``, after
+        self-initialisation ``still_start`` and ``heading_from``, and for ``"best"`` ``model``:
+        the range-error model it chose on the log and why, the dict of :func:`choose_model`
+        (``chosen``, ``reason``, ``overrides``, ``candidates``, ``config``). Empty for ``uwb_ls``.
 
     Returns
     -------
@@ -126,7 +181,8 @@ def run_filter(
         methods fill the same columns: ``z`` = the plane height, ``vz`` = 0, a yaw-only
         quaternion, ``std_z`` = 0. ``uwb_ls``: one row per solvable UWB epoch with
         ``t, x, y, z, std_x, std_y, std_z, n_ranges, residual_rms``.
-        ``(frame, updates_frame)`` when ``updates=True``.
+        ``(frame, updates_frame)`` when ``updates=True``, ``(frame, info)`` when ``info=True``,
+        ``(frame, updates_frame, info)`` with both.
 
     Raises
     ------
@@ -143,7 +199,7 @@ def run_filter(
     UserWarning
         An accelerometer that looks like g or a gyroscope that looks like deg/s.
     """
-    frame, upd = run_frames(
+    frame, upd, run_info = run_frames(
         method,
         imu,
         ranges,
@@ -157,11 +213,11 @@ def run_filter(
         tdoa=tdoa,
         progress=progress,
     )
-    if updates:
-        if upd is None:
-            raise ValueError(f"method {method!r} has no range updates to report")
-        return frame, upd
-    return frame
+    if updates and upd is None:
+        raise ValueError(f"method {method!r} has no range updates to report")
+    if updates and upd is not None:
+        return (frame, upd, run_info) if info else (frame, upd)
+    return (frame, run_info) if info else frame
 
 
 def run_frames(
@@ -178,10 +234,11 @@ def run_frames(
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
     progress: bool = False,
-) -> tuple[pl.DataFrame, pl.DataFrame | None]:
+) -> tuple[pl.DataFrame, pl.DataFrame | None, dict[str, Any]]:
     """:func:`run_filter` for callers that take any method (private to the package): the updates
-    frame is None when not asked for or when the method has none (``uwb_ls``) instead of an error."""
-    cols, upd, _info = _native.run_filter(
+    frame is None when not asked for or when the method has none (``uwb_ls``) instead of an error;
+    the run's ``info`` comes last."""
+    cols, upd, info = _native.run_filter(
         method,
         imu,
         ranges,
@@ -195,12 +252,14 @@ def run_frames(
         tdoa=tdoa,
         progress=progress,
     )
+    if "model" in info:
+        info["model"] = _model_choice(info["model"])
     if upd is None:
-        return _frame(cols), None
+        return _frame(cols), None, info
     u = pl.DataFrame(upd).with_columns(
         pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
     )
-    return _frame(cols), u
+    return _frame(cols), u, info
 
 
 def run_filters(

@@ -9,6 +9,7 @@ import numpy as np
 import polars as pl
 
 from uwbimu_rs import _native
+from uwbimu_rs._convert import model_choice as _model_choice
 from uwbimu_rs._convert import plain as _as_dict
 from uwbimu_rs._native import FilterConfig
 from uwbimu_rs._typing import MethodName
@@ -171,10 +172,4 @@ def choose_model(
     ValueError
         As :func:`run_filter`.
     """
-    out = _native.choose_model(method, imu, ranges, anchors, initial=_as_dict(initial), config=_as_dict(config))
-    rows = out.pop("candidates")
-    out["candidates"] = pl.DataFrame(
-        {"label": [r["label"] for r in rows], "score": [r["score"] for r in rows], "per_anchor": [r["per_anchor"] for r in rows]},
-        schema={"label": pl.String, "score": pl.Float64, "per_anchor": pl.List(pl.Float64)},
-    )
-    return out
+    return _model_choice(_native.choose_model(method, imu, ranges, anchors, initial=_as_dict(initial), config=_as_dict(config)))

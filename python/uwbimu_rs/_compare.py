@@ -145,7 +145,7 @@ def _one_run(
     """Runs and scores one method (called in a worker thread; ``run_filter`` releases the GIL)."""
     smoothed = smooth and METHODS[method]["smoothing"] != "never"
     start = time.perf_counter()
-    frame, updates = run_frames(method, imu, ranges, anchors, initial=initial, config=config, updates=True, smooth=smoothed)
+    frame, updates, _info = run_frames(method, imu, ranges, anchors, initial=initial, config=config, updates=True, smooth=smoothed)
     elapsed = time.perf_counter() - start
     errors = aligned = None
     if truth is not None:

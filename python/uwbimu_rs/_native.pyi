@@ -687,8 +687,10 @@ def run_filter(
         ``innovation`` (m), ``nis``, ``accepted`` (0.0/1.0), ``weight``; otherwise None.
     info : dict
         Inertial methods: ``ranges_before_start`` (int, ranges dropped before the first IMU
-        sample) and, after self-initialisation, ``still_start`` (bool) and ``heading_from``
-        (``"motion"`` or ``"fallback"``). ``uwb_ls``: empty.
+        sample), ``health`` (the counts of :attr:`Ekf.health`, with ``smoothing_left_out``),
+        after self-initialisation ``still_start`` (bool) and ``heading_from`` (``"motion"`` or
+        ``"fallback"``), and for a method that chose its model on the log (``best``) ``model``,
+        the dict of :func:`choose_model`. ``uwb_ls``: empty.
 
     Raises
     ------

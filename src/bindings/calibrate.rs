@@ -163,8 +163,8 @@ fn choose_model<'py>(
     model_choice_dict(py, &choice)
 }
 
-/// A [`ModelChoice`] as the dict of `choose_model`.
-fn model_choice_dict<'py>(py: Python<'py>, choice: &ModelChoice) -> PyResult<Bound<'py, PyDict>> {
+/// A [`ModelChoice`] as the dict of `choose_model` (also `info["model"]` of a batch run that chose).
+pub(super) fn model_choice_dict<'py>(py: Python<'py>, choice: &ModelChoice) -> PyResult<Bound<'py, PyDict>> {
     let overrides = |pairs: &[(String, uwbimu_vocabulary::config::ConfigValue)]| -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         for (k, v) in pairs {

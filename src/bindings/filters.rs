@@ -731,12 +731,15 @@ fn run_filter<'py>(
 fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, updates: bool) -> PyResult<BatchColumns<'py>> {
     let info = PyDict::new(py);
     match output {
-        BatchOutput::Inertial { trace, init, smoothed, warnings, .. } => {
+        BatchOutput::Inertial { trace, init, smoothed, warnings, model } => {
             super::errors::warn_all(py, &warnings)?;
             info.set_item("ranges_before_start", trace.health.ranges_before_start)?;
             info.set_item("health", health_dict(py, &trace.health)?)?;
             if let Some(s) = init {
                 init_info_items(&info, &s)?;
+            }
+            if let Some(choice) = model {
+                info.set_item("model", super::calibrate::model_choice_dict(py, &choice)?)?;
             }
             let upd = if updates { Some(columns(py, update_columns(&trace))?) } else { None };
             let steps = smoothed.as_deref().unwrap_or(&trace.steps);

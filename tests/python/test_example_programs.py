@@ -40,9 +40,11 @@ def table_rows(text: str) -> dict[str, list[str]]:
 
 @needs_cargo
 def test_results_digest_is_deterministic_and_covers_every_method():
-    # Its claim: two runs agree digit for digit exactly when the outputs agree bit for bit.
-    first = cargo_example("results_digest", "outliers", "1")
-    assert first == cargo_example("results_digest", "outliers", "1")
+    # Its claim: two runs agree digit for digit exactly when the outputs agree bit for bit. On
+    # `walk_nlos` (2243 IMU samples, NLOS bursts the robust policies act on): a third of
+    # `outliers`'s samples (a run of every method 3.3 s instead of 9.8 s in the test build).
+    first = cargo_example("results_digest", "walk_nlos", "1")
+    assert first == cargo_example("results_digest", "walk_nlos", "1")
     for method in uwbimu_rs.FILTERS:
         assert re.search(rf"\b{method}\b", first), method
 

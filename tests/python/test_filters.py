@@ -129,10 +129,12 @@ def _set(a, idx, value):
 def test_a_negative_range_is_dropped_and_flagged_not_raised(small):
     imu, ranges, anchors, initial = small
     bad = _set(ranges.copy(), (2, 2), -2.0)
-    df = uwbimu_rs.run_filter("ekf", imu, bad, anchors, initial=initial)
+    df, info = uwbimu_rs.run_filter("ekf", imu, bad, anchors, initial=initial, info=True)
     clean = uwbimu_rs.run_filter("ekf", imu, np.delete(ranges, 2, axis=0), anchors, initial=initial)
-    # The row after the range's time carries the gate's bit; the estimate is the run without it.
+    # The row after the range's time carries the gate's bit and the run counts it; the estimate
+    # is the run without it.
     assert df["status"].dtype == pl.UInt8 and (df["status"] & 1).sum() == 1
+    assert info["health"]["rejected"] == {"imu_beyond_range": 0, "negative_range": 1, "range_beyond_hall": 0, "tdoa_beyond_baseline": 0}
     np.testing.assert_array_equal(df["x"].to_numpy(), clean["x"].to_numpy())
     fixes = uwbimu_rs.run_filter("uwb_ls", imu, bad, anchors)
     assert fixes.height == uwbimu_rs.run_filter("uwb_ls", imu, np.delete(ranges, 2, axis=0), anchors).height

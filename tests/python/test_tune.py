@@ -97,8 +97,16 @@ def test_best_chooses_bias_states_where_they_pay_and_says_why():
     plain = {**cfg, "model_selection": {"enabled": False}}
     # Measured: forward 0.072 → 0.025 m, smoothed 0.068 → 0.012 m.
     before = _rmse(uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=plain, smooth=False), run)
-    after = _rmse(uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=cfg, smooth=False), run)
+    chose, info = uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=cfg, smooth=False, info=True)
+    after = _rmse(chose, run)
     assert after < 0.5 * before, (before, after)
+    # The run reports the same choice, with its scores, and equals a run given the chosen config.
+    model = info["model"]
+    assert (model["chosen"], model["reason"], model["overrides"]) == (choice["chosen"], choice["reason"], choice["overrides"])
+    assert model["candidates"].equals(choice["candidates"])
+    given = uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=choice["config"], smooth=False)
+    assert given.equals(chose)
+    assert "model" not in uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=plain, smooth=False, info=True)[1]
     # Without biases nothing pays: it stays the plain filter.
     clean = uwbimu_rs.choose_model("best", run.imu, run.ranges, run.anchors, config=cfg)
     assert not clean["config"]["range_bias"]["states"], clean["reason"]
