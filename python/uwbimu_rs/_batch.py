@@ -213,9 +213,9 @@ def run_filter(
         tdoa=tdoa,
         progress=progress,
     )
-    if updates and upd is None:
-        raise ValueError(f"method {method!r} has no range updates to report")
-    if updates and upd is not None:
+    if updates:
+        if upd is None:
+            raise ValueError(f"method {method!r} has no range updates to report")
         return (frame, upd, run_info) if info else (frame, upd)
     return (frame, run_info) if info else frame
 
