@@ -56,10 +56,9 @@ def rmse(df: pl.DataFrame, truth: pl.DataFrame, align: bool) -> float:
 
 def row(name: str, imu, ranges, anchors, truth, config: dict, align: bool) -> str:
     """One table row: plain → robust smoothing, and the ranges left out."""
-    plain, plain_updates = uwbimu_rs.run_filter("best", imu, ranges, anchors, config={**config, **PLAIN}, updates=True)
-    robust, updates = uwbimu_rs.run_filter("best", imu, ranges, anchors, config=config, updates=True)
-    # The updates frame is the last pass's: the ranges left out never reached it.
-    left_out = plain_updates.height - updates.height
+    plain = uwbimu_rs.run_filter("best", imu, ranges, anchors, config={**config, **PLAIN})
+    robust, info = uwbimu_rs.run_filter("best", imu, ranges, anchors, config=config, info=True)
+    left_out = info["health"]["smoothing_left_out"]
     a, b = rmse(plain, truth, align), rmse(robust, truth, align)
     return f"| {name} | {a:.3f} → {b:.3f} ({100 * (b / a - 1):+.0f} %) | {left_out} of {ranges.shape[0]} |"
 
