@@ -252,14 +252,41 @@ def run_frames(
         tdoa=tdoa,
         progress=progress,
     )
-    if "model" in info:
-        info["model"] = _model_choice(info["model"])
+    info = _run_info(info)
     if upd is None:
         return _frame(cols), None, info
     u = pl.DataFrame(upd).with_columns(
         pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
     )
     return _frame(cols), u, info
+
+
+@overload
+def run_filters(
+    method: MethodName,
+    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    *,
+    initial: Sequence[Mapping[str, Any] | None] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    smooth: bool | None = None,
+    progress: bool = False,
+    info: Literal[False] = False,
+) -> list[pl.DataFrame]: ...
+
+
+@overload
+def run_filters(
+    method: MethodName,
+    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    *,
+    initial: Sequence[Mapping[str, Any] | None] | None = None,
+    config: FilterConfig | Mapping[str, Any] | None = None,
+    covariance: bool = False,
+    smooth: bool | None = None,
+    progress: bool = False,
+    info: Literal[True],
+) -> list[tuple[pl.DataFrame, dict[str, Any]]]: ...
 
 
 def run_filters(
@@ -271,7 +298,8 @@ def run_filters(
     covariance: bool = False,
     smooth: bool | None = None,
     progress: bool = False,
-) -> list[pl.DataFrame]:
+    info: bool = False,
+) -> list[pl.DataFrame] | list[tuple[pl.DataFrame, dict[str, Any]]]:
     """Run one method over many recordings in parallel on all cores (GIL released).
 
     Parameters
@@ -284,14 +312,17 @@ def run_filters(
     initial : sequence of dict or None, optional
         One initial state per run (None entries self-initialise); None: all self-initialise.
     config, covariance, smooth
-        As for :func:`run_filter`, shared by all runs.
+        As for :func:`run_filter`, shared by all runs (``"best"`` chooses its model on each run).
     progress : bool, default False
         Draw a one-line bar on stderr of the IMU samples processed over all runs.
+    info : bool, default False
+        Return ``(frame, info)`` per run, ``info`` as :func:`run_filter`'s (the health counts and,
+        for ``"best"``, the model it chose on that run).
 
     Returns
     -------
-    list of polars.DataFrame
-        One frame per run, in order, identical to what :func:`run_filter` returns for it.
+    list of polars.DataFrame, or of (polars.DataFrame, dict) with ``info=True``
+        One entry per run, in order, identical to what :func:`run_filter` returns for it.
     """
     inits = None if initial is None else [_as_dict(i) for i in initial]
     outputs = _native.run_filters(
@@ -303,7 +334,16 @@ def run_filters(
         smooth=smooth,
         progress=progress,
     )
-    return [_frame(cols) for cols, _upd, _info in outputs]
+    if not info:
+        return [_frame(cols) for cols, _upd, _info in outputs]
+    return [(_frame(cols), _run_info(run_info)) for cols, _upd, run_info in outputs]
+
+
+def _run_info(info: dict[str, Any]) -> dict[str, Any]:
+    """A native run's ``info`` with the model choice (``"best"``) in its Python form."""
+    if "model" in info:
+        info["model"] = _model_choice(info["model"])
+    return info
 
 
 def initialize(

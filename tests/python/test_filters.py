@@ -283,6 +283,14 @@ def test_run_filters_in_parallel_equals_one_by_one(filter_config):
     for r, df in zip(runs, many):
         one = uwbimu_rs.run_filter("riekf", r.imu, r.ranges, r.anchors, config=filter_config)
         assert df.equals(one)
+    # With info, each run's counts are its own: one negative range in the second run only.
+    inputs = [(r.imu, r.ranges.copy(), r.anchors) for r in runs]
+    inputs[1][1][5, 2] = -1.0
+    counted = uwbimu_rs.run_filters("riekf", inputs, config=filter_config, info=True)
+    for (imu, ranges, anchors), (df, info) in zip(inputs, counted):
+        one, one_info = uwbimu_rs.run_filter("riekf", imu, ranges, anchors, config=filter_config, info=True)
+        assert df.equals(one) and info == one_info
+    assert [info["health"]["rejected"]["negative_range"] for _, info in counted] == [0, 1, 0]
     with pytest.raises(ValueError, match=r"runs\[1\]: expected a tuple"):
         uwbimu_rs.run_filters("ekf", [(runs[0].imu, runs[0].ranges, runs[0].anchors), "nope"])
     with pytest.raises(ValueError, match=r"initial: expected shape 1 items \(one per run\), got 2"):

@@ -106,6 +106,8 @@ def test_best_chooses_bias_states_where_they_pay_and_says_why():
     assert model["candidates"].equals(choice["candidates"])
     given = uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=choice["config"], smooth=False)
     assert given.equals(chose)
+    [(parallel, parallel_info)] = uwbimu_rs.run_filters("best", [(run.imu, biased, run.anchors)], config=cfg, smooth=False, info=True)
+    assert parallel.equals(chose) and parallel_info["model"]["candidates"].equals(choice["candidates"])
     assert "model" not in uwbimu_rs.run_filter("best", run.imu, biased, run.anchors, config=plain, smooth=False, info=True)[1]
     # Without biases nothing pays: it stays the plain filter.
     clean = uwbimu_rs.choose_model("best", run.imu, run.ranges, run.anchors, config=cfg)
