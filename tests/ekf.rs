@@ -108,6 +108,31 @@ fn self_initialisation_recovers_pose_from_still_start_and_motion() {
 }
 
 #[test]
+fn self_initialisation_finds_the_tag_below_coplanar_anchors_with_short_ranges() {
+    // The zoo's corridor (6 anchors coplanar at 2.5 m, the tag 2 m below, 40 m long) with ranges
+    // a steady bias shortens, as the drone rig's: one epoch's fix often cannot show the tag below
+    // the anchors' plane (most anchors are far), and the median of the still fixes used to land on
+    // the plane (σ 1 m), from where the filter's height, unobservable there, went either way.
+    let biases = [-0.31, -0.05, -0.18, 0.03, -0.12, -0.24];
+    let mut worst: f64 = 0.0;
+    for seed in 0..6 {
+        let zoo = uwbimu_rs::app::sim::zoo("corridor", seed).expect("zoo");
+        let mut data = simulate(&zoo.sim).expect("sim");
+        for r in &mut data.ranges {
+            r.range_m += biases[r.anchor];
+        }
+        let init = initialize(&data.imu, &data.ranges, &data.anchors, &zoo.config).expect("self-init");
+        let (z, truth_z) = (init.initial.position.z, data.truth[0].position.z);
+        println!("seed {seed}: initial height {z:.2} m (truth {truth_z:.2} m), σ {:.2} m", init.initial.position_std.z);
+        assert!(init.initial.position_std.z < 0.5, "seed {seed}: σ {}", init.initial.position_std.z);
+        worst = worst.max((z - truth_z).abs());
+    }
+    // Measured: 0.55–0.80 m above the truth (the short ranges pull the tag towards the plane);
+    // before the pooled height, seeds 2 and 4 started on the plane, 1.95 m off (σ 0.10 and 1 m).
+    assert!(worst < 0.9, "{worst}");
+}
+
+#[test]
 fn upside_down_imu_needs_and_honours_imu_rotation() {
     let upside_down = uwbimu_rs::vocabulary::math::quat_exp(&Vec3::new(std::f64::consts::PI, 0.0, 0.0));
     let mut cfg = preset("hall_vehicle", 3).expect("preset");

@@ -9,7 +9,9 @@
 //!    window, or the first fix after the start. Without ranges, the fixes come from the TDoA
 //!    ([`crate::multilateration::tdoa`]). Fixes whose ranges fail the least-squares
 //!    consistency test ([`Fix::is_consistent`], α = 0.01: an outlier or NLOS range) are left out
-//!    here and in step 3 unless no fix passes.
+//!    here and in step 3 unless no fix passes. When a still fix fell back to the plane of
+//!    coplanar anchors, the height is that of one fix of all the still window's ranges
+//!    (`still_height`).
 //! 3. **Heading from the first metres of motion against UWB**: the IMU is dead-reckoned from the
 //!    start with yaw 0; once the UWB tag has moved `init_heading_distance_m`, the yaw is the angle
 //!    that rotates the dead-reckoned tag displacement onto the UWB displacement (least squares over
@@ -31,7 +33,7 @@ use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::state::NominalState;
 
-use crate::epoch::group_epochs;
+use crate::epoch::{group_epochs, Epoch};
 use crate::ins::{propagate_nominal, ImuInterval};
 use crate::multilateration::tdoa::tdoa_fixes;
 use crate::multilateration::{solve_epoch, Fix, LsConfig};
@@ -160,7 +162,7 @@ fn self_init(
     let start_fixes: Vec<&Fix> = fixes.iter().filter(|(t, _)| still && *t <= t0 + config.init.still_s).map(|(_, f)| f).collect();
     // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
     // errors (anchor survey, multipath, NLOS) are the same in every fix.
-    let (tag0, tag0_cov) = if start_fixes.is_empty() {
+    let (mut tag0, tag0_cov) = if start_fixes.is_empty() {
         (first_fix.position, first_fix.covariance)
     } else {
         let k = start_fixes.len() as f64;
@@ -171,6 +173,12 @@ fn self_init(
         });
         (median, start_fixes.iter().map(|f| f.covariance).sum::<uwbimu_vocabulary::math::Mat3>() / k)
     };
+    let mut height = if first_fix.planar { Height::OnAnchorPlane } else { Height::Fixed(tag0_cov[(2, 2)]) };
+    if start_fixes.iter().any(|f| f.planar) {
+        if let Some((z, pooled)) = still_height(ranges, anchors, &ls, t0, t0 + config.init.still_s) {
+            (tag0.z, height) = (z, pooled);
+        }
+    }
 
     // 3. Heading from dead reckoning against UWB displacement.
     let (yaw, settled_s) = heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config);
@@ -180,9 +188,10 @@ fn self_init(
     };
     let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
     let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
-    if first_fix.planar {
-        position_std.z = 1.0;
-    }
+    position_std.z = match height {
+        Height::OnAnchorPlane => 1.0,
+        Height::Fixed(var) => var.sqrt().max(0.05),
+    };
     let tilt_std = if still { 0.02 } else { 0.1 };
     Ok((
         SelfInit {
@@ -203,6 +212,41 @@ fn self_init(
         },
         settled_s,
     ))
+}
+
+/// How the initial height was found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Height {
+    /// Fixed with this variance, m².
+    Fixed(f64),
+    /// Held at the coplanar anchors' height: unknown (σ 1 m).
+    OnAnchorPlane,
+}
+
+/// The height of the fix of every range of the still start window `[from_s − 0.5 s, to_s]` at
+/// once, m, and how it was found, from the
+/// epochs whose own fix is consistent (all of them when none is): at a standstill they measure
+/// one position. For coplanar anchors, whose single-epoch fixes fall back to the anchors' plane
+/// when one epoch's ranges cannot show the tag below it (ranges a steady bias shortens, in a long
+/// hall where most anchors are far), the pooled ranges can
+/// ([`crate::multilateration::solve_epoch`]'s test of the height below the plane, with all of
+/// them). Its height variance is one epoch's (the pooled variance times the epoch count), as for
+/// the median of the fixes. None without ranges in the window or without a solvable pool.
+fn still_height(ranges: &[RangeMeasurement], anchors: &[Vec3], ls: &LsConfig, from_s: f64, to_s: f64) -> Option<(f64, Height)> {
+    let epochs: Vec<_> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
+        .into_iter()
+        .filter(|e| e.t_s >= from_s - 0.5 && e.t_s <= to_s)
+        .collect();
+    let consistent =
+        |e: &&Epoch| solve_epoch(anchors, &e.obs, ls).is_some_and(|f| f.is_consistent(ls.range_std_m, CONSISTENCY_ALPHA));
+    let mut pooled: Vec<&Epoch> = epochs.iter().filter(consistent).collect();
+    if pooled.is_empty() {
+        pooled = epochs.iter().collect();
+    }
+    let obs: Vec<(usize, f64)> = pooled.iter().flat_map(|e| e.obs.iter().copied()).collect();
+    let fix = solve_epoch(anchors, &obs, ls)?;
+    let height = if fix.planar { Height::OnAnchorPlane } else { Height::Fixed(fix.covariance[(2, 2)] * pooled.len() as f64) };
+    Some((fix.position.z, height))
 }
 
 /// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag
