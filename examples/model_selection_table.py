@@ -38,6 +38,9 @@ RIGS = (
     "drone_rates+steady",
     "handheld_walk+steady",
     "corridor+steady",
+    "agv_loop+long",
+    "drone_flight+long",
+    "handheld_walk+long",
     "survey_error",
     "handheld_walk+wandering",
     "agv_loop+wandering",
@@ -62,6 +65,9 @@ def added_errors(ranges: np.ndarray, n_anchors: int, kind: str, seed: int) -> np
     rng = np.random.default_rng(100 + seed)
     if kind == "steady":
         bias = -0.13 + rng.uniform(-0.18, 0.16, n_anchors)
+        out[:, 2] += bias[out[:, 1].astype(int)]
+    elif kind == "long":
+        bias = rng.uniform(0.10, 0.36, n_anchors)
         out[:, 2] += bias[out[:, 1].astype(int)]
     elif kind == "wandering":
         tau, sigma = 1.0, 0.1
