@@ -12,7 +12,7 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
 
-use crate::outlier_smoothing::{mark_long_ranges, ResidualWalk};
+use crate::outlier_smoothing::{leave_out_long_ranges, ResidualWalk};
 use crate::select::ModelChoice;
 
 /// What a method takes besides IMU samples.
@@ -478,35 +478,39 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 /// left out counted in its health.
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let warnings = check_imu_units(input.imu)?;
-    let (initial, mut init) = initial_state(input)?;
-    let (mut trace, mut smoothed, smoothing) = run_pass(&build, &initial, input)?;
-    let passes = smoothing.outlier_passes_or_zero();
-    let mut left_out = vec![false; if passes > 0 { input.ranges.len() } else { 0 }];
+    let (initial, init) = initial_state(input)?;
+    let (trace, smoothed, smoothing) = run_pass(&build, &initial, input)?;
     let quiet = input.progress.map(Progress::sharing_cancel);
-    for _ in 0..passes {
-        let Some(steps) = smoothed.as_deref() else { break };
-        let mut walk = ResidualWalk::new(input.ranges, input.anchors, input.config.mounting.lever_arm);
-        steps.iter().for_each(|s| walk.push(s));
-        if mark_long_ranges(&walk.finish(), input.ranges, smoothing.outlier_sigmas, &mut left_out) == 0 {
-            break;
-        }
-        let kept: Vec<RangeMeasurement> = input.ranges.iter().zip(&left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
+    let residuals = |(_, smoothed, _): &mut SmoothedPass| {
+        Ok(smoothed.as_deref().map(|steps| {
+            let mut walk = ResidualWalk::new(input.ranges, input.anchors, input.config.mounting.lever_arm);
+            steps.iter().for_each(|s| walk.push(s));
+            walk.finish()
+        }))
+    };
+    let again = |left_out: &[bool]| {
+        let kept: Vec<RangeMeasurement> = input.ranges.iter().zip(left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
         let again_input = BatchInput { ranges: &kept, progress: quiet.as_ref(), ..*input };
         // A log that cannot start without the ranges left out keeps the pass before.
         let again = initial_state(&again_input)
             .and_then(|(initial, init)| run_pass(&build, &initial, &again_input).map(|pass| (pass, init)));
-        let ((again, again_smoothed, _), again_init) = match again {
-            Err(Error::InsufficientData(_)) => break,
+        let ((trace, smoothed, _), init) = match again {
+            Err(Error::InsufficientData(_)) => return Ok(None),
             other => other?,
         };
-        if again_smoothed.is_none() || quiet.as_ref().is_some_and(Progress::cancelled) {
-            break;
-        }
-        (trace, smoothed, init) = (again, again_smoothed, again_init);
-        trace.health.smoothing_left_out = input.ranges.len() - kept.len();
-    }
+        let complete = smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
+        Ok(complete.then_some((trace, smoothed, init)))
+    };
+    let passes = smoothing.outlier_passes_or_zero();
+    let ((mut trace, smoothed, init), left_out) =
+        leave_out_long_ranges((trace, smoothed, init), passes, input.ranges, smoothing.outlier_sigmas, residuals, again)?;
+    trace.health.smoothing_left_out = left_out;
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
 }
+
+/// A complete pass of [`run_inertial`]: the forward trace, its RTS-smoothed steps (None when the
+/// run was not smoothed) and the self-initialisation it started from.
+type SmoothedPass = (Trace, Option<Vec<StepRecord>>, Option<Box<SelfInit>>);
 
 /// One pass of [`run_inertial`] from `initial`: the forward run, its RTS-smoothed steps when
 /// smoothing was asked for (None when the run was cancelled), and the smoothing settings the

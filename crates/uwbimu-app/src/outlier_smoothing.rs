@@ -122,6 +122,38 @@ pub fn mark_long_ranges(
     marked
 }
 
+/// The passes of robust smoothing, for a runner that holds its passes its own way (in memory or
+/// spilled to disk): from the smoothed `first` pass, at most `passes` times, the residuals of
+/// `ranges` against the pass's smoothed track (`residuals`; None when it has none, as a cancelled
+/// run), the ranges they call NLOS marked ([`mark_long_ranges`]) and the log run and smoothed
+/// again without every range marked so far (`again`, given the marks in the order of `ranges`;
+/// None when the log cannot start without them or the run was cancelled), until no range is
+/// added. Returns the last complete pass and how many ranges it left out.
+pub fn leave_out_long_ranges<P, E>(
+    first: P,
+    passes: u32,
+    ranges: &[RangeMeasurement],
+    sigmas: f64,
+    mut residuals: impl FnMut(&mut P) -> Result<Option<Vec<Option<Residual>>>, E>,
+    mut again: impl FnMut(&[bool]) -> Result<Option<P>, E>,
+) -> Result<(P, usize), E> {
+    let (mut pass, mut left_out_count) = (first, 0);
+    if passes == 0 {
+        return Ok((pass, left_out_count));
+    }
+    let mut left_out = vec![false; ranges.len()];
+    for _ in 0..passes {
+        let Some(found) = residuals(&mut pass)? else { break };
+        if mark_long_ranges(&found, ranges, sigmas, &mut left_out) == 0 {
+            break;
+        }
+        let Some(next) = again(&left_out)? else { break };
+        pass = next;
+        left_out_count = left_out.iter().filter(|out| **out).count();
+    }
+    Ok((pass, left_out_count))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -186,5 +218,51 @@ mod tests {
         assert_eq!(mark_long_ranges(&residuals, &ranges, 3.0, &mut left_out), 0);
         assert_eq!(mark_long_ranges(&residuals, &ranges, 1.0, &mut left_out), 1);
         assert!(left_out[16] && !left_out[13]);
+    }
+
+    #[test]
+    fn passes_stop_when_nothing_is_added_or_a_pass_fails_and_keep_the_last_complete_one() {
+        // Ten ranges to anchor 0 at 0 m, one 1 m long; each pass "is" the marks it ran without.
+        let ranges: Vec<RangeMeasurement> = (0..10).map(|k| range(k as f64, 0, 5.0)).collect();
+        let residuals = |long: &[usize]| -> Vec<Option<Residual>> {
+            (0..10).map(|k| Some(Residual { range_m: if long.contains(&k) { 1.0 } else { 0.0 }, track_var: 0.0 })).collect()
+        };
+        let count = |marks: &[bool]| marks.iter().filter(|m| **m).count();
+        // The first pass finds range 3; the run without it finds range 7 too; then nothing more.
+        let mut runs = 0;
+        let (last, left_out) = leave_out_long_ranges(
+            0,
+            5,
+            &ranges,
+            3.0,
+            |pass: &mut usize| Ok::<_, ()>(Some(residuals(if *pass == 0 { &[3] } else { &[3, 7] }))),
+            |marks| {
+                runs += 1;
+                Ok(Some(count(marks)))
+            },
+        )
+        .unwrap();
+        assert_eq!((last, left_out, runs), (2, 2, 2));
+        // A run that cannot start without the marked ranges keeps the first pass, nothing left out.
+        let (last, left_out) =
+            leave_out_long_ranges(0, 5, &ranges, 3.0, |_: &mut usize| Ok::<_, ()>(Some(residuals(&[3]))), |_| Ok(None)).unwrap();
+        assert_eq!((last, left_out), (0, 0));
+        // No smoothed track, or no passes: the first pass as it is.
+        assert_eq!(leave_out_long_ranges(0, 5, &ranges, 3.0, |_: &mut usize| Ok::<_, ()>(None), |_| Ok(Some(9))), Ok((0, 0)));
+        assert_eq!(
+            leave_out_long_ranges(0, 0, &ranges, 3.0, |_: &mut usize| Ok::<_, ()>(Some(residuals(&[3]))), |_| Ok(Some(9))),
+            Ok((0, 0))
+        );
+        // At most `passes` re-runs, however many ranges each pass adds.
+        let (last, _) = leave_out_long_ranges(
+            0,
+            1,
+            &ranges,
+            3.0,
+            |pass: &mut usize| Ok::<_, ()>(Some(residuals(&[*pass + 1]))),
+            |marks| Ok(Some(count(marks))),
+        )
+        .unwrap();
+        assert_eq!(last, 1);
     }
 }

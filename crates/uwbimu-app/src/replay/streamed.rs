@@ -34,7 +34,7 @@ use crate::io::spill::Spill;
 use crate::io::{stream_recording_file, IoResult as Result, Mapping, RecordItem, RecordingSurvey};
 use crate::methods::{BatchInput, Method};
 use crate::metrics::TruthErrors;
-use crate::outlier_smoothing::{mark_long_ranges, ResidualWalk};
+use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::select::ModelChoice;
 
 /// What [`replay_streamed`] is given besides the method.
@@ -613,34 +613,36 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     let mut ranges = RangesOfPass { kept: Some(Vec::new()), left_out: &[], seen: 0 };
     let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None)?;
     pass.smooth(input, kind.core)?;
-    let (all, mut left_out) = (ranges.kept.take().unwrap_or_default(), vec![false; ranges.seen]);
-    let smoothing = pass.stream.estimator().map(kind.smoothing);
-    let quiet = input.progress.map(Progress::sharing_cancel);
-    for _ in 0..smoothing.map_or(0, |s| s.outlier_passes_or_zero()) {
-        let (Some(smoothing), Some(smoothed)) = (smoothing, pass.smoothed.as_mut()) else { break };
+    let all = ranges.kept.take().unwrap_or_default();
+    let Some(smoothing) = pass.stream.estimator().map(kind.smoothing) else {
+        return pass.finish(survey, Some(on_step));
+    };
+    let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
+    let residuals = |pass: &mut Pass<'_, E>| -> Result<Option<Vec<Option<Residual>>>> {
+        let Some(smoothed) = pass.smoothed.as_mut() else { return Ok(None) };
         let mut walk = ResidualWalk::new(&all, &survey.anchors.positions, input.config.mounting.lever_arm);
         // Kept newest first, the smoothed steps come back oldest first.
         for v in smoothed.newest_first()? {
             walk.push(&step_from_flat(&v?));
         }
-        if mark_long_ranges(&walk.finish(), &all, smoothing.outlier_sigmas, &mut left_out) == 0 {
-            break;
-        }
+        Ok(Some(walk.finish()))
+    };
+    let again = |left_out: &[bool]| -> Result<Option<Pass<'_, E>>> {
         let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
-        let mut again_ranges = RangesOfPass { kept: None, left_out: &left_out, seen: 0 };
+        let mut again_ranges = RangesOfPass { kept: None, left_out, seen: 0 };
         let out = StepsOut::spilled(input.spill_dir)?;
         // A log that cannot start without the ranges left out keeps the pass before.
-        let mut again = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, pass.model.as_ref()) {
-            Err(crate::io::IoError::Core(CoreError::InsufficientData(_))) => break,
+        let mut again = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref()) {
+            Err(crate::io::IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
             other => other?,
         };
         again.smooth(&again_input, kind.core)?;
-        if again.smoothed.is_none() || quiet.as_ref().is_some_and(Progress::cancelled) {
-            break;
-        }
-        pass = again;
-        pass.left_out = left_out.iter().filter(|o| **o).count();
-    }
+        let complete = again.smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
+        Ok(complete.then_some(again))
+    };
+    let passes = smoothing.outlier_passes_or_zero();
+    let (mut pass, left_out) = leave_out_long_ranges(pass, passes, &all, smoothing.outlier_sigmas, residuals, again)?;
+    pass.left_out = left_out;
     pass.finish(survey, Some(on_step))
 }
 
