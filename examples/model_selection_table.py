@@ -41,6 +41,8 @@ RIGS = (
     "agv_loop+long",
     "drone_flight+long",
     "handheld_walk+long",
+    "mixed_rates+long",
+    "outliers+long",
     "survey_error",
     "handheld_walk+wandering",
     "agv_loop+wandering",
