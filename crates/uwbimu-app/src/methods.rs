@@ -492,9 +492,9 @@ fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, i
         let kept: Vec<RangeMeasurement> = input.ranges.iter().zip(left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
         let again_input = BatchInput { ranges: &kept, progress: quiet.as_ref(), ..*input };
         // A log that cannot start without the ranges left out keeps the pass before.
-        let again = initial_state(&again_input)
+        let rerun = initial_state(&again_input)
             .and_then(|(initial, init)| run_pass(&build, &initial, &again_input).map(|pass| (pass, init)));
-        let ((trace, smoothed, _), init) = match again {
+        let ((trace, smoothed, _), init) = match rerun {
             Err(Error::InsufficientData(_)) => return Ok(None),
             other => other?,
         };

@@ -632,13 +632,13 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         let mut again_ranges = RangesOfPass { kept: None, left_out, seen: 0 };
         let out = StepsOut::spilled(input.spill_dir)?;
         // A log that cannot start without the ranges left out keeps the pass before.
-        let mut again = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref()) {
+        let mut rerun = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref()) {
             Err(crate::io::IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
             other => other?,
         };
-        again.smooth(&again_input, kind.core)?;
-        let complete = again.smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
-        Ok(complete.then_some(again))
+        rerun.smooth(&again_input, kind.core)?;
+        let complete = rerun.smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
+        Ok(complete.then_some(rerun))
     };
     let passes = smoothing.outlier_passes_or_zero();
     let (mut pass, left_out) = leave_out_long_ranges(pass, passes, &all, smoothing.outlier_sigmas, residuals, again)?;
