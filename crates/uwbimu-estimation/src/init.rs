@@ -142,24 +142,28 @@ fn self_init(
 
     // 2. Tag position from UWB fixes.
     let ls = LsConfig::from_filter_config(config);
-    let mut all: Vec<(f64, Fix)> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
-        .into_iter()
-        .filter(|e| e.t_s >= t0 - 0.5)
-        .filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f)))
-        .collect();
+    let epochs: Vec<Epoch> =
+        group_epochs(ranges, ls.epoch_window_s, anchors.len()).into_iter().filter(|e| e.t_s >= t0 - 0.5).collect();
+    let mut all: Vec<SolvedFix<'_>> =
+        epochs.iter().filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f, e.obs.as_slice()))).collect();
     let mut std_m = config.ranging.range_std;
     if all.is_empty() && !tdoa.is_empty() {
         std_m = config.ranging.tdoa_std;
         let from = tdoa.partition_point(|m| m.t_s < t0 - 0.5);
-        all = tdoa_fixes(anchors, &tdoa[from..], &LsConfig { range_std_m: std_m, ..ls });
+        all = tdoa_fixes(anchors, &tdoa[from..], &LsConfig { range_std_m: std_m, ..ls })
+            .into_iter()
+            .map(|(t, f)| (t, f, &[][..]))
+            .collect();
     }
     // Fixes whose measurements disagree (an outlier, NLOS) are left out when any others exist.
-    let consistent: Vec<(f64, Fix)> = all.iter().filter(|(_, f)| f.is_consistent(std_m, CONSISTENCY_ALPHA)).copied().collect();
+    let consistent: Vec<SolvedFix<'_>> =
+        all.iter().filter(|(_, f, _)| f.is_consistent(std_m, CONSISTENCY_ALPHA)).copied().collect();
     let fixes = if consistent.is_empty() { all } else { consistent };
-    let Some((_, first_fix)) = fixes.first() else {
+    let Some((_, first_fix, _)) = fixes.first() else {
         return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));
     };
-    let start_fixes: Vec<&Fix> = fixes.iter().filter(|(t, _)| still && *t <= t0 + config.init.still_s).map(|(_, f)| f).collect();
+    let start: Vec<&SolvedFix<'_>> = fixes.iter().filter(|(t, _, _)| still && *t <= t0 + config.init.still_s).collect();
+    let start_fixes: Vec<&Fix> = start.iter().map(|(_, f, _)| f).collect();
     // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
     // errors (anchor survey, multipath, NLOS) are the same in every fix.
     let (mut tag0, tag0_cov) = if start_fixes.is_empty() {
@@ -175,7 +179,8 @@ fn self_init(
     };
     let mut height = if first_fix.planar { Height::OnAnchorPlane } else { Height::Fixed(tag0_cov[(2, 2)]) };
     if start_fixes.iter().any(|f| f.planar) {
-        if let Some((z, pooled)) = still_height(ranges, anchors, &ls, t0, t0 + config.init.still_s) {
+        let start_ranges: Vec<&[(usize, f64)]> = start.iter().map(|(_, _, obs)| *obs).collect();
+        if let Some((z, pooled)) = still_height(&start_ranges, anchors, &ls) {
             (tag0.z, height) = (z, pooled);
         }
     }
@@ -214,6 +219,10 @@ fn self_init(
     ))
 }
 
+/// A UWB fix of self-initialisation: its time, s, the fix, and the ranges it was solved from
+/// (none for a TDoA fix).
+type SolvedFix<'a> = (f64, Fix, &'a [(usize, f64)]);
+
 /// How the initial height was found.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Height {
@@ -223,29 +232,18 @@ enum Height {
     OnAnchorPlane,
 }
 
-/// The height of the fix of every range of the still start window `[from_s − 0.5 s, to_s]` at
-/// once, m, and how it was found, from the
-/// epochs whose own fix is consistent (all of them when none is): at a standstill they measure
-/// one position. For coplanar anchors, whose single-epoch fixes fall back to the anchors' plane
-/// when one epoch's ranges cannot show the tag below it (ranges a steady bias shortens, in a long
-/// hall where most anchors are far), the pooled ranges can
+/// The height of one fix of every range of the still start window at once (`epochs`: the ranges
+/// of each still fix the position was taken from), m, and how it was found: at a standstill they
+/// measure one position. For coplanar anchors, whose single-epoch fixes fall back to the anchors'
+/// plane when one epoch's ranges cannot show the tag below it (ranges a steady bias shortens, in
+/// a long hall where most anchors are far), the pooled ranges can
 /// ([`crate::multilateration::solve_epoch`]'s test of the height below the plane, with all of
 /// them). Its height variance is one epoch's (the pooled variance times the epoch count), as for
-/// the median of the fixes. None without ranges in the window or without a solvable pool.
-fn still_height(ranges: &[RangeMeasurement], anchors: &[Vec3], ls: &LsConfig, from_s: f64, to_s: f64) -> Option<(f64, Height)> {
-    let epochs: Vec<_> = group_epochs(ranges, ls.epoch_window_s, anchors.len())
-        .into_iter()
-        .filter(|e| e.t_s >= from_s - 0.5 && e.t_s <= to_s)
-        .collect();
-    let consistent =
-        |e: &&Epoch| solve_epoch(anchors, &e.obs, ls).is_some_and(|f| f.is_consistent(ls.range_std_m, CONSISTENCY_ALPHA));
-    let mut pooled: Vec<&Epoch> = epochs.iter().filter(consistent).collect();
-    if pooled.is_empty() {
-        pooled = epochs.iter().collect();
-    }
-    let obs: Vec<(usize, f64)> = pooled.iter().flat_map(|e| e.obs.iter().copied()).collect();
+/// the median of the fixes. None without ranges (TDoA fixes) or without a solvable pool.
+fn still_height(epochs: &[&[(usize, f64)]], anchors: &[Vec3], ls: &LsConfig) -> Option<(f64, Height)> {
+    let obs: Vec<(usize, f64)> = epochs.iter().flat_map(|e| e.iter().copied()).collect();
     let fix = solve_epoch(anchors, &obs, ls)?;
-    let height = if fix.planar { Height::OnAnchorPlane } else { Height::Fixed(fix.covariance[(2, 2)] * pooled.len() as f64) };
+    let height = if fix.planar { Height::OnAnchorPlane } else { Height::Fixed(fix.covariance[(2, 2)] * epochs.len() as f64) };
     Some((fix.position.z, height))
 }
 
@@ -254,7 +252,7 @@ fn still_height(ranges: &[RangeMeasurement], anchors: &[Vec3], ls: &LsConfig, fr
 /// of the last of them once all [`HEADING_EPOCHS`] were used.
 fn heading_from_motion(
     imu: &[ImuSample],
-    fixes: &[(f64, Fix)],
+    fixes: &[SolvedFix<'_>],
     tag0: Vec3,
     level: Quat,
     gyro_bias: Vec3,
@@ -274,7 +272,7 @@ fn heading_from_motion(
     let dr0 = tag_dr(&x);
     let (mut cross, mut dot, mut used, mut settled_s) = (0.0, 0.0, 0usize, None);
     let mut k = 0;
-    for (t_fix, fix) in fixes {
+    for (t_fix, fix, _) in fixes {
         if *t_fix > t0 + config.init.heading_timeout_s || used >= HEADING_EPOCHS {
             break;
         }
