@@ -12,6 +12,28 @@ pub type Cov<const N: usize> = SMatrix<f64, N, N>;
 /// Hamilton unit quaternion (w, x, y, z), used as body → navigation rotation.
 pub type Quat = UnitQuaternion<f64>;
 
+/// A value on its own 64-byte boundary, for the large scratch matrices the hot path copies whole
+/// (the iterated update's covariances, the joint covariance of range bias states). glibc copies
+/// blocks above about 2 kB with `rep movsb`, which on AMD Zen cores runs many times slower when
+/// source and destination lie within 32 bytes of each other modulo 4 KiB (docs/performance.md
+/// has the figures); two 64-byte-aligned buffers never do. Dereferences to the value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+pub struct CacheAligned<T>(pub T);
+
+impl<T> std::ops::Deref for CacheAligned<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        &self.0
+    }
+}
+
+impl<T> std::ops::DerefMut for CacheAligned<T> {
+    fn deref_mut(&mut self) -> &mut T {
+        &mut self.0
+    }
+}
+
 /// Skew-symmetric matrix `[w]×` with `[w]× v = w × v` (Li & Wang 2020 eq. (12)).
 pub fn skew(w: &Vec3) -> Mat3 {
     Mat3::new(0.0, -w.z, w.y, w.z, 0.0, -w.x, -w.y, w.x, 0.0)

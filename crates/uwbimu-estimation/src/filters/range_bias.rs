@@ -38,7 +38,7 @@
 use nalgebra::{SMatrix, SVector};
 use uwbimu_vocabulary::config::RangeBiasConfig;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::Cov;
+use uwbimu_vocabulary::math::{CacheAligned, Cov};
 use uwbimu_vocabulary::state::ERR_DIM;
 
 use crate::models::scalar::ScalarMeasurement;
@@ -179,7 +179,8 @@ impl RangeBiasStates {
         // Slot s of the 17 kept here → row of the joint state: the anchors', then the common one.
         let row = |s: usize| if s == COMMON { N - 1 } else { ERR_DIM + s };
         let live = (0..self.anchors).chain([COMMON]);
-        let mut joint = Cov::<N>::zeros();
+        // Cache-aligned: the iterated update copies it whole ([`CacheAligned`]).
+        let mut joint = CacheAligned(Cov::<N>::zeros());
         let mut estimate = SVector::<f64, N>::zeros();
         joint.fixed_view_mut::<ERR_DIM, ERR_DIM>(0, 0).copy_from(p);
         for s in live.clone() {
@@ -193,7 +194,7 @@ impl RangeBiasStates {
             estimate[j] = self.estimate[s];
         }
         let estimated = if self.config.consider { ERR_DIM } else { N };
-        let out = step.step(&mut joint, &mut estimate, estimated)?;
+        let out = step.step(&mut joint.0, &mut estimate, estimated)?;
         p.copy_from(&joint.fixed_view::<ERR_DIM, ERR_DIM>(0, 0));
         for s in live.clone() {
             let j = row(s);
