@@ -14,9 +14,10 @@ pub type Quat = UnitQuaternion<f64>;
 
 /// A value on its own 64-byte boundary, for the large scratch matrices the hot path copies whole
 /// (the iterated update's covariances, the joint covariance of range bias states). glibc copies
-/// blocks above about 2 kB with `rep movsb`, which on AMD Zen cores runs many times slower when
-/// source and destination lie within 32 bytes of each other modulo 4 KiB (docs/performance.md
-/// has the figures); two 64-byte-aligned buffers never do. Dereferences to the value.
+/// blocks above about 2 kB with `rep movsb`, which on the AMD EPYC machines measured runs many
+/// times slower when source and destination lie within 32 bytes of each other modulo 4 KiB
+/// (docs/performance.md has the figures); two 64-byte-aligned buffers never do. Dereferences to
+/// the value.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(64))]
 pub struct CacheAligned<T>(pub T);
