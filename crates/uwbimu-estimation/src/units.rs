@@ -4,15 +4,16 @@
 //! | finding | rule | outcome |
 //! |---|---|---|
 //! | times in ms / µs / ns | median sample interval ≥ 0.5 s (no inertial navigation below 2 Hz) | error naming the likely unit |
-//! | accelerometer in g | mean specific-force norm in [0.5, 2] | warning: multiply by 9.80665 |
-//! | accelerometer far from gravity | mean norm below 0.5 or above 30 m/s² | warning |
+//! | accelerometer in g | median specific-force norm in [0.5, 2] | warning: multiply by 9.80665 |
+//! | accelerometer far from gravity | median norm below 0.5 or above 30 m/s² | warning |
 //! | gyroscope in deg/s | a rate above 20 rad/s (1146 °/s), or, while the accelerometer is still, a rate scatter above 0.15 rad/s | warning: multiply by π/180 |
 //!
 //! The check reads the first [`UNIT_CHECK_SAMPLES`] samples or [`UNIT_CHECK_SPAN_S`] seconds,
-//! whichever ends first.
+//! whichever ends first. The norm rules take the median, so that one impossible sample among the
+//! first (which the loop rejects and counts) is not read as a unit slip.
 
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::math::{percentile, Vec3};
 use uwbimu_vocabulary::records::ImuSample;
 
 /// Samples the check reads at most.
@@ -63,17 +64,17 @@ pub fn check_imu_units(imu: &[ImuSample]) -> Result<Vec<String>> {
         });
     }
     let n = window.len() as f64;
-    let force = window.iter().map(|s| s.accel.norm()).sum::<f64>() / n;
+    let force = median_force(window);
     let force_mean = window.iter().map(|s| s.accel).sum::<Vec3>() / n;
     let force_std = (window.iter().map(|s| (s.accel - force_mean).norm_squared()).sum::<f64>() / n).sqrt();
     let mut warnings = Vec::new();
     if (0.5..=2.0).contains(&force) {
         warnings.push(format!(
-            "imu: the accelerometer's mean norm over the first {n} samples is {force:.3}: it looks like g, not m/s² (multiply by 9.80665)"
+            "imu: the accelerometer's median norm over the first {n} samples is {force:.3}: it looks like g, not m/s² (multiply by 9.80665)"
         ));
     } else if !(0.5..=30.0).contains(&force) {
         warnings.push(format!(
-            "imu: the accelerometer's mean norm over the first {n} samples is {force:.3} m/s², far from gravity (9.81): check its unit"
+            "imu: the accelerometer's median norm over the first {n} samples is {force:.3} m/s², far from gravity (9.81): check its unit"
         ));
     }
     let max_rate = window.iter().map(|s| s.gyro.amax()).fold(0.0, f64::max);
@@ -87,6 +88,13 @@ pub fn check_imu_units(imu: &[ImuSample]) -> Result<Vec<String>> {
         ));
     }
     Ok(warnings)
+}
+
+/// Median of the specific-force norms of `window`.
+fn median_force(window: &[ImuSample]) -> f64 {
+    let mut norms: Vec<f64> = window.iter().map(|s| s.accel.norm()).collect();
+    norms.sort_by(f64::total_cmp);
+    percentile(&norms, 50.0)
 }
 
 #[cfg(test)]
@@ -124,6 +132,19 @@ mod tests {
         assert!(matches!(check_imu_units(&ms), Err(Error::BadArgument { reason, .. }) if reason.contains("milliseconds")));
         let us: Vec<ImuSample> = still_si().iter().map(|s| ImuSample { t_s: s.t_s * 1e6, ..*s }).collect();
         assert!(matches!(check_imu_units(&us), Err(Error::BadArgument { reason, .. }) if reason.contains("microseconds")));
+    }
+
+    #[test]
+    fn one_impossible_sample_among_the_first_is_not_a_unit_slip() {
+        // The streaming loop rejects a sample beyond ±16 g and counts it; a mean norm over the
+        // first three samples would still read 139.9 m/s² and warn "far from gravity".
+        let mut first: Vec<ImuSample> = still_si().into_iter().take(3).collect();
+        first[1].accel = Vec3::new(0.0, 400.0, 9.8);
+        assert_eq!(check_imu_units(&first), Ok(vec![]));
+        // Most samples off is still a slip.
+        first[2].accel = Vec3::new(0.0, 400.0, 9.8);
+        let w = check_imu_units(&first).expect("warnings");
+        assert!(w.len() == 1 && w[0].contains("far from gravity"), "{w:?}");
     }
 
     #[test]
