@@ -23,8 +23,7 @@ needs_cargo = pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is
 def cargo_example(name: str, *args: str) -> str:
     """The stdout of the Rust example ``name`` run with ``args`` (fails the test on a non-zero
     exit). Built with ``--workspace``, as ``cargo test --workspace`` builds it: a build of the root
-    package alone unifies the dependencies' features differently and compiles the library again
-    (about 30 s in CI)."""
+    package alone unifies the dependencies' features differently and compiles the library again."""
     build = subprocess.run(
         ["cargo", "build", "-q", "--workspace", "--example", name, "--message-format=json"],
         cwd=ROOT, capture_output=True, text=True, timeout=900,
@@ -32,8 +31,9 @@ def cargo_example(name: str, *args: str) -> str:
     assert build.returncode == 0, build.stderr
     artifacts = [json.loads(line) for line in build.stdout.splitlines() if line.startswith("{")]
     executable = next(
-        a["executable"] for a in artifacts if a.get("executable") and a.get("target", {}).get("name") == name
+        (a["executable"] for a in artifacts if a.get("executable") and a.get("target", {}).get("name") == name), None
     )
+    assert executable is not None, f"cargo built no executable for the example {name}"
     out = subprocess.run([executable, *args], cwd=ROOT, capture_output=True, text=True, timeout=900)
     assert out.returncode == 0, out.stderr
     return out.stdout
