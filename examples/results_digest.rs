@@ -50,6 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             mag: &[],
                             tdoa: &[],
                             progress: None,
+                            marginals_every_s: None,
                         };
                         let digest = match run_method(method, &input) {
                             Ok(out) => format!("{:016x}", fnv1a(&format!("{out:?}"))),

@@ -42,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         mag: &[],
                         tdoa: if tdoa { &data.tdoa } else { &[] },
                         progress: None,
+                        marginals_every_s: None,
                     };
                     let (steps, positions): (Vec<f64>, Vec<_>) = match run_method(method, &input) {
                         Ok(BatchOutput::Inertial { trace, .. }) => trace

@@ -55,6 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     mag: &[],
                     tdoa: if tdoa { &data.tdoa } else { &[] },
                     progress: None,
+                    marginals_every_s: None,
                 };
                 let (trace, init) = match run_method(method, &input) {
                     Ok(BatchOutput::Inertial { trace, init, .. }) => (trace, init),

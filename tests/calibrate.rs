@@ -31,6 +31,7 @@ fn known_biases_are_recovered() {
             mag: &[],
             tdoa: &[],
             progress: None,
+            marginals_every_s: None,
         };
         let with = calibrate_with_truth(&input, &tag).expect("with truth");
         let without = calibrate_without_truth(&input, Method::Riekf, 8).expect("without truth");

@@ -27,6 +27,10 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("gate.hall_margin_m", "no range beyond the hall on the rig"),
     ("gate.accel_range", "the rig's IMU never saturates"),
     ("gate.gyro_range", "the rig's IMU never saturates"),
+    (
+        "gate.refuse_unit_slips",
+        "the rig's IMU is in SI units (crates/uwbimu-estimation/src/units.rs and tests/python/test_streaming.py hold the slips)",
+    ),
     ("mounting.imu_rotation", "with no lever arm a constant mounting rotation is absorbed by the self-initialised attitude"),
     ("init.heading_timeout_s", "the heading is found well before the timeout"),
     ("robust.max_iterations", "the iterations converge before the default limit"),
@@ -122,6 +126,7 @@ fn run(data: &SimData, method: Method, config: &FilterConfig, tdoa: bool) -> (f6
         mag,
         tdoa: if tdoa { &data.tdoa } else { &[] },
         progress: None,
+        marginals_every_s: None,
     };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input).unwrap() else { unreachable!() };
     let t0 = data.imu[0].t_s + 10.0;

@@ -226,3 +226,28 @@ fn best_nlos_skew_holds_out_a_shielded_anchor_and_costs_little_where_ranges_are_
         }
     }
 }
+
+#[test]
+fn the_outage_guard_never_fires_on_a_log_that_starts_in_motion() {
+    use uwbimu_rs::app::consistency::{scenario, settings_config};
+    use uwbimu_rs::app::generality::Settings;
+    use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
+    // The consistency suite's moving start: on the figure-8's straight crossing at 0.98 m/s,
+    // the IMU 0.5 s before the first range, the initial state given (the truth) and the
+    // configuration set to the simulator's noise. Before the fix the guard counted from the first
+    // IMU sample and gated on a mean velocity that started at zero: it applied a zero-velocity
+    // update at 0.98 m/s, and `still` was true for 11 samples in the first half second. (The
+    // figure-8 ends at rest: the samples after it stops do not count.)
+    let sim = scenario("moving_start", 3).expect("scenario");
+    let data = simulate(&sim).expect("sim");
+    let config = settings_config(&sim, Settings::Matched);
+    let initial = truth_initial(&data, Vec3::zeros());
+    let input = uwbimu_rs::app::methods::BatchInput { initial: Some(&initial), ..common::batch(&data, None, &config) };
+    for &method in Method::ALL.iter().filter(|m| m.info().streaming_class.is_some()) {
+        let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
+        assert_eq!(trace.steps.len(), data.truth.len());
+        let moving = |k: usize| data.truth[k].velocity.norm() > 0.3;
+        let still = trace.steps.iter().enumerate().filter(|(k, s)| s.still && moving(*k)).count();
+        assert_eq!(still, 0, "{}: still at {still} samples while the vehicle drives", method.name());
+    }
+}

@@ -31,6 +31,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, ranges: &[RangeMeasurement]
         mag: &[],
         tdoa: if tdoa { &data.tdoa } else { &[] },
         progress: None,
+        marginals_every_s: None,
     };
     match run_method(method, &input) {
         Ok(BatchOutput::Inertial { trace, .. }) => trace,

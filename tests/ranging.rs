@@ -149,6 +149,7 @@ fn per_anchor_fit_and_batch_preprocessing() {
             mag: &[],
             tdoa: &[],
             progress: None,
+            marginals_every_s: None,
         };
         let BatchOutput::Inertial { trace, .. } = run_method(Method::Ekf2d, &input).expect("run") else { unreachable!() };
         let e: Vec<f64> =

@@ -146,6 +146,7 @@ fn isas_walk1_keeps_the_plain_filter() {
         mag: &[],
         tdoa: &[],
         progress: None,
+        marginals_every_s: None,
     };
     let choice = choose(Method::Best, &input).expect("choose");
     assert_eq!(choice.chosen, 0, "{}", choice.reason);

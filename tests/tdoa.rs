@@ -47,6 +47,7 @@ fn run_rmse(
         mag: &[],
         tdoa: &data.tdoa,
         progress: None,
+        marginals_every_s: None,
     };
     let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &input) else { panic!("{method:?} failed") };
     let errors = horizontal_errors(&trace.steps, data);
@@ -145,6 +146,7 @@ fn a_confident_wrong_start_reacquires_on_a_tdoa_fix() {
                 mag: &[],
                 tdoa: &data.tdoa,
                 progress: None,
+                marginals_every_s: None,
             };
             let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &input) else { panic!("{method:?}") };
             let errors = horizontal_errors(&trace.steps, &data);
@@ -210,6 +212,7 @@ fn methods_that_do_not_take_tdoa_refuse_it_by_name() {
             mag: &[],
             tdoa: &data.tdoa,
             progress: None,
+            marginals_every_s: None,
         };
         let e = run_method(method, &input).expect_err("refused").to_string();
         assert!(e.contains("TDoA") && e.contains(method.name()) && e.contains("riekf"), "{e}");
@@ -243,7 +246,8 @@ fn every_sensor_at_unrelated_jittered_rates_streams_like_the_batch() {
     let mut config = s.config.clone();
     config.aiding.reference_s = 2.0;
     let initial = s.true_initial(&data).expect("initial");
-    let streams = Streams { imu: &data.imu, ranges: &data.ranges, mag: &mag, tdoa: &data.tdoa, progress: None };
+    let streams =
+        Streams { imu: &data.imu, ranges: &data.ranges, mag: &mag, tdoa: &data.tdoa, progress: None, marginals_every_s: None };
     let mut batch = Ackf::new(data.anchors.clone(), &initial, config.clone()).expect("ackf");
     let trace = run_streams(&mut batch, &streams).expect("every sensor, merged by time");
     let options = StreamOptions { reorder_window_s: 0.0, strict: true };

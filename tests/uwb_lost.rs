@@ -30,6 +30,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, initial: Option<&InitialSta
         mag: &[],
         tdoa: if tdoa { &data.tdoa } else { &[] },
         progress: None,
+        marginals_every_s: None,
     };
     match run_method(method, &input) {
         Ok(BatchOutput::Inertial { trace, init, .. }) => (trace, init),

@@ -226,6 +226,7 @@ impl Log {
             mag: &[],
             tdoa: &[],
             progress: None,
+            marginals_every_s: None,
         }
     }
 }
@@ -807,6 +808,7 @@ fn run_filters<'py>(
                 mag: &[],
                 tdoa: &[],
                 progress: Some(p),
+                marginals_every_s: None,
             })
             .collect();
         run_many(method, &batch)

@@ -22,6 +22,7 @@ pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &
         mag: &[],
         tdoa: &[],
         progress: None,
+        marginals_every_s: None,
     }
 }
 
@@ -37,6 +38,7 @@ pub fn recording_batch<'a>(rec: &'a Recording, config: &'a FilterConfig, smooth:
         mag: &[],
         tdoa: &[],
         progress: None,
+        marginals_every_s: None,
     }
 }
 

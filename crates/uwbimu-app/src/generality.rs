@@ -63,6 +63,18 @@ pub enum Settings<'a> {
     Custom(&'a FilterConfig),
 }
 
+impl Settings<'_> {
+    /// The configuration these settings give a rig whose configuration matched to its sensors
+    /// is `matched`.
+    pub fn config(&self, matched: &FilterConfig) -> FilterConfig {
+        match self {
+            Self::Matched => matched.clone(),
+            Self::Defaults => FilterConfig { mounting: matched.mounting, ..FilterConfig::default() },
+            Self::Custom(c) => (*c).clone(),
+        }
+    }
+}
+
 impl<'a> Settings<'a> {
     /// Parses `"matched"`, `"defaults"` or `"custom"` (which takes `custom`).
     pub fn parse(name: &str, custom: &'a FilterConfig) -> Result<Self> {
@@ -159,11 +171,7 @@ fn rms(v: &[f64]) -> f64 {
 pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
     let scenario: Scenario = zoo(cell.scenario, cell.seed)?;
     let data = simulate(&scenario.sim)?;
-    let mut config = match cell.settings {
-        Settings::Matched => scenario.config.clone(),
-        Settings::Defaults => FilterConfig { mounting: scenario.config.mounting, ..FilterConfig::default() },
-        Settings::Custom(c) => c.clone(),
-    };
+    let mut config = cell.settings.config(&scenario.config);
     if !matches!(cell.settings, Settings::Custom(_)) {
         config.model_selection.enabled = false;
     }
@@ -178,6 +186,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
         mag: &[],
         tdoa: &[],
         progress: None,
+        marginals_every_s: None,
     };
     let (t0, t1) = match (data.imu.first(), data.imu.last()) {
         (Some(a), Some(b)) => (a.t_s, b.t_s),

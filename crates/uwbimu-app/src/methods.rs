@@ -350,6 +350,10 @@ pub struct BatchInput<'a> {
     /// Counts the IMU samples the run has processed and marks its smoothing pass, for a progress
     /// bar on another thread (None: not counted).
     pub progress: Option<&'a Progress>,
+    /// Sample the forward estimate with the covariance of its position, velocity and attitude
+    /// errors into the trace every this many seconds ([`Trace::marginals`]; None: not sampled),
+    /// for consistency checks ([`crate::consistency`]).
+    pub marginals_every_s: Option<f64>,
 }
 
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
@@ -456,7 +460,14 @@ pub(crate) fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Opt
 impl BatchInput<'_> {
     /// The input streams (IMU, ranges, magnetometer, TDoA).
     pub fn streams(&self) -> Streams<'_> {
-        Streams { imu: self.imu, ranges: self.ranges, mag: self.mag, tdoa: self.tdoa, progress: self.progress }
+        Streams {
+            imu: self.imu,
+            ranges: self.ranges,
+            mag: self.mag,
+            tdoa: self.tdoa,
+            progress: self.progress,
+            marginals_every_s: self.marginals_every_s,
+        }
     }
 }
 

@@ -225,6 +225,7 @@ pub fn replay(
         mag: &[],
         tdoa: &rec.tdoa,
         progress,
+        marginals_every_s: None,
     };
     let output = run_method(method, &input)?;
     let mut tally = UpdateTally::new(&rec.anchor_ids, !rec.tdoa.is_empty());

@@ -49,6 +49,7 @@ pub use trajectory::{DriveOptions, KinematicSample, PlanarPath, Segment, Traject
 pub use uwb::{
     NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
 };
+pub(crate) use zoo::cuboid8;
 pub use zoo::{matched_config, true_initial, zoo, Scenario, UWB_LOST_NAMES, ZOO_NAMES};
 
 /// ChaCha stream of the IMU noise.

@@ -22,9 +22,11 @@
 //! the repair counted and flagged. [`Stream`] adds what a robot loop needs: late data put back in
 //! order within a window, and self-initialisation on the data as it arrives.
 
+mod marginals;
 mod progress;
 mod stream;
 
+pub use marginals::Marginals;
 pub use progress::Progress;
 pub use stream::{self_initialize, Builder, Stream, StreamOptions, DEFAULT_REORDER_WINDOW_S};
 
@@ -32,7 +34,7 @@ use uwbimu_vocabulary::config::GateConfig;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
-use uwbimu_vocabulary::state::{NominalState, POS};
+use uwbimu_vocabulary::state::{NominalState, ATT, POS, VEL};
 
 use crate::epoch::{align_to_reference, EpochAssembler};
 use crate::filters::{Filter, InertialCore, InertialFilter, SmoothingRecord};
@@ -40,6 +42,8 @@ use crate::gate::{Gate, GateCounts};
 use crate::models::range::tag_position;
 use crate::smoother::{rts_smooth, SmoothedNode};
 use crate::update::UpdateReport;
+
+use self::marginals::MarginalsSampler;
 
 /// The filter's estimate after processing one IMU sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -112,6 +116,9 @@ pub struct Trace {
     pub updates: Vec<UpdateRecord>,
     /// What the run counted: rejections, repairs, ranges before the start.
     pub health: Health,
+    /// The estimate with the covariance of its position, velocity and attitude errors, sampled
+    /// every [`Streams::marginals_every_s`] (empty when not asked for).
+    pub marginals: Vec<Marginals>,
 }
 
 /// What the loop drives: every [`InertialFilter`] (15-state), and the planar filters of Wang et al. 2018
@@ -120,6 +127,9 @@ pub struct Trace {
 pub trait Estimator: Filter {
     /// The estimate to record at IMU time `t_s`.
     fn record(&self, t_s: f64) -> StepRecord;
+    /// The estimate at IMU time `t_s` with the covariance of its position, velocity and attitude
+    /// errors ([`Marginals`]), for consistency checks.
+    fn marginals(&self, t_s: f64) -> Marginals;
     /// The filter time, s (None before the first IMU sample).
     fn time_s(&self) -> Option<f64>;
     /// Propagates to `t_s` ≥ the filter time with the last IMU sample held.
@@ -161,6 +171,19 @@ impl<F: InertialFilter> Estimator for F {
             position_cov: core.covariance().fixed_view::<3, 3>(POS, POS).into_owned(),
             still: self.still(),
             status: 0,
+        }
+    }
+
+    /// The position, velocity and attitude blocks of the 15-state error covariance.
+    fn marginals(&self, t_s: f64) -> Marginals {
+        let p = self.core().covariance();
+        Marginals {
+            t_s,
+            state: *self.core().state(),
+            position_cov: p.fixed_view::<3, 3>(POS, POS).into_owned(),
+            velocity_cov: p.fixed_view::<3, 3>(VEL, VEL).into_owned(),
+            attitude_cov: Some(p.fixed_view::<3, 3>(ATT, ATT).into_owned()),
+            dims: 3,
         }
     }
 
@@ -267,6 +290,7 @@ pub struct Pipeline {
     tally: Tally,
     pending_step: Option<f64>,
     steps: Option<Vec<StepRecord>>,
+    marginals: Option<MarginalsSampler>,
 }
 
 /// What the loop counts, and the status bits since the last recorded step.
@@ -333,6 +357,7 @@ impl Pipeline {
             tally: Tally::default(),
             pending_step: None,
             steps: None,
+            marginals: None,
         })
     }
 
@@ -345,6 +370,22 @@ impl Pipeline {
     /// are in (collected by [`Pipeline::take_steps`]); `capacity` steps are reserved.
     pub fn record_steps(&mut self, capacity: usize) {
         self.steps = Some(Vec::with_capacity(capacity));
+    }
+
+    /// Samples the estimate with its error marginals ([`Estimator::marginals`]) at the first step
+    /// of every `every_s` from now on (collected by [`Pipeline::take_marginals`]); fails unless
+    /// `every_s` is positive and finite.
+    pub fn record_marginals(&mut self, every_s: f64) -> Result<()> {
+        if !(every_s > 0.0 && every_s.is_finite()) {
+            return Err(Error::InvalidCall(format!("marginals_every_s must be positive and finite, got {every_s}")));
+        }
+        self.marginals = Some(MarginalsSampler::new(every_s));
+        Ok(())
+    }
+
+    /// The marginals sampled since [`Pipeline::record_marginals`] (empty when not sampling).
+    pub fn take_marginals(&mut self) -> Vec<Marginals> {
+        self.marginals.as_mut().map(MarginalsSampler::take).unwrap_or_default()
     }
 
     /// Checks that an event at `t_s` is not earlier than the previous one.
@@ -442,6 +483,11 @@ impl Pipeline {
 
     fn record_step<E: Estimator>(&mut self, est: &E, t_s: f64) {
         self.pending_step = None;
+        if let Some(sampler) = self.marginals.as_mut() {
+            if sampler.due(t_s) {
+                sampler.push(est.marginals(t_s));
+            }
+        }
         if let Some(steps) = self.steps.as_mut() {
             steps.push(StepRecord { status: self.tally.status, ..est.record(t_s) });
             self.tally.status = 0;
@@ -565,6 +611,9 @@ pub struct Streams<'a> {
     pub tdoa: &'a [TdoaMeasurement],
     /// Counts the IMU samples processed, for a progress bar (None: not counted).
     pub progress: Option<&'a Progress>,
+    /// Sample the estimate with its error marginals into [`Trace::marginals`] at the first IMU
+    /// step of every this many seconds (None: not sampled).
+    pub marginals_every_s: Option<f64>,
 }
 
 impl Streams<'_> {
@@ -598,6 +647,9 @@ impl Streams<'_> {
 pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Result<Trace> {
     let mut pipeline = Pipeline::for_estimator(filter)?;
     pipeline.record_steps(streams.imu.len());
+    if let Some(every_s) = streams.marginals_every_s {
+        pipeline.record_marginals(every_s)?;
+    }
     let Some(last_imu_s) = streams.imu.last().map(|s| s.t_s) else {
         return Ok(Trace::default());
     };
@@ -613,7 +665,7 @@ pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Resul
     pipeline.finish(filter)?;
     let mut updates = Vec::with_capacity(streams.ranges.len() + streams.tdoa.len());
     pipeline.take_applied(&mut updates);
-    Ok(Trace { steps: pipeline.take_steps(), updates, health: pipeline.health() })
+    Ok(Trace { steps: pipeline.take_steps(), updates, health: pipeline.health(), marginals: pipeline.take_marginals() })
 }
 
 /// Runs `filter` like [`run`] while recording, then smooths the run backwards

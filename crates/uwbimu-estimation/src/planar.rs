@@ -59,7 +59,7 @@ use crate::filters::reacquire::reacquisition_fix;
 use crate::filters::sigma_points::UnscentedWeights;
 use crate::filters::Filter;
 use crate::multilateration::LsConfig;
-use crate::pipeline::{Estimator, StepRecord};
+use crate::pipeline::{Estimator, Marginals, StepRecord};
 use crate::update::{vector_step, UpdateReport};
 
 pub use cekf::{MovingAverage, MAX_AGE_S, RATE_HORIZON_S};
@@ -367,8 +367,6 @@ impl Estimator for PlanarFilter {
     /// x, y block and zeros for z (the height is fixed).
     fn record(&self, t_s: f64) -> StepRecord {
         let x = &self.state;
-        let mut position_cov = Mat3::zeros();
-        position_cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&self.covariance.fixed_view::<2, 2>(X, X));
         StepRecord {
             t_s,
             state: NominalState {
@@ -378,10 +376,33 @@ impl Estimator for PlanarFilter {
                 accel_bias: self.accel_bias,
                 gyro_bias: self.gyro_bias,
             },
-            position_cov,
+            position_cov: self.block(X),
             still: false,
             status: 0,
         }
+    }
+
+    /// The x, y and vx, vy blocks of the 4-state covariance (zero z rows and columns, `dims` 2);
+    /// no attitude block: the attitude is an input, its covariance not carried.
+    fn marginals(&self, t_s: f64) -> Marginals {
+        let record = self.record(t_s);
+        Marginals {
+            t_s,
+            state: record.state,
+            position_cov: record.position_cov,
+            velocity_cov: self.block(VX),
+            attitude_cov: None,
+            dims: 2,
+        }
+    }
+}
+
+impl PlanarFilter {
+    /// The 2×2 block of the covariance at `at` (x, y or vx, vy) in the top left of a 3×3 matrix.
+    fn block(&self, at: usize) -> Mat3 {
+        let mut m = Mat3::zeros();
+        m.fixed_view_mut::<2, 2>(0, 0).copy_from(&self.covariance.fixed_view::<2, 2>(at, at));
+        m
     }
 }
 

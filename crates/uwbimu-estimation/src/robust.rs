@@ -9,7 +9,7 @@ mod policy;
 mod robustness;
 mod sage_husa;
 
-pub use chi2::{chi2_quantile, chi2_quantile_1dof, CHI2_1DOF_ALPHA_1E4};
+pub use chi2::{chi2_quantile, chi2_quantile_1dof, normal_quantile, CHI2_1DOF_ALPHA_1E4};
 pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
 pub use policy::{tested_nis, RangeNoisePolicy};
 pub use robustness::{

@@ -264,6 +264,7 @@ impl Prefix {
             mag: &[],
             tdoa: &tdoa,
             progress: None,
+            marginals_every_s: None,
         };
         crate::methods::choose_or_keep(method, &batch)
     }

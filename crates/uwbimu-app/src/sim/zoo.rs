@@ -162,7 +162,7 @@ fn coplanar8(height_m: f64) -> Vec<Vec3> {
 }
 
 /// Eight anchors at the corners of a 12 m × 8 m × 2.5 m cuboid (0.3 and 2.8 m high).
-fn cuboid8() -> Vec<Vec3> {
+pub(crate) fn cuboid8() -> Vec<Vec3> {
     let mut a = Vec::with_capacity(8);
     for z in [0.3, 2.8] {
         a.extend([Vec3::new(0.0, 0.0, z), Vec3::new(12.0, 0.0, z), Vec3::new(12.0, 8.0, z), Vec3::new(0.0, 8.0, z)]);

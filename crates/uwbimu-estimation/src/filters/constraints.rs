@@ -67,6 +67,12 @@ pub struct Constraints {
     zupt: bool,
     /// Time of the last UWB measurement, or of the first IMU sample before any, s.
     last_aiding_s: Option<f64>,
+    /// Whether a UWB measurement has arrived ([`Constraints::note_aiding`]).
+    aided: bool,
+    /// Whether the filter's speed at its first IMU sample was at least `zupt_max_speed` (a log
+    /// started in motion, from a given moving state): the outage guard then waits for the
+    /// first UWB measurement.
+    moving_start: bool,
     aiding_interval_s: Option<f64>,
     mean_velocity: Vec3,
     mean_velocity_t_s: Option<f64>,
@@ -89,6 +95,8 @@ impl Constraints {
             config: *config,
             zupt: config.zupt,
             last_aiding_s: None,
+            aided: false,
+            moving_start: false,
             aiding_interval_s: None,
             mean_velocity: Vec3::zeros(),
             mean_velocity_t_s: None,
@@ -125,14 +133,18 @@ impl Constraints {
             self.aiding_interval_s = Some(self.aiding_interval_s.map_or(dt, |i| 0.9 * i + 0.1 * dt));
         }
         self.last_aiding_s = Some(self.last_aiding_s.map_or(t_s, |t| t.max(t_s)));
+        self.aided = true;
     }
 
     /// Whether the outage guard applies the zero-velocity constraint at `t_s`: switched on, and
     /// no UWB measurement for `outage_zupt_after_s` or [`OUTAGE_INTERVALS`] usual intervals between
-    /// them, whichever is longer (counted from the first IMU sample before the first one).
+    /// them, whichever is longer (counted from the first IMU sample before the first one). A
+    /// filter that started moving waits for the first UWB measurement: until then nothing but
+    /// its own integration of the IMU says the platform stopped.
     fn outage(&self, t_s: f64) -> bool {
         let after_s = self.config.outage_zupt_after_s.max(OUTAGE_INTERVALS * self.aiding_interval_s.unwrap_or(0.0));
-        self.config.outage_zupt && self.last_aiding_s.is_some_and(|last| t_s - last >= after_s)
+        let started = self.aided || !self.moving_start;
+        self.config.outage_zupt && started && self.last_aiding_s.is_some_and(|last| t_s - last >= after_s)
     }
 
     /// While the platform is still, `still_heading_hold` is on and the heading is poorly known
@@ -164,11 +176,16 @@ impl Constraints {
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
     fn after_predict(&mut self, core: &mut InertialCore, bias: Option<&mut RangeBiasStates>) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
-        self.last_aiding_s.get_or_insert(t);
         let (cfg, gravity) = (self.config, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();
         let x = core.state();
         let speed = x.velocity.norm();
+        self.last_aiding_s.get_or_insert(t);
+        if self.mean_velocity_t_s.is_none() {
+            // The first IMU sample: the mean velocity starts at the filter's own, not at rest.
+            self.moving_start = speed >= cfg.zupt_max_speed;
+            (self.mean_velocity, self.mean_velocity_t_s) = (x.velocity, Some(t));
+        }
         self.detector.push(accel - x.accel_bias, gyro - x.gyro_bias, core.last_interval_s());
         if self.next_t_s.is_some_and(|next| t < next) {
             return Ok(());
