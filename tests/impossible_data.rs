@@ -128,3 +128,28 @@ fn impossible_ranges_are_dropped_and_change_nothing() {
         assert_eq!(a, b, "{}: the dropped ranges changed the estimate", method.name());
     }
 }
+
+#[test]
+fn an_imu_sample_beyond_its_range_keeps_its_row_propagated_with_the_last_one_held() {
+    // One accelerometer sample at 200 m/s² (beyond ±16 g) 3 s into a run: the gate drops it, and
+    // its row is still there, at its own time, flagged, and propagated with the previous sample
+    // held, so the run keeps one row per IMU sample (a user joins the rows with the IMU data).
+    let (s, data) = scenario(1);
+    let mut imu = data.imu.clone();
+    let k = imu.partition_point(|x| x.t_s < imu[0].t_s + 3.0);
+    imu[k].accel.x = 200.0;
+    let spoilt = SimData { imu, ..data.clone() };
+    for method in [Method::Ekf, Method::Riekf, Method::Best, Method::Ekf2d] {
+        let trace = run(method, &s, &spoilt, &spoilt.ranges, &s.config, true);
+        let clean = run(method, &s, &data, &data.ranges, &s.config, true);
+        assert_eq!(trace.steps.len(), spoilt.imu.len(), "{}: one row per IMU sample", method.name());
+        assert_eq!(trace.health.rejected.of(Rejection::ImuBeyondRange), 1);
+        let row = &trace.steps[k];
+        assert_eq!(row.t_s, spoilt.imu[k].t_s);
+        assert_ne!(row.status & STATUS_REJECTED, 0, "{}: the row is flagged", method.name());
+        // Held over 1 ms of a 1 kHz IMU: the row and the run after it stay within millimetres of
+        // the run with the sample.
+        let moved = (row.state.position - clean.steps[k].state.position).norm();
+        assert!(moved < 1e-3, "{}: the held row is {moved} m from the clean one", method.name());
+    }
+}

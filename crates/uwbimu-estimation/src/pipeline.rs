@@ -15,7 +15,9 @@
 //! filter has no time yet); events after the last IMU sample are not applied.
 //!
 //! Every event passes the plausibility gate first ([`crate::gate`]): what it rejects is counted
-//! in [`Health`] and flagged in the next step's [`StepRecord::status`]. A numerical failure in a
+//! in [`Health`] and flagged in the next step's [`StepRecord::status`]; a rejected IMU sample
+//! still has its step, propagated with the last sample held, so a run records one step per IMU
+//! sample from its first accepted one on. A numerical failure in a
 //! step (an innovation variance or a factorisation that is not positive definite, a state or
 //! covariance that is no longer finite) never ends a run: the state and covariance from before
 //! the step are put back, the covariance repaired ([`crate::repair`]), the measurement skipped and
@@ -413,6 +415,24 @@ impl Pipeline {
         self.tally.check_propagation(est)
     }
 
+    /// An IMU sample at `t_s` the gate rejected: once the filter has started, it is propagated
+    /// to `t_s` with the last sample held (closing an epoch the sample is past first) and the
+    /// step is recorded like any other, flagged [`STATUS_REJECTED`], so a run keeps one step per
+    /// IMU sample; before the first accepted sample there is nothing to propagate.
+    fn held_imu<E: Estimator>(&mut self, est: &mut E, t_s: f64) -> Result<()> {
+        if est.time_s().is_none() {
+            return Ok(());
+        }
+        self.check_order("imu", t_s)?;
+        if self.epochs.expires_before(t_s) {
+            self.flush(est)?;
+        }
+        est.advance_to(t_s)?;
+        self.tally.check_propagation(est)?;
+        self.pending_step = Some(t_s);
+        Ok(())
+    }
+
     /// Takes a range: before the first IMU sample it is counted and skipped; otherwise it closes
     /// the open epoch if it does not fit, joins the (new) open epoch, and closes it when it holds
     /// every anchor.
@@ -468,6 +488,9 @@ impl Pipeline {
         if let Some(rejection) = self.gate.check(event) {
             self.tally.health.rejected.count(rejection);
             self.tally.status |= STATUS_REJECTED;
+            if let Event::Imu(s) = event {
+                self.held_imu(est, s.t_s)?;
+            }
             return Ok(());
         }
         match event {
