@@ -189,15 +189,18 @@ def run_filter(
     ValueError
         Wrong shape, NaN/inf, decreasing time, anchor index out of range, unknown method or
         config key (the message names the array, row and column or the allowed values), IMU
-        times that cannot be seconds. A negative or impossible measurement inside good data is
-        not an error: the plausibility gate drops it (``gate.*`` config keys).
+        times that cannot be seconds, an accelerometer that looks like g or a gyroscope that
+        looks like deg/s (the message names the fix; ``gate.refuse_unit_slips=False`` takes
+        them as they are). A negative or impossible measurement inside good data is not an
+        error: the plausibility gate drops it (``gate.*`` config keys).
     KeyboardInterrupt
         Ctrl-C while the method runs (honoured within 0.1 s; the run is cancelled).
 
     Warns
     -----
     UserWarning
-        An accelerometer that looks like g or a gyroscope that looks like deg/s.
+        An accelerometer far from gravity in any unit; with ``gate.refuse_unit_slips=False``, an
+        accelerometer that looks like g or a gyroscope that looks like deg/s.
     """
     frame, upd, run_info = run_frames(
         method,

@@ -322,24 +322,31 @@ def test_streaming_reports_the_reacquisition_after_an_outage(method):
     assert all(r.t > 50.0 for r in reacquired)
 
 
-def test_unit_slips_are_named_batch_and_streaming():
+def test_unit_slips_are_refused_batch_and_streaming():
     run = sim.zoo("stop_and_go", seed=0)
     imu = run.imu[run.imu[:, 0] <= run.imu[0, 0] + 20.0]
     ranges = run.ranges[run.ranges[:, 0] <= imu[-1, 0]]
     in_g = imu.copy()
     in_g[:, 1:4] /= 9.80665
-    with pytest.warns(UserWarning, match=r"looks like g, not m/s²"):
+    with pytest.raises(ValueError, match=r"imu: accelerometer .* looks like g, not m/s²: multiply it by 9.80665 \(or set gate.refuse_unit_slips = false"):
         uwbimu_rs.run_filter("riekf", in_g, ranges, run.anchors)
     in_deg = imu.copy()
     in_deg[:, 4:7] = np.degrees(in_deg[:, 4:7])
-    with pytest.warns(UserWarning, match=r"looks like deg/s"):
+    with pytest.raises(ValueError, match=r"looks like deg/s, not rad/s: multiply it by π/180"):
         uwbimu_rs.run_filter("riekf", in_deg, ranges, run.anchors)
+    # Asked to, the data is taken as it is, with the warning.
+    with pytest.warns(UserWarning, match=r"looks like deg/s"):
+        uwbimu_rs.run_filter("riekf", in_deg, ranges, run.anchors, config={"gate": {"refuse_unit_slips": False}})
     in_ms = imu.copy()
     in_ms[:, 0] *= 1e3
     with pytest.raises(ValueError, match=r"imu: times \(median interval 10\) are not plausible in seconds: they look like milliseconds"):
         uwbimu_rs.run_filter("riekf", in_ms, ranges * [1e3, 1, 1], run.anchors)
     # Streaming: the same check on the first samples as they arrive, named by the call.
     f = uwbimu_rs.Riekf(run.anchors, reorder_window_s=0.0)
+    with pytest.raises(ValueError, match=r"add_imu: accelerometer .* looks like g"):
+        for r in in_g[:300]:
+            f.add_imu(r[0], r[1:4], r[4:7])
+    f = uwbimu_rs.Riekf(run.anchors, reorder_window_s=0.0, config={"gate": {"refuse_unit_slips": False}})
     with pytest.warns(UserWarning, match=r"looks like g"):
         for r in in_g[:300]:
             f.add_imu(r[0], r[1:4], r[4:7])

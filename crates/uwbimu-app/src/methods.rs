@@ -474,7 +474,7 @@ impl BatchInput<'_> {
 /// Runs a planar filter of Wang et al. 2018 (initialised like the inertial filters: x, y, velocity, yaw
 /// and gyro bias from the initial state).
 fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    let warnings = check_imu_units(input.imu)?;
+    let warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
     let trace = run_streams(&mut filter, &Streams { mag: &[], tdoa: &[], ..input.streams() })?;
@@ -488,7 +488,7 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 /// the last complete pass (the one before, if a log without them cannot start), with the ranges
 /// left out counted in its health.
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    let warnings = check_imu_units(input.imu)?;
+    let warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let (trace, smoothed, smoothing) = run_pass(&build, &initial, input)?;
     let quiet = input.progress.map(Progress::sharing_cancel);

@@ -11,12 +11,12 @@
 //!   the same decision, so a stream equals the batch run bit for bit.
 //! - **Units.** The first IMU samples as they arrive go through the unit check of the batch API
 //!   ([`crate::units`]): a warning ([`Stream::take_warnings`]) or, for times that cannot be
-//!   seconds, an error.
+//!   seconds and a unit slip it is sure of (unless `gate.refuse_unit_slips` is off), an error.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{FilterConfig, GateConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, Observation};
@@ -200,7 +200,12 @@ impl<E: Estimator> Stream<E> {
         if !(now || complete) {
             return Ok(());
         }
-        match check_imu_units(samples) {
+        let refuse = match &self.phase {
+            Phase::Running { estimator, .. } => estimator.gate_config().refuse_unit_slips,
+            Phase::Waiting(w) => w.config.gate.refuse_unit_slips,
+            Phase::Switching => GateConfig::default().refuse_unit_slips,
+        };
+        match check_imu_units(samples, refuse) {
             Ok(found) => {
                 self.warnings.extend(found);
                 self.unit_samples = None;

@@ -160,6 +160,10 @@ section! {
         accel_range: f64 = 16.0 * 9.80665, positive;
         /// Largest plausible gyroscope reading per axis, rad/s (±2000 °/s full scale).
         gyro_range: f64 = 2000.0 * std::f64::consts::PI / 180.0, positive;
+        /// Refuse IMU data whose unit the unit check is sure is wrong (accelerometer in g,
+        /// gyroscope in deg/s: `uwbimu_estimation::units`) with an error that names the fix; off:
+        /// warn and take the data as it is.
+        refuse_unit_slips: bool = true, flag;
     }
 }
 
