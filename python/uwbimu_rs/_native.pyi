@@ -751,7 +751,8 @@ def evaluate(est_t: _F64, est_xyz: _F64, truth_t: _F64, truth_xyz: _F64, align: 
     est_xyz : ndarray of float64, shape (N, 3)
         Estimated positions, m.
     truth_t : ndarray of float64, shape (M,)
-        Truth times, s (strictly increasing).
+        Truth times, s (non-decreasing; repeated times count as one sample at the mean of their
+        positions).
     truth_xyz : ndarray of float64, shape (M, 3)
         True positions, m.
     align : bool
@@ -768,8 +769,8 @@ def evaluate(est_t: _F64, est_xyz: _F64, truth_t: _F64, truth_xyz: _F64, align: 
     Raises
     ------
     UwbImuError
-        Bad shapes, non-finite values, truth time not strictly increasing, or no estimate inside
-        the truth span.
+        Bad shapes, non-finite values, a truth time that decreases, or no estimate inside the
+        truth span.
     TypeError
         An input that is not a float64 NumPy array.
     """
@@ -823,7 +824,8 @@ def interpolate_positions(truth_t: _F64, truth_xyz: _F64, t: _F64) -> _F64:
     Parameters
     ----------
     truth_t : ndarray of float64, shape (M,)
-        Truth times, s (strictly increasing).
+        Truth times, s (non-decreasing; repeated times count as one sample at the mean of their
+        positions).
     truth_xyz : ndarray of float64, shape (M, 3)
         True positions, m.
     t : ndarray of float64, shape (N,)

@@ -114,14 +114,15 @@ def evaluate(estimate: Trajectory, truth: Trajectory, *, align: bool = False) ->
     """Compare an estimated trajectory with the truth.
 
     The truth is linearly interpolated at each estimate time; estimates outside the truth time
-    span are skipped.
+    span are skipped. Repeated truth times (a truth taken at the UWB times, one row per range)
+    count as one sample at the mean of their positions.
 
     Parameters
     ----------
     estimate : polars.DataFrame or numpy.ndarray, shape (N, >=4)
         Columns ``t`` (s), ``x, y, z`` (m).
     truth : polars.DataFrame or numpy.ndarray, shape (M, >=4)
-        Columns ``t`` (s, strictly increasing), ``x, y, z`` (m).
+        Columns ``t`` (s, non-decreasing; repeated times are averaged), ``x, y, z`` (m).
     align : bool, default False
         First map the estimate through the least-squares rigid transform (rotation +
         translation, no scale) onto the truth.
@@ -133,8 +134,8 @@ def evaluate(estimate: Trajectory, truth: Trajectory, *, align: bool = False) ->
     Raises
     ------
     ValueError
-        Bad shapes or columns, non-finite values, a truth time axis that is not strictly
-        increasing, or no estimate inside the truth span (``uwbimu_rs.UwbImuError`` is a
+        Bad shapes or columns, non-finite values, a truth time that decreases (sort the truth
+        by time), or no estimate inside the truth span (``uwbimu_rs.UwbImuError`` is a
         ``ValueError``).
     """
     est_t, est_xyz = _txyz(estimate, "estimate")
@@ -160,7 +161,8 @@ def nees(estimate: pl.DataFrame, truth: Trajectory) -> pl.DataFrame:
         Columns ``t`` (s), ``x, y, z`` (m) and the position covariance ``cov_xx, cov_xy,
         cov_xz, cov_yy, cov_yz, cov_zz`` (m^2).
     truth : polars.DataFrame or numpy.ndarray, shape (M, >=4)
-        Columns ``t`` (s, strictly increasing), ``x, y, z`` (m); interpolated linearly.
+        Columns ``t`` (s, non-decreasing; repeated times are averaged), ``x, y, z`` (m);
+        interpolated linearly.
 
     Returns
     -------
@@ -202,7 +204,8 @@ def read_truth(path: str | os.PathLike[str]) -> pl.DataFrame:
     Returns
     -------
     polars.DataFrame
-        Columns ``t`` (s, strictly increasing: sorted, repeated times dropped), ``x, y, z`` (m).
+        Columns ``t`` (s, sorted; repeated times kept, which :func:`evaluate` averages),
+        ``x, y, z`` (m).
 
     Raises
     ------

@@ -53,6 +53,18 @@ def test_stats_on_tiny_hand_made_case():
     np.testing.assert_allclose(p, [0.5, 1.0])
 
 
+def test_a_truth_taken_at_each_range_counts_each_time_once():
+    # Truth at t is (t, 0, 0), given twice at t = 10 (one row per range of an epoch), the two
+    # rows 0.2 m apart across the track: their mean is the truth there.
+    truth = np.array([[0.0, 0.0, 0.0, 0.0], [10.0, 10.0, -0.1, 0.0], [10.0, 10.0, 0.1, 0.0], [20.0, 20.0, 0.0, 0.0]])
+    est = np.array([[5.0, 5.0, 0.3, 0.0], [10.0, 10.0, 0.4, 0.0], [15.0, 15.0, 0.0, 0.0]])
+    ev = metrics.evaluate(est, truth)
+    assert ev.errors["e_h"].to_list() == pytest.approx([0.3, 0.4, 0.0])
+    # A truth that goes back in time is refused, and the message says where.
+    with pytest.raises(ValueError, match=r"truth_t: time 5 s at row 2 is not after the previous time 10 s"):
+        metrics.evaluate(est, truth[[0, 1, 0]] + [[0, 0, 0, 0], [0, 0, 0, 0], [5.0, 0, 0, 0]])
+
+
 def test_alignment_recovers_rotated_copy():
     t = np.linspace(0.0, 10.0, 101)
     truth_xyz = np.column_stack([3 * np.cos(t), 2 * np.sin(0.7 * t), 0.1 * t])

@@ -51,20 +51,28 @@ fn check_same_len(name: &'static str, got: usize, expected: usize, cols: usize) 
 ///
 /// For `truth_t[i] ≤ t ≤ truth_t[i+1]`: `p = p_i + (t − t_i)/(t_{i+1} − t_i) · (p_{i+1} − p_i)`.
 /// Times outside `[truth_t[0], truth_t[last]]` (or non-finite) give `None`; an empty truth gives
-/// all `None`.
+/// all `None`. Repeated truth times (a truth taken at the UWB times, several ranges per epoch)
+/// are one sample, the mean of their positions.
 ///
 /// # Errors
 /// [`Error::Shape`] if `truth_t` and `truth_p` differ in length, [`Error::NonFinite`] for a
-/// non-finite truth value, [`Error::NonMonotonicTime`] if `truth_t` is not strictly increasing.
+/// non-finite truth value, [`Error::NonMonotonicTime`] if `truth_t` decreases.
 pub fn interpolate_positions(truth_t: &[f64], truth_p: &[Vec3], t: &[f64]) -> Result<Vec<Option<Vec3>>> {
     check_same_len("truth_p", truth_p.len(), truth_t.len(), 3)?;
     check_finite_scalars("truth_t", truth_t)?;
     check_finite_vectors("truth_p", truth_p)?;
     for (row, w) in truth_t.windows(2).enumerate() {
-        if w[1] <= w[0] {
+        if w[1] < w[0] {
             return Err(Error::NonMonotonicTime { name: "truth_t", row: row + 1, prev_s: w[0], got_s: w[1] });
         }
     }
+    let merged;
+    let (truth_t, truth_p) = if truth_t.windows(2).any(|w| w[1] == w[0]) {
+        merged = merge_repeated_times(truth_t, truth_p);
+        (&merged.0[..], &merged.1[..])
+    } else {
+        (truth_t, truth_p)
+    };
     let (Some(&first), Some(&last)) = (truth_t.first(), truth_t.last()) else {
         return Ok(vec![None; t.len()]);
     };
@@ -81,6 +89,20 @@ pub fn interpolate_positions(truth_t: &[f64], truth_p: &[Vec3], t: &[f64]) -> Re
             Some(interpolate_between((truth_t[k - 1], &truth_p[k - 1]), (truth_t[k], &truth_p[k]), ti))
         })
         .collect())
+}
+
+/// A non-decreasing series `(t s, p m)` with each run of equal times replaced by one sample,
+/// the mean of its positions.
+fn merge_repeated_times(t: &[f64], p: &[Vec3]) -> (Vec<f64>, Vec<Vec3>) {
+    let (mut times, mut positions): (Vec<f64>, Vec<Vec3>) = (Vec::with_capacity(t.len()), Vec::with_capacity(p.len()));
+    let mut start = 0;
+    while start < t.len() {
+        let run = t[start..].iter().take_while(|&&ti| ti == t[start]).count();
+        times.push(t[start]);
+        positions.push(p[start..start + run].iter().sum::<Vec3>() / run as f64);
+        start += run;
+    }
+    (times, positions)
 }
 
 /// The point at `t` on the segment from `(t0, p0)` to `(t1, p1)`:
@@ -361,11 +383,12 @@ impl PairMoments {
 /// The errors of an estimated trajectory against ground truth in one streaming pass, with the
 /// figures of [`evaluate`] (RMS only, [`TruthRmse`]) in memory that does not grow with the run.
 ///
-/// Truth samples come through [`Self::push_truth`] in strictly increasing time, estimates
-/// through [`Self::push_estimate`] in non-decreasing time, interleaved in any order. Each
-/// estimate is compared with the truth interpolated linearly at its time as
-/// [`interpolate_positions`] does; estimates outside the truth time span are not counted. An
-/// estimate later than the newest truth sample waits until a later one arrives (or
+/// Truth samples come through [`Self::push_truth`] in non-decreasing time (repeated times are
+/// one sample, the mean of their positions, as in [`interpolate_positions`]), estimates through
+/// [`Self::push_estimate`] in non-decreasing time, interleaved in any order. Each estimate is
+/// compared with the truth interpolated linearly at its time as [`interpolate_positions`] does;
+/// estimates outside the truth time span are not counted. An estimate waits until the truth
+/// sample after it is final, i.e. until a truth sample at a later time than that one arrives (or
 /// [`Self::end_truth`], [`Self::finish`]), and truth samples are kept until no estimate can need
 /// them: the memory held is the estimates ahead of the truth and the truth ahead of the
 /// estimates, so pushing truth a little ahead of the estimates, and ending it when it ends,
@@ -375,6 +398,8 @@ pub struct TruthErrors {
     /// The truth samples estimates may still need: from the last one at or before the latest
     /// matched estimate on.
     truth: VecDeque<(f64, Vec3)>,
+    /// Truth samples averaged into the newest one (its time repeated).
+    newest_repeats: usize,
     truth_pushed: usize,
     /// Whether [`Self::end_truth`] was called.
     truth_ended: bool,
@@ -395,11 +420,12 @@ impl TruthErrors {
         Self::default()
     }
 
-    /// Adds the truth position `p` (m) at `t_s` (s), later than the previous truth sample.
+    /// Adds the truth position `p` (m) at `t_s` (s), not earlier than the previous truth sample
+    /// (at its time, the two are averaged).
     ///
     /// # Errors
     /// [`Error::NonFinite`] for a non-finite value (`truth_t`, `truth_p`),
-    /// [`Error::NonMonotonicTime`] if `t_s` is not later than the previous truth time,
+    /// [`Error::NonMonotonicTime`] if `t_s` is earlier than the previous truth time,
     /// [`Error::InvalidCall`] after [`Self::end_truth`]; the sample is then ignored.
     pub fn push_truth(&mut self, t_s: f64, p: Vec3) -> Result<()> {
         if self.truth_ended {
@@ -408,13 +434,21 @@ impl TruthErrors {
         let row = self.truth_pushed;
         check_finite_scalar("truth_t", row, t_s)?;
         check_finite_vector("truth_p", row, &p)?;
-        if let Some(&(prev_s, _)) = self.truth.back() {
-            if t_s <= prev_s {
-                return Err(Error::NonMonotonicTime { name: "truth_t", row, prev_s, got_s: t_s });
+        self.truth_pushed += 1;
+        match self.truth.back_mut() {
+            Some((prev_s, _)) if t_s < *prev_s => {
+                self.truth_pushed -= 1;
+                return Err(Error::NonMonotonicTime { name: "truth_t", row, prev_s: *prev_s, got_s: t_s });
             }
+            Some((prev_s, mean)) if t_s == *prev_s => {
+                self.newest_repeats += 1;
+                *mean += (p - *mean) / self.newest_repeats as f64;
+                return Ok(());
+            }
+            _ => {}
         }
         self.truth.push_back((t_s, p));
-        self.truth_pushed += 1;
+        self.newest_repeats = 1;
         self.match_waiting();
         Ok(())
     }
@@ -435,9 +469,10 @@ impl TruthErrors {
         self.latest_estimate_s = Some(t_s);
         self.estimates_pushed += 1;
         self.waiting.push_back((t_s, p));
-        self.match_waiting();
         if self.truth_ended {
             self.match_at_truth_end();
+        } else {
+            self.match_waiting();
         }
         Ok(())
     }
@@ -476,10 +511,19 @@ impl TruthErrors {
         })
     }
 
-    /// Matches the waiting estimates earlier than the newest truth sample.
+    /// Matches the waiting estimates earlier than the second newest truth sample: the samples
+    /// up to it are final (a later time has arrived), the newest may still be averaged with a
+    /// repeat of its time. With one truth sample, those before it (outside the truth span).
     fn match_waiting(&mut self) {
-        let Some(&(newest_s, _)) = self.truth.back() else { return };
-        while let Some((t, p)) = self.waiting.front().copied().filter(|e| e.0 < newest_s) {
+        let last_final = self.truth.len().checked_sub(2).and_then(|k| self.truth.get(k)).or(self.truth.front());
+        if let Some(&(limit_s, _)) = last_final {
+            self.match_before(limit_s);
+        }
+    }
+
+    /// Matches the waiting estimates earlier than `limit_s`, which the truth samples kept span.
+    fn match_before(&mut self, limit_s: f64) {
+        while let Some((t, p)) = self.waiting.front().copied().filter(|e| e.0 < limit_s) {
             self.waiting.pop_front();
             if let Some(g) = self.truth_at(t) {
                 self.add_match(&p, &g);
@@ -487,13 +531,17 @@ impl TruthErrors {
         }
     }
 
-    /// Matches the waiting estimates, all at or after the newest truth sample, as if no truth
-    /// followed: those at its time with it, the later ones not at all.
+    /// Matches the waiting estimates as if no truth followed: those before the newest truth
+    /// sample by interpolation, those at its time with it, the later ones not at all.
     fn match_at_truth_end(&mut self) {
-        let last = self.truth.back().copied();
+        let Some(last) = self.truth.back().copied() else {
+            self.waiting.clear();
+            return;
+        };
+        self.match_before(last.0);
         while let Some((t, p)) = self.waiting.pop_front() {
-            if let Some((_, g)) = last.filter(|g| g.0 == t) {
-                self.add_match(&p, &g);
+            if t == last.0 {
+                self.add_match(&p, &last.1);
             }
         }
     }
@@ -549,7 +597,11 @@ mod tests {
     #[test]
     fn interpolation_rejects_bad_truth() {
         let p = vec![Vec3::zeros(); 3];
-        assert!(matches!(interpolate_positions(&[0.0, 1.0, 1.0], &p, &[0.5]), Err(Error::NonMonotonicTime { row: 2, .. })));
+        assert!(matches!(interpolate_positions(&[0.0, 1.0, 0.5], &p, &[0.5]), Err(Error::NonMonotonicTime { row: 2, .. })));
+        // Repeated times (a truth taken at each range of an epoch) are their mean.
+        let repeated = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0)];
+        let at = interpolate_positions(&[0.0, 1.0, 1.0], &repeated, &[0.5, 1.0]).unwrap();
+        assert_eq!(at, vec![Some(Vec3::new(1.0, 0.0, 0.0)), Some(Vec3::new(2.0, 0.0, 0.0))]);
         assert!(matches!(interpolate_positions(&[0.0, 1.0], &p, &[0.5]), Err(Error::Shape { .. })));
         assert!(matches!(interpolate_positions(&[0.0, f64::NAN, 2.0], &p, &[0.5]), Err(Error::NonFinite { .. })));
         assert_eq!(interpolate_positions(&[], &[], &[0.5]).unwrap(), vec![None]);
@@ -775,10 +827,49 @@ mod tests {
     }
 
     #[test]
+    fn repeated_truth_times_are_their_mean_in_both_paths() {
+        // A truth taken at the UWB times: every third time three times (one per range), each
+        // copy 1 cm off in its own direction.
+        let s = streams(23, Vec3::new(0.5, -0.5, 0.0));
+        let (mut truth_t, mut truth_p) = (Vec::new(), Vec::new());
+        for (k, (t, p)) in s.truth_t.iter().zip(&s.truth_p).enumerate() {
+            let copies = if k % 3 == 0 { 3 } else { 1 };
+            for c in 0..copies {
+                truth_t.push(*t);
+                truth_p.push(
+                    p + Vec3::new(0.01 * c as f64, -0.01 * c as f64, 0.0)
+                        - Vec3::new(0.01, -0.01, 0.0) * (copies - 1) as f64 / 2.0,
+                );
+            }
+        }
+        let repeated = Streams { truth_t, truth_p, ..s };
+        assert_streamed_matches_evaluate(&repeated);
+        let once = evaluate(&repeated.est_t, &repeated.est_p, &s_truth(&repeated).0, &s_truth(&repeated).1, false).unwrap();
+        let with_repeats = evaluate(&repeated.est_t, &repeated.est_p, &repeated.truth_t, &repeated.truth_p, false).unwrap();
+        assert_close(with_repeats.three_d.rmse, once.three_d.rmse, "repeats averaged");
+    }
+
+    /// The truth of `s` with each run of repeated times replaced by its first time and the mean
+    /// of its positions, written out independently of [`merge_repeated_times`].
+    fn s_truth(s: &Streams) -> (Vec<f64>, Vec<Vec3>) {
+        let mut out: Vec<(f64, Vec3, f64)> = Vec::new();
+        for (t, p) in s.truth_t.iter().zip(&s.truth_p) {
+            match out.last_mut() {
+                Some((last, sum, n)) if last == t => {
+                    *sum += p;
+                    *n += 1.0;
+                }
+                _ => out.push((*t, *p, 1.0)),
+            }
+        }
+        out.into_iter().map(|(t, sum, n)| (t, sum / n)).unzip()
+    }
+
+    #[test]
     fn streamed_errors_refuse_bad_input() {
         let mut acc = TruthErrors::new();
         acc.push_truth(1.0, Vec3::zeros()).unwrap();
-        assert!(matches!(acc.push_truth(1.0, Vec3::zeros()), Err(Error::NonMonotonicTime { name: "truth_t", row: 1, .. })));
+        assert!(matches!(acc.push_truth(0.5, Vec3::zeros()), Err(Error::NonMonotonicTime { name: "truth_t", row: 1, .. })));
         assert!(matches!(acc.push_truth(f64::NAN, Vec3::zeros()), Err(Error::NonFinite { name: "truth_t", row: 1, .. })));
         let bad = Vec3::new(0.0, f64::INFINITY, 0.0);
         assert!(matches!(acc.push_truth(2.0, bad), Err(Error::NonFinite { name: "truth_p", row: 1, col: 1, .. })));

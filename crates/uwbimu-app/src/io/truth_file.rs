@@ -31,7 +31,9 @@ fn header_indices(header: &str) -> std::result::Result<[usize; 4], String> {
     Ok(out)
 }
 
-/// Reads a ground-truth CSV into (time s, position m), sorted by time (repeated times dropped).
+/// Reads a ground-truth CSV into (time s, position m), sorted by time (stable: repeated times, a
+/// truth taken at each range of an epoch, stay in file order; the metrics average them,
+/// [`crate::metrics::interpolate_positions`]).
 ///
 /// # Errors
 /// [`Error::Io`] if unreadable; [`Error::Format`] naming the file and line for a header without
@@ -64,7 +66,6 @@ pub fn read_truth_csv(path: &Path) -> Result<Vec<(f64, Vec3)>> {
         return Err(bad("no samples".into()));
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
-    out.dedup_by(|a, b| a.0 == b.0);
     Ok(out)
 }
 
