@@ -1,6 +1,9 @@
 """Measured figures stored beside the tests (``tests/figures/<name>.csv``), the Python side of
 ``tests/common/figures.rs``: :func:`hold` fails a figure more than 10 % (plus 2 mm) above its
-stored value; with ``UPDATE_BOUNDS=1`` it records the figure instead and prints what moved."""
+stored value; with ``UPDATE_BOUNDS=1`` it records the figure instead and prints what moved. A
+figure more than 1 % worse (higher) is not stored unless ``UPDATE_BOUNDS_ALLOW_WORSE=1`` is set
+too: it is printed as ``worse:`` and ``scripts/update_test_bounds.sh`` fails. Snapshots, not
+oracles (docs/testing.md)."""
 
 from __future__ import annotations
 
@@ -9,6 +12,7 @@ from pathlib import Path
 
 REGRESSION_MARGIN = 1.10
 ABSOLUTE_MARGIN_M = 0.002
+MOVED = 0.01
 FIGURES = Path(__file__).resolve().parents[1] / "figures"
 
 
@@ -28,10 +32,14 @@ def hold(name: str, key: str, value: float) -> None:
     figures = _read(path)
     if os.environ.get("UPDATE_BOUNDS"):
         old = figures.get(key)
+        change = "" if old is None else f"{old:.4f} -> {value:.4f} ({100.0 * (value / old - 1.0):+.1f} %)"
         if old is None:
             print(f"new: {name}: {key}: {value:.4f}")
-        elif abs(value / old - 1.0) > 0.01:
-            print(f"moved: {name}: {key}: {old:.4f} -> {value:.4f} ({100.0 * (value / old - 1.0):+.1f} %)")
+        elif value > old * (1.0 + MOVED) and not os.environ.get("UPDATE_BOUNDS_ALLOW_WORSE"):
+            print(f"worse: {name}: {key}: {change}, not stored")
+            return
+        elif abs(value / old - 1.0) > MOVED:
+            print(f"{'worse' if value > old else 'moved'}: {name}: {key}: {change}")
         figures[key] = value
         path.write_text("".join(f"{k},{v:.6f}\n" for k, v in sorted(figures.items())))
         return
