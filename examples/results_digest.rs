@@ -12,11 +12,12 @@
 //! ```
 //!
 //! Arguments (optional): the scenarios, comma-separated (default
-//! `outliers,outage,nlos_two,mixed_rates,forklift,imu_z_down`), and the number of seeds
-//! (default 2).
+//! `outliers,outage,nlos_two,mixed_rates,forklift,imu_z_down,tdoa_drone,agv_loop+mag`; a `+mag`
+//! suffix adds the simulator's magnetometer), and the number of seeds (default 2). Each method
+//! gets the TDoA and the magnetometer of the run when it takes them.
 
-use uwbimu_rs::app::methods::{run_method, BatchInput, Method};
-use uwbimu_rs::app::sim::{simulate, zoo};
+use uwbimu_rs::app::methods::{run_method, BatchInput, Input, Method};
+use uwbimu_rs::app::sim::{simulate, zoo, MagConfig};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 
 /// FNV-1a over the bytes of `text`.
@@ -26,11 +27,19 @@ fn fnv1a(text: &str) -> u64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let scenarios = args.first().map_or("outliers,outage,nlos_two,mixed_rates,forklift,imu_z_down", String::as_str);
+    let scenarios =
+        args.first().map_or("outliers,outage,nlos_two,mixed_rates,forklift,imu_z_down,tdoa_drone,agv_loop+mag", String::as_str);
     let seeds: u64 = args.get(1).map_or(Ok(2), |s| s.parse())?;
     for scenario in scenarios.split(',') {
         for seed in 0..seeds {
-            let s = zoo(scenario, seed)?;
+            let (name, with_mag) = match scenario.strip_suffix("+mag") {
+                Some(name) => (name, true),
+                None => (scenario, false),
+            };
+            let mut s = zoo(name, seed)?;
+            if with_mag {
+                s.sim.magnetometer = Some(MagConfig::default());
+            }
             let data = simulate(&s.sim)?;
             let initial = s.true_initial(&data)?;
             let config = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
@@ -47,8 +56,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             initial: given.then_some(&initial),
                             config: &config,
                             smooth,
-                            mag: &[],
-                            tdoa: &[],
+                            mag: if method.takes(Input::Magnetometer) { &data.mag } else { &[] },
+                            tdoa: if method.takes_tdoa() { &data.tdoa } else { &[] },
                             progress: None,
                             marginals_every_s: None,
                         };

@@ -1,8 +1,10 @@
-//! Laws of the INS core and the range model: analytic Jacobians against central differences,
-//! block-structured propagation against the dense product, Joseph update against its definition.
+//! Laws of the INS core: analytic Jacobians against central differences (the measurement models'
+//! are checked by one generic test over every model, `uwbimu_estimation::models`), block-structured
+//! propagation against the dense product, Joseph update against its definition.
 
 use uwbimu_rs::estimation::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use uwbimu_rs::estimation::models::range::predict_range;
+use uwbimu_rs::estimation::models::{central_differences, numerical_jacobian};
 use uwbimu_rs::estimation::update::{inject_and_reset, scalar_step, schmidt_step};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InsConfig};
 use uwbimu_rs::vocabulary::math::{quat_exp, skew, Quat, Vec3};
@@ -28,14 +30,6 @@ fn example_imu() -> ImuInterval {
     }
 }
 
-fn perturbed(x: &NominalState, j: usize, eps: f64) -> NominalState {
-    let mut y = *x;
-    let mut dx = ErrVec::zeros();
-    dx[j] = eps;
-    y.inject(&dx);
-    y
-}
-
 #[test]
 fn transition_matches_finite_differences_of_mechanization() {
     // Random-walk biases, and first-order Markov biases (the ARCKF paper) with short time constants.
@@ -55,13 +49,7 @@ fn check_transition(config: &FilterConfig) {
     let imu = example_imu();
     let x1 = propagate_nominal(&x0, &imu, &config.ins);
     let phi = Transition::new(&x0, &imu, &config.ins).to_dense();
-    let eps = 1e-6;
-    let mut fd = ErrCov::zeros();
-    for j in 0..ERR_DIM {
-        let plus = propagate_nominal(&perturbed(&x0, j, eps), &imu, &config.ins).boxminus(&x1);
-        let minus = propagate_nominal(&perturbed(&x0, j, -eps), &imu, &config.ins).boxminus(&x1);
-        fd.set_column(j, &((plus - minus) / (2.0 * eps)));
-    }
+    let fd = numerical_jacobian(&x0, 1e-6, |x| propagate_nominal(x, &imu, &config.ins).boxminus(&x1));
     let err = (phi - fd).abs().max();
     // Φ is second order in Δt; the residual is O(Δt³) ≈ 1e-6 for these rates.
     assert!(err < 2e-5, "max |Φ − FD| = {err:e}\nΦ = {phi:.5}\nFD = {fd:.5}");
@@ -101,23 +89,6 @@ fn block_propagation_equals_dense_product() {
     let dense_trap = phi * p * phi.transpose() + 0.5 * (phi * qc + qc * phi.transpose());
     assert!((propagated(&trap) - dense_trap).abs().max() < 1e-12);
     assert!((dense_trap - dense).abs().max() > 1e-12);
-}
-
-#[test]
-fn range_jacobian_matches_finite_differences() {
-    let x = example_state();
-    let anchor = Vec3::new(4.0, 3.0, 2.2);
-    let lever = Vec3::new(0.1, -0.05, 0.3);
-    let h = predict_range(&x, &anchor, &lever).expect("tag not on anchor").jacobian;
-    let eps = 1e-6;
-    for j in 0..ERR_DIM {
-        let plus = predict_range(&perturbed(&x, j, eps), &anchor, &lever).expect("ok").range_m;
-        let minus = predict_range(&perturbed(&x, j, -eps), &anchor, &lever).expect("ok").range_m;
-        let fd = (plus - minus) / (2.0 * eps);
-        assert!((fd - h[j]).abs() < 1e-8, "slot {j}: analytic {} vs fd {fd}", h[j]);
-    }
-    // The lever arm makes the attitude columns non-zero.
-    assert!(h.fixed_rows::<3>(ATT).norm() > 0.01);
 }
 
 #[test]
@@ -195,13 +166,7 @@ fn reset_jacobian_matches_finite_differences() {
         t.inject(e);
         t.boxminus(&xp)
     };
-    let h = 1e-6;
-    let mut numeric = ErrCov::zeros();
-    for j in 0..ERR_DIM {
-        let mut step = ErrVec::zeros();
-        step[j] = h;
-        numeric.set_column(j, &((err_after(&(dx + step)) - err_after(&(dx - step))) / (2.0 * h)));
-    }
+    let numeric = central_differences(&dx, 1e-6, err_after);
     let dtheta = Vec3::new(dx[ATT], dx[ATT + 1], dx[ATT + 2]);
     let g = nalgebra::Matrix3::identity() - skew(&(0.5 * dtheta));
     let att = numeric.fixed_view::<3, 3>(ATT, ATT).into_owned();

@@ -1,6 +1,36 @@
-//! Measurement models: predicted measurement and its Jacobian with respect to the error state.
+//! Measurement models: each predicts its measurement at a nominal state with the Jacobian on the
+//! error state. The scalar ones the tightly coupled filters update with implement
+//! [`ScalarModel`]; one test checks every model's Jacobian against central differences.
 
 pub mod attitude;
 pub mod loose;
+mod model;
+pub mod motion;
 pub mod range;
-pub mod scalar;
+pub mod tdoa;
+
+pub use model::{
+    central_differences, example_geometry, example_states, jacobian_failures, numerical_jacobian, Block, Geometry, Policies,
+    ScalarModel, ScalarPrediction, EXAMPLE_ANCHORS, EXAMPLE_LEVER_ARMS,
+};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_scalar_model_matches_its_central_differences_and_observes_what_it_says() {
+        let failures: Vec<String> = [
+            jacobian_failures::<range::Range>(),
+            jacobian_failures::<tdoa::Tdoa>(),
+            jacobian_failures::<motion::ZeroVelocity>(),
+            jacobian_failures::<motion::Speed>(),
+            jacobian_failures::<motion::Plane>(),
+            jacobian_failures::<attitude::VectorAxis>(),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
+    }
+}

@@ -67,7 +67,7 @@ pub struct TdoaMeasurement {
 pub enum Observation {
     /// A magnetometer sample (geomagnetic aiding of the ACKF paper, `uwbimu_estimation::filters::Ackf`).
     Magnetometer(MagSample),
-    /// A time difference of arrival (`uwbimu_estimation::models::scalar::ScalarMeasurement::Tdoa`).
+    /// A time difference of arrival (`uwbimu_estimation::models::tdoa::Tdoa`).
     Tdoa(TdoaMeasurement),
 }
 

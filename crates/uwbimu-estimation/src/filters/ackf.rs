@@ -10,7 +10,8 @@ use uwbimu_vocabulary::state::ErrVec;
 
 use crate::filters::BiasModel;
 use crate::filters::{Composition, Filter, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
-use crate::models::attitude::{predict_vector, VectorSensor};
+use crate::models::attitude::{VectorAxis, VectorSensor};
+use crate::models::{Geometry, ScalarModel};
 use crate::robust::aiding::AidingUncertainty;
 use crate::robust::RangeNoisePolicy;
 use crate::update::{inject_and_reset, scalar_step, UpdateReport};
@@ -98,7 +99,6 @@ impl Ackf {
         let uncertainty = AidingUncertainty { scale: self.aiding.uncertainty_scale, max: self.aiding.uncertainty_max };
         let adaptive = self.aiding.adaptive;
         let (x, p) = self.inner.core_mut().state_and_covariance_mut();
-        let pred = predict_vector(x, reference, sensor);
         let u = if adaptive {
             let compensated = match sensor {
                 VectorSensor::Accelerometer => reading - x.accel_bias,
@@ -108,13 +108,15 @@ impl Ackf {
         } else {
             1.0
         };
-        let residual = reading - pred.reading;
+        let mut residual = Vec3::zeros();
         let mut dx = ErrVec::zeros();
         let mut nis = 0.0;
         for axis in 0..3 {
-            let h: ErrVec = pred.jacobian.row(axis).transpose();
-            let innovation = residual[axis] - h.dot(&dx);
-            nis += innovation * innovation / scalar_step(&mut dx, p, &h, residual[axis], std * std * u)?;
+            let m = VectorAxis { sensor, reference: *reference, axis, reading: reading[axis] };
+            let Some(pred) = m.predict(x, &Geometry::NONE) else { continue };
+            residual[axis] = m.value() - pred.value;
+            let innovation = residual[axis] - pred.jacobian.dot(&dx);
+            nis += innovation * innovation / scalar_step(&mut dx, p, &pred.jacobian, residual[axis], std * std * u)?;
         }
         inject_and_reset(x, p, &dx);
         Ok(UpdateReport::applied(residual.norm(), nis, u, 1))

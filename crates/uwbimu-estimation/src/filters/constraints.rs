@@ -28,13 +28,15 @@
 mod still;
 
 use nalgebra::SVector;
-use uwbimu_vocabulary::config::{ConstraintsConfig, MAX_SPEED_HISTORY};
+use uwbimu_vocabulary::config::{FilterConfig, MAX_SPEED_HISTORY};
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::{quat_exp, Cov, Vec3};
-use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, ERR_DIM, POS, VEL};
+use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, ERR_DIM};
 
 use crate::filters::range_bias::{JointStep, RangeBiasStates};
 use crate::filters::InertialCore;
+use crate::models::motion::{Plane, Speed, ZeroVelocity};
+use crate::models::{Geometry, ScalarModel};
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse};
 
 pub use still::{Rest, StillDetector, DETECTOR_BLOCK_S};
@@ -43,9 +45,6 @@ pub use still::{Rest, StillDetector, DETECTOR_BLOCK_S};
 /// `γ = r²/(h·P·hᵀ + R)`: above it (`χ²₁` at α = 10⁻⁴) the constraint does not hold now (a
 /// climb, a wrong plane height) and it is not applied.
 const CONSTRAINT_GATE: f64 = crate::robust::CHI2_1DOF_ALPHA_1E4;
-
-/// Speed below which the pseudo-velocity direction `v/‖v‖` is undefined, m/s.
-const MIN_PSEUDO_SPEED: f64 = 1e-3;
 
 /// The outage guard waits at least this many usual intervals between UWB updates (an average
 /// of the recent ones), so low-rate UWB (2 Hz) does not count as lost between its epochs.
@@ -63,7 +62,8 @@ pub const HOLD_MIN_HEADING_STD_RAD: f64 = 0.25;
 /// time of the last UWB measurement.
 #[derive(Debug, Clone)]
 pub struct Constraints {
-    config: ConstraintsConfig,
+    /// The filter's configuration (the constraints' section and the noise of their models).
+    config: FilterConfig,
     zupt: bool,
     /// Time of the last UWB measurement, or of the first IMU sample before any, s.
     last_aiding_s: Option<f64>,
@@ -88,11 +88,12 @@ pub struct Constraints {
 }
 
 impl Constraints {
-    /// Constraint state from the configuration; `initial_height` is the plane height when
-    /// `config.plane_height` is not set.
-    pub fn new(config: &ConstraintsConfig, initial_height: f64) -> Self {
+    /// Constraint state from the filter's configuration; `initial_height` is the plane height
+    /// when `constraints.plane_height` is not set.
+    pub fn new(filter_config: &FilterConfig, initial_height: f64) -> Self {
+        let config = &filter_config.constraints;
         Self {
-            config: *config,
+            config: filter_config.clone(),
             zupt: config.zupt,
             last_aiding_s: None,
             aided: false,
@@ -142,16 +143,17 @@ impl Constraints {
     /// filter that started moving waits for the first UWB measurement: until then nothing but
     /// its own integration of the IMU says the platform stopped.
     fn outage(&self, t_s: f64) -> bool {
-        let after_s = self.config.outage_zupt_after_s.max(OUTAGE_INTERVALS * self.aiding_interval_s.unwrap_or(0.0));
+        let config = &self.config.constraints;
+        let after_s = config.outage_zupt_after_s.max(OUTAGE_INTERVALS * self.aiding_interval_s.unwrap_or(0.0));
         let started = self.aided || !self.moving_start;
-        self.config.outage_zupt && started && self.last_aiding_s.is_some_and(|last| t_s - last >= after_s)
+        config.outage_zupt && started && self.last_aiding_s.is_some_and(|last| t_s - last >= after_s)
     }
 
     /// While the platform is still, `still_heading_hold` is on and the heading is poorly known
     /// (σ above [`HOLD_MIN_HEADING_STD_RAD`]), the hold to take the heading out of the next update
     /// of `core` ([`HeadingHold`]); None otherwise.
     pub fn hold_heading(&self, core: &InertialCore) -> Option<HeadingHold> {
-        if !(self.still && self.config.still_heading_hold) {
+        if !(self.still && self.config.constraints.still_heading_hold) {
             return None;
         }
         Some(HeadingHold::new(core)).filter(|hold| hold.var > HOLD_MIN_HEADING_STD_RAD.powi(2))
@@ -176,7 +178,7 @@ impl Constraints {
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
     fn after_predict(&mut self, core: &mut InertialCore, bias: Option<&mut RangeBiasStates>) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
-        let (cfg, gravity) = (self.config, core.ins().gravity);
+        let (cfg, gravity) = (self.config.constraints, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();
         let x = core.state();
         let speed = x.velocity.norm();
@@ -198,7 +200,7 @@ impl Constraints {
         self.still = self.detector.is_still(&rest, cfg.zupt_accel_std, cfg.zupt_gyro_std, gated_speed);
         self.next_t_s = Some(t + cfg.interval_s);
         let zupt = self.still && (self.zupt || outage);
-        let rows = self.rows_due(x, speed, zupt);
+        let rows = self.rows_due(x, zupt);
         if rows.len > 0 {
             core.flush_covariance();
             let hold = self.hold_heading(core);
@@ -219,28 +221,19 @@ impl Constraints {
         Ok(())
     }
 
-    /// The constraint rows due now at the state `x` (speed `speed`): three for a ZUPT (`zupt`),
-    /// else one for the pseudo-velocity; one for the plane.
-    fn rows_due(&self, x: &NominalState, speed: f64, zupt: bool) -> ConstraintRows {
-        let cfg = &self.config;
+    /// The constraint rows due now at the state `x`: three for a ZUPT (`zupt`), else one for the
+    /// pseudo-velocity; one for the plane ([`crate::models::motion`]).
+    fn rows_due(&self, x: &NominalState, zupt: bool) -> ConstraintRows {
         let mut rows = ConstraintRows::default();
         if zupt {
-            for i in 0..3 {
-                let mut h = ErrVec::zeros();
-                h[VEL + i] = 1.0;
-                rows.push(h, -x.velocity[i], cfg.zupt_velocity_std.powi(2), false);
+            for axis in 0..3 {
+                rows.push(&ZeroVelocity { axis }, x, &self.config, false);
             }
-        } else if self.pseudo_velocity && speed > MIN_PSEUDO_SPEED {
-            if let Some(target) = self.mean_speed() {
-                let mut h = ErrVec::zeros();
-                h.fixed_rows_mut::<3>(VEL).copy_from(&(x.velocity / speed));
-                rows.push(h, target - speed, cfg.pseudo_velocity_var, true);
-            }
+        } else if let Some(speed_mps) = self.mean_speed().filter(|_| self.pseudo_velocity) {
+            rows.push(&Speed { speed_mps }, x, &self.config, true);
         }
-        if let Some(height) = self.plane_height {
-            let mut h = ErrVec::zeros();
-            h[POS + 2] = 1.0;
-            rows.push(h, height - x.position.z, cfg.plane_std.powi(2), true);
+        if let Some(height_m) = self.plane_height {
+            rows.push(&Plane { height_m }, x, &self.config, true);
         }
         rows
     }
@@ -316,9 +309,13 @@ struct ConstraintRows {
 }
 
 impl ConstraintRows {
-    fn push(&mut self, h: ErrVec, residual: f64, var: f64, gated: bool) {
-        self.rows[self.len] = (h, residual, var, gated);
-        self.len += 1;
+    /// Adds the row of `m` at the state `x` (nothing where `m` is undefined, a speed below
+    /// [`crate::models::motion::MIN_SPEED_MPS`]), its noise from `config`.
+    fn push<M: ScalarModel>(&mut self, m: &M, x: &NominalState, config: &FilterConfig, gated: bool) {
+        if let Some(pred) = m.predict(x, &Geometry::NONE) {
+            self.rows[self.len] = (pred.jacobian, m.value() - pred.value, m.nominal_var(config), gated);
+            self.len += 1;
+        }
     }
 
     /// Applies the rows as one update to `x` and an error state of dimension `N` (the 15 INS

@@ -80,7 +80,7 @@ impl Eskf {
         let heights = anchors.iter().map(|a| a.z);
         let span = heights.clone().fold(f64::NEG_INFINITY, f64::max) - heights.fold(f64::INFINITY, f64::min);
         let coplanar = span < LsConfig::default().min_vertical_span_m;
-        let constraints = Constraints::new(&config.constraints, initial.position.z);
+        let constraints = Constraints::new(&config, initial.position.z);
         Ok(Self {
             core: InertialCore::new(initial, &config)?,
             config,

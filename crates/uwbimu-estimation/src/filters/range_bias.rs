@@ -41,7 +41,7 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{CacheAligned, Cov};
 use uwbimu_vocabulary::state::ERR_DIM;
 
-use crate::models::scalar::ScalarMeasurement;
+use crate::models::{Policies, ScalarModel};
 
 /// Most anchors whose biases can be estimated.
 pub const MAX_BIASED_ANCHORS: usize = 16;
@@ -135,10 +135,10 @@ impl RangeBiasStates {
 
     /// `∂z/∂b` of one measurement in the bias slots of a joint error state of dimension `N`
     /// ([`RangeBiasStates::joint_step`]: the anchors' slots from row 15, the common one last): 1
-    /// for the range's anchor and the common bias; 0 for a TDoA.
-    pub fn jacobian<const N: usize>(m: &ScalarMeasurement) -> SVector<f64, N> {
+    /// for a range's anchor and the common bias; 0 for any other measurement (a TDoA).
+    pub fn jacobian<M: ScalarModel, const N: usize>(m: &M) -> SVector<f64, N> {
         let mut h = SVector::zeros();
-        if let ScalarMeasurement::Range { anchor, .. } = *m {
+        if let Policies::Range { anchor } = m.policies() {
             h[ERR_DIM + anchor] = 1.0;
             h[N - 1] = 1.0;
         }

@@ -1,5 +1,5 @@
 //! The tightly coupled filter every Li & Wang 2020 method is built from: INS core + scalar measurement
-//! models (ranges, Li & Wang 2020 eqs. (33)–(36); TDoA, [`crate::models::scalar`]) + a noise policy
+//! models ([`crate::models::ScalarModel`]: ranges, Li & Wang 2020 eqs. (33)–(36); TDoA) + a noise policy
 //! ([`RangeNoisePolicy`]) + an update strategy ([`UpdateStrategy`]: single step, iterated as in
 //! Li & Wang 2020 Algorithm 1, or unscented).
 
@@ -16,8 +16,9 @@ use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, Tdoa
 use crate::filters::scratch::Scratch;
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{Filter, InertialCore, InertialFilter};
-use crate::models::range::tag_position;
-use crate::models::scalar::{ScalarMeasurement, ScalarPrediction};
+use crate::models::range::{tag_position, Range};
+use crate::models::tdoa::Tdoa;
+use crate::models::{Geometry, Policies, ScalarModel, ScalarPrediction};
 use crate::multilateration::{l1_solve_epoch, L1Config, LsConfig};
 use crate::robust::NoiseBounds;
 use crate::robust::{
@@ -66,7 +67,7 @@ pub struct TightFilter {
     range_bias: Option<RangeBiasStates>,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch,
     /// in a clone too).
-    epoch: Scratch<ScalarMeasurement>,
+    epoch: Scratch<Range>,
     /// Scratch for one epoch's robustness factors (as `epoch`).
     factors: Scratch<RobustnessFactor>,
     /// Scratch for one epoch's measurements predicted at the prior (as `epoch`).
@@ -239,7 +240,7 @@ impl TightFilter {
                 config.unscented.lambda,
             )?),
         };
-        let constraints = Constraints::new(&config.constraints, initial.position.z);
+        let constraints = Constraints::new(&config, initial.position.z);
         let range_noise = if config.adaptive.range_noise {
             let initial_r = SMatrix::<f64, 1, 1>::new(config.ranging.range_std.powi(2));
             let sage_husa = SageHusaConfig {
@@ -298,17 +299,22 @@ impl TightFilter {
         factors.extend(robustness_factors(ranges, fix.map(|f| f.residuals_m(&self.anchors, ranges)), range_std));
     }
 
+    /// The geometry the filter's measurements are predicted in (its anchors and lever arm).
+    fn geometry(&self) -> Geometry<'_> {
+        Geometry::one_tag(&self.anchors, &self.config.mounting.lever_arm)
+    }
+
     /// One measurement predicted at the prior with `h·P⁻·hᵀ`; None when the tag sits on an anchor.
-    fn predict_at_prior(&self, m: &ScalarMeasurement) -> Option<PriorPrediction> {
+    fn predict_at_prior<M: ScalarModel>(&self, m: &M) -> Option<PriorPrediction> {
         let (x, p) = (self.core.state(), self.core.covariance());
-        let prediction = m.predict(x, &self.anchors, &self.config.mounting.lever_arm)?;
+        let prediction = m.predict(x, &self.geometry())?;
         Some(PriorPrediction { hph: prediction.jacobian.dot(&times_sparse(p, &prediction.jacobian)), prediction })
     }
 
     /// How many of an epoch's measurements, predicted at the prior as `at_prior`, fail their
     /// `χ²₁` test with the nominal range noise (for the divergence watch,
     /// [`crate::filters::reacquire`]).
-    fn failed_at_prior(&self, measurements: &[ScalarMeasurement], at_prior: &[Option<PriorPrediction>]) -> usize {
+    fn failed_at_prior(&self, measurements: &[Range], at_prior: &[Option<PriorPrediction>]) -> usize {
         let r_var = self.config.ranging.range_std.powi(2);
         measurements
             .iter()
@@ -321,7 +327,7 @@ impl TightFilter {
     /// range's γ against the prior with `R_i = σ²·Cu_i`.
     fn epoch_fading(
         &self,
-        measurements: &[ScalarMeasurement],
+        measurements: &[Range],
         at_prior: &[Option<PriorPrediction>],
         factors: &[RobustnessFactor],
         threshold: f64,
@@ -394,7 +400,7 @@ impl TightFilter {
     /// strategy's update).
     fn apply_ranges(&mut self, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         let mut epoch = self.epoch.take_cleared();
-        epoch.extend(ranges.iter().map(|&(anchor, range_m)| ScalarMeasurement::Range { anchor, range_m }));
+        epoch.extend(ranges.iter().map(|&(anchor, range_m)| Range { anchor, tag: 0, range_m }));
         let mut at_prior = self.at_prior.take_cleared();
         at_prior.extend(epoch.iter().map(|m| self.predict_at_prior(m)));
         let mut factors = self.factors.take_cleared();
@@ -410,7 +416,7 @@ impl TightFilter {
     fn apply_epoch(
         &mut self,
         ranges: &[(usize, f64)],
-        epoch: &[ScalarMeasurement],
+        epoch: &[Range],
         at_prior: &[Option<PriorPrediction>],
         factors: &mut Vec<RobustnessFactor>,
         reports: &mut [UpdateReport],
@@ -445,7 +451,7 @@ impl TightFilter {
 
     /// Applies one checked TDoA at the filter time (re-acquisition, the strategy's update).
     fn apply_tdoa(&mut self, m: &TdoaMeasurement) -> Result<UpdateReport> {
-        let tdoa = ScalarMeasurement::Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+        let tdoa = Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
         let at_prior = [self.predict_at_prior(&tdoa)];
         if self.reacquire {
             let r_var = self.config.ranging.tdoa_std.powi(2);
@@ -484,9 +490,9 @@ impl TightFilter {
     /// measurements predicted at the prior (before the fading), `factors` the
     /// robustness factors `Cu_k` (the ARCKF paper's eq. (38)) of the measurements, `fading` the prior's
     /// fading factor already applied (the ARCKF paper's eq. (42)).
-    fn solve(
+    fn solve<M: ScalarModel>(
         &mut self,
-        measurements: &[ScalarMeasurement],
+        measurements: &[M],
         at_prior: &[Option<PriorPrediction>],
         reports: &mut [UpdateReport],
         factors: Option<&[RobustnessFactor]>,
@@ -508,9 +514,9 @@ impl TightFilter {
     /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step. With
     /// range bias states, over the augmented error state ([`crate::filters::range_bias`]).
     #[allow(clippy::too_many_arguments)]
-    fn solve_iterated(
+    fn solve_iterated<M: ScalarModel>(
         &mut self,
-        measurements: &[ScalarMeasurement],
+        measurements: &[M],
         at_prior: &[Option<PriorPrediction>],
         reports: &mut [UpdateReport],
         factors: Option<&[RobustnessFactor]>,
@@ -520,8 +526,7 @@ impl TightFilter {
     ) -> Result<()> {
         let time_s = self.core.time_s().unwrap_or(0.0);
         let mut epoch = KalmanEpoch {
-            anchors: &self.anchors,
-            lever_arm: self.config.mounting.lever_arm,
+            geometry: Geometry::one_tag(&self.anchors, &self.config.mounting.lever_arm),
             noise: EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading),
             max_iterations,
             tolerance,
@@ -533,14 +538,14 @@ impl TightFilter {
             (Some(bias), Some(cross)) => {
                 bias.joint_step(time_s, p, cross, BiasedEpoch { epoch: &mut epoch, x, measurements, reports })?
             }
-            _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_| ErrVec::zeros(), ERR_DIM)?,
+            _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_: &M| ErrVec::zeros(), ERR_DIM)?,
         };
         for r in reports.iter_mut().filter(|r| r.accepted) {
             r.iterations = iterations;
         }
         if let Some(bias) = &self.range_bias {
             for (r, m) in reports.iter_mut().zip(measurements) {
-                if let ScalarMeasurement::Range { anchor, .. } = *m {
+                if let Policies::Range { anchor } = m.policies() {
                     r.range_bias = bias.total(anchor);
                 }
             }
@@ -554,26 +559,25 @@ impl TightFilter {
     /// step updates the error mean and covariance; the measurements of an epoch are applied in
     /// turn (sigma points redrawn from the updated error estimate), with the same noise policy as
     /// the Kalman strategy, then the error is injected and reset.
-    fn solve_unscented(
+    fn solve_unscented<M: ScalarModel>(
         &mut self,
         weights: &UnscentedWeights,
-        measurements: &[ScalarMeasurement],
+        measurements: &[M],
         reports: &mut [UpdateReport],
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
     ) -> Result<()> {
-        let lever_arm = self.config.mounting.lever_arm;
         let mut noise = EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading);
+        let geometry = Geometry::one_tag(&self.anchors, &self.config.mounting.lever_arm);
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
         let mut dx = ErrVec::zeros();
         let mut p = *p_out;
         for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
-            let anchors = &self.anchors;
             let measure = |d: &ErrVec| {
                 let mut s = prior;
                 s.inject(d);
-                m.value_at(&s, anchors, &lever_arm)
+                m.value_at(&s, &geometry)
             };
             let Some(moments) = scalar_moments::<ERR_DIM, SIGMA_POINTS>(&dx, &p, weights, measure)? else {
                 *report = UpdateReport::skipped();
@@ -595,7 +599,7 @@ impl TightFilter {
 /// the ARCKF robustness factors and prior fading, and the policy's inflation. Its
 /// [`EpochNoise::decide`] is the per-measurement decision of every update strategy.
 struct EpochNoise<'a> {
-    nominal: NominalNoise,
+    config: &'a FilterConfig,
     policy: RangeNoisePolicy,
     /// `robust.nlos_skew` ([`tested_nis`]).
     nlos_skew: f64,
@@ -634,14 +638,13 @@ impl<'a> EpochNoise<'a> {
     /// per-anchor adaptive estimators `range_noise` (empty when off), the epoch's robustness
     /// factors and the prior's fading.
     fn new(
-        config: &FilterConfig,
+        config: &'a FilterConfig,
         policy: RangeNoisePolicy,
         range_noise: &'a mut [SageHusa<1>],
         factors: Option<&'a [RobustnessFactor]>,
         fading: f64,
     ) -> Self {
-        let (nominal, nlos_skew) = (NominalNoise::of(config), config.robust.nlos_skew_or_symmetric());
-        Self { nominal, policy, nlos_skew, range_noise, factors, fading }
+        Self { config, policy, nlos_skew: config.robust.nlos_skew_or_symmetric(), range_noise, factors, fading }
     }
 
     /// The noise of measurement `k` of the epoch, `m`, with innovation `residual` (corrected in
@@ -650,59 +653,43 @@ impl<'a> EpochNoise<'a> {
     /// only then). `kept_inflation`: an inflation decided earlier to keep instead of testing again.
     /// In a faded epoch (abnormal state) the trusted ranges keep their weight (the ARCKF paper's
     /// Algorithm 1, adaptive branch); only capped ones are inflated (robust branch).
-    fn decide(
+    fn decide<M: ScalarModel>(
         &mut self,
         k: usize,
-        m: &ScalarMeasurement,
+        m: &M,
         residual: &mut f64,
         predicted_var: f64,
         first: bool,
         kept_inflation: Option<f64>,
     ) -> NoiseDecision {
-        let (var, nominal_var) = self.nominal.variance(self.range_noise, m, residual, predicted_var, first);
+        let (var, nominal_var) = measurement_variance(self.config, self.range_noise, m, residual, predicted_var, first);
         let base_var = var * self.factors.map_or(1.0, |f| f[k].cu);
         let nis = *residual * *residual / (predicted_var + base_var);
         let trusted_in_faded = self.fading > 1.0 && self.factors.is_some_and(|f| !f[k].is_capped());
         let inflation = match kept_inflation {
             _ if trusted_in_faded => 1.0,
             Some(kept) => kept,
-            None => self.policy.inflation(tested_nis(nis, *residual, m.is_range(), self.nlos_skew)),
+            None => self.policy.inflation(tested_nis(nis, *residual, m.policies() != Policies::Robust, self.nlos_skew)),
         };
         NoiseDecision { base_var, inflation, nis, nominal_var }
     }
 }
 
-/// The configured (nominal) noise variances of the scalar measurements, m².
-#[derive(Debug, Clone, Copy)]
-struct NominalNoise {
-    range_var: f64,
-    tdoa_var: f64,
-}
-
-impl NominalNoise {
-    fn of(config: &FilterConfig) -> Self {
-        Self {
-            range_var: config.ranging.range_std * config.ranging.range_std,
-            tdoa_var: config.ranging.tdoa_std * config.ranging.tdoa_std,
-        }
-    }
-
-    /// `(variance to use, nominal variance)` of one measurement: a range's from
-    /// [`range_noise`] (adaptive per anchor when configured), a TDoA's `tdoa_std²`.
-    fn variance(
-        &self,
-        estimators: &mut [SageHusa<1>],
-        m: &ScalarMeasurement,
-        residual: &mut f64,
-        hph: f64,
-        step: bool,
-    ) -> (f64, f64) {
-        match *m {
-            ScalarMeasurement::Range { anchor, .. } => {
-                (range_noise(estimators, anchor, residual, hph, step, self.range_var), self.range_var)
-            }
-            ScalarMeasurement::Tdoa { .. } => (self.tdoa_var, self.tdoa_var),
-        }
+/// `(variance to use, nominal variance)` of measurement `m`: a range's from [`range_noise`]
+/// (adaptive per anchor when configured), any other's its nominal variance
+/// ([`ScalarModel::nominal_var`]).
+fn measurement_variance<M: ScalarModel>(
+    config: &FilterConfig,
+    estimators: &mut [SageHusa<1>],
+    m: &M,
+    residual: &mut f64,
+    hph: f64,
+    step: bool,
+) -> (f64, f64) {
+    let nominal = m.nominal_var(config);
+    match m.policies() {
+        Policies::Range { anchor } => (range_noise(estimators, anchor, residual, hph, step, nominal), nominal),
+        Policies::Robust => (nominal, nominal),
     }
 }
 

@@ -8,8 +8,11 @@
 //! and its isotropic noise is unchanged by the rotation.
 
 use nalgebra::SMatrix;
+use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::math::{skew, Mat3, Vec3};
 use uwbimu_vocabulary::state::{NominalState, ATT, BA, ERR_DIM};
+
+use crate::models::{Block, Geometry, ScalarModel, ScalarPrediction};
 
 /// Which body-frame sensor observes the reference vector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,36 +47,46 @@ pub fn predict_vector(x: &NominalState, reference: &Vec3, sensor: VectorSensor) 
     VectorPrediction { reading, jacobian }
 }
 
-#[cfg(test)]
-mod tests {
-    use uwbimu_vocabulary::math::Quat;
-    use uwbimu_vocabulary::state::ErrVec;
+/// One axis of a body-frame vector reading ([`predict_vector`]): `h(x) = (Rᵀ·r (+ b_a))_axis`,
+/// noise `aiding.gravity_std` (accelerometer) or `aiding.mag_std` (magnetometer). The ACKF
+/// updates with the three axes of a reading in turn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VectorAxis {
+    /// The sensor.
+    pub sensor: VectorSensor,
+    /// The reference vector, navigation frame.
+    pub reference: Vec3,
+    /// Body axis, 0–2.
+    pub axis: usize,
+    /// The reading on that axis.
+    pub reading: f64,
+}
 
-    use super::*;
+impl ScalarModel for VectorAxis {
+    const OBSERVES: &'static [Block] = &[Block::Attitude, Block::AccelBias];
 
-    #[test]
-    fn jacobian_matches_central_differences() {
-        let x = NominalState {
-            position: Vec3::new(1.0, 2.0, 0.5),
-            velocity: Vec3::new(0.3, 0.0, 0.0),
-            orientation: Quat::from_euler_angles(0.3, -0.2, 1.1),
-            accel_bias: Vec3::new(0.05, -0.02, 0.1),
-            gyro_bias: Vec3::new(0.001, 0.002, -0.003),
-        };
-        let r = Vec3::new(20.0, 3.0, -40.0);
-        for sensor in [VectorSensor::Accelerometer, VectorSensor::Magnetometer] {
-            let pred = predict_vector(&x, &r, sensor);
-            let h = 1e-6;
-            for j in 0..ERR_DIM {
-                let mut dx = ErrVec::zeros();
-                dx[j] = h;
-                let (mut xp, mut xm) = (x, x);
-                xp.inject(&dx);
-                xm.inject(&-dx);
-                let fd = (predict_vector(&xp, &r, sensor).reading - predict_vector(&xm, &r, sensor).reading) / (2.0 * h);
-                let col = pred.jacobian.column(j);
-                assert!((fd - col).norm() < 1e-6 * (1.0 + r.norm()), "{sensor:?} column {j}: {fd} vs {col}");
-            }
+    fn value(&self) -> f64 {
+        self.reading
+    }
+
+    fn predict(&self, x: &NominalState, _: &Geometry<'_>) -> Option<ScalarPrediction> {
+        let pred = predict_vector(x, &self.reference, self.sensor);
+        Some(ScalarPrediction { value: pred.reading[self.axis], jacobian: pred.jacobian.row(self.axis).transpose() })
+    }
+
+    fn nominal_var(&self, config: &FilterConfig) -> f64 {
+        match self.sensor {
+            VectorSensor::Accelerometer => config.aiding.gravity_std.powi(2),
+            VectorSensor::Magnetometer => config.aiding.mag_std.powi(2),
         }
+    }
+
+    fn examples() -> Vec<Self> {
+        let gravity = Vec3::new(0.0, 0.0, 9.80665);
+        let field = Vec3::new(20.0, 3.0, -40.0);
+        [(VectorSensor::Accelerometer, gravity), (VectorSensor::Magnetometer, field)]
+            .into_iter()
+            .flat_map(|(sensor, reference)| (0..3).map(move |axis| Self { sensor, reference, axis, reading: 0.0 }))
+            .collect()
     }
 }

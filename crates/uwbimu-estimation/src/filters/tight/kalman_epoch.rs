@@ -4,18 +4,17 @@
 
 use nalgebra::SVector;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{CacheAligned, Cov, Vec3};
+use uwbimu_vocabulary::math::{CacheAligned, Cov};
 use uwbimu_vocabulary::state::{NominalState, ERR_DIM};
 
 use super::{EpochNoise, PriorPrediction};
 use crate::filters::range_bias::{JointStep, RangeBiasStates};
-use crate::models::scalar::ScalarMeasurement;
+use crate::models::{Geometry, Policies, ScalarModel};
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
 
 /// What the Kalman strategy needs from the filter for one epoch.
 pub(super) struct KalmanEpoch<'a> {
-    pub(super) anchors: &'a [Vec3],
-    pub(super) lever_arm: Vec3,
+    pub(super) geometry: Geometry<'a>,
     pub(super) noise: EpochNoise<'a>,
     pub(super) max_iterations: u32,
     pub(super) tolerance: f64,
@@ -24,20 +23,20 @@ pub(super) struct KalmanEpoch<'a> {
 
 /// The Kalman strategy's epoch over the joint state of the range bias states
 /// ([`RangeBiasStates::joint_step`] chooses its dimension).
-pub(super) struct BiasedEpoch<'e, 'a> {
+pub(super) struct BiasedEpoch<'e, 'a, M> {
     pub(super) epoch: &'e mut KalmanEpoch<'a>,
     pub(super) x: &'e mut NominalState,
-    pub(super) measurements: &'e [ScalarMeasurement],
+    pub(super) measurements: &'e [M],
     pub(super) reports: &'e mut [UpdateReport],
 }
 
-impl JointStep for BiasedEpoch<'_, '_> {
+impl<M: ScalarModel> JointStep for BiasedEpoch<'_, '_, M> {
     type Output = u32;
 
     /// [`KalmanEpoch::iterate`] over the joint state, the biases entering the ranges with
     /// [`RangeBiasStates::jacobian`]. Returns the iterations.
     fn step<const N: usize>(self, p: &mut Cov<N>, params: &mut SVector<f64, N>, estimated: usize) -> Result<u32> {
-        self.epoch.iterate(self.x, p, params, self.measurements, self.reports, RangeBiasStates::jacobian::<N>, estimated)
+        self.epoch.iterate(self.x, p, params, self.measurements, self.reports, RangeBiasStates::jacobian::<M, N>, estimated)
     }
 }
 
@@ -77,14 +76,14 @@ impl KalmanEpoch<'_> {
     /// `param_h(m)` (zero in the first 15 rows) and value `params` (updated in place); only the
     /// first `estimated` states get a gain ([`schmidt_step`]). Returns the iterations.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn iterate<const N: usize>(
+    pub(super) fn iterate<M: ScalarModel, const N: usize>(
         &mut self,
         x: &mut NominalState,
         p_out: &mut Cov<N>,
         params: &mut SVector<f64, N>,
-        measurements: &[ScalarMeasurement],
+        measurements: &[M],
         reports: &mut [UpdateReport],
-        param_h: impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        param_h: impl Fn(&M) -> SVector<f64, N>,
         estimated: usize,
     ) -> Result<u32> {
         let (prior, params_prior) = (*x, *params);
@@ -165,17 +164,17 @@ impl KalmanEpoch<'_> {
     /// iterate), the innovation less the parameters' part and the Jacobian row; None when the
     /// tag sits on an anchor.
     #[allow(clippy::type_complexity)]
-    fn linearise<const N: usize>(
+    fn linearise<M: ScalarModel, const N: usize>(
         &self,
         k: usize,
-        m: &ScalarMeasurement,
+        m: &M,
         op: &NominalState,
         params_op: &SVector<f64, N>,
         iterations: u32,
-        param_h: &impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        param_h: &impl Fn(&M) -> SVector<f64, N>,
     ) -> Option<(Option<PriorPrediction>, f64, SVector<f64, N>)> {
         let at_prior = if iterations == 1 { self.at_prior.predictions.get(k).copied().flatten() } else { None };
-        let pred = if iterations == 1 { at_prior.map(|c| c.prediction) } else { m.predict(op, self.anchors, &self.lever_arm) }?;
+        let pred = if iterations == 1 { at_prior.map(|c| c.prediction) } else { m.predict(op, &self.geometry) }?;
         let mut residual = m.value() - pred.value;
         let mut h = SVector::<f64, N>::zeros();
         h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);
@@ -190,18 +189,19 @@ impl KalmanEpoch<'_> {
     /// The noise policy's decision for measurement `k`, `m`, with innovation `residual`
     /// (corrected in place by the adaptive range noise) and predicted variance `hph`, written
     /// into `report`; returns the variance to step with.
-    fn decide(
+    fn decide<M: ScalarModel>(
         &mut self,
         k: usize,
-        m: &ScalarMeasurement,
+        m: &M,
         residual: &mut f64,
         hph: f64,
         iterations: u32,
         report: &mut UpdateReport,
     ) -> f64 {
-        // A lone TDoA fits itself after one iteration, so its γ at the next operating
-        // point (eq. (39)) no longer shows an outlier: it keeps the prior's inflation.
-        let kept = (iterations > 1 && matches!(m, ScalarMeasurement::Tdoa { .. })).then_some(report.inflation);
+        // A measurement applied alone (a TDoA, an altitude, ...; not a range of an epoch) fits
+        // itself after one iteration, so its γ at the next operating point (eq. (39)) no longer
+        // shows an outlier: it keeps the prior's inflation.
+        let kept = (iterations > 1 && m.policies() == Policies::Robust).then_some(report.inflation);
         let noise = self.noise.decide(k, m, residual, hph, iterations == 1, kept);
         let prior = if iterations == 1 { Some((*residual, hph + noise.base_var)) } else { report.prior };
         *report = noise.report(*residual, iterations);
@@ -213,17 +213,17 @@ impl KalmanEpoch<'_> {
     /// `op` (parameters `params_op`), accumulating the error `dx` and stepping `p`, each γ tested
     /// against `against` (iteration `iterations`, 1 at the prior).
     #[allow(clippy::too_many_arguments)]
-    fn pass<const N: usize>(
+    fn pass<M: ScalarModel, const N: usize>(
         &mut self,
         op: &NominalState,
         params_op: &SVector<f64, N>,
         dx: &mut SVector<f64, N>,
         p: &mut Cov<N>,
         against: Against<'_, N>,
-        measurements: &[ScalarMeasurement],
+        measurements: &[M],
         reports: &mut [UpdateReport],
         iterations: u32,
-        param_h: &impl Fn(&ScalarMeasurement) -> SVector<f64, N>,
+        param_h: &impl Fn(&M) -> SVector<f64, N>,
         estimated: usize,
     ) -> Result<()> {
         for (k, (report, m)) in reports.iter_mut().zip(measurements).enumerate() {
