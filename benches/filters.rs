@@ -10,7 +10,8 @@ use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_rs::estimation::update::UpdateReport;
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;
-use uwbimu_rs::vocabulary::records::{Observation, RangeMeasurement, TdoaMeasurement};
+use uwbimu_rs::vocabulary::records::{RangeMeasurement, TdoaMeasurement};
+use uwbimu_rs::vocabulary::sensors::Observation;
 
 /// Filters set up per timed batch: few enough that each is still in cache when it is updated
 /// (with criterion's large batches every update started from a cold filter).

@@ -56,8 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             initial: given.then_some(&initial),
                             config: &config,
                             smooth,
-                            mag: if method.takes(Input::Magnetometer) { &data.mag } else { &[] },
-                            tdoa: if method.takes_tdoa() { &data.tdoa } else { &[] },
+                            observations: &data.observations_for(|kind| method.takes(Input::Sensor(kind))),
                             progress: None,
                             marginals_every_s: None,
                         };

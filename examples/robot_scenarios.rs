@@ -12,6 +12,7 @@
 
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{simulate, zoo};
+use uwbimu_rs::vocabulary::sensors::observations;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -39,8 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         initial: given.then_some(&initial),
                         config: &s.config,
                         smooth: false,
-                        mag: &[],
-                        tdoa: if tdoa { &data.tdoa } else { &[] },
+                        observations: if tdoa { &observations(&data.tdoa) } else { &[] },
                         progress: None,
                         marginals_every_s: None,
                     };

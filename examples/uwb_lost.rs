@@ -17,6 +17,7 @@ use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{simulate, zoo};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Quat;
+use uwbimu_rs::vocabulary::sensors::observations;
 
 /// Heading of a body → navigation rotation, rad.
 fn yaw(q: &Quat) -> f64 {
@@ -52,8 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     initial,
                     config: &config,
                     smooth: false,
-                    mag: &[],
-                    tdoa: if tdoa { &data.tdoa } else { &[] },
+                    observations: if tdoa { &observations(&data.tdoa) } else { &[] },
                     progress: None,
                     marginals_every_s: None,
                 };

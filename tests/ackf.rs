@@ -7,6 +7,7 @@ use uwbimu_rs::app::sim::{preset, simulate, DriveOptions, MagConfig, MagDisturba
 use uwbimu_rs::estimation::filters::{Ackf, Ckf, Filter};
 use uwbimu_rs::estimation::pipeline::{run, run_streams, Streams, Trace};
 use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::sensors::observations;
 
 /// The ARCKF paper's garage with a 6 s still start (the reference period), two rectangle laps and a
 /// magnetometer; `disturbed` adds two 20 s field disturbances of ~40 % of the field.
@@ -31,8 +32,11 @@ fn run_ackf(data: &SimData, cfg: &SimConfig, adaptive: bool) -> (Ackf, Trace) {
     fc.aiding.adaptive = adaptive;
     fc.aiding.reference_s = 5.0;
     let mut ackf = Ackf::new(data.anchors.clone(), &truth_initial(data, Vec3::zeros()), fc).expect("ackf");
-    let trace = run_streams(&mut ackf, &Streams { imu: &data.imu, ranges: &data.ranges, mag: &data.mag, ..Streams::default() })
-        .expect("run");
+    let trace = run_streams(
+        &mut ackf,
+        &Streams { imu: &data.imu, ranges: &data.ranges, observations: &observations(&data.mag), ..Streams::default() },
+    )
+    .expect("run");
     (ackf, trace)
 }
 

@@ -28,8 +28,7 @@ fn known_biases_are_recovered() {
             initial: Some(&initial),
             config: &s.config,
             smooth: true,
-            mag: &[],
-            tdoa: &[],
+            observations: &[],
             progress: None,
             marginals_every_s: None,
         };

@@ -115,7 +115,9 @@ fn rig() -> SimData {
 /// Horizontal RMSE of `method` with `config` (forward pass, self-initialised, the first 10 s left
 /// out), and its steps' positions.
 fn run(data: &SimData, method: Method, config: &FilterConfig, tdoa: bool) -> (f64, Vec<Vec3>) {
-    let mag = if method.takes(uwbimu_rs::app::methods::Input::Magnetometer) { &data.mag[..] } else { &[] };
+    use uwbimu_rs::app::methods::Input;
+    use uwbimu_rs::vocabulary::sensors::SensorKind;
+    let sensors = data.observations_for(|kind| method.takes(Input::Sensor(kind)) && (tdoa || kind != SensorKind::Tdoa));
     let input = BatchInput {
         imu: &data.imu,
         ranges: &data.ranges,
@@ -123,8 +125,7 @@ fn run(data: &SimData, method: Method, config: &FilterConfig, tdoa: bool) -> (f6
         initial: None,
         config,
         smooth: false,
-        mag,
-        tdoa: if tdoa { &data.tdoa } else { &[] },
+        observations: &sensors,
         progress: None,
         marginals_every_s: None,
     };

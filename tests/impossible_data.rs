@@ -10,6 +10,7 @@ use uwbimu_rs::estimation::gate::Rejection;
 use uwbimu_rs::estimation::pipeline::{Trace, STATUS_REJECTED};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::records::RangeMeasurement;
+use uwbimu_rs::vocabulary::sensors::observations;
 
 fn scenario(seed: u64) -> (Scenario, SimData) {
     let s = zoo("tdoa_drone", seed).expect("zoo");
@@ -28,8 +29,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, ranges: &[RangeMeasurement]
         initial: given.then_some(&initial),
         config,
         smooth: false,
-        mag: &[],
-        tdoa: if tdoa { &data.tdoa } else { &[] },
+        observations: if tdoa { &observations(&data.tdoa) } else { &[] },
         progress: None,
         marginals_every_s: None,
     };

@@ -146,8 +146,7 @@ fn per_anchor_fit_and_batch_preprocessing() {
             initial: None,
             config,
             smooth: false,
-            mag: &[],
-            tdoa: &[],
+            observations: &[],
             progress: None,
             marginals_every_s: None,
         };

@@ -143,8 +143,7 @@ fn isas_walk1_keeps_the_plain_filter() {
         initial: None,
         config: &defaults,
         smooth: false,
-        mag: &[],
-        tdoa: &[],
+        observations: &[],
         progress: None,
         marginals_every_s: None,
     };

@@ -14,6 +14,7 @@ use uwbimu_rs::estimation::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::records::MagSample;
+use uwbimu_rs::vocabulary::sensors::{merge, observations};
 
 /// The TDoA setting: 10 rounds a second, σ 5 cm, 3 % gross errors of 1–5 m.
 fn tdoa_scenario(name: &str, seed: u64) -> (Scenario, SimData) {
@@ -44,8 +45,7 @@ fn run_rmse(
         initial,
         config,
         smooth: false,
-        mag: &[],
-        tdoa: &data.tdoa,
+        observations: &observations(&data.tdoa),
         progress: None,
         marginals_every_s: None,
     };
@@ -143,8 +143,7 @@ fn a_confident_wrong_start_reacquires_on_a_tdoa_fix() {
                 initial: Some(&initial),
                 config: &s.config,
                 smooth: false,
-                mag: &[],
-                tdoa: &data.tdoa,
+                observations: &observations(&data.tdoa),
                 progress: None,
                 marginals_every_s: None,
             };
@@ -186,7 +185,9 @@ fn every_policy_works_with_the_unscented_strategy() {
     let run = |policy| {
         let composition = Composition::new(policy, UpdateStrategy::Unscented);
         let mut f = TightFilter::new(data.anchors.clone(), &initial, s.config.clone(), composition).expect("filter");
-        let trace = run_streams(&mut f, &Streams { imu: &data.imu, tdoa: &data.tdoa, ..Streams::default() }).expect("run");
+        let trace =
+            run_streams(&mut f, &Streams { imu: &data.imu, observations: &observations(&data.tdoa), ..Streams::default() })
+                .expect("run");
         rms(&horizontal_errors(&trace.steps, &data))
     };
     let (fixed, robust) = (run(RangeNoisePolicy::Fixed), run(RangeNoisePolicy::ChiSquareInflation { threshold }));
@@ -209,8 +210,7 @@ fn methods_that_do_not_take_tdoa_refuse_it_by_name() {
             initial: None,
             config: &s.config,
             smooth: false,
-            mag: &[],
-            tdoa: &data.tdoa,
+            observations: &observations(&data.tdoa),
             progress: None,
             marginals_every_s: None,
         };
@@ -246,8 +246,13 @@ fn every_sensor_at_unrelated_jittered_rates_streams_like_the_batch() {
     let mut config = s.config.clone();
     config.aiding.reference_s = 2.0;
     let initial = s.true_initial(&data).expect("initial");
-    let streams =
-        Streams { imu: &data.imu, ranges: &data.ranges, mag: &mag, tdoa: &data.tdoa, progress: None, marginals_every_s: None };
+    let streams = Streams {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        observations: &merge(&[&observations(&mag), &observations(&data.tdoa)]),
+        progress: None,
+        marginals_every_s: None,
+    };
     let mut batch = Ackf::new(data.anchors.clone(), &initial, config.clone()).expect("ackf");
     let trace = run_streams(&mut batch, &streams).expect("every sensor, merged by time");
     let options = StreamOptions { reorder_window_s: 0.0, strict: true };

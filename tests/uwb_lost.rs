@@ -10,6 +10,7 @@ use uwbimu_rs::app::sim::{self, Scenario, SimData};
 use uwbimu_rs::estimation::init::SelfInit;
 use uwbimu_rs::estimation::pipeline::Trace;
 use uwbimu_rs::vocabulary::config::InitialState;
+use uwbimu_rs::vocabulary::sensors::observations;
 
 /// The inertial methods (15-state, smoothable).
 fn inertial() -> impl Iterator<Item = Method> {
@@ -27,8 +28,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, initial: Option<&InitialSta
         initial,
         config: &s.config,
         smooth: false,
-        mag: &[],
-        tdoa: if tdoa { &data.tdoa } else { &[] },
+        observations: if tdoa { &observations(&data.tdoa) } else { &[] },
         progress: None,
         marginals_every_s: None,
     };

@@ -22,6 +22,7 @@ from uwbimu_rs._compare import Comparison, MethodRun, compare
 from uwbimu_rs._native import (
     FILTERS,
     METHODS,
+    SENSORS,
     Ackf,
     Arckf,
     Best,
@@ -56,6 +57,7 @@ except _PackageNotFoundError:  # pragma: no cover - only when run from a source 
 __all__ = [
     "FILTERS",
     "METHODS",
+    "SENSORS",
     "Ackf",
     "Arckf",
     "Best",

@@ -16,6 +16,10 @@ from uwbimu_rs._native import FilterConfig
 from uwbimu_rs._typing import MethodName
 
 
+Run = tuple[np.ndarray, np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray, Mapping[str, np.ndarray | None]]
+"""One recording for :func:`run_filters`: ``(imu, ranges, anchors)``, or with a dict of the other
+sensors' arrays by keyword, ``(imu, ranges, anchors, {"tdoa": ..., "mag": ...})``."""
+
 @overload
 def run_filter(
     method: MethodName,
@@ -267,7 +271,7 @@ def run_frames(
 @overload
 def run_filters(
     method: MethodName,
-    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    runs: Sequence[Run],
     *,
     initial: Sequence[Mapping[str, Any] | None] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
@@ -281,7 +285,7 @@ def run_filters(
 @overload
 def run_filters(
     method: MethodName,
-    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    runs: Sequence[Run],
     *,
     initial: Sequence[Mapping[str, Any] | None] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
@@ -294,7 +298,7 @@ def run_filters(
 
 def run_filters(
     method: MethodName,
-    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    runs: Sequence[Run],
     *,
     initial: Sequence[Mapping[str, Any] | None] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
@@ -309,9 +313,10 @@ def run_filters(
     ----------
     method : str
         As for :func:`run_filter`.
-    runs : sequence of (imu, ranges, anchors)
+    runs : sequence of (imu, ranges, anchors) or (imu, ranges, anchors, sensors)
         One tuple of arrays per recording, shapes as for :func:`run_filter`
-        (e.g. ``[(r.imu, r.ranges, r.anchors) for r in sims]``).
+        (e.g. ``[(r.imu, r.ranges, r.anchors) for r in sims]``); ``sensors`` is a dict of the
+        other sensors' arrays by the keywords of :func:`run_filter` (e.g. ``{"tdoa": r.tdoa}``).
     initial : sequence of dict or None, optional
         One initial state per run (None entries self-initialise); None: all self-initialise.
     config, covariance, smooth

@@ -10,7 +10,7 @@ navigation; error-state order δp, δv, δθ, δb_a, δb_g. Every returned array
 NumPy array (``range_labels``: uint8) owned by the caller.
 """
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Literal, TypedDict, TypeVar, final
 
 import numpy as np
@@ -60,6 +60,7 @@ __all__ = [
     "initialize_state",
     "FILTERS",
     "METHODS",
+    "SENSORS",
     "calibrate_log",
     "tune_noise",
     "choose_model",
@@ -148,6 +149,22 @@ FILTERS: list[_MethodName]
 METHODS: dict[_MethodName, _MethodRow]
 """The method registry, one row per name of :data:`FILTERS`: what each takes, its smoothing, its
 streaming class and its summary."""
+
+class _SensorRow(TypedDict):
+    """What the sensor registry says of one sensor besides the IMU and the ranges."""
+
+    keyword: str
+    """The keyword argument of its array in :func:`run_filter` (``mag``, ``tdoa``)."""
+    label: str
+    """What it measures, in messages."""
+    columns: list[list[str]]
+    """The columns of its array, one list per accepted layout; column 0 is the time (s)."""
+    rank: int
+    """Its rank among measurements at one time (the IMU first, ranges last)."""
+
+SENSORS: dict[str, _SensorRow]
+"""The sensor registry (``crates/uwbimu-vocabulary/src/sensors.rs``), one row per sensor besides
+the IMU and the ranges, by the name :data:`METHODS` lists under ``takes``."""
 
 @final
 class FilterConfig:
@@ -578,7 +595,7 @@ def posterior_crlb(
 
 def run_filters(
     method: str,
-    runs: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
+    runs: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike, Mapping[str, ArrayLike | None]]],
     *,
     initial: Sequence[dict[str, Any] | None] | None = None,
     config: _ConfigArg = None,
@@ -586,9 +603,10 @@ def run_filters(
     smooth: bool | None = None,
     progress: bool = False,
 ) -> list[tuple[dict[str, _F64], None, dict[str, Any]]]:
-    """Run one method over many ``(imu, ranges, anchors)`` recordings in parallel (rayon, GIL
-    released); one ``(columns, None, info)`` per run, in order. ``progress`` draws a bar of the
-    IMU samples processed (over all runs) on stderr."""
+    """Run one method over many ``(imu, ranges, anchors)`` or ``(imu, ranges, anchors, sensors)``
+    recordings in parallel (rayon, GIL released), ``sensors`` a dict of the other sensors' arrays
+    by their :data:`SENSORS` keyword; one ``(columns, None, info)`` per run, in order.
+    ``progress`` draws a bar of the IMU samples processed (over all runs) on stderr."""
 
 def calibrate_log(
     imu: ArrayLike,
@@ -649,9 +667,8 @@ def run_filter(
     covariance: bool = False,
     updates: bool = False,
     smooth: bool | None = None,
-    mag: ArrayLike | None = None,
-    tdoa: ArrayLike | None = None,
     progress: bool = False,
+    **sensors: ArrayLike | None,
 ) -> tuple[dict[str, _F64], dict[str, _F64] | None, dict[str, Any]]:
     """Run one method over whole recordings (the GIL is released while Rust runs).
 
@@ -675,6 +692,9 @@ def run_filter(
         Also return one row per range update (inertial methods only).
     progress : bool, default False
         Draw a one-line bar of the IMU samples processed on stderr while the run goes on.
+    **sensors : array_like, optional
+        The arrays of the other sensors by their :data:`SENSORS` keyword (``mag``, ``tdoa``), each
+        in one of its layouts; a sensor the method does not take raises ``ValueError``.
 
     Returns
     -------

@@ -40,6 +40,17 @@ pub fn table<const C: usize>(
     Ok(rows)
 }
 
+/// Copies a float64 array that must be 2-D with one of the column counts of `layouts` into its
+/// rows (one `Vec` per row); the error lists the layouts.
+pub fn rows(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str, layouts: &[&[&str]]) -> Result<Vec<Vec<f64>>, Error> {
+    let shape = arr.shape();
+    if shape.len() != 2 || !layouts.iter().any(|l| l.len() == shape[1]) {
+        let expected = layouts.iter().map(|l| format!("(M, {}) = {}", l.len(), l.join(", "))).collect::<Vec<_>>();
+        return Err(Error::Shape { name, expected: expected.join(" or "), got: format!("{shape:?}") });
+    }
+    Ok(arr.as_array().outer_iter().map(|row| row.iter().copied().collect()).collect())
+}
+
 /// Copies an `(N, 3)` float64 array into points (m).
 pub fn points(arr: &PyReadonlyArrayDyn<'_, f64>, name: &'static str) -> Result<Vec<Vec3>, Error> {
     Ok(table::<3>(arr, name, "(N, 3) = x, y, z")?.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())

@@ -16,18 +16,17 @@ use uwbimu_vocabulary::config::RangeCalibration;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_to_wxyz, Vec3};
-use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::{merge, Observation, SensorKind};
 use uwbimu_vocabulary::state::{ErrCov, NominalState, ERR_DIM};
 use uwbimu_vocabulary::validate;
 
-use super::convert::{apply_nested_dict, array, columns, config_value, config_value_to_py, str_items, table};
+use super::convert::{apply_nested_dict, array, columns, config_value, config_value_to_py, rows, str_items, table};
 use super::errors::PyResult;
 use super::interruptible::run_interruptible;
 use super::repr;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
-const MAG_LAYOUT: &str = "(N, 4) = t, mx, my, mz";
-const TDOA_LAYOUT: &str = "(M, 4) = t, anchor i, anchor j, d_ij";
 const RANGES_LAYOUT: &str = "(M, 3) = t, anchor index, range";
 const ANCHORS_LAYOUT: &str = "(K, 3) = x, y, z";
 
@@ -186,12 +185,26 @@ pub(super) fn read_optional_initial(initial: Option<&Bound<'_, PyAny>>) -> PyRes
     }
 }
 
-/// Reads and validates an optional `tdoa` array `(M, 4) = t, i, j, d_ij` (None: no TDoA).
-pub(super) fn read_tdoa(tdoa: Option<&Bound<'_, PyAny>>, anchor_count: usize) -> PyResult<Vec<TdoaMeasurement>> {
-    match tdoa {
-        Some(d) if !d.is_none() => Ok(validate::tdoa(&table::<4>(&array(d, "tdoa")?, "tdoa", TDOA_LAYOUT)?, anchor_count)?),
-        _ => Ok(Vec::new()),
+/// Reads and validates the sensor arrays of keyword arguments `sensors` (`{keyword: array}`, the
+/// keywords of the sensor registry; a None value is no data) into one time-ordered sequence.
+/// An unknown keyword raises `ValueError` listing the sensors' keywords.
+pub(super) fn read_observations(sensors: Option<&Bound<'_, PyDict>>, anchor_count: usize) -> PyResult<Vec<Observation>> {
+    let mut sets = Vec::new();
+    for (key, value) in sensors.into_iter().flat_map(|d| d.iter()) {
+        let keyword: String = key.extract()?;
+        let kind = SensorKind::ALL.iter().copied().find(|k| k.info().keyword == keyword).ok_or_else(|| {
+            Error::unknown_option("keyword argument", &keyword, SensorKind::ALL.iter().map(|k| k.info().keyword))
+        })?;
+        if value.is_none() {
+            continue;
+        }
+        let info = kind.info();
+        let table = rows(&array(&value, info.keyword)?, info.keyword, info.layouts)?;
+        let table: Vec<&[f64]> = table.iter().map(Vec::as_slice).collect();
+        sets.push(kind.observations(&table, anchor_count)?);
     }
+    let sets: Vec<&[Observation]> = sets.iter().map(Vec::as_slice).collect();
+    Ok(merge(&sets))
 }
 
 /// One log as the batch functions take it: validated arrays, configuration and initial state.
@@ -199,10 +212,12 @@ pub(super) struct Log {
     inputs: Inputs,
     config: FilterConfig,
     initial: Option<InitialState>,
+    observations: Vec<Observation>,
 }
 
 impl Log {
-    /// Reads and validates the arrays, then the configuration and the optional initial state.
+    /// Reads and validates the arrays, then the configuration and the optional initial state
+    /// (no other sensor: [`Log::with_sensors`]).
     pub(super) fn read(
         imu: &Bound<'_, PyAny>,
         ranges: &Bound<'_, PyAny>,
@@ -211,10 +226,17 @@ impl Log {
         config: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let inputs = read_inputs(imu, ranges, anchors)?;
-        Ok(Self { inputs, config: read_config(config)?, initial: read_optional_initial(initial)? })
+        Ok(Self { inputs, config: read_config(config)?, initial: read_optional_initial(initial)?, observations: Vec::new() })
     }
 
-    /// The batch input over the log (no magnetometer, no TDoA).
+    /// The log with the arrays of the other sensors, keyword arguments `sensors`
+    /// ([`read_observations`]).
+    pub(super) fn with_sensors(self, sensors: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let observations = read_observations(sensors, self.inputs.anchors.len())?;
+        Ok(Self { observations, ..self })
+    }
+
+    /// The batch input over the log.
     pub(super) fn batch(&self, smooth: bool) -> BatchInput<'_> {
         BatchInput {
             imu: &self.inputs.imu,
@@ -223,8 +245,7 @@ impl Log {
             initial: self.initial.as_ref(),
             config: &self.config,
             smooth,
-            mag: &[],
-            tdoa: &[],
+            observations: &self.observations,
             progress: None,
             marginals_every_s: None,
         }
@@ -512,7 +533,7 @@ macro_rules! py_filter {
             /// raise ValueError.
             fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: f64, j: f64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_tdoa";
-                check_takes(CALL, stringify!($py), Input::Tdoa)?;
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Tdoa))?;
                 let count = self.anchor_count();
                 let (anchor_i, anchor_j) = (anchor_arg(CALL, "i", i, count)?, anchor_arg(CALL, "j", j, count)?);
                 if anchor_i == anchor_j {
@@ -526,7 +547,7 @@ macro_rules! py_filter {
             /// uses one (the ACKF paper), the others raise ValueError.
             fn add_magnetometer(&mut self, py: Python<'_>, t: f64, field: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_magnetometer";
-                check_takes(CALL, stringify!($py), Input::Magnetometer)?;
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Magnetometer))?;
                 let field = vec3_arg(CALL, field, "field")?;
                 self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: t, field })))
             }
@@ -698,7 +719,7 @@ type BatchColumns<'py> = (Bound<'py, PyDict>, Option<Bound<'py, PyDict>>, Bound<
 /// info)`: dicts of 1-D float64 arrays (the Python wrapper builds polars DataFrames). `progress`
 /// draws a bar of the IMU samples processed on stderr.
 #[pyfunction]
-#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=None, mag=None, tdoa=None, progress=false))]
+#[pyo3(signature = (method, imu, ranges, anchors, *, initial=None, config=None, covariance=false, updates=false, smooth=None, progress=false, **sensors))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -711,18 +732,12 @@ fn run_filter<'py>(
     covariance: bool,
     updates: bool,
     smooth: Option<bool>,
-    mag: Option<&Bound<'py, PyAny>>,
-    tdoa: Option<&Bound<'py, PyAny>>,
     progress: bool,
+    sensors: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<BatchColumns<'py>> {
     let method = Method::parse(method)?;
-    let log = Log::read(imu, ranges, anchors, initial, config)?;
-    let mag = match mag {
-        Some(m) if !m.is_none() => validate::magnetometer(&table::<4>(&array(m, "mag")?, "mag", MAG_LAYOUT)?)?,
-        _ => Vec::new(),
-    };
-    let tdoa = read_tdoa(tdoa, log.inputs.anchors.len())?;
-    let input = BatchInput { mag: &mag, tdoa: &tdoa, ..log.batch(method.smooth(smooth)) };
+    let log = Log::read(imu, ranges, anchors, initial, config)?.with_sensors(sensors)?;
+    let input = log.batch(method.smooth(smooth));
     let total = input.imu.len() as u64;
     let output = run_interruptible(py, progress, total, |p| run_method(method, &BatchInput { progress: Some(p), ..input }))??;
     output_columns(py, output, covariance, updates)
@@ -751,7 +766,9 @@ fn output_columns<'py>(py: Python<'py>, output: BatchOutput, covariance: bool, u
 }
 
 /// Runs one method over many recordings in parallel on all cores (rayon), with the GIL released.
-/// `runs` is a sequence of `(imu, ranges, anchors)`; `initial` is None or a sequence of the same
+/// `runs` is a sequence of `(imu, ranges, anchors)` or `(imu, ranges, anchors, sensors)` with
+/// `sensors` a dict of the other sensors' arrays by keyword (as `run_filter` takes them, e.g.
+/// `{"tdoa": ..., "mag": ...}`); `initial` is None or a sequence of the same
 /// length (each item a dict or None). Returns one `(columns, None, info)` per run, in order; the
 /// first failing run's error is raised. `progress` draws a bar of the IMU samples processed (over
 /// all runs) on stderr.
@@ -773,10 +790,23 @@ fn run_filters<'py>(
     let config = read_config(config)?;
     let mut inputs = Vec::new();
     for (k, run) in runs.try_iter()?.enumerate() {
-        let (imu, ranges, anchors): (Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>) = run?.extract().map_err(|_| {
-            pyo3::exceptions::PyValueError::new_err(format!("runs[{k}]: expected a tuple (imu, ranges, anchors)"))
-        })?;
-        inputs.push(read_inputs(&imu, &ranges, &anchors)?);
+        let run = run?;
+        let expected = || {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "runs[{k}]: expected a tuple (imu, ranges, anchors) or (imu, ranges, anchors, sensors)"
+            ))
+        };
+        let items: Vec<Bound<'py, PyAny>> = run.extract().map_err(|_| expected())?;
+        let (arrays, sensors) = match items.as_slice() {
+            [imu, ranges, anchors] => ((imu, ranges, anchors), None),
+            [imu, ranges, anchors, sensors] => {
+                ((imu, ranges, anchors), Some(sensors.cast::<PyDict>().map_err(|_| expected())?.clone()))
+            }
+            _ => return Err(expected().into()),
+        };
+        let input = read_inputs(arrays.0, arrays.1, arrays.2)?;
+        let observations = read_observations(sensors.as_ref(), input.anchors.len())?;
+        inputs.push((input, observations));
     }
     let initials: Vec<Option<InitialState>> = match initial {
         Some(obj) if !obj.is_none() => {
@@ -793,20 +823,19 @@ fn run_filters<'py>(
         }
         _ => vec![None; inputs.len()],
     };
-    let total = inputs.iter().map(|i| i.imu.len() as u64).sum();
+    let total = inputs.iter().map(|(i, _)| i.imu.len() as u64).sum();
     let outputs = run_interruptible(py, progress, total, |p| {
         let batch: Vec<BatchInput<'_>> = inputs
             .iter()
             .zip(&initials)
-            .map(|(inp, init)| BatchInput {
+            .map(|((inp, observations), init)| BatchInput {
                 imu: &inp.imu,
                 ranges: &inp.ranges,
                 anchors: &inp.anchors,
                 initial: init.as_ref(),
                 config: &config,
                 smooth,
-                mag: &[],
-                tdoa: &[],
+                observations,
                 progress: Some(p),
                 marginals_every_s: None,
             })
@@ -910,6 +939,22 @@ fn posterior_crlb<'py>(
 /// The registry as Python sees it: `{name: {"takes": [...], "smoothing": "never" | "on_request" |
 /// "by_default", "streaming_class": str | None, "chooses_model": bool, "summary": str}}`, in
 /// registry order (the summary is the first sentence of the row's doc).
+/// The sensor registry as a dict by name: `keyword`, `label`, `columns` (the accepted layouts),
+/// `rank`.
+fn sensors_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let table = PyDict::new(py);
+    for kind in SensorKind::ALL {
+        let info = kind.info();
+        let row = PyDict::new(py);
+        row.set_item("keyword", info.keyword)?;
+        row.set_item("label", info.label)?;
+        row.set_item("columns", info.layouts.iter().map(|l| l.to_vec()).collect::<Vec<_>>())?;
+        row.set_item("rank", info.rank)?;
+        table.set_item(info.name, row)?;
+    }
+    Ok(table)
+}
+
 fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let table = PyDict::new(py);
     for method in Method::ALL {
@@ -936,5 +981,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(posterior_crlb, m)?)?;
     m.add("FILTERS", Method::names().collect::<Vec<_>>())?;
     m.add("METHODS", methods_table(m.py())?)?;
+    m.add("SENSORS", sensors_table(m.py())?)?;
     Ok(())
 }

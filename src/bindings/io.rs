@@ -19,10 +19,12 @@ use uwbimu_app::methods::Method;
 use uwbimu_app::replay::replay as replay_recording;
 use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_app::replay::ReplaySummary;
+use uwbimu_vocabulary::records::TdoaMeasurement;
+use uwbimu_vocabulary::sensors::{validate_records, SensorKind};
 
 use super::convert::columns;
 use super::errors::PyResult;
-use super::filters::{read_config, read_inputs, read_optional_initial, read_tdoa};
+use super::filters::{read_config, read_inputs, read_optional_initial};
 use super::interruptible::run_interruptible;
 use crate::cli::progress::Bar;
 
@@ -316,7 +318,15 @@ fn write_mcap(
     tdoa: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
     let inputs = read_inputs(imu, ranges, anchors)?;
-    let tdoa = read_tdoa(tdoa, inputs.anchors.len())?;
+    let tdoa: Vec<TdoaMeasurement> = match tdoa {
+        Some(d) if !d.is_none() => {
+            let layouts = SensorKind::Tdoa.info().layouts;
+            let table = super::convert::rows(&super::convert::array(d, "tdoa")?, "tdoa", layouts)?;
+            let table: Vec<&[f64]> = table.iter().map(Vec::as_slice).collect();
+            validate_records("tdoa", &table, inputs.anchors.len())?
+        }
+        _ => Vec::new(),
+    };
     let label = path.display().to_string();
     py.detach(|| {
         let file = std::fs::File::create(&path).map_err(|e| IoError::io(&label, e))?;

@@ -19,8 +19,7 @@ pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &
         initial,
         config,
         smooth: false,
-        mag: &[],
-        tdoa: &[],
+        observations: &[],
         progress: None,
         marginals_every_s: None,
     }
@@ -35,8 +34,7 @@ pub fn recording_batch<'a>(rec: &'a Recording, config: &'a FilterConfig, smooth:
         initial: None,
         config,
         smooth,
-        mag: &[],
-        tdoa: &[],
+        observations: &[],
         progress: None,
         marginals_every_s: None,
     }

@@ -66,3 +66,30 @@ def test_methods_detail_table_lists_every_method_once() -> None:
             break
         rows.append(line.split("|")[1].strip().strip("`"))
     assert sorted(rows) == sorted(uwbimu_rs.FILTERS)
+
+
+def test_sensor_lists_are_the_sensor_registry() -> None:
+    """The sensor registry (crates/uwbimu-vocabulary/src/sensors.rs): ``run_filter``'s keyword
+    arguments for sensor arrays, the stub's ``takes`` names and each streaming class's
+    ``add_<sensor>`` call are its rows."""
+    import inspect
+
+    sensors = uwbimu_rs.SENSORS
+    keywords = {row["keyword"] for row in sensors.values()}
+    assert len(keywords) == len(sensors)
+    params = inspect.signature(uwbimu_rs.run_filter).parameters
+    array_kwargs = {
+        name
+        for name, p in params.items()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY and "ndarray" in str(p.annotation) and name not in {"initial"}
+    }
+    assert array_kwargs == keywords, "run_filter's sensor keyword arguments differ from SENSORS"
+    takes_literal = re.search(r'takes: list\[Literal\[([^\]]*)\]\]', STUB.read_text())
+    assert takes_literal, "no takes Literal in the stub"
+    named = {n.strip().strip('"') for n in takes_literal.group(1).split(",")}
+    assert named == {"ranges", *sensors}
+    for name, row in uwbimu_rs.METHODS.items():
+        assert set(row["takes"]) <= {"ranges", *sensors}, name
+    for cls in {row["streaming_class"] for row in uwbimu_rs.METHODS.values()} - {None}:
+        for sensor in sensors:
+            assert hasattr(getattr(uwbimu_rs, cls), f"add_{sensor}"), f"{cls} has no add_{sensor}"

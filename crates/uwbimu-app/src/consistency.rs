@@ -278,8 +278,7 @@ fn run_once(
         initial: Some(initial),
         config,
         smooth: false,
-        mag: &[],
-        tdoa: &[],
+        observations: &[],
         progress: None,
         marginals_every_s: Some(SAMPLE_INTERVAL_S),
     };

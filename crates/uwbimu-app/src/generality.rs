@@ -183,8 +183,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
         initial: (cell.start == Start::Given).then_some(&initial),
         config: &config,
         smooth: cell.method.smooths_by_default(),
-        mag: &[],
-        tdoa: &[],
+        observations: &[],
         progress: None,
         marginals_every_s: None,
     };

@@ -10,7 +10,8 @@ use uwbimu_estimation::units::check_imu_units;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
+use uwbimu_vocabulary::sensors::{merge, Clock, Observation, SensorKind};
 
 use crate::outlier_smoothing::{leave_out_long_ranges, ResidualWalk};
 use crate::select::ModelChoice;
@@ -20,19 +21,17 @@ use crate::select::ModelChoice;
 pub enum Input {
     /// Ranges to anchors.
     Ranges,
-    /// Range differences between two anchors (TDoA).
-    Tdoa,
-    /// Magnetometer samples.
-    Magnetometer,
+    /// A sensor of the registry ([`uwbimu_vocabulary::sensors`]).
+    Sensor(SensorKind),
 }
 
 impl Input {
-    /// The input's name in Python (`METHODS[name]["takes"]`) and the docs.
+    /// The input's name in Python (`METHODS[name]["takes"]`) and the docs: `ranges`, or the
+    /// sensor's name.
     pub fn name(self) -> &'static str {
         match self {
             Self::Ranges => "ranges",
-            Self::Tdoa => "tdoa",
-            Self::Magnetometer => "magnetometer",
+            Self::Sensor(kind) => kind.info().name,
         }
     }
 }
@@ -110,7 +109,7 @@ macro_rules! methods {
                 match self {
                     $(Method::$variant => &MethodInfo {
                         name: $name,
-                        takes: &[$(Input::$input),+],
+                        takes: &[$(methods!(@input $input)),+],
                         smoothing: Smoothing::$smoothing,
                         streaming_class: methods!(@class $run $($ty)?),
                         chooses_model: methods!(@chooses $($chooses)?),
@@ -152,6 +151,8 @@ macro_rules! methods {
             };
         }
     };
+    (@input Ranges) => { Input::Ranges };
+    (@input $sensor:ident) => { Input::Sensor(SensorKind::$sensor) };
     (@chooses) => { false };
     (@chooses $chooses:literal) => { $chooses };
     (@class inertial $ty:ident) => { Some(stringify!($ty)) };
@@ -285,7 +286,7 @@ impl Method {
     /// Whether the method takes TDoA (the tightly coupled inertial filters; the loosely coupled
     /// ones fuse a per-epoch fix from ranges, the planar ones and `uwb_ls` take ranges only).
     pub fn takes_tdoa(self) -> bool {
-        self.takes(Input::Tdoa)
+        self.takes(Input::Sensor(SensorKind::Tdoa))
     }
 
     /// The names of the methods for which `keep` holds, comma-separated (for error messages).
@@ -343,10 +344,10 @@ pub struct BatchInput<'a> {
     pub config: &'a FilterConfig,
     /// Also RTS-smooth the run (inertial filters only).
     pub smooth: bool,
-    /// Magnetometer samples, validated and time-ordered (used by `ackf`; empty if none).
-    pub mag: &'a [MagSample],
-    /// TDoA, validated and time-ordered (tightly coupled inertial methods; empty if none).
-    pub tdoa: &'a [TdoaMeasurement],
+    /// The measurements of the other sensors of the registry (TDoA, magnetometer, ...), validated
+    /// and merged in time order ([`uwbimu_vocabulary::sensors::merge`]); each kind must be one the
+    /// method takes.
+    pub observations: &'a [Observation],
     /// Counts the IMU samples the run has processed and marks its smoothing pass, for a progress
     /// bar on another thread (None: not counted).
     pub progress: Option<&'a Progress>,
@@ -359,16 +360,24 @@ pub struct BatchInput<'a> {
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    check_inputs(method, false, !input.mag.is_empty(), !input.tdoa.is_empty())?;
+    check_inputs(method, false, input.observations.iter().map(Observation::kind))?;
     let offset = input.config.ranging.time_offset_s;
     if offset != 0.0 {
         let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
         let shift = |t: f64| Some(t + offset).filter(|&t| span(t));
         let ranges: Vec<_> = input.ranges.iter().filter_map(|r| shift(r.t_s).map(|t_s| RangeMeasurement { t_s, ..*r })).collect();
-        let tdoa: Vec<_> = input.tdoa.iter().filter_map(|m| shift(m.t_s).map(|t_s| TdoaMeasurement { t_s, ..*m })).collect();
+        let shifted: Vec<Observation> = input
+            .observations
+            .iter()
+            .filter_map(|o| match o.kind().info().clock {
+                Clock::Uwb => shift(o.t_s()).map(|t_s| o.at(t_s)),
+                Clock::Imu => Some(*o),
+            })
+            .collect();
+        let observations = merge(&[&shifted]);
         let mut config = input.config.clone();
         config.ranging.time_offset_s = 0.0;
-        return run_method(method, &BatchInput { ranges: &ranges, tdoa: &tdoa, config: &config, ..*input });
+        return run_method(method, &BatchInput { ranges: &ranges, observations: &observations, config: &config, ..*input });
     }
     if !input.config.range_calibration.is_empty() {
         let calibrated = input.config.range_calibration.apply(input.ranges, input.anchors.len())?;
@@ -382,7 +391,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
 /// `model_selection.enabled` is off, and runs with the choice (with the input configuration when
 /// the selection fails, saying why in the reported choice).
 pub(crate) fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    check_inputs(method, input.smooth, false, false)?;
+    check_inputs(method, input.smooth, [])?;
     if !(method.chooses_its_model() && input.config.model_selection.enabled) {
         return dispatch(method, input);
     }
@@ -394,21 +403,16 @@ pub(crate) fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<B
     Ok(output)
 }
 
-/// Fails when `method` is asked to smooth and cannot, or is given a magnetometer (`mag`) or TDoA
-/// (`tdoa`) it does not take; the message lists the methods that can.
-pub(crate) fn check_inputs(method: Method, smooth: bool, mag: bool, tdoa: bool) -> Result<()> {
-    if mag && !method.takes(Input::Magnetometer) {
+/// Fails when `method` is asked to smooth and cannot, or is given measurements of a sensor
+/// (`kinds`, one per measurement or per sensor) it does not take; the message lists the methods
+/// that can.
+pub(crate) fn check_inputs(method: Method, smooth: bool, kinds: impl IntoIterator<Item = SensorKind>) -> Result<()> {
+    if let Some(kind) = kinds.into_iter().find(|k| !method.takes(Input::Sensor(*k))) {
+        let label = kind.info().label;
         return Err(Error::InvalidCall(format!(
-            "magnetometer data given, but {} does not use a magnetometer (these do: {})",
+            "{label} given, but {} does not take {label} (these do: {})",
             method.name(),
-            Method::names_where(|m| m.takes(Input::Magnetometer))
-        )));
-    }
-    if tdoa && !method.takes_tdoa() {
-        return Err(Error::InvalidCall(format!(
-            "TDoA given, but {} does not take TDoA (the tightly coupled inertial methods do: {})",
-            method.name(),
-            Method::names_where(Method::takes_tdoa)
+            Method::names_where(|m| m.takes(Input::Sensor(kind)))
         )));
     }
     if smooth && !method.smoothable() {
@@ -458,13 +462,12 @@ pub(crate) fn initial_state(input: &BatchInput<'_>) -> Result<(InitialState, Opt
 }
 
 impl BatchInput<'_> {
-    /// The input streams (IMU, ranges, magnetometer, TDoA).
+    /// The input streams (IMU, ranges, the other sensors).
     pub fn streams(&self) -> Streams<'_> {
         Streams {
             imu: self.imu,
             ranges: self.ranges,
-            mag: self.mag,
-            tdoa: self.tdoa,
+            observations: self.observations,
             progress: self.progress,
             marginals_every_s: self.marginals_every_s,
         }
@@ -477,7 +480,7 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
-    let trace = run_streams(&mut filter, &Streams { mag: &[], tdoa: &[], ..input.streams() })?;
+    let trace = run_streams(&mut filter, &Streams { observations: &[], ..input.streams() })?;
     Ok(BatchOutput::Inertial { trace, init, smoothed: None, warnings, model: None })
 }
 
@@ -531,10 +534,10 @@ fn run_pass<F: InertialFilter>(
     initial: &InitialState,
     input: &BatchInput<'_>,
 ) -> Result<(Trace, Option<Vec<StepRecord>>, SmoothingConfig)> {
-    let BatchInput { imu, ranges, smooth, mag, tdoa, progress, .. } = *input;
+    let BatchInput { imu, ranges, smooth, observations, progress, .. } = *input;
     let mut filter = build(initial)?;
     if smooth {
-        filter.core_mut().start_recording(imu.len() + ranges.len() + mag.len() + tdoa.len());
+        filter.core_mut().start_recording(imu.len() + ranges.len() + observations.len());
     }
     let trace = run_streams(&mut filter, &input.streams())?;
     // A cancelled run keeps its forward steps so far; it is not smoothed.
@@ -578,7 +581,7 @@ mod tests {
     #[test]
     fn capabilities_follow_the_rows() {
         assert_eq!(Method::names_where(Method::smooths_by_default), "best");
-        assert_eq!(Method::names_where(|m| m.takes(Input::Magnetometer)), "ackf");
+        assert_eq!(Method::names_where(|m| m.takes(Input::Sensor(SensorKind::Magnetometer))), "ackf");
         assert!(!Method::UwbLs.smoothable() && !Method::Ekf2d.takes_tdoa() && Method::Best.takes_tdoa());
         let streaming: Vec<_> = Method::ALL.iter().filter_map(|m| m.info().streaming_class).collect();
         assert_eq!(streaming.len(), 14);

@@ -215,6 +215,7 @@ pub fn replay(
         ))
         .into());
     }
+    let observations = uwbimu_vocabulary::sensors::observations(&rec.tdoa);
     let input = BatchInput {
         imu: &rec.imu,
         ranges: &rec.ranges,
@@ -222,8 +223,7 @@ pub fn replay(
         initial,
         config,
         smooth,
-        mag: &[],
-        tdoa: &rec.tdoa,
+        observations: &observations,
         progress,
         marginals_every_s: None,
     };

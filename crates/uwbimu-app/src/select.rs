@@ -156,9 +156,8 @@ impl<'a> Window<'a> {
         let end = t0 + input.config.model_selection.window_s;
         let imu = &input.imu[..input.imu.partition_point(|s| s.t_s <= end)];
         let ranges = &input.ranges[..input.ranges.partition_point(|r| r.t_s <= end)];
-        let tdoa = &input.tdoa[..input.tdoa.partition_point(|m| m.t_s <= end)];
-        let mag = &input.mag[..input.mag.partition_point(|m| m.t_s <= end)];
-        let input = BatchInput { imu, ranges, tdoa, mag, progress: None, ..*input };
+        let observations = &input.observations[..input.observations.partition_point(|o| o.t_s() <= end)];
+        let input = BatchInput { imu, ranges, observations, progress: None, ..*input };
         let (initial, init) = initial_state(&input)?;
         let from_s = t0 + if init.is_some() { crate::tune::SETTLE_S } else { 0.0 };
         Ok(Self { input, initial, from_s })

@@ -37,6 +37,7 @@ use rand_chacha::ChaCha8Rng;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement, TruthSample};
+use uwbimu_vocabulary::sensors::{merge, observations, Observation, SensorKind};
 use uwbimu_vocabulary::validate::{invalid, non_negative, positive};
 
 pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
@@ -152,6 +153,18 @@ pub struct SimData {
     pub nlos_windows: Vec<ShieldingWindow>,
     /// Times of the abnormal accelerometer samples, s (empty without [`SimConfig::accel_outliers`]).
     pub accel_outlier_times: Vec<f64>,
+}
+
+impl SimData {
+    /// The run's measurements of the sensors of the registry whose kind passes `keep` (the
+    /// magnetometer, TDoA), merged in time order ([`uwbimu_vocabulary::sensors::merge`]): what a
+    /// method that takes them gets.
+    pub fn observations_for(&self, keep: impl Fn(SensorKind) -> bool) -> Vec<Observation> {
+        let sets = [observations(&self.mag), observations(&self.tdoa)];
+        let kept: Vec<&[Observation]> =
+            sets.iter().filter(|s| s.first().is_some_and(|o| keep(o.kind()))).map(Vec::as_slice).collect();
+        merge(&kept)
+    }
 }
 
 /// A value for [`SimConfig::apply_overrides`].

@@ -51,7 +51,7 @@ macro_rules! delegate_filter {
 
             fn observe(
                 &mut self,
-                observation: &uwbimu_vocabulary::records::Observation,
+                observation: &uwbimu_vocabulary::sensors::Observation,
             ) -> uwbimu_vocabulary::error::Result<crate::update::UpdateReport> {
                 self.0.observe(observation)
             }
@@ -93,7 +93,8 @@ mod tight;
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::{MagSample, Observation, TdoaMeasurement};
+use uwbimu_vocabulary::records::{MagSample, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::Observation;
 
 use crate::update::UpdateReport;
 

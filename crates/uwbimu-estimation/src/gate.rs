@@ -13,7 +13,7 @@
 
 use uwbimu_vocabulary::config::GateConfig;
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::Observation;
+use uwbimu_vocabulary::sensors::Observation;
 
 use crate::pipeline::Event;
 

@@ -9,8 +9,8 @@
 //! a range does not fit it, or when an IMU sample passes its window — at the reference time
 //! `max(time of its last range, filter time)`, each range first aligned to that time along its
 //! predicted rate ([`crate::epoch::align_to_reference`]). The batch merges its streams by time
-//! ([`run_streams`]); at equal times the IMU sample goes first, then magnetometer samples, TDoA,
-//! and ranges; a step is recorded after every IMU sample and the events at its time. Ranges
+//! ([`run_streams`]); at equal times the IMU sample goes first, then the other sensors in the
+//! order of their rank in the registry ([`uwbimu_vocabulary::sensors`]), ranges last; a step is recorded after every IMU sample and the events at its time. Ranges
 //! before the first IMU sample are counted and skipped, observations before it skipped (the
 //! filter has no time yet); events after the last IMU sample are not applied.
 //!
@@ -35,7 +35,8 @@ pub use stream::{self_initialize, Builder, Stream, StreamOptions, DEFAULT_REORDE
 use uwbimu_vocabulary::config::GateConfig;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
-use uwbimu_vocabulary::records::{ImuSample, MagSample, Observation, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
+use uwbimu_vocabulary::sensors::{Observation, RANGE_RANK};
 use uwbimu_vocabulary::state::{NominalState, ATT, POS, VEL};
 
 use crate::epoch::{align_to_reference, EpochAssembler};
@@ -266,14 +267,13 @@ impl Event {
         }
     }
 
-    /// Rank of the event's stream among events at one time: IMU, magnetometer, TDoA, range (the
-    /// order of [`Streams::events`]).
+    /// Rank of the event's stream among events at one time: the IMU 0, each sensor its rank in
+    /// the registry ([`uwbimu_vocabulary::sensors`]), ranges last ([`RANGE_RANK`]).
     pub fn rank(&self) -> u8 {
         match self {
             Self::Imu(_) => 0,
-            Self::Observation(Observation::Magnetometer(_)) => 1,
-            Self::Observation(Observation::Tdoa(_)) => 2,
-            Self::Range(_) => 3,
+            Self::Observation(o) => o.rank(),
+            Self::Range(_) => RANGE_RANK,
         }
     }
 }
@@ -628,10 +628,9 @@ pub struct Streams<'a> {
     pub imu: &'a [ImuSample],
     /// Ranges.
     pub ranges: &'a [RangeMeasurement],
-    /// Magnetometer samples (IMU frame).
-    pub mag: &'a [MagSample],
-    /// TDoA.
-    pub tdoa: &'a [TdoaMeasurement],
+    /// The measurements of every other sensor of the registry, merged in time order (at equal
+    /// times by rank: [`uwbimu_vocabulary::sensors::merge`]).
+    pub observations: &'a [Observation],
     /// Counts the IMU samples processed, for a progress bar (None: not counted).
     pub progress: Option<&'a Progress>,
     /// Sample the estimate with its error marginals into [`Trace::marginals`] at the first IMU
@@ -640,16 +639,15 @@ pub struct Streams<'a> {
 }
 
 impl Streams<'_> {
-    /// The events of all streams merged by time; at equal times IMU, magnetometer, TDoA, range
-    /// (each stream keeps its own order).
+    /// The events of all streams merged by time; at equal times by rank ([`Event::rank`]; each
+    /// stream keeps its own order).
     pub fn events(&self) -> impl Iterator<Item = Event> + '_ {
-        let mut next = [0usize; 4];
+        let mut next = [0usize; 3];
         std::iter::from_fn(move || {
             let heads = [
                 self.imu.get(next[0]).map(|s| Event::Imu(*s)),
-                self.mag.get(next[1]).map(|m| Event::Observation(Observation::Magnetometer(*m))),
-                self.tdoa.get(next[2]).map(|m| Event::Observation(Observation::Tdoa(*m))),
-                self.ranges.get(next[3]).map(|r| Event::Range(*r)),
+                self.observations.get(next[1]).map(|o| Event::Observation(*o)),
+                self.ranges.get(next[2]).map(|r| Event::Range(*r)),
             ];
             // The earliest head; the lower rank wins ties ([`Event::rank`]).
             let (k, event) = heads.into_iter().enumerate().filter_map(|(k, e)| e.map(|e| (k, e))).reduce(|best, cand| {
@@ -686,7 +684,7 @@ pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Resul
         }
     }
     pipeline.finish(filter)?;
-    let mut updates = Vec::with_capacity(streams.ranges.len() + streams.tdoa.len());
+    let mut updates = Vec::with_capacity(streams.ranges.len() + streams.observations.len());
     pipeline.take_applied(&mut updates);
     Ok(Trace { steps: pipeline.take_steps(), updates, health: pipeline.health(), marginals: pipeline.take_marginals() })
 }

@@ -6,6 +6,7 @@ pub mod config;
 pub mod error;
 pub mod math;
 pub mod records;
+pub mod sensors;
 pub mod state;
 pub mod suggest;
 pub mod validate;

@@ -1,6 +1,9 @@
 //! Plain time-stamped sensor records shared by the pipeline, the simulator and the bindings.
 
+use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
+use crate::sensors::{SensorRecord, TimeOrder};
+use crate::validate::anchor_index;
 
 /// One IMU sample: time, specific force and angular rate in the body frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,32 +63,42 @@ pub struct TdoaMeasurement {
     pub tdoa_m: f64,
 }
 
-/// A measurement applied on its own at its own time (not gathered into range epochs): what the
-/// pipeline hands to `uwbimu_estimation::filters::Filter::observe`. Adding a sensor adds a variant
-/// here, its measurement model and the filters that take it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Observation {
-    /// A magnetometer sample (geomagnetic aiding of the ACKF paper, `uwbimu_estimation::filters::Ackf`).
-    Magnetometer(MagSample),
-    /// A time difference of arrival (`uwbimu_estimation::models::tdoa::Tdoa`).
-    Tdoa(TdoaMeasurement),
-}
+impl SensorRecord for MagSample {
+    const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "mx", "my", "mz"]];
+    const TIME_ORDER: TimeOrder = TimeOrder::Increasing;
 
-impl Observation {
-    /// Measurement time, s.
-    pub fn t_s(&self) -> f64 {
-        match self {
-            Self::Magnetometer(m) => m.t_s,
-            Self::Tdoa(m) => m.t_s,
-        }
+    fn t_s(&self) -> f64 {
+        self.t_s
     }
 
-    /// The stream's name in messages ("magnetometer", "tdoa").
-    pub fn stream(&self) -> &'static str {
-        match self {
-            Self::Magnetometer(_) => "magnetometer",
-            Self::Tdoa(_) => "tdoa",
+    fn at(&self, t_s: f64) -> Self {
+        Self { t_s, ..*self }
+    }
+
+    fn from_row(_: &'static str, _: usize, v: &[f64], _: usize) -> Result<Self> {
+        Ok(Self { t_s: v[0], field: Vec3::new(v[1], v[2], v[3]) })
+    }
+}
+
+impl SensorRecord for TdoaMeasurement {
+    const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "anchor i", "anchor j", "d_ij"]];
+    const TIME_ORDER: TimeOrder = TimeOrder::NonDecreasing;
+
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn at(&self, t_s: f64) -> Self {
+        Self { t_s, ..*self }
+    }
+
+    /// Both anchors known and distinct.
+    fn from_row(name: &'static str, row: usize, v: &[f64], anchor_count: usize) -> Result<Self> {
+        let (anchor_i, anchor_j) = (anchor_index(name, row, v[1], anchor_count)?, anchor_index(name, row, v[2], anchor_count)?);
+        if anchor_i == anchor_j {
+            return Err(Error::InvalidValue { name, row, value: v[1], reason: "anchor i and anchor j must differ" });
         }
+        Ok(Self { t_s: v[0], anchor_i, anchor_j, tdoa_m: v[3] })
     }
 }
 

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::Vec3;
-use crate::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
+use crate::records::{ImuSample, RangeMeasurement};
 
 /// An [`Error::InvalidConfig`] for `field`.
 pub fn invalid(field: &str, reason: impl Into<String>) -> Error {
@@ -78,18 +78,6 @@ pub fn imu(rows: &[[f64; 7]]) -> Result<Vec<ImuSample>> {
         .collect())
 }
 
-/// Magnetometer table `(N, 4)` = t, mx, my, mz (IMU frame) → samples. Finite; time strictly
-/// increasing.
-pub fn magnetometer(rows: &[[f64; 4]]) -> Result<Vec<MagSample>> {
-    check_finite("mag", rows)?;
-    for (row, w) in rows.windows(2).enumerate() {
-        if w[1][0] <= w[0][0] {
-            return Err(Error::NonMonotonicTime { name: "mag", row: row + 1, prev_s: w[0][0], got_s: w[1][0] });
-        }
-    }
-    Ok(rows.iter().map(|r| MagSample { t_s: r[0], field: Vec3::new(r[1], r[2], r[3]) }).collect())
-}
-
 /// Range table `(M, 3)` = t, anchor index, range → measurements. Finite; time non-decreasing
 /// (several anchors may share an epoch time); the anchor an integer in `0..anchor_count`. A
 /// negative range is not refused here: it is one bad measurement, which the plausibility gate
@@ -119,27 +107,6 @@ pub fn anchor_index(name: &'static str, row: usize, a: f64, anchor_count: usize)
         return Err(Error::UnknownAnchor { name, row, anchor: a, count: anchor_count });
     }
     Ok(a as usize)
-}
-
-/// Validates TDoA rows `t, anchor i, anchor j, d_ij`: finite, time non-decreasing, both anchors
-/// known and distinct.
-pub fn tdoa(rows: &[[f64; 4]], anchor_count: usize) -> Result<Vec<TdoaMeasurement>> {
-    check_finite("tdoa", rows)?;
-    let mut out = Vec::with_capacity(rows.len());
-    let mut prev = f64::NEG_INFINITY;
-    for (row, r) in rows.iter().enumerate() {
-        if r[0] < prev {
-            return Err(Error::NonMonotonicTime { name: "tdoa", row, prev_s: prev, got_s: r[0] });
-        }
-        prev = r[0];
-        let (anchor_i, anchor_j) =
-            (anchor_index("tdoa", row, r[1], anchor_count)?, anchor_index("tdoa", row, r[2], anchor_count)?);
-        if anchor_i == anchor_j {
-            return Err(Error::InvalidValue { name: "tdoa", row, value: r[1], reason: "anchor i and anchor j must differ" });
-        }
-        out.push(TdoaMeasurement { t_s: r[0], anchor_i, anchor_j, tdoa_m: r[3] });
-    }
-    Ok(out)
 }
 
 #[cfg(test)]

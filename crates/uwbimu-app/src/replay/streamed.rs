@@ -26,7 +26,8 @@ use uwbimu_estimation::smoother::{rts_smooth_backward, SmoothedNode};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::{Mat3, Vec3};
-use uwbimu_vocabulary::records::{ImuSample, Observation, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
+use uwbimu_vocabulary::sensors::{Clock, Observation, SensorKind};
 use uwbimu_vocabulary::state::{NominalState, STATE_FLAT_LEN};
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
@@ -203,10 +204,10 @@ impl Ordered {
                 self.calibrated += 1;
                 config.range_calibration.apply_one(self.calibrated - 1, &r).map(Event::Range)
             }),
-            Event::Observation(Observation::Tdoa(m)) => {
-                self.shift(m.t_s).map(|t_s| Ok(Event::Observation(Observation::Tdoa(TdoaMeasurement { t_s, ..m }))))
-            }
-            Event::Observation(Observation::Magnetometer(_)) => None,
+            Event::Observation(o) => match o.kind().info().clock {
+                Clock::Uwb => self.shift(o.t_s()).map(|t_s| Ok(Event::Observation(o.at(t_s)))),
+                Clock::Imu => Some(Ok(event)),
+            },
         }
         .transpose()?;
         if let Some(event) = shifted.filter(|e| e.t_s() <= self.imu_span_s.1) {
@@ -245,13 +246,12 @@ struct Prefix {
 impl Prefix {
     /// The model chosen on the kept events ([`crate::methods::choose_or_keep`] on them as arrays).
     fn choose(&self, method: Method, input: &StreamedInput<'_>) -> ModelChoice {
-        let (mut imu, mut ranges, mut tdoa) = (Vec::<ImuSample>::new(), Vec::new(), Vec::new());
+        let (mut imu, mut ranges, mut observations) = (Vec::<ImuSample>::new(), Vec::new(), Vec::new());
         for e in &self.events {
             match e {
                 Event::Imu(s) => imu.push(*s),
                 Event::Range(r) => ranges.push(*r),
-                Event::Observation(Observation::Tdoa(m)) => tdoa.push(*m),
-                Event::Observation(Observation::Magnetometer(_)) => {}
+                Event::Observation(o) => observations.push(*o),
             }
         }
         let batch = BatchInput {
@@ -261,8 +261,7 @@ impl Prefix {
             initial: input.initial,
             config: input.config,
             smooth: false,
-            mag: &[],
-            tdoa: &tdoa,
+            observations: &observations,
             progress: None,
             marginals_every_s: None,
         };
@@ -597,7 +596,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
     let survey = input.survey;
-    crate::methods::check_inputs(method, input.smooth, false, survey.n_tdoa > 0)?;
+    crate::methods::check_inputs(method, input.smooth, (survey.n_tdoa > 0).then_some(SensorKind::Tdoa))?;
     let Some(imu_span_s) = survey.imu_span_s.filter(|_| survey.n_ranges + survey.n_tdoa > 0) else {
         return Err(CoreError::InsufficientData(format!(
             "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",

@@ -5,7 +5,7 @@
 use uwbimu_vocabulary::config::{AidingConfig, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::Observation;
+use uwbimu_vocabulary::sensors::Observation;
 use uwbimu_vocabulary::state::ErrVec;
 
 use crate::filters::BiasModel;

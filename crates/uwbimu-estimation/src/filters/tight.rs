@@ -7,7 +7,8 @@ use nalgebra::{SMatrix, SVector};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::{Observation, TdoaMeasurement};
+use uwbimu_vocabulary::records::TdoaMeasurement;
+use uwbimu_vocabulary::sensors::Observation;
 use uwbimu_vocabulary::state::{ErrVec, ERR_DIM};
 
 use crate::filters::constraints::Constraints;
@@ -695,12 +696,7 @@ fn measurement_variance<M: ScalarModel>(
 
 /// The error for an observation a filter does not take.
 pub(crate) fn not_taken(observation: &Observation) -> Error {
-    Error::InvalidCall(match observation {
-        Observation::Magnetometer(_) => {
-            "this filter does not use a magnetometer (the filters with gravity and geomagnetic aiding do)".into()
-        }
-        Observation::Tdoa(_) => "this filter does not take TDoA measurements (the tightly coupled filters do)".into(),
-    })
+    Error::InvalidCall(format!("this filter does not take {}", observation.kind().info().label))
 }
 
 /// Checks a TDoA's anchor indices (known, distinct) and value (finite).

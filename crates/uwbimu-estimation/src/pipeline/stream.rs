@@ -2,7 +2,7 @@
 //!
 //! - **Late data.** Events go through a reorder buffer first: each is held until it is
 //!   `reorder_window_s` older than the newest event seen, then released in the batch order (time,
-//!   then IMU, magnetometer, TDoA, range at equal times, then arrival). Data late by less than the
+//!   then by rank at equal times, [`Event::rank`], then arrival). Data late by less than the
 //!   window is applied as if it had arrived in order; older data is counted and dropped
 //!   ([`Health::late_dropped`]), or refused in strict mode.
 //! - **Self-initialisation.** Without an initial state the released events are kept and fed to a
@@ -19,7 +19,8 @@ use std::collections::BinaryHeap;
 use uwbimu_vocabulary::config::{FilterConfig, GateConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::{ImuSample, Observation};
+use uwbimu_vocabulary::records::ImuSample;
+use uwbimu_vocabulary::sensors::Observation;
 
 use super::{Estimator, Event, Health, Pipeline, StepRecord, Streams, UpdateRecord};
 use crate::gate::Gate;

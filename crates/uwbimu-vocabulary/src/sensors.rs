@@ -1,0 +1,274 @@
+//! The sensor registry: every measurement besides the IMU and the UWB ranges, each declared once
+//! as a row of the `sensors!` declaration below — its record type, its name, the Python keyword
+//! of its array, its label, the rank of its events at equal times and its clock. From the rows
+//! come [`Observation`] (a measurement applied at its own time), [`SensorKind`] with its
+//! [`SensorInfo`], and the validation of a table of rows into time-ordered observations
+//! ([`SensorKind::observations`]); each record type says how one row becomes a record
+//! ([`SensorRecord`]). The layers above derive their lists from [`SensorKind::ALL`] (the inputs a
+//! method takes, the Python keyword arguments and the stub, the update columns).
+//!
+//! Adding a sensor: its record (a [`SensorRecord`]), a row here, its measurement model and the
+//! filters that take it (`uwbimu_estimation`), its gate rule and its docs.
+
+use crate::error::{Error, Result};
+use crate::records::{MagSample, TdoaMeasurement};
+
+/// How the rows of a sensor's table must be ordered in time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeOrder {
+    /// Strictly increasing (one sample per time: a magnetometer).
+    Increasing,
+    /// Non-decreasing (several measurements may share a time: TDoA of one round).
+    NonDecreasing,
+}
+
+/// Which clock a sensor's times are on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clock {
+    /// The IMU's (a magnetometer in the same chip, a sensor of the same computer).
+    Imu,
+    /// The UWB system's: shifted by `ranging.time_offset_s` like the ranges.
+    Uwb,
+}
+
+/// What the registry says of a sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SensorInfo {
+    /// Its name: the input a method takes (`METHODS[name]["takes"]`), the stream in messages, the
+    /// streaming call `add_<name>` and the `sensor` column of the updates.
+    pub name: &'static str,
+    /// The Python keyword argument of its array (`run_filter(..., <keyword>=...)`).
+    pub keyword: &'static str,
+    /// What it measures, in messages ("TDoA given, but eskf does not take TDoA").
+    pub label: &'static str,
+    /// Rank of its events among events at one time (the IMU is 0, ranges come last).
+    pub rank: u8,
+    /// The columns of its table, one list per accepted layout (the first the full one).
+    pub layouts: &'static [&'static [&'static str]],
+    /// The time order its table must have.
+    pub time_order: TimeOrder,
+    /// The clock of its times.
+    pub clock: Clock,
+}
+
+/// A sensor's record: how one row of its table (in one of its layouts) becomes a record, and its
+/// time.
+pub trait SensorRecord: Copy + Sized {
+    /// The columns of the sensor's table, one list per accepted layout; column 0 is the time, s.
+    const LAYOUTS: &'static [&'static [&'static str]];
+    /// The time order of its table.
+    const TIME_ORDER: TimeOrder;
+
+    /// Time, s.
+    fn t_s(&self) -> f64;
+
+    /// The same record at time `t_s` (to shift a clock).
+    fn at(&self, t_s: f64) -> Self;
+
+    /// The record of row `row` (already finite), `values` in one of [`SensorRecord::LAYOUTS`]
+    /// (by its length); `anchor_count` for the anchor columns. Fails naming `name` and the row.
+    fn from_row(name: &'static str, row: usize, values: &[f64], anchor_count: usize) -> Result<Self>;
+}
+
+/// Declares the sensor registry (see the module doc): one row per sensor — its [`Observation`]
+/// variant and record type, its name, keyword, label, rank and clock, with its doc.
+macro_rules! sensors {
+    ($(
+        $(#[doc = $doc:literal])+
+        $variant:ident($record:ty) {
+            name: $name:literal,
+            keyword: $keyword:literal,
+            label: $label:literal,
+            rank: $rank:literal,
+            clock: $clock:ident $(,)?
+        }
+    ),+ $(,)?) => {
+        /// A measurement applied on its own at its own time (not gathered into range epochs):
+        /// what the pipeline hands to `uwbimu_estimation::filters::Filter::observe`, one variant
+        /// per row of the sensor registry.
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub enum Observation {
+            $($(#[doc = $doc])+ $variant($record),)+
+        }
+
+        /// The kinds of [`Observation`], one per registry row.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum SensorKind {
+            $($(#[doc = $doc])+ $variant,)+
+        }
+
+        impl SensorKind {
+            /// Every sensor, in registry order.
+            pub const ALL: &'static [SensorKind] = &[$(SensorKind::$variant),+];
+
+            /// The sensor's row.
+            pub const fn info(self) -> &'static SensorInfo {
+                match self {
+                    $(SensorKind::$variant => &SensorInfo {
+                        name: $name,
+                        keyword: $keyword,
+                        label: $label,
+                        rank: $rank,
+                        layouts: <$record as SensorRecord>::LAYOUTS,
+                        time_order: <$record as SensorRecord>::TIME_ORDER,
+                        clock: Clock::$clock,
+                    },)+
+                }
+            }
+
+            /// Validates the rows of a table of this sensor (`rows` of one of its layouts, time
+            /// order as declared) into observations.
+            pub fn observations(self, rows: &[&[f64]], anchor_count: usize) -> Result<Vec<Observation>> {
+                match self {
+                    $(SensorKind::$variant => Ok(validate_records::<$record>($keyword, rows, anchor_count)?
+                        .into_iter()
+                        .map(Observation::$variant)
+                        .collect()),)+
+                }
+            }
+        }
+
+        impl Observation {
+            /// Measurement time, s.
+            pub fn t_s(&self) -> f64 {
+                match self {
+                    $(Self::$variant(m) => m.t_s(),)+
+                }
+            }
+
+            /// Its kind.
+            pub fn kind(&self) -> SensorKind {
+                match self {
+                    $(Self::$variant(_) => SensorKind::$variant,)+
+                }
+            }
+
+            /// The same observation at time `t_s` ([`SensorRecord::at`]).
+            pub fn at(&self, t_s: f64) -> Self {
+                match self {
+                    $(Self::$variant(m) => Self::$variant(m.at(t_s)),)+
+                }
+            }
+        }
+
+        $(impl From<$record> for Observation {
+            fn from(m: $record) -> Self {
+                Self::$variant(m)
+            }
+        })+
+    };
+}
+
+sensors! {
+    /// A magnetometer sample (geomagnetic aiding of the ACKF paper, `uwbimu_estimation::filters::Ackf`).
+    Magnetometer(MagSample) { name: "magnetometer", keyword: "mag", label: "magnetometer samples", rank: 1, clock: Imu },
+    /// A time difference of arrival (`uwbimu_estimation::models::tdoa::Tdoa`).
+    Tdoa(TdoaMeasurement) { name: "tdoa", keyword: "tdoa", label: "TDoA", rank: 2, clock: Uwb },
+}
+
+/// Rank of a range among events at one time: after every sensor of the registry.
+pub const RANGE_RANK: u8 = SensorKind::ALL.len() as u8 + 1;
+
+impl Observation {
+    /// The sensor's name ([`SensorInfo::name`]).
+    pub fn stream(&self) -> &'static str {
+        self.kind().info().name
+    }
+
+    /// Rank among events at one time ([`SensorInfo::rank`]).
+    pub fn rank(&self) -> u8 {
+        self.kind().info().rank
+    }
+}
+
+impl SensorKind {
+    /// Parses a sensor name ([`SensorInfo::name`]); the error lists them.
+    pub fn parse(name: &str) -> Result<Self> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.info().name == name)
+            .ok_or_else(|| Error::unknown_option("sensor", name, Self::ALL.iter().map(|k| k.info().name)))
+    }
+}
+
+/// Validates `rows` (each finite, in one of `R`'s layouts, in its time order) into records; errors
+/// name the table `name`, the row and the column.
+pub fn validate_records<R: SensorRecord>(name: &'static str, rows: &[&[f64]], anchor_count: usize) -> Result<Vec<R>> {
+    let mut out = Vec::with_capacity(rows.len());
+    let mut prev = f64::NEG_INFINITY;
+    for (row, values) in rows.iter().enumerate() {
+        if !R::LAYOUTS.iter().any(|l| l.len() == values.len()) {
+            let expected = R::LAYOUTS.iter().map(|l| format!("({}) = {}", l.len(), l.join(", "))).collect::<Vec<_>>();
+            return Err(Error::Shape {
+                name,
+                expected: expected.join(" or "),
+                got: format!("{} columns at row {row}", values.len()),
+            });
+        }
+        if let Some(col) = values.iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite { name, row, col, value: values[col] });
+        }
+        let t = values[0];
+        let out_of_order = match R::TIME_ORDER {
+            TimeOrder::Increasing => t <= prev,
+            TimeOrder::NonDecreasing => t < prev,
+        };
+        if out_of_order {
+            return Err(Error::NonMonotonicTime { name, row, prev_s: prev, got_s: t });
+        }
+        prev = t;
+        out.push(R::from_row(name, row, values, anchor_count)?);
+    }
+    Ok(out)
+}
+
+/// Merges observations of several sensors into one sequence in time order (at equal times by
+/// rank, each sensor's own order kept).
+pub fn merge(sets: &[&[Observation]]) -> Vec<Observation> {
+    let mut all: Vec<Observation> = sets.iter().flat_map(|s| s.iter().copied()).collect();
+    all.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()).then(a.rank().cmp(&b.rank())));
+    all
+}
+
+/// Observations of the records `records` (e.g. a simulated run's TDoA).
+pub fn observations<R: Into<Observation> + Copy>(records: &[R]) -> Vec<Observation> {
+    records.iter().map(|&r| r.into()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rows_declare_distinct_names_keywords_and_ranks() {
+        for (i, a) in SensorKind::ALL.iter().enumerate() {
+            assert!(a.info().rank > 0 && a.info().rank < RANGE_RANK, "{a:?}: the IMU is 0, ranges last");
+            assert_eq!(SensorKind::parse(a.info().name), Ok(*a));
+            for b in &SensorKind::ALL[i + 1..] {
+                let (x, y) = (a.info(), b.info());
+                assert!(x.name != y.name && x.keyword != y.keyword && x.rank != y.rank, "{a:?} and {b:?}");
+            }
+        }
+        assert!(SensorKind::parse("barometer").is_err());
+    }
+
+    #[test]
+    fn tables_are_checked_and_merged_in_time_then_rank_order() {
+        let tdoa: [&[f64]; 2] = [&[1.0, 0.0, 1.0, 0.5], &[1.0, 2.0, 1.0, -0.3]];
+        let tdoa = SensorKind::Tdoa.observations(&tdoa, 3).expect("valid");
+        let mag: [&[f64]; 2] = [&[0.5, 20.0, 0.0, -40.0], &[1.0, 21.0, 0.0, -40.0]];
+        let mag = SensorKind::Magnetometer.observations(&mag, 3).expect("valid");
+        let merged = merge(&[&tdoa, &mag]);
+        let kinds: Vec<SensorKind> = merged.iter().map(Observation::kind).collect();
+        assert_eq!(kinds, [SensorKind::Magnetometer, SensorKind::Magnetometer, SensorKind::Tdoa, SensorKind::Tdoa]);
+        // Two magnetometer samples at one time, a wrong width, a NaN.
+        let same: [&[f64]; 2] = [&[1.0, 0.0, 0.0, 1.0], &[1.0, 0.0, 0.0, 1.0]];
+        assert!(matches!(SensorKind::Magnetometer.observations(&same, 3), Err(Error::NonMonotonicTime { row: 1, .. })));
+        let narrow: [&[f64]; 1] = [&[1.0, 0.0]];
+        let e = SensorKind::Tdoa.observations(&narrow, 3).unwrap_err().to_string();
+        assert!(e.contains("tdoa") && e.contains("(4) = t, anchor i, anchor j, d_ij"), "{e}");
+        let nan: [&[f64]; 1] = [&[1.0, 0.0, 1.0, f64::NAN]];
+        assert!(matches!(SensorKind::Tdoa.observations(&nan, 3), Err(Error::NonFinite { row: 0, col: 3, .. })));
+    }
+}
