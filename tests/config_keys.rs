@@ -27,6 +27,7 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("gate.hall_margin_m", "no range beyond the hall on the rig"),
     ("gate.accel_range", "the rig's IMU never saturates"),
     ("gate.gyro_range", "the rig's IMU never saturates"),
+    ("gate.speed_range", "the rig has no odometry (tests/sensors.rs rejects an impossible speed)"),
     (
         "gate.refuse_unit_slips",
         "the rig's IMU is in SI units (crates/uwbimu-estimation/src/units.rs and tests/python/test_streaming.py hold the slips)",
@@ -42,6 +43,10 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("model_selection.window_s", "the selection keeps the input configuration on this rig"),
     ("smoothing.outlier_passes", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
     ("smoothing.outlier_sigmas", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
+    ("altitude.std", "the rig has no altitude sensor (tests/sensors.rs holds its effect)"),
+    ("odometry.std", "the rig has no odometry (tests/sensors.rs holds its effect)"),
+    ("odometry.nonholonomic", "the rig has no odometry (tests/consistency.rs holds its effect)"),
+    ("odometry.nonholonomic_std", "the rig has no odometry (tests/consistency.rs holds its effect)"),
 ];
 
 /// Settings a key needs to act, set in both runs: the bias parameters act only with bias states,

@@ -9,7 +9,7 @@
 //! The figures named below are the means over 40 runs (`cargo run --release --example
 //! consistency_table`, docs/testing.md#consistency).
 
-use uwbimu_rs::app::consistency::{monte_carlo, Consistency, NeesSeries, SCENARIOS};
+use uwbimu_rs::app::consistency::{monte_carlo, runs_on, Consistency, NeesSeries, SCENARIOS};
 use uwbimu_rs::app::generality::Settings;
 use uwbimu_rs::app::methods::Method;
 
@@ -73,6 +73,15 @@ fn expect(method: Method, scenario: &str, block: Block) -> Expect {
                   is tenths of a radian off: NEES 3.93–4.02 pooled, up to 5.6 at 16 s (ekf 3.60; \
                   3.16–3.28 with the heading known to 0.05 rad)",
         },
+        (_, Velocity) if scenario == "outage_odometry" => Conservative(
+            "the non-holonomic constraint (σ odometry.nonholonomic_std = 0.1 m/s, for a real \
+             vehicle's slip and an IMU off the axle) on a simulated vehicle that never slips: \
+             NEES 1.28–1.30 at 5 s, pooled 1.55–2.19",
+        ),
+        ("ckf" | "arckf", Position) if scenario == "outage_odometry" => Conservative(
+            "first-order Markov biases (below) and the non-holonomic constraint of a vehicle that \
+             never slips (above): NEES 1.47–1.49 at 28 s, pooled 2.14–2.20",
+        ),
         ("ckf" | "arckf", Velocity | Attitude) => Conservative(
             "first-order Markov biases with the process noise of the ARCKF paper's eq. (28) add \
              noise a constant bias does not have: NEES 2.0–2.4 (2.7–3.0 with the tactical IMU)",
@@ -174,12 +183,13 @@ fn failures(c: &Consistency) -> Vec<String> {
     out
 }
 
-/// Every method on `scenario`: consistent with the true noise ([`expect`]), and no worse with it
-/// than with the library defaults ([`honest_margin`]).
+/// Every method that takes the scenario's sensors on `scenario`: consistent with the true noise
+/// ([`expect`]), and no worse with it than with the library defaults ([`honest_margin`]).
 fn check_scenario(scenario: &str) {
     let seeds: Vec<u64> = (0..RUNS).collect();
-    let true_noise = monte_carlo(Method::ALL, scenario, &seeds, Settings::Matched).expect("runs");
-    let defaults = monte_carlo(Method::ALL, scenario, &seeds[..HONEST_RUNS], Settings::Defaults).expect("runs");
+    let methods: Vec<Method> = Method::ALL.iter().copied().filter(|m| runs_on(*m, scenario)).collect();
+    let true_noise = monte_carlo(&methods, scenario, &seeds, Settings::Matched).expect("runs");
+    let defaults = monte_carlo(&methods, scenario, &seeds[..HONEST_RUNS], Settings::Defaults).expect("runs");
     let mut all = Vec::new();
     for (c, d) in true_noise.iter().zip(&defaults) {
         let method = c.method.name();
@@ -193,7 +203,7 @@ fn check_scenario(scenario: &str) {
             d.mean_rmse_m(),
         );
         all.extend(failures(c));
-        let (margin, _) = honest_margin(c.method);
+        let (margin, _) = honest_margin(c.method, scenario);
         if honest > d.mean_rmse_m() * (1.0 + margin) {
             all.push(format!(
                 "{method} on {scenario}: RMSE with the true noise {honest:.4} m, with the defaults {:.4} m (margin {:.0} %)",
@@ -211,8 +221,14 @@ const HONEST_RUNS: usize = 16;
 /// How much worse than with the library defaults a method's mean RMSE may be with the
 /// simulator's true noise, and why where it is more than the general 5 %: telling a filter the
 /// truth about its sensors must never make it the worst configuration.
-fn honest_margin(method: Method) -> (f64, &'static str) {
+fn honest_margin(method: Method, scenario: &str) -> (f64, &'static str) {
     match method.name() {
+        "ackf" if scenario == "outage_odometry" => (
+            0.15,
+            "the ACKF paper's gravity aiding reads the accelerometer as gravity, which the turns of \
+             a 20 s outage spoil; told the true, smaller IMU noise, the filter leans on that aiding \
+             more: 0.146 m against 0.129 m with the defaults (12 %)",
+        ),
         "ekf2d" | "ukf2d" | "cekf2d" => (
             0.12,
             "the planar filters' process noise is planar.accel_density, a model-error density the \
@@ -265,4 +281,14 @@ fn every_scenario_has_its_test() {
 #[test]
 fn consistent_while_an_uncertain_heading_converges() {
     check_scenario("heading_uncertain");
+}
+
+#[test]
+fn consistent_with_an_altitude_over_coplanar_anchors() {
+    check_scenario("coplanar_altitude");
+}
+
+#[test]
+fn consistent_with_odometry_through_a_uwb_outage() {
+    check_scenario("outage_odometry");
 }

@@ -58,7 +58,8 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
             let mut last_std = [f64::NAN; 5];
             for u in &trace.updates {
                 if let Some((bias, std)) = u.report.range_bias {
-                    (last[u.anchor], last_std[u.anchor]) = (bias, std);
+                    let a = u.range_anchor().expect("bias reports are ranges'");
+                    (last[a], last_std[a]) = (bias, std);
                 }
             }
             for a in 0..5 {

@@ -89,7 +89,7 @@ fn robust_filters_down_weight_nlos_ranges_more_than_los_ranges() {
         data.ranges.iter().zip(&data.range_labels).map(|(r, l)| ((r.t_s.to_bits(), r.anchor), *l)).collect();
     let (mut w_los, mut n_los, mut w_bad, mut n_bad) = (0.0, 0.0, 0.0, 0.0);
     for u in &t.updates {
-        match labels[&(u.t_s.to_bits(), u.anchor)] {
+        match labels[&(u.t_s.to_bits(), u.range_anchor().expect("ranges only"))] {
             0 => (w_los, n_los) = (w_los + u.report.weight, n_los + 1.0),
             _ => (w_bad, n_bad) = (w_bad + u.report.weight, n_bad + 1.0),
         }
@@ -204,8 +204,12 @@ fn adaptive_range_noise_learns_a_noisy_anchor() {
     let (e_fixed, e_adaptive) =
         (rms(&horizontal_errors(&t_fixed.steps, &data)), rms(&horizontal_errors(&t_adaptive.steps, &data)));
     let late = |a: usize| {
-        let v: Vec<f64> =
-            t_adaptive.updates.iter().filter(|u| u.anchor == a && u.t_s > 60.0).map(|u| u.report.inflation).collect();
+        let v: Vec<f64> = t_adaptive
+            .updates
+            .iter()
+            .filter(|u| u.range_anchor() == Some(a) && u.t_s > 60.0)
+            .map(|u| u.report.inflation)
+            .collect();
         v.iter().sum::<f64>() / v.len() as f64
     };
     println!(

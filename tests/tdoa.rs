@@ -4,12 +4,12 @@
 
 mod common;
 
-use common::{figures, horizontal_errors, rms};
+use common::{figures, horizontal_errors, rms, streamed_positions};
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
 use uwbimu_rs::estimation::filters::Filter;
-use uwbimu_rs::estimation::filters::{Ackf, Composition, InertialFilter, Rekf, TightFilter, UpdateStrategy};
-use uwbimu_rs::estimation::pipeline::{run_streams, Event, Stream, StreamOptions, Streams};
+use uwbimu_rs::estimation::filters::{Ackf, Composition, Rekf, TightFilter, UpdateStrategy};
+use uwbimu_rs::estimation::pipeline::{run_streams, Streams};
 use uwbimu_rs::estimation::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;
@@ -255,30 +255,11 @@ fn every_sensor_at_unrelated_jittered_rates_streams_like_the_batch() {
     };
     let mut batch = Ackf::new(data.anchors.clone(), &initial, config.clone()).expect("ackf");
     let trace = run_streams(&mut batch, &streams).expect("every sensor, merged by time");
-    let options = StreamOptions { reorder_window_s: 0.0, strict: true };
-    let mut stream = Stream::new(Ackf::new(data.anchors.clone(), &initial, config).expect("ackf"), options).expect("stream");
-    // Drive the stream event by event; record like the batch, once the events at an IMU time
-    // are in.
-    let (mut steps, mut pending) = (Vec::new(), false);
-    let last_imu_s = data.imu.last().expect("imu").t_s;
-    let mut last_imu_t = f64::NEG_INFINITY;
-    for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
-        if pending && event.t_s() > last_imu_t {
-            steps.push(stream.estimator().expect("started").core().state().position);
-            pending = false;
-        }
-        if let Event::Imu(s) = event {
-            (pending, last_imu_t) = (true, s.t_s);
-        }
-        stream.push("test", event).expect("event");
-    }
-    if pending {
-        steps.push(stream.estimator().expect("started").core().state().position);
-    }
+    let steps = streamed_positions(Ackf::new(data.anchors.clone(), &initial, config).expect("ackf"), &streams);
     assert_eq!(steps.len(), trace.steps.len());
     assert!(steps.iter().zip(&trace.steps).all(|(a, b)| *a == b.state.position), "streaming = batch bit for bit");
-    let tdoa_applied = trace.updates.iter().filter(|u| u.anchor_j.is_some()).count();
-    assert!(tdoa_applied > 0 && tdoa_applied < trace.updates.len(), "ranges and TDoA both applied");
+    let count = |sensor: &str| trace.updates.iter().filter(|u| u.measured.sensor() == sensor).count();
+    assert!(count("tdoa") > 0 && count("range") > 0 && count("magnetometer") > 0, "ranges, TDoA and fields all applied");
     let e = rms(&horizontal_errors(&trace.steps, &data));
     println!("ackf with ranges, TDoA and a 19 Hz magnetometer: RMSE {e:.3} m");
     assert!(e < 0.3, "{e}");

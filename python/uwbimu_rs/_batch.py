@@ -34,6 +34,8 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    altitude: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[False] = False,
 ) -> pl.DataFrame: ...
@@ -53,6 +55,8 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    altitude: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[False] = False,
 ) -> tuple[pl.DataFrame, pl.DataFrame]: ...
@@ -72,6 +76,8 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    altitude: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[True],
 ) -> tuple[pl.DataFrame, dict[str, Any]]: ...
@@ -91,6 +97,8 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    altitude: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[True],
 ) -> tuple[pl.DataFrame, pl.DataFrame, dict[str, Any]]: ...
@@ -109,6 +117,8 @@ def run_filter(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    altitude: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: bool = False,
 ) -> (
@@ -155,16 +165,30 @@ def run_filter(
         filter initialises itself from TDoA fixes) or with ranges. Taken by the methods whose
         ``METHODS[name]["takes"]`` lists ``"tdoa"`` (the tightly coupled ones) through their own noise policy (the robust ones down-weight TDoA
         outliers by χ² inflation); the others raise ValueError.
+    altitude : numpy.ndarray, shape (M, 2), optional
+        Heights ``t, z`` [m] of the body origin in the navigation frame (up), time strictly
+        increasing, noise σ = ``altitude.std`` (docs/altitude.md): a time-of-flight height sensor
+        over a flat floor, or a barometer with its offset to the frame removed. Taken by the
+        methods whose ``METHODS[name]["takes"]`` lists ``"altitude"``.
+    odometry : numpy.ndarray, shape (M, 2) or (M, 4), optional
+        Wheel odometry: ``t, speed`` [m/s] along the body x axis, or ``t, vx, vy, vz`` in the body
+        frame with NaN for an axis not measured (e.g. ``vy = vz = 0`` for the non-holonomic
+        constraint of a car, NaN to leave an axis free); time strictly increasing, noise
+        σ = ``odometry.std`` per axis (docs/odometry.md). Taken by the methods whose
+        ``METHODS[name]["takes"]`` lists ``"odometry"``.
     progress : bool, default False
         Draw a one-line bar on stderr of the IMU samples processed (then "smoothing" during
         the smoothing pass) while the run goes on.
     updates : bool
-        Also return a DataFrame with one row per range or TDoA update
-        (t, epoch_t, anchor, anchor_j, range, innovation, nis, accepted, weight, inflation,
-        down_weighted, iterations, prior_fading, reacquired, bias, bias_std); ``bias``, ``bias_std``:
-        the anchor's range bias estimate after the update with ``range_bias.states`` (NaN without); a TDoA row has ``anchor`` = i,
-        ``anchor_j`` = j and ``range`` = d_ij, a range row ``anchor_j`` = −1. Ranges within the
-        epoch window (``epoch_window_s``) form one epoch, updated jointly.
+        Also return a DataFrame with one row per update, of a range or of another sensor
+        (t, epoch_t, sensor, anchor, anchor_j, axis, value, innovation, nis, accepted, weight,
+        inflation, down_weighted, iterations, prior_fading, reacquired, bias, bias_std):
+        ``sensor`` is ``"range"`` or a name of :data:`SENSORS` (a polars Enum); ``value`` the
+        range, TDoA d_ij, altitude [m] or speed [m/s] (a magnetometer sample's field norm);
+        ``anchor`` a range's anchor or a TDoA's i, ``anchor_j`` a TDoA's j, ``axis`` an odometry
+        reading's body axis, each −1 where it does not apply; ``bias``, ``bias_std``: the
+        anchor's range bias estimate after the update with ``range_bias.states`` (NaN without).
+        Ranges within the epoch window (``epoch_window_s``) form one epoch, updated jointly.
     info : bool
         Also return what the run counted and chose, as a dict (last in the tuple):
         ``health`` (``rejected`` {gate kind: count}, ``numerical_repairs``,
@@ -218,11 +242,13 @@ def run_filter(
         smooth=smooth,
         mag=mag,
         tdoa=tdoa,
+        altitude=altitude,
+        odometry=odometry,
         progress=progress,
     )
     if updates:
         if upd is None:
-            raise ValueError(f"method {method!r} has no range updates to report")
+            raise ValueError(f"method {method!r} has no filter updates to report")
         return (frame, upd, run_info) if info else (frame, upd)
     return (frame, run_info) if info else frame
 
@@ -240,6 +266,8 @@ def run_frames(
     smooth: bool | None = None,
     mag: np.ndarray | None = None,
     tdoa: np.ndarray | None = None,
+    altitude: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
     progress: bool = False,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None, dict[str, Any]]:
     """:func:`run_filter` for callers that take any method (private to the package): the updates
@@ -257,15 +285,28 @@ def run_frames(
         smooth=smooth,
         mag=mag,
         tdoa=tdoa,
+        altitude=altitude,
+        odometry=odometry,
         progress=progress,
     )
     info = _run_info(info)
     if upd is None:
         return _frame(cols), None, info
-    u = pl.DataFrame(upd).with_columns(
-        pl.col("anchor", "anchor_j", "iterations").cast(pl.Int64), pl.col("accepted", "down_weighted").cast(pl.Boolean)
+    return _frame(cols), _updates_frame(upd), info
+
+
+_SENSOR_NAMES = ["range", *_native.SENSORS]
+"""The ``sensor`` column's values: code 0 is a range, code 1 + i the i-th sensor of the registry."""
+
+
+def _updates_frame(columns: Mapping[str, np.ndarray]) -> pl.DataFrame:
+    """The updates frame of the native columns: integer indices, booleans, the sensor as an Enum."""
+    sensor = pl.Enum(_SENSOR_NAMES)
+    return pl.DataFrame(columns).with_columns(
+        pl.col("sensor").cast(pl.UInt32).replace_strict(dict(enumerate(_SENSOR_NAMES)), return_dtype=sensor),
+        pl.col("anchor", "anchor_j", "axis", "iterations").cast(pl.Int64),
+        pl.col("accepted", "down_weighted").cast(pl.Boolean),
     )
-    return _frame(cols), u, info
 
 
 @overload

@@ -159,7 +159,7 @@ def _one_run(
 def _row(run: MethodRun) -> dict[str, Any]:
     """The table row of one run."""
     row: dict[str, Any] = {"method": run.method, "smoothed": run.smoothed, "time_s": run.time_s, "rows": run.frame.height}
-    ranges = pl.DataFrame() if run.updates is None else run.updates.filter(pl.col("anchor_j") == -1)
+    ranges = pl.DataFrame() if run.updates is None else run.updates.filter(pl.col("sensor") == "range")
     for name, column in (("nis_mean", "nis"), ("accepted", "accepted"), ("down_weighted", "down_weighted")):
         row[name] = ranges[column].mean() if ranges.height else None
     for prefix, errors in (("", run.errors), ("_aligned", run.errors_aligned)):

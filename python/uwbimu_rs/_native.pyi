@@ -131,7 +131,7 @@ _MethodName = Literal[
 class _MethodRow(TypedDict):
     """What the registry says of one method."""
 
-    takes: list[Literal["ranges", "tdoa", "magnetometer"]]
+    takes: list[Literal["ranges", "tdoa", "magnetometer", "altitude", "odometry"]]
     """The measurements it takes besides IMU samples."""
     smoothing: Literal["never", "on_request", "by_default"]
     """Whether and when :func:`run_filter` RTS-smooths its run."""
@@ -210,33 +210,43 @@ class FilterConfig:
 
 @final
 class UpdateReport:
-    """The outcome of one range update (read-only; returned by :meth:`Ekf.add_range`,
-    :meth:`Ekf.update_range` and the other streaming calls)."""
+    """The outcome of one update, of a range or of another sensor (read-only; returned by
+    :meth:`Ekf.add_range`, :meth:`Ekf.update_range` and the other streaming calls)."""
 
     @property
     def t(self) -> float:
-        """Measurement time of the range, s."""
+        """Measurement time, s."""
 
     @property
     def epoch_t(self) -> float:
-        """Time at which the range's epoch was applied (its reference time), s."""
+        """Time at which it was applied (a range epoch's reference time; another sensor's own
+        time), s."""
 
     @property
-    def anchor(self) -> int:
-        """Anchor index (a TDoA's anchor i)."""
+    def sensor(self) -> str:
+        """``"range"`` or the name of the sensor in :data:`SENSORS`."""
+
+    @property
+    def anchor(self) -> int | None:
+        """A range's anchor index (a TDoA's anchor i); None for a sensor without anchors."""
 
     @property
     def anchor_j(self) -> int | None:
-        """A TDoA's anchor j; None for a range."""
+        """A TDoA's anchor j; None for the others."""
 
     @property
-    def range(self) -> float:
-        """The range as measured, m (before alignment to the epoch's reference time); a TDoA's
-        ``d_ij``."""
+    def axis(self) -> int | None:
+        """An odometry reading's body axis (0 = x); None for the others."""
+
+    @property
+    def value(self) -> float:
+        """The value as measured: a range (before alignment to the epoch's reference time) or a
+        TDoA's ``d_ij``, m; an altitude, m; an odometry speed, m/s; a magnetometer sample's field
+        norm."""
 
     @property
     def innovation(self) -> float:
-        """Innovation z − h(x⁻), m."""
+        """Innovation z − h(x⁻), in the measurement's unit."""
 
     @property
     def nis(self) -> float:
@@ -244,11 +254,11 @@ class UpdateReport:
 
     @property
     def accepted(self) -> bool:
-        """Whether the range changed the state."""
+        """Whether the measurement changed the state."""
 
     @property
     def weight(self) -> float:
-        """Weight relative to the nominal range noise, R / R_used (1 = full)."""
+        """Weight relative to the nominal noise, R / R_used (1 = full)."""
 
     @property
     def inflation(self) -> float:
@@ -256,11 +266,11 @@ class UpdateReport:
 
     @property
     def down_weighted(self) -> bool:
-        """Whether the noise policy down-weighted the range (inflation > 1)."""
+        """Whether the noise policy down-weighted the measurement (inflation > 1)."""
 
     @property
     def iterations(self) -> int:
-        """Iterations of the (iterated) update the range took part in."""
+        """Iterations of the (iterated) update the measurement took part in."""
 
     @property
     def prior_fading(self) -> float:
@@ -404,13 +414,28 @@ class _StreamingFilter:
     def add_tdoa(self, t: float, i: int, j: int, d_ij: float) -> list[UpdateReport]:
         """Take one TDoA ``d_ij = |p − a_j| − |p − a_i|`` (m) between anchor indices ``i`` and
         ``j`` measured at ``t`` (s), applied at its own time through the filter's noise policy
-        (σ = ``tdoa_std``); a report has ``anchor`` = i, ``anchor_j`` = j and ``range`` = d_ij.
+        (σ = ``tdoa_std``); a report has ``anchor`` = i, ``anchor_j`` = j and ``value`` = d_ij.
         The loosely coupled filters (:class:`Eskf`, :class:`Shaf`, :class:`Shfaf`) raise
         ``UwbImuError``; so do an unknown or repeated anchor and a non-finite value."""
 
     def add_magnetometer(self, t: float, field: ArrayLike) -> list[UpdateReport]:
         """Take one magnetometer sample (3,) in the IMU frame measured at ``t`` (s). Only
         :class:`Ackf` uses a magnetometer (the ACKF paper); the others raise ``UwbImuError``."""
+
+    def add_altitude(self, t: float, z: float) -> list[UpdateReport]:
+        """Take one altitude ``z`` (m, navigation frame, up) of the body origin measured at
+        ``t`` (s), applied at its own time (σ = ``altitude.std``; docs/altitude.md). The methods
+        whose ``METHODS[name]["takes"]`` lacks ``"altitude"`` raise ``UwbImuError``; so does a
+        non-finite value. An impossible height (outside the anchors' box grown by
+        ``gate.hall_margin_m``) is counted by the gate, not applied."""
+
+    def add_odometry(self, t: float, speed: float | ArrayLike) -> list[UpdateReport]:
+        """Take one wheel odometry reading measured at ``t`` (s): a speed along the body x axis
+        (m/s), or the body-frame velocity (3,) with NaN for an axis not measured; each axis
+        measured is applied at its own time (σ = ``odometry.std``; docs/odometry.md), its report
+        with ``axis`` set. The methods whose ``METHODS[name]["takes"]`` lacks ``"odometry"``
+        raise ``UwbImuError``; so do a reading with no axis, a wrong length or an infinite
+        value. A speed beyond ``gate.speed_range`` is counted by the gate, not applied."""
 
     def apply_ranges_now(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]:
         """Apply ranges all measured at ``t`` jointly, at once — bypassing the epoch rule, the

@@ -280,7 +280,7 @@ def _updates(source: Comparison | pl.DataFrame, method: str | None, what: str) -
         if run.updates is None:
             raise ValueError(f"plot.{what}: {method!r} has no range updates (a UWB-only solver)")
         frame, label = run.updates, method
-    ranges = frame.filter(pl.col("anchor_j") == -1)
+    ranges = frame.filter(pl.col("sensor") == "range")
     if ranges.height == 0:
         raise ValueError(f"plot.{what}: no range updates in the frame")
     return ranges, label

@@ -118,6 +118,15 @@ class SimResult:
         ``tdoa=True``, with ``tdoa_rate_hz``, ``tdoa_std_m``, ``tdoa_outlier_prob``).
     tdoa_labels : numpy.ndarray, shape (M,), uint8
         0 = clean, 2 = gross outlier (random sign).
+    altitude : numpy.ndarray, shape (M, 2), float64, or None
+        Altitude readings ``t, z`` (override ``altimeter=True``), as :func:`uwbimu_rs.run_filter`
+        takes them (``altitude=``).
+    altitude_offsets : numpy.ndarray, shape (M,), float64
+        The true offset of each altitude reading, m (a barometer's wandering reference; overrides
+        ``altimeter_offset_m``, ``altimeter_offset_walk``).
+    odometry : numpy.ndarray, shape (M, 2) or (M, 4), float64, or None
+        Wheel odometry ``t, speed`` (body x), or ``t, vx, vy, vz`` with ``odometer_lateral=True``
+        (override ``odometer=True``), as :func:`uwbimu_rs.run_filter` takes it (``odometry=``).
     accel_bias : numpy.ndarray, shape (N, 3), float64
         True accelerometer bias at each IMU sample, IMU frame, m/s².
     gyro_bias : numpy.ndarray, shape (N, 3), float64
@@ -147,6 +156,9 @@ class SimResult:
     mag: np.ndarray | None
     tdoa: np.ndarray | None
     tdoa_labels: np.ndarray
+    altitude: np.ndarray | None
+    altitude_offsets: np.ndarray
+    odometry: np.ndarray | None
     accel_bias: np.ndarray
     gyro_bias: np.ndarray
     nlos_windows: np.ndarray
@@ -172,8 +184,10 @@ class SimResult:
         ]
         if self.tdoa is not None:
             parts.append(f"tdoa={self.tdoa.shape}")
-        if self.mag is not None:
-            parts.append(f"mag={self.mag.shape}")
+        for name in ("mag", "altitude", "odometry"):
+            table = getattr(self, name)
+            if table is not None:
+                parts.append(f"{name}={table.shape}")
         return f"SimResult({', '.join(parts)})"
 
 
@@ -187,6 +201,9 @@ def _result(d: dict) -> SimResult:
         mag=d["mag"],
         tdoa=d["tdoa"],
         tdoa_labels=d["tdoa_labels"],
+        altitude=d["altitude"],
+        altitude_offsets=d["altitude_offsets"],
+        odometry=d["odometry"],
         accel_bias=d["accel_bias"],
         gyro_bias=d["gyro_bias"],
         nlos_windows=d["nlos_windows"],

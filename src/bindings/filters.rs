@@ -16,8 +16,8 @@ use uwbimu_vocabulary::config::RangeCalibration;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_to_wxyz, Vec3};
-use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement};
-use uwbimu_vocabulary::sensors::{merge, Observation, SensorKind};
+use uwbimu_vocabulary::records::{AltitudeSample, ImuSample, MagSample, OdometrySample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::{merge, validate_records, Observation, SensorKind};
 use uwbimu_vocabulary::state::{ErrCov, NominalState, ERR_DIM};
 use uwbimu_vocabulary::validate;
 
@@ -266,19 +266,23 @@ pub(super) fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anc
     Ok(Inputs { imu, ranges, anchors })
 }
 
-/// One report of a range update.
+/// One report of an update (a range or an observation).
 #[pyclass(name = "UpdateReport", module = "uwbimu_rs._native", frozen, get_all)]
 pub struct PyUpdateReport {
     /// Measurement time, s.
     t: f64,
     /// Time at which its epoch was applied, s.
     epoch_t: f64,
-    /// Anchor index (a TDoA's anchor i).
-    anchor: usize,
-    /// A TDoA's anchor j; None for a range.
+    /// The sensor: `range` or a name of `SENSORS`.
+    sensor: &'static str,
+    /// Anchor index (a TDoA's anchor i); None for a sensor without anchors.
+    anchor: Option<usize>,
+    /// A TDoA's anchor j; None for the others.
     anchor_j: Option<usize>,
-    /// The range as measured (a TDoA's d_ij), m.
-    range: f64,
+    /// An odometry reading's body axis; None for the others.
+    axis: Option<usize>,
+    /// The value as measured: the range, d_ij, altitude (m) or speed (m/s).
+    value: f64,
     /// Innovation z − h(x_op), m.
     innovation: f64,
     /// γ, squared Mahalanobis distance of the innovation.
@@ -310,9 +314,11 @@ impl From<UpdateRecord> for PyUpdateReport {
         Self {
             t: u.t_s,
             epoch_t: u.epoch_t_s,
-            anchor: u.anchor,
-            anchor_j: u.anchor_j,
-            range: u.range_m,
+            sensor: u.measured.sensor(),
+            anchor: u.measured.anchors()[0],
+            anchor_j: u.measured.anchors()[1],
+            axis: u.measured.axis(),
+            value: u.measured.value(),
             innovation: r.innovation,
             nis: r.nis,
             accepted: r.accepted,
@@ -335,12 +341,11 @@ impl PyUpdateReport {
     fn __repr__(&self) -> String {
         let f = repr::float;
         let mut items =
-            vec![format!("t={}", f(self.t)), format!("epoch_t={}", f(self.epoch_t)), format!("anchor={}", self.anchor)];
-        if let Some(j) = self.anchor_j {
-            items.push(format!("anchor_j={j}"));
-        }
+            vec![format!("t={}", f(self.t)), format!("epoch_t={}", f(self.epoch_t)), format!("sensor='{}'", self.sensor)];
+        let indices = [("anchor", self.anchor), ("anchor_j", self.anchor_j), ("axis", self.axis)];
+        items.extend(indices.iter().filter_map(|(name, i)| i.map(|i| format!("{name}={i}"))));
         items.extend([
-            format!("range={}", f(self.range)),
+            format!("value={}", f(self.value)),
             format!("innovation={}", f(self.innovation)),
             format!("nis={}", f(self.nis)),
             format!("accepted={}", repr::boolean(self.accepted)),
@@ -550,6 +555,31 @@ macro_rules! py_filter {
                 check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Magnetometer))?;
                 let field = vec3_arg(CALL, field, "field")?;
                 self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: t, field })))
+            }
+
+            /// Takes an altitude `z` (m, navigation frame, up) of the body origin measured at
+            /// `t` (s), applied at its own time (noise `altitude.std`). The methods that do not
+            /// take altitude raise ValueError.
+            fn add_altitude(&mut self, py: Python<'_>, t: f64, z: f64) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_altitude";
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Altitude))?;
+                let m = AltitudeSample { t_s: t, z_m: finite(CALL, "z", z)? };
+                self.push(py, CALL, Event::Observation(Observation::Altitude(m)))
+            }
+
+            /// Takes a wheel odometry reading measured at `t` (s): a speed along the body x axis
+            /// (m/s), or the body-frame velocity (3,) with NaN for an axis not measured; each
+            /// axis measured is applied at its own time (noise `odometry.std`). The methods that
+            /// do not take odometry raise ValueError.
+            fn add_odometry(&mut self, py: Python<'_>, t: f64, speed: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_odometry";
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Odometry))?;
+                let row: Vec<f64> = std::iter::once(t).chain(array(speed, "speed")?.as_array().iter().copied()).collect();
+                let mut reports = Vec::new();
+                for m in validate_records::<OdometrySample>(CALL, &[&row], 0)? {
+                    reports.extend(self.push(py, CALL, Event::Observation(Observation::Odometry(m)))?);
+                }
+                Ok(reports)
             }
 
             /// Applies the ranges of one epoch, all measured at `t` (s), at once — bypassing the

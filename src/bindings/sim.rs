@@ -10,6 +10,7 @@ use uwbimu_app::sim::{self, DriveOptions, KinematicSample, OverrideValue, SimCon
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_from_wxyz, quat_to_wxyz, Vec3};
+use uwbimu_vocabulary::sensors::SensorRecord;
 
 use super::errors::PyResult;
 use crate::bindings::convert;
@@ -181,6 +182,17 @@ fn vec3_rows<'py>(py: Python<'py>, rows: &[Vec3]) -> PyResult<Bound<'py, PyAny>>
     Ok(flat.into_pyarray(py).reshape([rows.len(), 3])?.into_any())
 }
 
+/// A sensor's records as the table `run_filter` takes ([`SensorRecord::table`]); None when empty
+/// (the sensor is off).
+fn sensor_table<'py, R: SensorRecord>(py: Python<'py>, records: &[R]) -> PyResult<Option<Bound<'py, PyAny>>> {
+    if records.is_empty() {
+        return Ok(None);
+    }
+    let (columns, values) = R::table(records);
+    let rows = values.len() / columns;
+    Ok(Some(values.into_pyarray(py).reshape([rows, columns])?.into_any()))
+}
+
 /// Runs the simulator without the GIL and converts the result to a dict of arrays, with the
 /// filter configuration `config` for the run (default: matched to its sensors) and the true
 /// initial state as that filter sees it.
@@ -217,18 +229,11 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
         ],
     )?;
     d.set_item("truth", truth_cols)?;
-    if data.mag.is_empty() {
-        d.set_item("mag", py.None())?;
-    } else {
-        let mag: Vec<f64> = data.mag.iter().flat_map(|m| [m.t_s, m.field.x, m.field.y, m.field.z]).collect();
-        d.set_item("mag", mag.into_pyarray(py).reshape([data.mag.len(), 4])?)?;
-    }
-    if data.tdoa.is_empty() {
-        d.set_item("tdoa", py.None())?;
-    } else {
-        let tdoa: Vec<f64> = data.tdoa.iter().flat_map(|m| [m.t_s, m.anchor_i as f64, m.anchor_j as f64, m.tdoa_m]).collect();
-        d.set_item("tdoa", tdoa.into_pyarray(py).reshape([data.tdoa.len(), 4])?)?;
-    }
+    d.set_item("mag", sensor_table(py, &data.mag)?)?;
+    d.set_item("tdoa", sensor_table(py, &data.tdoa)?)?;
+    d.set_item("altitude", sensor_table(py, &data.altitude)?)?;
+    d.set_item("altitude_offsets", data.altitude_offsets.clone().into_pyarray(py))?;
+    d.set_item("odometry", sensor_table(py, &data.odometry)?)?;
     d.set_item("tdoa_labels", data.tdoa_labels.clone().into_pyarray(py))?;
     d.set_item("accel_bias", vec3_rows(py, &data.accel_bias)?)?;
     d.set_item("gyro_bias", vec3_rows(py, &data.gyro_bias)?)?;
@@ -241,7 +246,8 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
 
 /// Simulates a named preset with optional overrides (a dict and/or keyword arguments); returns a
 /// dict of arrays (imu (N,7), ranges (M,3), range_labels (M,), anchors (K,3), truth columns,
-/// mag (N,4) or None, tdoa (M,4) = t, i, j, d_ij or None, tdoa_labels (M,), accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
+/// mag (N,4) or None, tdoa (M,4) = t, i, j, d_ij or None, tdoa_labels (M,), altitude (M,2) = t, z
+/// or None, altitude_offsets (M,), odometry (M,2) = t, speed or (M,4) = t, vx, vy, vz or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
 /// accel_outlier_times (P,) s).
 #[pyfunction]
 #[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]
@@ -258,8 +264,8 @@ fn sim_preset<'py>(
 }
 
 /// Simulates a scenario of the zoo (`sim::zoo`) with optional overrides (as `sim_preset`); returns
-/// the dict of `sim_preset` with the scenario's filter configuration (its `tdoa_std` matched to
-/// an overridden TDoA model) and `default_sensors` (whether its sensors are those the library
+/// the dict of `sim_preset` with the scenario's filter configuration (its `tdoa_std` and its
+/// `altitude` and `odometry` sections matched to the overridden sensors) and `default_sensors` (whether its sensors are those the library
 /// defaults describe).
 #[pyfunction]
 #[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]
@@ -272,7 +278,9 @@ fn sim_zoo<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut scenario = sim::zoo(name, seed)?;
     apply(&mut scenario.sim, &collect_overrides([overrides, kwargs])?)?;
-    scenario.config.ranging.tdoa_std = sim::matched_config(&scenario.sim).ranging.tdoa_std;
+    let matched = sim::matched_config(&scenario.sim);
+    scenario.config.ranging.tdoa_std = matched.ranging.tdoa_std;
+    (scenario.config.altitude, scenario.config.odometry) = (matched.altitude, matched.odometry);
     let d = run(py, scenario.sim, Some(scenario.config))?;
     d.set_item("default_sensors", scenario.default_sensors)?;
     Ok(d)

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use clap::Parser;
 use uwbimu_app::io::IoResult as Result;
 use uwbimu_app::io::{AnchorMapping, ReplayConfig, TimeSource};
-use uwbimu_app::methods::Method;
+use uwbimu_app::methods::{Input, Method};
 
 /// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter.
 #[derive(Debug, Parser)]
@@ -64,8 +64,9 @@ pub(super) struct Args {
 /// The method names of the registry, each with its summary (shown by `--help`).
 fn method_names() -> clap::builder::PossibleValuesParser {
     clap::builder::PossibleValuesParser::new(Method::ALL.iter().map(|m| {
-        let tdoa = if m.takes_tdoa() { " Takes TDoA." } else { "" };
-        clap::builder::PossibleValue::new(m.name()).help(format!("{}{tdoa}", m.summary()))
+        let sensors: Vec<&str> = m.info().takes.iter().filter(|i| **i != Input::Ranges).map(|i| i.name()).collect();
+        let takes = if sensors.is_empty() { String::new() } else { format!(" Takes {}.", sensors.join(", ")) };
+        clap::builder::PossibleValue::new(m.name()).help(format!("{}{takes}", m.summary()))
     }))
 }
 

@@ -6,7 +6,8 @@ pub mod figures;
 use uwbimu_rs::app::io::Recording;
 use uwbimu_rs::app::methods::BatchInput;
 use uwbimu_rs::app::sim::{SimConfig, SimData};
-use uwbimu_rs::estimation::pipeline::StepRecord;
+use uwbimu_rs::estimation::filters::InertialFilter;
+use uwbimu_rs::estimation::pipeline::{Estimator, Event, StepRecord, Stream, StreamOptions, Streams};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;
 
@@ -109,4 +110,28 @@ pub fn isas_walk1(name: &str) -> Option<std::path::PathBuf> {
         }
     }
     None
+}
+
+/// Drives `filter` through a strict [`Stream`] event by event over `streams` (to the last IMU
+/// sample) and returns its position where the batch pipeline records a step: once every event
+/// at an IMU sample's time is in.
+pub fn streamed_positions<F: Estimator + InertialFilter>(filter: F, streams: &Streams<'_>) -> Vec<Vec3> {
+    let options = StreamOptions { reorder_window_s: 0.0, strict: true };
+    let mut stream = Stream::new(filter, options).expect("stream");
+    let (mut steps, mut pending, mut last_imu_t) = (Vec::new(), false, f64::NEG_INFINITY);
+    let last_imu_s = streams.imu.last().expect("imu").t_s;
+    for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
+        if pending && event.t_s() > last_imu_t {
+            steps.push(stream.estimator().expect("started").core().state().position);
+            pending = false;
+        }
+        if let Event::Imu(s) = event {
+            (pending, last_imu_t) = (true, s.t_s);
+        }
+        stream.push("test", event).expect("event");
+    }
+    if pending {
+        steps.push(stream.estimator().expect("started").core().state().position);
+    }
+    steps
 }

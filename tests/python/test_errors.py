@@ -170,7 +170,7 @@ def test_reprs_read_as_python(still):
         reports += f.add_range(t, int(a), r)
     reports += f.flush()
     text = repr(reports[0])
-    assert text.startswith("UpdateReport(t=0.5, epoch_t=0.5, anchor=0, range=5.0, ") and "accepted=True" in text, text
+    assert text.startswith("UpdateReport(t=0.5, epoch_t=0.5, sensor='range', anchor=0, value=5.0, ") and "accepted=True" in text, text
     for rust in ("true", "false", "NaN", "Some(", "bias="):
         assert rust not in text, text
     assert repr(f).startswith("Ekf(anchors=4, initialized=True, t=0.")

@@ -77,8 +77,10 @@ def stream(f, imu, ranges, mag=None):
 
 def assert_same_reports(reports, upd):
     assert len(reports) == upd.height
-    for column in ("t", "epoch_t", "anchor", "range", "innovation", "nis", "weight"):
-        np.testing.assert_array_equal([getattr(r, column) for r in reports], upd[column].to_numpy())
+    for column in ("t", "epoch_t", "anchor", "anchor_j", "axis", "value", "innovation", "nis", "weight"):
+        streamed = [-1 if getattr(r, column) is None else getattr(r, column) for r in reports]
+        np.testing.assert_array_equal(streamed, upd[column].to_numpy(), err_msg=column)
+    assert [r.sensor for r in reports] == upd["sensor"].to_list()
 
 
 @pytest.mark.parametrize("method", list(CLASSES))
@@ -93,7 +95,8 @@ def test_streaming_equals_batch_for_every_class(staggered, method):
     )
     np.testing.assert_array_equal(rows, df.select(STATE).to_numpy())
     assert_same_reports(reports, upd)
-    assert upd.height == ranges.shape[0]
+    assert upd.filter(pl.col("sensor") == "range").height == ranges.shape[0]
+    assert upd.filter(pl.col("sensor") == "magnetometer").height == (0 if use_mag is None else use_mag.shape[0])
     # The epochs of staggered ranges are applied together, at the time of their last range or
     # later (never before a range was taken).
     assert (upd["epoch_t"] >= upd["t"]).all() and (upd["epoch_t"] - upd["t"]).max() <= run.config["ranging"]["epoch_window_s"] + 0.01
@@ -270,7 +273,14 @@ def test_impossible_measurements_are_counted_not_applied_and_not_raised():
         f.add_imu(0.004, [0.0, 400.0, 9.8], [0.0, 0.0, 0.0])  # beyond ±16 g
         f.add_imu(0.01, *LEVEL)
         f.flush()
-    assert f.health["rejected"] == {"imu_beyond_range": 1, "negative_range": 1, "range_beyond_hall": 1, "tdoa_beyond_baseline": 1}
+    assert f.health["rejected"] == {
+        "imu_beyond_range": 1,
+        "negative_range": 1,
+        "range_beyond_hall": 1,
+        "tdoa_beyond_baseline": 1,
+        "altitude_beyond_hall": 0,
+        "speed_beyond_range": 0,
+    }
     np.testing.assert_allclose(f.state["position"], AT_REST["position"], atol=1e-3)
 
 

@@ -85,7 +85,7 @@ def test_tdoa_errors_are_clear():
     with pytest.raises(ValueError, match="add_tdoa: j=7 is not an anchor index"):
         f.add_tdoa(0.01, 0, 7, 0.2)
     (report,) = f.add_tdoa(0.01, 0, 1, 0.2)
-    assert report.anchor == 0 and report.anchor_j == 1 and report.range == 0.2
+    assert (report.sensor, report.anchor, report.anchor_j, report.axis, report.value) == ("tdoa", 0, 1, None, 0.2)
     shaf = uwbimu_rs.Shaf(r.anchors, initial=r.initial)
     with pytest.raises(ValueError, match="add_tdoa: Shaf does not take tdoa"):
         shaf.add_tdoa(0.01, 0, 1, 0.2)

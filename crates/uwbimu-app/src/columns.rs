@@ -71,19 +71,25 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
     cols
 }
 
-/// One row per range or TDoA update: `t, epoch_t, anchor, anchor_j, range, innovation, nis,
-/// accepted, weight, inflation, down_weighted, iterations, prior_fading, reacquired, bias, bias_std`
-/// (`epoch_t`: when its epoch was applied; `anchor_j`: a TDoA's anchor j, −1 for a range;
-/// `range`: a TDoA's `d_ij`; `reacquired`: applied as its UWB-only fix; `bias`, `bias_std`: the
+/// One row per update, range or observation: `t, epoch_t, sensor, anchor, anchor_j, axis, value,
+/// innovation, nis, accepted, weight, inflation, down_weighted, iterations, prior_fading,
+/// reacquired, bias, bias_std` (`epoch_t`: when its epoch was applied; `sensor`: the code of
+/// `uwbimu_estimation::pipeline::Measured::sensor_code`, 0 for a range; `anchor`: a range's anchor
+/// or a TDoA's i, −1 for none; `anchor_j`: a TDoA's anchor j, else −1; `axis`: an odometry
+/// reading's body axis, else −1; `value`: the range, `d_ij`, altitude or speed (a magnetometer
+/// sample's field norm); `reacquired`: applied as its UWB-only fix; `bias`, `bias_std`: the
 /// anchor's estimated range bias after the update with `range_bias.states`, else NaN).
 pub fn update_columns(trace: &Trace) -> Columns {
     let u = &trace.updates;
+    let index = |i: Option<usize>| i.map_or(-1.0, |i| i as f64);
     vec![
         ("t", u.iter().map(|r| r.t_s).collect()),
         ("epoch_t", u.iter().map(|r| r.epoch_t_s).collect()),
-        ("anchor", u.iter().map(|r| r.anchor as f64).collect()),
-        ("anchor_j", u.iter().map(|r| r.anchor_j.map_or(-1.0, |j| j as f64)).collect()),
-        ("range", u.iter().map(|r| r.range_m).collect()),
+        ("sensor", u.iter().map(|r| r.measured.sensor_code() as f64).collect()),
+        ("anchor", u.iter().map(|r| index(r.measured.anchors()[0])).collect()),
+        ("anchor_j", u.iter().map(|r| index(r.measured.anchors()[1])).collect()),
+        ("axis", u.iter().map(|r| index(r.measured.axis())).collect()),
+        ("value", u.iter().map(|r| r.measured.value()).collect()),
         ("innovation", u.iter().map(|r| r.report.innovation).collect()),
         ("nis", u.iter().map(|r| r.report.nis).collect()),
         ("accepted", u.iter().map(|r| f64::from(u8::from(r.report.accepted))).collect()),

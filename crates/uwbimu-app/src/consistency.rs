@@ -18,6 +18,11 @@
 //! | `tactical_imu` | as `moving_start` | tactical grade, 0.0005 m/s²/√Hz, 5e-5 rad/s/√Hz | 5 Hz | a small process noise |
 //! | `staggered` | as `moving_start` | consumer | 10 Hz, eight cuboid anchors 3 ms apart, 1 ms jitter | the epoch rule with ranges at different times |
 //! | `heading_uncertain` | as `moving_start`, heading σ 0.2 rad | as `moving_start` | as `moving_start` | the linearisation while a poorly known heading converges |
+//! | `coplanar_altitude` | as `moving_start` | consumer | 5 Hz, the four anchors coplanar at 2.2 m; a 25 Hz altitude, σ 0.05 m | the altitude model where the ranges barely fix the height |
+//! | `outage_odometry` | as `moving_start` | consumer | 5 Hz, out from 10 s to 30 s; a 50 Hz wheel speed (body x), σ 0.05 m/s | the odometry model carrying a 20 s outage |
+//!
+//! The last two carry a sensor besides UWB ([`scenario_sensors`]); a method is run on them only
+//! when it takes that sensor.
 //!
 //! **A run** is the first [`LOG_S`] of the scenario's log. The filter is given the truth at the
 //! first IMU sample plus an error drawn from the initial covariance it is told
@@ -43,14 +48,45 @@ use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{quat_exp, Mat3, Vec3};
 use uwbimu_vocabulary::records::TruthSample;
+use uwbimu_vocabulary::sensors::SensorKind;
 
 use crate::generality::Settings;
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
-use crate::sim::{cuboid8, hall_anchors, matched_config, simulate, ImuNoise, Outage, SimConfig, SimData, Trajectory, UwbConfig};
+use crate::methods::{run_method, BatchInput, BatchOutput, Input, Method};
+use crate::sim::{
+    cuboid8, hall_anchors, matched_config, simulate, AltimeterConfig, ImuNoise, OdometerConfig, Outage, SimConfig, SimData,
+    Trajectory, UwbConfig,
+};
 
 /// The scenarios of [`scenario`], in the order of the module table.
-pub const SCENARIOS: &[&str] =
-    &["moving_start", "still_start", "uwb_2hz", "uwb_50hz", "tactical_imu", "staggered", "heading_uncertain"];
+pub const SCENARIOS: &[&str] = &[
+    "moving_start",
+    "still_start",
+    "uwb_2hz",
+    "uwb_50hz",
+    "tactical_imu",
+    "staggered",
+    "heading_uncertain",
+    "coplanar_altitude",
+    "outage_odometry",
+];
+
+/// Height of the coplanar anchors of `coplanar_altitude`, m.
+pub const COPLANAR_HEIGHT_M: f64 = 2.2;
+
+/// The sensors besides UWB and the IMU of scenario `name` (a method runs on it only if it takes
+/// them).
+pub fn scenario_sensors(name: &str) -> &'static [SensorKind] {
+    match name {
+        "coplanar_altitude" => &[SensorKind::Altitude],
+        "outage_odometry" => &[SensorKind::Odometry],
+        _ => &[],
+    }
+}
+
+/// Whether `method` takes every sensor of scenario `name`.
+pub fn runs_on(method: Method, name: &str) -> bool {
+    scenario_sensors(name).iter().all(|k| method.takes(Input::Sensor(*k)))
+}
 
 /// Length of a run's log, s (the simulated run is cut there).
 pub const LOG_S: f64 = 40.0;
@@ -116,6 +152,16 @@ pub fn scenario(name: &str, seed: u64) -> Result<SimConfig> {
         "staggered" => {
             let base = moving(10.0, ImuNoise::consumer_mems())?;
             SimConfig { anchors: cuboid8(), uwb: UwbConfig { stagger_s: 3e-3, jitter_s: 1e-3, ..base.uwb.clone() }, ..base }
+        }
+        "coplanar_altitude" => {
+            let base = moving(5.0, consumer)?;
+            let anchors = base.anchors.iter().map(|a| Vec3::new(a.x, a.y, COPLANAR_HEIGHT_M)).collect();
+            SimConfig { anchors, altimeter: Some(AltimeterConfig::default()), ..base }
+        }
+        "outage_odometry" => {
+            let mut base = moving(5.0, consumer)?;
+            base.uwb.outages.push(Outage { start_s: MOVING_START_S + 10.0, end_s: MOVING_START_S + 30.0 });
+            SimConfig { odometer: Some(OdometerConfig::default()), ..base }
         }
         _ => return Err(Error::unknown_option("consistency scenario", name, SCENARIOS.iter().copied())),
     };
@@ -271,6 +317,8 @@ fn run_once(
     let (t0, end) = (truth0.t_s, truth0.t_s + LOG_S);
     let imu = &data.imu[..data.imu.partition_point(|s| s.t_s <= end)];
     let ranges = &data.ranges[..data.ranges.partition_point(|r| r.t_s <= end)];
+    let mut observations = data.observations_for(|kind| method.takes(Input::Sensor(kind)));
+    observations.truncate(observations.partition_point(|o| o.t_s() <= end));
     let input = BatchInput {
         imu,
         ranges,
@@ -278,7 +326,7 @@ fn run_once(
         initial: Some(initial),
         config,
         smooth: false,
-        observations: &[],
+        observations: &observations,
         progress: None,
         marginals_every_s: Some(SAMPLE_INTERVAL_S),
     };

@@ -6,13 +6,14 @@
 pub mod streamed;
 
 use serde::Serialize;
-use uwbimu_estimation::pipeline::{Progress, UpdateRecord};
+use uwbimu_estimation::pipeline::{Measured, Progress, UpdateRecord};
 
 use crate::io::IoResult as Result;
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::PosePoint;
+use uwbimu_vocabulary::sensors::Observation;
 
 use crate::io::Recording;
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
@@ -259,7 +260,11 @@ impl UpdateTally {
 
     /// Counts one applied (or refused) update.
     pub(crate) fn add(&mut self, u: &UpdateRecord) {
-        let counts = if u.anchor_j.is_some() { self.tdoa.as_mut() } else { self.anchors.get_mut(u.anchor) };
+        let counts = match u.measured {
+            Measured::Range { anchor, .. } => self.anchors.get_mut(anchor),
+            Measured::Observation(Observation::Tdoa(_)) => self.tdoa.as_mut(),
+            Measured::Observation(_) => None,
+        };
         let Some(a) = counts else { return };
         match (u.report.accepted, u.report.down_weighted) {
             (true, false) => a.accepted += 1,

@@ -23,7 +23,9 @@
 //! Randomness: one seed; the IMU, UWB and magnetometer draw from separate ChaCha8 streams, so
 //! changing one sensor's settings leaves the other sensors' noise unchanged.
 
+mod altimeter;
 mod imu;
+mod odometer;
 mod outliers;
 mod overlay;
 mod presets;
@@ -36,11 +38,15 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
-use uwbimu_vocabulary::records::{ImuSample, MagSample, RangeMeasurement, TdoaMeasurement, TruthSample};
+use uwbimu_vocabulary::records::{
+    AltitudeSample, ImuSample, MagSample, OdometrySample, RangeMeasurement, TdoaMeasurement, TruthSample,
+};
 use uwbimu_vocabulary::sensors::{merge, observations, Observation, SensorKind};
 use uwbimu_vocabulary::validate::{invalid, non_negative, positive};
 
+pub use altimeter::AltimeterConfig;
 pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
+pub use odometer::OdometerConfig;
 pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
 pub use overlay::{Overlay, Sinusoid};
 pub(crate) use presets::hall_anchors;
@@ -63,6 +69,10 @@ const STREAM_MAG: u64 = 3;
 const STREAM_ACCEL_OUTLIERS: u64 = 4;
 /// ChaCha stream of the TDoA noise.
 const STREAM_TDOA: u64 = 5;
+/// ChaCha stream of the altitude noise.
+const STREAM_ALTITUDE: u64 = 6;
+/// ChaCha stream of the odometry noise.
+const STREAM_ODOMETRY: u64 = 7;
 
 /// Everything the simulator needs.
 #[derive(Debug, Clone, PartialEq)]
@@ -87,6 +97,10 @@ pub struct SimConfig {
     pub magnetometer: Option<MagConfig>,
     /// TDoA model (`None` = no TDoA); independent of the ranges.
     pub tdoa: Option<TdoaConfig>,
+    /// Altitude sensor (`None` = none).
+    pub altimeter: Option<AltimeterConfig>,
+    /// Wheel odometry (`None` = none).
+    pub odometer: Option<OdometerConfig>,
     /// Abnormal accelerometer samples (the ARCKF paper's §4.1); none by default.
     pub accel_outliers: AccelOutliers,
     /// Seed of all random draws.
@@ -115,6 +129,8 @@ impl Default for SimConfig {
             uwb: UwbConfig::default(),
             magnetometer: None,
             tdoa: None,
+            altimeter: None,
+            odometer: None,
             accel_outliers: AccelOutliers::default(),
             seed: 0,
             start_s: 0.0,
@@ -145,6 +161,12 @@ pub struct SimData {
     pub tdoa: Vec<TdoaMeasurement>,
     /// Per TDoA: [`LABEL_LOS`] or [`LABEL_OUTLIER`].
     pub tdoa_labels: Vec<u8>,
+    /// Altitude readings in time order (empty without an altimeter).
+    pub altitude: Vec<AltitudeSample>,
+    /// The true offset of each altitude reading, m.
+    pub altitude_offsets: Vec<f64>,
+    /// Odometry readings in time order, one per axis measured (empty without an odometer).
+    pub odometry: Vec<OdometrySample>,
     /// True accelerometer bias (IMU frame) at each IMU time, m/s².
     pub accel_bias: Vec<Vec3>,
     /// True gyroscope bias (IMU frame) at each IMU time, rad/s.
@@ -157,10 +179,11 @@ pub struct SimData {
 
 impl SimData {
     /// The run's measurements of the sensors of the registry whose kind passes `keep` (the
-    /// magnetometer, TDoA), merged in time order ([`uwbimu_vocabulary::sensors::merge`]): what a
+    /// magnetometer, TDoA, altitude, odometry), merged in time order ([`uwbimu_vocabulary::sensors::merge`]): what a
     /// method that takes them gets.
     pub fn observations_for(&self, keep: impl Fn(SensorKind) -> bool) -> Vec<Observation> {
-        let sets = [observations(&self.mag), observations(&self.tdoa)];
+        let sets =
+            [observations(&self.mag), observations(&self.tdoa), observations(&self.altitude), observations(&self.odometry)];
         let kept: Vec<&[Observation]> =
             sets.iter().filter(|s| s.first().is_some_and(|o| keep(o.kind()))).map(Vec::as_slice).collect();
         merge(&kept)
@@ -306,6 +329,21 @@ impl SimConfig {
                 return Err(invalid("tdoa.jitter_s", "must be shorter than the time between two packets"));
             }
         }
+        if let Some(a) = &self.altimeter {
+            positive("altimeter.rate_hz", a.rate_hz)?;
+            non_negative("altimeter.std_m", a.std_m)?;
+            non_negative("altimeter.offset_walk", a.offset_walk)?;
+            if !a.offset_m.is_finite() {
+                return Err(invalid("altimeter.offset_m", "must be finite"));
+            }
+        }
+        if let Some(o) = &self.odometer {
+            positive("odometer.rate_hz", o.rate_hz)?;
+            non_negative("odometer.std_mps", o.std_mps)?;
+            if !(o.scale_error > -1.0 && o.scale_error < 1.0) {
+                return Err(invalid("odometer.scale_error", format!("must be in (−1, 1), got {}", o.scale_error)));
+            }
+        }
         if let Some(m) = &self.magnetometer {
             finite_vec("magnetometer.field_nav", &m.field_nav)?;
             non_negative("magnetometer.noise_std", m.noise_std)?;
@@ -387,6 +425,16 @@ fn tdoa_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut TdoaConfig> {
     c.tdoa.as_mut().ok_or_else(|| invalid(key, "TDoA is off; set tdoa=True"))
 }
 
+/// The altimeter of `c`, or the error for an `altimeter_*` override while it is off.
+fn altimeter_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut AltimeterConfig> {
+    c.altimeter.as_mut().ok_or_else(|| invalid(key, "the altimeter is off; set altimeter=True"))
+}
+
+/// The odometer of `c`, or the error for an `odometer_*` override while it is off.
+fn odometer_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut OdometerConfig> {
+    c.odometer.as_mut().ok_or_else(|| invalid(key, "the odometer is off; set odometer=True"))
+}
+
 /// The magnetometer model of `c`, or the error for a `mag_*` override while it is off.
 fn magnetometer_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut MagConfig> {
     c.magnetometer.as_mut().ok_or_else(|| invalid(key, "the magnetometer is off; set magnetometer=True"))
@@ -399,6 +447,16 @@ overrides! {
     number tdoa_rate_hz(c, key) { &mut tdoa_on(c, key)?.rate_hz };
     number tdoa_std_m(c, key) { &mut tdoa_on(c, key)?.std_m };
     number tdoa_outlier_prob(c, key) { &mut tdoa_on(c, key)?.outlier_prob };
+    switch altimeter(c, on) { if on { c.altimeter.get_or_insert_with(AltimeterConfig::default); } else { c.altimeter = None; } };
+    number altimeter_rate_hz(c, key) { &mut altimeter_on(c, key)?.rate_hz };
+    number altimeter_std_m(c, key) { &mut altimeter_on(c, key)?.std_m };
+    number altimeter_offset_m(c, key) { &mut altimeter_on(c, key)?.offset_m };
+    number altimeter_offset_walk(c, key) { &mut altimeter_on(c, key)?.offset_walk };
+    switch odometer(c, on) { if on { c.odometer.get_or_insert_with(OdometerConfig::default); } else { c.odometer = None; } };
+    switch odometer_lateral(c, on) { c.odometer.get_or_insert_with(OdometerConfig::default).lateral = on; };
+    number odometer_rate_hz(c, key) { &mut odometer_on(c, key)?.rate_hz };
+    number odometer_std_mps(c, key) { &mut odometer_on(c, key)?.std_mps };
+    number odometer_scale_error(c, key) { &mut odometer_on(c, key)?.scale_error };
     switch imu_noise(c, on) { if !on { c.imu_noise = ImuNoise::none(); } };
     number imu_rate_hz(c) { &mut c.imu_rate_hz };
     number uwb_rate_hz(c) { &mut c.uwb.rate_hz };
@@ -430,7 +488,7 @@ fn unknown_override(key: &str) -> Error {
     Error::unknown_option("override", key, OVERRIDE_KEYS.iter().copied())
 }
 
-/// Runs the simulator: validates `cfg`, then synthesises IMU, truth, magnetometer and ranges.
+/// Runs the simulator: validates `cfg`, then synthesises IMU, truth and each sensor configured.
 ///
 /// ```
 /// # use uwbimu_app::sim::{preset, simulate};
@@ -457,6 +515,18 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
     let delivered_tdoa = tdoa.partition_point(|m| m.t_s < cfg.start_s);
     tdoa.drain(..delivered_tdoa);
     tdoa_labels.drain(..delivered_tdoa);
+    let (mut altitude, mut altitude_offsets) = match &cfg.altimeter {
+        Some(a) => altimeter::synthesise(cfg, a, &mut stream(STREAM_ALTITUDE)),
+        None => (Vec::new(), Vec::new()),
+    };
+    let delivered_altitude = altitude.partition_point(|m| m.t_s < cfg.start_s);
+    altitude.drain(..delivered_altitude);
+    altitude_offsets.drain(..delivered_altitude);
+    let mut odometry = match &cfg.odometer {
+        Some(o) => odometer::synthesise(cfg, o, &mut stream(STREAM_ODOMETRY)),
+        None => Vec::new(),
+    };
+    odometry.drain(..odometry.partition_point(|m| m.t_s < cfg.start_s));
     let delivered = uwb_out.ranges.partition_point(|r| r.t_s < cfg.start_s);
     uwb_out.ranges.drain(..delivered);
     uwb_out.labels.drain(..delivered);
@@ -474,6 +544,9 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
         mag: imu_out.mag,
         tdoa,
         tdoa_labels,
+        altitude,
+        altitude_offsets,
+        odometry,
         accel_bias: imu_out.accel_bias,
         gyro_bias: imu_out.gyro_bias,
         nlos_windows: uwb_out.windows,

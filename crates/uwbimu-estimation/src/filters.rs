@@ -126,8 +126,8 @@ pub trait Filter {
     /// Applies one observation (a magnetometer sample, a TDoA, …) measured at its time ≥ the
     /// filter time, and reports what was done with it. A filter refuses the kinds it does not
     /// take with [`uwbimu_vocabulary::error::Error::InvalidCall`]: the magnetometer is [`Ackf`]'s
-    /// (the ACKF paper), TDoA are taken by the tightly coupled filters ([`TightFilter`] and those
-    /// built on it).
+    /// (the ACKF paper); TDoA, altitudes and odometry are taken by the tightly coupled filters
+    /// ([`TightFilter`] and those built on it).
     fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
         Err(self::tight::not_taken(observation))
     }

@@ -7,6 +7,8 @@
 //! | [`Rejection::NegativeRange`] | a range below 0 m |
 //! | [`Rejection::RangeBeyondHall`] | a range longer than the farthest point of the anchors' bounding box, grown by `hall_margin_m`, from its anchor |
 //! | [`Rejection::TdoaBeyondBaseline`] | `\|d_ij\|` beyond the baseline `‖a_i − a_j‖` plus `tdoa_margin_m` (the triangle inequality) |
+//! | [`Rejection::AltitudeBeyondHall`] | a height outside the anchors' bounding box grown by `hall_margin_m` |
+//! | [`Rejection::SpeedBeyondRange`] | an odometry reading beyond `speed_range` |
 //!
 //! A dropped IMU sample leaves the previous one held over the longer interval. Magnetometer
 //! samples pass.
@@ -28,11 +30,22 @@ pub enum Rejection {
     RangeBeyondHall,
     /// A TDoA beyond the baseline between its two anchors.
     TdoaBeyondBaseline,
+    /// An altitude no tag near the anchors can have.
+    AltitudeBeyondHall,
+    /// An odometry reading faster than the platform can go.
+    SpeedBeyondRange,
 }
 
 impl Rejection {
     /// Every kind, in the order of [`GateCounts::by_kind`].
-    pub const ALL: [Rejection; 4] = [Self::ImuBeyondRange, Self::NegativeRange, Self::RangeBeyondHall, Self::TdoaBeyondBaseline];
+    pub const ALL: [Rejection; 6] = [
+        Self::ImuBeyondRange,
+        Self::NegativeRange,
+        Self::RangeBeyondHall,
+        Self::TdoaBeyondBaseline,
+        Self::AltitudeBeyondHall,
+        Self::SpeedBeyondRange,
+    ];
 
     /// The kind's name in reports (`health` in Python, the CLI summary).
     pub fn name(self) -> &'static str {
@@ -41,6 +54,8 @@ impl Rejection {
             Self::NegativeRange => "negative_range",
             Self::RangeBeyondHall => "range_beyond_hall",
             Self::TdoaBeyondBaseline => "tdoa_beyond_baseline",
+            Self::AltitudeBeyondHall => "altitude_beyond_hall",
+            Self::SpeedBeyondRange => "speed_beyond_range",
         }
     }
 }
@@ -48,7 +63,7 @@ impl Rejection {
 /// How many measurements the gate dropped, per kind.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct GateCounts {
-    counts: [usize; 4],
+    counts: [usize; Rejection::ALL.len()],
 }
 
 impl GateCounts {
@@ -79,6 +94,8 @@ pub struct Gate {
     config: GateConfig,
     anchors: Vec<Vec3>,
     longest_range_m: Vec<f64>,
+    /// The grown box's lowest and highest z, m.
+    heights_m: (f64, f64),
 }
 
 impl Gate {
@@ -89,7 +106,7 @@ impl Gate {
         let hi = anchors.iter().fold(Vec3::repeat(f64::NEG_INFINITY), |m, a| m.sup(a)) + margin;
         // The farthest corner of the box from each anchor.
         let longest_range_m = anchors.iter().map(|a| Vec3::from_fn(|i, _| (a[i] - lo[i]).max(hi[i] - a[i])).norm()).collect();
-        Self { config: *config, anchors: anchors.to_vec(), longest_range_m }
+        Self { config: *config, anchors: anchors.to_vec(), longest_range_m, heights_m: (lo.z, hi.z) }
     }
 
     /// Why `event` is impossible, or None when it passes (always None when the gate is off).
@@ -110,14 +127,21 @@ impl Gate {
                 let baseline = (self.anchors[m.anchor_i] - self.anchors[m.anchor_j]).norm();
                 (m.tdoa_m.abs() > baseline + self.config.tdoa_margin_m).then_some(Rejection::TdoaBeyondBaseline)
             }
-            Event::Observation(_) => None,
+            Event::Observation(Observation::Altitude(m)) => {
+                let (lo, hi) = self.heights_m;
+                (!(lo..=hi).contains(&m.z_m)).then_some(Rejection::AltitudeBeyondHall)
+            }
+            Event::Observation(Observation::Odometry(m)) => {
+                (m.speed_mps.abs() > self.config.speed_range).then_some(Rejection::SpeedBeyondRange)
+            }
+            Event::Observation(Observation::Magnetometer(_)) => None,
         }
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
+    use uwbimu_vocabulary::records::{AltitudeSample, ImuSample, OdometrySample, RangeMeasurement, TdoaMeasurement};
 
     use super::*;
 
@@ -133,6 +157,20 @@ mod tests {
         assert_eq!(gate().check(&tdoa(-10.4)), None);
         assert_eq!(gate().check(&tdoa(10.6)), Some(Rejection::TdoaBeyondBaseline));
         assert_eq!(gate().check(&tdoa(-10.6)), Some(Rejection::TdoaBeyondBaseline));
+    }
+
+    #[test]
+    fn heights_outside_the_grown_hall_and_speeds_beyond_the_range_are_impossible() {
+        let altitude = |z_m| Event::Observation(Observation::Altitude(AltitudeSample { t_s: 0.0, z_m }));
+        // Anchors' z spans [0, 3], grown by 5 m.
+        assert_eq!(gate().check(&altitude(-4.99)), None);
+        assert_eq!(gate().check(&altitude(7.99)), None);
+        assert_eq!(gate().check(&altitude(-5.01)), Some(Rejection::AltitudeBeyondHall));
+        assert_eq!(gate().check(&altitude(1200.0)), Some(Rejection::AltitudeBeyondHall));
+        let speed = |speed_mps| Event::Observation(Observation::Odometry(OdometrySample { t_s: 0.0, axis: 0, speed_mps }));
+        assert_eq!(gate().check(&speed(-29.0)), None);
+        assert_eq!(gate().check(&speed(-31.0)), Some(Rejection::SpeedBeyondRange));
+        assert_eq!(gate().check(&speed(31.0)), Some(Rejection::SpeedBeyondRange));
     }
 
     #[test]

@@ -2,10 +2,12 @@
 //! error state. The scalar ones the tightly coupled filters update with implement
 //! [`ScalarModel`]; one test checks every model's Jacobian against central differences.
 
+pub mod altitude;
 pub mod attitude;
 pub mod loose;
 mod model;
 pub mod motion;
+pub mod odometry;
 pub mod range;
 pub mod tdoa;
 
@@ -27,6 +29,9 @@ mod tests {
             jacobian_failures::<motion::Speed>(),
             jacobian_failures::<motion::Plane>(),
             jacobian_failures::<attitude::VectorAxis>(),
+            jacobian_failures::<altitude::Altitude>(),
+            jacobian_failures::<odometry::BodyVelocity>(),
+            jacobian_failures::<odometry::NonHolonomic>(),
         ]
         .into_iter()
         .flatten()

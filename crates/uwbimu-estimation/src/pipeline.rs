@@ -36,6 +36,8 @@ use uwbimu_vocabulary::config::GateConfig;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
+#[cfg(doc)]
+use uwbimu_vocabulary::sensors::SensorKind;
 use uwbimu_vocabulary::sensors::{Observation, RANGE_RANK};
 use uwbimu_vocabulary::state::{NominalState, ATT, POS, VEL};
 
@@ -93,21 +95,84 @@ pub struct Health {
     pub smoothing_left_out: usize,
 }
 
-/// One applied range or TDoA and what the filter did with it.
+/// What an update measured: a range of an epoch or an observation of the sensor registry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Measured {
+    /// A range (before the alignment to its epoch's reference time).
+    Range {
+        /// Anchor index.
+        anchor: usize,
+        /// Measured range, m.
+        range_m: f64,
+    },
+    /// An observation ([`Observation`]).
+    Observation(Observation),
+}
+
+impl Measured {
+    /// The sensor's name: `range`, or the registry's ([`uwbimu_vocabulary::sensors::SensorInfo::name`]).
+    pub fn sensor(&self) -> &'static str {
+        match self {
+            Self::Range { .. } => "range",
+            Self::Observation(o) => o.stream(),
+        }
+    }
+
+    /// The sensor as a number: 0 for a range, `1 + i` for [`SensorKind::ALL`]`[i]` (a numeric
+    /// column's code for [`Measured::sensor`]).
+    pub fn sensor_code(&self) -> usize {
+        match self {
+            Self::Range { .. } => 0,
+            Self::Observation(o) => 1 + o.kind() as usize,
+        }
+    }
+
+    /// The measured value: a range, a TDoA `d_ij`, an altitude, a speed (m or m/s; a vector's norm).
+    pub fn value(&self) -> f64 {
+        match self {
+            Self::Range { range_m, .. } => *range_m,
+            Self::Observation(o) => o.value(),
+        }
+    }
+
+    /// The anchors it refers to: a range's, a TDoA's i and j; None for the others.
+    pub fn anchors(&self) -> [Option<usize>; 2] {
+        match self {
+            Self::Range { anchor, .. } => [Some(*anchor), None],
+            Self::Observation(o) => o.anchors(),
+        }
+    }
+
+    /// The body axis of a one-axis reading (odometry); None for the others.
+    pub fn axis(&self) -> Option<usize> {
+        match self {
+            Self::Range { .. } => None,
+            Self::Observation(o) => o.axis(),
+        }
+    }
+}
+
+/// One applied measurement and what the filter did with it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UpdateRecord {
     /// Measurement time, s.
     pub t_s: f64,
-    /// Time at which it was applied (a range epoch's reference time; a TDoA's own time), s.
+    /// Time at which it was applied (a range epoch's reference time; an observation's own time), s.
     pub epoch_t_s: f64,
-    /// Anchor index (a TDoA's anchor i).
-    pub anchor: usize,
-    /// A TDoA's anchor j; None for a range.
-    pub anchor_j: Option<usize>,
-    /// Measured range (before the alignment to the reference time) or TDoA `d_ij`, m.
-    pub range_m: f64,
+    /// What was measured.
+    pub measured: Measured,
     /// The filter's report.
     pub report: UpdateReport,
+}
+
+impl UpdateRecord {
+    /// The anchor of a range; None for an observation.
+    pub fn range_anchor(&self) -> Option<usize> {
+        match self.measured {
+            Measured::Range { anchor, .. } => Some(anchor),
+            Measured::Observation(_) => None,
+        }
+    }
 }
 
 /// Everything one batch run produced.
@@ -115,7 +180,7 @@ pub struct UpdateRecord {
 pub struct Trace {
     /// One record per IMU sample.
     pub steps: Vec<StepRecord>,
-    /// One record per range or TDoA applied.
+    /// One record per measurement applied (ranges and observations).
     pub updates: Vec<UpdateRecord>,
     /// What the run counted: rejections, repairs, ranges before the start.
     pub health: Health,
@@ -452,8 +517,8 @@ impl Pipeline {
         Ok(())
     }
 
-    /// Takes an observation, applied at its own time (skipped before the first IMU sample); a
-    /// TDoA's report is kept for [`Pipeline::take_applied`].
+    /// Takes an observation, applied at its own time (skipped before the first IMU sample); its
+    /// report is kept for [`Pipeline::take_applied`].
     pub fn observation<E: Estimator>(&mut self, est: &mut E, o: &Observation) -> Result<()> {
         if est.time_s().is_none() {
             return Ok(());
@@ -464,16 +529,7 @@ impl Pipeline {
             report = est.observe(o)?;
             Ok(())
         })?;
-        if let Observation::Tdoa(m) = o {
-            self.applied.push(UpdateRecord {
-                t_s: m.t_s,
-                epoch_t_s: m.t_s,
-                anchor: m.anchor_i,
-                anchor_j: Some(m.anchor_j),
-                range_m: m.tdoa_m,
-                report,
-            });
-        }
+        self.applied.push(UpdateRecord { t_s: o.t_s(), epoch_t_s: o.t_s(), measured: Measured::Observation(*o), report });
         Ok(())
     }
 
@@ -607,9 +663,7 @@ fn apply_epoch<E: Estimator>(
     applied.extend(measured.zip(reports.iter()).map(|((t_s, anchor, range_m), report)| UpdateRecord {
         t_s,
         epoch_t_s,
-        anchor,
-        anchor_j: None,
-        range_m,
+        measured: Measured::Range { anchor, range_m },
         report: *report,
     }));
     Ok(())

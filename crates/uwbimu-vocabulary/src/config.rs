@@ -19,11 +19,11 @@ use crate::math::{Quat, Vec3};
 
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
 pub use sections::{
-    check_window, AdaptiveConfig, AidingConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig, ModelSelectionConfig,
-    MountingConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig, SageHusaSection, Section, SmoothingConfig,
-    UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M,
-    DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY,
-    MAX_ZUPT_WINDOW,
+    check_window, AdaptiveConfig, AidingConfig, AltitudeConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig,
+    ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig,
+    SageHusaSection, Section, SmoothingConfig, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S,
+    DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_OUTLIER_PASSES,
+    MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.
@@ -70,6 +70,10 @@ pub struct FilterConfig {
     pub planar: PlanarConfig,
     /// Gravity and geomagnetic aiding of `ackf`.
     pub aiding: AidingConfig,
+    /// An altitude sensor's noise.
+    pub altitude: AltitudeConfig,
+    /// Wheel odometry's noise.
+    pub odometry: OdometryConfig,
     /// Per-anchor cubic range calibration (Wang et al. 2018 §2.2, §4.1) applied to the ranges before any
     /// batch method runs; empty by default. Set from Python as `{anchor: [c0, c1, c2, c3]}` under
     /// the key `range_calibration` (a table, not a section field).
@@ -103,6 +107,8 @@ macro_rules! for_each_section {
             { let $s = $($r)+ c.unscented; $body },
             { let $s = $($r)+ c.planar; $body },
             { let $s = $($r)+ c.aiding; $body },
+            { let $s = $($r)+ c.altitude; $body },
+            { let $s = $($r)+ c.odometry; $body },
         ]
     }};
 }

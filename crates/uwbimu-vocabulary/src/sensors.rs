@@ -11,7 +11,7 @@
 //! filters that take it (`uwbimu_estimation`), its gate rule and its docs.
 
 use crate::error::{Error, Result};
-use crate::records::{MagSample, TdoaMeasurement};
+use crate::records::{AltitudeSample, MagSample, OdometrySample, TdoaMeasurement};
 
 /// How the rows of a sensor's table must be ordered in time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,6 +58,8 @@ pub trait SensorRecord: Copy + Sized {
     const LAYOUTS: &'static [&'static [&'static str]];
     /// The time order of its table.
     const TIME_ORDER: TimeOrder;
+    /// Whether a value (not the time) may be NaN, meaning "not measured" (an odometry axis).
+    const MISSING_ALLOWED: bool = false;
 
     /// Time, s.
     fn t_s(&self) -> f64;
@@ -65,9 +67,27 @@ pub trait SensorRecord: Copy + Sized {
     /// The same record at time `t_s` (to shift a clock).
     fn at(&self, t_s: f64) -> Self;
 
-    /// The record of row `row` (already finite), `values` in one of [`SensorRecord::LAYOUTS`]
-    /// (by its length); `anchor_count` for the anchor columns. Fails naming `name` and the row.
-    fn from_row(name: &'static str, row: usize, values: &[f64], anchor_count: usize) -> Result<Self>;
+    /// The measured value, in the sensor's unit (a vector's norm).
+    fn value(&self) -> f64;
+
+    /// The anchors it refers to (a TDoA's i and j).
+    fn anchors(&self) -> [Option<usize>; 2] {
+        [None, None]
+    }
+
+    /// The axis of a reading along one axis (an odometry reading's body axis).
+    fn axis(&self) -> Option<usize> {
+        None
+    }
+
+    /// The records as a table in one of [`SensorRecord::LAYOUTS`]: `(columns, values row by
+    /// row)`; the inverse of [`SensorRecord::from_row`] on rows it accepts.
+    fn table(records: &[Self]) -> (usize, Vec<f64>);
+
+    /// Appends the records of row `row` (finite, or NaN where [`SensorRecord::MISSING_ALLOWED`]),
+    /// `values` in one of [`SensorRecord::LAYOUTS`] (by its length), to `out`; `anchor_count` for
+    /// the anchor columns. Fails naming `name` and the row.
+    fn from_row(name: &'static str, row: usize, values: &[f64], anchor_count: usize, out: &mut Vec<Self>) -> Result<()>;
 }
 
 /// Declares the sensor registry (see the module doc): one row per sensor — its [`Observation`]
@@ -136,6 +156,27 @@ macro_rules! sensors {
                 }
             }
 
+            /// The measured value ([`SensorRecord::value`]).
+            pub fn value(&self) -> f64 {
+                match self {
+                    $(Self::$variant(m) => m.value(),)+
+                }
+            }
+
+            /// The anchors it refers to ([`SensorRecord::anchors`]).
+            pub fn anchors(&self) -> [Option<usize>; 2] {
+                match self {
+                    $(Self::$variant(m) => m.anchors(),)+
+                }
+            }
+
+            /// The axis of a one-axis reading ([`SensorRecord::axis`]).
+            pub fn axis(&self) -> Option<usize> {
+                match self {
+                    $(Self::$variant(m) => m.axis(),)+
+                }
+            }
+
             /// Its kind.
             pub fn kind(&self) -> SensorKind {
                 match self {
@@ -164,6 +205,10 @@ sensors! {
     Magnetometer(MagSample) { name: "magnetometer", keyword: "mag", label: "magnetometer samples", rank: 1, clock: Imu },
     /// A time difference of arrival (`uwbimu_estimation::models::tdoa::Tdoa`).
     Tdoa(TdoaMeasurement) { name: "tdoa", keyword: "tdoa", label: "TDoA", rank: 2, clock: Uwb },
+    /// An altitude reading (`uwbimu_estimation::models::altitude::Altitude`).
+    Altitude(AltitudeSample) { name: "altitude", keyword: "altitude", label: "altitude", rank: 3, clock: Imu },
+    /// An odometry reading along one body axis (`uwbimu_estimation::models::odometry::BodyVelocity`).
+    Odometry(OdometrySample) { name: "odometry", keyword: "odometry", label: "odometry", rank: 4, clock: Imu },
 }
 
 /// Rank of a range among events at one time: after every sensor of the registry.
@@ -206,7 +251,8 @@ pub fn validate_records<R: SensorRecord>(name: &'static str, rows: &[&[f64]], an
                 got: format!("{} columns at row {row}", values.len()),
             });
         }
-        if let Some(col) = values.iter().position(|v| !v.is_finite()) {
+        let missing = |col: usize, v: f64| R::MISSING_ALLOWED && col > 0 && v.is_nan();
+        if let Some(col) = values.iter().enumerate().position(|(col, v)| !v.is_finite() && !missing(col, *v)) {
             return Err(Error::NonFinite { name, row, col, value: values[col] });
         }
         let t = values[0];
@@ -218,7 +264,7 @@ pub fn validate_records<R: SensorRecord>(name: &'static str, rows: &[&[f64]], an
             return Err(Error::NonMonotonicTime { name, row, prev_s: prev, got_s: t });
         }
         prev = t;
-        out.push(R::from_row(name, row, values, anchor_count)?);
+        R::from_row(name, row, values, anchor_count, &mut out)?;
     }
     Ok(out)
 }
@@ -270,5 +316,27 @@ mod tests {
         assert!(e.contains("tdoa") && e.contains("(4) = t, anchor i, anchor j, d_ij"), "{e}");
         let nan: [&[f64]; 1] = [&[1.0, 0.0, 1.0, f64::NAN]];
         assert!(matches!(SensorKind::Tdoa.observations(&nan, 3), Err(Error::NonFinite { row: 0, col: 3, .. })));
+    }
+
+    #[test]
+    fn odometry_rows_give_one_reading_per_axis_measured_and_tables_give_the_rows_back() {
+        let rows: [&[f64]; 3] = [&[0.0, 0.5, 0.0, f64::NAN], &[0.1, 0.6, f64::NAN, f64::NAN], &[0.2, f64::NAN, 0.01, 0.0]];
+        let readings = validate_records::<OdometrySample>("odometry", &rows, 0).expect("valid");
+        let axes: Vec<(f64, usize)> = readings.iter().map(|m| (m.t_s, m.axis)).collect();
+        assert_eq!(axes, [(0.0, 0), (0.0, 1), (0.1, 0), (0.2, 1), (0.2, 2)]);
+        let (columns, values) = OdometrySample::table(&readings);
+        assert_eq!(columns, 4);
+        let flat: Vec<f64> = rows.concat();
+        assert!(values.iter().zip(&flat).all(|(a, b)| a == b || (a.is_nan() && b.is_nan())), "{values:?}");
+        let none: [&[f64]; 1] = [&[0.0, f64::NAN, f64::NAN, f64::NAN]];
+        assert!(validate_records::<OdometrySample>("odometry", &none, 0).is_err());
+        let nan_time: [&[f64]; 1] = [&[f64::NAN, 0.5]];
+        assert!(matches!(validate_records::<OdometrySample>("odometry", &nan_time, 0), Err(Error::NonFinite { col: 0, .. })));
+        let speeds: [&[f64]; 2] = [&[0.0, 0.5], &[0.1, 0.6]];
+        let x_only = validate_records::<OdometrySample>("odometry", &speeds, 0).expect("valid");
+        assert_eq!(OdometrySample::table(&x_only), (2, speeds.concat()));
+        let heights: [&[f64]; 2] = [&[0.0, 1.5], &[0.1, 1.4]];
+        let altitude = validate_records::<AltitudeSample>("altitude", &heights, 0).expect("valid");
+        assert_eq!(AltitudeSample::table(&altitude), (2, heights.concat()));
     }
 }

@@ -116,7 +116,7 @@ pub fn true_initial(sim: &SimConfig, config: &FilterConfig, data: &SimData) -> R
 }
 
 /// The filter configuration matched to a simulator configuration: range σ (Gaussian and uniform
-/// parts combined), IMU noise densities, bias walks and bias sizes, lever arm, gravity and the IMU
+/// parts combined), the TDoA, altitude and odometry σ, IMU noise densities, bias walks and bias sizes, lever arm, gravity and the IMU
 /// mounting rotation; a simulated accelerometer with outliers (the ARCKF paper's Table 4) reports
 /// them, so its range (`gate.accel_range`) covers ten of their σ.
 pub fn matched_config(sim: &SimConfig) -> FilterConfig {
@@ -125,6 +125,12 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     let mut c = FilterConfig::default();
     c.ranging.range_std = (u.range_std_m.powi(2) + u.uniform_noise_m.powi(2) / 3.0).sqrt();
     c.ranging.tdoa_std = sim.tdoa.as_ref().map_or(uwbimu_vocabulary::config::DEFAULT_TDOA_STD_M, |t| t.std_m.max(1e-3));
+    if let Some(a) = &sim.altimeter {
+        c.altitude.std = a.std_m.max(1e-3);
+    }
+    if let Some(o) = &sim.odometer {
+        c.odometry.std = o.std_mps.max(1e-3);
+    }
     c.ins.accel_noise_density = n.accel_noise_density.max(1e-4);
     c.ins.gyro_noise_density = n.gyro_noise_density.max(1e-5);
     c.ins.accel_bias_walk = n.accel_bias_walk.max(1e-6);

@@ -17,6 +17,8 @@ use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, Tdoa
 use crate::filters::scratch::Scratch;
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
 use crate::filters::{Filter, InertialCore, InertialFilter};
+use crate::models::altitude::Altitude;
+use crate::models::odometry::{BodyVelocity, NonHolonomic};
 use crate::models::range::{tag_position, Range};
 use crate::models::tdoa::Tdoa;
 use crate::models::{Geometry, Policies, ScalarModel, ScalarPrediction};
@@ -63,6 +65,8 @@ pub struct TightFilter {
     range_noise: Vec<SageHusa<1>>,
     divergence: DivergenceWatch,
     tdoa_watch: TdoaWatch,
+    /// The body axes odometry has measured so far (bit `a` for axis `a`).
+    odometry_axes: u8,
     /// Whether the watches run and re-acquire ([`Composition::reacquire`]).
     reacquire: bool,
     range_bias: Option<RangeBiasStates>,
@@ -278,6 +282,7 @@ impl TightFilter {
             range_noise,
             divergence: DivergenceWatch::default(),
             tdoa_watch: TdoaWatch::default(),
+            odometry_axes: 0,
             reacquire: composition.reacquire,
             range_bias,
         })
@@ -367,26 +372,84 @@ impl Filter for TightFilter {
         Ok(())
     }
 
-    /// Applies the TDoA `m` through the filter's own strategy and policy (χ² inflation for the robust
-    /// filters; an L1 robustness factor needs an epoch of ranges, so TDoA take `Cu = 1`, and the
-    /// adaptive per-anchor range noise is for ranges only), after the TDoA re-acquisition rule
-    /// ([`crate::filters::reacquire::TdoaWatch`]); other observations are refused. While the
-    /// platform is still, the heading is held ([`Constraints::hold_heading`]).
+    /// Applies an observation through the filter's own strategy and noise policy; other
+    /// observations than these are refused:
+    /// - a TDoA, with χ² inflation for the robust filters (an L1 robustness factor needs an epoch
+    ///   of ranges, so TDoA take `Cu = 1`, and the adaptive per-anchor range noise is for ranges
+    ///   only), after the TDoA re-acquisition rule ([`crate::filters::reacquire::TdoaWatch`]);
+    /// - an altitude ([`Altitude`]) and an odometry reading ([`BodyVelocity`]), with the robust
+    ///   filters' symmetric test. A reading of the body x axis brings the non-holonomic
+    ///   constraint ([`NonHolonomic`], `odometry.nonholonomic`) on the axes the odometry has not
+    ///   measured so far (the readings of one time come x first, so a stream that measures y and
+    ///   z is constrained on them at its first time only). An odometry reading counts as aiding for the outage guard
+    ///   ([`Constraints::note_aiding`]): with the velocity measured, a UWB outage is no reason to
+    ///   assume the platform stopped; an altitude does not (it leaves the horizontal free).
+    ///
+    /// While the platform is still, the heading is held ([`Constraints::hold_heading`]).
     fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
         match observation {
             Observation::Tdoa(m) => {
                 check_tdoa(&self.anchors, m)?;
-                self.core.advance_to(m.t_s)?;
-                self.constraints.note_aiding(m.t_s);
-                let hold = self.constraints.hold_heading(&self.core);
-                let report = self.apply_tdoa(m)?;
-                if let Some(hold) = hold {
-                    hold.restore(&mut self.core);
+                self.aided_update(m.t_s, true, |f| f.apply_tdoa(m))
+            }
+            Observation::Altitude(m) => {
+                check_value("update_altitude", m.z_m)?;
+                self.aided_update(m.t_s, false, |f| f.apply_model(Altitude { z_m: m.z_m }))
+            }
+            Observation::Odometry(m) => {
+                check_value("update_odometry", m.speed_mps)?;
+                if m.axis > 2 {
+                    return Err(Error::InvalidCall(format!("odometry axis {} is not a body axis (0–2)", m.axis)));
                 }
-                Ok(report)
+                self.odometry_axes |= 1 << m.axis;
+                self.aided_update(m.t_s, true, |f| {
+                    let report = f.apply_model(BodyVelocity { axis: m.axis, speed_mps: m.speed_mps })?;
+                    if m.axis == 0 && f.config.odometry.nonholonomic {
+                        let unmeasured = f.odometry_axes;
+                        for axis in (1..3).filter(|a| unmeasured & (1 << a) == 0) {
+                            f.apply_model(NonHolonomic { axis })?;
+                        }
+                    }
+                    Ok(report)
+                })
             }
             other => Err(not_taken(other)),
         }
+    }
+}
+
+impl TightFilter {
+    /// Advances the core to `t_s`, notes UWB-like aiding when `aiding` ([`Constraints::note_aiding`]),
+    /// and runs `update` with the heading held while the platform is still.
+    fn aided_update(
+        &mut self,
+        t_s: f64,
+        aiding: bool,
+        update: impl FnOnce(&mut Self) -> Result<UpdateReport>,
+    ) -> Result<UpdateReport> {
+        self.core.advance_to(t_s)?;
+        if aiding {
+            self.constraints.note_aiding(t_s);
+        }
+        let hold = self.constraints.hold_heading(&self.core);
+        let report = update(self)?;
+        if let Some(hold) = hold {
+            hold.restore(&mut self.core);
+        }
+        Ok(report)
+    }
+
+    /// Applies one scalar measurement `m` at the filter time with the strategy and the policy.
+    fn apply_model<M: ScalarModel>(&mut self, m: M) -> Result<UpdateReport> {
+        let at_prior = self.predict_at_prior(&m);
+        self.solve_one(m, at_prior)
+    }
+
+    /// [`TightFilter::solve`] of the one measurement `m`, predicted at the prior as `at_prior`.
+    fn solve_one<M: ScalarModel>(&mut self, m: M, at_prior: Option<PriorPrediction>) -> Result<UpdateReport> {
+        let mut report = [UpdateReport::skipped()];
+        self.solve(&[m], &[at_prior], &mut report, None, 1.0)?;
+        Ok(report[0])
     }
 }
 
@@ -462,9 +525,7 @@ impl TightFilter {
                 return Ok(UpdateReport::reacquired(innovation, nis));
             }
         }
-        let mut report = [UpdateReport::skipped()];
-        self.solve(&[tdoa], &at_prior, &mut report, None, 1.0)?;
-        Ok(report[0])
+        self.solve_one(tdoa, at_prior[0])
     }
 }
 
@@ -501,6 +562,7 @@ impl TightFilter {
     ) -> Result<()> {
         match self.strategy {
             Strategy::Iterated { max_iterations, tolerance } => {
+                let max_iterations = if M::RELINEARISE { max_iterations } else { 1 };
                 self.solve_iterated(measurements, at_prior, reports, factors, fading, max_iterations, tolerance)?;
             }
             Strategy::Unscented(weights) => self.solve_unscented(&weights, measurements, reports, factors, fading)?,
@@ -512,7 +574,8 @@ impl TightFilter {
     }
 
     /// The Kalman strategy (see [`TightFilter`]): Gauss–Newton iterations of sequential scalar
-    /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step. With
+    /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step (always,
+    /// for a model that is not re-linearised: [`ScalarModel::RELINEARISE`]). With
     /// range bias states, over the augmented error state ([`crate::filters::range_bias`]).
     #[allow(clippy::too_many_arguments)]
     fn solve_iterated<M: ScalarModel>(
@@ -691,6 +754,15 @@ fn measurement_variance<M: ScalarModel>(
     match m.policies() {
         Policies::Range { anchor } => (range_noise(estimators, anchor, residual, hph, step, nominal), nominal),
         Policies::Robust => (nominal, nominal),
+    }
+}
+
+/// Refuses a measured value that is not finite, naming the call.
+fn check_value(name: &'static str, value: f64) -> Result<()> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::NonFinite { name, row: 0, col: 1, value })
     }
 }
 

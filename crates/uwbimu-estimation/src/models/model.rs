@@ -91,6 +91,13 @@ pub trait ScalarModel: Copy + std::fmt::Debug {
     /// The error-state blocks `∂h/∂δx` may be non-zero in.
     const OBSERVES: &'static [Block];
 
+    /// Whether the iterated update strategy re-linearises it at each iterate (the default), or
+    /// applies it once, linearised at the prior. Re-linearising pays for a range, whose direction
+    /// the position fixes; a measurement that ties the attitude to a poorly observed velocity
+    /// direction (a speed along the body x axis alone) is pulled to a wrong heading by it
+    /// (docs/odometry.md has the figures).
+    const RELINEARISE: bool = true;
+
     /// The measured value.
     fn value(&self) -> f64;
 

@@ -446,7 +446,8 @@ fn take(
             initializer.tdoa(m);
             Ok(None)
         }
-        Event::Observation(Observation::Magnetometer(_)) => Ok(None),
+        // The initial fix is from UWB alone (the first range epoch's multilateration).
+        Event::Observation(Observation::Magnetometer(_) | Observation::Altitude(_) | Observation::Odometry(_)) => Ok(None),
     }
 }
 

@@ -160,6 +160,9 @@ section! {
         accel_range: f64 = 16.0 * 9.80665, positive;
         /// Largest plausible gyroscope reading per axis, rad/s (±2000 °/s full scale).
         gyro_range: f64 = 2000.0 * std::f64::consts::PI / 180.0, positive;
+        /// Largest plausible odometry reading, m/s (a speed beyond it is impossible for the
+        /// platform).
+        speed_range: f64 = 30.0, positive;
         /// Refuse IMU data whose unit the unit check is sure is wrong (accelerometer in g,
         /// gyroscope in deg/s: `uwbimu_estimation::units`) with an error that names the fix; off:
         /// warn and take the data as it is.
@@ -410,6 +413,32 @@ section! {
         cekf_window: usize = 5, |f, v| bounded_count(f, v, 1, MAX_CEKF_WINDOW);
         /// Density of the horizontal acceleration input error, m/s²/√Hz (Wang et al. 2018 eq. (6)).
         accel_density: f64 = 0.3, positive;
+    }
+}
+
+section! {
+    /// An altitude sensor (a time-of-flight height sensor, a barometer with its offset removed):
+    /// the height of the body origin, navigation frame, z up (`uwbimu_estimation::models::altitude`).
+    AltitudeConfig = "altitude" {
+        /// σ of one altitude reading, m.
+        std: f64 = 0.05, positive;
+    }
+}
+
+section! {
+    /// Wheel odometry: the velocity of the body origin along body axes
+    /// (`uwbimu_estimation::models::odometry`).
+    OdometryConfig = "odometry" {
+        /// σ of one reading of the velocity along one body axis, m/s.
+        std: f64 = 0.05, positive;
+        /// With each reading, hold the body axes the odometry has not measured (y and z, for a
+        /// wheel speed along x) at zero velocity: the non-holonomic constraint of a wheeled
+        /// vehicle, which cannot slip sideways or leave the floor. Without it a speed alone
+        /// lets the filter read its heading from its own estimated sideslip (docs/odometry.md).
+        nonholonomic: bool = true, flag;
+        /// σ of the non-holonomic constraint per axis, m/s (it covers the sideways velocity of an
+        /// IMU mounted off the rear axle in a turn, and wheel slip).
+        nonholonomic_std: f64 = 0.1, positive;
     }
 }
 

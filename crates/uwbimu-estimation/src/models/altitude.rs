@@ -1,0 +1,37 @@
+//! An altitude reading (ours; none of the five papers fuses one): the height of the body origin in
+//! the navigation frame, from a time-of-flight height sensor over a flat floor or a barometer
+//! whose offset to the frame is removed.
+
+use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::state::{ErrVec, NominalState, POS};
+
+use crate::models::{Block, Geometry, ScalarModel, ScalarPrediction};
+
+/// `h(x) = p_z`, Jacobian `e_zᵀ` on δp, noise `altitude.std`, the filter's symmetric robust test.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Altitude {
+    /// Measured height, navigation frame, m.
+    pub z_m: f64,
+}
+
+impl ScalarModel for Altitude {
+    const OBSERVES: &'static [Block] = &[Block::Position];
+
+    fn value(&self) -> f64 {
+        self.z_m
+    }
+
+    fn predict(&self, x: &NominalState, _: &Geometry<'_>) -> Option<ScalarPrediction> {
+        let mut jacobian = ErrVec::zeros();
+        jacobian[POS + 2] = 1.0;
+        Some(ScalarPrediction { value: x.position.z, jacobian })
+    }
+
+    fn nominal_var(&self, config: &FilterConfig) -> f64 {
+        config.altitude.std.powi(2)
+    }
+
+    fn examples() -> Vec<Self> {
+        vec![Self { z_m: 1.2 }]
+    }
+}
