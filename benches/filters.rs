@@ -73,7 +73,7 @@ fn bench_filter<F: Estimator>(c: &mut Criterion, name: &str, build: Build<F>) {
     let staggered: Vec<RangeMeasurement> = epoch
         .iter()
         .enumerate()
-        .map(|(k, &(anchor, range_m))| RangeMeasurement { t_s: 0.001 * (k + 1) as f64, anchor, range_m })
+        .map(|(k, &(anchor, range_m))| RangeMeasurement { t_s: 0.001 * (k + 1) as f64, anchor, range_m, tag: 0 })
         .collect();
     group.bench_function("stream_epoch_4", |b| {
         b.iter_batched_ref(

@@ -36,7 +36,7 @@ fn recording() -> Vec<u8> {
             let t = (k / 4) as f64 * 0.16 + 0.005;
             let p = Vec3::new(4.0 + 1.5 * (w * t).cos(), 3.0 + 1.5 * (w * t).sin(), 1.0);
             let anchor = k % anchors.len();
-            RangeMeasurement { t_s: 100.0 + t, anchor, range_m: (p - anchors[anchor]).norm() }
+            RangeMeasurement { t_s: 100.0 + t, anchor, range_m: (p - anchors[anchor]).norm(), tag: 0 }
         })
         .collect();
     let mut buf = Cursor::new(Vec::new());

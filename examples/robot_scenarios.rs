@@ -48,7 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         Ok(BatchOutput::Inertial { trace, .. }) => trace
                             .steps
                             .iter()
-                            .map(|r| (r.t_s, r.state.position + r.state.orientation * s.config.mounting.lever_arm))
+                            .map(|r| (r.t_s, r.state.position + r.state.orientation * s.config.mounting.lever_arm.first()))
                             .unzip(),
                         Ok(BatchOutput::Multilateration(fixes)) => fixes.iter().map(|(t, f)| (*t, f.position)).unzip(),
                         Err(e) => {

@@ -23,12 +23,12 @@
 //! use uwbimu_rs::estimation::filters::Ekf;
 //! use uwbimu_rs::estimation::init::initialize;
 //! use uwbimu_rs::estimation::pipeline::run;
-//! use uwbimu_rs::vocabulary::config::FilterConfig;
+//! use uwbimu_rs::vocabulary::config::{FilterConfig, LeverArms};
 //! use uwbimu_rs::vocabulary::math::Vec3;
 //!
 //! let data = simulate(&preset("hall_vehicle", 1)?)?;
 //! let mut config = FilterConfig::default();
-//! config.mounting.lever_arm = Vec3::new(0.0, 0.0, 0.05);
+//! config.mounting.lever_arm = LeverArms::one(Vec3::new(0.0, 0.0, 0.05));
 //! let init = initialize(&data.imu, &data.ranges, &data.anchors, &config)?;
 //! let mut ekf = Ekf::new(data.anchors.clone(), &init.initial, config)?;
 //! let trace = run(&mut ekf, &data.imu, &data.ranges)?;

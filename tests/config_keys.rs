@@ -44,6 +44,8 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("smoothing.outlier_passes", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
     ("smoothing.outlier_sigmas", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
     ("altitude.std", "the rig has no altitude sensor (tests/sensors.rs holds its effect)"),
+    ("altitude.offset_std", "the rig has no altitude sensor (tests/sensors.rs holds the offset state)"),
+    ("altitude.offset_walk", "the rig has no altitude sensor (tests/sensors.rs holds the offset state)"),
     ("odometry.std", "the rig has no odometry (tests/sensors.rs holds its effect)"),
     ("odometry.nonholonomic", "the rig has no odometry (tests/consistency.rs holds its effect)"),
     ("odometry.nonholonomic_std", "the rig has no odometry (tests/consistency.rs holds its effect)"),

@@ -292,3 +292,8 @@ fn consistent_with_an_altitude_over_coplanar_anchors() {
 fn consistent_with_odometry_through_a_uwb_outage() {
     check_scenario("outage_odometry");
 }
+
+#[test]
+fn consistent_with_two_tags_while_the_heading_converges() {
+    check_scenario("two_tags");
+}

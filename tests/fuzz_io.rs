@@ -38,7 +38,7 @@ fn valid_file() -> &'static [u8] {
             .map(|k| ImuSample { t_s: 1.0 + k as f64 * 0.01, accel: Vec3::new(0.0, 0.0, 9.81), gyro: Vec3::zeros() })
             .collect();
         let ranges: Vec<RangeMeasurement> =
-            (0..12).map(|k| RangeMeasurement { t_s: 1.0 + k as f64 * 0.03, anchor: k % 3, range_m: 2.0 }).collect();
+            (0..12).map(|k| RangeMeasurement { t_s: 1.0 + k as f64 * 0.03, anchor: k % 3, range_m: 2.0, tag: 0 }).collect();
         let anchors = [Vec3::zeros(), Vec3::x() * 4.0, Vec3::y() * 4.0];
         let mut buf = Cursor::new(Vec::new());
         let streams = RecordingStreams { imu: &imu, ranges: &ranges, tdoa: &[], anchors: &anchors };

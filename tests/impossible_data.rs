@@ -42,7 +42,7 @@ fn run(method: Method, s: &Scenario, data: &SimData, ranges: &[RangeMeasurement]
 
 /// Horizontal RMSE of the tag after `settle_s` from the start.
 fn rmse(trace: &Trace, s: &Scenario, data: &SimData, settle_s: f64) -> f64 {
-    let lever = s.config.mounting.lever_arm;
+    let lever = *s.config.mounting.lever_arm.first();
     let t0 = data.imu[0].t_s + settle_s;
     let e: Vec<f64> = trace
         .steps

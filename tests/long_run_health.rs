@@ -99,7 +99,7 @@ fn epoch(t_s: f64, rng: &mut ChaCha8Rng, out: &mut Vec<RangeMeasurement>) {
         } else if u < 0.001 {
             r = 1e9;
         }
-        out.push(RangeMeasurement { t_s: t, anchor: j, range_m: r });
+        out.push(RangeMeasurement { t_s: t, anchor: j, range_m: r, tag: 0 });
     }
 }
 

@@ -6,7 +6,7 @@ mod common;
 use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
 use uwbimu_rs::app::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
 use uwbimu_rs::app::sim;
-use uwbimu_rs::vocabulary::config::FilterConfig;
+use uwbimu_rs::vocabulary::config::{FilterConfig, LeverArms};
 use uwbimu_rs::vocabulary::math::Vec3;
 
 /// UWB stamps lag the true measurement time by this much (τ = −LAG).
@@ -29,7 +29,7 @@ fn time_offset_lever_arm_and_biases_come_back() {
         let tag: Vec<(f64, Vec3)> = data.truth.iter().map(|t| (t.t_s, t.position + t.orientation * lever)).collect();
         // The user knows nothing: defaults, lever arm and offset zero, self-initialised.
         let mut base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
-        base.mounting.lever_arm = Vec3::zeros();
+        base.mounting.lever_arm = LeverArms::default();
         let input = common::batch(&data, None, &base);
         let with = calibrate_offsets_with_truth(&input, &tag).expect("with truth");
         let without = calibrate_offsets_without_truth(&input, Method::Riekf, 20).expect("without truth");

@@ -1,4 +1,4 @@
-//! Range bias states ([`uwbimu_rs::estimation::filters::range_bias`]) and noise tuning ([`uwbimu_rs::app::tune`]) on
+//! Range bias states ([`uwbimu_rs::estimation::filters::bias_states`]) and noise tuning ([`uwbimu_rs::app::tune`]) on
 //! simulated runs whose truth is known; and `best` smooths by default.
 
 mod common;
@@ -57,7 +57,7 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
             let mut last = [f64::NAN; 5];
             let mut last_std = [f64::NAN; 5];
             for u in &trace.updates {
-                if let Some((bias, std)) = u.report.range_bias {
+                if let Some((bias, std)) = u.report.bias {
                     let a = u.range_anchor().expect("bias reports are ranges'");
                     (last[a], last_std[a]) = (bias, std);
                 }
@@ -72,8 +72,8 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
         }
         // The consider scheme keeps the biases at zero and only widens the gain.
         let BatchOutput::Inertial { trace, .. } = &consider else { unreachable!() };
-        assert!(trace.updates.iter().filter_map(|u| u.report.range_bias).all(|(bias, _)| bias == 0.0));
-        assert!(trace.updates.iter().any(|u| u.report.range_bias.is_some()));
+        assert!(trace.updates.iter().filter_map(|u| u.report.bias).all(|(bias, _)| bias == 0.0));
+        assert!(trace.updates.iter().any(|u| u.report.bias.is_some()));
     }
 }
 

@@ -115,7 +115,7 @@ fn calibration_errors() {
     assert!(matches!(fit_cubic(&[1.0, 2.0], &[1.0]), Err(Error::Shape { .. })));
     assert!(matches!(fit_cubic(&[1.0, f64::NAN, 2.0, 3.0], &[1.0; 4]), Err(Error::NonFinite { row: 1, .. })));
     let cal = RangeCalibration::new([(5, [0.0, 1.0, 0.0, 0.0])].into_iter().collect()).expect("finite");
-    let ranges = [RangeMeasurement { t_s: 0.0, anchor: 0, range_m: 1.0 }];
+    let ranges = [RangeMeasurement { t_s: 0.0, anchor: 0, range_m: 1.0, tag: 0 }];
     assert!(matches!(cal.apply(&ranges, 4), Err(Error::InvalidConfig { field, .. }) if field == "range_calibration[5]"));
     let negative = RangeCalibration::new([(0, [-2.0, 1.0, 0.0, 0.0])].into_iter().collect()).expect("finite");
     assert!(matches!(negative.apply(&ranges, 4), Err(Error::InvalidValue { .. })));

@@ -4,7 +4,7 @@
 //! and one epoch of their ranges with anchor 2's about 1 m long (an NLOS-like outlier).
 #![allow(dead_code)] // each includer uses part of it
 
-use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState, LeverArms};
 use uwbimu_rs::vocabulary::math::Vec3;
 
 /// Anchor positions, m.
@@ -20,7 +20,7 @@ pub fn initial() -> InitialState {
 /// The defaults with a 5 cm lever arm along z.
 pub fn config() -> FilterConfig {
     let mut c = FilterConfig::default();
-    c.mounting.lever_arm = Vec3::new(0.0, 0.0, 0.05);
+    c.mounting.lever_arm = LeverArms::one(Vec3::new(0.0, 0.0, 0.05));
     c
 }
 

@@ -136,8 +136,9 @@ def run_filter(
         ``"best"`` is the recommended method for real logs.
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
-    ranges : array (M, 3)
-        t [s] (non-decreasing), anchor index (row of ``anchors``), range [m].
+    ranges : array (M, 3) or (M, 4)
+        t [s] (non-decreasing), anchor index (row of ``anchors``), range [m], and with several
+        tags the tag (its lever arm the row ``tag`` of ``mounting.lever_arm``; docs/tags.md).
     anchors : array (K, 3)
         Anchor positions in the navigation frame [m].
     initial : dict, optional
@@ -181,13 +182,15 @@ def run_filter(
         the smoothing pass) while the run goes on.
     updates : bool
         Also return a DataFrame with one row per update, of a range or of another sensor
-        (t, epoch_t, sensor, anchor, anchor_j, axis, value, innovation, nis, accepted, weight,
+        (t, epoch_t, sensor, anchor, anchor_j, tag, axis, value, innovation, nis, accepted, weight,
         inflation, down_weighted, iterations, prior_fading, reacquired, bias, bias_std):
         ``sensor`` is ``"range"`` or a name of :data:`SENSORS` (a polars Enum); ``value`` the
         range, TDoA d_ij, altitude [m] or speed [m/s] (a magnetometer sample's field norm);
-        ``anchor`` a range's anchor or a TDoA's i, ``anchor_j`` a TDoA's j, ``axis`` an odometry
-        reading's body axis, each −1 where it does not apply; ``bias``, ``bias_std``: the
-        anchor's range bias estimate after the update with ``range_bias.states`` (NaN without).
+        ``anchor`` a range's anchor or a TDoA's i, ``anchor_j`` a TDoA's j, ``tag`` a range's
+        tag, ``axis`` an odometry reading's body axis, each −1 where it does not apply;
+        ``bias``, ``bias_std``: the estimated additive bias after the update (a range's anchor
+        total with ``range_bias.states``, an altitude's offset with ``altitude.offset_std``; NaN
+        without).
         Ranges within the epoch window (``epoch_window_s``) form one epoch, updated jointly.
     info : bool
         Also return what the run counted and chose, as a dict (last in the tuple):
@@ -304,7 +307,7 @@ def _updates_frame(columns: Mapping[str, np.ndarray]) -> pl.DataFrame:
     sensor = pl.Enum(_SENSOR_NAMES)
     return pl.DataFrame(columns).with_columns(
         pl.col("sensor").cast(pl.UInt32).replace_strict(dict(enumerate(_SENSOR_NAMES)), return_dtype=sensor),
-        pl.col("anchor", "anchor_j", "axis", "iterations").cast(pl.Int64),
+        pl.col("anchor", "anchor_j", "tag", "axis", "iterations").cast(pl.Int64),
         pl.col("accepted", "down_weighted").cast(pl.Boolean),
     )
 

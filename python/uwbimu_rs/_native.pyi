@@ -131,7 +131,7 @@ _MethodName = Literal[
 class _MethodRow(TypedDict):
     """What the registry says of one method."""
 
-    takes: list[Literal["ranges", "tdoa", "magnetometer", "altitude", "odometry"]]
+    takes: list[Literal["ranges", "tags", "tdoa", "magnetometer", "altitude", "odometry"]]
     """The measurements it takes besides IMU samples."""
     smoothing: Literal["never", "on_request", "by_default"]
     """Whether and when :func:`run_filter` RTS-smooths its run."""
@@ -233,6 +233,10 @@ class UpdateReport:
     @property
     def anchor_j(self) -> int | None:
         """A TDoA's anchor j; None for the others."""
+
+    @property
+    def tag(self) -> int | None:
+        """A range's tag (0 on a one-tag rig); None for the other sensors."""
 
     @property
     def axis(self) -> int | None:
@@ -392,11 +396,13 @@ class _StreamingFilter:
             with ``strict=True`` a time older than the window allows.
         """
 
-    def add_range(self, t: float, anchor: int, range: float) -> list[UpdateReport]:
+    def add_range(self, t: float, anchor: int, range: float, tag: int | None = None) -> list[UpdateReport]:
         """Take one UWB range: the one way to give a range. It joins an epoch by the batch API's
-        epoch rule: ranges within ``epoch_window_s`` of the epoch's first range, one per anchor,
-        are applied jointly once the epoch closes (every anchor in it, a range that does not fit,
-        or an IMU sample past the window), aligned to the epoch's reference time.
+        epoch rule: ranges of one tag within ``epoch_window_s`` of the epoch's first range, one
+        per anchor, are applied jointly once the epoch closes (every anchor in it, a range that
+        does not fit, or an IMU sample past the window), aligned to the epoch's reference time.
+        ``tag`` is the tag the range came from (None: tag 0), its lever arm row ``tag`` of
+        ``mounting.lever_arm`` (ValueError for a tag the configuration does not give).
 
         Returns
         -------

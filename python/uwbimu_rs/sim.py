@@ -100,8 +100,10 @@ class SimResult:
     ----------
     imu : numpy.ndarray, shape (N, 7), float64
         ``t`` (s), ``ax, ay, az`` (specific force, IMU frame, m/s²), ``gx, gy, gz`` (rad/s).
-    ranges : numpy.ndarray, shape (M, 3), float64
-        ``t`` (s), anchor index (as float), range (m); time-ordered.
+    ranges : numpy.ndarray, shape (M, 3) or (M, 4), float64
+        ``t`` (s), anchor index (as float), range (m); time-ordered; with a second tag
+        (``tag_separation_m=0.6``: tag 1 that far ahead of tag 0 along body x) a fourth column,
+        the tag, and ``config["mounting"]["lever_arm"]`` gives both lever arms.
     range_labels : numpy.ndarray, shape (M,), uint8
         0 = line of sight, 1 = inside an NLOS shielding window, 2 = gross outlier.
     anchors : numpy.ndarray, shape (K, 3), float64

@@ -91,8 +91,9 @@ pub fn array<'py>(obj: &Bound<'py, PyAny>, name: &'static str) -> PyResult<PyRea
     Ok(converted.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?)
 }
 
-/// Converts a Python bool, number or sequence into a [`ConfigValue`]; the error is why it is
-/// not one, naming the value given (the caller names the key).
+/// Converts a Python bool, number or sequence into a [`ConfigValue`] (a sequence of equal-length
+/// rows, such as one lever arm per tag, read row after row); the error is why it is not one,
+/// naming the value given (the caller names the key).
 pub fn config_value(obj: &Bound<'_, PyAny>) -> Result<ConfigValue, String> {
     if let Ok(b) = obj.cast::<PyBool>() {
         return Ok(ConfigValue::Flag(b.is_true()));
@@ -104,6 +105,11 @@ pub fn config_value(obj: &Bound<'_, PyAny>) -> Result<ConfigValue, String> {
     if !obj.is_instance_of::<PyString>() {
         if let Ok(xs) = obj.extract::<Vec<f64>>() {
             return Ok(ConfigValue::Vector(xs));
+        }
+        if let Ok(rows) = obj.extract::<Vec<Vec<f64>>>() {
+            if rows.windows(2).all(|w| w[0].len() == w[1].len()) {
+                return Ok(ConfigValue::Vector(rows.concat()));
+            }
         }
     }
     Err(format!("expected a number, True/False or a sequence of numbers, got {} {}", type_name(obj), short_repr(obj)))

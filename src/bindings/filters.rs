@@ -1,7 +1,7 @@
 //! Python classes and functions for the filters: `FilterConfig`, `Ekf` (streaming),
 //! `UpdateReport`, the batch `run_filter` and `initialize`.
 
-use numpy::{IntoPyArray, PyArray2};
+use numpy::{IntoPyArray, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
@@ -13,7 +13,7 @@ use uwbimu_estimation::pipeline::{
     self_initialize, smoothed_nodes, Estimator, Event, Health, Stream, StreamOptions, Streams, UpdateRecord,
 };
 use uwbimu_vocabulary::config::RangeCalibration;
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState, MAX_TAGS};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_to_wxyz, Vec3};
 use uwbimu_vocabulary::records::{AltitudeSample, ImuSample, MagSample, OdometrySample, RangeMeasurement, TdoaMeasurement};
@@ -27,7 +27,7 @@ use super::interruptible::run_interruptible;
 use super::repr;
 
 const IMU_LAYOUT: &str = "(N, 7) = t, ax, ay, az, gx, gy, gz";
-const RANGES_LAYOUT: &str = "(M, 3) = t, anchor index, range";
+const RANGES_LAYOUT: &str = "(M, 3) = t, anchor index, range, or (M, 4) = t, anchor index, range, tag";
 const ANCHORS_LAYOUT: &str = "(K, 3) = x, y, z";
 
 /// Filter configuration (see `FilterConfig.keys()`); built from keyword arguments.
@@ -262,7 +262,11 @@ pub(super) struct Inputs {
 pub(super) fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
     let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
     let imu = validate::imu(&table::<7>(&array(imu, "imu")?, "imu", IMU_LAYOUT)?)?;
-    let ranges = validate::ranges(&table::<3>(&array(ranges, "ranges")?, "ranges", RANGES_LAYOUT)?, anchors.len())?;
+    let ranges = array(ranges, "ranges")?;
+    let ranges = match ranges.shape() {
+        [_, 4] => validate::tagged_ranges(&table::<4>(&ranges, "ranges", RANGES_LAYOUT)?, anchors.len(), MAX_TAGS)?,
+        _ => validate::ranges(&table::<3>(&ranges, "ranges", RANGES_LAYOUT)?, anchors.len())?,
+    };
     Ok(Inputs { imu, ranges, anchors })
 }
 
@@ -279,6 +283,8 @@ pub struct PyUpdateReport {
     anchor: Option<usize>,
     /// A TDoA's anchor j; None for the others.
     anchor_j: Option<usize>,
+    /// A range's tag; None for the other sensors.
+    tag: Option<usize>,
     /// An odometry reading's body axis; None for the others.
     axis: Option<usize>,
     /// The value as measured: the range, d_ij, altitude (m) or speed (m/s).
@@ -317,6 +323,7 @@ impl From<UpdateRecord> for PyUpdateReport {
             sensor: u.measured.sensor(),
             anchor: u.measured.anchors()[0],
             anchor_j: u.measured.anchors()[1],
+            tag: u.measured.tag(),
             axis: u.measured.axis(),
             value: u.measured.value(),
             innovation: r.innovation,
@@ -328,8 +335,8 @@ impl From<UpdateRecord> for PyUpdateReport {
             iterations: r.iterations,
             prior_fading: r.prior_fading,
             reacquired: r.reacquired,
-            bias: r.range_bias.map_or(f64::NAN, |b| b.0),
-            bias_std: r.range_bias.map_or(f64::NAN, |b| b.1),
+            bias: r.bias.map_or(f64::NAN, |b| b.0),
+            bias_std: r.bias.map_or(f64::NAN, |b| b.1),
         }
     }
 }
@@ -414,6 +421,17 @@ fn anchor_arg(call: &'static str, arg: &str, anchor: f64, count: usize) -> PyRes
         Err(_) => format!("is not an anchor index (there are {count} anchors: 0..{last})"),
     };
     Err(Error::BadArgument { call, arg: format!("{arg}={anchor}"), reason }.into())
+}
+
+/// The tag argument `tag` of `call`: a whole number below `count`, the tags the filter's
+/// `mounting.lever_arm` gives.
+fn tag_arg(call: &'static str, tag: f64, count: usize) -> PyResult<usize> {
+    if tag.fract() == 0.0 && tag >= 0.0 && tag < count as f64 {
+        return Ok(tag as usize);
+    }
+    let reason =
+        format!("is not a tag of this filter: mounting.lever_arm gives {count} tag(s) (one [x, y, z] per tag, tag 0 first)");
+    Err(Error::BadArgument { call, arg: format!("tag={tag}"), reason }.into())
 }
 
 /// Initial room for recorded segments of a streaming filter (it grows as needed).
@@ -523,13 +541,16 @@ macro_rules! py_filter {
                 self.push(py, CALL, Event::Imu(ImuSample { t_s: t, accel, gyro }))
             }
 
-            /// Takes a range (m) to anchor index `anchor` measured at `t` (s): it joins a range
-            /// epoch by the epoch rule of the batch API. Returns the reports of the updates this
-            /// call applied (an epoch it closed, if any).
-            fn add_range(&mut self, py: Python<'_>, t: f64, anchor: f64, range: f64) -> PyResult<Vec<PyUpdateReport>> {
+            /// Takes a range (m) from tag `tag` (None: tag 0; its lever arm the row `tag` of
+            /// `mounting.lever_arm`) to anchor index `anchor` measured at `t` (s): it joins a
+            /// range epoch of that tag by the epoch rule of the batch API. Returns the reports of
+            /// the updates this call applied (an epoch it closed, if any).
+            #[pyo3(signature = (t, anchor, range, tag=None))]
+            fn add_range(&mut self, py: Python<'_>, t: f64, anchor: f64, range: f64, tag: Option<f64>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_range";
                 let anchor = anchor_arg(CALL, "anchor", anchor, self.anchor_count())?;
-                let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)? };
+                let tag = tag_arg(CALL, tag.unwrap_or(0.0), self.0.tag_count())?;
+                let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)?, tag };
                 self.push(py, CALL, Event::Range(r))
             }
 

@@ -206,8 +206,14 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
     let imu: Vec<f64> =
         data.imu.iter().flat_map(|s| [s.t_s, s.accel.x, s.accel.y, s.accel.z, s.gyro.x, s.gyro.y, s.gyro.z]).collect();
     d.set_item("imu", imu.into_pyarray(py).reshape([data.imu.len(), 7])?)?;
-    let ranges: Vec<f64> = data.ranges.iter().flat_map(|r| [r.t_s, r.anchor as f64, r.range_m]).collect();
-    d.set_item("ranges", ranges.into_pyarray(py).reshape([data.ranges.len(), 3])?)?;
+    // `(M, 3)`, or `(M, 4)` with the tag column when the rig has several tags.
+    let tagged = data.ranges.iter().any(|r| r.tag != 0);
+    let ranges: Vec<f64> = data
+        .ranges
+        .iter()
+        .flat_map(|r| [r.t_s, r.anchor as f64, r.range_m, r.tag as f64].into_iter().take(if tagged { 4 } else { 3 }))
+        .collect();
+    d.set_item("ranges", ranges.into_pyarray(py).reshape([data.ranges.len(), if tagged { 4 } else { 3 }])?)?;
     d.set_item("range_labels", data.range_labels.clone().into_pyarray(py))?;
     d.set_item("anchors", vec3_rows(py, &data.anchors)?)?;
     let truth = &data.truth;
@@ -245,7 +251,7 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
 }
 
 /// Simulates a named preset with optional overrides (a dict and/or keyword arguments); returns a
-/// dict of arrays (imu (N,7), ranges (M,3), range_labels (M,), anchors (K,3), truth columns,
+/// dict of arrays (imu (N,7), ranges (M,3) or (M,4) with several tags, range_labels (M,), anchors (K,3), truth columns,
 /// mag (N,4) or None, tdoa (M,4) = t, i, j, d_ij or None, tdoa_labels (M,), altitude (M,2) = t, z
 /// or None, altitude_offsets (M,), odometry (M,2) = t, speed or (M,4) = t, vx, vy, vz or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
 /// accel_outlier_times (P,) s).
@@ -265,8 +271,8 @@ fn sim_preset<'py>(
 
 /// Simulates a scenario of the zoo (`sim::zoo`) with optional overrides (as `sim_preset`); returns
 /// the dict of `sim_preset` with the scenario's filter configuration (its `tdoa_std` and its
-/// `altitude` and `odometry` sections matched to the overridden sensors) and `default_sensors` (whether its sensors are those the library
-/// defaults describe).
+/// `altitude` and `odometry` sections and its tags' lever arms matched to the overridden sensors)
+/// and `default_sensors` (whether its sensors are those the library defaults describe).
 #[pyfunction]
 #[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]
 fn sim_zoo<'py>(
@@ -281,6 +287,7 @@ fn sim_zoo<'py>(
     let matched = sim::matched_config(&scenario.sim);
     scenario.config.ranging.tdoa_std = matched.ranging.tdoa_std;
     (scenario.config.altitude, scenario.config.odometry) = (matched.altitude, matched.odometry);
+    scenario.config.mounting.lever_arm = sim::lever_arms_seen(&scenario.sim, &scenario.config.mounting.imu_rotation);
     let d = run(py, scenario.sim, Some(scenario.config))?;
     d.set_item("default_sensors", scenario.default_sensors)?;
     Ok(d)

@@ -50,7 +50,7 @@ pub fn config_for(sim: &SimConfig) -> FilterConfig {
     c.ins.gyro_noise_density = n.gyro_noise_density.max(1e-5);
     c.ins.accel_bias_walk = n.accel_bias_walk.max(1e-6);
     c.ins.gyro_bias_walk = n.gyro_bias_walk.max(1e-7);
-    c.mounting.lever_arm = sim.lever_arm_m;
+    c.mounting.lever_arm = sim.lever_arms();
     c.mounting.imu_rotation = sim.imu_rotation;
     c.ins.gravity = sim.gravity_nav_mps2;
     (c.init.accel_bias_std, c.ins.accel_bias_markov_std) = (n.accel_bias_std.max(1e-3), n.accel_bias_std.max(1e-3));

@@ -72,7 +72,7 @@ def test_simulator_names_suggest_the_closest():
         ({"ranging": {"range_std": "0.2"}}, r"config `ranging.range_std`: .* got str '0.2'"),
         ({"ranging.range_std": -0.1}, r"config `ranging.range_std`: must be finite and > 0, got -0.1"),
         ({"constraints.zupt": 1.0}, r"config `constraints.zupt`: expected True or False, got 1"),
-        ({"mounting.lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers, got 2: \[0.0, 0.1\]"),
+        ({"mounting.lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers per tag \(\[x, y, z\], tag 0 first, up to 4 tags\), got 2: \[0.0, 0.1\]"),
         ({"range_calibration": {0: [0, 1, 0]}}, r"config `range_calibration\[0\]`: expected 4 coefficients"),
         ({"range_calibration": {9: [0, 1, 0, 0]}}, r"config `range_calibration\[9\]`: there is no anchor 9 \(there are 4 anchors: 0..3\)"),
         ({"range_calibration": {0: [0, float("nan"), 0, 0]}}, r"config `range_calibration\[0\]`: coefficients must be finite"),

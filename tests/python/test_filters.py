@@ -158,7 +158,7 @@ def test_unknown_config_key_lists_allowed(small):
     ("config", "pattern"),
     [
         ({"ranging.range_std": -0.1}, r"config `ranging.range_std`: must be finite and > 0"),
-        ({"mounting.lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers, got 2"),
+        ({"mounting.lever_arm": [0.0, 0.1]}, r"config `mounting.lever_arm`: expected 3 numbers per tag"),
         ({"mounting.imu_rotation": [0, 0, 0, 0]}, r"config `mounting.imu_rotation`: quaternion"),
         ({"ranging.range_std": "big"}, r"`ranging.range_std`: expected a number"),
         ({"ins.gravity": float("nan")}, r"config `ins.gravity`: must be finite"),

@@ -128,9 +128,9 @@ fn track_residuals<'a>(
     input: &'a BatchInput<'_>,
     config: &'a FilterConfig,
 ) -> impl Iterator<Item = (usize, f64)> + 'a {
-    let lever_arm = config.mounting.lever_arm;
+    let lever_arms = config.mounting.lever_arm;
     input.ranges.iter().filter_map(move |r| {
-        let tag = tag_at(steps, r.t_s, &lever_arm)?;
+        let tag = tag_at(steps, r.t_s, lever_arms.of(r.tag))?;
         let corrected = config.range_calibration.correct(r.anchor, r.range_m);
         Some((r.anchor, corrected - (tag - input.anchors[r.anchor]).norm()))
     })

@@ -71,14 +71,15 @@ pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
     cols
 }
 
-/// One row per update, range or observation: `t, epoch_t, sensor, anchor, anchor_j, axis, value,
-/// innovation, nis, accepted, weight, inflation, down_weighted, iterations, prior_fading,
+/// One row per update, range or observation: `t, epoch_t, sensor, anchor, anchor_j, tag, axis,
+/// value, innovation, nis, accepted, weight, inflation, down_weighted, iterations, prior_fading,
 /// reacquired, bias, bias_std` (`epoch_t`: when its epoch was applied; `sensor`: the code of
 /// `uwbimu_estimation::pipeline::Measured::sensor_code`, 0 for a range; `anchor`: a range's anchor
-/// or a TDoA's i, −1 for none; `anchor_j`: a TDoA's anchor j, else −1; `axis`: an odometry
-/// reading's body axis, else −1; `value`: the range, `d_ij`, altitude or speed (a magnetometer
-/// sample's field norm); `reacquired`: applied as its UWB-only fix; `bias`, `bias_std`: the
-/// anchor's estimated range bias after the update with `range_bias.states`, else NaN).
+/// or a TDoA's i, −1 for none; `anchor_j`: a TDoA's anchor j, else −1; `tag`: a range's tag, else
+/// −1; `axis`: an odometry reading's body axis, else −1; `value`: the range, `d_ij`, altitude or
+/// speed (a magnetometer sample's field norm); `reacquired`: applied as its UWB-only fix; `bias`,
+/// `bias_std`: the estimated additive bias after the update — a range's anchor total with
+/// `range_bias.states`, an altitude's offset with `altitude.offset_std` — else NaN).
 pub fn update_columns(trace: &Trace) -> Columns {
     let u = &trace.updates;
     let index = |i: Option<usize>| i.map_or(-1.0, |i| i as f64);
@@ -88,6 +89,7 @@ pub fn update_columns(trace: &Trace) -> Columns {
         ("sensor", u.iter().map(|r| r.measured.sensor_code() as f64).collect()),
         ("anchor", u.iter().map(|r| index(r.measured.anchors()[0])).collect()),
         ("anchor_j", u.iter().map(|r| index(r.measured.anchors()[1])).collect()),
+        ("tag", u.iter().map(|r| index(r.measured.tag())).collect()),
         ("axis", u.iter().map(|r| index(r.measured.axis())).collect()),
         ("value", u.iter().map(|r| r.measured.value()).collect()),
         ("innovation", u.iter().map(|r| r.report.innovation).collect()),
@@ -99,8 +101,8 @@ pub fn update_columns(trace: &Trace) -> Columns {
         ("iterations", u.iter().map(|r| f64::from(r.report.iterations)).collect()),
         ("prior_fading", u.iter().map(|r| r.report.prior_fading).collect()),
         ("reacquired", u.iter().map(|r| f64::from(u8::from(r.report.reacquired))).collect()),
-        ("bias", u.iter().map(|r| r.report.range_bias.map_or(f64::NAN, |b| b.0)).collect()),
-        ("bias_std", u.iter().map(|r| r.report.range_bias.map_or(f64::NAN, |b| b.1)).collect()),
+        ("bias", u.iter().map(|r| r.report.bias.map_or(f64::NAN, |b| b.0)).collect()),
+        ("bias_std", u.iter().map(|r| r.report.bias.map_or(f64::NAN, |b| b.1)).collect()),
     ]
 }
 

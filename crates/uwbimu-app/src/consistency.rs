@@ -20,9 +20,10 @@
 //! | `heading_uncertain` | as `moving_start`, heading σ 0.2 rad | as `moving_start` | as `moving_start` | the linearisation while a poorly known heading converges |
 //! | `coplanar_altitude` | as `moving_start` | consumer | 5 Hz, the four anchors coplanar at 2.2 m; a 25 Hz altitude, σ 0.05 m | the altitude model where the ranges barely fix the height |
 //! | `outage_odometry` | as `moving_start` | consumer | 5 Hz, out from 10 s to 30 s; a 50 Hz wheel speed (body x), σ 0.05 m/s | the odometry model carrying a 20 s outage |
+//! | `two_tags` | as `moving_start`, heading σ 0.2 rad | consumer | 5 Hz from two tags 0.6 m apart along body x, taking turns | the heading made observable by the tags' geometry |
 //!
-//! The last two carry a sensor besides UWB ([`scenario_sensors`]); a method is run on them only
-//! when it takes that sensor.
+//! The last three carry an input besides the IMU and one tag's ranges ([`scenario_inputs`]); a
+//! method is run on them only when it takes that input.
 //!
 //! **A run** is the first [`LOG_S`] of the scenario's log. The filter is given the truth at the
 //! first IMU sample plus an error drawn from the initial covariance it is told
@@ -68,25 +69,30 @@ pub const SCENARIOS: &[&str] = &[
     "heading_uncertain",
     "coplanar_altitude",
     "outage_odometry",
+    "two_tags",
 ];
 
 /// Height of the coplanar anchors of `coplanar_altitude`, m.
 pub const COPLANAR_HEIGHT_M: f64 = 2.2;
 
-/// The sensors besides UWB and the IMU of scenario `name` (a method runs on it only if it takes
-/// them).
-pub fn scenario_sensors(name: &str) -> &'static [SensorKind] {
+/// The inputs of scenario `name` besides the IMU and one tag's ranges (a method runs on it only
+/// if it takes them).
+pub fn scenario_inputs(name: &str) -> &'static [Input] {
     match name {
-        "coplanar_altitude" => &[SensorKind::Altitude],
-        "outage_odometry" => &[SensorKind::Odometry],
+        "coplanar_altitude" => &[Input::Sensor(SensorKind::Altitude)],
+        "outage_odometry" => &[Input::Sensor(SensorKind::Odometry)],
+        "two_tags" => &[Input::Tags],
         _ => &[],
     }
 }
 
-/// Whether `method` takes every sensor of scenario `name`.
+/// Whether `method` takes every input of scenario `name`.
 pub fn runs_on(method: Method, name: &str) -> bool {
-    scenario_sensors(name).iter().all(|k| method.takes(Input::Sensor(*k)))
+    scenario_inputs(name).iter().all(|i| method.takes(*i))
 }
+
+/// Separation of the two tags of `two_tags` along body x, m.
+pub const TWO_TAGS_SEPARATION_M: f64 = 0.6;
 
 /// Length of a run's log, s (the simulated run is cut there).
 pub const LOG_S: f64 = 40.0;
@@ -149,6 +155,10 @@ pub fn scenario(name: &str, seed: u64) -> Result<SimConfig> {
         "uwb_50hz" => moving(50.0, ImuNoise::consumer_mems())?,
         "tactical_imu" => moving(5.0, tactical)?,
         "moving_start" | "heading_uncertain" => moving(5.0, consumer)?,
+        "two_tags" => {
+            let base = moving(5.0, consumer)?;
+            SimConfig { more_tags_m: vec![base.lever_arm_m + Vec3::new(TWO_TAGS_SEPARATION_M, 0.0, 0.0)], ..base }
+        }
         "staggered" => {
             let base = moving(10.0, ImuNoise::consumer_mems())?;
             SimConfig { anchors: cuboid8(), uwb: UwbConfig { stagger_s: 3e-3, jitter_s: 1e-3, ..base.uwb.clone() }, ..base }
@@ -172,10 +182,10 @@ pub fn scenario(name: &str, seed: u64) -> Result<SimConfig> {
 /// The initial uncertainty of a run of scenario `name` (the state itself is zero): the standard
 /// deviations the filter is told and its initial error is drawn from. [`InitialState`]'s
 /// defaults but for the heading, 0.05 rad (a start pose known to 3°), except in
-/// `heading_uncertain`, which keeps the default 0.2 rad.
+/// `heading_uncertain` and `two_tags`, which keep the default 0.2 rad.
 pub fn initial_uncertainty(name: &str) -> InitialState {
     let nominal = InitialState::default();
-    if name == "heading_uncertain" {
+    if matches!(name, "heading_uncertain" | "two_tags") {
         return nominal;
     }
     InitialState { orientation_std: Vec3::repeat(0.05), ..nominal }

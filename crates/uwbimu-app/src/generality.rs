@@ -234,7 +234,7 @@ mod tests {
 
     #[test]
     fn outages_are_gaps_longer_than_the_threshold() {
-        let r = |t_s| RangeMeasurement { t_s, anchor: 0, range_m: 1.0 };
+        let r = |t_s| RangeMeasurement { t_s, anchor: 0, range_m: 1.0, tag: 0 };
         let ranges = [r(0.5), r(0.9), r(5.0), r(5.5)];
         assert_eq!(outages(&ranges, 0.0, 6.0), vec![(0.9, 5.0)]);
         assert_eq!(outages(&ranges, 0.0, 8.0), vec![(0.9, 5.0), (5.5, 8.0)]);

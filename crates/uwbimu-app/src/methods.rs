@@ -21,6 +21,8 @@ use crate::select::ModelChoice;
 pub enum Input {
     /// Ranges to anchors.
     Ranges,
+    /// Ranges from several tags (a `tag` column beyond 0), each at its lever arm.
+    Tags,
     /// A sensor of the registry ([`uwbimu_vocabulary::sensors`]).
     Sensor(SensorKind),
 }
@@ -31,6 +33,7 @@ impl Input {
     pub fn name(self) -> &'static str {
         match self {
             Self::Ranges => "ranges",
+            Self::Tags => "tags",
             Self::Sensor(kind) => kind.info().name,
         }
     }
@@ -152,6 +155,7 @@ macro_rules! methods {
         }
     };
     (@input Ranges) => { Input::Ranges };
+    (@input Tags) => { Input::Tags };
     (@input $sensor:ident) => { Input::Sensor(SensorKind::$sensor) };
     (@chooses) => { false };
     (@chooses $chooses:literal) => { $chooses };
@@ -191,24 +195,24 @@ methods! {$
     /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
     UwbLs { name: "uwb_ls", run: multilateration, takes: [Ranges], smoothing: Never },
     /// The tightly coupled EKF of Li & Wang (2020).
-    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
-    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
-    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
-    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
-    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
     Ackf {
         name: "ackf",
         run: inertial(Ackf),
-        takes: [Ranges, Tdoa, Magnetometer, Altitude, Odometry],
+        takes: [Ranges, Tags, Tdoa, Magnetometer, Altitude, Odometry],
         smoothing: OnRequest,
     },
     /// The loosely coupled error-state filter of Liu et al. (2019).
@@ -218,9 +222,9 @@ methods! {$
     /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
     Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest },
     /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
-    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
-    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
     /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
     Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never },
     /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
@@ -236,7 +240,7 @@ methods! {$
     /// self-initialisation when no initial state is given. Before it runs it chooses its
     /// range-error model, NLOS skew and range noise on the log by held-out anchors
     /// ([`crate::select`]).
-    Best { name: "best", run: inertial(Best), takes: [Ranges, Tdoa, Altitude, Odometry], smoothing: ByDefault, chooses_model: true },
+    Best { name: "best", run: inertial(Best), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: ByDefault, chooses_model: true },
 }
 
 impl Method {
@@ -361,6 +365,7 @@ pub struct BatchInput<'a> {
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     check_inputs(method, false, input.observations.iter().map(Observation::kind))?;
+    check_tags(method, input)?;
     let offset = input.config.ranging.time_offset_s;
     if offset != 0.0 {
         let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
@@ -421,6 +426,29 @@ pub(crate) fn check_inputs(method: Method, smooth: bool, kinds: impl IntoIterato
             method.name(),
             Method::ALL.iter().filter(|m| m.smoothable()).map(|m| m.name()),
         ));
+    }
+    Ok(())
+}
+
+/// Refuses ranges from a tag the configuration gives no lever arm for, and ranges from several
+/// tags for a method that fuses one; the message says where and what to do.
+fn check_tags(method: Method, input: &BatchInput<'_>) -> Result<()> {
+    let tags = input.config.mounting.lever_arm.tags();
+    if let Some((row, r)) = input.ranges.iter().enumerate().find(|(_, r)| r.tag >= tags) {
+        return Err(Error::InvalidCall(format!(
+            "ranges row {row} is from tag {}, but mounting.lever_arm gives {tags} tag(s): give one [x, y, z] per tag, tag 0 first",
+            r.tag
+        )));
+    }
+    if !method.takes(Input::Tags) {
+        if let Some(r) = input.ranges.iter().find(|r| r.tag != 0) {
+            return Err(Error::InvalidCall(format!(
+                "ranges from tag {}, but {} fuses one tag (these fuse several: {})",
+                r.tag,
+                method.name(),
+                Method::names_where(|m| m.takes(Input::Tags))
+            )));
+        }
     }
     Ok(())
 }

@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, DVector};
 use uwbimu_estimation::pipeline::StepRecord;
-use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::config::{FilterConfig, LeverArms};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 
@@ -52,7 +52,7 @@ impl OffsetCalibration {
         let mut c = config.clone();
         c.ranging.time_offset_s = self.time_offset_s.0;
         if let Some((l, _)) = self.lever_arm {
-            c.mounting.lever_arm = l;
+            c.mounting.lever_arm = LeverArms::one(l);
         }
         c.range_calibration = self.biases.range_calibration()?;
         Ok(c)
@@ -119,6 +119,7 @@ struct TrackPoint {
 
 /// Calibrates time offset and biases against the tag's ground truth `(t s, position m)`.
 pub fn calibrate_offsets_with_truth(input: &BatchInput<'_>, truth: &[(f64, Vec3)]) -> Result<OffsetCalibration> {
+    one_tag(input)?;
     let reference = Reference::from_truth(truth)?;
     solve(&reference, input, input.config.ranging.time_offset_s, Vec3::zeros(), 0)
 }
@@ -126,6 +127,7 @@ pub fn calibrate_offsets_with_truth(input: &BatchInput<'_>, truth: &[(f64, Vec3)
 /// Calibrates time offset, lever arm and biases without ground truth by `passes` EM passes over the
 /// smoothed track of `method` (module doc), starting from `input.config`.
 pub fn calibrate_offsets_without_truth(input: &BatchInput<'_>, method: Method, passes: usize) -> Result<OffsetCalibration> {
+    one_tag(input)?;
     let mut config = input.config.clone();
     let mut result = None;
     for pass in 1..=passes.max(1) {
@@ -135,7 +137,7 @@ pub fn calibrate_offsets_without_truth(input: &BatchInput<'_>, method: Method, p
             return Err(Error::InvalidCall(format!("{} cannot be smoothed; calibrate with an inertial method", method.name())));
         };
         let reference = Reference::from_steps(&steps);
-        let r = solve(&reference, input, config.ranging.time_offset_s, config.mounting.lever_arm, pass)?;
+        let r = solve(&reference, input, config.ranging.time_offset_s, *config.mounting.lever_arm.first(), pass)?;
         config = r.apply_to(input.config)?;
         result = Some(r);
     }
@@ -167,6 +169,17 @@ impl Theta {
 
 /// Gauss–Newton over `(τ, l, b)` from `(tau0, lever0)` (module doc); the lever arm is estimated
 /// only when the reference carries attitude.
+/// Refuses ranges from several tags: the model has one lever arm.
+fn one_tag(input: &BatchInput<'_>) -> Result<()> {
+    match input.ranges.iter().find(|r| r.tag != 0) {
+        Some(r) => Err(Error::InvalidCall(format!(
+            "the offset calibration solves one tag's lever arm, but the ranges come from tag {} too: calibrate on tag 0's ranges",
+            r.tag
+        ))),
+        None => Ok(()),
+    }
+}
+
 fn solve(reference: &Reference, input: &BatchInput<'_>, tau0: f64, lever0: Vec3, passes: usize) -> Result<OffsetCalibration> {
     let with_lever = reference.q.is_some();
     let mut theta = Theta { tau: tau0, lever: lever0, bias: BTreeMap::new() };

@@ -19,6 +19,7 @@
 //! its steps (the streamed replay) computes the same numbers as one that does.
 
 use uwbimu_estimation::pipeline::StepRecord;
+use uwbimu_vocabulary::config::LeverArms;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
@@ -37,7 +38,7 @@ pub const OUTLIER_FLOOR_M: f64 = 0.1;
 pub struct ResidualWalk<'a> {
     ranges: &'a [RangeMeasurement],
     anchors: &'a [Vec3],
-    lever_arm: Vec3,
+    lever_arms: LeverArms,
     next: usize,
     previous: Option<StepRecord>,
     residuals: Vec<Option<Residual>>,
@@ -53,10 +54,10 @@ pub struct Residual {
 }
 
 impl<'a> ResidualWalk<'a> {
-    /// A walk over `ranges` (in time order) to `anchors`, with the tag at `lever_arm` in the body
-    /// frame.
-    pub fn new(ranges: &'a [RangeMeasurement], anchors: &'a [Vec3], lever_arm: Vec3) -> Self {
-        Self { ranges, anchors, lever_arm, next: 0, previous: None, residuals: vec![None; ranges.len()] }
+    /// A walk over `ranges` (in time order) to `anchors`, each range's tag at its row of
+    /// `lever_arms` in the body frame.
+    pub fn new(ranges: &'a [RangeMeasurement], anchors: &'a [Vec3], lever_arms: LeverArms) -> Self {
+        Self { ranges, anchors, lever_arms, next: 0, previous: None, residuals: vec![None; ranges.len()] }
     }
 
     /// Takes the next step of the track: the ranges at or after the previous step and before this
@@ -64,7 +65,7 @@ impl<'a> ResidualWalk<'a> {
     pub fn push(&mut self, step: &StepRecord) {
         while let Some(r) = self.ranges.get(self.next).filter(|r| r.t_s < step.t_s) {
             if let Some(a) = self.previous.as_ref().filter(|a| r.t_s >= a.t_s) {
-                let tag = tag_between(a, step, r.t_s, &self.lever_arm);
+                let tag = tag_between(a, step, r.t_s, self.lever_arms.of(r.tag));
                 self.residuals[self.next] = tag.zip(self.anchors.get(r.anchor)).map(|(tag, anchor)| {
                     let offset = tag - anchor;
                     let (distance, line) = (offset.norm(), offset.normalize());
@@ -172,7 +173,7 @@ mod tests {
     }
 
     fn range(t_s: f64, anchor: usize, range_m: f64) -> RangeMeasurement {
-        RangeMeasurement { t_s, anchor, range_m }
+        RangeMeasurement { t_s, anchor, range_m, tag: 0 }
     }
 
     #[test]
@@ -180,7 +181,7 @@ mod tests {
         let anchors = [Vec3::new(10.0, 0.0, 0.0)];
         // Before the track, between steps 0 and 1 (x = 0.5), at step 1, after the last step.
         let ranges = [range(-0.1, 0, 10.0), range(0.05, 0, 9.6), range(0.1, 0, 9.0), range(0.3, 0, 1.0)];
-        let mut walk = ResidualWalk::new(&ranges, &anchors, Vec3::zeros());
+        let mut walk = ResidualWalk::new(&ranges, &anchors, LeverArms::default());
         for (t, x) in [(0.0, 0.0), (0.1, 1.0), (0.2, 2.0)] {
             walk.push(&step(t, x));
         }

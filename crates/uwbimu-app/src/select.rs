@@ -67,7 +67,7 @@ pub struct Choice {
 }
 
 /// The range-error models: white noise only; a steady bias per anchor and a common one (random
-/// walks, [`uwbimu_estimation::filters::range_bias`]); a bias per anchor that wanders as a
+/// walks, [`uwbimu_estimation::filters::bias_states`]); a bias per anchor that wanders as a
 /// Gauss–Markov process of time constant [`WANDERING_TAU_S`].
 pub const RANGE_ERRORS: [Choice; 3] = [
     Choice { name: "white", apply: |c| c.range_bias.states = false },
@@ -321,7 +321,7 @@ fn fold_errors(
             .ranges
             .iter()
             .filter(|r| r.anchor == anchor && r.t_s >= window.from_s)
-            .filter_map(|r| tag_at(steps, r.t_s, &lever).map(|p| r.range_m - (p - a).norm()))
+            .filter_map(|r| tag_at(steps, r.t_s, lever.of(r.tag)).map(|p| r.range_m - (p - a).norm()))
             .collect();
         if residuals.len() >= MIN_SCORED {
             out.push((anchor, trimmed_centred_mean_square(&mut residuals)));

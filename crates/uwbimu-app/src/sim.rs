@@ -36,6 +36,7 @@ mod zoo;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use uwbimu_vocabulary::config::{LeverArms, MAX_TAGS};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::records::{
@@ -57,7 +58,7 @@ pub use uwb::{
     NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
 };
 pub(crate) use zoo::cuboid8;
-pub use zoo::{matched_config, true_initial, zoo, Scenario, UWB_LOST_NAMES, ZOO_NAMES};
+pub use zoo::{lever_arms_seen, matched_config, true_initial, zoo, Scenario, UWB_LOST_NAMES, ZOO_NAMES};
 
 /// ChaCha stream of the IMU noise.
 const STREAM_IMU: u64 = 1;
@@ -85,8 +86,11 @@ pub struct SimConfig {
     pub imu_noise: ImuNoise,
     /// Gravity in the navigation frame (ENU), m/s².
     pub gravity_nav_mps2: Vec3,
-    /// UWB antenna (tag) position in the body frame, m.
+    /// UWB antenna (tag 0) position in the body frame, m.
     pub lever_arm_m: Vec3,
+    /// The antennas of further tags (tags 1, 2, …) in the body frame, m: each ranges every anchor
+    /// like tag 0, tag k's sweep `k / (tags · uwb.rate_hz)` after tag 0's (they take turns).
+    pub more_tags_m: Vec<Vec3>,
     /// Mounting rotation IMU frame → body frame (identity = aligned).
     pub imu_rotation: Quat,
     /// Anchor positions, navigation frame, m.
@@ -124,6 +128,7 @@ impl Default for SimConfig {
             imu_noise: ImuNoise::default(),
             gravity_nav_mps2: Vec3::new(0.0, 0.0, -9.80665),
             lever_arm_m: Vec3::new(0.0, 0.0, 0.05),
+            more_tags_m: Vec::new(),
             imu_rotation: Quat::identity(),
             anchors: presets::hall_anchors(),
             uwb: UwbConfig::default(),
@@ -232,6 +237,11 @@ fn anchor_index(field: &str, anchor: usize, count: usize) -> Result<()> {
 }
 
 impl SimConfig {
+    /// Every tag's lever arm, tag 0 first (`lever_arm_m`, then `more_tags_m`).
+    pub fn lever_arms(&self) -> LeverArms {
+        LeverArms::with_more(self.lever_arm_m, &self.more_tags_m)
+    }
+
     /// Checks every field; the first problem is returned as [`Error::InvalidConfig`] naming the
     /// field (rates > 0, stds ≥ 0, probabilities in [0, 1], min ≤ max, ≥ 1 finite anchor, valid
     /// anchor indices).
@@ -247,6 +257,12 @@ impl SimConfig {
         non_negative("accel_outliers.std_mps2", self.accel_outliers.std_mps2)?;
         finite_vec("gravity_nav_mps2", &self.gravity_nav_mps2)?;
         finite_vec("lever_arm_m", &self.lever_arm_m)?;
+        for arm in &self.more_tags_m {
+            finite_vec("more_tags_m", arm)?;
+        }
+        if 1 + self.more_tags_m.len() > MAX_TAGS {
+            return Err(invalid("more_tags_m", format!("at most {} tags in all", MAX_TAGS)));
+        }
         if !self.imu_rotation.coords.iter().all(|x| x.is_finite()) {
             return Err(invalid("imu_rotation", "must be finite"));
         }
@@ -372,7 +388,8 @@ impl SimConfig {
 
 /// Declares the simulator overrides, one row each: `switch key(config, on) { … }` for a bool,
 /// `number key(config[, key]) { place }` for a number written to `place` (an `&mut f64` that may
-/// fail with `?`; `key` names the key for its errors), `count key(config, n) { … }` for a whole number. From the rows come
+/// fail with `?`; `key` names the key for its errors), `value key(config, x) { … }` for a number
+/// a block applies, `count key(config, n) { … }` for a whole number. From the rows come
 /// [`OVERRIDE_KEYS`] and the setter; a key cannot be listed and not applied, or the reverse.
 macro_rules! overrides {
     ($(
@@ -402,6 +419,12 @@ macro_rules! overrides {
         $(let $k = $key;)?
         let place: &mut f64 = $body;
         *place = x;
+        Ok(())
+    }};
+    (@apply value, $key:ident, $value:ident, $config:ident, $c:ident, $v:ident $body:block) => {{
+        let OverrideValue::Number($v) = $value else { return Err(invalid($key, "expects a number, got a bool")) };
+        let $c = $config;
+        $body
         Ok(())
     }};
     (@apply count, $key:ident, $value:ident, $config:ident, $c:ident, $v:ident $body:block) => {{
@@ -457,6 +480,9 @@ overrides! {
     number odometer_rate_hz(c, key) { &mut odometer_on(c, key)?.rate_hz };
     number odometer_std_mps(c, key) { &mut odometer_on(c, key)?.std_mps };
     number odometer_scale_error(c, key) { &mut odometer_on(c, key)?.scale_error };
+    value tag_separation_m(c, x) {
+        c.more_tags_m = if x != 0.0 { vec![c.lever_arm_m + Vec3::new(x, 0.0, 0.0)] } else { Vec::new() };
+    };
     switch imu_noise(c, on) { if !on { c.imu_noise = ImuNoise::none(); } };
     number imu_rate_hz(c) { &mut c.imu_rate_hz };
     number uwb_rate_hz(c) { &mut c.uwb.rate_hz };

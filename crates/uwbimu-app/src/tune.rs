@@ -153,7 +153,7 @@ fn score(method: Method, input: &BatchInput<'_>, config: &FilterConfig, objectiv
             };
             let steps = smoothed.as_deref().unwrap_or(&trace.steps);
             let from = steps.first().map_or(0.0, |s| s.t_s) + if init.is_some() { SETTLE_S } else { 0.0 };
-            truth_rmse(steps, truth, &config.mounting.lever_arm, from)
+            truth_rmse(steps, truth, config.mounting.lever_arm.first(), from)
         }
     };
     Ok(if s.is_finite() { s } else { f64::INFINITY })

@@ -84,7 +84,7 @@ pub fn posterior_crlb(
                 anchor: r.anchor as f64,
                 count: anchors.len(),
             })?;
-            if let Some(pred) = predict_range(&truth[k], anchor, &config.mounting.lever_arm) {
+            if let Some(pred) = predict_range(&truth[k], anchor, config.mounting.lever_arm.first()) {
                 scalar_step(&mut dx, &mut bound, &pred.jacobian, 0.0, r_var)?;
             }
             next += 1;

@@ -2,7 +2,8 @@
 //! ranges, taken at slightly different times, are brought to one reference time.
 //!
 //! **Grouping.** Time-ordered ranges join the open epoch while `t − t_first ≤ window` (`t_first`
-//! the time of its first range) and their anchor is not in it yet. The epoch closes when a range
+//! the time of its first range), they come from its tag (an epoch is one tag's: several tags
+//! take turns) and their anchor is not in it yet. The epoch closes when a range
 //! does not fit, when it holds every anchor, or when time (an IMU sample) passes
 //! `t_first + window`. Sequential two-way ranging and per-anchor range topics deliver one sweep
 //! over the anchors a few milliseconds apart; the window gathers such a sweep, the anchor rule
@@ -46,11 +47,15 @@ impl EpochAssembler {
         Ok(Self { window_s: check_window(window_s)?, anchor_count, open: Vec::with_capacity(anchor_count) })
     }
 
-    /// Whether `r` cannot join the open epoch (it is outside the window or its anchor is already
-    /// there): the open epoch must be closed before `r` is pushed.
+    /// Whether `r` cannot join the open epoch (it is outside the window, from another tag, or its
+    /// anchor is already there): the open epoch must be closed before `r` is pushed.
     pub fn closes_before(&self, r: &RangeMeasurement) -> bool {
         match self.open.first() {
-            Some(first) => r.t_s - first.t_s > self.window_s + TIME_SLACK_S || self.open.iter().any(|o| o.anchor == r.anchor),
+            Some(first) => {
+                r.t_s - first.t_s > self.window_s + TIME_SLACK_S
+                    || r.tag != first.tag
+                    || self.open.iter().any(|o| o.anchor == r.anchor)
+            }
             None => false,
         }
     }
@@ -151,7 +156,7 @@ mod tests {
     use super::*;
 
     fn rm(t_s: f64, anchor: usize) -> RangeMeasurement {
-        RangeMeasurement { t_s, anchor, range_m: 1.0 }
+        RangeMeasurement { t_s, anchor, range_m: 1.0, tag: 0 }
     }
 
     fn anchors_of(epochs: &[Epoch]) -> Vec<Vec<usize>> {
@@ -175,6 +180,15 @@ mod tests {
         // Window 0: only equal timestamps group.
         let equal = [rm(1.0, 0), rm(1.0, 1), rm(1.001, 2)];
         assert_eq!(anchors_of(&group_epochs(&equal, 0.0, 3)), vec![vec![0, 1], vec![2]]);
+    }
+
+    #[test]
+    fn an_epoch_holds_one_tag() {
+        // Two tags taking turns inside one window: each tag's sweep is its own epoch.
+        let tag1 = |t_s: f64, anchor: usize| RangeMeasurement { tag: 1, ..rm(t_s, anchor) };
+        let ranges = [rm(0.000, 0), rm(0.002, 1), tag1(0.004, 0), tag1(0.006, 1), rm(0.100, 0)];
+        let epochs = group_epochs(&ranges, 0.05, 4);
+        assert_eq!(anchors_of(&epochs), vec![vec![0, 1], vec![0, 1], vec![0]]);
     }
 
     #[test]
@@ -206,7 +220,7 @@ mod tests {
             .enumerate()
             .map(|(i, a)| {
                 let t_s = 0.01 * i as f64;
-                RangeMeasurement { t_s, anchor: i, range_m: (at(t_s) - a).norm() }
+                RangeMeasurement { t_s, anchor: i, range_m: (at(t_s) - a).norm(), tag: 0 }
             })
             .collect();
         let t_ref = 0.03;

@@ -49,6 +49,16 @@ macro_rules! delegate_filter {
                 self.0.update_ranges(t_s, ranges, reports)
             }
 
+            fn update_tag_ranges(
+                &mut self,
+                t_s: f64,
+                tag: usize,
+                ranges: &[(usize, f64)],
+                reports: &mut [crate::update::UpdateReport],
+            ) -> uwbimu_vocabulary::error::Result<()> {
+                self.0.update_tag_ranges(t_s, tag, ranges, reports)
+            }
+
             fn observe(
                 &mut self,
                 observation: &uwbimu_vocabulary::sensors::Observation,
@@ -78,12 +88,12 @@ macro_rules! delegate_filter {
 }
 
 mod ackf;
+pub mod bias_states;
 pub mod constraints;
 mod core;
 mod loose;
 mod named;
 mod pending;
-pub mod range_bias;
 pub mod reacquire;
 mod scratch;
 pub mod sigma_points;
@@ -119,6 +129,18 @@ pub trait Filter {
     /// filter time; the state is first propagated to `t_s` with the last IMU sample held), and
     /// writes one report per range into `reports` (same length).
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()>;
+
+    /// [`Filter::update_ranges`] for the ranges of tag `tag`, whose antenna sits at row `tag` of
+    /// `mounting.lever_arm`; tag 0 is [`Filter::update_ranges`]. A filter that fuses one tag
+    /// refuses the others with [`uwbimu_vocabulary::error::Error::InvalidCall`].
+    fn update_tag_ranges(&mut self, t_s: f64, tag: usize, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        match tag {
+            0 => self.update_ranges(t_s, ranges, reports),
+            _ => Err(uwbimu_vocabulary::error::Error::InvalidCall(format!(
+                "ranges from tag {tag}: this filter fuses one tag (the tightly coupled methods fuse several)"
+            ))),
+        }
+    }
 
     /// The anchors, navigation frame, m.
     fn anchors(&self) -> &[Vec3];

@@ -175,7 +175,7 @@ mod tests {
 
     #[test]
     fn ranges_longer_than_the_grown_hall_allows_are_impossible() {
-        let range = |anchor, d| Event::Range(RangeMeasurement { t_s: 0.0, anchor, range_m: d });
+        let range = |anchor, d| Event::Range(RangeMeasurement { t_s: 0.0, anchor, range_m: d, tag: 0 });
         // Anchor 0 at the origin; the farthest corner of [-5, 15] × [-5, 13] × [-5, 8] is (15, 13, 8).
         let longest = Vec3::new(15.0, 13.0, 8.0).norm();
         assert_eq!(gate().check(&range(0, longest - 0.01)), None);

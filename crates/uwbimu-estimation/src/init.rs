@@ -140,7 +140,14 @@ fn self_init(
     let level = Quat::from_euler_angles(roll, pitch, 0.0);
     let gyro_bias = if still { w_mean } else { Vec3::zeros() };
 
-    // 2. Tag position from UWB fixes.
+    // 2. Tag position from UWB fixes (tag 0's: a fix is of one antenna).
+    let tag0_ranges: Vec<RangeMeasurement>;
+    let ranges = if ranges.iter().all(|r| r.tag == 0) {
+        ranges
+    } else {
+        tag0_ranges = ranges.iter().filter(|r| r.tag == 0).copied().collect();
+        &tag0_ranges
+    };
     let ls = LsConfig::from_filter_config(config);
     let epochs: Vec<Epoch> =
         group_epochs(ranges, ls.epoch_window_s, anchors.len()).into_iter().filter(|e| e.t_s >= t0 - 0.5).collect();
@@ -201,7 +208,7 @@ fn self_init(
     Ok((
         SelfInit {
             initial: InitialState {
-                position: tag0 - orientation * config.mounting.lever_arm,
+                position: tag0 - orientation * config.mounting.lever_arm.first(),
                 velocity: Vec3::zeros(),
                 orientation,
                 position_std,
@@ -268,7 +275,7 @@ fn heading_from_motion(
         accel_bias: Vec3::zeros(),
         gyro_bias,
     };
-    let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm;
+    let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm.first();
     let dr0 = tag_dr(&x);
     let (mut cross, mut dot, mut used, mut settled_s) = (0.0, 0.0, 0usize, None);
     let mut k = 0;

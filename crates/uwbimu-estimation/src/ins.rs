@@ -140,7 +140,7 @@ impl Transition {
     }
 
     /// Computes `Φ·M` for any `15 × C` matrix (the covariance, or its cross-covariance with
-    /// parameter states, [`crate::filters::range_bias`]) by the non-zero blocks of Φ (no dense 15×15 product).
+    /// parameter states, [`crate::filters::bias_states`]) by the non-zero blocks of Φ (no dense 15×15 product).
     pub fn apply_rows<const C: usize>(&self, m: &SMatrix<f64, ERR_DIM, C>) -> SMatrix<f64, ERR_DIM, C> {
         let mut out = *m;
         for column in out.data.0.iter_mut() {

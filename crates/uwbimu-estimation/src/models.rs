@@ -12,8 +12,8 @@ pub mod range;
 pub mod tdoa;
 
 pub use model::{
-    central_differences, example_geometry, example_states, jacobian_failures, numerical_jacobian, Block, Geometry, Policies,
-    ScalarModel, ScalarPrediction, EXAMPLE_ANCHORS, EXAMPLE_LEVER_ARMS,
+    central_differences, example_geometry, example_states, jacobian_failures, numerical_jacobian, AdditiveBias, Block, Geometry,
+    Policies, ScalarModel, ScalarPrediction, EXAMPLE_ANCHORS, EXAMPLE_LEVER_ARMS,
 };
 
 #[cfg(test)]

@@ -796,10 +796,15 @@ mod tests {
         let mut ranges = Vec::new();
         for k in 0..3 {
             for (i, a) in anchors.iter().enumerate() {
-                ranges.push(RangeMeasurement { t_s: k as f64 * 0.1 + i as f64 * 0.001, anchor: i, range_m: (p - a).norm() });
+                ranges.push(RangeMeasurement {
+                    t_s: k as f64 * 0.1 + i as f64 * 0.001,
+                    anchor: i,
+                    range_m: (p - a).norm(),
+                    tag: 0,
+                });
             }
         }
-        ranges.push(RangeMeasurement { t_s: 1.0, anchor: 0, range_m: 1.0 }); // lone range: unsolvable
+        ranges.push(RangeMeasurement { t_s: 1.0, anchor: 0, range_m: 1.0, tag: 0 }); // lone range: unsolvable
         let fixes = uwb_ls(&ranges, &anchors, &LsConfig::default());
         assert_eq!(fixes.len(), 3);
         for (k, (t, f)) in fixes.iter().enumerate() {

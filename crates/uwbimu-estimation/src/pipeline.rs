@@ -104,6 +104,8 @@ pub enum Measured {
         anchor: usize,
         /// Measured range, m.
         range_m: f64,
+        /// Tag index (0 on a one-tag rig).
+        tag: usize,
     },
     /// An observation ([`Observation`]).
     Observation(Observation),
@@ -140,6 +142,14 @@ impl Measured {
         match self {
             Self::Range { anchor, .. } => [Some(*anchor), None],
             Self::Observation(o) => o.anchors(),
+        }
+    }
+
+    /// The tag of a range; None for an observation.
+    pub fn tag(&self) -> Option<usize> {
+        match self {
+            Self::Range { tag, .. } => Some(*tag),
+            Self::Observation(_) => None,
         }
     }
 
@@ -202,8 +212,13 @@ pub trait Estimator: Filter {
     fn time_s(&self) -> Option<f64>;
     /// Propagates to `t_s` ≥ the filter time with the last IMU sample held.
     fn advance_to(&mut self, t_s: f64) -> Result<()>;
-    /// The tag (UWB antenna) position and velocity, navigation frame, m and m/s.
-    fn tag_motion(&self) -> (Vec3, Vec3);
+    /// Tag `tag`'s (UWB antenna's) position and velocity, navigation frame, m and m/s.
+    fn tag_motion(&self, tag: usize) -> (Vec3, Vec3);
+    /// How many tags the filter fuses (the lever arms `mounting.lever_arm` gives; 1 for a filter
+    /// of one tag).
+    fn tags(&self) -> usize {
+        1
+    }
     /// The window of the epoch rule, s (`epoch_window_s` of the filter's configuration).
     fn epoch_window_s(&self) -> f64;
     /// The plausibility gate's settings (`gate` of the filter's configuration).
@@ -263,12 +278,17 @@ impl<F: InertialFilter> Estimator for F {
         self.core_mut().advance_to(t_s)
     }
 
-    /// Tag position `p + R·l` and velocity `v + R·(ω × l)` (ω the last bias-corrected rate).
-    fn tag_motion(&self) -> (Vec3, Vec3) {
+    /// Tag position `p + R·l` and velocity `v + R·(ω × l)` (ω the last bias-corrected rate), `l`
+    /// the tag's lever arm (tag 0's for a tag the configuration does not give).
+    fn tag_motion(&self, tag: usize) -> (Vec3, Vec3) {
         let core = self.core();
-        let (x, lever_arm) = (core.state(), &core.mounting().lever_arm);
+        let (x, lever_arm) = (core.state(), core.mounting().lever_arm.of(tag));
         let omega = core.last_imu_body().1 - x.gyro_bias;
         (tag_position(x, lever_arm), x.velocity + x.orientation * omega.cross(lever_arm))
+    }
+
+    fn tags(&self) -> usize {
+        self.config().mounting.lever_arm.tags()
     }
 
     fn epoch_window_s(&self) -> f64 {
@@ -590,13 +610,12 @@ impl Pipeline {
         let t_ref = est.time_s().map_or(last.t_s, |t| t.max(last.t_s));
         est.advance_to(t_ref)?;
         self.tally.check_propagation(est)?;
-        let (tag, velocity) = est.tag_motion();
+        let (tag, velocity) = est.tag_motion(last.tag);
         let epoch = self.epochs.ranges();
         self.aligned.resize(epoch.len(), (0, 0.0));
         align_to_reference(epoch, t_ref, est.anchors(), &tag, &velocity, &mut self.aligned);
-        let measured = epoch.iter().map(|r| (r.t_s, r.anchor, r.range_m));
         let (aligned, reports, applied) = (&self.aligned, &mut self.reports, &mut self.applied);
-        apply_epoch(est, t_ref, aligned, measured, reports, applied, &mut self.tally)?;
+        apply_epoch(est, t_ref, aligned, epoch.iter().copied(), reports, applied, &mut self.tally)?;
         self.epochs.clear();
         Ok(())
     }
@@ -608,7 +627,7 @@ impl Pipeline {
     pub fn epoch<E: Estimator>(&mut self, est: &mut E, t_s: f64, ranges: &[(usize, f64)]) -> Result<()> {
         self.flush(est)?;
         self.check_order("range", t_s)?;
-        let measured = ranges.iter().map(|&(anchor, range_m)| (t_s, anchor, range_m));
+        let measured = ranges.iter().map(|&(anchor, range_m)| RangeMeasurement { t_s, anchor, range_m, tag: 0 });
         apply_epoch(est, t_s, ranges, measured, &mut self.reports, &mut self.applied, &mut self.tally)
     }
 
@@ -641,29 +660,30 @@ impl Pipeline {
     }
 }
 
-/// Applies the epoch `ranges` (anchor, m) at `t_s` to `est` with `reports` as scratch, and keeps
-/// one [`UpdateRecord`] per range in `applied`, with the range as `measured` (time s, anchor,
-/// range m) and the epoch time the filter reached. A numerical failure skips the whole epoch
-/// ([`Tally::guarded`]; its reports say skipped).
+/// Applies the epoch `ranges` (anchor, m) of one tag at `t_s` to `est` with `reports` as scratch,
+/// and keeps one [`UpdateRecord`] per range in `applied`, with the range as `measured` (its tag
+/// is the epoch's) and the epoch time the filter reached. A numerical failure skips the whole
+/// epoch ([`Tally::guarded`]; its reports say skipped).
 fn apply_epoch<E: Estimator>(
     est: &mut E,
     t_s: f64,
     ranges: &[(usize, f64)],
-    measured: impl Iterator<Item = (f64, usize, f64)>,
+    mut measured: impl Iterator<Item = RangeMeasurement> + Clone,
     reports: &mut Vec<UpdateReport>,
     applied: &mut Vec<UpdateRecord>,
     tally: &mut Tally,
 ) -> Result<()> {
     reports.clear();
     reports.resize(ranges.len(), UpdateReport::skipped());
-    if !tally.guarded(est, |est| est.update_ranges(t_s, ranges, reports))? {
+    let tag = measured.clone().next().map_or(0, |r| r.tag);
+    if !tally.guarded(est, |est| est.update_tag_ranges(t_s, tag, ranges, reports))? {
         reports.iter_mut().for_each(|r| *r = UpdateReport::skipped());
     }
     let epoch_t_s = est.time_s().unwrap_or(t_s);
-    applied.extend(measured.zip(reports.iter()).map(|((t_s, anchor, range_m), report)| UpdateRecord {
-        t_s,
+    applied.extend(measured.by_ref().zip(reports.iter()).map(|(r, report)| UpdateRecord {
+        t_s: r.t_s,
         epoch_t_s,
-        measured: Measured::Range { anchor, range_m },
+        measured: Measured::Range { anchor: r.anchor, tag: r.tag, range_m: r.range_m },
         report: *report,
     }));
     Ok(())

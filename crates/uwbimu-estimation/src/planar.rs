@@ -135,7 +135,7 @@ impl PlanarFilter {
             kind,
             geometry: PlanarGeometry {
                 height_m: config.constraints.plane_height.unwrap_or(p.z),
-                lever_arm: config.mounting.lever_arm,
+                lever_arm: *config.mounting.lever_arm.first(),
             },
             prefilter: MovingAverage::new(anchors.len(), window)?,
             anchors,
@@ -315,7 +315,7 @@ impl Estimator for PlanarFilter {
     }
 
     /// Tag at the plane height plus the lever arm turned by the attitude; velocity in the plane.
-    fn tag_motion(&self) -> (Vec3, Vec3) {
+    fn tag_motion(&self, _tag: usize) -> (Vec3, Vec3) {
         let x = &self.state;
         (self.geometry.tag_position(x, &self.attitude), Vec3::new(x[VX], x[VY], 0.0))
     }

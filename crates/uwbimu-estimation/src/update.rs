@@ -31,9 +31,10 @@ pub struct UpdateReport {
     /// Whether the epoch was applied as its UWB-only fix to re-acquire the solution
     /// ([`crate::filters::reacquire`]); `innovation` and `nis` are then the fix's.
     pub reacquired: bool,
-    /// The range's anchor's total bias `b_a + b_c` after the update and its standard deviation,
-    /// m, with range bias states ([`crate::filters::range_bias`]); None otherwise.
-    pub range_bias: Option<(f64, f64)>,
+    /// The measurement's estimated additive bias after the update and its standard deviation,
+    /// in its unit: a range's anchor total `b_a + b_c` with range bias states, an altitude's
+    /// offset with `altitude.offset_std` ([`crate::filters::bias_states`]); None otherwise.
+    pub bias: Option<(f64, f64)>,
     /// The innovation at the prior (the first iteration) and its predicted variance `H·P⁻·Hᵀ + R`
     /// before any robust inflation (m, m²), for the innovation likelihood (`uwbimu_app::tune`); None
     /// when the measurement was not applied by a scalar Kalman or unscented step.
@@ -53,7 +54,7 @@ impl UpdateReport {
             iterations: 0,
             prior_fading: 1.0,
             reacquired: false,
-            range_bias: None,
+            bias: None,
             prior: None,
         }
     }
@@ -164,7 +165,7 @@ pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<
 /// Jacobian `G = I − [½δθ]×` to the attitude block of P, so P describes the error about the new
 /// nominal state (the error mean is reset to zero). `P` must be symmetric; it stays so exactly.
 ///
-/// Generic over the dimension: an augmented error state ([`crate::filters::range_bias`]) holds the
+/// Generic over the dimension: an augmented error state ([`crate::filters::bias_states`]) holds the
 /// 15 INS error states first; the parameter states past them are left to the caller.
 pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
     x.inject(dx);

@@ -8,6 +8,7 @@
 //! There are no other spellings: the flat keys of the unreleased 0.1 development versions
 //! (`range_std`, `zupt`, …) were removed rather than kept as aliases.
 
+mod lever_arms;
 mod parse;
 mod range_calibration;
 mod sections;
@@ -17,6 +18,7 @@ use parse::{non_negative, quaternion, vec3, vec3_or_scalar};
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
 
+pub use lever_arms::{LeverArms, MAX_TAGS};
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
 pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, AltitudeConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig,

@@ -16,7 +16,7 @@ pub struct ImuSample {
     pub gyro: Vec3,
 }
 
-/// One UWB range between the tag and an anchor.
+/// One UWB range between a tag and an anchor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RangeMeasurement {
     /// Time, s.
@@ -25,6 +25,8 @@ pub struct RangeMeasurement {
     pub anchor: usize,
     /// Measured range, m.
     pub range_m: f64,
+    /// Tag index (its lever arm is `mounting.lever_arm`'s row `tag`); 0 on a one-tag rig.
+    pub tag: usize,
 }
 
 /// One ground-truth sample of the body (IMU) frame.

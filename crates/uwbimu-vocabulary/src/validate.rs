@@ -78,21 +78,46 @@ pub fn imu(rows: &[[f64; 7]]) -> Result<Vec<ImuSample>> {
         .collect())
 }
 
-/// Range table `(M, 3)` = t, anchor index, range → measurements. Finite; time non-decreasing
-/// (several anchors may share an epoch time); the anchor an integer in `0..anchor_count`. A
-/// negative range is not refused here: it is one bad measurement, which the plausibility gate
-/// of the pipeline drops and counts (`uwbimu_estimation::gate`).
+/// Range table `(M, 3)` = t, anchor index, range → measurements (tag 0). Finite; time
+/// non-decreasing (several anchors may share an epoch time); the anchor an integer in
+/// `0..anchor_count`. A negative range is not refused here: it is one bad measurement, which the
+/// plausibility gate of the pipeline drops and counts (`uwbimu_estimation::gate`).
 pub fn ranges(rows: &[[f64; 3]], anchor_count: usize) -> Result<Vec<RangeMeasurement>> {
     check_finite("ranges", rows)?;
+    checked_ranges(rows.iter().map(|r| [r[0], r[1], r[2], 0.0]), anchor_count, 1)
+}
+
+/// Range table `(M, 4)` = t, anchor index, range, tag → measurements: as [`ranges`], the tag a
+/// whole number in `0..tag_count` (the tags `mounting.lever_arm` gives).
+pub fn tagged_ranges(rows: &[[f64; 4]], anchor_count: usize, tag_count: usize) -> Result<Vec<RangeMeasurement>> {
+    check_finite("ranges", rows)?;
+    checked_ranges(rows.iter().copied(), anchor_count, tag_count)
+}
+
+/// [`tagged_ranges`] over finite rows.
+fn checked_ranges(
+    rows: impl ExactSizeIterator<Item = [f64; 4]>,
+    anchor_count: usize,
+    tag_count: usize,
+) -> Result<Vec<RangeMeasurement>> {
     let mut out = Vec::with_capacity(rows.len());
     let mut prev = f64::NEG_INFINITY;
-    for (row, r) in rows.iter().enumerate() {
+    for (row, r) in rows.enumerate() {
         if r[0] < prev {
             return Err(Error::NonMonotonicTime { name: "ranges", row, prev_s: prev, got_s: r[0] });
         }
         prev = r[0];
         let anchor = anchor_index("ranges", row, r[1], anchor_count)?;
-        out.push(RangeMeasurement { t_s: r[0], anchor, range_m: r[2] });
+        if r[3].fract() != 0.0 || r[3] < 0.0 || r[3] >= tag_count as f64 {
+            return Err(Error::InvalidValue {
+                name: "ranges",
+                row,
+                value: r[3],
+                reason:
+                    "the tag (column 3) must be a whole number below the tags mounting.lever_arm gives (one [x, y, z] per tag)",
+            });
+        }
+        out.push(RangeMeasurement { t_s: r[0], anchor, range_m: r[2], tag: r[3] as usize });
     }
     Ok(out)
 }

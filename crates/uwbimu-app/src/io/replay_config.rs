@@ -30,15 +30,23 @@ fn config_error(reason: impl Into<String>) -> Error {
     CoreError::InvalidConfig { field: "replay file".into(), reason: reason.into() }.into()
 }
 
-/// A TOML value as a [`ConfigValue`]; the error is why it is not one (the caller names the key).
+/// A TOML value as a [`ConfigValue`] (an array of equal-length arrays, such as one lever arm
+/// per tag, read row after row); the error is why it is not one (the caller names the key).
 fn config_value(v: &toml::Value) -> std::result::Result<ConfigValue, String> {
     let number = |x: &toml::Value| x.as_float().or_else(|| x.as_integer().map(|i| i as f64));
+    let numbers = |items: &[toml::Value]| items.iter().map(number).collect::<Option<Vec<f64>>>();
     let wrong = || format!("expected a number, true/false or an array of numbers, got {v}");
     match v {
         toml::Value::Boolean(b) => Ok(ConfigValue::Flag(*b)),
-        toml::Value::Array(items) => {
-            items.iter().map(number).collect::<Option<Vec<f64>>>().map(ConfigValue::Vector).ok_or_else(wrong)
-        }
+        toml::Value::Array(items) => match numbers(items) {
+            Some(xs) => Ok(ConfigValue::Vector(xs)),
+            None => {
+                let rows = items.iter().map(|r| r.as_array().and_then(|r| numbers(r))).collect::<Option<Vec<_>>>();
+                rows.filter(|rows| rows.windows(2).all(|w| w[0].len() == w[1].len()))
+                    .map(|rows| ConfigValue::Vector(rows.concat()))
+                    .ok_or_else(wrong)
+            }
+        },
         other => number(other).map(ConfigValue::Scalar).ok_or_else(wrong),
     }
 }

@@ -22,6 +22,7 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
 use crate::sim::SimConfig;
@@ -219,8 +220,29 @@ pub(crate) fn synthesise(cfg: &SimConfig, rng: &mut ChaCha8Rng) -> UwbOutput {
     };
     let mut out = UwbOutput { ranges: Vec::new(), labels: Vec::new(), windows };
     let epochs = (duration_s * uwb.rate_hz + 1e-9).floor() as usize;
+    let lever_arms = cfg.lever_arms();
+    let tags = lever_arms.tags();
+    for (tag, lever_arm) in lever_arms.as_slice().iter().enumerate() {
+        tag_ranges(cfg, tag, lever_arm, tag as f64 / (tags as f64 * uwb.rate_hz), epochs, rng, &mut out);
+    }
+    sort_by_time(&mut out);
+    out
+}
+
+/// Appends the ranges of tag `tag` at `lever_arm` (body frame), its sweeps `offset_s` after the
+/// epoch times, to `out`.
+fn tag_ranges(
+    cfg: &SimConfig,
+    tag: usize,
+    lever_arm: &Vec3,
+    offset_s: f64,
+    epochs: usize,
+    rng: &mut ChaCha8Rng,
+    out: &mut UwbOutput,
+) {
+    let (uwb, duration_s) = (&cfg.uwb, cfg.trajectory.duration_s());
     for epoch in 1..=epochs {
-        let epoch_t_s = epoch as f64 / uwb.rate_hz;
+        let epoch_t_s = epoch as f64 / uwb.rate_hz + offset_s;
         for (anchor, a) in cfg.anchors.iter().enumerate() {
             let divisor = uwb.anchor_rate_divisors.get(anchor).copied().unwrap_or(1).max(1) as usize;
             if epoch % divisor != 0 {
@@ -232,8 +254,7 @@ pub(crate) fn synthesise(cfg: &SimConfig, rng: &mut ChaCha8Rng) -> UwbOutput {
                 continue;
             }
             let k = cfg.trajectory.sample(t_s);
-            let tag = k.position + k.orientation * cfg.lever_arm_m;
-            let true_range_m = (tag - a).norm();
+            let true_range_m = (k.position + k.orientation * lever_arm - a).norm();
             let los_noise_m = uwb.range_std_m * normal(rng);
             let shielded =
                 out.windows.iter().find(|w| w.window.anchor == anchor && w.window.start_s <= t_s && t_s < w.window.end_s);
@@ -257,12 +278,10 @@ pub(crate) fn synthesise(cfg: &SimConfig, rng: &mut ChaCha8Rng) -> UwbOutput {
             if t_s > duration_s || uwb.outages.iter().any(|o| o.start_s <= t_s && t_s < o.end_s) {
                 continue;
             }
-            out.ranges.push(RangeMeasurement { t_s, anchor, range_m: (true_range_m + error_m).max(0.0) });
+            out.ranges.push(RangeMeasurement { t_s, anchor, range_m: (true_range_m + error_m).max(0.0), tag });
             out.labels.push(label);
         }
     }
-    sort_by_time(&mut out);
-    out
 }
 
 /// Sorts ranges (and their labels) by time, stably: staggered and jittered ranges of consecutive

@@ -41,7 +41,7 @@
 
 use std::f64::consts::PI;
 
-use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+use uwbimu_vocabulary::config::{FilterConfig, InitialState, LeverArms};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 
@@ -101,6 +101,15 @@ impl Scenario {
     }
 }
 
+/// The tags' lever arms of `sim` as a filter told the mounting rotation `imu_rotation` sees them:
+/// in its body frame, the IMU frame turned by `imu_rotation` (the simulator's body frame when
+/// told the true mounting, the IMU axes when told none).
+pub fn lever_arms_seen(sim: &SimConfig, imu_rotation: &Quat) -> LeverArms {
+    let to_filter_body = imu_rotation * sim.imu_rotation.inverse();
+    let arms: Vec<Vec3> = sim.lever_arms().as_slice().iter().map(|l| to_filter_body * l).collect();
+    LeverArms::with_more(arms[0], &arms[1..])
+}
+
 /// The true state at the first IMU sample of `data` (a run of `sim`) as a filter configured by
 /// `config` sees it: the orientation of the filter's body frame (the IMU frame turned by
 /// `config.imu_rotation`), biases unknown (zero, with the configured uncertainty).
@@ -137,7 +146,7 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     c.ins.gyro_bias_walk = n.gyro_bias_walk.max(1e-7);
     (c.init.accel_bias_std, c.ins.accel_bias_markov_std) = (n.accel_bias_std.max(1e-3), n.accel_bias_std.max(1e-3));
     (c.init.gyro_bias_std, c.ins.gyro_bias_markov_std) = (n.gyro_bias_std.max(1e-4), n.gyro_bias_std.max(1e-4));
-    c.mounting = uwbimu_vocabulary::config::MountingConfig { lever_arm: sim.lever_arm_m, imu_rotation: sim.imu_rotation };
+    c.mounting = uwbimu_vocabulary::config::MountingConfig { lever_arm: sim.lever_arms(), imu_rotation: sim.imu_rotation };
     c.ins.gravity = sim.gravity_nav_mps2;
     if sim.accel_outliers.count > 0 {
         c.gate.accel_range = c.gate.accel_range.max(10.0 * sim.accel_outliers.std_mps2);
@@ -478,8 +487,8 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
     let mut config = matched_config(&sim);
     if !tell_mounting {
         // The user takes the IMU frame as the body frame: lever arm in IMU axes, no rotation.
-        config.mounting.lever_arm = sim.imu_rotation.inverse_transform_vector(&sim.lever_arm_m);
         config.mounting.imu_rotation = Quat::identity();
+        config.mounting.lever_arm = lever_arms_seen(&sim, &config.mounting.imu_rotation);
     }
     let name = ZOO_NAMES.iter().copied().find(|n| *n == name).unwrap_or("unknown");
     Ok(Scenario { name, sim, config, default_sensors })

@@ -151,6 +151,10 @@ impl Filter for Ackf {
         self.inner.update_ranges(t_s, ranges, reports)
     }
 
+    fn update_tag_ranges(&mut self, t_s: f64, tag: usize, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        self.inner.update_tag_ranges(t_s, tag, ranges, reports)
+    }
+
     /// A magnetometer sample: part of the field reference during the reference period (reported
     /// as not applied), a vector observation after it; a TDoA: the inner filter's.
     fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {

@@ -21,7 +21,7 @@
 //!
 //! All constraints due in one step form one linear update (sequential scalar Joseph steps, then
 //! one injection), like a joint update with diagonal noise. With range bias states
-//! ([`RangeBiasStates`]) the update runs on the joint covariance: the constraints have no bias
+//! ([`BiasStates`]) the update runs on the joint covariance: the constraints have no bias
 //! columns, but the biases correlated with the velocity and height move with them and their
 //! cross-covariance stays consistent.
 
@@ -33,7 +33,7 @@ use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::{quat_exp, Cov, Vec3};
 use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, ERR_DIM};
 
-use crate::filters::range_bias::{JointStep, RangeBiasStates};
+use crate::filters::bias_states::{BiasStates, JointStep};
 use crate::filters::InertialCore;
 use crate::models::motion::{Plane, Speed, ZeroVelocity};
 use crate::models::{Geometry, ScalarModel};
@@ -169,14 +169,14 @@ impl Constraints {
         t_s: f64,
         accel: &Vec3,
         gyro: &Vec3,
-        bias: Option<&mut RangeBiasStates>,
+        bias: Option<&mut BiasStates>,
     ) -> Result<()> {
         core.predict(t_s, accel, gyro)?;
         self.after_predict(core, bias)
     }
 
     /// Feeds the IMU sample just predicted to the detector and applies the constraints due.
-    fn after_predict(&mut self, core: &mut InertialCore, bias: Option<&mut RangeBiasStates>) -> Result<()> {
+    fn after_predict(&mut self, core: &mut InertialCore, bias: Option<&mut BiasStates>) -> Result<()> {
         let Some(t) = core.time_s() else { return Ok(()) };
         let (cfg, gravity) = (self.config.constraints, core.ins().gravity);
         let (accel, gyro) = core.last_imu_body();

@@ -8,7 +8,7 @@ use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
 
 use super::pending::PendingPropagation;
 use super::smoothing_record::{Recorder, SmoothingRecord};
-use crate::filters::range_bias::BiasCross;
+use crate::filters::bias_states::BiasCross;
 use crate::ins::{propagate_nominal, ImuInterval, ProcessNoise, Transition};
 use crate::robust::fade_position_velocity;
 
@@ -208,7 +208,7 @@ impl InertialCore {
         }
     }
 
-    /// Starts carrying the cross-covariance with parameter states ([`crate::filters::range_bias`]),
+    /// Starts carrying the cross-covariance with parameter states ([`crate::filters::bias_states`]),
     /// zero at first; the core propagates its columns in use (bit `c` of `columns` for column
     /// `c`; the owner keeps the others zero) with Φ at every prediction.
     pub fn track_cross_covariance(&mut self, columns: u64) {

@@ -133,7 +133,7 @@ impl Eskf {
     /// Applies one checked epoch of ranges at the filter time `t_s` as its UWB fix.
     fn apply_fix(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         let config = &self.config;
-        let lever_arm = config.mounting.lever_arm;
+        let lever_arm = *config.mounting.lever_arm.first();
         let ls = LsConfig::from_filter_config(config);
         // Coplanar anchors give x, y (their fixes' height is weak or fixed); otherwise a planar
         // fallback fix (fewer than four ranges) has a made-up height and is not used.

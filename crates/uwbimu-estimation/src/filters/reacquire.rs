@@ -128,7 +128,7 @@ impl DivergenceWatch {
 /// the `χ²` bound (α = 1e-6) of their joint horizontal covariance.
 fn disagrees(core: &InertialCore, fix: &Fix) -> bool {
     let x = core.state();
-    let tag = crate::models::range::tag_position(x, &core.mounting().lever_arm);
+    let tag = crate::models::range::tag_position(x, core.mounting().lever_arm.first());
     let d = (fix.position - tag).xy();
     let s = core.covariance().fixed_view::<2, 2>(POS, POS) + fix.covariance.fixed_view::<2, 2>(0, 0);
     let nis = s.cholesky().map_or(f64::INFINITY, |c| d.dot(&c.solve(&d)));
@@ -184,7 +184,7 @@ pub fn reacquire(
 fn apply_fix(core: &mut InertialCore, last_good_s: &mut Option<f64>, fix: &Fix, diverged: bool) -> Result<(f64, f64)> {
     let now = core.time_s();
     let horizontal_only = fix.planar || (!diverged && fix.covariance[(2, 2)] > core.covariance()[(POS + 2, POS + 2)]);
-    let tag = crate::models::range::tag_position(core.state(), &core.mounting().lever_arm);
+    let tag = crate::models::range::tag_position(core.state(), core.mounting().lever_arm.first());
     let mut discrepancy = fix.position - tag;
     if horizontal_only {
         discrepancy.z = 0.0;
@@ -197,7 +197,7 @@ fn apply_fix(core: &mut InertialCore, last_good_s: &mut Option<f64>, fix: &Fix, 
         core.widen_prior(&ReacquisitionWidening { discrepancy, horizon_s });
     }
     *last_good_s = now;
-    let lever_arm = core.mounting().lever_arm;
+    let lever_arm = *core.mounting().lever_arm.first();
     let tag = TagFix { t_s: now.unwrap_or(0.0), position: fix.position, covariance: fix.covariance };
     let (x, p) = core.state_and_covariance_mut();
     let (residual, h) = position_measurement(x, &tag, &lever_arm);
@@ -292,7 +292,7 @@ pub fn reacquire_tdoa(
     }
     // A planar fix (coplanar anchors) is solved at the filter's tag height: the hyperbolae's
     // horizontal crossing moves with the height, and the anchors' own height is far from the tag's.
-    let tag_z = crate::models::range::tag_position(core.state(), &core.mounting().lever_arm).z;
+    let tag_z = crate::models::range::tag_position(core.state(), core.mounting().lever_arm.first()).z;
     let ls =
         LsConfig { range_std_m: config.ranging.tdoa_std, planar_height_m: Some(tag_z), ..LsConfig::from_filter_config(config) };
     let Some(fix) = solve_tdoa(anchors, &watch.window(), &ls).filter(|f| f.is_consistent(ls.range_std_m, FIX_CONSISTENCY_ALPHA))

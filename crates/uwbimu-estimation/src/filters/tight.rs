@@ -11,8 +11,8 @@ use uwbimu_vocabulary::records::TdoaMeasurement;
 use uwbimu_vocabulary::sensors::Observation;
 use uwbimu_vocabulary::state::{ErrVec, ERR_DIM};
 
+use crate::filters::bias_states::BiasStates;
 use crate::filters::constraints::Constraints;
-use crate::filters::range_bias::RangeBiasStates;
 use crate::filters::reacquire::{reacquire, reacquire_tdoa, DivergenceWatch, TdoaWatch, RANGE_FAIL_NIS};
 use crate::filters::scratch::Scratch;
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
@@ -69,7 +69,8 @@ pub struct TightFilter {
     odometry_axes: u8,
     /// Whether the watches run and re-acquire ([`Composition::reacquire`]).
     reacquire: bool,
-    range_bias: Option<RangeBiasStates>,
+    /// The additive measurement biases, when any is estimated.
+    biases: Option<BiasStates>,
     /// Scratch for one epoch's measurements (capacity: one per anchor; no allocation per epoch,
     /// in a clone too).
     epoch: Scratch<Range>,
@@ -257,13 +258,19 @@ impl TightFilter {
             Vec::new()
         };
         let mut core = InertialCore::new(initial, &config)?;
-        let range_bias = if config.range_bias.states {
+        let biased_altitude = config.altitude.offset_std > 0.0;
+        let biases = if config.range_bias.states || biased_altitude {
             if matches!(strategy, Strategy::Unscented(_)) {
                 return Err(Error::InvalidCall(
-                    "range_bias.states needs a Kalman update strategy (single or iterated), not the unscented one".into(),
+                    "range_bias.states and altitude.offset_std need a Kalman update strategy (single or iterated), not the unscented one"
+                        .into(),
                 ));
             }
-            let states = RangeBiasStates::new(config.range_bias, anchors.len())?;
+            let states = BiasStates::new(
+                config.range_bias.states.then_some(config.range_bias),
+                biased_altitude.then_some(config.altitude),
+                anchors.len(),
+            )?;
             core.track_cross_covariance(states.slots_in_use());
             Some(states)
         } else {
@@ -284,7 +291,7 @@ impl TightFilter {
             tdoa_watch: TdoaWatch::default(),
             odometry_axes: 0,
             reacquire: composition.reacquire,
-            range_bias,
+            biases,
         })
     }
 
@@ -292,14 +299,14 @@ impl TightFilter {
     /// eqs. (33)–(37)) from the L1 fit of its ranges in the plane of the predicted tag height (the
     /// ARCKF paper's §3.1 works in the plane; the height comes from the INS); for
     /// `ResidualWeighted` with two ranges, from the two-range rule of the ACKF paper instead.
-    fn robustness(&self, ranges: &[(usize, f64)], factors: &mut Vec<RobustnessFactor>) {
+    fn robustness(&self, tag: usize, ranges: &[(usize, f64)], factors: &mut Vec<RobustnessFactor>) {
         let range_std = self.config.ranging.range_std;
         if let (RangeNoisePolicy::ResidualWeighted, &[(a1, r1), (a2, r2)]) = (self.policy, ranges) {
             let res = two_range_residuals(&self.anchors[a1], r1, &self.anchors[a2], r2);
             factors.extend([robustness_factor(r1, res[0], range_std), robustness_factor(r2, res[1], range_std)]);
             return;
         }
-        let tag = tag_position(self.core.state(), &self.config.mounting.lever_arm);
+        let tag = tag_position(self.core.state(), &self.config.mounting.lever_arm.as_slice()[tag]);
         let ls = LsConfig { range_std_m: range_std, planar_height_m: Some(tag.z), ..LsConfig::default() };
         let fix = l1_solve_epoch(&self.anchors, ranges, &ls, &L1Config::default());
         factors.extend(robustness_factors(ranges, fix.map(|f| f.residuals_m(&self.anchors, ranges)), range_std));
@@ -307,7 +314,7 @@ impl TightFilter {
 
     /// The geometry the filter's measurements are predicted in (its anchors and lever arm).
     fn geometry(&self) -> Geometry<'_> {
-        Geometry::one_tag(&self.anchors, &self.config.mounting.lever_arm)
+        Geometry { anchors: &self.anchors, lever_arms: self.config.mounting.lever_arm.as_slice() }
     }
 
     /// One measurement predicted at the prior with `h·P⁻·hᵀ`; None when the tag sits on an anchor.
@@ -354,18 +361,31 @@ impl Filter for TightFilter {
     }
 
     fn predict(&mut self, t_s: f64, accel: &Vec3, gyro: &Vec3) -> Result<()> {
-        self.constraints.predict(&mut self.core, t_s, accel, gyro, self.range_bias.as_mut())
+        self.constraints.predict(&mut self.core, t_s, accel, gyro, self.biases.as_mut())
     }
 
     fn update_ranges(&mut self, t_s: f64, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        self.update_tag_ranges(t_s, 0, ranges, reports)
+    }
+
+    /// The ranges of tag `tag` (lever arm `mounting.lever_arm[tag]`): each tag's epochs go
+    /// through the same strategy and policies; the divergence watch and its re-acquisition on a
+    /// UWB-only fix take tag 0's epochs only (a fix is of one antenna).
+    fn update_tag_ranges(&mut self, t_s: f64, tag: usize, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         if reports.len() != ranges.len() {
             return Err(Error::InvalidCall(format!("{} ranges but {} report slots", ranges.len(), reports.len())));
+        }
+        let tags = self.config.mounting.lever_arm.tags();
+        if tag >= tags {
+            return Err(Error::InvalidCall(format!(
+                "ranges from tag {tag}, but mounting.lever_arm gives {tags} tag(s): give one [x, y, z] per tag"
+            )));
         }
         check_ranges(&self.anchors, ranges)?;
         self.core.advance_to(t_s)?;
         self.constraints.note_aiding(t_s);
         let hold = self.constraints.hold_heading(&self.core);
-        self.apply_ranges(ranges, reports)?;
+        self.apply_ranges(tag, ranges, reports)?;
         if let Some(hold) = hold {
             hold.restore(&mut self.core);
         }
@@ -460,15 +480,15 @@ impl TightFilter {
         self.constraints.hold_heading(&self.core)
     }
 
-    /// Applies one checked epoch of ranges at the filter time (re-acquisition, robustness, the
-    /// strategy's update).
-    fn apply_ranges(&mut self, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+    /// Applies one checked epoch of tag `tag`'s ranges at the filter time (re-acquisition,
+    /// robustness, the strategy's update).
+    fn apply_ranges(&mut self, tag: usize, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
         let mut epoch = self.epoch.take_cleared();
-        epoch.extend(ranges.iter().map(|&(anchor, range_m)| Range { anchor, tag: 0, range_m }));
+        epoch.extend(ranges.iter().map(|&(anchor, range_m)| Range { anchor, tag, range_m }));
         let mut at_prior = self.at_prior.take_cleared();
         at_prior.extend(epoch.iter().map(|m| self.predict_at_prior(m)));
         let mut factors = self.factors.take_cleared();
-        let applied = self.apply_epoch(ranges, &epoch, &at_prior, &mut factors, reports);
+        let applied = self.apply_epoch(tag, ranges, &epoch, &at_prior, &mut factors, reports);
         self.epoch.put_back(epoch);
         self.at_prior.put_back(at_prior);
         self.factors.put_back(factors);
@@ -479,13 +499,14 @@ impl TightFilter {
     /// `at_prior`; `factors` is scratch for the robustness factors.
     fn apply_epoch(
         &mut self,
+        tag: usize,
         ranges: &[(usize, f64)],
         epoch: &[Range],
         at_prior: &[Option<PriorPrediction>],
         factors: &mut Vec<RobustnessFactor>,
         reports: &mut [UpdateReport],
     ) -> Result<()> {
-        if self.reacquire {
+        if self.reacquire && tag == 0 {
             let failed = self.failed_at_prior(epoch, at_prior);
             if let Some((innovation, nis)) =
                 reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
@@ -497,7 +518,7 @@ impl TightFilter {
         // ARCKF (the ARCKF paper's Algorithm 1): robustness factors and the fading of the prior.
         let (weighted, fading) = match self.policy {
             RangeNoisePolicy::AdaptiveRobust { threshold } => {
-                self.robustness(ranges, factors);
+                self.robustness(tag, ranges, factors);
                 let fading = self.epoch_fading(epoch, at_prior, factors, threshold);
                 if fading > 1.0 {
                     self.core.fade_prior(fading);
@@ -505,7 +526,7 @@ impl TightFilter {
                 (true, fading)
             }
             RangeNoisePolicy::ResidualWeighted => {
-                self.robustness(ranges, factors);
+                self.robustness(tag, ranges, factors);
                 (true, 1.0)
             }
             _ => (false, 1.0),
@@ -576,7 +597,7 @@ impl TightFilter {
     /// The Kalman strategy (see [`TightFilter`]): Gauss–Newton iterations of sequential scalar
     /// Joseph steps at the operating point; `max_iterations = 1` is the single EKF step (always,
     /// for a model that is not re-linearised: [`ScalarModel::RELINEARISE`]). With
-    /// range bias states, over the augmented error state ([`crate::filters::range_bias`]).
+    /// range bias states, over the augmented error state ([`crate::filters::bias_states`]).
     #[allow(clippy::too_many_arguments)]
     fn solve_iterated<M: ScalarModel>(
         &mut self,
@@ -590,7 +611,7 @@ impl TightFilter {
     ) -> Result<()> {
         let time_s = self.core.time_s().unwrap_or(0.0);
         let mut epoch = KalmanEpoch {
-            geometry: Geometry::one_tag(&self.anchors, &self.config.mounting.lever_arm),
+            geometry: Geometry { anchors: &self.anchors, lever_arms: self.config.mounting.lever_arm.as_slice() },
             noise: EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading),
             max_iterations,
             tolerance,
@@ -598,20 +619,19 @@ impl TightFilter {
             at_prior: PriorPredictions { predictions: at_prior, hph_valid: fading == 1.0 },
         };
         let (x, p, cross) = self.core.parts_mut();
-        let iterations = match (self.range_bias.as_mut(), cross) {
+        let iterations = match (self.biases.as_mut(), cross) {
             (Some(bias), Some(cross)) => {
-                bias.joint_step(time_s, p, cross, BiasedEpoch { epoch: &mut epoch, x, measurements, reports })?
+                let layout = bias.layout();
+                bias.joint_step(time_s, p, cross, BiasedEpoch { epoch: &mut epoch, x, measurements, reports, layout })?
             }
             _ => epoch.iterate(x, p, &mut ErrVec::zeros(), measurements, reports, |_: &M| ErrVec::zeros(), ERR_DIM)?,
         };
         for r in reports.iter_mut().filter(|r| r.accepted) {
             r.iterations = iterations;
         }
-        if let Some(bias) = &self.range_bias {
+        if let Some(bias) = &self.biases {
             for (r, m) in reports.iter_mut().zip(measurements) {
-                if let Policies::Range { anchor } = m.policies() {
-                    r.range_bias = bias.total(anchor);
-                }
+                r.bias = bias.of(m);
             }
         }
         Ok(())
@@ -632,7 +652,7 @@ impl TightFilter {
         fading: f64,
     ) -> Result<()> {
         let mut noise = EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading);
-        let geometry = Geometry::one_tag(&self.anchors, &self.config.mounting.lever_arm);
+        let geometry = Geometry { anchors: &self.anchors, lever_arms: self.config.mounting.lever_arm.as_slice() };
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
         let mut dx = ErrVec::zeros();

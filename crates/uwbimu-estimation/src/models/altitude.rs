@@ -5,9 +5,10 @@
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::state::{ErrVec, NominalState, POS};
 
-use crate::models::{Block, Geometry, ScalarModel, ScalarPrediction};
+use crate::models::{AdditiveBias, Block, Geometry, ScalarModel, ScalarPrediction};
 
-/// `h(x) = p_z`, Jacobian `e_zᵀ` on δp, noise `altitude.std`, the filter's symmetric robust test.
+/// `h(x) = p_z` (`+ b_alt` with the offset state, `altitude.offset_std` > 0), Jacobian `e_zᵀ` on
+/// δp (and 1 on the offset), noise `altitude.std`, the filter's symmetric robust test.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Altitude {
     /// Measured height, navigation frame, m.
@@ -29,6 +30,10 @@ impl ScalarModel for Altitude {
 
     fn nominal_var(&self, config: &FilterConfig) -> f64 {
         config.altitude.std.powi(2)
+    }
+
+    fn additive_bias(&self) -> Option<AdditiveBias> {
+        Some(AdditiveBias::AltitudeOffset)
     }
 
     fn examples() -> Vec<Self> {

@@ -53,6 +53,19 @@ pub enum Policies {
     Robust,
 }
 
+/// A bias state a measurement carries additively, `z = h(x) + b` (`∂z/∂b = 1`), estimated when
+/// configured ([`crate::filters::bias_states`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AdditiveBias {
+    /// The range bias of `anchor` and the common one (`range_bias.states`).
+    Range {
+        /// Anchor index.
+        anchor: usize,
+    },
+    /// An altitude sensor's offset (`altitude.offset_std` > 0).
+    AltitudeOffset,
+}
+
 /// The error-state blocks a measurement's Jacobian may touch (what it observes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Block {
@@ -115,6 +128,11 @@ pub trait ScalarModel: Copy + std::fmt::Debug {
     /// The noise policies that apply ([`Policies`]).
     fn policies(&self) -> Policies {
         Policies::Robust
+    }
+
+    /// The bias state it carries additively, if any ([`AdditiveBias`]).
+    fn additive_bias(&self) -> Option<AdditiveBias> {
+        None
     }
 
     /// Examples of the model (for the Jacobian test), valid in the geometry of

@@ -4,7 +4,7 @@ use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::math::{skew, Vec3};
 use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, POS};
 
-use crate::models::{Block, Geometry, Policies, ScalarModel, ScalarPrediction};
+use crate::models::{AdditiveBias, Block, Geometry, Policies, ScalarModel, ScalarPrediction};
 
 /// Below this distance of the tag from an anchor the direction, hence the range Jacobian, is
 /// undefined, m.
@@ -79,6 +79,10 @@ impl ScalarModel for Range {
 
     fn policies(&self) -> Policies {
         Policies::Range { anchor: self.anchor }
+    }
+
+    fn additive_bias(&self) -> Option<AdditiveBias> {
+        Some(AdditiveBias::Range { anchor: self.anchor })
     }
 
     fn examples() -> Vec<Self> {

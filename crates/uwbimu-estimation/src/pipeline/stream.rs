@@ -397,6 +397,16 @@ impl<E: Estimator> Stream<E> {
         }
     }
 
+    /// How many tags the filter fuses ([`Estimator::tags`]; the configuration's while it waits
+    /// to initialise itself).
+    pub fn tag_count(&self) -> usize {
+        match &self.phase {
+            Phase::Running { estimator, .. } => estimator.tags(),
+            Phase::Waiting(w) => w.config.mounting.lever_arm.tags(),
+            Phase::Switching => 0,
+        }
+    }
+
     /// Ranges waiting in the open epoch.
     pub fn pending_ranges(&self) -> usize {
         match &self.phase {

@@ -3,9 +3,10 @@
 //! struct, its `Default`, its key list, its setter and its entries ([`Section`]), so a key cannot
 //! be listed in one place and forgotten in another. Keys are written `section.field`.
 
+use crate::config::lever_arms::{lever_arms, LeverArms};
 use crate::config::parse::{
     at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
-    quaternion, scalar, some_at_least_one, some_positive, some_scalar, some_whole, vec3, ToValue,
+    quaternion, scalar, some_at_least_one, some_positive, some_scalar, some_whole, ToValue,
 };
 use crate::config::ConfigValue;
 use crate::error::{Error, Result};
@@ -209,8 +210,10 @@ section! {
     /// Where the sensors sit on the body.
     MountingConfig = "mounting" {
         /// UWB antenna position in the body frame, m (the papers mount the IMU 5 cm below the
-        /// tag: `[0, 0, 0.05]`).
-        lever_arm: Vec3 = Vec3::zeros(), vec3;
+        /// tag: `[0, 0, 0.05]`); with several tags one `[x, y, z]` per tag, tag 0 first (a list
+        /// of rows, or 3 numbers per tag in a row), the tag a range came from being its `tag`
+        /// column.
+        lever_arm: LeverArms = LeverArms::default(), lever_arms;
         /// Rotation from the IMU frame to the body frame, `[w, x, y, z]` (readings are rotated by
         /// it before use).
         imu_rotation: Quat = Quat::identity(), quaternion;
@@ -417,11 +420,18 @@ section! {
 }
 
 section! {
-    /// An altitude sensor (a time-of-flight height sensor, a barometer with its offset removed):
-    /// the height of the body origin, navigation frame, z up (`uwbimu_estimation::models::altitude`).
+    /// An altitude sensor (a time-of-flight height sensor, a barometer): the height of the body
+    /// origin, navigation frame, z up, plus an offset state when `offset_std` > 0
+    /// (`uwbimu_estimation::models::altitude`).
     AltitudeConfig = "altitude" {
         /// σ of one altitude reading, m.
         std: f64 = 0.05, positive;
+        /// Initial σ of the sensor's offset to the navigation frame, m: above 0, the offset is a
+        /// state the filter estimates (a barometer's reference height, which weather moves);
+        /// 0: the readings are taken as unbiased (a time-of-flight sensor over a flat floor).
+        offset_std: f64 = 0.0, non_negative;
+        /// Random walk of the offset state, m/√s.
+        offset_walk: f64 = 0.0, non_negative;
     }
 }
 

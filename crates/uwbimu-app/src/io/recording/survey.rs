@@ -305,7 +305,7 @@ impl<'a> Converter<'a> {
                 let RangeUse::Usable = range_use(&raw) else { return None };
                 let anchor = self.layout.index_of(&raw.anchor_id)?;
                 Some(RecordItem::Range(
-                    RangeMeasurement { t_s, anchor, range_m: raw.range_m },
+                    RangeMeasurement { t_s, anchor, range_m: raw.range_m, tag: 0 },
                     raw.variance_m2.unwrap_or(f64::NAN),
                 ))
             }

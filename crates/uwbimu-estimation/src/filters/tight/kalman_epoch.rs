@@ -8,7 +8,7 @@ use uwbimu_vocabulary::math::{CacheAligned, Cov};
 use uwbimu_vocabulary::state::{NominalState, ERR_DIM};
 
 use super::{EpochNoise, PriorPrediction};
-use crate::filters::range_bias::{JointStep, RangeBiasStates};
+use crate::filters::bias_states::{BiasLayout, JointStep};
 use crate::models::{Geometry, Policies, ScalarModel};
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
 
@@ -22,21 +22,23 @@ pub(super) struct KalmanEpoch<'a> {
 }
 
 /// The Kalman strategy's epoch over the joint state of the range bias states
-/// ([`RangeBiasStates::joint_step`] chooses its dimension).
+/// ([`crate::filters::bias_states::BiasStates::joint_step`] chooses its dimension).
 pub(super) struct BiasedEpoch<'e, 'a, M> {
     pub(super) epoch: &'e mut KalmanEpoch<'a>,
     pub(super) x: &'e mut NominalState,
     pub(super) measurements: &'e [M],
     pub(super) reports: &'e mut [UpdateReport],
+    /// The biases the joint state carries.
+    pub(super) layout: BiasLayout,
 }
 
 impl<M: ScalarModel> JointStep for BiasedEpoch<'_, '_, M> {
     type Output = u32;
 
-    /// [`KalmanEpoch::iterate`] over the joint state, the biases entering the ranges with
-    /// [`RangeBiasStates::jacobian`]. Returns the iterations.
+    /// [`KalmanEpoch::iterate`] over the joint state, the biases entering the measurements with
+    /// [`BiasLayout::jacobian`]. Returns the iterations.
     fn step<const N: usize>(self, p: &mut Cov<N>, params: &mut SVector<f64, N>, estimated: usize) -> Result<u32> {
-        self.epoch.iterate(self.x, p, params, self.measurements, self.reports, RangeBiasStates::jacobian::<M, N>, estimated)
+        self.epoch.iterate(self.x, p, params, self.measurements, self.reports, |m: &M| self.layout.jacobian::<M, N>(m), estimated)
     }
 }
 
