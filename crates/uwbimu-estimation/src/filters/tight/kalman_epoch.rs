@@ -7,7 +7,8 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{CacheAligned, Cov};
 use uwbimu_vocabulary::state::{NominalState, ERR_DIM};
 
-use super::{EpochNoise, PriorPrediction};
+use super::noise::EpochNoise;
+use super::PriorPrediction;
 use crate::filters::bias_states::{BiasLayout, JointStep};
 use crate::models::{Geometry, Policies, ScalarModel};
 use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};

@@ -1,0 +1,150 @@
+//! How [`TightFilter`] applies what it takes: the measurements predicted at the prior, an epoch
+//! of ranges (re-acquisition, robustness, the strategy's update), a TDoA and any other scalar
+//! measurement, with the heading held while the platform is still.
+
+use uwbimu_vocabulary::error::Result;
+use uwbimu_vocabulary::records::TdoaMeasurement;
+
+use super::{PriorPrediction, TightFilter};
+#[cfg(doc)]
+use crate::filters::constraints::Constraints;
+use crate::filters::reacquire::{reacquire, reacquire_tdoa, RANGE_FAIL_NIS};
+use crate::models::range::Range;
+use crate::models::tdoa::Tdoa;
+use crate::models::{Geometry, ScalarModel};
+use crate::robust::{RangeNoisePolicy, RobustnessFactor};
+use crate::update::{times_sparse, UpdateReport};
+
+impl TightFilter {
+    /// The geometry the filter's measurements are predicted in (its anchors and lever arm).
+    fn geometry(&self) -> Geometry<'_> {
+        Geometry { anchors: &self.anchors, lever_arms: self.config.mounting.lever_arm.as_slice() }
+    }
+
+    /// One measurement predicted at the prior with `h·P⁻·hᵀ`; None when the tag sits on an anchor.
+    fn predict_at_prior<M: ScalarModel>(&self, m: &M) -> Option<PriorPrediction> {
+        let (x, p) = (self.core.state(), self.core.covariance());
+        let prediction = m.predict(x, &self.geometry())?;
+        Some(PriorPrediction { hph: prediction.jacobian.dot(&times_sparse(p, &prediction.jacobian)), prediction })
+    }
+
+    /// How many of an epoch's measurements, predicted at the prior as `at_prior`, fail their
+    /// `χ²₁` test with the nominal range noise (for the divergence watch,
+    /// [`crate::filters::reacquire`]).
+    fn failed_at_prior(&self, measurements: &[Range], at_prior: &[Option<PriorPrediction>]) -> usize {
+        let r_var = self.config.ranging.range_std.powi(2);
+        measurements
+            .iter()
+            .zip(at_prior)
+            .filter(|(m, pred)| pred.is_some_and(|pred| pred.nis(m.value(), r_var) > RANGE_FAIL_NIS))
+            .count()
+    }
+
+    /// Advances the core to `t_s`, notes UWB-like aiding when `aiding` ([`Constraints::note_aiding`]),
+    /// and runs `update` with the heading held while the platform is still.
+    pub(super) fn aided_update(
+        &mut self,
+        t_s: f64,
+        aiding: bool,
+        update: impl FnOnce(&mut Self) -> Result<UpdateReport>,
+    ) -> Result<UpdateReport> {
+        self.core.advance_to(t_s)?;
+        if aiding {
+            self.constraints.note_aiding(t_s);
+        }
+        let hold = self.constraints.hold_heading(&self.core);
+        let report = update(self)?;
+        if let Some(hold) = hold {
+            hold.restore(&mut self.core);
+        }
+        Ok(report)
+    }
+
+    /// Applies one scalar measurement `m` at the filter time with the strategy and the policy.
+    pub(super) fn apply_model<M: ScalarModel>(&mut self, m: M) -> Result<UpdateReport> {
+        let at_prior = self.predict_at_prior(&m);
+        self.solve_one(m, at_prior)
+    }
+
+    /// [`TightFilter::solve`] of the one measurement `m`, predicted at the prior as `at_prior`.
+    fn solve_one<M: ScalarModel>(&mut self, m: M, at_prior: Option<PriorPrediction>) -> Result<UpdateReport> {
+        let mut report = [UpdateReport::skipped()];
+        self.solve(&[m], &[at_prior], &mut report, None, 1.0)?;
+        Ok(report[0])
+    }
+
+    /// The hold of the heading for an update of the core by the owner ([`Constraints::hold_heading`]):
+    /// Some while the platform is still and `constraints.still_heading_hold` is on.
+    pub(crate) fn hold_heading(&self) -> Option<crate::filters::constraints::HeadingHold> {
+        self.constraints.hold_heading(&self.core)
+    }
+
+    /// Applies one checked epoch of tag `tag`'s ranges at the filter time (re-acquisition,
+    /// robustness, the strategy's update).
+    pub(super) fn apply_ranges(&mut self, tag: usize, ranges: &[(usize, f64)], reports: &mut [UpdateReport]) -> Result<()> {
+        let mut epoch = self.epoch.take_cleared();
+        epoch.extend(ranges.iter().map(|&(anchor, range_m)| Range { anchor, tag, range_m }));
+        let mut at_prior = self.at_prior.take_cleared();
+        at_prior.extend(epoch.iter().map(|m| self.predict_at_prior(m)));
+        let mut factors = self.factors.take_cleared();
+        let applied = self.apply_epoch(tag, ranges, &epoch, &at_prior, &mut factors, reports);
+        self.epoch.put_back(epoch);
+        self.at_prior.put_back(at_prior);
+        self.factors.put_back(factors);
+        applied
+    }
+
+    /// [`TightFilter::apply_ranges`] on the epoch's measurements, predicted at the prior as
+    /// `at_prior`; `factors` is scratch for the robustness factors.
+    fn apply_epoch(
+        &mut self,
+        tag: usize,
+        ranges: &[(usize, f64)],
+        epoch: &[Range],
+        at_prior: &[Option<PriorPrediction>],
+        factors: &mut Vec<RobustnessFactor>,
+        reports: &mut [UpdateReport],
+    ) -> Result<()> {
+        if self.reacquire && tag == 0 {
+            let failed = self.failed_at_prior(epoch, at_prior);
+            if let Some((innovation, nis)) =
+                reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
+            {
+                reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
+                return Ok(());
+            }
+        }
+        // ARCKF (the ARCKF paper's Algorithm 1): robustness factors and the fading of the prior.
+        let (weighted, fading) = match self.policy {
+            RangeNoisePolicy::AdaptiveRobust { threshold } => {
+                self.robustness(tag, ranges, factors);
+                let fading = self.epoch_fading(epoch, at_prior, factors, threshold);
+                if fading > 1.0 {
+                    self.core.fade_prior(fading);
+                }
+                (true, fading)
+            }
+            RangeNoisePolicy::ResidualWeighted => {
+                self.robustness(tag, ranges, factors);
+                (true, 1.0)
+            }
+            _ => (false, 1.0),
+        };
+        self.solve(epoch, at_prior, reports, weighted.then_some(factors.as_slice()), fading)
+    }
+
+    /// Applies one checked TDoA at the filter time (re-acquisition, the strategy's update).
+    pub(super) fn apply_tdoa(&mut self, m: &TdoaMeasurement) -> Result<UpdateReport> {
+        let tdoa = Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
+        let at_prior = [self.predict_at_prior(&tdoa)];
+        if self.reacquire {
+            let r_var = self.config.ranging.tdoa_std.powi(2);
+            let failed = at_prior[0].is_some_and(|pred| pred.nis(tdoa.value(), r_var) > RANGE_FAIL_NIS);
+            let watch = &mut self.tdoa_watch;
+            if let Some((innovation, nis)) = reacquire_tdoa(&mut self.core, &self.config, watch, &self.anchors, m, failed)? {
+                return Ok(UpdateReport::reacquired(innovation, nis));
+            }
+        }
+        self.solve_one(tdoa, at_prior[0])
+    }
+}

@@ -1,0 +1,82 @@
+//! Batch runs: the time-ordered input streams of one run ([`Streams`]), merged into events, and
+//! [`run`] / [`run_streams`], which drive a [`Pipeline`] over them.
+
+use uwbimu_vocabulary::error::Result;
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
+use uwbimu_vocabulary::sensors::Observation;
+
+use super::{Estimator, Event, Pipeline, Progress, Trace};
+
+/// Runs `filter` over time-ordered, validated IMU samples and ranges (see the module doc for the
+/// event order).
+pub fn run<F: Estimator>(filter: &mut F, imu: &[ImuSample], ranges: &[RangeMeasurement]) -> Result<Trace> {
+    run_streams(filter, &Streams { imu, ranges, ..Streams::default() })
+}
+
+/// The time-ordered, validated input streams of one run.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Streams<'a> {
+    /// IMU samples.
+    pub imu: &'a [ImuSample],
+    /// Ranges.
+    pub ranges: &'a [RangeMeasurement],
+    /// The measurements of every other sensor of the registry, merged in time order (at equal
+    /// times by rank: [`uwbimu_vocabulary::sensors::merge`]).
+    pub observations: &'a [Observation],
+    /// Counts the IMU samples processed, for a progress bar (None: not counted).
+    pub progress: Option<&'a Progress>,
+    /// Sample the estimate with its error marginals into [`Trace::marginals`] at the first IMU
+    /// step of every this many seconds (None: not sampled).
+    pub marginals_every_s: Option<f64>,
+}
+
+impl Streams<'_> {
+    /// The events of all streams merged by time; at equal times by rank ([`Event::rank`]; each
+    /// stream keeps its own order).
+    pub fn events(&self) -> impl Iterator<Item = Event> + '_ {
+        let mut next = [0usize; 3];
+        std::iter::from_fn(move || {
+            let heads = [
+                self.imu.get(next[0]).map(|s| Event::Imu(*s)),
+                self.observations.get(next[1]).map(|o| Event::Observation(*o)),
+                self.ranges.get(next[2]).map(|r| Event::Range(*r)),
+            ];
+            // The earliest head; the lower rank wins ties ([`Event::rank`]).
+            let (k, event) = heads.into_iter().enumerate().filter_map(|(k, e)| e.map(|e| (k, e))).reduce(|best, cand| {
+                let key = |e: &Event| (e.t_s(), e.rank());
+                if key(&cand.1) < key(&best.1) {
+                    cand
+                } else {
+                    best
+                }
+            })?;
+            next[k] += 1;
+            Some(event)
+        })
+    }
+}
+
+/// Runs `filter` over all streams merged by time ([`Streams::events`]; see the module doc).
+pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Result<Trace> {
+    let mut pipeline = Pipeline::for_estimator(filter)?;
+    pipeline.record_steps(streams.imu.len());
+    if let Some(every_s) = streams.marginals_every_s {
+        pipeline.record_marginals(every_s)?;
+    }
+    let Some(last_imu_s) = streams.imu.last().map(|s| s.t_s) else {
+        return Ok(Trace::default());
+    };
+    for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
+        if streams.progress.is_some_and(Progress::cancelled) {
+            break;
+        }
+        pipeline.event(filter, &event)?;
+        if let (Event::Imu(_), Some(p)) = (&event, streams.progress) {
+            p.imu_sample();
+        }
+    }
+    pipeline.finish(filter)?;
+    let mut updates = Vec::with_capacity(streams.ranges.len() + streams.observations.len());
+    pipeline.take_applied(&mut updates);
+    Ok(Trace { steps: pipeline.take_steps(), updates, health: pipeline.health(), marginals: pipeline.take_marginals() })
+}
