@@ -40,7 +40,7 @@ fn recording() -> Vec<u8> {
         })
         .collect();
     let mut buf = Cursor::new(Vec::new());
-    let streams = RecordingStreams { imu: &imu, ranges: &ranges, tdoa: &[], anchors: &anchors };
+    let streams = RecordingStreams { imu: &imu, ranges: &ranges, observations: &[], anchors: &anchors };
     write_recording_mcap(&mut buf, "bench", &streams, Some(0.1), true).expect("write");
     buf.into_inner()
 }

@@ -16,6 +16,7 @@ use std::path::PathBuf;
 use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::app::sim::{preset, simulate, Trajectory};
 use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::sensors::SensorKind;
 
 /// The figure eight's period, s.
 const LOOP_S: f64 = 37.0;
@@ -32,7 +33,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     cfg.trajectory = Trajectory::figure_eight(Vec3::new(5.0, 4.0, 0.4), 3.5, 4.5, LOOP_S, loops, 10.0)?;
     cfg.imu_rate_hz = rate;
     let data = simulate(&cfg)?;
-    let streams = RecordingStreams { imu: &data.imu, ranges: &data.ranges, tdoa: &data.tdoa, anchors: &data.anchors };
+    let streams = RecordingStreams {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        observations: &data.observations_for(|k| k == SensorKind::Tdoa),
+        anchors: &data.anchors,
+    };
     let file = BufWriter::new(std::fs::File::create(&out)?);
     write_recording_mcap(file, "long_recording", &streams, Some(0.1), compress)?;
     let mut truth = BufWriter::new(std::fs::File::create(out.with_extension("truth.csv"))?);

@@ -41,7 +41,7 @@ fn valid_file() -> &'static [u8] {
             (0..12).map(|k| RangeMeasurement { t_s: 1.0 + k as f64 * 0.03, anchor: k % 3, range_m: 2.0, tag: 0 }).collect();
         let anchors = [Vec3::zeros(), Vec3::x() * 4.0, Vec3::y() * 4.0];
         let mut buf = Cursor::new(Vec::new());
-        let streams = RecordingStreams { imu: &imu, ranges: &ranges, tdoa: &[], anchors: &anchors };
+        let streams = RecordingStreams { imu: &imu, ranges: &ranges, observations: &[], anchors: &anchors };
         write_recording_mcap(&mut buf, "fuzz", &streams, None, true).unwrap();
         buf.into_inner()
     })

@@ -19,6 +19,7 @@ use uwbimu_rs::app::io::mcap_read::{read_mcap, McapEnd, McapEvent};
 use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
 use uwbimu_rs::app::sim::{preset, simulate, SimData, Trajectory};
 use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::sensors::SensorKind;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("uwbimu_cli_{}", std::process::id()));
@@ -33,7 +34,12 @@ fn sim() -> SimData {
 /// The simulated run as MCAP bytes (zstd or uncompressed chunks).
 fn sim_mcap(data: &SimData, compress: bool) -> Vec<u8> {
     let mut buf = Cursor::new(Vec::new());
-    let streams = RecordingStreams { imu: &data.imu, ranges: &data.ranges, tdoa: &data.tdoa, anchors: &data.anchors };
+    let streams = RecordingStreams {
+        imu: &data.imu,
+        ranges: &data.ranges,
+        observations: &data.observations_for(|k| k == SensorKind::Tdoa),
+        anchors: &data.anchors,
+    };
     write_recording_mcap(&mut buf, "sim", &streams, Some(0.1), compress).unwrap();
     buf.into_inner()
 }

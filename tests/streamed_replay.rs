@@ -18,10 +18,14 @@ use uwbimu_rs::app::io::{read_recording_file, survey_recording_file, ReplayConfi
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_rs::app::replay::{replay, ReplaySummary};
-use uwbimu_rs::app::sim::{preset, simulate, zoo, SimData, TdoaConfig};
+use uwbimu_rs::app::sim::{
+    lever_arms_seen, matched_config, preset, simulate, zoo, AltimeterConfig, OdometerConfig, SimData, TdoaConfig,
+};
 use uwbimu_rs::estimation::pipeline::StepRecord;
+use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::config::RangeCalibration;
 use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::sensors::SensorKind;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("uwbimu_streamed_{}", std::process::id()));
@@ -29,11 +33,16 @@ fn scratch(name: &str) -> PathBuf {
     dir.join(name)
 }
 
-/// Writes the run as an MCAP recording and its truth as a CSV; returns both paths.
+/// Writes the run (all its sensors but the magnetometer) as an MCAP recording and its truth as a CSV; returns both paths.
 fn recording(name: &str, data: &SimData, with_ranges: bool) -> (PathBuf, PathBuf) {
     let mut buf = Cursor::new(Vec::new());
     let ranges = if with_ranges { &data.ranges[..] } else { &[] };
-    let streams = RecordingStreams { imu: &data.imu, ranges, tdoa: &data.tdoa, anchors: &data.anchors };
+    let streams = RecordingStreams {
+        imu: &data.imu,
+        ranges,
+        observations: &data.observations_for(|k| k != SensorKind::Magnetometer),
+        anchors: &data.anchors,
+    };
     write_recording_mcap(&mut buf, name, &streams, Some(0.1), true).unwrap();
     let path = scratch(&format!("{name}.mcap"));
     std::fs::write(&path, buf.into_inner()).unwrap();
@@ -110,7 +119,7 @@ fn assert_same(path: &Path, cfg: &ReplayConfig, method: Method, smooth: bool) ->
         (sb.smoothed, sb.n_imu, sb.n_ranges, sb.n_tdoa, sb.n_ground_truth),
         "{what}"
     );
-    assert_eq!((&sa.anchors, &sa.tdoa), (&sb.anchors, &sb.tdoa), "{what}: update counts");
+    assert_eq!((&sa.anchors, &sa.sensors), (&sb.anchors, &sb.sensors), "{what}: update counts");
     assert_eq!(sa.model, sb.model, "{what}: model choice");
     assert_eq!(sa.smoothing_left_out, sb.smoothing_left_out, "{what}: ranges the robust smoothing left out");
     let (na, nb) = (sa.mean_nis.unwrap(), sb.mean_nis.unwrap());
@@ -191,7 +200,7 @@ fn tdoa_streams_as_it_runs_whole() {
     let (path, truth) = recording("tdoa", &data, false);
     let cfg = config(&format!("[config.ranging]\ntdoa_std = {}\n", TdoaConfig::default().std_m), &truth);
     let summary = assert_same(&path, &cfg, Method::Rekf, true);
-    assert!(summary.tdoa.is_some_and(|t| t.accepted > 1000));
+    assert!(summary.sensors.get("tdoa").is_some_and(|t| t.accepted > 1000));
 }
 
 #[test]
@@ -206,4 +215,25 @@ fn the_real_log_streams_as_it_runs_whole() {
     // The robust smoothing left out the walk's NLOS bursts (79 of 4266 ranges when measured).
     assert!((60..140).contains(&summary.smoothing_left_out), "{}", summary.smoothing_left_out);
     assert_same(&mcap, &cfg, Method::Riekf, false);
+}
+
+#[test]
+fn heights_speeds_and_two_tags_stream_as_they_run_whole() {
+    let mut scenario = zoo("agv_loop", 4).unwrap();
+    scenario.sim.altimeter = Some(AltimeterConfig::default());
+    scenario.sim.odometer = Some(OdometerConfig { lateral: true, ..OdometerConfig::default() });
+    scenario.sim.more_tags_m = vec![scenario.sim.lever_arm_m + Vec3::new(0.6, 0.0, 0.0)];
+    let data = simulate(&scenario.sim).unwrap();
+    let (path, truth) = recording("sensors", &data, true);
+    let mapping =
+        "[mapping.altitude]\ntopics = [\"/altitude\"]\n[mapping.odometry]\ntopics = [\"/odom\"]\naxes = [\"x\", \"y\", \"z\"]\n";
+    let mut cfg = config(mapping, &truth);
+    cfg.config = FilterConfig { mounting: scenario.config.mounting, ..matched_config(&scenario.sim) };
+    cfg.config.mounting.lever_arm = lever_arms_seen(&scenario.sim, &scenario.config.mounting.imu_rotation);
+    for (method, smooth) in [(Method::Riekf, true), (Method::Ekf, false)] {
+        let summary = assert_same(&path, &cfg, method, smooth);
+        let applied = |name: &str| summary.sensors.get(name).map_or(0, |c| c.accepted + c.down_weighted);
+        assert!(applied("altitude") > data.altitude.len() * 9 / 10, "{}: {:?}", method.name(), summary.sensors);
+        assert!(applied("odometry") > data.odometry.len() * 9 / 10, "{}: {:?}", method.name(), summary.sensors);
+    }
 }

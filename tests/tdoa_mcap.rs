@@ -19,6 +19,7 @@ use uwbimu_rs::app::replay::{compare_with_truth, replay};
 use uwbimu_rs::app::sim::{simulate, zoo, SimData, TdoaConfig};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;
+use uwbimu_rs::vocabulary::sensors::SensorKind;
 
 /// The `agv_loop` scenario with TDoA (default model), its run and the matched filter settings.
 fn tdoa_run() -> (SimData, FilterConfig, InitialState) {
@@ -35,7 +36,12 @@ fn tdoa_run() -> (SimData, FilterConfig, InitialState) {
 /// left out of the metadata.
 fn tdoa_mcap(data: &SimData, anchor_count: usize) -> Vec<u8> {
     let mut buf = Cursor::new(Vec::new());
-    let streams = RecordingStreams { imu: &data.imu, ranges: &[], tdoa: &data.tdoa, anchors: &data.anchors[..anchor_count] };
+    let streams = RecordingStreams {
+        imu: &data.imu,
+        ranges: &[],
+        observations: &data.observations_for(|k| k == SensorKind::Tdoa),
+        anchors: &data.anchors[..anchor_count],
+    };
     write_recording_mcap(&mut buf, "tdoa", &streams, None, true).unwrap();
     buf.into_inner()
 }
@@ -74,7 +80,7 @@ fn tdoa_round_trip_through_the_mapping_and_replay_with_rekf() {
 
     let rec = read(&bytes, &Mapping::default()).unwrap();
     let r = replay(&rec, Method::Rekf, &config, Some(&initial), false, None).unwrap();
-    let t = r.tdoa.as_ref().unwrap();
+    let t = &r.sensors["tdoa"];
     assert_eq!(t.accepted + t.down_weighted + t.rejected, rec.tdoa.len());
     assert!(r.anchors.iter().all(|a| a.accepted + a.down_weighted + a.rejected == 0));
     let truth: Vec<(f64, Vec3)> = data.truth.iter().map(|s| (s.t_s, s.position)).collect();

@@ -137,10 +137,13 @@ def run_filter(
     imu : array (N, 7)
         t [s], ax, ay, az [m/s², body specific force], gx, gy, gz [rad/s]; t strictly increasing.
     ranges : array (M, 3) or (M, 4)
-        t [s] (non-decreasing), anchor index (row of ``anchors``), range [m], and with several
-        tags the tag (its lever arm the row ``tag`` of ``mounting.lever_arm``; docs/tags.md).
-    anchors : array (K, 3)
-        Anchor positions in the navigation frame [m].
+        t [s] (non-decreasing), anchor index (row of ``anchors``, or its id when ``anchors`` is
+        a dict), range [m], and with several tags the tag (its lever arm the row ``tag`` of
+        ``mounting.lever_arm``; docs/tags.md).
+    anchors : array (K, 3) or dict
+        Anchor positions in the navigation frame [m]; or a dict ``{id: [x, y, z]}`` of anchors
+        by hardware id (a log numbering them 11, 12, 4, 9), whose ids the anchor columns of
+        ``ranges`` and ``tdoa`` then hold (rows in the dict's order; frames report rows).
     initial : dict, optional
         ``position`` (3,), ``velocity`` (3,), ``orientation`` (w, x, y, z) and optional
         ``position_std``, ``velocity_std``, ``orientation_std`` (rad), ``accel_bias``,

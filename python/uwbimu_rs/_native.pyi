@@ -1202,9 +1202,12 @@ def write_mcap(
     anchors: ArrayLike,
     *,
     range_std: float | None = None,
-    tdoa: ArrayLike | None = None,
+    **sensors: ArrayLike | None,
 ) -> None:
     """Write a recording as MCAP: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON
-    ``uwbimu.UwbRange`` on ``/uwb`` (anchor ids ``A0``, ``A1``, ...), TDoA ``(M, 4) = t, i, j,
-    d_ij`` (when given) as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (``idA``, ``idB``,
-    ``distanceDiff``), anchor positions in the ``uwbimu.anchors`` metadata record; zstd chunks."""
+    ``uwbimu.UwbRange`` on ``/uwb`` (anchor ids ``A0``, ``A1``, ...; ranges ``(M, 4)`` with a tag
+    column write the tag), and the other sensors' arrays by their :data:`SENSORS` keyword: TDoA
+    as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (``idA``, ``idB``, ``distanceDiff``), heights as
+    ``sensor_msgs/msg/Range`` on ``/altitude``, body velocities as ``nav_msgs/msg/Odometry`` on
+    ``/odom`` (the magnetometer raises ValueError); anchor positions in the ``uwbimu.anchors``
+    metadata record; zstd chunks."""

@@ -30,7 +30,8 @@ def read_mcap(
     mapping: Mapping[str, Any] | None = None,
     config_file: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
-    """Read an MCAP recording (IMU + UWB ranges and/or TDoA) into polars DataFrames.
+    """Read an MCAP recording (IMU + UWB ranges and/or TDoA, heights, body velocities) into polars
+    DataFrames.
 
     Parameters
     ----------
@@ -41,7 +42,10 @@ def read_mcap(
         ``{"imu_topic": "/imu", "uwb": {"topics": ["/uwb"], "range": "ranges[].range",
         "anchor_id": "ranges[].id", "valid": "ranges[].ra == 1"}}``, or for TDoA
         ``{"tdoa": {"topics": ["/tdoa"], "anchor_i": "idA", "anchor_j": "idB", "tdoa": "distanceDiff"}}``
-        (those field names are the defaults). Merged into the config file's ``[mapping]``: a
+        (those field names are the defaults); heights and wheel odometry need their topics,
+        ``{"altitude": {"topics": ["/altitude"]}, "odometry": {"topics": ["/odom"]}}``, and
+        ranges of several tags their tag, ``{"uwb": {"tag": "tag_id", "tag_ids": ["front", "rear"]}}``
+        (docs/altitude.md, docs/odometry.md, docs/tags.md). Merged into the config file's ``[mapping]``: a
         key given overrides that key (``None`` clears it), nested tables (``uwb``, ``tdoa``,
         ``anchors``, ``ground_truth``) merge key by key, and every key not given keeps the
         file's value; e.g. ``{"ground_truth": {"file": "gt.csv"}}`` adds ground truth and keeps
@@ -53,13 +57,17 @@ def read_mcap(
     -------
     dict
         ``imu``: DataFrame t, ax, ay, az, gx, gy, gz (s, m/s², rad/s); ``ranges``: t, anchor
-        (index into ``anchors``), range (m), variance (m², NaN when not in the message);
+        (index into ``anchors``), range (m), variance (m², NaN when not in the message), tag
+        (index into ``mounting.lever_arm``); ``altitude`` (t, z) and ``odometry`` (t, speed or
+        t, vx, vy, vz) when the mapping reads them, the arrays :func:`run_filter` takes;
         ``tdoa``: t, i, j (indices into ``anchors``), d_ij = |p − a_j| − |p − a_i| (m) —
         ``frames["tdoa"].to_numpy()`` is the ``(M, 4)`` array :func:`run_filter` takes as
         ``tdoa``; ``anchors``: id, x, y, z (m); ``ground_truth``: t, x, y, z (empty when not mapped);
         ``stats``: dict (topics with schema, count and role; duration_s; reordered;
         late_dropped; invalid_per_anchor; anchor_source; tdoa_unknown_anchor and
         tdoa_unknown_ids (TDoA dropped for an anchor without a position); tdoa_bad_value;
+        unknown_tag and unknown_tag_ids (ranges of a tag id not in ``uwb.tag_ids``); sensors
+        (per sensor read: used, invalid);
         messages; complete (False for a file cut before its footer); ...).
 
     A file cut before its footer (a recorder that died) is read up to its last complete record
@@ -76,15 +84,17 @@ def read_mcap(
     out = _native.read_mcap(
         os.fspath(path), mapping=_mapping_json(mapping), config_file=None if config_file is None else os.fspath(config_file)
     )
-    ranges = pl.DataFrame(out["ranges"]).with_columns(pl.col("anchor").cast(pl.Int64))
+    ranges = pl.DataFrame(out["ranges"]).with_columns(pl.col("anchor", "tag").cast(pl.Int64))
     tdoa = pl.DataFrame(out["tdoa"]).with_columns(pl.col("i", "j").cast(pl.Int64))
     anchors = pl.DataFrame(out["anchors"]).insert_column(0, pl.Series("id", out["anchor_ids"], dtype=pl.String))
+    sensors = {name: pl.DataFrame(out[name]) for name in _native.SENSORS if name in out and name != "tdoa"}
     return {
         "imu": pl.DataFrame(out["imu"]),
         "ranges": ranges,
         "tdoa": tdoa,
         "anchors": anchors,
         "ground_truth": pl.DataFrame(out["ground_truth"]),
+        **sensors,
         "stats": out["stats"],
     }
 

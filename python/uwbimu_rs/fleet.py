@@ -412,9 +412,7 @@ def _replace_atomically(write: Callable[[Path], object], target: Path) -> None:
 
 def _summary_row(info: dict[str, Any]) -> dict[str, Any]:
     """The summary columns of a replay's ``info``."""
-    counted = list(info.get("anchors", []))
-    tdoa = info.get("tdoa")
-    counted += tdoa if isinstance(tdoa, list) else ([tdoa] if isinstance(tdoa, dict) else [])
+    counted = list(info.get("anchors", [])) + list((info.get("sensors") or {}).values())
     health = info.get("health") or {}
     model = info.get("model") or {}
     row: dict[str, Any] = {name: sum(int(c.get(name, 0)) for c in counted) for name in _COUNTS}

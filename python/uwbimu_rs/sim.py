@@ -344,12 +344,17 @@ def simulate(
 
 def write_mcap(run: SimResult, path: str | os.PathLike[str], *, range_std: float | None = None) -> None:
     """Write a simulated run as an MCAP recording that ``uwbimu-replay`` and :func:`uwbimu_rs.replay`
-    read without a mapping: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON ``uwbimu.UwbRange`` on
-    ``/uwb`` (anchor ids ``A0``, ``A1``, ...; ``variance = range_std²`` when given), the run's
-    TDoA (if any) as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (fields ``idA``, ``idB``,
-    ``distanceDiff``, the ``[mapping.tdoa]`` defaults; no ``/uwb`` when the run has TDoA and no
-    ranges) and the anchor positions in the ``uwbimu.anchors`` metadata record."""
-    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std, tdoa=run.tdoa)
+    read: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON ``uwbimu.UwbRange`` on ``/uwb`` (anchor
+    ids ``A0``, ``A1``, ...; a tag beyond 0 in ``tag``; ``variance = range_std²`` when given),
+    the run's TDoA (if any) as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (fields ``idA``,
+    ``idB``, ``distanceDiff``, the ``[mapping.tdoa]`` defaults; no ``/uwb`` when the run has TDoA
+    and no ranges), its heights as ``sensor_msgs/msg/Range`` on ``/altitude`` and its body
+    velocities as ``nav_msgs/msg/Odometry`` on ``/odom`` (read with ``{"uwb": {"topics":
+    ["/uwb"]}, "altitude": {"topics": ["/altitude"]}, "odometry": {"topics": ["/odom"], "axes":
+    ["x", "y", "z"]}}``), and the anchor positions in the ``uwbimu.anchors`` metadata record. The
+    magnetometer is not written."""
+    sensors = {"tdoa": run.tdoa, "altitude": run.altitude, "odometry": run.odometry}
+    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std, **sensors)
 
 
 def zoo(name: ZooName, *, seed: int = 0, **overrides: float | bool) -> SimResult:

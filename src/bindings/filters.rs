@@ -12,6 +12,7 @@ use uwbimu_estimation::pipeline::DEFAULT_REORDER_WINDOW_S;
 use uwbimu_estimation::pipeline::{
     self_initialize, smoothed_nodes, Estimator, Event, Health, Stream, StreamOptions, Streams, UpdateRecord,
 };
+use uwbimu_vocabulary::anchor_ids::AnchorIds;
 use uwbimu_vocabulary::config::RangeCalibration;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, MAX_TAGS};
 use uwbimu_vocabulary::error::Error;
@@ -186,9 +187,14 @@ pub(super) fn read_optional_initial(initial: Option<&Bound<'_, PyAny>>) -> PyRes
 }
 
 /// Reads and validates the sensor arrays of keyword arguments `sensors` (`{keyword: array}`, the
-/// keywords of the sensor registry; a None value is no data) into one time-ordered sequence.
-/// An unknown keyword raises `ValueError` listing the sensors' keywords.
-pub(super) fn read_observations(sensors: Option<&Bound<'_, PyDict>>, anchor_count: usize) -> PyResult<Vec<Observation>> {
+/// keywords of the sensor registry; a None value is no data) into one time-ordered sequence;
+/// with anchors by hardware id (`ids`), the anchor columns hold ids. An unknown keyword raises
+/// `ValueError` listing the sensors' keywords.
+pub(super) fn read_observations(
+    sensors: Option<&Bound<'_, PyDict>>,
+    anchor_count: usize,
+    ids: Option<&AnchorIds>,
+) -> PyResult<Vec<Observation>> {
     let mut sets = Vec::new();
     for (key, value) in sensors.into_iter().flat_map(|d| d.iter()) {
         let keyword: String = key.extract()?;
@@ -199,7 +205,10 @@ pub(super) fn read_observations(sensors: Option<&Bound<'_, PyDict>>, anchor_coun
             continue;
         }
         let info = kind.info();
-        let table = rows(&array(&value, info.keyword)?, info.keyword, info.layouts)?;
+        let mut table = rows(&array(&value, info.keyword)?, info.keyword, info.layouts)?;
+        if let Some(ids) = ids {
+            ids.to_rows(info.keyword, &mut table, info.anchor_columns)?;
+        }
         let table: Vec<&[f64]> = table.iter().map(Vec::as_slice).collect();
         sets.push(kind.observations(&table, anchor_count)?);
     }
@@ -232,7 +241,7 @@ impl Log {
     /// The log with the arrays of the other sensors, keyword arguments `sensors`
     /// ([`read_observations`]).
     pub(super) fn with_sensors(self, sensors: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let observations = read_observations(sensors, self.inputs.anchors.len())?;
+        let observations = read_observations(sensors, self.inputs.anchors.len(), self.inputs.anchor_ids.as_ref())?;
         Ok(Self { observations, ..self })
     }
 
@@ -257,17 +266,51 @@ pub(super) struct Inputs {
     pub(super) imu: Vec<ImuSample>,
     pub(super) ranges: Vec<RangeMeasurement>,
     pub(super) anchors: Vec<Vec3>,
+    /// The anchors' hardware ids when they were given by id ([`read_anchors`]).
+    pub(super) anchor_ids: Option<AnchorIds>,
+}
+
+/// The `anchors` argument: a `(K, 3)` array of positions, whose rows are the anchor indices, or
+/// a dict `{id: [x, y, z]}` of anchors by hardware id (rows in the dict's order), whose ids the
+/// anchor columns of ranges and TDoA and the streaming calls then hold.
+pub(super) fn read_anchors(obj: &Bound<'_, PyAny>) -> PyResult<(Vec<Vec3>, Option<AnchorIds>)> {
+    let Ok(by_id) = obj.cast::<PyDict>() else {
+        return Ok((validate::anchors(&table::<3>(&array(obj, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?, None));
+    };
+    let (mut ids, mut rows) = (Vec::with_capacity(by_id.len()), Vec::with_capacity(by_id.len()));
+    for (key, position) in by_id.iter() {
+        let id = key.extract::<f64>().ok().or_else(|| key.extract::<String>().ok()?.trim().parse().ok());
+        let Some(id) = id else {
+            let reason = "an anchor id is a whole number (the dict maps hardware ids to [x, y, z])".into();
+            return Err(Error::BadArgument { call: "anchors", arg: format!("key {key}"), reason }.into());
+        };
+        ids.push(id);
+        rows.push(vec3_arg("anchors", &position, "anchors")?.into());
+    }
+    Ok((validate::anchors(&rows)?, Some(AnchorIds::new(&ids)?)))
 }
 
 pub(super) fn read_inputs(imu: &Bound<'_, PyAny>, ranges: &Bound<'_, PyAny>, anchors: &Bound<'_, PyAny>) -> PyResult<Inputs> {
-    let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
+    let (anchors, anchor_ids) = read_anchors(anchors)?;
     let imu = validate::imu(&table::<7>(&array(imu, "imu")?, "imu", IMU_LAYOUT)?)?;
     let ranges = array(ranges, "ranges")?;
     let ranges = match ranges.shape() {
-        [_, 4] => validate::tagged_ranges(&table::<4>(&ranges, "ranges", RANGES_LAYOUT)?, anchors.len(), MAX_TAGS)?,
-        _ => validate::ranges(&table::<3>(&ranges, "ranges", RANGES_LAYOUT)?, anchors.len())?,
+        [_, 4] => {
+            let mut table = table::<4>(&ranges, "ranges", RANGES_LAYOUT)?;
+            if let Some(ids) = &anchor_ids {
+                ids.to_rows("ranges", &mut table, &[1])?;
+            }
+            validate::tagged_ranges(&table, anchors.len(), MAX_TAGS)?
+        }
+        _ => {
+            let mut table = table::<3>(&ranges, "ranges", RANGES_LAYOUT)?;
+            if let Some(ids) = &anchor_ids {
+                ids.to_rows("ranges", &mut table, &[1])?;
+            }
+            validate::ranges(&table, anchors.len())?
+        }
     };
-    Ok(Inputs { imu, ranges, anchors })
+    Ok(Inputs { imu, ranges, anchors, anchor_ids })
 }
 
 /// One report of an update (a range or an observation).
@@ -462,7 +505,7 @@ macro_rules! py_filter {
     ($(#[$doc:meta])* $py:ident, $core:ty) => {
         $(#[$doc])*
         #[pyclass(module = "uwbimu_rs._native")]
-        pub struct $py(Stream<$core>);
+        pub struct $py(Stream<$core>, Option<AnchorIds>);
 
         impl $py {
             fn estimator(&self, what: &str) -> PyResult<&$core> {
@@ -476,6 +519,19 @@ macro_rules! py_filter {
 
             fn anchor_count(&self) -> usize {
                 self.0.anchor_count()
+            }
+
+            /// The anchor row of the argument `arg` of `call`: an anchor index, or with anchors
+            /// by hardware id an id.
+            fn anchor_row(&self, call: &'static str, arg: &str, anchor: f64) -> PyResult<usize> {
+                match &self.1 {
+                    None => anchor_arg(call, arg, anchor, self.anchor_count()),
+                    Some(ids) => ids.row_of(call, 0, anchor).map_err(|_| {
+                        let known: Vec<String> = ids.ids().iter().map(i64::to_string).collect();
+                        let reason = format!("is not the id of an anchor (the anchors' ids: {}); map ids to rows by giving every anchor with its id", known.join(", "));
+                        Error::BadArgument { call, arg: format!("{arg}={anchor}"), reason }.into()
+                    }),
+                }
             }
 
             /// Gives `event` to the stream (which checks its time) and emits the unit check's
@@ -500,7 +556,7 @@ macro_rules! py_filter {
                 strict: bool,
             ) -> PyResult<Self> {
                 let reorder_window_s = reorder_window_s.unwrap_or(DEFAULT_REORDER_WINDOW_S);
-                let anchors = validate::anchors(&table::<3>(&array(anchors, "anchors")?, "anchors", ANCHORS_LAYOUT)?)?;
+                let (anchors, ids) = read_anchors(anchors)?;
                 let config = read_config(config)?;
                 let options = StreamOptions { reorder_window_s, strict };
                 let build = {
@@ -518,7 +574,7 @@ macro_rules! py_filter {
                     Some(initial) => Stream::new(build(&initial)?, options)?,
                     None => Stream::self_initializing(anchors, config, Box::new(build), options)?,
                 };
-                Ok(Self(stream))
+                Ok(Self(stream, ids))
             }
 
             /// RTS-smooths everything seen so far (needs ``record=True``): a polars DataFrame
@@ -548,7 +604,7 @@ macro_rules! py_filter {
             #[pyo3(signature = (t, anchor, range, tag=None))]
             fn add_range(&mut self, py: Python<'_>, t: f64, anchor: f64, range: f64, tag: Option<f64>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_range";
-                let anchor = anchor_arg(CALL, "anchor", anchor, self.anchor_count())?;
+                let anchor = self.anchor_row(CALL, "anchor", anchor)?;
                 let tag = tag_arg(CALL, tag.unwrap_or(0.0), self.0.tag_count())?;
                 let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)?, tag };
                 self.push(py, CALL, Event::Range(r))
@@ -560,8 +616,7 @@ macro_rules! py_filter {
             fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: f64, j: f64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_tdoa";
                 check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Tdoa))?;
-                let count = self.anchor_count();
-                let (anchor_i, anchor_j) = (anchor_arg(CALL, "i", i, count)?, anchor_arg(CALL, "j", j, count)?);
+                let (anchor_i, anchor_j) = (self.anchor_row(CALL, "i", i)?, self.anchor_row(CALL, "j", j)?);
                 if anchor_i == anchor_j {
                     return Err(Error::BadArgument { call: CALL, arg: format!("i=j={i}"), reason: "the two anchors must differ".into() }.into());
                 }
@@ -616,11 +671,10 @@ macro_rules! py_filter {
                     }
                     .into());
                 }
-                let count = self.anchor_count();
                 let obs = anchors
                     .iter()
                     .zip(&ranges)
-                    .map(|(a, r)| Ok((anchor_arg(CALL, "anchors", *a, count)?, non_negative(CALL, "ranges", *r)?)))
+                    .map(|(a, r)| Ok((self.anchor_row(CALL, "anchors", *a)?, non_negative(CALL, "ranges", *r)?)))
                     .collect::<PyResult<Vec<(usize, f64)>>>()?;
                 self.0.apply_ranges_now(CALL, t, &obs)?;
                 Ok(applied_reports(&mut self.0))
@@ -856,7 +910,7 @@ fn run_filters<'py>(
             _ => return Err(expected().into()),
         };
         let input = read_inputs(arrays.0, arrays.1, arrays.2)?;
-        let observations = read_observations(sensors.as_ref(), input.anchors.len())?;
+        let observations = read_observations(sensors.as_ref(), input.anchors.len(), input.anchor_ids.as_ref())?;
         inputs.push((input, observations));
     }
     let initials: Vec<Option<InitialState>> = match initial {

@@ -19,12 +19,11 @@ use uwbimu_app::methods::Method;
 use uwbimu_app::replay::replay as replay_recording;
 use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_app::replay::ReplaySummary;
-use uwbimu_vocabulary::records::TdoaMeasurement;
-use uwbimu_vocabulary::sensors::{validate_records, SensorKind};
+use uwbimu_vocabulary::sensors::SensorKind;
 
 use super::convert::columns;
 use super::errors::PyResult;
-use super::filters::{read_config, read_inputs, read_optional_initial};
+use super::filters::{read_config, read_inputs, read_observations, read_optional_initial};
 use super::interruptible::run_interruptible;
 use crate::cli::progress::Bar;
 
@@ -104,6 +103,16 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict
     d.set_item("tdoa_unknown_anchor", s.tdoa_unknown_anchor)?;
     d.set_item("tdoa_unknown_ids", s.tdoa_unknown_ids.iter().collect::<Vec<_>>())?;
     d.set_item("tdoa_bad_value", s.tdoa_bad_value)?;
+    d.set_item("unknown_tag", s.unknown_tag)?;
+    d.set_item("unknown_tag_ids", s.unknown_tag_ids.iter().collect::<Vec<_>>())?;
+    let sensors = PyDict::new(py);
+    for (kind, c) in &s.sensors {
+        let counts = PyDict::new(py);
+        counts.set_item("used", c.used)?;
+        counts.set_item("invalid", c.invalid)?;
+        sensors.set_item(kind.info().name, counts)?;
+    }
+    d.set_item("sensors", sensors)?;
     d.set_item("anchor_source", s.anchor_source)?;
     d.set_item("log_time_stamps", s.log_time_stamps)?;
     d.set_item("messages", s.messages)?;
@@ -117,7 +126,8 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReadStats) -> PyResult<Bound<'py, PyDict
 }
 
 /// Reads an MCAP file through a mapping (JSON text of the `[mapping]` table) and/or a replay TOML
-/// file. Returns a dict: `imu`, `ranges`, `tdoa`, `anchors`, `ground_truth` (dicts of columns),
+/// file. Returns a dict: `imu`, `ranges` (with `tag`), `tdoa`, `anchors`, `ground_truth` and, for
+/// each other sensor the mapping reads (`altitude`, `odometry`), its table (dicts of columns),
 /// `anchor_ids` (list of str) and `stats` (dict).
 #[pyfunction]
 #[pyo3(signature = (path, *, mapping=None, config_file=None))]
@@ -156,9 +166,16 @@ fn read_mcap<'py>(
                 ("anchor", col(&|i| ranges[i].anchor as f64, ranges.len())),
                 ("range", col(&|i| ranges[i].range_m, ranges.len())),
                 ("variance", rec.range_variances.clone()),
+                ("tag", col(&|i| ranges[i].tag as f64, ranges.len())),
             ],
         )?,
     )?;
+    for kind in SensorKind::ALL.iter().filter(|k| rec.observations.iter().any(|o| o.kind() == **k)) {
+        let (width, values) = kind.table(&rec.observations);
+        let names = kind.info().layouts.iter().find(|l| l.len() == width).copied().unwrap_or_default();
+        let table = names.iter().enumerate().map(|(c, name)| (*name, values.iter().skip(c).step_by(width).copied().collect()));
+        out.set_item(kind.info().name, columns(py, table.collect())?)?;
+    }
     out.set_item(
         "tdoa",
         columns(
@@ -304,10 +321,12 @@ fn read_truth<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict
 }
 
 /// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
-/// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...), TDoA (when given) as CDR
-/// `uwbimu_msgs/msg/Tdoa` on `/tdoa`, anchors in the `uwbimu.anchors` metadata record; zstd chunks.
+/// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...; a tag beyond 0 in `tag`), the other
+/// sensors' arrays `sensors` (keywords of the registry) on their topics
+/// ([`uwbimu_app::io::recording_out::sensor_topic`]), anchors in the `uwbimu.anchors` metadata
+/// record; zstd chunks.
 #[pyfunction]
-#[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None, tdoa=None))]
+#[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None, **sensors))]
 fn write_mcap(
     py: Python<'_>,
     path: PathBuf,
@@ -315,23 +334,16 @@ fn write_mcap(
     ranges: &Bound<'_, PyAny>,
     anchors: &Bound<'_, PyAny>,
     range_std: Option<f64>,
-    tdoa: Option<&Bound<'_, PyAny>>,
+    sensors: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<()> {
     let inputs = read_inputs(imu, ranges, anchors)?;
-    let tdoa: Vec<TdoaMeasurement> = match tdoa {
-        Some(d) if !d.is_none() => {
-            let layouts = SensorKind::Tdoa.info().layouts;
-            let table = super::convert::rows(&super::convert::array(d, "tdoa")?, "tdoa", layouts)?;
-            let table: Vec<&[f64]> = table.iter().map(Vec::as_slice).collect();
-            validate_records("tdoa", &table, inputs.anchors.len())?
-        }
-        _ => Vec::new(),
-    };
+    let observations = read_observations(sensors, inputs.anchors.len(), inputs.anchor_ids.as_ref())?;
     let label = path.display().to_string();
     py.detach(|| {
         let file = std::fs::File::create(&path).map_err(|e| IoError::io(&label, e))?;
         let sink = std::io::BufWriter::new(file);
-        let streams = RecordingStreams { imu: &inputs.imu, ranges: &inputs.ranges, tdoa: &tdoa, anchors: &inputs.anchors };
+        let streams =
+            RecordingStreams { imu: &inputs.imu, ranges: &inputs.ranges, observations: &observations, anchors: &inputs.anchors };
         write_recording_mcap(sink, &label, &streams, range_std, true)
     })?;
     Ok(())

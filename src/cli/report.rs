@@ -9,6 +9,7 @@ use uwbimu_app::io::{ReadStats, ReplayConfig, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR
 use uwbimu_app::methods::Method;
 use uwbimu_app::replay::ReplaySummary;
 use uwbimu_estimation::pipeline::Health;
+use uwbimu_vocabulary::sensors::SensorKind;
 
 /// A failed write to stdout (e.g. a closed pipe) as an error naming it.
 fn stdout_error(e: std::io::Error) -> Error {
@@ -73,6 +74,18 @@ fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig,
         "read: {} IMU samples, {} ranges, {} TDoA, {} anchors (from {}), {} ground-truth samples",
         rec.imu, rec.ranges, rec.tdoa, rec.anchors, s.anchor_source, rec.truth
     )?;
+    for (kind, c) in &s.sensors {
+        writeln!(out, "read: {} {} readings used, {} invalid (dropped)", c.used, kind.info().name, c.invalid)?;
+    }
+    if s.unknown_tag > 0 {
+        let ids: Vec<&str> = s.unknown_tag_ids.iter().map(String::as_str).collect();
+        writeln!(
+            out,
+            "read: {} ranges of unknown tag ids {} (dropped; list them in uwb.tag_ids)",
+            s.unknown_tag,
+            ids.join(", ")
+        )?;
+    }
     writeln!(
         out,
         "order: {} reordered within the window, {} late beyond it (dropped), {} duplicate IMU stamps, {} stamped by log time",
@@ -131,12 +144,13 @@ fn stats_lines(
             a.id, read.invalid, a.accepted, a.down_weighted, a.rejected, read.bad_value
         )?;
     }
-    if let Some(t) = &summary.tdoa {
-        writeln!(
-            out,
-            "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}",
-            t.id, "-", t.accepted, t.down_weighted, t.rejected, stats.tdoa_bad_value
-        )?;
+    for t in summary.sensors.values() {
+        let (invalid, bad) = match SensorKind::parse(&t.id) {
+            Ok(SensorKind::Tdoa) => ("-".to_string(), stats.tdoa_bad_value),
+            Ok(kind) => (stats.sensors.get(&kind).map_or(0, |c| c.invalid).to_string(), 0),
+            Err(_) => ("-".to_string(), 0),
+        };
+        writeln!(out, "{:<12} {:>9} {:>9} {:>13} {:>9} {:>9}", t.id, invalid, t.accepted, t.down_weighted, t.rejected, bad)?;
     }
     if let Some(h) = health {
         let rejected: Vec<String> =

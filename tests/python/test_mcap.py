@@ -185,7 +185,7 @@ def test_simulator_tdoa_round_trip_and_replay(tmp_path):
     direct = uwbimu_rs.run_filter("rekf", run.imu, run.ranges, run.anchors, config=run.config, tdoa=run.tdoa)
     replayed, info = uwbimu_rs.replay(path, "rekf", config=run.config)
     np.testing.assert_allclose(replayed.select("x", "y", "z").to_numpy(), direct.select("x", "y", "z").to_numpy(), atol=1e-6)
-    counts = info["tdoa"]
+    counts = info["sensors"]["tdoa"]
     assert counts["id"] == "tdoa" and counts["accepted"] + counts["down_weighted"] + counts["rejected"] == len(run.tdoa)
     with pytest.raises(ValueError, match="eskf does not take TDoA"):
         uwbimu_rs.replay(path, "eskf", config=run.config)
@@ -216,3 +216,37 @@ def test_replay_overrides_set_keys_over_the_config_file(tmp_path):
     assert not replaced.equals(over), "config= replaces the file's [config]: its IMU noise is gone"
     with pytest.raises(uwbimu_rs.ConfigError, match="ranging.range_stdd"):
         uwbimu_rs.replay(log, config_file=site, overrides={"ranging.range_stdd": 0.3})
+
+
+def test_heights_speeds_and_two_tags_round_trip_through_mcap_and_replay(tmp_path):
+    run = uwbimu_rs.sim.zoo("agv_loop", seed=3, altimeter=True, odometer=True, odometer_lateral=True, tag_separation_m=0.6)
+    path = tmp_path / "sensors.mcap"
+    uwbimu_rs.sim.write_mcap(run, path)
+    mapping = {
+        "uwb": {"topics": ["/uwb"]},
+        "altitude": {"topics": ["/altitude"]},
+        "odometry": {"topics": ["/odom"], "axes": ["x", "y", "z"]},
+    }
+    data = uwbimu_rs.read_mcap(path, mapping=mapping)
+    # The arrays run_filter takes come back: the tag column exact, heights to f32, speeds exact.
+    np.testing.assert_allclose(data["ranges"].select("t", "anchor", "range", "tag").to_numpy(), run.ranges, atol=1e-9)
+    assert data["altitude"].columns == ["t", "z"]
+    np.testing.assert_allclose(data["altitude"].to_numpy(), run.altitude, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(data["odometry"].to_numpy(), run.odometry, atol=1e-9)
+    assert data["stats"]["sensors"]["odometry"] == {"used": int(np.isfinite(run.odometry[:, 1:]).sum()), "invalid": 0}
+    # The replay of the file follows the batch run on the arrays (truth as the common yardstick).
+    sensors = {"altitude": run.altitude, "odometry": run.odometry}
+    direct = uwbimu_rs.run_filter("riekf", run.imu, run.ranges, run.anchors, initial=run.initial, config=run.config, **sensors)
+    replayed, info = uwbimu_rs.replay(path, "riekf", mapping=mapping, config=run.config, initial=run.initial)
+    gap = np.abs(replayed.select("x", "y", "z").to_numpy() - direct.select("x", "y", "z").to_numpy())
+    assert np.median(gap) < 1e-6 and replayed.height == direct.height
+    readings = {"altitude": len(run.altitude), "odometry": int(np.isfinite(run.odometry[:, 1:]).sum())}
+    for name, n in readings.items():
+        counts = info["sensors"][name]
+        assert counts["accepted"] + counts["down_weighted"] + counts["rejected"] == n, name
+    # Two tags need a method that fuses them and a lever arm each.
+    with pytest.raises(ValueError, match="eskf fuses one tag"):
+        uwbimu_rs.replay(path, "eskf", mapping={"uwb": {"topics": ["/uwb"]}}, config=run.config)
+    # A tag the mapping does not list is dropped and counted.
+    one = uwbimu_rs.read_mcap(path, mapping={**mapping, "uwb": {"topics": ["/uwb"], "tag_ids": ["0"]}})
+    assert one["stats"]["unknown_tag"] == int((run.ranges[:, 3] == 1).sum()) and one["stats"]["unknown_tag_ids"] == ["1"]

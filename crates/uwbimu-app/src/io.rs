@@ -25,11 +25,11 @@ pub mod truth_file;
 
 pub use error::{IoError, IoResult};
 pub use mapping::{
-    AnchorFrom, AnchorMapping, GroundTruthMapping, Mapping, TdoaMapping, TimeSource, UwbMapping, TDOA_ANCHOR_I_DEFAULT,
-    TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
+    AltitudeMapping, AnchorFrom, AnchorMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping, TimeSource,
+    UwbMapping, BODY_AXES, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
 };
 pub use recording::{
     read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, ReadStats, RecordItem,
-    Recording, RecordingSurvey,
+    Recording, RecordingSurvey, SensorReadCounts,
 };
 pub use replay_config::ReplayConfig;

@@ -365,7 +365,8 @@ pub struct BatchInput<'a> {
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
     check_inputs(method, false, input.observations.iter().map(Observation::kind))?;
-    check_tags(method, input)?;
+    let tagged = input.ranges.iter().enumerate().filter(|(_, r)| r.tag != 0);
+    check_tags(method, input.config, tagged.map(|(row, r)| (format!("ranges row {row}"), r.tag)))?;
     let offset = input.config.ranging.time_offset_s;
     if offset != 0.0 {
         let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
@@ -431,20 +432,19 @@ pub(crate) fn check_inputs(method: Method, smooth: bool, kinds: impl IntoIterato
 }
 
 /// Refuses ranges from a tag the configuration gives no lever arm for, and ranges from several
-/// tags for a method that fuses one; the message says where and what to do.
-fn check_tags(method: Method, input: &BatchInput<'_>) -> Result<()> {
-    let tags = input.config.mounting.lever_arm.tags();
-    if let Some((row, r)) = input.ranges.iter().enumerate().find(|(_, r)| r.tag >= tags) {
-        return Err(Error::InvalidCall(format!(
-            "ranges row {row} is from tag {}, but mounting.lever_arm gives {tags} tag(s): give one [x, y, z] per tag, tag 0 first",
-            r.tag
-        )));
-    }
-    if !method.takes(Input::Tags) {
-        if let Some(r) = input.ranges.iter().find(|r| r.tag != 0) {
+/// tags for a method that fuses one; `tagged` gives the tags beyond 0 with where they are
+/// ("ranges row 12"), and the message says where and what to do.
+pub(crate) fn check_tags(method: Method, config: &FilterConfig, tagged: impl IntoIterator<Item = (String, usize)>) -> Result<()> {
+    let tags = config.mounting.lever_arm.tags();
+    for (place, tag) in tagged {
+        if tag >= tags {
             return Err(Error::InvalidCall(format!(
-                "ranges from tag {}, but {} fuses one tag (these fuse several: {})",
-                r.tag,
+                "{place} is from tag {tag}, but mounting.lever_arm gives {tags} tag(s): give one [x, y, z] per tag, tag 0 first"
+            )));
+        }
+        if tag != 0 && !method.takes(Input::Tags) {
+            return Err(Error::InvalidCall(format!(
+                "ranges from tag {tag}, but {} fuses one tag (these fuse several: {})",
                 method.name(),
                 Method::names_where(|m| m.takes(Input::Tags))
             )));

@@ -5,6 +5,8 @@
 
 pub mod streamed;
 
+use std::collections::BTreeMap;
+
 use serde::Serialize;
 use uwbimu_estimation::pipeline::{Measured, Progress, UpdateRecord};
 
@@ -13,17 +15,17 @@ use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::PosePoint;
-use uwbimu_vocabulary::sensors::Observation;
+use uwbimu_vocabulary::sensors::{merge, observations, Observation, SensorKind};
 
 use crate::io::Recording;
 use crate::methods::{run_method, BatchInput, BatchOutput, Method};
 use crate::metrics::{evaluate, Evaluation};
 use crate::select::ModelChoice;
 
-/// What the filter did with one anchor's ranges (or with the TDoA).
+/// What the filter did with one anchor's ranges (or with one sensor's readings).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct AnchorUpdateStats {
-    /// Anchor id (`tdoa` for the TDoA).
+    /// Anchor id (the sensor's name for a sensor).
     pub id: String,
     /// Measurements applied at full weight.
     pub accepted: usize,
@@ -42,9 +44,9 @@ pub struct Replay {
     pub output: BatchOutput,
     /// Ranges per anchor, in anchor-index order (inertial methods; empty for `uwb_ls`).
     pub anchors: Vec<AnchorUpdateStats>,
-    /// The TDoA (id `tdoa`), when the recording has any.
-    pub tdoa: Option<AnchorUpdateStats>,
-    /// Mean NIS of the applied ranges and TDoA (None when there were none).
+    /// Per sensor of the recording besides the ranges (TDoA, altitude, odometry), by name.
+    pub sensors: BTreeMap<&'static str, AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and sensor readings (None when there were none).
     pub mean_nis: Option<f64>,
 }
 
@@ -95,7 +97,7 @@ impl Replay {
             n_ground_truth: rec.ground_truth.len(),
             truncated_bytes: rec.stats.end.lost_bytes(),
             anchors: self.anchors.clone(),
-            tdoa: self.tdoa.clone(),
+            sensors: self.sensors.clone(),
             mean_nis: self.mean_nis,
             model: match &self.output {
                 BatchOutput::Inertial { model: Some(m), .. } => Some(ModelSummary::of(m)),
@@ -133,10 +135,11 @@ pub struct ReplaySummary {
     pub truncated_bytes: u64,
     /// Per anchor: what the filter did with its ranges.
     pub anchors: Vec<AnchorUpdateStats>,
-    /// What the filter did with the TDoA (only when the recording has some).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub tdoa: Option<AnchorUpdateStats>,
-    /// Mean NIS of the applied ranges and TDoA (None when there were none).
+    /// Per sensor of the recording besides the ranges (TDoA, altitude, odometry): what the filter
+    /// did with its readings, by name (empty when there are none).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub sensors: BTreeMap<&'static str, AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and sensor readings (None when there were none).
     pub mean_nis: Option<f64>,
     /// What the method chose on the log ([`crate::select`]; `best` only).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -216,7 +219,7 @@ pub fn replay(
         ))
         .into());
     }
-    let observations = uwbimu_vocabulary::sensors::observations(&rec.tdoa);
+    let observations = merge(&[&observations(&rec.tdoa), &rec.observations]);
     let input = BatchInput {
         imu: &rec.imu,
         ranges: &rec.ranges,
@@ -229,30 +232,36 @@ pub fn replay(
         marginals_every_s: None,
     };
     let output = run_method(method, &input)?;
-    let mut tally = UpdateTally::new(&rec.anchor_ids, !rec.tdoa.is_empty());
+    let mut tally = UpdateTally::new(&rec.anchor_ids, observations.iter().map(Observation::kind));
     if let BatchOutput::Inertial { trace, .. } = &output {
         trace.updates.iter().for_each(|u| tally.add(u));
     }
-    let (anchors, tdoa, mean_nis) = tally.finish();
-    Ok(Replay { method, output, anchors, tdoa, mean_nis })
+    let (anchors, sensors, mean_nis) = tally.finish();
+    Ok(Replay { method, output, anchors, sensors, mean_nis })
 }
 
-/// What the filter did with each anchor's ranges and with the TDoA, and the mean NIS of what it
-/// applied, counted update by update.
+/// What the filter did with each anchor's ranges and with each sensor's readings, and the mean
+/// NIS of what it applied, counted update by update.
 #[derive(Debug, Clone)]
 pub(crate) struct UpdateTally {
     anchors: Vec<AnchorUpdateStats>,
-    tdoa: Option<AnchorUpdateStats>,
+    sensors: BTreeMap<&'static str, AnchorUpdateStats>,
     nis_sum: f64,
     nis_n: usize,
 }
 
+/// The counts of a sensor, named.
+fn sensor_counts(kind: SensorKind) -> AnchorUpdateStats {
+    AnchorUpdateStats { id: kind.info().name.into(), ..AnchorUpdateStats::default() }
+}
+
 impl UpdateTally {
-    /// Counts for the anchors `ids` (in anchor-index order) and, when `tdoa`, for the TDoA.
-    pub(crate) fn new(ids: &[String], tdoa: bool) -> Self {
+    /// Counts for the anchors `ids` (in anchor-index order) and for the sensors `kinds` (listed
+    /// even when none of their readings reaches the filter).
+    pub(crate) fn new(ids: &[String], kinds: impl IntoIterator<Item = SensorKind>) -> Self {
         Self {
             anchors: ids.iter().map(|id| AnchorUpdateStats { id: id.clone(), ..AnchorUpdateStats::default() }).collect(),
-            tdoa: tdoa.then(|| AnchorUpdateStats { id: "tdoa".into(), ..AnchorUpdateStats::default() }),
+            sensors: kinds.into_iter().map(|k| (k.info().name, sensor_counts(k))).collect(),
             nis_sum: 0.0,
             nis_n: 0,
         }
@@ -262,8 +271,7 @@ impl UpdateTally {
     pub(crate) fn add(&mut self, u: &UpdateRecord) {
         let counts = match u.measured {
             Measured::Range { anchor, .. } => self.anchors.get_mut(anchor),
-            Measured::Observation(Observation::Tdoa(_)) => self.tdoa.as_mut(),
-            Measured::Observation(_) => None,
+            Measured::Observation(o) => Some(self.sensors.entry(o.stream()).or_insert_with(|| sensor_counts(o.kind()))),
         };
         let Some(a) = counts else { return };
         match (u.report.accepted, u.report.down_weighted) {
@@ -277,9 +285,9 @@ impl UpdateTally {
         }
     }
 
-    /// Per anchor, the TDoA, and the mean NIS (None when nothing was applied).
-    pub(crate) fn finish(self) -> (Vec<AnchorUpdateStats>, Option<AnchorUpdateStats>, Option<f64>) {
-        (self.anchors, self.tdoa, (self.nis_n > 0).then(|| self.nis_sum / self.nis_n as f64))
+    /// Per anchor, per sensor, and the mean NIS (None when nothing was applied).
+    pub(crate) fn finish(self) -> (Vec<AnchorUpdateStats>, BTreeMap<&'static str, AnchorUpdateStats>, Option<f64>) {
+        (self.anchors, self.sensors, (self.nis_n > 0).then(|| self.nis_sum / self.nis_n as f64))
     }
 }
 

@@ -43,7 +43,7 @@ pub enum Error {
         got_s: f64,
     },
     /// A range refers to an anchor that does not exist.
-    #[error("{name}: anchor index {anchor} at row {row} is out of range (there are {count} anchors: 0..{last})", last = .count.saturating_sub(1))]
+    #[error("{name}: anchor index {anchor} at row {row} is out of range (there are {count} anchors: 0..{last}); if the log numbers anchors by hardware id, map ids to rows: anchors={{id: [x, y, z]}}", last = .count.saturating_sub(1))]
     UnknownAnchor {
         /// Which input.
         name: &'static str,
@@ -53,6 +53,18 @@ pub enum Error {
         anchor: f64,
         /// Number of anchors.
         count: usize,
+    },
+    /// An anchor id that is no anchor's ([`crate::anchor_ids::AnchorIds`]).
+    #[error("{name}: anchor id {id} at row {row} is not the id of an anchor (the anchors' ids: {ids}); map ids to rows by giving every anchor with its id")]
+    UnknownAnchorId {
+        /// Which input.
+        name: &'static str,
+        /// Row index (0-based).
+        row: usize,
+        /// The id as given.
+        id: f64,
+        /// The anchors' ids, in row order.
+        ids: String,
     },
     /// An anchor index that is not a whole number.
     #[error("{name}: the anchor column holds {anchor} at row {row}, not an anchor index (a whole number in 0..{last}, there are {count} anchors)", last = .count.saturating_sub(1))]

@@ -2,6 +2,7 @@
 //! time-stamped sensor records, errors, configuration sections and input validation. Nothing here
 //! estimates anything; no other crate of the workspace is a dependency.
 
+pub mod anchor_ids;
 pub mod config;
 pub mod error;
 pub mod math;

@@ -116,6 +116,7 @@ impl SensorRecord for MagSample {
 impl SensorRecord for TdoaMeasurement {
     const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "anchor i", "anchor j", "d_ij"]];
     const TIME_ORDER: TimeOrder = TimeOrder::NonDecreasing;
+    const ANCHOR_COLUMNS: &'static [usize] = &[1, 2];
 
     fn t_s(&self) -> f64 {
         self.t_s

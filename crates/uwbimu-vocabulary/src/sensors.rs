@@ -49,6 +49,8 @@ pub struct SensorInfo {
     pub time_order: TimeOrder,
     /// The clock of its times.
     pub clock: Clock,
+    /// The columns of its table that hold anchor indices ([`SensorRecord::ANCHOR_COLUMNS`]).
+    pub anchor_columns: &'static [usize],
 }
 
 /// A sensor's record: how one row of its table (in one of its layouts) becomes a record, and its
@@ -60,6 +62,9 @@ pub trait SensorRecord: Copy + Sized {
     const TIME_ORDER: TimeOrder;
     /// Whether a value (not the time) may be NaN, meaning "not measured" (an odometry axis).
     const MISSING_ALLOWED: bool = false;
+    /// The columns that hold anchor indices (a TDoA's i and j), which anchors known by hardware
+    /// ids rewrite from ids to rows ([`crate::anchor_ids::AnchorIds::to_rows`]).
+    const ANCHOR_COLUMNS: &'static [usize] = &[];
 
     /// Time, s.
     fn t_s(&self) -> f64;
@@ -132,7 +137,25 @@ macro_rules! sensors {
                         layouts: <$record as SensorRecord>::LAYOUTS,
                         time_order: <$record as SensorRecord>::TIME_ORDER,
                         clock: Clock::$clock,
+                        anchor_columns: <$record as SensorRecord>::ANCHOR_COLUMNS,
                     },)+
+                }
+            }
+
+            /// The observations of this sensor among `observations`, as its table
+            /// ([`SensorRecord::table`]: `(columns, values row by row)`).
+            pub fn table(self, observations: &[Observation]) -> (usize, Vec<f64>) {
+                match self {
+                    $(SensorKind::$variant => {
+                        let records: Vec<$record> = observations
+                            .iter()
+                            .filter_map(|o| match o {
+                                Observation::$variant(m) => Some(*m),
+                                _ => None,
+                            })
+                            .collect();
+                        <$record as SensorRecord>::table(&records)
+                    })+
                 }
             }
 

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use crate::io::{IoError as Error, IoResult as Result};
 use serde::{Deserialize, Serialize};
+use uwbimu_vocabulary::config::MAX_TAGS;
 use uwbimu_vocabulary::error::Error as CoreError;
 
 /// Which clock stamps a message.
@@ -71,6 +72,102 @@ pub struct UwbMapping {
     /// sensor_msgs/Range: take the anchor id from `frame_id` (default) or the topic.
     #[serde(default)]
     pub anchor_from: AnchorFrom,
+    /// Path of the id of the tag that measured the range (e.g. `tag_id`), or `topic` for one
+    /// topic per tag; None: every range is tag 0 (the JSON `uwbimu.UwbRange` carries its own
+    /// `tag`).
+    pub tag: Option<String>,
+    /// The tag ids in the order of `mounting.lever_arm` (tag index = position in this list);
+    /// None: an id must be the tag index itself (`0`, `1`, ...). A range of another tag is
+    /// dropped and counted ([`crate::io::ReadStats::unknown_tag`]).
+    pub tag_ids: Option<Vec<String>>,
+}
+
+impl UwbMapping {
+    /// The tag index of the tag id `id` ([`UwbMapping::tag_ids`]; None: an id that is not a tag).
+    /// A range without a tag id is tag 0.
+    pub fn tag_index(&self, id: Option<&str>) -> Option<usize> {
+        let Some(id) = id else { return Some(0) };
+        match &self.tag_ids {
+            Some(ids) => ids.iter().position(|t| t == id),
+            None => id.parse::<usize>().ok().filter(|&k| k < MAX_TAGS),
+        }
+    }
+}
+
+/// How height messages are read (section `[mapping.altitude]`): each selected value `v` becomes
+/// the altitude `z = offset + scale·v` (m, navigation frame, up, of the body origin). A
+/// `sensor_msgs/Range` (a rangefinder looking down: its range is the height above the floor,
+/// `offset` the floor's z) is read at `range` and a reading outside its `min_range`..`max_range`
+/// is dropped and counted, as ROS specifies; any other message needs the path of its height
+/// (`pose.position.z`, `point.z`, `altitude`).
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AltitudeMapping {
+    /// Height topics (none: no altitude is read).
+    #[serde(default)]
+    pub topics: Vec<String>,
+    /// Path of the height; default `range` (sensor_msgs/Range).
+    pub value: Option<String>,
+    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
+    pub stamp: Option<String>,
+    /// Factor from the message's unit to metres, negative for a field that points down
+    /// (default 1).
+    pub scale: Option<f64>,
+    /// z of the zero of the reading (the floor under a rangefinder), m (default 0).
+    pub offset: Option<f64>,
+}
+
+/// How body-velocity messages are read (section `[mapping.odometry]`): the velocity at
+/// `velocity` (default by schema: `twist.twist.linear` for `nav_msgs/Odometry` and
+/// `geometry_msgs/TwistWithCovarianceStamped`, `twist.linear` for `geometry_msgs/TwistStamped`),
+/// in the body frame (ROS: the `child_frame_id`), gives one reading per axis of `axes` whose value
+/// is not NaN.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OdometryMapping {
+    /// Velocity topics (none: no odometry is read).
+    #[serde(default)]
+    pub topics: Vec<String>,
+    /// Path of the velocity (a message with x, y, z).
+    pub velocity: Option<String>,
+    /// The body axes measured, of `x`, `y`, `z`; default `["x"]`: a wheel encoder measures the
+    /// speed along x, and the zeros its driver writes for y and z are the non-holonomic
+    /// constraint (`odometry.nonholonomic_std`), not measurements.
+    pub axes: Option<Vec<String>>,
+    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
+    pub stamp: Option<String>,
+    /// Factor from the message's unit to m/s (default 1).
+    pub scale: Option<f64>,
+}
+
+/// The names of the body axes, by index, as [`OdometryMapping::axes`] spells them.
+pub const BODY_AXES: [&str; 3] = ["x", "y", "z"];
+
+impl OdometryMapping {
+    /// The indices of [`OdometryMapping::axes`] (default x).
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] for an unknown or repeated axis, or none.
+    pub fn axis_indices(&self) -> Result<Vec<usize>> {
+        let Some(axes) = &self.axes else { return Ok(vec![0]) };
+        let mut out = Vec::with_capacity(axes.len());
+        for a in axes {
+            let Some(k) = BODY_AXES.iter().position(|n| n == a) else {
+                return Err(Error::Mapping {
+                    field: "odometry.axes".into(),
+                    reason: format!("unknown axis `{a}`; axes are x, y, z"),
+                });
+            };
+            if out.contains(&k) {
+                return Err(Error::Mapping { field: "odometry.axes".into(), reason: format!("axis `{a}` given twice") });
+            }
+            out.push(k);
+        }
+        if out.is_empty() {
+            return Err(Error::Mapping { field: "odometry.axes".into(), reason: "no axis; give some of x, y, z".into() });
+        }
+        Ok(out)
+    }
 }
 
 /// Default path of a TDoA's anchor i: the Crazyflie estimator's `estTDOA` event field.
@@ -154,6 +251,12 @@ pub struct Mapping {
     /// TDoA messages.
     #[serde(default)]
     pub tdoa: TdoaMapping,
+    /// Height messages.
+    #[serde(default)]
+    pub altitude: AltitudeMapping,
+    /// Body-velocity messages.
+    #[serde(default)]
+    pub odometry: OdometryMapping,
     /// Anchor positions.
     #[serde(default)]
     pub anchors: AnchorMapping,
@@ -174,6 +277,8 @@ impl Default for Mapping {
             imu_topic: None,
             uwb: UwbMapping::default(),
             tdoa: TdoaMapping::default(),
+            altitude: AltitudeMapping::default(),
+            odometry: OdometryMapping::default(),
             anchors: AnchorMapping::default(),
             ground_truth: GroundTruthMapping::default(),
         }
@@ -210,10 +315,11 @@ impl Mapping {
         m.validate()
     }
 
-    /// Checks the numeric settings.
+    /// Checks the numeric settings, the tag ids and the odometry axes.
     ///
     /// # Errors
-    /// [`Error::Mapping`] for a negative window or a non-positive scale.
+    /// [`Error::Mapping`] for a negative window, a non-positive scale (a zero or non-finite
+    /// altitude scale), more tag ids than tags or a repeated one, a bad axis.
     pub fn validate(self) -> Result<Self> {
         if !(self.reorder_window_s.is_finite() && self.reorder_window_s >= 0.0) {
             return Err(Error::Mapping {
@@ -221,13 +327,34 @@ impl Mapping {
                 reason: format!("must be >= 0, got {}", self.reorder_window_s),
             });
         }
-        for (field, scale) in [("uwb.scale", self.uwb.scale), ("tdoa.scale", self.tdoa.scale)] {
+        for (field, scale) in
+            [("uwb.scale", self.uwb.scale), ("tdoa.scale", self.tdoa.scale), ("odometry.scale", self.odometry.scale)]
+        {
             if let Some(s) = scale {
                 if !(s.is_finite() && s > 0.0) {
                     return Err(Error::Mapping { field: field.into(), reason: format!("must be > 0, got {s}") });
                 }
             }
         }
+        if let Some(s) = self.altitude.scale.filter(|s| !s.is_finite() || *s == 0.0) {
+            return Err(Error::Mapping {
+                field: "altitude.scale".into(),
+                reason: format!("must be finite and non-zero, got {s}"),
+            });
+        }
+        if let Some(o) = self.altitude.offset.filter(|o| !o.is_finite()) {
+            return Err(Error::Mapping { field: "altitude.offset".into(), reason: format!("must be finite, got {o}") });
+        }
+        if let Some(ids) = &self.uwb.tag_ids {
+            let repeated = ids.iter().enumerate().find(|(i, id)| ids[..*i].contains(id));
+            if ids.is_empty() || ids.len() > MAX_TAGS || repeated.is_some() {
+                return Err(Error::Mapping {
+                    field: "uwb.tag_ids".into(),
+                    reason: format!("give 1 to {MAX_TAGS} distinct tag ids, one per `mounting.lever_arm` row, got {ids:?}"),
+                });
+            }
+        }
+        self.odometry.axis_indices()?;
         Ok(self)
     }
 }

@@ -1,5 +1,5 @@
 //! Reads one MCAP file through a [`Mapping`] into time-ordered IMU samples, ranges and TDoA
-//! (anchor ids turned into anchor indices), anchor positions and ground truth, with statistics of what was
+//! (anchor and tag ids turned into indices), the readings of the other sensors (altitude, odometry), anchor positions and ground truth, with statistics of what was
 //! found, dropped and reordered. Messages are decoded as they stream past; only the small decoded
 //! records are kept ([`read_recording`]), or none of them: [`survey_recording_file`] learns the
 //! anchors and the statistics in a first pass, and [`stream_recording_file`] then gives the
@@ -16,6 +16,7 @@ use crate::io::truth_file::read_truth_csv;
 use crate::io::{IoError as Error, IoResult as Result, Mapping};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use reader::{read_pass, Item, ItemSink};
 use survey::{settle, Collected, Converter, Survey};
@@ -30,6 +31,8 @@ pub enum TopicRole {
     Uwb,
     /// TDoA.
     Tdoa,
+    /// A sensor of the registry without anchors (altitude, odometry).
+    Sensor(SensorKind),
     /// Anchor list.
     Anchors,
     /// Ground truth.
@@ -45,6 +48,7 @@ impl TopicRole {
             Self::Imu => "imu",
             Self::Uwb => "uwb",
             Self::Tdoa => "tdoa",
+            Self::Sensor(kind) => kind.info().name,
             Self::Anchors => "anchors",
             Self::GroundTruth => "ground truth",
             Self::Ignored => "-",
@@ -78,6 +82,15 @@ pub struct AnchorReadCounts {
     pub bad_value: usize,
 }
 
+/// The readings of one sensor without anchors (altitude, odometry) as read.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SensorReadCounts {
+    /// Readings passed to the filter.
+    pub used: usize,
+    /// Readings that were not finite or outside the limits their message states (dropped).
+    pub invalid: usize,
+}
+
 /// What reading found.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ReadStats {
@@ -95,6 +108,14 @@ pub struct ReadStats {
     pub per_anchor: BTreeMap<String, AnchorReadCounts>,
     /// Ranges whose anchor has no known position (dropped).
     pub unknown_anchor: usize,
+    /// Ranges of a tag id that is not a tag (`uwb.tag_ids`; dropped).
+    pub unknown_tag: usize,
+    /// Those tag ids.
+    pub unknown_tag_ids: BTreeSet<String>,
+    /// Usable ranges per tag index, whether or not their anchor has a position.
+    pub ranges_per_tag: BTreeMap<usize, usize>,
+    /// Per sensor without anchors (altitude, odometry): how its readings were used.
+    pub sensors: BTreeMap<SensorKind, SensorReadCounts>,
     /// TDoA with an anchor that has no known position (dropped).
     pub tdoa_unknown_anchor: usize,
     /// The anchor ids of those TDoA that have no known position.
@@ -130,6 +151,8 @@ pub struct Recording {
     pub range_variances: Vec<f64>,
     /// TDoA, non-decreasing time; `anchor_i`, `anchor_j` index [`Recording::anchors`].
     pub tdoa: Vec<TdoaMeasurement>,
+    /// The readings of the sensors without anchors (altitude, odometry), non-decreasing time.
+    pub observations: Vec<Observation>,
     /// Anchor ids, one per anchor index.
     pub anchor_ids: Vec<String>,
     /// Anchor positions, m.
@@ -166,6 +189,7 @@ pub fn read_recording<R: std::io::Read>(
                 rec.range_variances.push(variance);
             }
             Some(RecordItem::Tdoa(m)) => rec.tdoa.push(m),
+            Some(RecordItem::Sensor(o)) => rec.observations.push(o),
             _ => {}
         }
     }

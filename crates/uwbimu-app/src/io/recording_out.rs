@@ -1,7 +1,8 @@
 //! Writes a recording (e.g. the simulator's) as MCAP: IMU samples as CDR
 //! `sensor_msgs/msg/Imu` with the ros2msg schema embedded, ranges as our JSON `uwbimu.UwbRange`,
-//! TDoA as CDR `uwbimu_msgs/msg/Tdoa` ([`TDOA_MSG`]), anchor positions in the metadata record
-//! `uwbimu.anchors`. Zstd chunks; profile "" (JSON
+//! the other sensors on the topics of [`sensor_topic`] (TDoA as CDR `uwbimu_msgs/msg/Tdoa`
+//! ([`TDOA_MSG`]), heights as `sensor_msgs/msg/Range`, body velocities as `nav_msgs/msg/Odometry`),
+//! anchor positions in the metadata record `uwbimu.anchors`. Zstd chunks; profile "" (JSON
 //! channels are present).
 
 use std::collections::BTreeMap;
@@ -11,8 +12,10 @@ use crate::io::{IoError as Error, IoResult as Result};
 use mcap::records::{MessageHeader, Metadata};
 use mcap::WriteOptions;
 use serde_json::json;
+use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use crate::io::anchors::ANCHORS_METADATA;
 use crate::io::topics::{TDOA_MSG_NAME, UWB_RANGE_JSON, UWB_RANGE_JSON_SCHEMA};
@@ -45,6 +48,47 @@ float64 x\nfloat64 y\nfloat64 z\n"
 /// header and the anchor ids as text.
 pub const TDOA_MSG: &str =
     concat!("std_msgs/Header header\nstring idA\nstring idB\nfloat64 distanceDiff\n", header_dependencies!());
+
+/// The ros2msg text of `sensor_msgs/msg/Range` (Humble: without `variance`) with its dependencies.
+pub const RANGE_MSG: &str = concat!(
+    "uint8 ULTRASOUND=0\nuint8 INFRARED=1\nstd_msgs/Header header\nuint8 radiation_type\nfloat32 field_of_view\n\
+float32 min_range\nfloat32 max_range\nfloat32 range\n",
+    header_dependencies!()
+);
+
+/// The ros2msg text of `nav_msgs/msg/Odometry` with its dependencies.
+pub const ODOMETRY_MSG: &str = concat!(
+    "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n\
+geometry_msgs/TwistWithCovariance twist\n",
+    header_dependencies!(),
+    "================================================================================\nMSG: geometry_msgs/PoseWithCovariance\n\
+geometry_msgs/Pose pose\nfloat64[36] covariance\n\
+================================================================================\nMSG: geometry_msgs/Pose\n\
+geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation\n\
+================================================================================\nMSG: geometry_msgs/Point\n\
+float64 x\nfloat64 y\nfloat64 z\n\
+================================================================================\nMSG: geometry_msgs/Quaternion\n\
+float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n\
+================================================================================\nMSG: geometry_msgs/TwistWithCovariance\n\
+geometry_msgs/Twist twist\nfloat64[36] covariance\n\
+================================================================================\nMSG: geometry_msgs/Twist\n\
+geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular\n\
+================================================================================\nMSG: geometry_msgs/Vector3\n\
+float64 x\nfloat64 y\nfloat64 z\n"
+);
+
+/// How a sensor's readings are written: (topic, schema name, ros2msg text); None for a sensor
+/// without a message yet (the magnetometer). Reading them back needs the topic in the mapping
+/// (`[mapping.altitude] topics = ["/altitude"]`, `[mapping.odometry] topics = ["/odom"]`), except
+/// TDoA, whose schema is recognised.
+pub fn sensor_topic(kind: SensorKind) -> Option<(&'static str, &'static str, &'static str)> {
+    match kind {
+        SensorKind::Tdoa => Some(("/tdoa", TDOA_MSG_NAME, TDOA_MSG)),
+        SensorKind::Altitude => Some(("/altitude", "sensor_msgs/msg/Range", RANGE_MSG)),
+        SensorKind::Odometry => Some(("/odom", "nav_msgs/msg/Odometry", ODOMETRY_MSG)),
+        SensorKind::Magnetometer => None,
+    }
+}
 
 /// Splits non-negative seconds into (sec, nanosec, total ns).
 fn split_time(t_s: f64) -> (u64, u64, u64) {
@@ -96,12 +140,15 @@ pub fn imu_cdr(s: &ImuSample) -> Vec<u8> {
     b
 }
 
-/// One range as `uwbimu.UwbRange` JSON.
-pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f64>) -> Vec<u8> {
+/// One range as `uwbimu.UwbRange` JSON; a tag beyond 0 is written as its index (`"tag": "1"`).
+pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f64>, tag: usize) -> Vec<u8> {
     let (sec, nsec, _) = split_time(t_s);
     let mut v = json!({"timestamp": {"sec": sec, "nsec": nsec}, "anchor_id": anchor_id, "range": range_m});
     if let Some(var) = variance_m2 {
         v["variance"] = json!(var);
+    }
+    if tag > 0 {
+        v["tag"] = json!(tag.to_string());
     }
     v.to_string().into_bytes()
 }
@@ -116,6 +163,35 @@ pub fn tdoa_cdr(m: &TdoaMeasurement) -> Vec<u8> {
     b
 }
 
+/// One height as XCDR1 little-endian [`RANGE_MSG`] (frame `altimeter`, infrared), `range = z`;
+/// its limits are wide open (`±f32::MAX`), as a simulated height may be negative.
+pub fn altitude_cdr(t_s: f64, z_m: f64) -> Vec<u8> {
+    let mut b = cdr_with_header(t_s, "altimeter", 48);
+    b.push(1); // radiation_type INFRARED
+    while (b.len() - 4) % 4 != 0 {
+        b.push(0);
+    }
+    for v in [0.0, -f32::MAX, f32::MAX, z_m as f32] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b
+}
+
+/// One body velocity as XCDR1 little-endian [`ODOMETRY_MSG`] (frames `odom` → `base_link`,
+/// identity pose, zero covariances), NaN for an axis not measured.
+pub fn odometry_cdr(t_s: f64, velocity: [f64; 3]) -> Vec<u8> {
+    let mut b = cdr_with_header(t_s, "odom", 720);
+    push_cdr_string(&mut b, "base_link");
+    align8(&mut b);
+    let mut doubles = [0.0f64; 85];
+    doubles[6] = 1.0; // orientation w
+    doubles[43..46].copy_from_slice(&velocity);
+    for d in doubles {
+        b.extend_from_slice(&d.to_le_bytes());
+    }
+    b
+}
+
 /// The streams [`write_recording_mcap`] writes, each time-ordered; anchor `k` is written with
 /// the id `A{k}`.
 #[derive(Debug, Clone, Copy, Default)]
@@ -124,19 +200,20 @@ pub struct RecordingStreams<'a> {
     pub imu: &'a [ImuSample],
     /// Ranges (topic `/uwb`, left out when there are TDoA and no ranges).
     pub ranges: &'a [RangeMeasurement],
-    /// TDoA (topic `/tdoa`, only when there are any).
-    pub tdoa: &'a [TdoaMeasurement],
+    /// The other sensors' readings, in time order, each on its topic ([`sensor_topic`]).
+    pub observations: &'a [Observation],
     /// Anchor positions (the `uwbimu.anchors` metadata record), m.
     pub anchors: &'a [Vec3],
 }
 
-/// Writes the IMU samples (topic `/imu`), ranges (topic `/uwb`, with variance
-/// `range_std_m²` when given) and TDoA (topic `/tdoa`) of `streams` in time order (at equal times
-/// IMU, range, TDoA) plus the anchor metadata, in zstd chunks when `compress`. `label` names the
-/// output in errors.
+/// Writes the IMU samples (topic `/imu`), ranges (topic `/uwb`, with variance `range_std_m²`
+/// when given) and the other sensors' readings (their [`sensor_topic`]; odometry readings of one
+/// time in one message) of `streams` in time order (at equal times IMU, range, the others) plus
+/// the anchor metadata, in zstd chunks when `compress`. `label` names the output in errors.
 ///
 /// # Errors
-/// [`Error::Io`] if writing fails.
+/// [`Error::Io`] if writing fails; [`CoreError::InvalidCall`] for readings of a sensor without a
+/// message ([`sensor_topic`]).
 pub fn write_recording_mcap<W: Write + Seek>(
     sink: W,
     label: &str,
@@ -144,41 +221,69 @@ pub fn write_recording_mcap<W: Write + Seek>(
     range_std_m: Option<f64>,
     compress: bool,
 ) -> Result<()> {
-    let RecordingStreams { imu, ranges, tdoa, anchors } = *streams;
+    let RecordingStreams { imu, ranges, observations, anchors } = *streams;
+    if let Some(o) = observations.iter().find(|o| sensor_topic(o.kind()).is_none()) {
+        return Err(CoreError::InvalidCall(format!("{} cannot be written to MCAP yet", o.kind().info().label)).into());
+    }
     let err = |source: mcap::McapError| Error::Mcap { path: label.to_string(), source };
     let mut w =
         WriteOptions::new().profile("").compression(compress.then_some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
     let imu_schema = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", IMU_MSG.as_bytes()).map_err(err)?;
     let imu_ch = w.add_channel(imu_schema, "/imu", "cdr", &BTreeMap::new()).map_err(err)?;
     let mut uwb_ch = None;
-    if !ranges.is_empty() || tdoa.is_empty() {
+    if !ranges.is_empty() || !observations.iter().any(|o| o.kind() == SensorKind::Tdoa) {
         let uwb_schema = w.add_schema(UWB_RANGE_JSON, "jsonschema", UWB_RANGE_JSON_SCHEMA.as_bytes()).map_err(err)?;
         uwb_ch = Some(w.add_channel(uwb_schema, "/uwb", "json", &BTreeMap::new()).map_err(err)?);
     }
-    let mut tdoa_ch = None;
-    if !tdoa.is_empty() {
-        let tdoa_schema = w.add_schema(TDOA_MSG_NAME, "ros2msg", TDOA_MSG.as_bytes()).map_err(err)?;
-        tdoa_ch = Some(w.add_channel(tdoa_schema, "/tdoa", "cdr", &BTreeMap::new()).map_err(err)?);
+    let mut sensor_ch = BTreeMap::new();
+    for kind in SensorKind::ALL.iter().filter(|k| observations.iter().any(|o| o.kind() == **k)) {
+        let Some((topic, schema, text)) = sensor_topic(*kind) else { continue };
+        let id = w.add_schema(schema, "ros2msg", text.as_bytes()).map_err(err)?;
+        sensor_ch.insert(*kind, w.add_channel(id, topic, "cdr", &BTreeMap::new()).map_err(err)?);
     }
     let metadata = anchors.iter().enumerate().map(|(i, a)| (format!("A{i}"), format!("[{}, {}, {}]", a.x, a.y, a.z))).collect();
     w.write_metadata(&Metadata { name: ANCHORS_METADATA.into(), metadata }).map_err(err)?;
     let variance = range_std_m.map(|s| s * s);
-    let channels = [Some(imu_ch), uwb_ch, tdoa_ch];
     let (mut next, mut sequence) = ([0usize; 3], 0u32);
     loop {
-        let times = [imu.get(next[0]).map(|s| s.t_s), ranges.get(next[1]).map(|r| r.t_s), tdoa.get(next[2]).map(|m| m.t_s)];
+        let times = [
+            imu.get(next[0]).map(|s| s.t_s),
+            ranges.get(next[1]).map(|r| r.t_s),
+            observations.get(next[2]).map(Observation::t_s),
+        ];
         // The stream with the earliest next message; the first one wins ties.
-        let Some((stream, channel_id, t)) =
-            (0..3).filter_map(|k| Some((k, channels[k]?, times[k]?))).min_by(|a, b| a.2.total_cmp(&b.2))
-        else {
+        let Some((stream, t)) = (0..3).filter_map(|k| Some((k, times[k]?))).min_by(|a, b| a.1.total_cmp(&b.1)) else {
             break;
         };
         let k = next[stream];
         next[stream] += 1;
-        let data = match stream {
-            0 => imu_cdr(&imu[k]),
-            1 => range_json(t, &format!("A{}", ranges[k].anchor), ranges[k].range_m, variance),
-            _ => tdoa_cdr(&tdoa[k]),
+        let (channel_id, data) = match stream {
+            0 => (imu_ch, imu_cdr(&imu[k])),
+            1 => {
+                let Some(uwb) = uwb_ch else { continue }; // no ranges: never reached
+                (uwb, range_json(t, &format!("A{}", ranges[k].anchor), ranges[k].range_m, variance, ranges[k].tag))
+            }
+            _ => {
+                let o = observations[k];
+                let data = match o {
+                    Observation::Tdoa(m) => tdoa_cdr(&m),
+                    Observation::Altitude(a) => altitude_cdr(t, a.z_m),
+                    Observation::Odometry(_) => {
+                        // The readings of one time, one per axis, make one message.
+                        let same_time = |o: &&Observation| matches!(o, Observation::Odometry(r) if r.t_s == t);
+                        let mut velocity = [f64::NAN; 3];
+                        for o in observations[k..].iter().take_while(same_time) {
+                            if let Observation::Odometry(r) = o {
+                                velocity[r.axis] = r.speed_mps;
+                            }
+                        }
+                        next[2] = k + observations[k..].iter().take_while(same_time).count();
+                        odometry_cdr(t, velocity)
+                    }
+                    Observation::Magnetometer(_) => continue,
+                };
+                (sensor_ch.get(&o.kind()).copied().unwrap_or(imu_ch), data)
+            }
         };
         sequence += 1;
         let ns = split_time(t).2;

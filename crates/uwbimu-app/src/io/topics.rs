@@ -1,7 +1,12 @@
 //! Per-channel decoders: IMU (`sensor_msgs/msg/Imu` or anything with the same fields), UWB ranges
 //! (vendor messages through the field mapping, `sensor_msgs/msg/Range`, our JSON
-//! `uwbimu.UwbRange`), TDoA (through the field mapping), anchor lists and ground-truth poses. Each decoder is built once per
+//! `uwbimu.UwbRange`), TDoA (through the field mapping), anchor lists, ground-truth poses, and the
+//! sensors without anchors ([`SensorDecoder`]: altitude, odometry). Each decoder is built once per
 //! channel from its schema, so a mapping that does not fit fails before the first message.
+
+mod sensors;
+
+pub use sensors::{RawObservation, SensorDecoder};
 
 use crate::io::{IoError as Error, IoResult as Result};
 use serde::Deserialize;
@@ -33,6 +38,8 @@ pub struct RawRange {
     pub anchor_position: Option<Vec3>,
     /// Whether the validity condition held.
     pub valid: bool,
+    /// Id of the tag that measured it, as text (None: the message names no tag).
+    pub tag_id: Option<String>,
 }
 
 /// Schema name of the TDoA message the recordings we write carry (CDR; `idA`, `idB`,
@@ -77,7 +84,7 @@ pub fn cdr_schema(channel: &ChannelInfo) -> Result<MsgSchema> {
 }
 
 /// The stamp path `header.stamp` when the schema has a header, else None.
-fn default_stamp(schema: &MsgSchema, key: &str) -> Result<Option<FieldPath>> {
+pub(crate) fn default_stamp(schema: &MsgSchema, key: &str) -> Result<Option<FieldPath>> {
     if schema.has_field("header") {
         Ok(Some(FieldPath::resolve(schema, key, "header.stamp")?))
     } else {
@@ -86,7 +93,7 @@ fn default_stamp(schema: &MsgSchema, key: &str) -> Result<Option<FieldPath>> {
 }
 
 /// Reads a `sec`/`nanosec` stamp; None when zero (the caller falls back to log time).
-fn stamp_ns(stamp: Option<&FieldPath>, v: &Value) -> Result<Option<i64>> {
+pub(crate) fn stamp_ns(stamp: Option<&FieldPath>, v: &Value) -> Result<Option<i64>> {
     let Some(path) = stamp else { return Ok(None) };
     let Value::Struct(parts) = path.get(v)? else { return Ok(None) };
     let (sec, nsec) = match parts.as_slice() {
@@ -145,6 +152,7 @@ pub struct CdrRangeDecoder {
     stamp: Option<FieldPath>,
     range: FieldPath,
     id: IdSource,
+    tag: Option<IdSource>,
     valid: Option<Condition>,
     position: Option<PointPath>,
     variance: Option<FieldPath>,
@@ -156,8 +164,9 @@ pub struct CdrRangeDecoder {
 pub enum RangeDecoder {
     /// CDR message read through field paths.
     Cdr(Box<CdrRangeDecoder>),
-    /// Our JSON message [`UWB_RANGE_JSON`].
-    Json,
+    /// Our JSON message [`UWB_RANGE_JSON`]; with the topic as the tag id of messages without
+    /// a `tag` (`uwb.tag = "topic"`).
+    Json(Option<String>),
 }
 
 /// `uwbimu.UwbRange` as JSON.
@@ -169,6 +178,7 @@ struct JsonRange {
     range: f64,
     variance: Option<f64>,
     anchor_position: Option<JsonPoint>,
+    tag: Option<serde_json::Value>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -185,7 +195,7 @@ struct JsonPoint {
 }
 
 /// The JSON Schema of `uwbimu.UwbRange`, written into MCAP files we produce.
-pub const UWB_RANGE_JSON_SCHEMA: &str = r#"{"title":"uwbimu.UwbRange","type":"object","required":["timestamp","anchor_id","range"],"properties":{"timestamp":{"type":"object","required":["sec","nsec"],"properties":{"sec":{"type":"integer"},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"anchor_id":{"type":"string"},"range":{"type":"number","description":"m"},"variance":{"type":"number","description":"m^2"},"anchor_position":{"type":"object","required":["x","y","z"],"properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}}}}"#;
+pub const UWB_RANGE_JSON_SCHEMA: &str = r#"{"title":"uwbimu.UwbRange","type":"object","required":["timestamp","anchor_id","range"],"properties":{"timestamp":{"type":"object","required":["sec","nsec"],"properties":{"sec":{"type":"integer"},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"anchor_id":{"type":"string"},"range":{"type":"number","description":"m"},"variance":{"type":"number","description":"m^2"},"anchor_position":{"type":"object","required":["x","y","z"],"properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},"tag":{"type":"string","description":"id of the tag that measured the range"}}}"#;
 
 fn key(name: &str) -> String {
     format!("uwb.{name}")
@@ -211,7 +221,14 @@ impl RangeDecoder {
                     reason: format!("JSON topic `{}` has schema `{name}`; only {UWB_RANGE_JSON} is understood", channel.topic),
                 });
             }
-            return Ok(Self::Json);
+            return match m.tag.as_deref() {
+                None => Ok(Self::Json(None)),
+                Some("topic") => Ok(Self::Json(Some(channel.topic.clone()))),
+                Some(p) => Err(Error::Mapping {
+                    field: key("tag"),
+                    reason: format!("`{p}`: {UWB_RANGE_JSON} carries its own `tag`; here uwb.tag may only be `topic`"),
+                }),
+            };
         }
         let schema = cdr_schema(channel)?;
         let is_range_msg = schema.name() == "sensor_msgs/Range";
@@ -239,6 +256,11 @@ impl RangeDecoder {
                 })
             }
         };
+        let tag = match m.tag.as_deref() {
+            None => None,
+            Some("topic") => Some(IdSource::Constant(channel.topic.clone())),
+            Some(p) => Some(IdSource::Path(FieldPath::resolve(&schema, &key("tag"), p)?.require_id(&key("tag"))?)),
+        };
         let valid = m.valid.as_deref().map(|c| Condition::resolve(&schema, &key("valid"), c)).transpose()?;
         let position =
             m.anchor_position.as_deref().map(|p| PointPath::resolve(&schema, &key("anchor_position"), p)).transpose()?;
@@ -259,6 +281,7 @@ impl RangeDecoder {
             stamp,
             range,
             id,
+            tag,
             valid,
             position,
             variance,
@@ -273,13 +296,13 @@ impl RangeDecoder {
     /// arrays have different lengths.
     pub fn decode(&self, data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
         match self {
-            Self::Json => decode_json(data, out),
+            Self::Json(topic_tag) => decode_json(data, topic_tag.as_deref(), out),
             Self::Cdr(d) => d.decode(data, out),
         }
     }
 }
 
-fn decode_json(data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
+fn decode_json(data: &[u8], topic_tag: Option<&str>, out: &mut Vec<RawRange>) -> Result<Option<i64>> {
     let m: JsonRange = serde_json::from_slice(data)
         .map_err(|e| Error::Format { what: format!("{UWB_RANGE_JSON} message"), reason: e.to_string() })?;
     out.push(RawRange {
@@ -288,6 +311,7 @@ fn decode_json(data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
         variance_m2: m.variance,
         anchor_position: m.anchor_position.map(|p| Vec3::new(p.x, p.y, p.z)),
         valid: true,
+        tag_id: m.tag.as_ref().map(json_id).or_else(|| topic_tag.map(str::to_string)),
     });
     let ns = m.timestamp.sec.saturating_mul(1_000_000_000).saturating_add(m.timestamp.nsec);
     Ok((ns != 0).then_some(ns))
@@ -313,11 +337,15 @@ impl CdrRangeDecoder {
             }
             Ok(vals)
         };
-        let ids: Vec<String> = match &self.id {
-            IdSource::Path(p) => per_range(p, "anchor_id")?.iter().map(|x| x.as_id().unwrap_or_default()).collect(),
-            IdSource::Index => (0..n).map(|i| i.to_string()).collect(),
-            IdSource::Constant(s) => vec![s.clone(); n],
+        let ids_of = |source: &IdSource, what: &str| -> Result<Vec<String>> {
+            Ok(match source {
+                IdSource::Path(p) => per_range(p, what)?.iter().map(|x| x.as_id().unwrap_or_default()).collect(),
+                IdSource::Index => (0..n).map(|i| i.to_string()).collect(),
+                IdSource::Constant(s) => vec![s.clone(); n],
+            })
         };
+        let ids = ids_of(&self.id, "anchor_id")?;
+        let tags = self.tag.as_ref().map(|t| ids_of(t, "tag")).transpose()?;
         let valid: Vec<bool> = match &self.valid {
             Some(c) => per_range(&c.path, "valid")?.iter().map(|x| c.holds(x)).collect(),
             None => vec![true; n],
@@ -337,6 +365,7 @@ impl CdrRangeDecoder {
                 variance_m2: variances[i],
                 anchor_position: positions[i],
                 valid: valid[i],
+                tag_id: tags.as_ref().map(|t| t[i].clone()),
             });
         }
         stamp_ns(self.stamp.as_ref(), &v)
@@ -582,11 +611,16 @@ mod tests {
     #[test]
     fn json_range_round_trips_and_rejects_unknown_keys() {
         let mut out = Vec::new();
-        let bytes = crate::io::recording_out::range_json(12.25, "A3", 4.5, Some(0.01));
-        assert_eq!(decode_json(&bytes, &mut out).unwrap(), Some(12_250_000_000));
+        let bytes = crate::io::recording_out::range_json(12.25, "A3", 4.5, Some(0.01), 1);
+        assert_eq!(decode_json(&bytes, Some("/uwb/t9"), &mut out).unwrap(), Some(12_250_000_000));
         assert_eq!((out[0].anchor_id.as_str(), out[0].range_m, out[0].variance_m2), ("A3", 4.5, Some(0.01)));
-        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":"a","range":1,"rang":2}"#, &mut out).is_err());
-        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":5,"range":1}"#, &mut out).is_ok());
+        assert_eq!(out[0].tag_id.as_deref(), Some("1"), "the message's tag wins over the topic");
+        let untagged = crate::io::recording_out::range_json(1.0, "A3", 4.5, None, 0);
+        decode_json(&untagged, Some("/uwb/t9"), &mut out).unwrap();
+        decode_json(&untagged, None, &mut out).unwrap();
+        assert_eq!((out[1].tag_id.as_deref(), out[2].tag_id.as_deref()), (Some("/uwb/t9"), None));
+        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":"a","range":1,"rang":2}"#, None, &mut out).is_err());
+        assert!(decode_json(br#"{"timestamp":{"sec":1,"nsec":0},"anchor_id":5,"range":1}"#, None, &mut out).is_ok());
         assert_eq!(out.last().map(|r| r.anchor_id.as_str()), Some("5"));
     }
 }

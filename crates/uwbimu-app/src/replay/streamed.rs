@@ -17,7 +17,7 @@
 //! Errors against ground truth are accumulated as the steps go out ([`TruthErrors`]).
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, VecDeque};
+use std::collections::{BTreeMap, BinaryHeap, VecDeque};
 use std::path::Path;
 
 use uwbimu_estimation::filters::{Checkpoint, InertialCore, Segment, SmoothingRecord, CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
@@ -70,9 +70,9 @@ pub struct StreamedReplay {
     pub last_t_s: Option<f64>,
     /// Ranges per anchor, in anchor-index order.
     pub anchors: Vec<AnchorUpdateStats>,
-    /// The TDoA, when the recording has any.
-    pub tdoa: Option<AnchorUpdateStats>,
-    /// Mean NIS of the applied ranges and TDoA.
+    /// Per sensor of the recording besides the ranges, by name.
+    pub sensors: BTreeMap<&'static str, AnchorUpdateStats>,
+    /// Mean NIS of the applied ranges and sensor readings.
     pub mean_nis: Option<f64>,
     /// What the method chose on the log (methods that choose their model).
     pub model: Option<ModelChoice>,
@@ -100,7 +100,7 @@ impl StreamedReplay {
             n_ground_truth: survey.n_ground_truth,
             truncated_bytes: survey.stats.end.lost_bytes(),
             anchors: self.anchors.clone(),
-            tdoa: self.tdoa.clone(),
+            sensors: self.sensors.clone(),
             mean_nis: self.mean_nis,
             model: self.model.as_ref().map(ModelSummary::of),
             smoothing_left_out: self.health.smoothing_left_out,
@@ -589,6 +589,12 @@ fn smooth_spilled(
 /// # Errors
 /// As [`crate::methods::run_method`] and the file's read; [`crate::io::IoError::Io`] when the
 /// temporary files of smoothing cannot be written.
+/// The sensors besides the ranges whose readings the recording `survey` describes will give.
+fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> + '_ {
+    let others = survey.stats.sensors.iter().filter(|(_, c)| c.used > 0).map(|(kind, _)| *kind);
+    (survey.n_tdoa > 0).then_some(SensorKind::Tdoa).into_iter().chain(others)
+}
+
 pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     method: Method,
     input: &StreamedInput<'_>,
@@ -596,7 +602,9 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
     let survey = input.survey;
-    crate::methods::check_inputs(method, input.smooth, (survey.n_tdoa > 0).then_some(SensorKind::Tdoa))?;
+    crate::methods::check_inputs(method, input.smooth, survey_sensors(survey))?;
+    let tagged = survey.stats.ranges_per_tag.keys().filter(|&&t| t != 0);
+    crate::methods::check_tags(method, input.config, tagged.map(|&t| ("a range of the recording".to_string(), t)))?;
     let Some(imu_span_s) = survey.imu_span_s.filter(|_| survey.n_ranges + survey.n_tdoa > 0) else {
         return Err(CoreError::InsufficientData(format!(
             "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
@@ -709,7 +717,7 @@ fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         stream: None,
         model: None,
         out,
-        tally: UpdateTally::new(&survey.anchors.ids, survey.n_tdoa > 0),
+        tally: UpdateTally::new(&survey.anchors.ids, survey_sensors(survey)),
         steps: Vec::new(),
         updates: Vec::new(),
         record: SmoothingRecord::default(),
@@ -738,6 +746,7 @@ fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
             RecordItem::Imu(s) => Event::Imu(s),
             RecordItem::Range(r, _) => Event::Range(r),
             RecordItem::Tdoa(m) => Event::Observation(Observation::Tdoa(m)),
+            RecordItem::Sensor(o) => Event::Observation(o),
             RecordItem::Truth(t, p) => return run.truth(t, p),
         };
         ordered.push(input.config, event, &mut released)?;
@@ -791,7 +800,7 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
     /// Hands on a spilled pass's steps to `on_step` (the smoothed ones when there are), oldest
     /// first, and returns what the pass found.
     fn finish(mut self, survey: &RecordingSurvey, on_step: Option<StepSink<'_>>) -> Result<StreamedReplay> {
-        let (anchors, tdoa, mean_nis) = self.tally.finish();
+        let (anchors, sensors, mean_nis) = self.tally.finish();
         let (rmse, smoothed) = match self.out {
             StepsOut::Forward { truth, .. } => (truth.finish()?, false),
             StepsOut::Spilled(spills) => {
@@ -824,7 +833,7 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
             steps: self.handed_on,
             last_t_s: self.last_t_s,
             anchors,
-            tdoa,
+            sensors,
             mean_nis,
             model: self.model,
             warnings: self.stream.take_warnings(),

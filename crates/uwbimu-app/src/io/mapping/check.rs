@@ -8,16 +8,18 @@ use serde::de::{self, DeserializeOwned, Visitor};
 use serde_json::Value;
 use uwbimu_vocabulary::suggest;
 
-use super::{AnchorMapping, GroundTruthMapping, Mapping, TdoaMapping, UwbMapping};
+use super::{AltitudeMapping, AnchorMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping, UwbMapping};
 use crate::io::{IoError as Error, IoResult as Result};
 
 /// Checks the keys of the table at a path.
 type Checker = fn(&str, &Value) -> Result<()>;
 
 /// The tables nested in [`Mapping`], each with the checker of its keys.
-const NESTED: [(&str, Checker); 4] = [
+const NESTED: [(&str, Checker); 6] = [
     ("uwb", leaves::<UwbMapping>),
     ("tdoa", leaves::<TdoaMapping>),
+    ("altitude", leaves::<AltitudeMapping>),
+    ("odometry", leaves::<OdometryMapping>),
     ("anchors", leaves::<AnchorMapping>),
     ("ground_truth", leaves::<GroundTruthMapping>),
 ];
@@ -121,6 +123,21 @@ mod tests {
         assert!(top.contains(&"imu_topic") && top.contains(&"time_source"), "{top:?}");
         assert!(NESTED.iter().all(|(name, _)| top.contains(name)));
         assert!(fields_of::<UwbMapping>().contains(&"anchor_id"));
+    }
+
+    #[test]
+    fn every_sensor_with_a_message_has_its_table_named_as_it() {
+        use uwbimu_vocabulary::sensors::SensorKind;
+        for kind in SensorKind::ALL {
+            let written = crate::io::recording_out::sensor_topic(*kind).is_some();
+            let mapped = NESTED.iter().any(|(name, _)| *name == kind.info().name);
+            assert_eq!(
+                written,
+                mapped,
+                "{kind:?}: written to MCAP {written}, read through [mapping.{}] {mapped}",
+                kind.info().name
+            );
+        }
     }
 
     #[test]

@@ -7,7 +7,9 @@ use std::collections::BTreeMap;
 use crate::io::anchors::{parse_anchor_metadata, ANCHORS_METADATA};
 use crate::io::mcap_read::{read_mcap, ChannelInfo, McapEnd, McapEvent};
 use crate::io::reorder::ReorderBuffer;
-use crate::io::topics::{AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawRange, RawTdoa, TdoaDecoder};
+use crate::io::topics::{
+    AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawObservation, RawRange, RawTdoa, SensorDecoder, TdoaDecoder,
+};
 use crate::io::{IoError as Error, IoResult as Result};
 use crate::io::{Mapping, TimeSource};
 use uwbimu_vocabulary::math::Vec3;
@@ -17,8 +19,10 @@ use super::{ReadStats, TopicRole, TopicStats};
 /// A decoded, time-stamped item waiting in the reorder buffer.
 pub(super) enum Item {
     Imu(Vec3, Vec3),
-    Range(RawRange),
+    /// A range and the index of its tag (None: a tag id the mapping does not know).
+    Range(RawRange, Option<usize>),
     Tdoa(RawTdoa),
+    Sensor(RawObservation),
     Truth(Vec3),
 }
 
@@ -27,6 +31,7 @@ enum Role {
     Imu(Box<ImuDecoder>),
     Uwb(Box<RangeDecoder>),
     Tdoa(Box<TdoaDecoder>),
+    Sensor(Box<SensorDecoder>),
     Anchors(Box<AnchorListDecoder>),
     Truth(Box<PoseDecoder>),
     Ignored,
@@ -56,6 +61,7 @@ struct Reader<'m, S> {
     items: Vec<Item>,
     range_scratch: Vec<RawRange>,
     tdoa_scratch: Vec<RawTdoa>,
+    sensor_scratch: Vec<RawObservation>,
 }
 
 /// What a pass found besides the items: the statistics of the channels and messages (the
@@ -92,6 +98,12 @@ impl<S: ItemSink> Reader<'_, S> {
         if m.uwb.topics.iter().any(|t| t == topic) {
             return Ok(Role::Uwb(Box::new(RangeDecoder::new(channel, &m.uwb)?)));
         }
+        if m.altitude.topics.iter().any(|t| t == topic) {
+            return Ok(Role::Sensor(Box::new(SensorDecoder::altitude(channel, &m.altitude)?)));
+        }
+        if m.odometry.topics.iter().any(|t| t == topic) {
+            return Ok(Role::Sensor(Box::new(SensorDecoder::odometry(channel, &m.odometry)?)));
+        }
         if m.tdoa.topics.iter().any(|t| t == topic) || (m.tdoa.topics.is_empty() && TdoaDecoder::recognises(channel)) {
             return Ok(Role::Tdoa(Box::new(TdoaDecoder::new(channel, &m.tdoa)?)));
         }
@@ -118,6 +130,7 @@ impl<S: ItemSink> Reader<'_, S> {
                     Role::Imu(_) => TopicRole::Imu,
                     Role::Uwb(_) => TopicRole::Uwb,
                     Role::Tdoa(_) => TopicRole::Tdoa,
+                    Role::Sensor(ref d) => TopicRole::Sensor(d.kind()),
                     Role::Anchors(_) => TopicRole::Anchors,
                     Role::Truth(_) => TopicRole::GroundTruth,
                     Role::Ignored => TopicRole::Ignored,
@@ -171,12 +184,21 @@ impl<S: ItemSink> Reader<'_, S> {
                     }
                     Some(Role::Uwb(d)) => {
                         let s = d.decode(data, &mut self.range_scratch).map_err(in_topic)?;
-                        self.items.extend(self.range_scratch.drain(..).map(Item::Range));
+                        let uwb = &self.mapping.uwb;
+                        self.items.extend(self.range_scratch.drain(..).map(|r| {
+                            let tag = uwb.tag_index(r.tag_id.as_deref());
+                            Item::Range(r, tag)
+                        }));
                         s
                     }
                     Some(Role::Tdoa(d)) => {
                         let s = d.decode(data, &mut self.tdoa_scratch).map_err(in_topic)?;
                         self.items.extend(self.tdoa_scratch.drain(..).map(Item::Tdoa));
+                        s
+                    }
+                    Some(Role::Sensor(d)) => {
+                        let s = d.decode(data, &mut self.sensor_scratch).map_err(in_topic)?;
+                        self.items.extend(self.sensor_scratch.drain(..).map(Item::Sensor));
                         s
                     }
                     Some(Role::Ignored) | None => return Ok(()),
@@ -239,6 +261,7 @@ pub(super) fn read_pass<R: std::io::Read, S: ItemSink>(
         items: Vec::new(),
         range_scratch: Vec::new(),
         tdoa_scratch: Vec::new(),
+        sensor_scratch: Vec::new(),
     };
     r.stats.end = read_mcap(source, size, label, |e| r.on_event(e), progress)?;
     if r.stats.end != McapEnd::Complete && r.stats.messages == 0 {
@@ -282,7 +305,13 @@ fn check_topics<S>(r: &mut Reader<'_, S>) -> Result<()> {
             None => missing("imu_topic", "no sensor_msgs/msg/Imu topic".into()),
         });
     }
-    for (field, topics) in [("uwb.topics", &m.uwb.topics), ("tdoa.topics", &m.tdoa.topics)] {
+    let named = [
+        ("uwb.topics", &m.uwb.topics),
+        ("tdoa.topics", &m.tdoa.topics),
+        ("altitude.topics", &m.altitude.topics),
+        ("odometry.topics", &m.odometry.topics),
+    ];
+    for (field, topics) in named {
         for t in topics {
             if !r.stats.topics.iter().any(|s| &s.topic == t) {
                 return Err(missing(field, format!("topic `{t}` not found")));

@@ -3,16 +3,17 @@
 //! settled from them ([`settle`]), and the conversion of each item into the filters' records
 //! ([`Converter`]). The whole-recording read and the streamed read share all three.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use crate::io::anchors::{read_anchor_file, AnchorTable};
 use crate::io::topics::RawRange;
 use crate::io::{IoError as Error, IoResult as Result, Mapping};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use super::reader::{Item, ItemSink, Pass};
-use super::ReadStats;
+use super::{ReadStats, SensorReadCounts};
 
 /// One decoded record, ready for the filters: anchor ids are anchor indices, times seconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,6 +24,8 @@ pub enum RecordItem {
     Range(RangeMeasurement, f64),
     /// A TDoA.
     Tdoa(TdoaMeasurement),
+    /// A reading of a sensor without anchors (altitude, odometry).
+    Sensor(Observation),
     /// A ground-truth position (time s, position m), from the ground-truth topic.
     Truth(f64, Vec3),
 }
@@ -33,15 +36,19 @@ enum RangeUse {
     Invalid,
     /// Not finite, or negative.
     BadValue,
+    /// Of a tag id that is not a tag.
+    UnknownTag,
     /// Usable if its anchor has a position.
     Usable,
 }
 
-fn range_use(raw: &RawRange) -> RangeUse {
+fn range_use(raw: &RawRange, tag: Option<usize>) -> RangeUse {
     if !raw.valid {
         RangeUse::Invalid
     } else if !(raw.range_m.is_finite() && raw.range_m >= 0.0) {
         RangeUse::BadValue
+    } else if tag.is_none() {
+        RangeUse::UnknownTag
     } else {
         RangeUse::Usable
     }
@@ -89,6 +96,10 @@ pub(super) struct Survey {
     ranges: BTreeMap<String, RangeTally>,
     tdoa: BTreeMap<(String, String), PairTally>,
     tdoa_bad_value: usize,
+    unknown_tag: usize,
+    unknown_tag_ids: BTreeSet<String>,
+    per_tag: BTreeMap<usize, usize>,
+    sensors: BTreeMap<SensorKind, (SensorReadCounts, Option<(i64, i64)>)>,
     last_imu: Option<i64>,
     imu: usize,
     imu_duplicates: usize,
@@ -111,7 +122,7 @@ impl Survey {
                     widen(&mut self.imu_span, t_ns);
                 }
             }
-            Item::Range(raw) => {
+            Item::Range(raw, tag) => {
                 if let Some(p) = raw.anchor_position.filter(|p| p.iter().all(|v| v.is_finite())) {
                     self.from_ranges.set_if_unknown(&raw.anchor_id, p);
                 }
@@ -119,10 +130,15 @@ impl Survey {
                     self.ranges.insert(raw.anchor_id.clone(), RangeTally::default());
                 }
                 let Some(tally) = self.ranges.get_mut(&raw.anchor_id) else { return };
-                match range_use(raw) {
+                match range_use(raw, *tag) {
                     RangeUse::Invalid => tally.invalid += 1,
                     RangeUse::BadValue => tally.bad_value += 1,
+                    RangeUse::UnknownTag => {
+                        self.unknown_tag += 1;
+                        self.unknown_tag_ids.insert(raw.tag_id.clone().unwrap_or_default());
+                    }
                     RangeUse::Usable => {
+                        *self.per_tag.entry(tag.unwrap_or_default()).or_default() += 1;
                         tally.usable += 1;
                         widen(&mut tally.span, t_ns);
                     }
@@ -135,6 +151,15 @@ impl Survey {
                     let pair = self.tdoa.entry((raw.anchor_i.clone(), raw.anchor_j.clone())).or_default();
                     pair.0 += 1;
                     widen(&mut pair.1, t_ns);
+                }
+            }
+            Item::Sensor((o, usable)) => {
+                let (counts, span) = self.sensors.entry(o.kind()).or_default();
+                if *usable {
+                    counts.used += 1;
+                    widen(span, t_ns);
+                } else {
+                    counts.invalid += 1;
                 }
             }
             Item::Truth(_) => self.truth += 1,
@@ -259,6 +284,13 @@ pub(super) fn settle<S>(mapping: &Mapping, pass: &Pass<S>, survey: &Survey) -> R
         }
     }
     stats.tdoa_bad_value = survey.tdoa_bad_value;
+    stats.unknown_tag = survey.unknown_tag;
+    stats.unknown_tag_ids = survey.unknown_tag_ids.clone();
+    stats.ranges_per_tag = survey.per_tag.clone();
+    for (kind, (counts, sensor_span)) in &survey.sensors {
+        stats.sensors.insert(*kind, *counts);
+        span = union(span, *sensor_span);
+    }
     for ((i, j), (count, pair_span)) in &survey.tdoa {
         if layout.index_of(i).is_some() && layout.index_of(j).is_some() {
             span = union(span, *pair_span);
@@ -280,8 +312,8 @@ pub(super) fn settle<S>(mapping: &Mapping, pass: &Pass<S>, survey: &Survey) -> R
 }
 
 /// Turns decoded items into [`RecordItem`]s with the anchor indices of an [`AnchorLayout`],
-/// dropping what the statistics count as dropped (repeated IMU times, unusable ranges and TDoA,
-/// unknown anchors), and ground-truth items when the truth comes from a file.
+/// dropping what the statistics count as dropped (repeated IMU times, unusable ranges, TDoA and
+/// readings, unknown anchors and tags), and ground-truth items when the truth comes from a file.
 pub(super) struct Converter<'a> {
     layout: &'a AnchorLayout,
     last_imu: Option<i64>,
@@ -301,11 +333,11 @@ impl<'a> Converter<'a> {
             Item::Imu(accel, gyro) => {
                 (!repeats(&mut self.last_imu, t_ns)).then_some(RecordItem::Imu(ImuSample { t_s, accel, gyro }))
             }
-            Item::Range(raw) => {
-                let RangeUse::Usable = range_use(&raw) else { return None };
+            Item::Range(raw, tag) => {
+                let (RangeUse::Usable, Some(tag)) = (range_use(&raw, tag), tag) else { return None };
                 let anchor = self.layout.index_of(&raw.anchor_id)?;
                 Some(RecordItem::Range(
-                    RangeMeasurement { t_s, anchor, range_m: raw.range_m, tag: 0 },
+                    RangeMeasurement { t_s, anchor, range_m: raw.range_m, tag },
                     raw.variance_m2.unwrap_or(f64::NAN),
                 ))
             }
@@ -316,6 +348,7 @@ impl<'a> Converter<'a> {
                 let (anchor_i, anchor_j) = (self.layout.index_of(&raw.anchor_i)?, self.layout.index_of(&raw.anchor_j)?);
                 Some(RecordItem::Tdoa(TdoaMeasurement { t_s, anchor_i, anchor_j, tdoa_m: raw.tdoa_m }))
             }
+            Item::Sensor((o, usable)) => usable.then(|| RecordItem::Sensor(o.at(t_s))),
             Item::Truth(p) => self.truth_from_topic.then_some(RecordItem::Truth(t_s, p)),
         }
     }
@@ -327,7 +360,7 @@ impl<'a> Converter<'a> {
 pub(super) struct Collected {
     /// IMU samples: stamp ns, specific force, rate.
     pub imu: Vec<(i64, Vec3, Vec3)>,
-    /// Ranges and TDoA as decoded, with their stamps (ns).
+    /// Ranges, TDoA and the other sensors' readings as decoded, with their stamps (ns).
     pub ranging: Vec<(i64, Item)>,
     /// Ground truth from the topic: stamp ns, position.
     pub truth: Vec<(i64, Vec3)>,
