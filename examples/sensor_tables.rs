@@ -29,6 +29,8 @@ use uwbimu_rs::app::sim::{
     lever_arms_seen, matched_config, simulate, true_initial, zoo, AltimeterConfig, OdometerConfig, Outage, SimConfig, SimData,
     Trajectory,
 };
+use uwbimu_rs::estimation::filters::Ekf;
+use uwbimu_rs::estimation::pipeline::{Builder, Stream, StreamOptions, Streams};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::{Quat, Vec3};
 
@@ -219,13 +221,33 @@ fn heading_track(
         .collect())
 }
 
+/// Seconds from the first IMU sample until a self-initialising stream (an `ekf`) has started on
+/// `data`, and where its heading came from.
+fn start_after(config: &FilterConfig, data: &SimData) -> Res<(f64, &'static str)> {
+    let anchors = data.anchors.clone();
+    let build: Builder<Ekf> = {
+        let (anchors, config) = (anchors.clone(), config.clone());
+        Box::new(move |initial: &InitialState| Ekf::new(anchors.clone(), initial, config.clone()))
+    };
+    let mut stream = Stream::self_initializing(anchors, config.clone(), build, StreamOptions::default())?;
+    let streams = Streams { imu: &data.imu, ranges: &data.ranges, observations: &[], progress: None, marginals_every_s: None };
+    for event in streams.events() {
+        let t = event.t_s();
+        stream.push("start_after", event)?;
+        if let Some(init) = stream.self_init() {
+            return Ok((t - data.imu[0].t_s, init.heading.name()));
+        }
+    }
+    Err("never started".into())
+}
+
 fn tags(seeds: u64, methods: &[Method]) -> Res<()> {
-    println!("| scenario | method | tags | from the truth, heading 0.3 rad off: heading error at 2 s / 5 s (°), RMSE after 5 s (°); horizontal RMSE (m) | self-initialised: heading error at 5 s / 10 s (°); horizontal RMSE after 10 s (m) |");
+    println!("| scenario | method | tags | from the truth, heading 0.3 rad off: heading error at 2 s / 5 s (°), RMSE after 5 s (°); horizontal RMSE (m) | self-initialised: started after (s), heading from; heading error at 5 s / 10 s (°); horizontal RMSE after 10 s (m) |");
     println!("|---|---|---|---|---|");
     for scenario in ["hall figure-8", "agv_loop", "forklift"] {
         for &method in methods {
             for separation in [0.0, 0.3, 0.5, 1.0] {
-                let mut sums = [0.0; 7];
+                let (mut sums, mut sources) = ([0.0; 8], std::collections::BTreeMap::<&str, usize>::new());
                 for seed in 0..seeds {
                     let edit = |sim: &mut SimConfig| {
                         sim.more_tags_m =
@@ -255,16 +277,22 @@ fn tags(seeds: u64, methods: &[Method]) -> Res<()> {
                     sums[4] += at(&own, 5.0);
                     sums[5] += at(&own, 10.0);
                     sums[6] += rms(own.iter().filter(after(10.0)).map(|s| s.2));
+                    let (started, source) = start_after(&config, &data)?;
+                    sums[7] += started;
+                    *sources.entry(source).or_default() += 1;
                 }
+                let sources: Vec<String> = sources.iter().map(|(k, n)| format!("{k} {n}")).collect();
                 let m = |k: usize| sums[k] / seeds as f64;
                 let label = if separation > 0.0 { format!("two, {separation} m apart") } else { "one".into() };
                 println!(
-                    "| {scenario} | {} | {label} | {:.1} / {:.1}, {:.2}; {:.3} | {:.1} / {:.1}; {:.3} |",
+                    "| {scenario} | {} | {label} | {:.1} / {:.1}, {:.2}; {:.3} | {:.1} s, {}; {:.1} / {:.1}; {:.3} |",
                     method.name(),
                     m(0),
                     m(1),
                     m(2),
                     m(3),
+                    m(7),
+                    sources.join(", "),
                     m(4),
                     m(5),
                     m(6)

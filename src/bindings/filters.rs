@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 use uwbimu_app::columns::{fix_columns, step_columns, update_columns};
 use uwbimu_app::methods::{run_many, run_method, BatchInput, BatchOutput, Input, Method};
 use uwbimu_estimation::filters::InertialFilter;
-use uwbimu_estimation::init::{HeadingSource, SelfInit};
+use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::pipeline::DEFAULT_REORDER_WINDOW_S;
 use uwbimu_estimation::pipeline::{
     self_initialize, smoothed_nodes, Estimator, Event, Health, Stream, StreamOptions, Streams, UpdateRecord,
@@ -974,7 +974,7 @@ fn initialize_state<'py>(
 /// Sets `still_start` and `heading_from` ("motion" or "fallback") of a self-initialisation in `d`.
 fn init_info_items(d: &Bound<'_, PyDict>, s: &SelfInit) -> PyResult<()> {
     d.set_item("still_start", s.still)?;
-    d.set_item("heading_from", if s.heading == HeadingSource::Motion { "motion" } else { "fallback" })?;
+    d.set_item("heading_from", s.heading.name())?;
     Ok(())
 }
 

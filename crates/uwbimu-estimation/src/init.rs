@@ -16,6 +16,13 @@
 //!    start with yaw 0; once the UWB tag has moved `init_heading_distance_m`, the yaw is the angle
 //!    that rotates the dead-reckoned tag displacement onto the UWB displacement (least squares over
 //!    the next few epochs).
+//!    **From two tags** (ranges from a second tag with its lever arm): the yaw is the angle that
+//!    rotates the tags' baseline in the body frame (turned by roll, pitch and the gyro since the
+//!    start) onto the baseline between their UWB fixes, tag 0's fix interpolated to the time of
+//!    tag 1's (least squares over the first few pairs):
+//!    no motion needed, so the filter starts as soon as those fixes exist. It is used when its
+//!    standard deviation (one pair's horizontal fix error across the baseline) is at most
+//!    [`TAGS_HEADING_MAX_STD`]; else the heading comes from motion.
 //!    **Fallback**: if the tag never moves that far within `init.heading_timeout_s` (30 s), the
 //!    yaw is 0 with a standard deviation of π (the filter has to find the heading from the ranges
 //!    by itself).
@@ -52,13 +59,32 @@ const CONSISTENCY_ALPHA: f64 = 0.01;
 /// Yaw standard deviation when the heading comes from motion, rad (≈ 11°).
 const HEADING_FROM_MOTION_STD: f64 = 0.2;
 
+/// Largest standard deviation of a heading from two tags' fixes that self-initialisation uses,
+/// rad (≈ 29°; a shorter baseline, or noisier fixes, leave the heading to motion).
+pub const TAGS_HEADING_MAX_STD: f64 = 0.5;
+/// Longest gap between the two tag-0 fixes that tag 0's position is interpolated across, s.
+const TAGS_BRACKET_S: f64 = 0.5;
+
 /// Where the initial heading came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum HeadingSource {
     /// Dead-reckoned motion matched to the UWB displacement.
     Motion,
+    /// The baseline between two tags' UWB fixes against their lever arms.
+    Tags,
     /// No usable motion: yaw 0 with a standard deviation of π.
     Fallback,
+}
+
+impl HeadingSource {
+    /// Its name in Python (`init_info["heading_from"]`): `motion`, `tags` or `fallback`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Motion => "motion",
+            Self::Tags => "tags",
+            Self::Fallback => "fallback",
+        }
+    }
 }
 
 /// The result of self-initialisation.
@@ -141,6 +167,7 @@ fn self_init(
     let gyro_bias = if still { w_mean } else { Vec3::zeros() };
 
     // 2. Tag position from UWB fixes (tag 0's: a fix is of one antenna).
+    let all_ranges = ranges;
     let tag0_ranges: Vec<RangeMeasurement>;
     let ranges = if ranges.iter().all(|r| r.tag == 0) {
         ranges
@@ -192,11 +219,25 @@ fn self_init(
         }
     }
 
-    // 3. Heading from dead reckoning against UWB displacement.
-    let (yaw, settled_s) = heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config);
-    let (yaw_rad, yaw_std, heading) = match yaw {
-        Some(y) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion),
-        None => (0.0, std::f64::consts::PI, HeadingSource::Fallback),
+    // 3. Heading from two tags' baseline, else from dead reckoning against UWB displacement.
+    let from_tags = if all_ranges.len() != ranges.len() {
+        let tag1: Vec<RangeMeasurement> = all_ranges.iter().filter(|r| r.tag == 1).copied().collect();
+        let tag1_fixes: Vec<(f64, Fix)> = group_epochs(&tag1, ls.epoch_window_s, anchors.len())
+            .iter()
+            .filter(|e| e.t_s >= t0)
+            .filter_map(|e| Some((e.t_s, solve_epoch(anchors, &e.obs, &ls)?)))
+            .filter(|(_, f)| f.is_consistent(ls.range_std_m, CONSISTENCY_ALPHA))
+            .collect();
+        heading_from_tags(imu, &tag1_fixes, &fixes, level, gyro_bias, config).filter(|h| h.std_rad <= TAGS_HEADING_MAX_STD)
+    } else {
+        None
+    };
+    let (yaw_rad, yaw_std, heading, settled_s) = match from_tags {
+        Some(h) => (h.yaw_rad, h.std_rad, HeadingSource::Tags, h.settled_s),
+        None => match heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config) {
+            (Some(y), settled_s) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion, settled_s),
+            (None, settled_s) => (0.0, std::f64::consts::PI, HeadingSource::Fallback, settled_s),
+        },
     };
     let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
     let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
@@ -268,13 +309,7 @@ fn heading_from_motion(
     let Some(t0) = imu.first().map(|s| s.t_s) else {
         return (None, None);
     };
-    let mut x = NominalState {
-        position: Vec3::zeros(),
-        velocity: Vec3::zeros(),
-        orientation: level,
-        accel_bias: Vec3::zeros(),
-        gyro_bias,
-    };
+    let mut x = at_rest(level, gyro_bias);
     let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm.first();
     let dr0 = tag_dr(&x);
     let (mut cross, mut dot, mut used, mut settled_s) = (0.0, 0.0, 0usize, None);
@@ -283,11 +318,7 @@ fn heading_from_motion(
         if *t_fix > t0 + config.init.heading_timeout_s || used >= HEADING_EPOCHS {
             break;
         }
-        while k + 1 < imu.len() && imu[k + 1].t_s <= *t_fix {
-            let interval = ImuInterval::between(&imu[k], &imu[k + 1], &config.mounting.imu_rotation);
-            x = propagate_nominal(&x, &interval, &config.ins);
-            k += 1;
-        }
+        dead_reckon_to(&mut x, imu, &mut k, *t_fix, config);
         let d_uwb = fix.position - tag0;
         let d_dr = tag_dr(&x) - dr0;
         if d_uwb.xy().norm() >= config.init.heading_distance_m {
@@ -300,6 +331,89 @@ fn heading_from_motion(
         }
     }
     ((used > 0 && (cross != 0.0 || dot != 0.0)).then(|| cross.atan2(dot)), settled_s)
+}
+
+/// The state dead reckoning starts from: at the origin, at rest, levelled by `level` with yaw 0,
+/// the gyro bias of the start window.
+fn at_rest(level: Quat, gyro_bias: Vec3) -> NominalState {
+    NominalState { position: Vec3::zeros(), velocity: Vec3::zeros(), orientation: level, accel_bias: Vec3::zeros(), gyro_bias }
+}
+
+/// Propagates `x` from the IMU sample `*k` through the samples up to time `t_s` (the strapdown
+/// mechanisation, `config.ins`, the mounting's rotation), leaving `*k` at the last of them.
+fn dead_reckon_to(x: &mut NominalState, imu: &[ImuSample], k: &mut usize, t_s: f64, config: &FilterConfig) {
+    while *k + 1 < imu.len() && imu[*k + 1].t_s <= t_s {
+        let interval = ImuInterval::between(&imu[*k], &imu[*k + 1], &config.mounting.imu_rotation);
+        *x = propagate_nominal(x, &interval, &config.ins);
+        *k += 1;
+    }
+}
+
+/// A heading from two tags ([`heading_from_tags`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TagsHeading {
+    /// Yaw at the first IMU sample, rad.
+    yaw_rad: f64,
+    /// Its standard deviation: one pair's horizontal fix error (the mean variance of the pairs)
+    /// across the baseline, rad.
+    std_rad: f64,
+    /// The time of the last pair once all [`HEADING_EPOCHS`] were used (later data cannot change
+    /// it).
+    settled_s: Option<f64>,
+}
+
+/// The yaw at the first IMU sample that best rotates the tags' baseline `b = l₁ − l₀` (body
+/// frame, lever arms of tags 1 and 0) onto the baseline between their UWB fixes: for each of the
+/// first [`HEADING_EPOCHS`] fixes of tag 1 (`tag1`, consistent, after the start), tag 0's
+/// position is interpolated between its fixes on either side (`tag0`, at most
+/// [`TAGS_BRACKET_S`] apart) and the body baseline is turned by the attitude dead-reckoned from
+/// `level` with yaw 0 (the gyro since the start); the yaw is `atan2(Σ b_dr × b_uwb, Σ b_dr ·
+/// b_uwb)` over the horizontal components. None without a second tag with a horizontal baseline
+/// or a pair.
+fn heading_from_tags(
+    imu: &[ImuSample],
+    tag1: &[(f64, Fix)],
+    tag0: &[SolvedFix<'_>],
+    level: Quat,
+    gyro_bias: Vec3,
+    config: &FilterConfig,
+) -> Option<TagsHeading> {
+    let t0 = imu.first()?.t_s;
+    let arms = &config.mounting.lever_arm;
+    let baseline = *arms.of(1) - *arms.first();
+    let horizontal_baseline_m = (level * baseline).xy().norm();
+    if arms.tags() < 2 || horizontal_baseline_m < 1e-3 {
+        return None;
+    }
+    let mut x = at_rest(level, gyro_bias);
+    let (mut cross, mut dot, mut used, mut k) = (0.0, 0.0, 0usize, 0usize);
+    let (mut var_sum, mut last_s) = (0.0, t0);
+    let horizontal_var = |f: &Fix| 0.5 * (f.covariance[(0, 0)] + f.covariance[(1, 1)]);
+    for (t1, f1) in tag1 {
+        if used >= HEADING_EPOCHS || *t1 > t0 + config.init.heading_timeout_s {
+            break;
+        }
+        let after = tag0.partition_point(|(t, _, _)| t < t1);
+        let (Some((ta, fa, _)), Some((tb, fb, _))) = (after.checked_sub(1).and_then(|i| tag0.get(i)), tag0.get(after)) else {
+            continue;
+        };
+        if tb - ta > TAGS_BRACKET_S {
+            continue;
+        }
+        let w = if tb > ta { (t1 - ta) / (tb - ta) } else { 0.0 };
+        let p0 = fa.position + (fb.position - fa.position) * w;
+        dead_reckon_to(&mut x, imu, &mut k, *t1, config);
+        let (b_dr, b_uwb) = (x.orientation * baseline, f1.position - p0);
+        cross += b_dr.x * b_uwb.y - b_dr.y * b_uwb.x;
+        dot += b_dr.x * b_uwb.x + b_dr.y * b_uwb.y;
+        var_sum += horizontal_var(f1) + horizontal_var(fa).max(horizontal_var(fb));
+        (used, last_s) = (used + 1, *t1);
+    }
+    (used > 0).then(|| TagsHeading {
+        yaw_rad: cross.atan2(dot),
+        std_rad: (var_sum / used as f64).sqrt() / horizontal_baseline_m,
+        settled_s: (used == HEADING_EPOCHS).then_some(last_s),
+    })
 }
 
 /// Gathers the data of a run in time order and initialises on it as soon as that is decided
