@@ -418,7 +418,7 @@ def initialize(
     -------
     (initial, info)
         ``initial``: dict usable as ``initial=`` of :func:`run_filter` or a filter class;
-        ``info``: ``still_start`` (bool) and ``heading_from`` ("motion" or "fallback").
+        ``info``: ``still_start`` (bool) and ``heading_from`` ("motion", "tags" or "fallback").
     """
     return _native.initialize_state(imu, ranges, anchors, config=_as_dict(config))
 

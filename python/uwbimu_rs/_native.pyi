@@ -488,7 +488,7 @@ class _StreamingFilter:
     @property
     def init_info(self) -> dict[str, Any] | None:
         """None while waiting; else ``{"from": "initial"}`` or ``{"from": "self", "still_start":
-        bool, "heading_from": "motion" | "fallback"}``."""
+        bool, "heading_from": "motion" | "tags" | "fallback"}``."""
 
     @property
     def health(self) -> dict[str, Any]:
@@ -739,8 +739,8 @@ def run_filter(
     info : dict
         Inertial methods: ``ranges_before_start`` (int, ranges dropped before the first IMU
         sample), ``health`` (the counts of :attr:`Ekf.health`, with ``smoothing_left_out``),
-        after self-initialisation ``still_start`` (bool) and ``heading_from`` (``"motion"`` or
-        ``"fallback"``), and for a method that chose its model on the log (``best``) ``model``,
+        after self-initialisation ``still_start`` (bool) and ``heading_from`` (``"motion"``,
+        ``"tags"`` or ``"fallback"``), and for a method that chose its model on the log (``best``) ``model``,
         the dict of :func:`choose_model`. ``uwb_ls``: empty.
 
     Raises
@@ -780,7 +780,7 @@ def initialize_state(
         w, x, y, z, ``position_std`` (3,) m, ``velocity_std`` (3,) m/s, ``orientation_std``
         (3,) rad, ``gyro_bias`` (3,) rad/s.
     info : dict
-        ``still_start`` (bool) and ``heading_from`` (``"motion"`` or ``"fallback"``).
+        ``still_start`` (bool) and ``heading_from`` (``"motion"``, ``"tags"`` or ``"fallback"``).
 
     Raises
     ------
