@@ -11,30 +11,39 @@
 //! - self-initialisation is the streaming filter's ([`Stream::self_initializing`]), which equals
 //!   the batch decision;
 //! - smoothing keeps the forward pass's segments and steps in temporary files ([`Spill`]) and
-//!   runs the RTS pass over them newest first ([`rts_smooth_backward`]): the output equals the
+//!   runs the RTS pass over them newest first
+//!   ([`rts_smooth_backward`](uwbimu_estimation::smoother::rts_smooth_backward)): the output equals the
 //!   batch smoother's, at the cost of temporary disk while it runs (docs/replay.md has the figure).
 //!
-//! Errors against ground truth are accumulated as the steps go out ([`TruthErrors`]).
+//! Errors against ground truth are accumulated as the steps go out
+//! ([`TruthErrors`](crate::metrics::TruthErrors)).
+//!
+//! The pieces: the batch order of the events (`ordered`), where the steps go and the RTS pass
+//! over the spilled run (`spilled`), and the truth matched to the steps (`truth_match`).
 
-use std::cmp::Reverse;
-use std::collections::{BTreeMap, BinaryHeap, VecDeque};
+use std::collections::BTreeMap;
 use std::path::Path;
 
-use uwbimu_estimation::filters::{Checkpoint, InertialCore, Segment, SmoothingRecord, CHECKPOINT_FLAT_LEN, SEGMENT_FLAT_LEN};
+use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
-use uwbimu_estimation::smoother::{rts_smooth_backward, SmoothedNode};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
-use uwbimu_vocabulary::math::{Mat3, Vec3};
+use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
-use uwbimu_vocabulary::sensors::{Clock, Observation, SensorKind};
-use uwbimu_vocabulary::state::{NominalState, STATE_FLAT_LEN};
+use uwbimu_vocabulary::sensors::{Observation, SensorKind};
+
+mod ordered;
+mod spilled;
+mod truth_match;
+
+use ordered::Ordered;
+use spilled::{smooth_spilled, step_from_flat, step_to_flat, Spills, StepSink, StepsOut, STEP_FLAT_LEN};
+use truth_match::{hand_on, TruthMatch};
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::io::spill::Spill;
 use crate::io::{stream_recording_file, IoResult as Result, Mapping, RecordItem, RecordingSurvey};
 use crate::methods::{BatchInput, Method};
-use crate::metrics::TruthErrors;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::select::ModelChoice;
 
@@ -109,134 +118,6 @@ impl StreamedReplay {
     }
 }
 
-/// Numbers in a stored step ([`step_to_flat`]).
-const STEP_FLAT_LEN: usize = 1 + STATE_FLAT_LEN + 9 + 2;
-
-/// A step as numbers, bit for bit: time, state ([`NominalState::to_flat`]), position covariance
-/// (column-major), still, status.
-fn step_to_flat(s: &StepRecord) -> [f64; STEP_FLAT_LEN] {
-    let mut out = [0.0; STEP_FLAT_LEN];
-    out[0] = s.t_s;
-    out[1..=STATE_FLAT_LEN].copy_from_slice(&s.state.to_flat());
-    out[1 + STATE_FLAT_LEN..STEP_FLAT_LEN - 2].copy_from_slice(s.position_cov.as_slice());
-    out[STEP_FLAT_LEN - 2] = f64::from(u8::from(s.still));
-    out[STEP_FLAT_LEN - 1] = f64::from(s.status);
-    out
-}
-
-/// The step [`step_to_flat`] gave `v` for.
-fn step_from_flat(v: &[f64; STEP_FLAT_LEN]) -> StepRecord {
-    let mut state = [0.0; STATE_FLAT_LEN];
-    state.copy_from_slice(&v[1..=STATE_FLAT_LEN]);
-    StepRecord {
-        t_s: v[0],
-        state: NominalState::from_flat(&state),
-        position_cov: Mat3::from_column_slice(&v[1 + STATE_FLAT_LEN..STEP_FLAT_LEN - 2]),
-        still: v[STEP_FLAT_LEN - 2] != 0.0,
-        status: v[STEP_FLAT_LEN - 1] as u8,
-    }
-}
-
-/// Puts the events of the reader (in time order) into the batch order after the range time
-/// offset: an event is released once no later input can come before it, i.e. once an input
-/// `|offset|` newer than it has arrived ([`Event::rank`] breaks ties as the batch merge does).
-/// Shifted measurements outside the IMU span are dropped, as the batch run drops them, and so is
-/// everything after the last IMU sample.
-struct Ordered {
-    heap: BinaryHeap<Reverse<Held>>,
-    offset_s: f64,
-    imu_span_s: (f64, f64),
-    newest_s: f64,
-    arrivals: u64,
-    calibrated: usize,
-}
-
-struct Held {
-    t_s: f64,
-    rank: u8,
-    arrival: u64,
-    event: Event,
-}
-
-impl Held {
-    fn key(&self) -> (f64, u8, u64) {
-        (self.t_s, self.rank, self.arrival)
-    }
-}
-
-impl PartialEq for Held {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == std::cmp::Ordering::Equal
-    }
-}
-impl Eq for Held {}
-impl PartialOrd for Held {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Held {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        let (a, b) = (self.key(), other.key());
-        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
-    }
-}
-
-impl Ordered {
-    fn new(config: &FilterConfig, imu_span_s: (f64, f64)) -> Self {
-        Self {
-            heap: BinaryHeap::new(),
-            offset_s: config.ranging.time_offset_s,
-            imu_span_s,
-            newest_s: f64::NEG_INFINITY,
-            arrivals: 0,
-            calibrated: 0,
-        }
-    }
-
-    /// Takes the reader's next event (at its own time `t_s`), then releases what it can into `out`.
-    fn push(&mut self, config: &FilterConfig, event: Event, out: &mut Vec<Event>) -> Result<()> {
-        self.newest_s = self.newest_s.max(event.t_s());
-        let shifted = match event {
-            Event::Imu(_) => Some(Ok(event)),
-            Event::Range(r) => self.shift(r.t_s).map(|t_s| {
-                let r = RangeMeasurement { t_s, ..r };
-                self.calibrated += 1;
-                config.range_calibration.apply_one(self.calibrated - 1, &r).map(Event::Range)
-            }),
-            Event::Observation(o) => match o.kind().info().clock {
-                Clock::Uwb => self.shift(o.t_s()).map(|t_s| Ok(Event::Observation(o.at(t_s)))),
-                Clock::Imu => Some(Ok(event)),
-            },
-        }
-        .transpose()?;
-        if let Some(event) = shifted.filter(|e| e.t_s() <= self.imu_span_s.1) {
-            self.arrivals += 1;
-            self.heap.push(Reverse(Held { t_s: event.t_s(), rank: event.rank(), arrival: self.arrivals, event }));
-        }
-        self.release(self.newest_s - self.offset_s.abs(), out);
-        Ok(())
-    }
-
-    /// A measurement's time after the offset; None when the offset moves it out of the IMU span.
-    fn shift(&self, t_s: f64) -> Option<f64> {
-        if self.offset_s == 0.0 {
-            return Some(t_s);
-        }
-        let t = t_s + self.offset_s;
-        (t >= self.imu_span_s.0 && t <= self.imu_span_s.1).then_some(t)
-    }
-
-    /// Releases the events before `bound_s` (all with +∞) in order into `out`.
-    fn release(&mut self, bound_s: f64, out: &mut Vec<Event>) {
-        while self.heap.peek().is_some_and(|h| h.0.t_s < bound_s) {
-            if let Some(Reverse(h)) = self.heap.pop() {
-                out.push(h.event);
-            }
-        }
-    }
-}
-
 /// The events of the first `window_s` of the log, kept for the model selection.
 struct Prefix {
     end_s: f64,
@@ -266,110 +147,6 @@ impl Prefix {
             marginals_every_s: None,
         };
         crate::methods::choose_or_keep(method, &batch)
-    }
-}
-
-/// Where a replay's output steps go, in time order.
-type StepSink<'f> = &'f mut dyn FnMut(&StepRecord) -> Result<()>;
-
-/// Where the steps go: straight out (forward), or to a file for the RTS pass (smoothed).
-enum StepsOut<'f> {
-    Forward { on_step: StepSink<'f>, truth: Box<TruthMatch<'f>> },
-    Spilled(Box<Spills>),
-}
-
-impl StepsOut<'_> {
-    /// The temporary files of a smoothed run, created in `dir`.
-    fn spilled(dir: &Path) -> Result<Self> {
-        Ok(Self::Spilled(Box::new(Spills {
-            steps: Spill::create(dir, "forward steps")?,
-            segments: Spill::create(dir, "smoothing segments")?,
-            checkpoints: Spill::create(dir, "smoothing checkpoints")?,
-            truth: Spill::create(dir, "ground truth")?,
-        })))
-    }
-}
-
-/// The temporary files of a smoothed run: the forward steps, the smoothing record (segments and
-/// checkpoints, [`SmoothingRecord`]) and the ground truth.
-struct Spills {
-    steps: Spill<STEP_FLAT_LEN>,
-    segments: Spill<SEGMENT_FLAT_LEN>,
-    checkpoints: Spill<CHECKPOINT_FLAT_LEN>,
-    truth: Spill<4>,
-}
-
-/// Ground truth matched to the steps in time order: each step's truth is interpolated between
-/// the truth samples around it ([`TruthErrors`]), so the truth up to the step's time is given
-/// before the step — from the truth file (held once, by the survey) or from the samples queued as
-/// the topic gives them. With the count of truth samples known, the matcher learns when the truth
-/// ends, and steps after it are not held.
-struct TruthMatch<'t> {
-    errors: TruthErrors,
-    file: &'t [(f64, Vec3)],
-    queue: VecDeque<(f64, Vec3)>,
-    remaining: usize,
-    any: bool,
-}
-
-impl<'t> TruthMatch<'t> {
-    /// A matcher for `count` truth samples (0: none, nothing is matched), those of `file` first.
-    fn new(count: usize, file: &'t [(f64, Vec3)]) -> Self {
-        Self { errors: TruthErrors::new(), file, queue: VecDeque::new(), remaining: count, any: count > 0 }
-    }
-
-    fn truth(&mut self, t_s: f64, p: Vec3) {
-        self.queue.push_back((t_s, p));
-    }
-
-    /// The next truth sample, if it is not later than `t_s`.
-    fn next_until(&mut self, t_s: f64) -> Option<(f64, Vec3)> {
-        if let Some((&g, rest)) = self.file.split_first().filter(|(g, _)| g.0 <= t_s) {
-            self.file = rest;
-            return Some(g);
-        }
-        let next = self.queue.front().copied().filter(|g| g.0 <= t_s);
-        if next.is_some() {
-            self.queue.pop_front();
-        }
-        next
-    }
-
-    fn give(&mut self, t_s: f64, p: Vec3) -> Result<()> {
-        self.errors.push_truth(t_s, p)?;
-        self.remaining = self.remaining.saturating_sub(1);
-        if self.remaining == 0 {
-            self.errors.end_truth();
-        }
-        Ok(())
-    }
-
-    fn estimate(&mut self, t_s: f64, p: &Vec3) -> Result<()> {
-        if !self.any {
-            return Ok(());
-        }
-        while let Some((t, g)) = self.next_until(t_s) {
-            self.give(t, g)?;
-        }
-        self.errors.push_estimate(t_s, *p)?;
-        Ok(())
-    }
-
-    fn finish(mut self) -> Result<Option<TruthRmse>> {
-        if !self.any {
-            return Ok(None);
-        }
-        while let Some((t, g)) = self.next_until(f64::INFINITY) {
-            self.give(t, g)?;
-        }
-        let e = self.errors.finish()?;
-        Ok(Some(TruthRmse {
-            rmse_steps: e.n,
-            rmse_horizontal_m: e.rmse_horizontal_m,
-            rmse_horizontal_aligned_m: e.rmse_horizontal_aligned_m,
-            rmse_3d_m: e.rmse_3d_m,
-            rmse_3d_aligned_m: e.rmse_3d_aligned_m,
-        }))
     }
 }
 
@@ -506,74 +283,10 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
     }
 }
 
-/// Hands on `steps` (oldest first) to `on_step`, matching each with the truth of `truth` (in
-/// time order) first.
-fn hand_on(
-    steps: impl Iterator<Item = Result<StepRecord>>,
-    truth: impl Iterator<Item = Result<(f64, Vec3)>>,
-    matcher: &mut TruthMatch,
-    on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
-) -> Result<()> {
-    let mut truth = truth.peekable();
-    for step in steps {
-        let step = step?;
-        while let Some(g) = truth.next_if(|g| g.as_ref().map_or(true, |(t, _)| *t <= step.t_s)) {
-            let (t, g) = g?;
-            matcher.truth(t, g);
-        }
-        matcher.estimate(step.t_s, &step.state.position)?;
-        on_step(&step)?;
-    }
-    for g in truth {
-        let (t, g) = g?;
-        matcher.truth(t, g);
-    }
-    Ok(())
-}
-
-/// Smooths the spilled run newest first ([`rts_smooth_backward`]) and keeps the smoothed steps,
-/// newest first, in a new spill: each step takes the first node at or after its time, as the
-/// batch smoother's steps do.
-fn smooth_spilled(
-    core: &InertialCore,
-    steps: &mut Spill<STEP_FLAT_LEN>,
-    (segments, checkpoints): (&mut Spill<SEGMENT_FLAT_LEN>, &mut Spill<CHECKPOINT_FLAT_LEN>),
-    dir: &Path,
-    stop: &dyn Fn() -> bool,
-) -> Result<Spill<STEP_FLAT_LEN>> {
-    let Some(t_s) = core.time_s() else {
-        return Err(CoreError::InvalidCall("nothing to smooth: the filter has not started".into()).into());
-    };
-    let mut out = Spill::<STEP_FLAT_LEN>::create(dir, "smoothed steps")?;
-    let mut newest_first = steps.newest_first()?.peekable();
-    let smoothed = |step: &[f64; STEP_FLAT_LEN], node: &SmoothedNode| {
-        step_to_flat(&StepRecord { state: node.state, position_cov: node.position_cov, ..step_from_flat(step) })
-    };
-    let mut later: Option<SmoothedNode> = None;
-    let segments_newest_first = segments.newest_first()?.map(|r| r.map(|v| Segment::from_flat(&v)));
-    let checkpoints_newest_first = checkpoints.newest_first()?.map(|r| r.map(|v| Checkpoint::from_flat(&v)));
-    rts_smooth_backward(
-        segments_newest_first,
-        checkpoints_newest_first,
-        (t_s, *core.state(), *core.covariance()),
-        core.ins(),
-        stop,
-        |node| {
-            if let Some(later) = &later {
-                while let Some(step) = newest_first.next_if(|s| s.as_ref().is_ok_and(|s| s[0] > node.t_s)) {
-                    out.push(&smoothed(&step?, later))?;
-                }
-            }
-            later = Some(node);
-            Ok(())
-        },
-    )?;
-    if let Some(first) = &later {
-        for step in newest_first {
-            out.push(&smoothed(&step?, first))?;
-        }
-    }
-    Ok(out)
+/// The sensors besides the ranges whose readings the recording `survey` describes will give.
+fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> + '_ {
+    let others = survey.stats.sensors.iter().filter(|(_, c)| c.used > 0).map(|(kind, _)| *kind);
+    (survey.n_tdoa > 0).then_some(SensorKind::Tdoa).into_iter().chain(others)
 }
 
 /// Replays the recording of `input` through `method` (an inertial or planar filter) as the
@@ -589,12 +302,6 @@ fn smooth_spilled(
 /// # Errors
 /// As [`crate::methods::run_method`] and the file's read; [`crate::io::IoError::Io`] when the
 /// temporary files of smoothing cannot be written.
-/// The sensors besides the ranges whose readings the recording `survey` describes will give.
-fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> + '_ {
-    let others = survey.stats.sensors.iter().filter(|(_, c)| c.used > 0).map(|(kind, _)| *kind);
-    (survey.n_tdoa > 0).then_some(SensorKind::Tdoa).into_iter().chain(others)
-}
-
 pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     method: Method,
     input: &StreamedInput<'_>,
