@@ -1,0 +1,316 @@
+//! The streaming classes: one Python class per registry row with a streaming filter
+//! (`uwbimu_app::methods`), declared by `py_filter!`.
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use uwbimu_app::columns::step_columns;
+use uwbimu_app::methods::Input;
+use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_estimation::pipeline::DEFAULT_REORDER_WINDOW_S;
+use uwbimu_estimation::pipeline::{smoothed_nodes, Event, Stream, StreamOptions};
+use uwbimu_vocabulary::anchor_ids::AnchorIds;
+use uwbimu_vocabulary::config::InitialState;
+use uwbimu_vocabulary::error::Error;
+use uwbimu_vocabulary::records::{AltitudeSample, ImuSample, MagSample, OdometrySample, RangeMeasurement, TdoaMeasurement};
+use uwbimu_vocabulary::sensors::{validate_records, Observation, SensorKind};
+
+use super::super::convert::{array, columns};
+use super::super::errors::PyResult;
+use super::super::repr;
+use super::args::{anchor_arg, check_takes, finite, non_negative, tag_arg, vec3_arg};
+use super::config::read_config;
+use super::inputs::read_anchors;
+use super::reports::{applied_reports, health_dict, init_info_items, PyUpdateReport};
+use super::state::{covariance_array, read_optional_initial, state_dict};
+
+/// Initial room for recorded segments of a streaming filter (it grows as needed).
+const RECORD_CAPACITY: usize = 1 << 16;
+
+/// A Python class wrapping one named filter, with the streaming API: the filter driven by its own
+/// [`Stream`] (the batch API's event loop behind a reorder buffer, self-initialising without an
+/// initial state), so streaming equals batch.
+macro_rules! py_filter {
+    ($(#[$doc:meta])* $py:ident, $core:ty) => {
+        $(#[$doc])*
+        #[pyclass(module = "uwbimu_rs._native")]
+        pub struct $py(Stream<$core>, Option<AnchorIds>);
+
+        impl $py {
+            fn estimator(&self, what: &str) -> PyResult<&$core> {
+                self.0.estimator().ok_or_else(|| {
+                    Error::InvalidCall(format!(
+                        "{what}: the filter has not initialised itself yet (see `initialized`; feed IMU samples and ranges, or give `initial=`)"
+                    ))
+                    .into()
+                })
+            }
+
+            fn anchor_count(&self) -> usize {
+                self.0.anchor_count()
+            }
+
+            /// The anchor row of the argument `arg` of `call`: an anchor index, or with anchors
+            /// by hardware id an id.
+            fn anchor_row(&self, call: &'static str, arg: &str, anchor: f64) -> PyResult<usize> {
+                match &self.1 {
+                    None => anchor_arg(call, arg, anchor, self.anchor_count()),
+                    Some(ids) => ids.row_of(call, 0, anchor).map_err(|_| {
+                        let known: Vec<String> = ids.ids().iter().map(i64::to_string).collect();
+                        let reason = format!("is not the id of an anchor (the anchors' ids: {}); map ids to rows by giving every anchor with its id", known.join(", "));
+                        Error::BadArgument { call, arg: format!("{arg}={anchor}"), reason }.into()
+                    }),
+                }
+            }
+
+            /// Gives `event` to the stream (which checks its time) and emits the unit check's
+            /// warnings; returns the reports of the updates it applied.
+            fn push(&mut self, py: Python<'_>, call: &'static str, event: Event) -> PyResult<Vec<PyUpdateReport>> {
+                self.0.push(call, event)?;
+                super::super::errors::warn_all(py, &self.0.take_warnings())?;
+                Ok(applied_reports(&mut self.0))
+            }
+        }
+
+        #[pymethods]
+        impl $py {
+            #[new]
+            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false))]
+            fn new(
+                anchors: &Bound<'_, PyAny>,
+                initial: Option<&Bound<'_, PyAny>>,
+                config: Option<&Bound<'_, PyAny>>,
+                record: bool,
+                reorder_window_s: Option<f64>,
+                strict: bool,
+            ) -> PyResult<Self> {
+                let reorder_window_s = reorder_window_s.unwrap_or(DEFAULT_REORDER_WINDOW_S);
+                let (anchors, ids) = read_anchors(anchors)?;
+                let config = read_config(config)?;
+                let options = StreamOptions { reorder_window_s, strict };
+                let build = {
+                    let anchors = anchors.clone();
+                    let config = config.clone();
+                    move |initial: &InitialState| -> uwbimu_vocabulary::error::Result<$core> {
+                        let mut filter = <$core>::new(anchors.clone(), initial, config.clone())?;
+                        if record {
+                            filter.core_mut().start_recording(RECORD_CAPACITY);
+                        }
+                        Ok(filter)
+                    }
+                };
+                let stream = match read_optional_initial(initial)? {
+                    Some(initial) => Stream::new(build(&initial)?, options)?,
+                    None => Stream::self_initializing(anchors, config, Box::new(build), options)?,
+                };
+                Ok(Self(stream, ids))
+            }
+
+            /// RTS-smooths everything seen so far (needs ``record=True``): a polars DataFrame
+            /// with the columns of ``run_filter``'s frame (``t, x, y, z, vx, vy, vz, qw, qx, qy,
+            /// qz, std_x, std_y, std_z, still, status``), one row per propagation start (each
+            /// IMU sample and each epoch time between samples) plus the current time. The plain
+            /// RTS pass: the batch `best`'s robust smoothing (`smoothing.outlier_passes`) needs
+            /// the whole log again. Releases the GIL.
+            fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+                let core = self.estimator("smooth")?.core();
+                let steps = py.detach(|| smoothed_nodes(core))?;
+                data_frame(py, columns(py, step_columns(&steps, false))?)
+            }
+
+            /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,)
+            /// rad/s. Returns the reports of the updates this call applied.
+            fn add_imu(&mut self, py: Python<'_>, t: f64, accel: &Bound<'_, PyAny>, gyro: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_imu";
+                let (accel, gyro) = (vec3_arg(CALL, accel, "accel")?, vec3_arg(CALL, gyro, "gyro")?);
+                self.push(py, CALL, Event::Imu(ImuSample { t_s: t, accel, gyro }))
+            }
+
+            /// Takes a range (m) from tag `tag` (None: tag 0; its lever arm the row `tag` of
+            /// `mounting.lever_arm`) to anchor index `anchor` measured at `t` (s): it joins a
+            /// range epoch of that tag by the epoch rule of the batch API. Returns the reports of
+            /// the updates this call applied (an epoch it closed, if any).
+            #[pyo3(signature = (t, anchor, range, tag=None))]
+            fn add_range(&mut self, py: Python<'_>, t: f64, anchor: f64, range: f64, tag: Option<f64>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_range";
+                let anchor = self.anchor_row(CALL, "anchor", anchor)?;
+                let tag = tag_arg(CALL, tag.unwrap_or(0.0), self.0.tag_count())?;
+                let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)?, tag };
+                self.push(py, CALL, Event::Range(r))
+            }
+
+            /// Takes a TDoA `d_ij = |p - a_j| - |p - a_i|` (m) between anchor indices `i` and
+            /// `j` measured at `t` (s), applied at its own time. The loosely coupled filters
+            /// raise ValueError.
+            fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: f64, j: f64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_tdoa";
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Tdoa))?;
+                let (anchor_i, anchor_j) = (self.anchor_row(CALL, "i", i)?, self.anchor_row(CALL, "j", j)?);
+                if anchor_i == anchor_j {
+                    return Err(Error::BadArgument { call: CALL, arg: format!("i=j={i}"), reason: "the two anchors must differ".into() }.into());
+                }
+                let m = TdoaMeasurement { t_s: t, anchor_i, anchor_j, tdoa_m: finite(CALL, "d_ij", d_ij)? };
+                self.push(py, CALL, Event::Observation(Observation::Tdoa(m)))
+            }
+
+            /// Takes a magnetometer sample (3,) (IMU frame) measured at `t` (s); only `Ackf`
+            /// uses one (the ACKF paper), the others raise ValueError.
+            fn add_magnetometer(&mut self, py: Python<'_>, t: f64, field: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_magnetometer";
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Magnetometer))?;
+                let field = vec3_arg(CALL, field, "field")?;
+                self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: t, field })))
+            }
+
+            /// Takes an altitude `z` (m, navigation frame, up) of the body origin measured at
+            /// `t` (s), applied at its own time (noise `altitude.std`). The methods that do not
+            /// take altitude raise ValueError.
+            fn add_altitude(&mut self, py: Python<'_>, t: f64, z: f64) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_altitude";
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Altitude))?;
+                let m = AltitudeSample { t_s: t, z_m: finite(CALL, "z", z)? };
+                self.push(py, CALL, Event::Observation(Observation::Altitude(m)))
+            }
+
+            /// Takes a wheel odometry reading measured at `t` (s): a speed along the body x axis
+            /// (m/s), or the body-frame velocity (3,) with NaN for an axis not measured; each
+            /// axis measured is applied at its own time (noise `odometry.std`). The methods that
+            /// do not take odometry raise ValueError.
+            fn add_odometry(&mut self, py: Python<'_>, t: f64, speed: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_odometry";
+                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Odometry))?;
+                let row: Vec<f64> = std::iter::once(t).chain(array(speed, "speed")?.as_array().iter().copied()).collect();
+                let mut reports = Vec::new();
+                for m in validate_records::<OdometrySample>(CALL, &[&row], 0)? {
+                    reports.extend(self.push(py, CALL, Event::Observation(Observation::Odometry(m)))?);
+                }
+                Ok(reports)
+            }
+
+            /// Applies the ranges of one epoch, all measured at `t` (s), at once — bypassing the
+            /// epoch rule and the plausibility gate: anchor indices (M,) and ranges (M,) m. The
+            /// buffered data up to `t` and the open epoch are applied first. Returns the reports.
+            fn apply_ranges_now(&mut self, t: f64, anchors: Vec<f64>, ranges: Vec<f64>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "apply_ranges_now";
+                if anchors.len() != ranges.len() {
+                    return Err(Error::BadArgument {
+                        call: CALL,
+                        arg: "ranges".into(),
+                        reason: format!("has {} values for {} anchors", ranges.len(), anchors.len()),
+                    }
+                    .into());
+                }
+                let obs = anchors
+                    .iter()
+                    .zip(&ranges)
+                    .map(|(a, r)| Ok((self.anchor_row(CALL, "anchors", *a)?, non_negative(CALL, "ranges", *r)?)))
+                    .collect::<PyResult<Vec<(usize, f64)>>>()?;
+                self.0.apply_ranges_now(CALL, t, &obs)?;
+                Ok(applied_reports(&mut self.0))
+            }
+
+            /// The end of the input so far: applies everything buffered (the reorder window and
+            /// the open epoch; initialises on what was seen when still waiting). Returns the
+            /// reports.
+            fn flush(&mut self, py: Python<'_>) -> PyResult<Vec<PyUpdateReport>> {
+                self.0.flush()?;
+                super::super::errors::warn_all(py, &self.0.take_warnings())?;
+                Ok(applied_reports(&mut self.0))
+            }
+
+            /// `Name(anchors=4, initialized=False, t=None)`: the anchor count, whether the
+            /// filter has its initial state, and the filter time, s.
+            fn __repr__(&self) -> String {
+                format!(
+                    "{}(anchors={}, initialized={}, t={})",
+                    stringify!($py),
+                    self.anchor_count(),
+                    repr::boolean(self.initialized()),
+                    repr::optional(self.time(), repr::float)
+                )
+            }
+
+            /// Ranges waiting in the open epoch.
+            #[getter]
+            fn pending(&self) -> usize {
+                self.0.pending_ranges()
+            }
+
+            /// Events waiting in the reorder buffer or kept for the self-initialisation.
+            #[getter]
+            fn buffered(&self) -> usize {
+                self.0.buffered()
+            }
+
+            /// Whether the filter has an initial state (given, or found from the data).
+            #[getter]
+            fn initialized(&self) -> bool {
+                self.0.estimator().is_some()
+            }
+
+            /// How the filter was initialised: None while waiting; else a dict with `from`
+            /// ("initial" or "self") and, when self-initialised, `still_start` and `heading_from`
+            /// ("motion" or "fallback"), as the batch `info`.
+            #[getter]
+            fn init_info<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+                if self.0.estimator().is_none() {
+                    return Ok(None);
+                }
+                let d = PyDict::new(py);
+                match self.0.self_init() {
+                    Some(s) => {
+                        d.set_item("from", "self")?;
+                        init_info_items(&d, s)?;
+                    }
+                    None => d.set_item("from", "initial")?,
+                }
+                Ok(Some(d))
+            }
+
+            /// What the stream counted: `rejected` (a dict per gate kind), `numerical_repairs`,
+            /// `ranges_before_start`, `reordered`, `late_dropped`.
+            #[getter]
+            fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+                health_dict(py, &self.0.health())
+            }
+
+            /// Filter time, s (None before the first IMU sample is applied; the filter lags the
+            /// newest data by the reorder window).
+            #[getter]
+            fn time(&self) -> Option<f64> {
+                self.0.estimator().and_then(|e| e.core().time_s())
+            }
+
+            /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
+            /// `orientation` (w, x, y, z), `accel_bias`, `gyro_bias`; raises before the filter is
+            /// initialised (see `initialized`).
+            #[getter]
+            fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+                state_dict(py, self.estimator("state")?.core().state())
+            }
+
+            /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy; raises
+            /// before the filter is initialised.
+            #[getter]
+            fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                covariance_array(py, self.estimator("covariance")?.core().covariance())
+            }
+        }
+    };
+}
+
+/// Declares the streaming class of a registry row that has one, named as its filter.
+macro_rules! streaming_class {
+    (inertial $ty:ident, [], $($doc:literal),+) => {
+        py_filter!($(#[doc = $doc])+ $ty, uwbimu_estimation::filters::$ty);
+    };
+    ($run:ident $($ty:ident)?, [], $($doc:literal),+) => {};
+}
+
+uwbimu_app::for_each_streaming_filter!(streaming_class);
+
+/// The polars DataFrame of native columns, built by the Python helper the batch functions use
+/// (`uwbimu_rs._convert.frame`: the same dtypes as `run_filter`'s frame).
+fn data_frame<'py>(py: Python<'py>, cols: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyAny>> {
+    Ok(py.import("uwbimu_rs._convert")?.getattr("frame")?.call1((cols,))?)
+}
