@@ -7,9 +7,6 @@ use uwbimu_vocabulary::sensors::SensorKind;
 
 use super::super::errors::PyResult;
 
-/// The registry as Python sees it: `{name: {"takes": [...], "smoothing": "never" | "on_request" |
-/// "by_default", "streaming_class": str | None, "chooses_model": bool, "summary": str}}`, in
-/// registry order (the summary is the first sentence of the row's doc).
 /// The sensor registry as a dict by name: `keyword`, `label`, `columns` (the accepted layouts),
 /// `rank`.
 pub(super) fn sensors_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
@@ -26,6 +23,9 @@ pub(super) fn sensors_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>
     Ok(table)
 }
 
+/// The registry as Python sees it: `{name: {"takes": [...], "smoothing": "never" | "on_request" |
+/// "by_default", "streaming_class": str | None, "chooses_model": bool, "summary": str}}`, in
+/// registry order (the summary is the first sentence of the row's doc).
 pub(super) fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let table = PyDict::new(py);
     for method in Method::ALL {
