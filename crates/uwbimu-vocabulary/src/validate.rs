@@ -108,7 +108,7 @@ fn checked_ranges(
         }
         prev = r[0];
         let anchor = anchor_index("ranges", row, r[1], anchor_count)?;
-        if r[3].fract() != 0.0 || r[3] < 0.0 || r[3] >= tag_count as f64 {
+        let Some(tag) = tag_index(r[3], tag_count) else {
             return Err(Error::InvalidValue {
                 name: "ranges",
                 row,
@@ -116,10 +116,16 @@ fn checked_ranges(
                 reason:
                     "the tag (column 3) must be a whole number below the tags mounting.lever_arm gives (one [x, y, z] per tag)",
             });
-        }
-        out.push(RangeMeasurement { t_s: r[0], anchor, range_m: r[2], tag: r[3] as usize });
+        };
+        out.push(RangeMeasurement { t_s: r[0], anchor, range_m: r[2], tag });
     }
     Ok(out)
+}
+
+/// The tag index `tag`: a whole number in `0..tag_count` (the tags `mounting.lever_arm` gives);
+/// None otherwise (NaN included).
+pub fn tag_index(tag: f64, tag_count: usize) -> Option<usize> {
+    (tag.fract() == 0.0 && tag >= 0.0 && tag < tag_count as f64).then_some(tag as usize)
 }
 
 /// The anchor index `a` at `row` of the table `name`: a whole number in `0..anchor_count`

@@ -59,8 +59,8 @@ pub(super) fn anchor_arg(call: &'static str, arg: &str, anchor: f64, count: usiz
 /// The tag argument `tag` of `call`: a whole number below `count`, the tags the filter's
 /// `mounting.lever_arm` gives.
 pub(super) fn tag_arg(call: &'static str, tag: f64, count: usize) -> PyResult<usize> {
-    if tag.fract() == 0.0 && tag >= 0.0 && tag < count as f64 {
-        return Ok(tag as usize);
+    if let Some(tag) = validate::tag_index(tag, count) {
+        return Ok(tag);
     }
     let reason =
         format!("is not a tag of this filter: mounting.lever_arm gives {count} tag(s) (one [x, y, z] per tag, tag 0 first)");
