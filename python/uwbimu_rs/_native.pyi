@@ -125,7 +125,7 @@ _MethodName = Literal[
     "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf",
     "rukf", "ekf2d", "ukf2d", "cekf2d", "best",
 ]
-"""A method name: the rows of the registry (``crates/uwbimu-app/src/methods.rs``), in its order
+"""A method name: the rows of the registry (``crates/uwbimu-app/src/registry.rs``), in its order
 (tests/python/test_registry.py holds this list to :data:`FILTERS`)."""
 
 class _MethodRow(TypedDict):

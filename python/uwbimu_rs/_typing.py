@@ -12,5 +12,5 @@ MethodName = Literal[
     "uwb_ls", "ekf", "iekf", "rekf", "riekf", "criekf", "ckf", "arckf", "ackf", "eskf", "shaf", "shfaf", "ukf",
     "rukf", "ekf2d", "ukf2d", "cekf2d", "best",
 ]
-"""A method name: the rows of the registry (``crates/uwbimu-app/src/methods.rs``) in its order, as
+"""A method name: the rows of the registry (``crates/uwbimu-app/src/registry.rs``) in its order, as
 :data:`uwbimu_rs.FILTERS` lists them at run time."""

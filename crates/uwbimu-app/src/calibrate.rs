@@ -20,26 +20,17 @@ use uwbimu_estimation::pipeline::StepRecord;
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::config::RangeCalibration;
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::percentile;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::methods::run_method;
+use crate::outlier_smoothing::median_and_robust_sigma;
+use crate::registry::Method;
+use crate::run::{BatchInput, BatchOutput};
 use crate::track::tag_at;
-
-/// Robust σ per median absolute deviation of a Gaussian.
-const MAD_TO_SIGMA: f64 = 1.4826;
 
 /// Residuals beyond this many robust σ from the median are left out.
 pub(crate) const OUTLIER_SIGMAS: f64 = 3.0;
-
-/// Median and robust σ (1.4826·MAD, at least 1e-6) of residuals sorted in increasing order.
-pub(crate) fn median_and_robust_sigma(sorted: &[f64]) -> (f64, f64) {
-    let median = percentile(sorted, 50.0);
-    let mut dev: Vec<f64> = sorted.iter().map(|r| (r - median).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    (median, (MAD_TO_SIGMA * percentile(&dev, 50.0)).max(1e-6))
-}
 
 /// One anchor's estimated bias.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,7 +4,7 @@
 use uwbimu_estimation::multilateration::Fix;
 use uwbimu_estimation::pipeline::{StepRecord, Trace};
 
-use crate::methods::BatchOutput;
+use crate::run::BatchOutput;
 
 /// Columns as (name, values).
 pub type Columns = Vec<(&'static str, Vec<f64>)>;

@@ -52,7 +52,9 @@ use uwbimu_vocabulary::records::TruthSample;
 use uwbimu_vocabulary::sensors::SensorKind;
 
 use crate::generality::Settings;
-use crate::methods::{run_method, BatchInput, BatchOutput, Input, Method};
+use crate::methods::run_method;
+use crate::registry::{Input, Method};
+use crate::run::{BatchInput, BatchOutput};
 use crate::sim::{
     cuboid8, hall_anchors, matched_config, simulate, AltimeterConfig, ImuNoise, OdometerConfig, Outage, SimConfig, SimData,
     Trajectory, UwbConfig,

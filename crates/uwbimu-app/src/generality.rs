@@ -7,7 +7,7 @@
 //! or self-initialised, with the scenario's matched configuration or the library defaults. Its
 //! horizontal RMSE is taken over its per-IMU-sample body positions against the truth; `uwb_ls`'s
 //! over its fixes against the true tag position. Both leave out
-//! - the first [`SELF_INIT_SETTLE_S`] when self-initialised (the filter is still aligning), and
+//! - the first [`SETTLE_S`] when self-initialised (the filter is still aligning), and
 //! - the time inside range outages (gaps of more than [`OUTAGE_GAP_S`] without any range), where
 //!   `uwb_ls` has no output; the error reached there is reported separately
 //!   ([`CellResult::outage_max_error_m`]).
@@ -21,11 +21,10 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::methods::run_method;
+use crate::registry::Method;
+use crate::run::{BatchInput, BatchOutput, SETTLE_S};
 use crate::sim::{simulate, zoo, Scenario, ZOO_NAMES};
-
-/// Time after the start left out of a self-initialised run's RMSE, s.
-pub const SELF_INIT_SETTLE_S: f64 = 10.0;
 
 /// A gap longer than this without any range is an outage, s.
 pub const OUTAGE_GAP_S: f64 = 1.0;
@@ -191,7 +190,7 @@ pub fn run_cell(cell: &Cell<'_>) -> Result<CellResult> {
         (Some(a), Some(b)) => (a.t_s, b.t_s),
         _ => return Err(Error::InsufficientData("the scenario has no IMU samples".into())),
     };
-    let from = if cell.start == Start::SelfInit { t0 + SELF_INIT_SETTLE_S } else { t0 };
+    let from = if cell.start == Start::SelfInit { t0 + SETTLE_S } else { t0 };
     let gaps = outages(&data.ranges, t0, t1);
     let in_gap = |t: f64| gaps.iter().any(|&(a, b)| a < t && t < b);
     let counted = |t: f64| t >= from && !in_gap(t);

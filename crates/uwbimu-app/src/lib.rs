@@ -3,6 +3,12 @@
 //! columns, metrics, the scenario simulator, the generality matrix and the Monte Carlo consistency
 //! checks. Depends on `uwbimu_vocabulary` and `uwbimu_estimation`; the compiler keeps it from
 //! being used by them.
+//!
+//! Inside, the modules import one way, without a cycle: the method registry (`registry`) imports
+//! no other module; the runner (`run`) the registry; the model selection ([`select`]) the runner;
+//! [`methods`] (the batch API, and the public path of the registry's and the runner's items) the
+//! selection; calibration, tuning, offsets, replay, the generality matrix and the consistency
+//! checks [`methods`].
 
 pub mod calibrate;
 pub mod columns;
@@ -14,11 +20,14 @@ pub mod generality;
 pub mod io;
 pub mod methods;
 pub mod metrics;
+mod model_choice;
 pub mod offsets;
 pub mod outlier_smoothing;
 pub mod parallel;
+mod registry;
 #[cfg(feature = "io")]
 pub mod replay;
+mod run;
 pub mod select;
 #[cfg(feature = "sim")]
 pub mod sim;

@@ -26,8 +26,11 @@ use uwbimu_vocabulary::config::{FilterConfig, LeverArms};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 
-use crate::calibrate::{median_and_robust_sigma, AnchorBias, BiasCalibration, OUTLIER_SIGMAS};
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::calibrate::{AnchorBias, BiasCalibration, OUTLIER_SIGMAS};
+use crate::methods::run_method;
+use crate::outlier_smoothing::median_and_robust_sigma;
+use crate::registry::Method;
+use crate::run::{BatchInput, BatchOutput};
 
 /// Gauss–Newton iterations per solve.
 const GAUSS_NEWTON_ITERATIONS: usize = 8;

@@ -20,11 +20,21 @@
 
 use uwbimu_estimation::pipeline::StepRecord;
 use uwbimu_vocabulary::config::LeverArms;
-use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::math::{percentile, Vec3};
 use uwbimu_vocabulary::records::RangeMeasurement;
 
-use crate::calibrate::median_and_robust_sigma;
 use crate::track::tag_between;
+
+/// Robust σ per median absolute deviation of a Gaussian.
+const MAD_TO_SIGMA: f64 = 1.4826;
+
+/// Median and robust σ (1.4826·MAD, at least 1e-6) of residuals sorted in increasing order.
+pub(crate) fn median_and_robust_sigma(sorted: &[f64]) -> (f64, f64) {
+    let median = percentile(sorted, 50.0);
+    let mut dev: Vec<f64> = sorted.iter().map(|r| (r - median).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    (median, (MAD_TO_SIGMA * percentile(&dev, 50.0)).max(1e-6))
+}
 
 /// A range is left out only when it is at least this much longer than its anchor's median
 /// residual, m: the robust σ of a clean anchor is a few centimetres, and three of them would cut

@@ -18,9 +18,11 @@ use uwbimu_vocabulary::records::PosePoint;
 use uwbimu_vocabulary::sensors::{merge, observations, Observation, SensorKind};
 
 use crate::io::Recording;
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::methods::run_method;
 use crate::metrics::{evaluate, Evaluation};
-use crate::select::ModelChoice;
+use crate::model_choice::ModelChoice;
+use crate::registry::Method;
+use crate::run::{BatchInput, BatchOutput};
 
 /// What the filter did with one anchor's ranges (or with one sensor's readings).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

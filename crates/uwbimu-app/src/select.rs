@@ -34,7 +34,9 @@ use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::records::RangeMeasurement;
 
-use crate::methods::{initial_state, run_calibrated, BatchInput, BatchOutput, Method};
+pub use crate::model_choice::{Candidate, ModelChoice};
+use crate::registry::Method;
+use crate::run::{dispatch, initial_state, BatchInput, BatchOutput, SETTLE_S};
 use crate::track::tag_at;
 
 /// Most folds of the leave-anchors-out prediction.
@@ -97,46 +99,6 @@ pub const SKEWS: [Choice; 2] = [
 /// Factors tried on the chosen model's `ranging.range_std`.
 pub const RANGE_STD_FACTORS: [f64; 2] = [0.5, 2.0];
 
-/// A scored candidate.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Candidate {
-    /// What it is, e.g. `"steady bias, symmetric test"` or `"as configured, range_std ×2"`.
-    pub label: String,
-    /// The settings it changes against the input configuration.
-    pub overrides: Vec<(String, ConfigValue)>,
-    /// Its held-out range RMS (module doc), m; +∞ when a run failed.
-    pub score_m: f64,
-    /// The held-out RMS per anchor, m (NaN for an anchor with too few scored ranges).
-    pub per_anchor_m: Vec<f64>,
-}
-
-/// What [`choose`] decided.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ModelChoice {
-    /// The configuration to run: the input with the chosen candidate's overrides and
-    /// `model_selection.enabled` off, so that running it reproduces the choosing method's run.
-    pub config: FilterConfig,
-    /// Every candidate scored, in the order tried (the first is the input configuration); empty
-    /// when no selection was possible.
-    pub candidates: Vec<Candidate>,
-    /// Index of the chosen candidate in `candidates`.
-    pub chosen: usize,
-    /// Why: the chosen candidate's score against the input's, or why no selection ran.
-    pub reason: String,
-}
-
-impl ModelChoice {
-    /// The chosen candidate (None when no selection ran).
-    pub fn chosen(&self) -> Option<&Candidate> {
-        self.candidates.get(self.chosen)
-    }
-
-    /// The settings the choice changes against the input configuration.
-    pub fn overrides(&self) -> &[(String, ConfigValue)] {
-        self.chosen().map_or(&[], |c| &c.overrides)
-    }
-}
-
 /// The settings of `config` that differ from `base`.
 fn overrides_of(config: &FilterConfig, base: &FilterConfig) -> Vec<(String, ConfigValue)> {
     let before = base.entries();
@@ -159,7 +121,7 @@ impl<'a> Window<'a> {
         let observations = &input.observations[..input.observations.partition_point(|o| o.t_s() <= end)];
         let input = BatchInput { imu, ranges, observations, progress: None, ..*input };
         let (initial, init) = initial_state(&input)?;
-        let from_s = t0 + if init.is_some() { crate::tune::SETTLE_S } else { 0.0 };
+        let from_s = t0 + if init.is_some() { SETTLE_S } else { 0.0 };
         Ok(Self { input, initial, from_s })
     }
 }
@@ -309,7 +271,8 @@ fn fold_errors(
     let held = |anchor: usize| anchor % folds == fold;
     let kept: Vec<RangeMeasurement> = window.input.ranges.iter().filter(|r| !held(r.anchor)).copied().collect();
     let input = BatchInput { ranges: &kept, initial: Some(&window.initial), config, smooth: false, ..window.input };
-    let BatchOutput::Inertial { trace, .. } = run_calibrated(method, &input)? else {
+    // `config` has `model_selection.enabled` off: the candidate runs as configured.
+    let BatchOutput::Inertial { trace, .. } = dispatch(method, &input)? else {
         return Err(Error::InvalidCall(format!("{} has no inertial track to predict ranges from", method.name())));
     };
     let steps = &trace.steps;

@@ -16,8 +16,11 @@ use uwbimu_vocabulary::config::{ConfigValue, FilterConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 
-use crate::methods::{run_method, BatchInput, BatchOutput, Method};
+use crate::methods::run_method;
 use crate::metrics::evaluate;
+use crate::registry::Method;
+pub use crate::run::SETTLE_S;
+use crate::run::{BatchInput, BatchOutput};
 use crate::select::{choose, held_out_score};
 
 /// Reads one tuned setting from a configuration.
@@ -35,9 +38,6 @@ pub const TUNED_KEYS: [&str; 3] = [TUNED[0].0, TUNED[1].0, TUNED[2].0];
 
 /// Factors tried around the current value of one setting, per round (coarse, then fine).
 const ROUND_FACTORS: [[f64; 4]; 2] = [[0.25, 0.5, 2.0, 4.0], [0.6, 0.8, 1.25, 1.6]];
-
-/// Time left out at the start of a self-initialised run when scoring against truth, s.
-pub const SETTLE_S: f64 = 10.0;
 
 /// What the search minimises.
 #[derive(Debug, Clone, Copy)]

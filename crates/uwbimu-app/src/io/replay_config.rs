@@ -11,7 +11,7 @@ use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::io::Mapping;
-use crate::methods::{Method, DEFAULT_METHOD};
+use crate::registry::{Method, DEFAULT_METHOD};
 
 /// A parsed replay file.
 #[derive(Debug, Clone, PartialEq)]

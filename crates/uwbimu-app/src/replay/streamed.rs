@@ -26,6 +26,7 @@ use std::path::Path;
 
 use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
+use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
@@ -43,9 +44,10 @@ use truth_match::{hand_on, TruthMatch};
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::io::spill::Spill;
 use crate::io::{stream_recording_file, IoResult as Result, Mapping, RecordItem, RecordingSurvey};
-use crate::methods::{BatchInput, Method};
+use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
-use crate::select::ModelChoice;
+use crate::registry::{methods, Method};
+use crate::run::{check_inputs, check_tags, BatchInput};
 
 /// What [`replay_streamed`] is given besides the method.
 #[derive(Debug, Clone, Copy)]
@@ -309,9 +311,9 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
     let survey = input.survey;
-    crate::methods::check_inputs(method, input.smooth, survey_sensors(survey))?;
+    check_inputs(method, input.smooth, survey_sensors(survey))?;
     let tagged = survey.stats.ranges_per_tag.keys().filter(|&&t| t != 0);
-    crate::methods::check_tags(method, input.config, tagged.map(|&t| ("a range of the recording".to_string(), t)))?;
+    check_tags(method, input.config, tagged.map(|&t| ("a range of the recording".to_string(), t)))?;
     let Some(imu_span_s) = survey.imu_span_s.filter(|_| survey.n_ranges + survey.n_tdoa > 0) else {
         return Err(CoreError::InsufficientData(format!(
             "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
@@ -564,5 +566,46 @@ pub fn replay_streamed(
     input: &StreamedInput<'_>,
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
-    crate::methods::dispatch_streamed(method, input, on_step)
+    dispatch_streamed(method, input, on_step)
 }
+
+/// Declares `dispatch_streamed`, the streamed replay of each method of the rows of the registry
+/// (`methods!`, [`crate::registry`]) by how it runs (`run:`): an inertial method with its filter
+/// type, a planar one with its [`PlanarKind`]; `uwb_ls` is not streamed.
+macro_rules! declare_streamed_dispatch {
+    ($($(#[$doc:meta])* $variant:ident { name: $name:literal, run: $run:ident $(($ty:ident))?, $($row:tt)* }),+ $(,)?) => {
+        /// Replays a recording streamed from its file with `method` ([`replay_streamed`]);
+        /// `uwb_ls` is not streamed (it needs no IMU: the whole-recording replay serves it).
+        fn dispatch_streamed(
+            method: Method,
+            input: &StreamedInput<'_>,
+            on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
+        ) -> Result<StreamedReplay> {
+            match method {
+                $(Method::$variant => declare_streamed_dispatch!(@stream method, input, on_step, $run $($ty)?),)+
+            }
+        }
+    };
+    (@stream $method:ident, $input:ident, $on_step:ident, multilateration) => {
+        Err(CoreError::InvalidCall(format!("{} is not streamed: replay the whole recording", $method.name())).into())
+    };
+    (@stream $method:ident, $input:ident, $on_step:ident, inertial $ty:ident) => {{
+        use uwbimu_estimation::filters::InertialFilter as _;
+        let kind = FilterKind {
+            build: uwbimu_estimation::filters::$ty::new,
+            core: |f: &mut uwbimu_estimation::filters::$ty| Some(f.core_mut()),
+            smoothing: |f: &uwbimu_estimation::filters::$ty| f.config().smoothing,
+        };
+        run($method, $input, &kind, $on_step)
+    }};
+    (@stream $method:ident, $input:ident, $on_step:ident, planar $kind:ident) => {{
+        let kind = FilterKind {
+            build: |anchors, initial, config| PlanarFilter::new(PlanarKind::$kind, anchors, initial, &config),
+            core: |_: &mut PlanarFilter| None,
+            smoothing: |_: &PlanarFilter| SmoothingConfig::default(),
+        };
+        run($method, $input, &kind, $on_step)
+    }};
+}
+
+methods!(declare_streamed_dispatch);

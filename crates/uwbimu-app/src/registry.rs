@@ -1,0 +1,299 @@
+//! The method registry: one row per named method of the batch API (the `methods!` declaration)
+//! and what the library says about each — [`Method`], its name, what it takes ([`Input`]), its
+//! smoothing ([`Smoothing`]), its streaming class, its doc ([`MethodInfo`]). It depends on no other
+//! module of this crate; how a method runs is the runner's ([`crate::run`], [`crate::methods`]).
+
+use uwbimu_vocabulary::error::{Error, Result};
+use uwbimu_vocabulary::sensors::SensorKind;
+
+/// What a method takes besides IMU samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Input {
+    /// Ranges to anchors.
+    Ranges,
+    /// Ranges from several tags (a `tag` column beyond 0), each at its lever arm.
+    Tags,
+    /// A sensor of the registry ([`uwbimu_vocabulary::sensors`]).
+    Sensor(SensorKind),
+}
+
+impl Input {
+    /// The input's name in Python (`METHODS[name]["takes"]`) and the docs: `ranges`, or the
+    /// sensor's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ranges => "ranges",
+            Self::Tags => "tags",
+            Self::Sensor(kind) => kind.info().name,
+        }
+    }
+}
+
+/// Whether and when the batch API RTS-smooths a method's run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Smoothing {
+    /// Never: the method has no inertial 15-state record to smooth.
+    Never,
+    /// When asked (`smooth=True`, `--smooth`).
+    OnRequest,
+    /// Unless a forward pass is asked for.
+    ByDefault,
+}
+
+impl Smoothing {
+    /// The smoothing's name in Python (`METHODS[name]["smoothing"]`) and the docs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Never => "never",
+            Self::OnRequest => "on_request",
+            Self::ByDefault => "by_default",
+        }
+    }
+}
+
+/// One row of the method registry (the `methods!` declaration in this module): everything the library says about a method
+/// besides how it runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MethodInfo {
+    /// The name the batch API, replay files and the CLI take.
+    pub name: &'static str,
+    /// The measurements it takes besides IMU samples.
+    pub takes: &'static [Input],
+    /// When it is smoothed.
+    pub smoothing: Smoothing,
+    /// Its streaming class in Python (`uwbimu_rs.<class>`), if it has one.
+    pub streaming_class: Option<&'static str>,
+    /// Whether the batch method chooses its range-error model, NLOS skew and range noise on the
+    /// log ([`crate::select`]); a row says `chooses_model: true`, the others leave it out.
+    pub chooses_model: bool,
+    /// Its doc comment (one line per doc line): the composition and where it comes from.
+    pub doc: &'static str,
+}
+
+/// The rows of the method registry: one row per method — variant, name, how it runs (`run:`), what
+/// it takes, its smoothing and whether it chooses its model, with its doc; an inertial method's
+/// filter is also its streaming class. Adding a method is adding a row.
+///
+/// `methods!(callback)` hands the rows to the macro `callback`, which declares what follows from
+/// them: here `declare_registry!` ([`Method`], [`Method::ALL`], [`Method::info`] and the macro
+/// [`for_each_streaming_filter!`](crate::for_each_streaming_filter)), in [`crate::run`] the
+/// dispatch of [`crate::methods::run_method`], in `crate::replay::streamed` the dispatch of the
+/// streamed replay. A callback that declares a macro of its own is given a `$` after its name
+/// (`methods!(callback $)`) to write that macro's `$` with.
+macro_rules! methods {
+    ($callback:ident $($d:tt)?) => { $callback! { $($d)?
+    /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
+    UwbLs { name: "uwb_ls", run: multilateration, takes: [Ranges], smoothing: Never },
+    /// The tightly coupled EKF of Li & Wang (2020).
+    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
+    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
+    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
+    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
+    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
+    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
+    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
+    Ackf {
+        name: "ackf",
+        run: inertial(Ackf),
+        takes: [Ranges, Tags, Tdoa, Magnetometer, Altitude, Odometry],
+        smoothing: OnRequest,
+    },
+    /// The loosely coupled error-state filter of Liu et al. (2019).
+    Eskf { name: "eskf", run: inertial(Eskf), takes: [Ranges], smoothing: OnRequest },
+    /// The Sage–Husa adaptive ESKF of Liu et al. (2019).
+    Shaf { name: "shaf", run: inertial(Shaf), takes: [Ranges], smoothing: OnRequest },
+    /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
+    Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest },
+    /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
+    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
+    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
+    Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never },
+    /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
+    Ukf2d { name: "ukf2d", run: planar(Ukf), takes: [Ranges], smoothing: Never },
+    /// The planar errors-complementary EKF of Wang et al. (2018), eqs. (15)–(18).
+    ///
+    /// Ranges pass through a moving average first.
+    Cekf2d { name: "cekf2d", run: planar(Cekf), takes: [Ranges], smoothing: Never },
+    /// The recommended method for real logs (ours), smoothed unless a forward pass is asked for.
+    ///
+    /// RIEKF with its range test skewed against long ranges and the zero-velocity constraint while
+    /// still ([`uwbimu_estimation::filters::Best`]), re-acquisition on divergence and
+    /// self-initialisation when no initial state is given. Before it runs it chooses its
+    /// range-error model, NLOS skew and range noise on the log by held-out anchors
+    /// ([`crate::select`]).
+    Best { name: "best", run: inertial(Best), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: ByDefault, chooses_model: true },
+    } };
+}
+pub(crate) use methods;
+
+/// Declares [`Method`], [`Method::ALL`], [`Method::info`] (names, parsing, capabilities, error
+/// lists) and the macro [`for_each_streaming_filter!`](crate::for_each_streaming_filter) with which
+/// the Python bindings declare and register one class per streaming filter, from the rows of
+/// [`methods!`].
+macro_rules! declare_registry {
+    ($d:tt $(
+        $(#[doc = $doc:literal])+
+        $variant:ident {
+            name: $name:literal,
+            run: $run:ident $(($ty:ident))?,
+            takes: [$($input:ident),+],
+            smoothing: $smoothing:ident
+            $(, chooses_model: $chooses:literal)? $(,)?
+        }
+    ),+ $(,)?) => {
+        /// A method name accepted by the batch API, one per row of the registry.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum Method {
+            $($(#[doc = $doc])+ $variant,)+
+        }
+
+        impl Method {
+            /// Every method, in registry order (the order of `uwbimu_rs.FILTERS`).
+            pub const ALL: &'static [Method] = &[$(Method::$variant),+];
+
+            /// The method's registry row.
+            pub const fn info(self) -> &'static MethodInfo {
+                match self {
+                    $(Method::$variant => &MethodInfo {
+                        name: $name,
+                        takes: &[$(declare_registry!(@input $input)),+],
+                        smoothing: Smoothing::$smoothing,
+                        streaming_class: declare_registry!(@class $run $($ty)?),
+                        chooses_model: declare_registry!(@chooses $($chooses)?),
+                        doc: concat!($($doc, "\n"),+),
+                    },)+
+                }
+            }
+        }
+
+        /// Calls `$callback!(run [Type], [extra…], "doc", …)` once for every method: `run` how it
+        /// runs (`inertial`, `planar`, `multilateration`), `Type` its filter in
+        /// `uwbimu_estimation::filters` when it is inertial (its streaming class), `extra` the
+        /// tokens given after the callback's name (the Python bindings declare and register one
+        /// class per inertial method with it, named as the type).
+        #[macro_export]
+        macro_rules! for_each_streaming_filter {
+            ($d callback:ident $d($d extra:tt)*) => {
+                $($d callback!($run $($ty)?, [$d($d extra)*], $($doc),+);)+
+            };
+        }
+    };
+    (@input Ranges) => { Input::Ranges };
+    (@input Tags) => { Input::Tags };
+    (@input $sensor:ident) => { Input::Sensor(SensorKind::$sensor) };
+    (@chooses) => { false };
+    (@chooses $chooses:literal) => { $chooses };
+    (@class inertial $ty:ident) => { Some(stringify!($ty)) };
+    (@class $run:ident $($ty:ident)?) => { None };
+}
+
+methods!(declare_registry $);
+
+impl Method {
+    /// The method's name.
+    pub fn name(self) -> &'static str {
+        self.info().name
+    }
+
+    /// The first line of the method's doc: one sentence that says what it is (every row's doc
+    /// starts with one; `tests::every_summary_is_a_sentence`).
+    pub fn summary(self) -> &'static str {
+        self.info().doc.lines().next().unwrap_or_default().trim()
+    }
+
+    /// Every method name, in registry order.
+    pub fn names() -> impl Iterator<Item = &'static str> {
+        Self::ALL.iter().map(|m| m.name())
+    }
+
+    /// Whether the method's run can be RTS-smoothed: the inertial 15-state filters (not
+    /// `uwb_ls` and the planar filters).
+    pub fn smoothable(self) -> bool {
+        self.info().smoothing != Smoothing::Never
+    }
+
+    /// Whether the batch API smooths the method's run when the caller does not say (`best`).
+    pub fn smooths_by_default(self) -> bool {
+        self.info().smoothing == Smoothing::ByDefault
+    }
+
+    /// Whether to smooth: as `asked`, else the method's default ([`Method::smooths_by_default`]).
+    pub fn smooth(self, asked: Option<bool>) -> bool {
+        asked.unwrap_or(self.smooths_by_default())
+    }
+
+    /// Whether the batch method chooses its range-error model, NLOS skew and range noise on the
+    /// log ([`crate::select`]; its registry row).
+    pub fn chooses_its_model(self) -> bool {
+        self.info().chooses_model
+    }
+
+    /// Whether the method takes `input`.
+    pub fn takes(self, input: Input) -> bool {
+        self.info().takes.contains(&input)
+    }
+
+    /// Whether the method takes TDoA (the tightly coupled inertial filters; the loosely coupled
+    /// ones fuse a per-epoch fix from ranges, the planar ones and `uwb_ls` take ranges only).
+    pub fn takes_tdoa(self) -> bool {
+        self.takes(Input::Sensor(SensorKind::Tdoa))
+    }
+
+    /// The names of the methods for which `keep` holds, comma-separated (for error messages).
+    pub fn names_where(keep: impl Fn(Self) -> bool) -> String {
+        Self::ALL.iter().filter(|m| keep(**m)).map(|m| m.name()).collect::<Vec<_>>().join(", ")
+    }
+
+    /// Parses a method name; the error lists the allowed names.
+    pub fn parse(name: &str) -> Result<Self> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| Error::unknown_option("method", name, Self::ALL.iter().map(|m| m.name())))
+    }
+}
+
+/// The method replays use when none is given.
+pub const DEFAULT_METHOD: Method = Method::Best;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for name in Method::names() {
+            assert_eq!(Method::parse(name).map(Method::name), Ok(name));
+        }
+        assert!(matches!(Method::parse("rieks"), Err(Error::UnknownOption { .. })));
+        let e = Method::parse("rekff").unwrap_err().to_string();
+        assert!(e.starts_with("unknown method `rekff` (did you mean `rekf`"), "{e}");
+    }
+
+    #[test]
+    fn every_summary_is_a_sentence() {
+        for m in Method::ALL {
+            let s = m.summary();
+            assert!(s.len() > 20 && s.ends_with('.') && s.chars().next().is_some_and(char::is_uppercase), "{s}");
+        }
+    }
+
+    #[test]
+    fn capabilities_follow_the_rows() {
+        assert_eq!(Method::names_where(Method::smooths_by_default), "best");
+        assert_eq!(Method::names_where(|m| m.takes(Input::Sensor(SensorKind::Magnetometer))), "ackf");
+        assert!(!Method::UwbLs.smoothable() && !Method::Ekf2d.takes_tdoa() && Method::Best.takes_tdoa());
+        // A method streams exactly when it runs a 15-state filter (the smoothable ones).
+        assert!(Method::ALL.iter().all(|m| m.info().streaming_class.is_some() == m.smoothable()));
+    }
+}
