@@ -1,11 +1,13 @@
-"""Every list of method names agrees with the one registry (crates/uwbimu-app/src/methods.rs):
-``FILTERS`` and ``METHODS`` come from it at run time; the stub's ``_MethodName``, the streaming
-classes (module, ``__all__``, stub) and the method table of docs/methods-detail.md are checked against it here."""
+"""Every list of method names agrees with the one registry (crates/uwbimu-app/src/registry.rs):
+``FILTERS`` and ``METHODS`` come from it at run time; the stub's ``_MethodName``, ``MethodName``
+(python/uwbimu_rs/_typing.py), the streaming classes (module, ``__all__``, stub) and the method
+table of docs/methods-detail.md are checked against it here."""
 
 from __future__ import annotations
 
 import ast
 import re
+import typing
 from pathlib import Path
 
 import uwbimu_rs
@@ -38,6 +40,14 @@ def test_stub_method_names_are_the_registry() -> None:
             assert names == uwbimu_rs.FILTERS
             return
     raise AssertionError("no _MethodName in the stub")
+
+
+def test_typing_method_names_are_the_registry() -> None:
+    """``MethodName``, the ``Literal`` type checkers see, is a copy of the registry's names: in
+    its order, none missing, none extra."""
+    names = typing.get_args(uwbimu_rs.MethodName)
+    assert set(names) == set(uwbimu_rs.METHODS)
+    assert list(names) == uwbimu_rs.FILTERS
 
 
 def test_streaming_classes_are_the_registry_rows_that_have_one() -> None:

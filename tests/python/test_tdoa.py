@@ -70,6 +70,22 @@ def test_tdoa_with_ranges_and_streaming_equals_batch():
     hold("python", "tdoa_with_ranges,nlos_two,1,riekf", _hrmse(batch, r))
 
 
+def test_run_filters_passes_tdoa_and_magnetometer_through():
+    """A run of ``run_filters`` given as ``(imu, ranges, anchors, sensors)`` reaches the filter with
+    its TDoA and magnetometer samples: each fleet run equals ``run_filter`` with the same keywords,
+    and each sensor changes the track."""
+    r = sim.zoo("nlos_two", seed=2, tdoa=True, tdoa_rate_hz=10.0, tdoa_std_m=0.05, magnetometer=True)
+    assert r.tdoa is not None and r.mag is not None
+    args = (r.imu, r.ranges, r.anchors)
+    given = [{}, {"tdoa": r.tdoa}, {"tdoa": r.tdoa, "mag": r.mag}]
+    alone = [uwbimu_rs.run_filter("ackf", *args, initial=r.initial, config=r.config, **kw) for kw in given]
+    fleet = uwbimu_rs.run_filters("ackf", [args, *((*args, kw) for kw in given[1:])], initial=[r.initial] * 3, config=r.config)
+    for one, many in zip(alone, fleet):
+        assert one.equals(many)
+    x = [df["x"].to_numpy() for df in fleet]
+    assert not np.array_equal(x[0], x[1]) and not np.array_equal(x[1], x[2])
+
+
 def test_tdoa_errors_are_clear():
     r = _run()
     with pytest.raises(ValueError, match="tdoa"):
