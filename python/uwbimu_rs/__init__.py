@@ -21,6 +21,7 @@ from uwbimu_rs._calibration import calibrate, choose_model, tune
 from uwbimu_rs._compare import Comparison, MethodRun, compare
 from uwbimu_rs._native import (
     FILTERS,
+    INPUTS,
     METHODS,
     SENSORS,
     Ackf,
@@ -56,6 +57,7 @@ except _PackageNotFoundError:  # pragma: no cover - only when run from a source 
 
 __all__ = [
     "FILTERS",
+    "INPUTS",
     "METHODS",
     "SENSORS",
     "Ackf",

@@ -61,6 +61,7 @@ __all__ = [
     "FILTERS",
     "METHODS",
     "SENSORS",
+    "INPUTS",
     "calibrate_log",
     "tune_noise",
     "choose_model",
@@ -165,6 +166,10 @@ class _SensorRow(TypedDict):
 SENSORS: dict[str, _SensorRow]
 """The sensor registry (``crates/uwbimu-vocabulary/src/sensors.rs``), one row per sensor besides
 the IMU and the ranges, by the name :data:`METHODS` lists under ``takes``."""
+
+INPUTS: list[str]
+"""Every input a method may take (``METHODS[name]["takes"]``): ``ranges``, ``tags`` (ranges from
+several tags), then each sensor of :data:`SENSORS`."""
 
 @final
 class FilterConfig:

@@ -18,7 +18,7 @@ mod reports;
 mod state;
 
 use pyo3::prelude::*;
-use uwbimu_app::methods::Method;
+use uwbimu_app::methods::{Input, Method};
 
 use super::errors::PyResult;
 use batch::{initialize_state, run_filter, run_filters};
@@ -51,5 +51,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("FILTERS", Method::names().collect::<Vec<_>>())?;
     m.add("METHODS", methods_table(m.py())?)?;
     m.add("SENSORS", sensors_table(m.py())?)?;
+    m.add("INPUTS", Input::all().map(Input::name).collect::<Vec<_>>())?;
     Ok(())
 }

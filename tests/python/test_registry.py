@@ -97,10 +97,14 @@ def test_sensor_lists_are_the_sensor_registry() -> None:
     takes_literal = re.search(r'takes: list\[Literal\[([^\]]*)\]\]', STUB.read_text())
     assert takes_literal, "no takes Literal in the stub"
     named = {n.strip().strip('"') for n in takes_literal.group(1).split(",")}
-    # Besides the sensors a method takes ranges, and ranges from several tags ("tags").
-    assert named == {"ranges", "tags", *sensors}
+    # Besides the sensors a method takes ranges, and ranges from several tags: INPUTS, from the
+    # registry's Input.
+    inputs = uwbimu_rs.INPUTS
+    assert set(sensors) <= set(inputs) and len(set(inputs)) == len(inputs)
+    assert named == set(inputs)
     for name, row in uwbimu_rs.METHODS.items():
-        assert set(row["takes"]) <= {"ranges", "tags", *sensors}, name
+        assert set(row["takes"]) <= set(inputs), name
+    assert set(inputs) == {i for row in uwbimu_rs.METHODS.values() for i in row["takes"]}, "an input no method takes"
     for cls in {row["streaming_class"] for row in uwbimu_rs.METHODS.values()} - {None}:
         for sensor in sensors:
             assert hasattr(getattr(uwbimu_rs, cls), f"add_{sensor}"), f"{cls} has no add_{sensor}"

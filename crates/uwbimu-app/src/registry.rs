@@ -18,6 +18,12 @@ pub enum Input {
 }
 
 impl Input {
+    /// Every input a method may take, in this order: ranges, ranges from several tags, then each
+    /// sensor of the registry (`uwbimu_rs.INPUTS`).
+    pub fn all() -> impl Iterator<Item = Input> {
+        [Self::Ranges, Self::Tags].into_iter().chain(SensorKind::ALL.iter().map(|k| Self::Sensor(*k)))
+    }
+
     /// The input's name in Python (`METHODS[name]["takes"]`) and the docs: `ranges`, or the
     /// sensor's name.
     pub fn name(self) -> &'static str {
