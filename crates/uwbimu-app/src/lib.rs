@@ -33,3 +33,4 @@ pub mod select;
 pub mod sim;
 pub mod track;
 pub mod tune;
+mod uwb_clock;

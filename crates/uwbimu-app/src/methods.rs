@@ -7,13 +7,13 @@
 //! `run_method` calls; this module is their public path.
 
 use uwbimu_vocabulary::error::Result;
-use uwbimu_vocabulary::records::RangeMeasurement;
-use uwbimu_vocabulary::sensors::{merge, Clock, Observation};
+use uwbimu_vocabulary::sensors::{merge, Observation};
 
 use crate::model_choice::ModelChoice;
 pub use crate::registry::{Input, Method, MethodInfo, Smoothing, DEFAULT_METHOD};
 use crate::run::{check_inputs, check_tags, dispatch};
 pub use crate::run::{BatchInput, BatchOutput};
+use crate::uwb_clock::UwbClock;
 
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
 /// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
@@ -21,29 +21,23 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
     check_inputs(method, false, input.observations.iter().map(Observation::kind))?;
     let tagged = input.ranges.iter().enumerate().filter(|(_, r)| r.tag != 0);
     check_tags(method, input.config, tagged.map(|(row, r)| (format!("ranges row {row}"), r.tag)))?;
-    let offset = input.config.ranging.time_offset_s;
-    if offset != 0.0 {
-        let span = |t: f64| input.imu.first().is_some_and(|a| t >= a.t_s) && input.imu.last().is_some_and(|b| t <= b.t_s);
-        let shift = |t: f64| Some(t + offset).filter(|&t| span(t));
-        let ranges: Vec<_> = input.ranges.iter().filter_map(|r| shift(r.t_s).map(|t_s| RangeMeasurement { t_s, ..*r })).collect();
-        let shifted: Vec<Observation> = input
-            .observations
-            .iter()
-            .filter_map(|o| match o.kind().info().clock {
-                Clock::Uwb => shift(o.t_s()).map(|t_s| o.at(t_s)),
-                Clock::Imu => Some(*o),
-            })
-            .collect();
-        let observations = merge(&[&shifted]);
-        let mut config = input.config.clone();
-        config.ranging.time_offset_s = 0.0;
-        return run_method(method, &BatchInput { ranges: &ranges, observations: &observations, config: &config, ..*input });
+    let config = input.config;
+    if config.ranging.time_offset_s == 0.0 && config.range_calibration.is_empty() {
+        return run_calibrated(method, input);
     }
-    if !input.config.range_calibration.is_empty() {
-        let calibrated = input.config.range_calibration.apply(input.ranges, input.anchors.len())?;
-        return run_calibrated(method, &BatchInput { ranges: &calibrated, ..*input });
-    }
-    run_calibrated(method, input)
+    config.range_calibration.check_anchors(input.anchors.len())?;
+    let mut clock = UwbClock::new(config, input.imu.first().zip(input.imu.last()).map(|(a, b)| (a.t_s, b.t_s)));
+    let ranges = input.ranges.iter().filter_map(|r| clock.range(r).transpose()).collect::<Result<Vec<_>>>()?;
+    let shifted: Vec<Observation>;
+    let observations = if clock.offset_s() == 0.0 {
+        input.observations
+    } else {
+        shifted = merge(&[&input.observations.iter().filter_map(|o| clock.observation(o)).collect::<Vec<_>>()]);
+        &shifted
+    };
+    let mut config = config.clone();
+    config.ranging.time_offset_s = 0.0;
+    run_calibrated(method, &BatchInput { ranges: &ranges, observations, config: &config, ..*input })
 }
 
 /// Runs `method` on measurements already calibrated; a method that chooses its model

@@ -458,7 +458,7 @@ fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
             RecordItem::Sensor(o) => Event::Observation(o),
             RecordItem::Truth(t, p) => return run.truth(t, p),
         };
-        ordered.push(input.config, event, &mut released)?;
+        ordered.push(event, &mut released)?;
         released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))
     });
     let cancelled_run = match read {

@@ -1,29 +1,27 @@
 //! The batch order of a streamed replay's events: the range time offset and calibration of the
-//! configuration applied as they arrive, then a heap that releases each event once no later
-//! input can come before it.
+//! configuration applied as they arrive ([`UwbClock`], as the batch runner applies them), then a
+//! heap that releases each event once no later input can come before it.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use uwbimu_estimation::pipeline::Event;
 use uwbimu_vocabulary::config::FilterConfig;
-use uwbimu_vocabulary::records::RangeMeasurement;
-use uwbimu_vocabulary::sensors::Clock;
 
 use crate::io::IoResult as Result;
+use crate::uwb_clock::UwbClock;
 
 /// Puts the events of the reader (in time order) into the batch order after the range time
 /// offset: an event is released once no later input can come before it, i.e. once an input
 /// `|offset|` newer than it has arrived ([`Event::rank`] breaks ties as the batch merge does).
 /// Shifted measurements outside the IMU span are dropped, as the batch run drops them, and so is
 /// everything after the last IMU sample.
-pub(super) struct Ordered {
+pub(super) struct Ordered<'c> {
     heap: BinaryHeap<Reverse<Held>>,
-    offset_s: f64,
-    imu_span_s: (f64, f64),
+    clock: UwbClock<'c>,
+    imu_end_s: f64,
     newest_s: f64,
     arrivals: u64,
-    calibrated: usize,
 }
 
 struct Held {
@@ -57,49 +55,31 @@ impl Ord for Held {
     }
 }
 
-impl Ordered {
-    pub(super) fn new(config: &FilterConfig, imu_span_s: (f64, f64)) -> Self {
+impl<'c> Ordered<'c> {
+    pub(super) fn new(config: &'c FilterConfig, imu_span_s: (f64, f64)) -> Self {
         Self {
             heap: BinaryHeap::new(),
-            offset_s: config.ranging.time_offset_s,
-            imu_span_s,
+            clock: UwbClock::new(config, Some(imu_span_s)),
+            imu_end_s: imu_span_s.1,
             newest_s: f64::NEG_INFINITY,
             arrivals: 0,
-            calibrated: 0,
         }
     }
 
     /// Takes the reader's next event (at its own time `t_s`), then releases what it can into `out`.
-    pub(super) fn push(&mut self, config: &FilterConfig, event: Event, out: &mut Vec<Event>) -> Result<()> {
+    pub(super) fn push(&mut self, event: Event, out: &mut Vec<Event>) -> Result<()> {
         self.newest_s = self.newest_s.max(event.t_s());
         let shifted = match event {
-            Event::Imu(_) => Some(Ok(event)),
-            Event::Range(r) => self.shift(r.t_s).map(|t_s| {
-                let r = RangeMeasurement { t_s, ..r };
-                self.calibrated += 1;
-                config.range_calibration.apply_one(self.calibrated - 1, &r).map(Event::Range)
-            }),
-            Event::Observation(o) => match o.kind().info().clock {
-                Clock::Uwb => self.shift(o.t_s()).map(|t_s| Ok(Event::Observation(o.at(t_s)))),
-                Clock::Imu => Some(Ok(event)),
-            },
-        }
-        .transpose()?;
-        if let Some(event) = shifted.filter(|e| e.t_s() <= self.imu_span_s.1) {
+            Event::Imu(_) => Some(event),
+            Event::Range(r) => self.clock.range(&r)?.map(Event::Range),
+            Event::Observation(o) => self.clock.observation(&o).map(Event::Observation),
+        };
+        if let Some(event) = shifted.filter(|e| e.t_s() <= self.imu_end_s) {
             self.arrivals += 1;
             self.heap.push(Reverse(Held { t_s: event.t_s(), rank: event.rank(), arrival: self.arrivals, event }));
         }
-        self.release(self.newest_s - self.offset_s.abs(), out);
+        self.release(self.newest_s - self.clock.offset_s().abs(), out);
         Ok(())
-    }
-
-    /// A measurement's time after the offset; None when the offset moves it out of the IMU span.
-    fn shift(&self, t_s: f64) -> Option<f64> {
-        if self.offset_s == 0.0 {
-            return Some(t_s);
-        }
-        let t = t_s + self.offset_s;
-        (t >= self.imu_span_s.0 && t <= self.imu_span_s.1).then_some(t)
     }
 
     /// Releases the events before `bound_s` (all with +∞) in order into `out`.
