@@ -1,0 +1,209 @@
+//! One pass of a streamed replay over the file: the events read, put in the batch order, the
+//! ranges of the pass left out or kept, and the steps handed on or spilled; then smoothed and
+//! finished into what the replay found.
+
+use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
+use uwbimu_estimation::pipeline::{Estimator, Event, Progress, Stream};
+use uwbimu_vocabulary::error::Error as CoreError;
+use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::RangeMeasurement;
+use uwbimu_vocabulary::sensors::Observation;
+
+use super::ordered::Ordered;
+use super::spilled::{smooth_spilled, step_from_flat, Spills, StepSink, StepsOut, STEP_FLAT_LEN};
+use super::truth_match::{hand_on, TruthMatch};
+use super::{survey_sensors, FilterKind, Prefix, Run, StreamedInput, StreamedReplay, UpdateTally};
+use crate::io::spill::Spill;
+use crate::io::{stream_recording_file, IoResult as Result, RecordItem, RecordingSurvey};
+use crate::model_choice::ModelChoice;
+use crate::registry::Method;
+
+/// The ranges of one pass of [`run`], by their order in the stream: those to leave out, and all
+/// of them kept when `kept` is Some (the first pass, for the residuals).
+#[derive(Debug, Default)]
+pub(super) struct RangesOfPass<'a> {
+    pub(super) kept: Option<Vec<RangeMeasurement>>,
+    pub(super) left_out: &'a [bool],
+    pub(super) seen: usize,
+}
+
+impl RangesOfPass<'_> {
+    /// Whether the released `event` goes to the filter (a range left out does not).
+    pub(super) fn passes(&mut self, event: &Event) -> bool {
+        let Event::Range(r) = event else { return true };
+        let k = self.seen;
+        self.seen += 1;
+        if let Some(kept) = self.kept.as_mut() {
+            kept.push(*r);
+        }
+        !self.left_out.get(k).copied().unwrap_or(false)
+    }
+}
+
+/// One pass of [`run`] read to the end of the file — its steps handed on when forward, spilled
+/// and then smoothed by [`Pass::smooth`] otherwise — before [`Pass::finish`].
+pub(super) struct Pass<'f, E> {
+    pub(super) stream: Stream<E>,
+    pub(super) model: Option<ModelChoice>,
+    pub(super) out: StepsOut<'f>,
+    pub(super) tally: UpdateTally,
+    pub(super) handed_on: u64,
+    pub(super) last_t_s: Option<f64>,
+    pub(super) cancelled: bool,
+    /// The smoothed steps, newest first ([`smooth_spilled`]).
+    pub(super) smoothed: Option<Spill<STEP_FLAT_LEN>>,
+    /// Ranges the pass left out ([`Health::smoothing_left_out`]).
+    pub(super) left_out: usize,
+}
+
+/// Reads the file once through `method` into `out`, leaving out and keeping ranges as `ranges`
+/// says, with the model `chosen` on an earlier pass (None: chosen now, when the method chooses).
+pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
+    method: Method,
+    input: &StreamedInput<'_>,
+    kind: &FilterKind<E>,
+    imu_span_s: (f64, f64),
+    out: StepsOut<'f>,
+    ranges: &mut RangesOfPass<'_>,
+    chosen: Option<&ModelChoice>,
+) -> Result<Pass<'f, E>> {
+    let survey = input.survey;
+    let choosing = chosen.is_none() && method.chooses_its_model() && input.config.model_selection.enabled;
+    // A log the selection cannot score for its anchors or its lack of ranges needs no window
+    // kept: the choice (the input configuration, and why) comes at once.
+    let scorable = survey.anchors.positions.len() >= crate::select::MIN_ANCHORS && survey.n_ranges > 0;
+    let selecting = choosing && scorable;
+    let mut run = Run {
+        method,
+        input,
+        kind,
+        prefix: selecting.then(|| Prefix { end_s: imu_span_s.0 + input.config.model_selection.window_s, events: Vec::new() }),
+        stream: None,
+        model: None,
+        out,
+        tally: UpdateTally::new(&survey.anchors.ids, survey_sensors(survey)),
+        steps: Vec::new(),
+        updates: Vec::new(),
+        record: SmoothingRecord::default(),
+        handed_on: 0,
+        last_t_s: None,
+    };
+    if let Some(choice) = chosen {
+        run.start(&choice.config)?;
+        run.model = Some(choice.clone());
+    } else if choosing && !scorable {
+        let empty = Prefix { end_s: imu_span_s.0, events: Vec::new() };
+        let choice = empty.choose(method, input);
+        run.start(&choice.config)?;
+        run.model = Some(choice);
+    } else if !selecting {
+        run.start(input.config)?;
+    }
+    let mut ordered = Ordered::new(input.config, imu_span_s);
+    let mut released = Vec::new();
+    let cancelled = || input.progress.is_some_and(Progress::cancelled);
+    let read = stream_recording_file(input.path, input.mapping, survey, |item| {
+        if cancelled() {
+            return Err(CoreError::Interrupted { what: "replay" }.into());
+        }
+        let event = match item {
+            RecordItem::Imu(s) => Event::Imu(s),
+            RecordItem::Range(r, _) => Event::Range(r),
+            RecordItem::Tdoa(m) => Event::Observation(Observation::Tdoa(m)),
+            RecordItem::Sensor(o) => Event::Observation(o),
+            RecordItem::Truth(t, p) => return run.truth(t, p),
+        };
+        ordered.push(event, &mut released)?;
+        released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))
+    });
+    let cancelled_run = match read {
+        Ok(()) => false,
+        Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => true,
+        Err(e) => return Err(e),
+    };
+    if !cancelled_run {
+        ordered.release(f64::INFINITY, &mut released);
+        released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))?;
+    }
+    run.choose()?;
+    let Some(stream) = run.stream.as_mut() else {
+        return Err(CoreError::InvalidCall("the stream was not started".into()).into());
+    };
+    stream.finish()?;
+    if stream.estimator().is_none() && !cancelled_run {
+        return Err(CoreError::InsufficientData(
+            "the filter could not initialise itself: no UWB epoch solvable for a position (give an initial state)".into(),
+        )
+        .into());
+    }
+    run.collect(true)?;
+    let Run { stream, model, out, tally, handed_on, last_t_s, .. } = run;
+    let Some(stream) = stream else { return Err(CoreError::InvalidCall("the stream was not started".into()).into()) };
+    Ok(Pass { stream, model, out, tally, handed_on, last_t_s, cancelled: cancelled_run, smoothed: None, left_out: 0 })
+}
+
+impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
+    /// RTS-smooths a spilled pass that ran to the end ([`smooth_spilled`]); a cancelled smoothing
+    /// leaves it unsmoothed.
+    pub(super) fn smooth(&mut self, input: &StreamedInput<'_>, core: fn(&mut E) -> Option<&mut InertialCore>) -> Result<()> {
+        let StepsOut::Spilled(spills) = &mut self.out else { return Ok(()) };
+        let Some(core) = self.stream.estimator_mut().and_then(core).filter(|_| !self.cancelled) else { return Ok(()) };
+        if let Some(p) = input.progress {
+            p.start_smoothing();
+        }
+        let cancelled = || input.progress.is_some_and(Progress::cancelled);
+        let Spills { steps, segments, checkpoints, .. } = &mut **spills;
+        self.smoothed = match smooth_spilled(core, steps, (segments, checkpoints), input.spill_dir, &cancelled) {
+            Ok(s) => Some(s),
+            Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
+            Err(e) => return Err(e),
+        };
+        Ok(())
+    }
+
+    /// Hands on a spilled pass's steps to `on_step` (the smoothed ones when there are), oldest
+    /// first, and returns what the pass found.
+    pub(super) fn finish(mut self, survey: &RecordingSurvey, on_step: Option<StepSink<'_>>) -> Result<StreamedReplay> {
+        let (anchors, sensors, mean_nis) = self.tally.finish();
+        let (rmse, smoothed) = match self.out {
+            StepsOut::Forward { truth, .. } => (truth.finish()?, false),
+            StepsOut::Spilled(spills) => {
+                let Some(on_step) = on_step else {
+                    return Err(CoreError::InvalidCall("a spilled pass needs a step sink".into()).into());
+                };
+                let Spills { mut steps, truth: mut truth_spill, .. } = *spills;
+                let spilled_truth = truth_spill.oldest_first()?.map(|r| r.map(|v| (v[0], Vec3::new(v[1], v[2], v[3]))));
+                let mut matcher = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
+                let was_smoothed = self.smoothed.is_some();
+                match self.smoothed.take() {
+                    // The smoothed steps were kept newest first: read back newest first, they come oldest first.
+                    Some(mut s) => {
+                        hand_on(s.newest_first()?.map(|r| r.map(|v| step_from_flat(&v))), spilled_truth, &mut matcher, on_step)?
+                    }
+                    None => hand_on(
+                        steps.oldest_first()?.map(|r| r.map(|v| step_from_flat(&v))),
+                        spilled_truth,
+                        &mut matcher,
+                        on_step,
+                    )?,
+                }
+                (matcher.finish()?, was_smoothed)
+            }
+        };
+        let mut health = self.stream.health();
+        health.smoothing_left_out = self.left_out;
+        Ok(StreamedReplay {
+            smoothed,
+            steps: self.handed_on,
+            last_t_s: self.last_t_s,
+            anchors,
+            sensors,
+            mean_nis,
+            model: self.model,
+            warnings: self.stream.take_warnings(),
+            rmse,
+            health,
+            cancelled: self.cancelled,
+        })
+    }
+}
