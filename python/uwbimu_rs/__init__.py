@@ -45,6 +45,7 @@ from uwbimu_rs._native import (
     Ukf,
     UpdateReport,
     UwbImuError,
+    survey_anchors,
 )
 from uwbimu_rs._recording import read_mcap, replay
 from uwbimu_rs._typing import MethodName
@@ -88,6 +89,7 @@ __all__ = [
     "calibrate",
     "choose_model",
     "compare",
+    "survey_anchors",
     "crlb",
     "fleet",
     "initialize",

@@ -36,6 +36,7 @@ __all__ = [
     "Arckf",
     "Ckf",
     "posterior_crlb",
+    "survey_anchors",
     "Criekf",
     "Best",
     "Iekf",
@@ -615,6 +616,41 @@ def calibration_apply(coefficients: Sequence[float], measured: ArrayLike) -> _F6
 
 def calibrate_ranges(ranges: ArrayLike, calibration: dict[int, Sequence[float]], anchor_count: int) -> NDArray[np.float64]:
     """Applies per-anchor cubics to a range table (M, 3) = t, anchor index, range; returns a copy."""
+
+def survey_anchors(
+    pairs: ArrayLike,
+    *,
+    fixed: Mapping[int, ArrayLike] | None = None,
+    heights: ArrayLike | None = None,
+) -> dict[str, Any]:
+    """Survey the anchors from ranges measured between them, without a tape measure
+    (docs/anchors.md).
+
+    Parameters
+    ----------
+    pairs : array_like, shape (M, 3)
+        anchor i, anchor j (indices), range (m); a pair may be measured any number of times, some
+        of them in NLOS (a robust M-estimator weighs them down: Huber, then Tukey's biweight).
+    fixed : dict, optional
+        ``{index: [x, y, z]}``: anchors pinned at known positions (at least three, not on a line).
+    heights : array_like, shape (K,), optional
+        Known mounting heights, m (NaN where unknown).
+
+    Returns
+    -------
+    dict
+        ``positions`` (K, 3) m; ``covariances`` (K, 3, 3) m²; ``residuals`` (M,) m (survey
+        distance minus range); ``sigma`` (robust scale of the residuals, m); ``warnings`` (a
+        mirror left open, a near-coplanar or collinear layout, pairs that look NLOS);
+        ``frame``: anchor 0 at the origin, anchor 1 on +x, anchor 2 on the +y side, z the normal
+        of their plane (with heights: z the heights), unless anchors are pinned.
+
+    Raises
+    ------
+    ValueError
+        A range that is NaN or negative, a pair of one anchor, an anchor without any pair, a pair
+        graph in pieces, fewer distinct pairs than the geometry needs.
+    """
 
 def posterior_crlb(
     imu: ArrayLike,

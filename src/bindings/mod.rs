@@ -12,6 +12,7 @@ mod metrics;
 mod ranging;
 mod repr;
 mod sim;
+mod survey;
 
 use pyo3::prelude::*;
 
@@ -30,5 +31,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     metrics::register(m)?;
     ranging::register(m)?;
     sim::register(m)?;
+    survey::register(m)?;
     Ok(())
 }

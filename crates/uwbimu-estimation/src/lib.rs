@@ -3,6 +3,7 @@
 //! the planar filters, the event pipeline, multilateration, self-initialisation, the smoother,
 //! the CRLB). Uses only the vocabulary.
 
+pub mod anchor_survey;
 pub mod crlb;
 pub mod epoch;
 pub mod filters;
