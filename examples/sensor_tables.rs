@@ -48,15 +48,9 @@ fn track(method: Method, sim: &SimConfig, config: &FilterConfig, data: &SimData,
     let initial = true_initial(sim, config, data)?;
     let observations = data.observations_for(|k| sensors && method.takes(Input::Sensor(k)));
     let input = BatchInput {
-        imu: &data.imu,
-        ranges: &data.ranges,
-        anchors: &data.anchors,
         initial: Some(&initial),
-        config,
-        smooth: false,
         observations: &observations,
-        progress: None,
-        marginals_every_s: None,
+        ..BatchInput::forward(&data.imu, &data.ranges, &data.anchors, config)
     };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input)? else { return Err("not inertial".into()) };
     Ok(trace.steps.iter().zip(&data.truth).map(|(s, t)| (s.t_s, s.state.position, t.position)).collect())
@@ -197,17 +191,7 @@ fn heading_track(
     initial: Option<&InitialState>,
 ) -> Res<Vec<(f64, f64, f64)>> {
     let body_from_filter_body = sim.imu_rotation * config.mounting.imu_rotation.inverse();
-    let input = BatchInput {
-        imu: &data.imu,
-        ranges: &data.ranges,
-        anchors: &data.anchors,
-        initial,
-        config,
-        smooth: false,
-        observations: &[],
-        progress: None,
-        marginals_every_s: None,
-    };
+    let input = BatchInput { initial, ..BatchInput::forward(&data.imu, &data.ranges, &data.anchors, config) };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input)? else { return Err("not inertial".into()) };
     let truth = |t: f64| &data.truth[data.truth.partition_point(|s| s.t_s < t).min(data.truth.len() - 1)];
     Ok(trace
@@ -230,7 +214,7 @@ fn start_after(config: &FilterConfig, data: &SimData) -> Res<(f64, &'static str)
         Box::new(move |initial: &InitialState| Ekf::new(anchors.clone(), initial, config.clone()))
     };
     let mut stream = Stream::self_initializing(anchors, config.clone(), build, StreamOptions::default())?;
-    let streams = Streams { imu: &data.imu, ranges: &data.ranges, observations: &[], progress: None, marginals_every_s: None };
+    let streams = Streams { imu: &data.imu, ranges: &data.ranges, ..Streams::default() };
     for event in streams.events() {
         let t = event.t_s();
         stream.push("start_after", event)?;

@@ -13,32 +13,12 @@ use uwbimu_rs::vocabulary::math::Vec3;
 
 /// The batch input over a simulated run: ranges only, forward pass.
 pub fn batch<'a>(data: &'a SimData, initial: Option<&'a InitialState>, config: &'a FilterConfig) -> BatchInput<'a> {
-    BatchInput {
-        imu: &data.imu,
-        ranges: &data.ranges,
-        anchors: &data.anchors,
-        initial,
-        config,
-        smooth: false,
-        observations: &[],
-        progress: None,
-        marginals_every_s: None,
-    }
+    BatchInput { initial, ..BatchInput::forward(&data.imu, &data.ranges, &data.anchors, config) }
 }
 
 /// The batch input over a recording read from its file: ranges only, forward pass unless `smooth`.
 pub fn recording_batch<'a>(rec: &'a Recording, config: &'a FilterConfig, smooth: bool) -> BatchInput<'a> {
-    BatchInput {
-        imu: &rec.imu,
-        ranges: &rec.ranges,
-        anchors: &rec.anchors,
-        initial: None,
-        config,
-        smooth,
-        observations: &[],
-        progress: None,
-        marginals_every_s: None,
-    }
+    BatchInput { smooth, ..BatchInput::forward(&rec.imu, &rec.ranges, &rec.anchors, config) }
 }
 
 /// Filter noise matched to the simulator's sensor model.

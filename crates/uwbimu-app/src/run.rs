@@ -73,6 +73,25 @@ pub struct BatchInput<'a> {
     pub marginals_every_s: Option<f64>,
 }
 
+impl<'a> BatchInput<'a> {
+    /// A forward run of `imu`, `ranges` and `anchors` with `config`: self-initialised, no other
+    /// sensor, no progress, no marginals; the other fields are set with struct update syntax
+    /// (`BatchInput { initial: Some(&x), ..BatchInput::forward(...) }`).
+    pub fn forward(imu: &'a [ImuSample], ranges: &'a [RangeMeasurement], anchors: &'a [Vec3], config: &'a FilterConfig) -> Self {
+        Self {
+            imu,
+            ranges,
+            anchors,
+            initial: None,
+            config,
+            smooth: false,
+            observations: &[],
+            progress: None,
+            marginals_every_s: None,
+        }
+    }
+}
+
 /// Time left out at the start of a self-initialised run when scoring it, s: the filter is still
 /// aligning. Tuning against truth ([`crate::tune`]), the generality matrix ([`crate::generality`])
 /// and the held-out range score of the model selection ([`crate::select`]) all leave it out.
