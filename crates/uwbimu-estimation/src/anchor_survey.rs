@@ -6,8 +6,7 @@
 //! residuals, 1.4826 × their median absolute value), which converge from the starting layout,
 //! then from there with Tukey's biweight `w = (1 − (r/cs)²)²` for `|r| < c·s` (`c` =
 //! [`TUKEY_C`]), which gives a pair in non-line-of-sight, whose ranges are all too long, no
-//! weight at all instead of Huber's bounded one (with Huber alone a pair 0.6 m long in 8 of 120
-//! ranges still moved an anchor by 0.1 m).
+//! weight at all instead of Huber's bounded one (docs/anchors.md has what Huber alone left).
 //!
 //! **The frame.** Ranges fix the anchors only up to a rigid motion (and a mirror). Unless
 //! anchors are pinned (`fixed`, at least three not on a line), the frame is: anchor 0 at the
