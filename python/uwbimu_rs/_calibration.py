@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 import numpy as np
+from numpy.typing import ArrayLike
 import polars as pl
 
 from uwbimu_rs import _native
@@ -20,14 +21,18 @@ def calibrate(
     anchors: np.ndarray,
     *,
     truth: np.ndarray | None = None,
-    method: MethodName = "riekf",
+    method: MethodName | None = None,
     initial: Mapping[str, Any] | None = None,
     config: FilterConfig | Mapping[str, Any] | None = None,
     iterations: int | None = None,
     offsets: bool = False,
+    refine_anchors: bool = False,
+    anchor_std: float | ArrayLike | None = None,
+    range_bias_std: float | None = None,
 ) -> dict[str, Any]:
-    """Estimate a constant range bias per anchor (measured − true) from a log, and with
-    ``offsets=True`` also the UWB–IMU time offset and the lever arm.
+    """Estimate a constant range bias per anchor (measured − true) from a log; with
+    ``offsets=True`` also the UWB–IMU time offset and the lever arm; with
+    ``refine_anchors=True`` the anchor positions themselves (docs/anchors.md).
 
     With ``truth`` the residuals are taken against the true tag track; without it against the
     Rauch–Tung–Striebel smoothed track of ``method``, refined by expectation–maximisation over
@@ -40,8 +45,10 @@ def calibrate(
         As for :func:`run_filter`.
     truth : numpy.ndarray, shape (N, 4), optional
         ``t, x, y, z`` of the tag (UWB antenna) in the navigation frame [s, m], time increasing.
-    method : str
-        A smoothable inertial method for the no-truth estimate.
+    method : str, optional
+        A smoothable inertial method for the no-truth estimate (default ``"riekf"``, with
+        ``refine_anchors`` ``"best"``, whose model choice and NLOS handling keep the track's height
+        from wandering with wrong anchors).
     iterations : int, optional
         EM passes without truth (default 8, with ``offsets`` 16).
     offsets : bool
@@ -52,6 +59,18 @@ def calibrate(
         truth: the truth is already the tag), ``residual_rms`` [m] and ``config`` (the input
         configuration with ``ranging.time_offset_s``, ``mounting.lever_arm`` and
         ``range_calibration`` set: pass it as ``config=``).
+    refine_anchors : bool
+        Estimate the anchor positions with the track, by EM over ``iterations`` passes (default
+        10; it stops earlier once no anchor moves by 1 mm), each a smoothed run of ``method``, the
+        given ``anchors`` a prior of σ ``anchor_std``. The translation and yaw of the whole layout
+        (which no log fixes) stay those of the given anchors. Not with ``offsets``.
+    anchor_std : float or array-like of shape (K,)
+        σ of the given anchor positions per axis [m], for every anchor or per anchor (required
+        with ``refine_anchors``).
+    range_bias_std : float, optional
+        With ``refine_anchors``: also estimate a constant range bias per anchor with the positions,
+        with this prior σ [m]. The two separate as far as the log sees each anchor from different
+        directions (a bias adds the same to every range, a moved anchor ``−u·δa``).
 
     Returns
     -------
@@ -60,8 +79,20 @@ def calibrate(
         statistical σ/√n: without truth the part the smoothed track absorbs is larger — on
         isas-walk1 each bias lands within 0.052 m of the truth-based one); ``common_offset``,
         ``common_std`` (m); ``iterations``; ``range_calibration`` ``{anchor: [−b, 1, 0, 0]}`` to
-        pass as ``config["range_calibration"]``.
+        pass as ``config["range_calibration"]``. With ``refine_anchors`` also ``anchors``
+        ``(K, 3)`` (the refined positions, to pass to any method; with ``range_bias_std`` pass
+        ``config`` too, which holds the biases), ``anchor_std`` ``(K, 3)`` [m],
+        ``anchor_covariances`` ``(K, 3, 3)`` [m²], ``directions`` (what the log does not fix: a
+        list of dicts ``kind`` ``"gauge"`` or ``"weak"``, ``std_ratio`` posterior over prior σ,
+        ``vector`` ``(K, 3)``, ``description``), ``biases_estimated``, ``moves`` (the largest
+        anchor move of each pass, m), ``residual_rms`` (m) and ``config``; ``biases`` then holds
+        the estimated biases, or without ``range_bias_std`` the mean residual each refined anchor
+        leaves.
     """
+    if iterations is None:
+        iterations = 10 if refine_anchors else 16 if offsets else 8
+    if method is None:
+        method = "best" if refine_anchors else "riekf"
     out = _native.calibrate_log(
         imu,
         ranges,
@@ -70,8 +101,11 @@ def calibrate(
         method=method,
         initial=_as_dict(initial),
         config=_as_dict(config),
-        iterations=iterations if iterations is not None else (16 if offsets else 8),
+        iterations=iterations,
         offsets=offsets,
+        refine_anchors=refine_anchors,
+        anchor_std=anchor_std,
+        range_bias_std=range_bias_std,
     )
     out["biases"] = pl.DataFrame(out["biases"]).with_columns(pl.col("anchor", "used", "ranges").cast(pl.Int64))
     return out

@@ -691,12 +691,18 @@ def calibrate_log(
     config: _ConfigArg = None,
     iterations: int = 8,
     offsets: bool = False,
+    refine_anchors: bool = False,
+    anchor_std: float | ArrayLike | None = None,
+    range_bias_std: float | None = None,
 ) -> dict[str, Any]:
     """Estimate a constant range bias per anchor from a log (with the tag's truth (N, 4) = t, x, y,
     z, else by EM over the smoothed track of ``method``), with ``offsets`` also the time offset
     and the lever arm; the GIL is released. Returns ``biases`` (anchor, bias, std, used, ranges),
     ``common_offset``, ``common_std``, ``iterations``, ``range_calibration``; with ``offsets`` also
     ``time_offset``, ``time_offset_std``, ``lever_arm``, ``lever_arm_std``, ``residual_rms``,
+    ``config``; with ``refine_anchors`` (σ ``anchor_std`` of the given anchors, a bias per anchor
+    with prior σ ``range_bias_std`` when given) also ``anchors``, ``anchor_std``,
+    ``anchor_covariances``, ``directions``, ``biases_estimated``, ``moves``, ``residual_rms``,
     ``config``."""
 
 def choose_model(

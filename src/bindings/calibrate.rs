@@ -2,16 +2,22 @@
 //! (`uwbimu_app::calibrate`), time offset and lever arm (`uwbimu_app::offsets`), the noise tuning
 //! (`uwbimu_app::tune`) and the model selection of `best` (`uwbimu_app::select`).
 
+use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
+use uwbimu_app::anchor_refine::{
+    refine_anchors as refine_anchors_run, refine_anchors_with_truth, AnchorRefinement, DirectionKind, RefineSettings,
+};
 use uwbimu_app::calibrate::{calibrate_with_truth, calibrate_without_truth, BiasCalibration};
 use uwbimu_app::methods::Method;
 use uwbimu_app::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
 use uwbimu_app::select::{choose, ModelChoice};
 use uwbimu_app::tune::{tune, Objective, TUNED_KEYS};
+use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::Vec3;
 
-use super::convert::{array, columns, config_value_to_py, table};
+use super::convert::{array, columns, config_value_to_py, matrices_array, points_array, table};
 use super::errors::PyResult;
 use super::filters::{calibration_dict, config_dict, Log};
 
@@ -31,13 +37,15 @@ fn read_truth(truth: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<(f64, Vec
 /// Calibrates a log (`uwbimu_app::calibrate`, and with `offsets` `uwbimu_app::offsets`): a constant range
 /// bias per anchor (measured − true, m), with `offsets` also the UWB–IMU time offset and (without
 /// truth) the lever arm; against the tag's ground truth `truth` (N, 4) = t, x, y, z when given,
-/// else by EM over the smoothed track of `method` (`iterations` passes). Returns a dict: `anchor,
+/// else by EM over the smoothed track of `method` (`iterations` passes); with `refine_anchors`
+/// instead the anchor positions, prior σ `anchor_std` (and a bias per anchor, prior σ
+/// `range_bias_std`), as [`refinement_dict`] (`uwbimu_app::anchor_refine`). Returns a dict: `anchor,
 /// bias, std, used, ranges` columns, `common_offset`, `common_std` (m), `iterations`,
 /// `range_calibration` `{anchor: [c0, c1, c2, c3]}`; with `offsets` also `time_offset`,
 /// `time_offset_std` (s), `lever_arm`, `lever_arm_std` (m, None with truth), `residual_rms` (m) and
 /// `config` (the input configuration with the estimates in it). The GIL is released.
 #[pyfunction]
-#[pyo3(signature = (imu, ranges, anchors, *, truth=None, method="riekf", initial=None, config=None, iterations=8, offsets=false))]
+#[pyo3(signature = (imu, ranges, anchors, *, truth=None, method="riekf", initial=None, config=None, iterations=8, offsets=false, refine_anchors=false, anchor_std=None, range_bias_std=None))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate_log<'py>(
     py: Python<'py>,
@@ -50,11 +58,29 @@ fn calibrate_log<'py>(
     config: Option<&Bound<'py, PyAny>>,
     iterations: usize,
     offsets: bool,
+    refine_anchors: bool,
+    anchor_std: Option<&Bound<'py, PyAny>>,
+    range_bias_std: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method = Method::parse(method)?;
     let log = Log::read(imu, ranges, anchors, initial, config)?;
     let truth = read_truth(truth)?;
     let input = log.batch(true);
+    if refine_anchors {
+        if offsets {
+            return Err(Error::InvalidCall(
+                "refine_anchors and offsets solve apart: calibrate the offsets first, then refine the anchors with the returned config".into(),
+            )
+            .into());
+        }
+        let anchor_std_m = per_anchor(anchor_std, input.anchors.len())?;
+        let settings = RefineSettings { anchor_std_m, range_bias_std_m: range_bias_std, iterations };
+        let result = py.detach(|| match &truth {
+            Some(t) => refine_anchors_with_truth(&input, t, &settings),
+            None => refine_anchors_run(&input, method, &settings),
+        })?;
+        return refinement_dict(py, &result, input.config);
+    }
     if !offsets {
         let result = py.detach(|| match &truth {
             Some(t) => calibrate_with_truth(&input, t),
@@ -74,6 +100,67 @@ fn calibrate_log<'py>(
     d.set_item("lever_arm_std", result.lever_arm.map(|(_, s)| [s.x, s.y, s.z]))?;
     d.set_item("residual_rms", result.residual_rms_m)?;
     d.set_item("config", config_dict(py, &config)?)?;
+    Ok(d)
+}
+
+/// `anchor_std` (m): one number for every axis of every anchor, `(K,)` one per anchor, or `(K, 3)`
+/// per anchor and axis.
+fn per_anchor(anchor_std: Option<&Bound<'_, PyAny>>, count: usize) -> PyResult<Vec<Vec3>> {
+    let Some(obj) = anchor_std.filter(|o| !o.is_none()) else {
+        return Err(Error::InvalidCall(
+            "refine_anchors needs anchor_std: the σ of the given positions, m (one number, one per anchor, or (K, 3))".into(),
+        )
+        .into());
+    };
+    if let Ok(x) = obj.extract::<f64>() {
+        return Ok(vec![Vec3::repeat(x); count]);
+    }
+    let values = array(obj, "anchor_std")?;
+    let flat: Vec<f64> = values.as_array().iter().copied().collect();
+    match values.shape() {
+        [k] if *k == count => Ok(flat.into_iter().map(Vec3::repeat).collect()),
+        [k, 3] if *k == count => Ok(flat.chunks(3).map(Vec3::from_column_slice).collect()),
+        shape => Err(Error::Shape {
+            name: "anchor_std",
+            expected: format!("a number, ({count},) or ({count}, 3)"),
+            got: format!("{shape:?}"),
+        }
+        .into()),
+    }
+}
+
+/// The dict of an anchor refinement: `anchors` `(K, 3)`, `anchor_std` `(K, 3)`,
+/// `anchor_covariances` `(K, 3, 3)`, `directions` (list of dicts `kind`, `std_ratio`, `vector`
+/// `(K, 3)`, `description`), the bias table and `range_calibration` as [`bias_dict`],
+/// `biases_estimated`, `moves` (m per pass), `converged`, `iterations`, `residual_rms` and `config` (`config`
+/// with the estimated biases in its `range_calibration`).
+fn refinement_dict<'py>(py: Python<'py>, r: &AnchorRefinement, config: &FilterConfig) -> PyResult<Bound<'py, PyDict>> {
+    let d = bias_dict(py, &BiasCalibration::from_anchors(r.biases.clone(), r.moves_m.len()))?;
+    d.set_item("anchors", points_array(py, &r.anchors)?)?;
+    let std: Vec<Vec3> = r.covariances.iter().map(|c| c.diagonal().map(|v| v.max(0.0).sqrt())).collect();
+    d.set_item("anchor_std", points_array(py, &std)?)?;
+    d.set_item("anchor_covariances", matrices_array(py, &r.covariances)?)?;
+    let directions = PyList::empty(py);
+    for dir in &r.directions {
+        let row = PyDict::new(py);
+        row.set_item(
+            "kind",
+            match dir.kind {
+                DirectionKind::Gauge => "gauge",
+                DirectionKind::Weak => "weak",
+            },
+        )?;
+        row.set_item("std_ratio", dir.std_ratio)?;
+        row.set_item("vector", points_array(py, &dir.vector)?)?;
+        row.set_item("description", dir.describe())?;
+        directions.append(row)?;
+    }
+    d.set_item("directions", directions)?;
+    d.set_item("biases_estimated", r.biases_estimated)?;
+    d.set_item("moves", r.moves_m.clone())?;
+    d.set_item("converged", r.converged)?;
+    d.set_item("residual_rms", r.residual_rms_m)?;
+    d.set_item("config", config_dict(py, &r.apply_to(config)?)?)?;
     Ok(d)
 }
 

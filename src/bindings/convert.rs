@@ -1,13 +1,13 @@
 //! Conversions between NumPy arrays and the core's typed rows (NumPy is row-major, nalgebra
 //! column-major: values are copied, never reinterpreted).
 
-use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyString};
 use uwbimu_vocabulary::config::ConfigValue;
 use uwbimu_vocabulary::error::Error;
-use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::math::{Mat3, Vec3};
 
 use super::errors::PyResult;
 
@@ -79,6 +79,18 @@ pub fn columns<'py>(py: Python<'py>, cols: Vec<(&'static str, Vec<f64>)>) -> PyR
         d.set_item(name, values.into_pyarray(py))?;
     }
     Ok(d)
+}
+
+/// Points as a `(K, 3)` float64 NumPy array, one row per point.
+pub fn points_array<'py>(py: Python<'py>, points: &[Vec3]) -> PyResult<Bound<'py, PyAny>> {
+    let flat: Vec<f64> = points.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+    Ok(flat.into_pyarray(py).reshape([points.len(), 3])?.into_any())
+}
+
+/// 3×3 matrices as a `(K, 3, 3)` float64 NumPy array, `[k, row, column]`.
+pub fn matrices_array<'py>(py: Python<'py>, matrices: &[Mat3]) -> PyResult<Bound<'py, PyAny>> {
+    let flat: Vec<f64> = matrices.iter().flat_map(|c| c.transpose().as_slice().to_vec()).collect();
+    Ok(flat.into_pyarray(py).reshape([matrices.len(), 3, 3])?.into_any())
 }
 
 /// Converts any array-like to a float64 NumPy array (`numpy.ascontiguousarray`), naming the

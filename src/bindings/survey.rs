@@ -1,14 +1,14 @@
 //! Python function for surveying anchors from anchor-to-anchor ranges
 //! ([`uwbimu_estimation::anchor_survey`]).
 
-use numpy::{IntoPyArray, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_estimation::anchor_survey::{survey_anchors as survey, AnchorPair, SurveyPriors};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::Vec3;
 
-use super::convert::{array, table};
+use super::convert::{array, matrices_array, points_array, table};
 use super::errors::PyResult;
 
 /// Column names of a pair table.
@@ -60,10 +60,8 @@ fn survey_anchors<'py>(
     let priors = SurveyPriors { fixed: pinned, heights };
     let s = py.detach(|| survey(&pairs, count, &priors))?;
     let out = PyDict::new(py);
-    let flat: Vec<f64> = s.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
-    out.set_item("positions", flat.into_pyarray(py).reshape([count, 3])?)?;
-    let cov: Vec<f64> = s.covariances.iter().flat_map(|c| c.transpose().as_slice().to_vec()).collect();
-    out.set_item("covariances", cov.into_pyarray(py).reshape([count, 3, 3])?)?;
+    out.set_item("positions", points_array(py, &s.positions)?)?;
+    out.set_item("covariances", matrices_array(py, &s.covariances)?)?;
     out.set_item("residuals", s.residuals_m.into_pyarray(py))?;
     out.set_item("sigma", s.sigma_m)?;
     out.set_item("warnings", s.warnings)?;

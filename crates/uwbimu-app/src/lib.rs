@@ -1,5 +1,5 @@
 //! Layer 3 of uwbimu_rs, applications of the estimators: the named methods and their batch
-//! runner, range-bias calibration and noise tuning from a log, MCAP recordings and replay, output
+//! runner, range-bias calibration, anchor refinement and noise tuning from a log, MCAP recordings and replay, output
 //! columns, metrics, the scenario simulator, the generality matrix and the Monte Carlo consistency
 //! checks. Depends on `uwbimu_vocabulary` and `uwbimu_estimation`; the compiler keeps it from
 //! being used by them.
@@ -7,9 +7,10 @@
 //! Inside, the modules import one way, without a cycle: the method registry (`registry`) imports
 //! no other module; the runner (`run`) the registry; the model selection ([`select`]) the runner;
 //! [`methods`] (the batch API, and the public path of the registry's and the runner's items) the
-//! selection; calibration, tuning, offsets, replay, the generality matrix and the consistency
+//! selection; calibration, anchor refinement, tuning, offsets, replay, the generality matrix and the consistency
 //! checks [`methods`].
 
+pub mod anchor_refine;
 pub mod calibrate;
 pub mod columns;
 #[cfg(feature = "sim")]

@@ -24,10 +24,9 @@ use nalgebra::{DMatrix, DVector};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 
-/// Huber threshold in robust standard deviations (95 % efficiency for Gaussian errors).
-pub const HUBER_K: f64 = 1.345;
-/// Tukey biweight threshold in robust standard deviations (95 % efficiency for Gaussian errors).
-pub const TUKEY_C: f64 = 4.685;
+use crate::robust::MEstimator;
+pub use crate::robust::{HUBER_K, TUKEY_C};
+
 /// Smallest robust scale of the residuals, m (a survey of exact ranges still has a weight).
 const MIN_SCALE_M: f64 = 0.005;
 /// A pair whose median residual exceeds this many robust scales is reported as NLOS.
@@ -121,8 +120,8 @@ pub fn survey_anchors(pairs: &[AnchorPair], anchor_count: usize, priors: &Survey
         )));
     }
     let mut positions = initial_positions(&distances, anchor_count, &heights, &pinned, gauge && !all_heights)?;
-    refine(pairs, &mut positions, &free, Weights::Huber)?;
-    let (cov, scale) = refine(pairs, &mut positions, &free, Weights::Tukey)?;
+    refine(pairs, &mut positions, &free, MEstimator::Huber)?;
+    let (cov, scale) = refine(pairs, &mut positions, &free, MEstimator::Tukey)?;
     let residuals_m: Vec<f64> = pairs.iter().map(|p| (positions[p.i] - positions[p.j]).norm() - p.range_m).collect();
     let mut warnings = layout_warnings(&positions, gauge, all_heights);
     let redundancy = distances.len() - unknowns;
@@ -239,31 +238,6 @@ fn initial_positions(
     Ok(placed.into_iter().map(|p| p.unwrap_or_else(Vec3::zeros)).collect())
 }
 
-/// The weight function of a stage of [`refine`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Weights {
-    /// `min(1, k·s/|r|)`: convex, converges from afar.
-    Huber,
-    /// `(1 − (r/cs)²)²` inside `c·s`, else 0: redescending, drops what is far off.
-    Tukey,
-}
-
-impl Weights {
-    fn of(self, r: f64, scale: f64) -> f64 {
-        match self {
-            Self::Huber => (HUBER_K * scale / r.abs().max(1e-12)).min(1.0),
-            Self::Tukey => {
-                let u = r / (TUKEY_C * scale);
-                if u.abs() < 1.0 {
-                    (1.0 - u * u).powi(2)
-                } else {
-                    0.0
-                }
-            }
-        }
-    }
-}
-
 /// Gauss–Newton from `start` on one anchor's ranges `known` to placed anchors (z held when
 /// `height_known`): its position and the sum of squared residuals there.
 fn trilaterate(start: Vec3, known: &[(Vec3, f64)], height_known: bool) -> (Vec3, f64) {
@@ -292,7 +266,7 @@ fn trilaterate(start: Vec3, known: &[(Vec3, f64)], height_known: bool) -> (Vec3,
 
 /// Iteratively reweighted Gauss–Newton over the free coordinates with `weights` on every
 /// measured range; returns each anchor's covariance and the robust scale.
-fn refine(pairs: &[AnchorPair], positions: &mut [Vec3], free: &[[bool; 3]], weights: Weights) -> Result<(Vec<Mat3>, f64)> {
+fn refine(pairs: &[AnchorPair], positions: &mut [Vec3], free: &[[bool; 3]], weights: MEstimator) -> Result<(Vec<Mat3>, f64)> {
     let index: Vec<[Option<usize>; 3]> = {
         let mut next = 0;
         free.iter()
@@ -317,7 +291,7 @@ fn refine(pairs: &[AnchorPair], positions: &mut [Vec3], free: &[[bool; 3]], weig
         normal.fill(0.0);
         let mut gradient = DVector::<f64>::zeros(unknowns);
         for (p, r) in pairs.iter().zip(&residuals) {
-            let w = weights.of(*r, scale);
+            let w = weights.weight(*r, scale);
             let diff = positions[p.i] - positions[p.j];
             let u = diff / diff.norm().max(1e-9);
             let mut rows: Vec<(usize, f64)> = Vec::with_capacity(6);
@@ -349,7 +323,7 @@ fn refine(pairs: &[AnchorPair], positions: &mut [Vec3], free: &[[bool; 3]], weig
             pairs
                 .iter()
                 .zip(&residuals)
-                .map(|(p, r0)| weights.of(*r0, scale) * ((at[p.i] - at[p.j]).norm() - p.range_m).powi(2))
+                .map(|(p, r0)| weights.weight(*r0, scale) * ((at[p.i] - at[p.j]).norm() - p.range_m).powi(2))
                 .sum()
         };
         let before = weighted(positions);

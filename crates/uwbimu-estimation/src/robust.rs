@@ -4,12 +4,14 @@
 
 pub mod aiding;
 mod chi2;
+mod m_estimator;
 mod noise_bounds;
 mod policy;
 mod robustness;
 mod sage_husa;
 
 pub use chi2::{chi2_quantile, chi2_quantile_1dof, normal_quantile, CHI2_1DOF_ALPHA_1E4};
+pub use m_estimator::{MEstimator, HUBER_K, TUKEY_C};
 pub use noise_bounds::{DivergenceMonitor, NoiseBounds};
 pub use policy::{tested_nis, RangeNoisePolicy};
 pub use robustness::{
