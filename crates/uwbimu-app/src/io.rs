@@ -1,10 +1,12 @@
 //! MCAP logs in and out: streaming reading ([`mcap_read`]), the ros2msg schema parser
 //! ([`msg_schema`]) and generic CDR decoder ([`cdr`]), field-path mappings ([`field_path`],
 //! [`Mapping`]), per-topic decoders ([`topics`]), anchor tables ([`anchors`]), the bounded
-//! reorder window ([`reorder`]), the whole-recording reader ([`read_recording`]), ground-truth files
-//! ([`truth_file`]) and the writers: Foxglove trajectories ([`foxglove_out`]), recordings
+//! reorder window ([`reorder`]), the whole-recording reader ([`read_recording`]), the reader of
+//! anchor-to-anchor ranges ([`anchor_ranges`]), ground-truth files ([`truth_file`]) and the
+//! writers: Foxglove trajectories ([`foxglove_out`]), recordings
 //! ([`recording_out`]), CSV ([`csv_out`]).
 
+pub mod anchor_ranges;
 pub mod anchors;
 pub mod atomic_file;
 pub mod cdr;
@@ -25,11 +27,12 @@ pub mod truth_file;
 
 pub use error::{IoError, IoResult};
 pub use mapping::{
-    AltitudeMapping, AnchorFrom, AnchorMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping, TimeSource,
-    UwbMapping, BODY_AXES, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
+    AltitudeMapping, AnchorFrom, AnchorMapping, AnchorRangeMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping,
+    TimeSource, UwbMapping, ANCHOR_RANGE_DEFAULT, ANCHOR_RANGE_I_DEFAULT, ANCHOR_RANGE_J_DEFAULT, BODY_AXES,
+    TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
 };
 pub use recording::{
     read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, ReadStats, RecordItem,
-    Recording, RecordingSurvey, SensorReadCounts,
+    Recording, RecordingSurvey, SensorReadCounts, TopicRole, TopicStats,
 };
 pub use replay_config::ReplayConfig;

@@ -1,7 +1,8 @@
 //! The anchor id table (string or integer ids → anchor indices of the filter) and anchor
-//! position files: CSV (`id, x, y, z`, header line optional), TOML (`id = [x, y, z]`, at top
-//! level or under `[anchors]`), JSON (`{"id": [x, y, z]}` or `[{"id": .., "position": [..]}]`),
-//! and the MCAP metadata record `uwbimu.anchors` (`id → "[x, y, z]"`).
+//! position files, read ([`read_anchor_file`]) and written ([`write_anchor_file`]): CSV (`id, x,
+//! y, z`, header line optional), TOML (`id = [x, y, z]`, at top level or under `[anchors]`), JSON
+//! (`{"id": [x, y, z]}` or `[{"id": .., "position": [..]}]`), and the MCAP metadata record
+//! `uwbimu.anchors` (`id → "[x, y, z]"`).
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -140,6 +141,48 @@ pub fn read_anchor_file(path: &Path) -> Result<BTreeMap<String, Vec3>> {
     Ok(out)
 }
 
+/// Writes anchor positions (`ids[k]` at `positions[k]`, m, rounded to 0.1 mm) as a file
+/// [`read_anchor_file`] reads back, by extension: `.csv` (`id,x_m,y_m,z_m` then a row per
+/// anchor), `.toml` (`[anchors]`, `"id" = [x, y, z]`) or `.json` (`{"id": [x, y, z]}`). The
+/// file is replaced only once complete ([`crate::io::atomic_file::write_atomically`]).
+///
+/// # Errors
+/// [`Error::Format`] for an unknown extension, ids and positions of different lengths, a
+/// non-finite position or an id given twice; [`Error::Io`] if writing fails.
+pub fn write_anchor_file(path: &Path, ids: &[String], positions: &[Vec3]) -> Result<()> {
+    let fail = |reason: String| Error::Format { what: format!("anchor file {}", path.display()), reason };
+    if ids.len() != positions.len() {
+        return Err(fail(format!("{} ids for {} positions", ids.len(), positions.len())));
+    }
+    if let Some(k) = positions.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(fail(format!("anchor `{}`: position {:?} is not finite", ids[k], positions[k].as_slice())));
+    }
+    let xyz: BTreeMap<String, [f64; 3]> =
+        ids.iter().zip(positions).map(|(id, p)| (id.clone(), [p.x, p.y, p.z].map(|v| (v * 1e4).round() / 1e4))).collect();
+    if xyz.len() != ids.len() {
+        return Err(fail("an anchor id is given twice".into()));
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let text = match ext.as_str() {
+        "csv" => {
+            if let Some(id) = ids.iter().find(|id| id.contains([',', '\n'])) {
+                return Err(fail(format!("anchor id `{id}` holds a comma or a line break: write .toml or .json")));
+            }
+            let mut text = String::from("id,x_m,y_m,z_m\n");
+            for (id, [x, y, z]) in ids.iter().map(|id| (id, xyz[id])) {
+                text += &format!("{id},{x},{y},{z}\n");
+            }
+            text
+        }
+        "toml" => toml::to_string(&BTreeMap::from([("anchors", &xyz)])).map_err(|e| fail(e.to_string()))?,
+        "json" => serde_json::to_string_pretty(&xyz).map_err(|e| fail(e.to_string()))? + "\n",
+        _ => return Err(fail(format!("unknown extension `{ext}` (expected .csv, .toml or .json)"))),
+    };
+    crate::io::atomic_file::write_atomically(path, |file| {
+        std::io::Write::write_all(file, text.as_bytes()).map_err(|e| Error::io(path.display(), e))
+    })
+}
+
 /// A JSON id: strings as they are, numbers in decimal.
 pub fn json_id(v: &serde_json::Value) -> String {
     match v {
@@ -196,6 +239,26 @@ mod tests {
         assert_eq!(parse_anchor_metadata(&meta).unwrap()["x"], Vec3::new(1.0, 2.0, 3.0));
         let bad = BTreeMap::from([("x".to_string(), "[1, 2]".to_string())]);
         assert!(parse_anchor_metadata(&bad).is_err());
+    }
+
+    #[test]
+    fn written_files_read_back() {
+        let dir = std::env::temp_dir().join(format!("uwbimu_anchors_out_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ids = vec!["A0".to_string(), "7475".to_string(), "a b".to_string()];
+        let positions = [Vec3::new(0.0, 0.0, 2.4), Vec3::new(9.81234567, -0.5, 2.6), Vec3::new(1.0, 2.0, 3.0)];
+        for ext in ["csv", "toml", "json"] {
+            let p = dir.join(format!("out.{ext}"));
+            write_anchor_file(&p, &ids, &positions).unwrap();
+            let back = read_anchor_file(&p).unwrap();
+            assert_eq!(back.len(), 3, "{ext}");
+            assert_eq!(back["7475"], Vec3::new(9.8123, -0.5, 2.6), "{ext}");
+            assert_eq!(back["a b"], positions[2], "{ext}");
+        }
+        assert!(write_anchor_file(&dir.join("out.txt"), &ids, &positions).is_err());
+        assert!(write_anchor_file(&dir.join("out.csv"), &ids[..2], &positions).is_err());
+        let twice = vec!["A0".to_string(); 3];
+        assert!(write_anchor_file(&dir.join("out.csv"), &twice, &positions).is_err());
     }
 
     #[test]

@@ -200,6 +200,44 @@ pub struct TdoaMapping {
     pub scale: Option<f64>,
 }
 
+/// Default path of an anchor-to-anchor range's first anchor id: the field of our
+/// `uwbimu_msgs/msg/AnchorRange` ([`crate::io::recording_out::ANCHOR_RANGE_MSG`]).
+pub const ANCHOR_RANGE_I_DEFAULT: &str = "anchor_i";
+/// Default path of an anchor-to-anchor range's second anchor id (our message's field).
+pub const ANCHOR_RANGE_J_DEFAULT: &str = "anchor_j";
+/// Default path of an anchor-to-anchor range (our message's field).
+pub const ANCHOR_RANGE_DEFAULT: &str = "range";
+
+/// How anchor-to-anchor range messages are read (section `[mapping.anchor_ranges]`), the input
+/// of the anchor survey (`uwbimu-replay survey`). A message (or each element of an array, with
+/// paths such as `ranges[].from`) gives the ids of two anchors and the distance between them. The
+/// defaults are the fields of our `uwbimu_msgs/msg/AnchorRange` (`anchor_i`, `anchor_j`,
+/// `range`). The anchor rows (anchor 0 is the origin of the survey's frame) are `anchor_ids` when
+/// given; else, in natural order (`A2` before `A10`), the ids of the mapping's anchor table
+/// (`anchors.positions`, else `anchors.file`: the ids the replay maps UWB ranges through) or,
+/// without one, every id a usable pair names (a stray device's too). A pair naming an id outside
+/// the rows is dropped and counted.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnchorRangeMapping {
+    /// Anchor-to-anchor range topics (empty: every channel with our
+    /// `uwbimu_msgs/msg/AnchorRange` schema).
+    #[serde(default)]
+    pub topics: Vec<String>,
+    /// Path of the id of the first anchor; default [`ANCHOR_RANGE_I_DEFAULT`].
+    pub anchor_i: Option<String>,
+    /// Path of the id of the second anchor; default [`ANCHOR_RANGE_J_DEFAULT`].
+    pub anchor_j: Option<String>,
+    /// Path of the range; default [`ANCHOR_RANGE_DEFAULT`].
+    pub range: Option<String>,
+    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
+    pub stamp: Option<String>,
+    /// Factor from the message's unit to metres (0.001 for mm).
+    pub scale: Option<f64>,
+    /// The anchor ids in row order (row 0 first); None: see the struct's doc.
+    pub anchor_ids: Option<Vec<String>>,
+}
+
 /// Where anchor positions come from (first match wins: `positions`, `file`, the MCAP metadata
 /// record `uwbimu.anchors`, the `topic`, positions carried by range messages).
 #[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
@@ -257,6 +295,9 @@ pub struct Mapping {
     /// Body-velocity messages.
     #[serde(default)]
     pub odometry: OdometryMapping,
+    /// Anchor-to-anchor range messages (read by the anchor survey only).
+    #[serde(default)]
+    pub anchor_ranges: AnchorRangeMapping,
     /// Anchor positions.
     #[serde(default)]
     pub anchors: AnchorMapping,
@@ -279,6 +320,7 @@ impl Default for Mapping {
             tdoa: TdoaMapping::default(),
             altitude: AltitudeMapping::default(),
             odometry: OdometryMapping::default(),
+            anchor_ranges: AnchorRangeMapping::default(),
             anchors: AnchorMapping::default(),
             ground_truth: GroundTruthMapping::default(),
         }
@@ -315,11 +357,13 @@ impl Mapping {
         m.validate()
     }
 
-    /// Checks the numeric settings, the tag ids and the odometry axes.
+    /// Checks the numeric settings, the tag ids, the anchor rows of the anchor ranges and the
+    /// odometry axes.
     ///
     /// # Errors
     /// [`Error::Mapping`] for a negative window, a non-positive scale (a zero or non-finite
-    /// altitude scale), more tag ids than tags or a repeated one, a bad axis.
+    /// altitude scale), more tag ids than tags or a repeated one, an empty or repeated
+    /// `anchor_ranges.anchor_ids`, a bad axis.
     pub fn validate(self) -> Result<Self> {
         if !(self.reorder_window_s.is_finite() && self.reorder_window_s >= 0.0) {
             return Err(Error::Mapping {
@@ -327,9 +371,13 @@ impl Mapping {
                 reason: format!("must be >= 0, got {}", self.reorder_window_s),
             });
         }
-        for (field, scale) in
-            [("uwb.scale", self.uwb.scale), ("tdoa.scale", self.tdoa.scale), ("odometry.scale", self.odometry.scale)]
-        {
+        let scales = [
+            ("uwb.scale", self.uwb.scale),
+            ("tdoa.scale", self.tdoa.scale),
+            ("odometry.scale", self.odometry.scale),
+            ("anchor_ranges.scale", self.anchor_ranges.scale),
+        ];
+        for (field, scale) in scales {
             if let Some(s) = scale {
                 if !(s.is_finite() && s > 0.0) {
                     return Err(Error::Mapping { field: field.into(), reason: format!("must be > 0, got {s}") });
@@ -351,6 +399,14 @@ impl Mapping {
                 return Err(Error::Mapping {
                     field: "uwb.tag_ids".into(),
                     reason: format!("give 1 to {MAX_TAGS} distinct tag ids, one per `mounting.lever_arm` row, got {ids:?}"),
+                });
+            }
+        }
+        if let Some(ids) = &self.anchor_ranges.anchor_ids {
+            if ids.is_empty() || ids.iter().enumerate().any(|(i, id)| ids[..i].contains(id)) {
+                return Err(Error::Mapping {
+                    field: "anchor_ranges.anchor_ids".into(),
+                    reason: format!("give distinct anchor ids, one per row (row 0 first), got {ids:?}"),
                 });
             }
         }

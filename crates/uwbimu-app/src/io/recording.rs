@@ -35,6 +35,8 @@ pub enum TopicRole {
     Sensor(SensorKind),
     /// Anchor list.
     Anchors,
+    /// Anchor-to-anchor ranges (read by the anchor survey).
+    AnchorRanges,
     /// Ground truth.
     GroundTruth,
     /// Not used.
@@ -50,6 +52,7 @@ impl TopicRole {
             Self::Tdoa => "tdoa",
             Self::Sensor(kind) => kind.info().name,
             Self::Anchors => "anchors",
+            Self::AnchorRanges => "anchor ranges",
             Self::GroundTruth => "ground truth",
             Self::Ignored => "-",
         }
@@ -69,6 +72,16 @@ pub struct TopicStats {
     pub count: usize,
     /// What it was used for.
     pub role: TopicRole,
+}
+
+/// The topics of a file as an error message lists them: `topic (schema), ...`, or `none`.
+pub(crate) fn topic_list(topics: &[TopicStats]) -> String {
+    let names: Vec<String> = topics.iter().map(|t| format!("{} ({})", t.topic, t.schema)).collect();
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.join(", ")
+    }
 }
 
 /// Ranges of one anchor id as read.

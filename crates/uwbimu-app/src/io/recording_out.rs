@@ -3,7 +3,8 @@
 //! the other sensors on the topics of [`sensor_topic`] (TDoA as CDR `uwbimu_msgs/msg/Tdoa`
 //! ([`TDOA_MSG`]), heights as `sensor_msgs/msg/Range`, body velocities as `nav_msgs/msg/Odometry`),
 //! anchor positions in the metadata record `uwbimu.anchors`. Zstd chunks; profile "" (JSON
-//! channels are present).
+//! channels are present). A log of anchor-to-anchor ranges, the anchor survey's input, is written
+//! on its own ([`write_anchor_ranges_mcap`]).
 
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
@@ -18,7 +19,7 @@ use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use crate::io::anchors::ANCHORS_METADATA;
-use crate::io::topics::{TDOA_MSG_NAME, UWB_RANGE_JSON, UWB_RANGE_JSON_SCHEMA};
+use crate::io::topics::{RawAnchorRange, ANCHOR_RANGE_MSG_NAME, TDOA_MSG_NAME, UWB_RANGE_JSON, UWB_RANGE_JSON_SCHEMA};
 
 /// The ros2msg text of a header's dependencies (`std_msgs/Header`, `builtin_interfaces/Time`),
 /// appended to the definitions that have a header.
@@ -48,6 +49,14 @@ float64 x\nfloat64 y\nfloat64 z\n"
 /// header and the anchor ids as text.
 pub const TDOA_MSG: &str =
     concat!("std_msgs/Header header\nstring idA\nstring idB\nfloat64 distanceDiff\n", header_dependencies!());
+
+/// The ros2msg text of our anchor-to-anchor range message [`ANCHOR_RANGE_MSG_NAME`]: a header,
+/// the ids of the two anchors as text and the distance between them, m.
+pub const ANCHOR_RANGE_MSG: &str =
+    concat!("std_msgs/Header header\nstring anchor_i\nstring anchor_j\nfloat64 range\n", header_dependencies!());
+
+/// The topic [`write_anchor_ranges_mcap`] writes anchor-to-anchor ranges to.
+pub const ANCHOR_RANGE_TOPIC: &str = "/anchor_ranges";
 
 /// The ros2msg text of `sensor_msgs/msg/Range` (Humble: without `variance`) with its dependencies.
 pub const RANGE_MSG: &str = concat!(
@@ -153,14 +162,25 @@ pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f
     v.to_string().into_bytes()
 }
 
+/// A message of two anchor ids and a float64 after the header, as XCDR1 little-endian (the
+/// layout of [`TDOA_MSG`] and [`ANCHOR_RANGE_MSG`]).
+fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> {
+    let mut b = cdr_with_header(t_s, "", 48);
+    push_cdr_string(&mut b, anchor_i);
+    push_cdr_string(&mut b, anchor_j);
+    align8(&mut b);
+    b.extend_from_slice(&value.to_le_bytes());
+    b
+}
+
 /// One TDoA as XCDR1 little-endian [`TDOA_MSG`], anchor ids `A{i}`, `A{j}`.
 pub fn tdoa_cdr(m: &TdoaMeasurement) -> Vec<u8> {
-    let mut b = cdr_with_header(m.t_s, "", 48);
-    push_cdr_string(&mut b, &format!("A{}", m.anchor_i));
-    push_cdr_string(&mut b, &format!("A{}", m.anchor_j));
-    align8(&mut b);
-    b.extend_from_slice(&m.tdoa_m.to_le_bytes());
-    b
+    id_pair_cdr(m.t_s, &format!("A{}", m.anchor_i), &format!("A{}", m.anchor_j), m.tdoa_m)
+}
+
+/// One anchor-to-anchor range as XCDR1 little-endian [`ANCHOR_RANGE_MSG`].
+pub fn anchor_range_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, range_m: f64) -> Vec<u8> {
+    id_pair_cdr(t_s, anchor_i, anchor_j, range_m)
 }
 
 /// One height as XCDR1 little-endian [`RANGE_MSG`] (frame `altimeter`, infrared), `range = z`;
@@ -287,6 +307,32 @@ pub fn write_recording_mcap<W: Write + Seek>(
         };
         sequence += 1;
         let ns = split_time(t).2;
+        w.write_to_known_channel(&MessageHeader { channel_id, sequence, log_time: ns, publish_time: ns }, &data).map_err(err)?;
+    }
+    w.finish().map_err(err)?;
+    Ok(())
+}
+
+/// Writes anchor-to-anchor ranges `(time s, range)`, in the order given, as CDR
+/// [`ANCHOR_RANGE_MSG`] on [`ANCHOR_RANGE_TOPIC`] (log time = header stamp), in zstd chunks when
+/// `compress`; the file holds nothing else. `label` names the output in errors.
+///
+/// # Errors
+/// [`Error::Mcap`] if writing fails.
+pub fn write_anchor_ranges_mcap<W: Write + Seek>(
+    sink: W,
+    label: &str,
+    ranges: &[(f64, RawAnchorRange)],
+    compress: bool,
+) -> Result<()> {
+    let err = |source: mcap::McapError| Error::Mcap { path: label.to_string(), source };
+    let mut w =
+        WriteOptions::new().profile("").compression(compress.then_some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
+    let schema = w.add_schema(ANCHOR_RANGE_MSG_NAME, "ros2msg", ANCHOR_RANGE_MSG.as_bytes()).map_err(err)?;
+    let channel_id = w.add_channel(schema, ANCHOR_RANGE_TOPIC, "cdr", &BTreeMap::new()).map_err(err)?;
+    for (sequence, (t_s, r)) in (1u32..).zip(ranges) {
+        let ns = split_time(*t_s).2;
+        let data = anchor_range_cdr(*t_s, &r.anchor_i, &r.anchor_j, r.range_m);
         w.write_to_known_channel(&MessageHeader { channel_id, sequence, log_time: ns, publish_time: ns }, &data).map_err(err)?;
     }
     w.finish().map_err(err)?;

@@ -1,12 +1,18 @@
 //! Per-channel decoders: IMU (`sensor_msgs/msg/Imu` or anything with the same fields), UWB ranges
 //! (vendor messages through the field mapping, `sensor_msgs/msg/Range`, our JSON
-//! `uwbimu.UwbRange`), TDoA (through the field mapping), anchor lists, ground-truth poses, and the
-//! sensors without anchors ([`SensorDecoder`]: altitude, odometry). Each decoder is built once per
-//! channel from its schema, so a mapping that does not fit fails before the first message.
+//! `uwbimu.UwbRange`), TDoA and anchor-to-anchor ranges (through the field mapping), anchor
+//! lists, ground-truth poses, and the sensors without anchors ([`SensorDecoder`]: altitude,
+//! odometry). Each decoder is built once per channel from its schema, so a mapping that does not
+//! fit fails before the first message.
 
+mod anchor_ranges;
+mod id_pairs;
 mod sensors;
 
+pub use anchor_ranges::{AnchorRangeDecoder, RawAnchorRange, ANCHOR_RANGE_MSG_NAME};
 pub use sensors::{RawObservation, SensorDecoder};
+
+use id_pairs::{IdPairDecoder, PairPaths};
 
 use crate::io::{IoError as Error, IoResult as Result};
 use serde::Deserialize;
@@ -374,14 +380,7 @@ impl CdrRangeDecoder {
 
 /// Decodes TDoA messages through the `[mapping.tdoa]` field paths.
 #[derive(Debug, Clone)]
-pub struct TdoaDecoder {
-    schema: MsgSchema,
-    stamp: Option<FieldPath>,
-    anchor_i: FieldPath,
-    anchor_j: FieldPath,
-    tdoa: FieldPath,
-    scale: f64,
-}
+pub struct TdoaDecoder(IdPairDecoder);
 
 impl TdoaDecoder {
     /// Whether a channel carries our TDoA message ([`TDOA_MSG_NAME`]).
@@ -395,19 +394,15 @@ impl TdoaDecoder {
     /// [`Error::Mapping`] if a path does not fit the schema (names the `tdoa.*` key),
     /// [`Error::Format`] for an unknown encoding or schema.
     pub fn new(channel: &ChannelInfo, m: &TdoaMapping) -> Result<Self> {
-        let schema = cdr_schema(channel)?;
-        let id = |key: &str, path: &Option<String>, default: &str| {
-            FieldPath::resolve(&schema, key, path.as_deref().unwrap_or(default))?.require_id(key)
+        let paths = PairPaths {
+            section: "tdoa",
+            anchor_i: m.anchor_i.as_deref().unwrap_or(TDOA_ANCHOR_I_DEFAULT),
+            anchor_j: m.anchor_j.as_deref().unwrap_or(TDOA_ANCHOR_J_DEFAULT),
+            value: ("tdoa", m.tdoa.as_deref().unwrap_or(TDOA_DEFAULT)),
+            stamp: m.stamp.as_deref(),
+            scale: m.scale.unwrap_or(1.0),
         };
-        let anchor_i = id("tdoa.anchor_i", &m.anchor_i, TDOA_ANCHOR_I_DEFAULT)?;
-        let anchor_j = id("tdoa.anchor_j", &m.anchor_j, TDOA_ANCHOR_J_DEFAULT)?;
-        let tdoa =
-            FieldPath::resolve(&schema, "tdoa.tdoa", m.tdoa.as_deref().unwrap_or(TDOA_DEFAULT))?.require_numeric("tdoa.tdoa")?;
-        let stamp = match m.stamp.as_deref() {
-            Some(p) => Some(FieldPath::resolve(&schema, "tdoa.stamp", p)?),
-            None => default_stamp(&schema, "tdoa.stamp")?,
-        };
-        Ok(Self { schema, stamp, anchor_i, anchor_j, tdoa, scale: m.scale.unwrap_or(1.0) })
+        Ok(Self(IdPairDecoder::new(channel, &paths)?))
     }
 
     /// Decodes one message: (stamp ns if any); its TDoA are pushed to `out`.
@@ -416,33 +411,7 @@ impl TdoaDecoder {
     /// [`Error::Format`] for a payload that does not decode, [`Error::Mapping`] if the mapped
     /// paths select different numbers of values.
     pub fn decode(&self, data: &[u8], out: &mut Vec<RawTdoa>) -> Result<Option<i64>> {
-        let v = decode(&self.schema, data)?;
-        let (mut ids_i, mut ids_j, mut values) = (Vec::new(), Vec::new(), Vec::new());
-        self.anchor_i.collect(&v, &mut ids_i)?;
-        self.anchor_j.collect(&v, &mut ids_j)?;
-        self.tdoa.collect(&v, &mut values)?;
-        if ids_i.len() != values.len() || ids_j.len() != values.len() {
-            return Err(Error::Mapping {
-                field: "tdoa".into(),
-                reason: format!(
-                    "`{}`, `{}` and `{}` select {}, {} and {} values",
-                    self.anchor_i.text,
-                    self.anchor_j.text,
-                    self.tdoa.text,
-                    ids_i.len(),
-                    ids_j.len(),
-                    values.len()
-                ),
-            });
-        }
-        for ((i, j), d) in ids_i.iter().zip(&ids_j).zip(&values) {
-            out.push(RawTdoa {
-                anchor_i: i.as_id().unwrap_or_default(),
-                anchor_j: j.as_id().unwrap_or_default(),
-                tdoa_m: d.as_f64().unwrap_or(f64::NAN) * self.scale,
-            });
-        }
-        stamp_ns(self.stamp.as_ref(), &v)
+        self.0.decode(data, |anchor_i, anchor_j, tdoa_m| out.push(RawTdoa { anchor_i, anchor_j, tdoa_m }))
     }
 }
 

@@ -8,18 +8,21 @@ use serde::de::{self, DeserializeOwned, Visitor};
 use serde_json::Value;
 use uwbimu_vocabulary::suggest;
 
-use super::{AltitudeMapping, AnchorMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping, UwbMapping};
+use super::{
+    AltitudeMapping, AnchorMapping, AnchorRangeMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping, UwbMapping,
+};
 use crate::io::{IoError as Error, IoResult as Result};
 
 /// Checks the keys of the table at a path.
 type Checker = fn(&str, &Value) -> Result<()>;
 
 /// The tables nested in [`Mapping`], each with the checker of its keys.
-const NESTED: [(&str, Checker); 6] = [
+const NESTED: [(&str, Checker); 7] = [
     ("uwb", leaves::<UwbMapping>),
     ("tdoa", leaves::<TdoaMapping>),
     ("altitude", leaves::<AltitudeMapping>),
     ("odometry", leaves::<OdometryMapping>),
+    ("anchor_ranges", leaves::<AnchorRangeMapping>),
     ("anchors", leaves::<AnchorMapping>),
     ("ground_truth", leaves::<GroundTruthMapping>),
 ];

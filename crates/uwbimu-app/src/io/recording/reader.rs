@@ -14,7 +14,7 @@ use crate::io::{IoError as Error, IoResult as Result};
 use crate::io::{Mapping, TimeSource};
 use uwbimu_vocabulary::math::Vec3;
 
-use super::{ReadStats, TopicRole, TopicStats};
+use super::{topic_list, ReadStats, TopicRole, TopicStats};
 
 /// A decoded, time-stamped item waiting in the reorder buffer.
 pub(super) enum Item {
@@ -281,15 +281,6 @@ pub(super) fn read_pass<R: std::io::Read, S: ItemSink>(
     Ok(Pass { stats: r.stats, metadata_anchors: r.metadata_anchors, topic_anchors: r.topic_anchors, sink: r.sink })
 }
 
-fn topic_list<S>(r: &Reader<'_, S>) -> String {
-    let names: Vec<String> = r.stats.topics.iter().map(|t| format!("{} ({})", t.topic, t.schema)).collect();
-    if names.is_empty() {
-        "none".into()
-    } else {
-        names.join(", ")
-    }
-}
-
 fn check_topics<S>(r: &mut Reader<'_, S>) -> Result<()> {
     let misfit = r.uwb_misfit.take();
     let r = &*r;
@@ -297,7 +288,7 @@ fn check_topics<S>(r: &mut Reader<'_, S>) -> Result<()> {
     let has = |role: TopicRole| r.stats.topics.iter().any(|t| t.role == role);
     let missing = |field: &str, what: String| Error::Mapping {
         field: field.into(),
-        reason: format!("{what}; topics in the file: {}", topic_list(r)),
+        reason: format!("{what}; topics in the file: {}", topic_list(&r.stats.topics)),
     };
     if !has(TopicRole::Imu) {
         return Err(match &m.imu_topic {
