@@ -1,6 +1,7 @@
 //! The `uwbimu-replay` program: replays an MCAP recording (IMU + UWB ranges and/or TDoA) through
 //! one of the methods, prints what it found and the end statistics (or, with `--json`, one JSON
-//! object), and writes the trajectory as Foxglove MCAP and/or CSV. [`main_with_args`] is its
+//! object), and writes the trajectory as Foxglove MCAP and/or CSV; `uwbimu-replay survey` surveys
+//! the anchors from a log of anchor-to-anchor ranges (module `survey`). [`main_with_args`] is its
 //! entry point for the binary `src/bin/uwbimu-replay.rs` and for the Python console script
 //! (`uwbimu_rs._native.replay_main`, installed as `uwbimu-replay` by `pip install`).
 
@@ -8,9 +9,11 @@ mod args;
 mod interrupt;
 pub(crate) mod progress;
 mod report;
+mod survey;
 
 use std::ffi::OsString;
 use std::io::IsTerminal;
+use std::path::Path;
 use std::time::Instant;
 
 use clap::Parser;
@@ -26,7 +29,7 @@ use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_estimation::pipeline::{Progress, StepRecord};
 use uwbimu_vocabulary::error::Error as CoreError;
 
-use args::Args;
+use args::{Args, Command};
 use interrupt::Interrupt;
 use progress::{with_progress, Bar};
 
@@ -70,6 +73,8 @@ where
 /// What every replay shares: the parsed settings, the interrupt handler and how to report.
 struct Session<'a> {
     args: &'a Args,
+    /// The recording replayed.
+    file: &'a Path,
     cfg: ReplayConfig,
     method: Method,
     smooth: bool,
@@ -79,11 +84,16 @@ struct Session<'a> {
 }
 
 fn run(args: &Args) -> Result<u8> {
+    let file = match (&args.command, &args.file) {
+        (Some(Command::Survey(survey)), _) => return survey::run(survey),
+        (None, Some(file)) => file.as_path(),
+        (None, None) => return Err(CoreError::InvalidCall("give the MCAP file to replay".into()).into()),
+    };
     let interrupt = Interrupt::install()?;
     let (cfg, method, smooth) = args.settings()?;
-    let size = std::fs::metadata(&args.file).map_err(|e| Error::io(args.file.display(), e))?.len();
+    let size = std::fs::metadata(file).map_err(|e| Error::io(file.display(), e))?.len();
     let bars = !args.no_progress && std::io::stderr().is_terminal();
-    let session = Session { args, cfg, method, smooth, interrupt, bars, size };
+    let session = Session { args, file, cfg, method, smooth, interrupt, bars, size };
     // `uwb_ls` needs no IMU: the whole recording is small enough. Every other method streams.
     if method == Method::UwbLs {
         run_whole(&session)
@@ -116,9 +126,9 @@ fn spill_dir(args: &Args) -> std::path::PathBuf {
 /// Replays the recording streamed from the file (two passes: the survey, then decode, filter and
 /// write as it goes), in memory that does not grow with the file.
 fn run_streamed(session: &Session<'_>) -> Result<u8> {
-    let Session { args, cfg, method, smooth, interrupt, bars, .. } = session;
+    let Session { args, file, cfg, method, smooth, interrupt, bars, .. } = session;
     let (method, smooth) = (*method, *smooth);
-    let (survey, read_s) = read_timed(session, |bar| survey_recording_file(&args.file, &cfg.mapping, bar))?;
+    let (survey, read_s) = read_timed(session, |bar| survey_recording_file(file, &cfg.mapping, bar))?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let found = report::Found {
@@ -157,7 +167,7 @@ fn run_streamed(session: &Session<'_>) -> Result<u8> {
     let progress = Progress::with_cancel_flag(interrupt.flag());
     let result = with_progress(*bars, survey.n_imu as u64, &progress, |progress| {
         let input = StreamedInput {
-            path: &args.file,
+            path: file,
             mapping: &cfg.mapping,
             survey: &survey,
             config: &cfg.config,
@@ -210,7 +220,7 @@ fn read_timed<T>(session: &Session<'_>, read: impl FnOnce(&mut dyn FnMut(u64)) -
 
 /// Warns when the file ended before its footer and, unless `--json`, reports what was found.
 fn report_found(out: &mut impl std::io::Write, session: &Session<'_>, found: &report::Found<'_>) -> Result<()> {
-    let file = &session.args.file;
+    let file = session.file;
     if let Some(w) = found.stats.end.warning(&file.display().to_string()) {
         eprintln!("uwbimu-replay: warning: {w}");
     }
@@ -222,9 +232,9 @@ fn report_found(out: &mut impl std::io::Write, session: &Session<'_>, found: &re
 
 /// Reads the whole recording, then replays it (`uwb_ls`).
 fn run_whole(session: &Session<'_>) -> Result<u8> {
-    let Session { args, cfg, method, smooth, interrupt, bars, .. } = session;
+    let Session { args, file, cfg, method, smooth, interrupt, bars, .. } = session;
     let (method, smooth) = (*method, *smooth);
-    let (rec, read_s) = read_timed(session, |bar| read_recording_file(&args.file, &cfg.mapping, bar))?;
+    let (rec, read_s) = read_timed(session, |bar| read_recording_file(file, &cfg.mapping, bar))?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let found = report::Found {

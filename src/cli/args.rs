@@ -8,12 +8,23 @@ use uwbimu_app::io::IoResult as Result;
 use uwbimu_app::io::{AnchorMapping, ReplayConfig, TimeSource};
 use uwbimu_app::methods::{Input, Method};
 
-/// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter.
+/// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter, or
+/// survey the anchors from a log of anchor-to-anchor ranges (`uwbimu-replay survey FILE`).
 #[derive(Debug, Parser)]
-#[command(name = "uwbimu-replay", bin_name = "uwbimu-replay", version)]
+#[command(
+    name = "uwbimu-replay",
+    bin_name = "uwbimu-replay",
+    version,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 pub(super) struct Args {
+    /// Another job than a replay.
+    #[command(subcommand)]
+    pub command: Option<Command>,
     /// The MCAP file to replay.
-    pub file: PathBuf,
+    #[arg(required = true)]
+    pub file: Option<PathBuf>,
     /// Method (with TDoA, one that takes TDoA); default: the config file's, else best (smoothed).
     #[arg(long, value_parser = method_names())]
     pub method: Option<String>,
@@ -59,6 +70,40 @@ pub(super) struct Args {
     /// No progress bars (reading, filtering) even on a terminal.
     #[arg(long)]
     pub no_progress: bool,
+}
+
+/// The jobs besides the replay.
+#[derive(Debug, clap::Subcommand)]
+pub(super) enum Command {
+    /// Survey the anchors from a log of anchor-to-anchor ranges (`[mapping.anchor_ranges]`): print
+    /// their positions with σ, the warnings and the residuals per pair, and write them as an
+    /// anchor file a replay takes (`--anchors`).
+    Survey(SurveyArgs),
+}
+
+/// The command line of `uwbimu-replay survey`.
+#[derive(Debug, clap::Args)]
+pub(super) struct SurveyArgs {
+    /// The MCAP file holding the anchor-to-anchor ranges.
+    pub file: PathBuf,
+    /// Replay TOML whose `[mapping]` is used (`[mapping.anchor_ranges]`; `[mapping.anchors]`
+    /// gives the anchor rows when it lists anchors).
+    #[arg(long, visible_alias = "mapping")]
+    pub config: Option<PathBuf>,
+    /// Anchor-to-anchor range topic (repeatable; default: every uwbimu_msgs/msg/AnchorRange topic).
+    #[arg(long = "topic")]
+    pub topics: Vec<String>,
+    /// The anchor ids in row order, comma-separated; row 0 is the origin of the frame, row 1 on
+    /// +x, row 2 on the +y side (default: the ids of the log, in natural order).
+    #[arg(long, value_delimiter = ',')]
+    pub anchor_ids: Vec<String>,
+    /// Known mounting heights, m: one per anchor row (`2.4,2.6,nan,...`) or by id
+    /// (`A0=2.4,A3=0.5`); they fix z and the mirror.
+    #[arg(long)]
+    pub heights: Option<String>,
+    /// Write the surveyed anchors here: `.toml`, `.csv` or `.json` (the file `--anchors` takes).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
 }
 
 /// The method names of the registry, each with its summary (shown by `--help`).

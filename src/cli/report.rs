@@ -5,14 +5,14 @@
 use std::io::Write;
 
 use uwbimu_app::io::{IoError as Error, IoResult as Result};
-use uwbimu_app::io::{ReadStats, ReplayConfig, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
+use uwbimu_app::io::{ReadStats, ReplayConfig, TopicStats, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_app::methods::Method;
 use uwbimu_app::replay::ReplaySummary;
 use uwbimu_estimation::pipeline::Health;
 use uwbimu_vocabulary::sensors::SensorKind;
 
 /// A failed write to stdout (e.g. a closed pipe) as an error naming it.
-fn stdout_error(e: std::io::Error) -> Error {
+pub(super) fn stdout_error(e: std::io::Error) -> Error {
     Error::io("stdout", e)
 }
 
@@ -32,6 +32,17 @@ pub(super) struct Found<'a> {
     pub truth: usize,
 }
 
+/// The file's name, then a table of its topics: schema, encoding, messages and what each was
+/// used for.
+pub(super) fn file_and_topics(out: &mut impl Write, file: &std::path::Path, topics: &[TopicStats]) -> std::io::Result<()> {
+    writeln!(out, "file: {}", file.display())?;
+    writeln!(out, "{:<36} {:<44} {:<10} {:>8}  use", "topic", "schema", "encoding", "messages")?;
+    for t in topics {
+        writeln!(out, "{:<36} {:<44} {:<10} {:>8}  {}", t.topic, t.schema, t.encoding, t.count, t.role.name())?;
+    }
+    Ok(())
+}
+
 /// The topics, mapping, counts and ordering statistics of the file read.
 pub(super) fn found(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig, found: &Found<'_>) -> Result<()> {
     found_lines(out, file, cfg, found).map_err(stdout_error)
@@ -39,11 +50,7 @@ pub(super) fn found(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayCo
 
 fn found_lines(out: &mut impl Write, file: &std::path::Path, cfg: &ReplayConfig, rec: &Found<'_>) -> std::io::Result<()> {
     let s = rec.stats;
-    writeln!(out, "file: {}", file.display())?;
-    writeln!(out, "{:<36} {:<44} {:<10} {:>8}  use", "topic", "schema", "encoding", "messages")?;
-    for t in &s.topics {
-        writeln!(out, "{:<36} {:<44} {:<10} {:>8}  {}", t.topic, t.schema, t.encoding, t.count, t.role.name())?;
-    }
+    file_and_topics(out, file, &s.topics)?;
     writeln!(out, "duration: {:.2} s", s.duration_s())?;
     let m = &cfg.mapping;
     let u = &m.uwb;

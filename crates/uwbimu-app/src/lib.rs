@@ -19,6 +19,8 @@ pub mod consistency;
 pub mod generality;
 #[cfg(feature = "io")]
 pub mod io;
+#[cfg(feature = "io")]
+pub mod log_survey;
 pub mod methods;
 pub mod metrics;
 mod model_choice;
