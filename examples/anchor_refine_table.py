@@ -122,7 +122,8 @@ def isas(seeds: int, data: Path) -> None:
         before, after = anchor_errors(given, surveyed), anchor_errors(r["anchors"], surveyed)
         print(
             f"| {seed} | {fmt(before)} → {fmt(after)} | {fmt(track_rmse(imu, ranges, given, truth))} | "
-            f"{fmt(track_rmse(imu, ranges, r['anchors'], truth))} | {fmt(track_rmse(imu, ranges, rb['anchors'], truth, rb['config']))} | {took:.1f} |",
+            f"{fmt(track_rmse(imu, ranges, r['anchors'], truth))} | "
+            f"{fmt(track_rmse(imu, ranges, rb['anchors'], truth, rb['config']))} | {took:.1f} |",
             flush=True,
         )
 

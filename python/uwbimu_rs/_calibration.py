@@ -85,7 +85,9 @@ def calibrate(
         ``anchor_covariances`` ``(K, 3, 3)`` [m²], ``directions`` (what the log does not fix: a
         list of dicts ``kind`` ``"gauge"`` or ``"weak"``, ``std_ratio`` posterior over prior σ,
         ``vector`` ``(K, 3)``, ``description``), ``biases_estimated``, ``moves`` (the largest
-        anchor move of each pass, m), ``residual_rms`` (m) and ``config``; ``biases`` then holds
+        anchor move of each iteration, m), ``converged``, ``warnings`` (list of str: a tag that
+        stayed at one height, an anchor that moved by more than twice its σ), ``residual_rms`` (m)
+        and ``config``; ``biases`` then holds
         the estimated biases, or without ``range_bias_std`` the mean residual each refined anchor
         leaves.
     """

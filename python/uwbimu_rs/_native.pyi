@@ -702,7 +702,8 @@ def calibrate_log(
     ``time_offset``, ``time_offset_std``, ``lever_arm``, ``lever_arm_std``, ``residual_rms``,
     ``config``; with ``refine_anchors`` (σ ``anchor_std`` of the given anchors, a bias per anchor
     with prior σ ``range_bias_std`` when given) also ``anchors``, ``anchor_std``,
-    ``anchor_covariances``, ``directions``, ``biases_estimated``, ``moves``, ``residual_rms``,
+    ``anchor_covariances``, ``directions``, ``biases_estimated``, ``moves``, ``converged``,
+    ``warnings``, ``residual_rms``,
     ``config``."""
 
 def choose_model(

@@ -132,7 +132,7 @@ fn per_anchor(anchor_std: Option<&Bound<'_, PyAny>>, count: usize) -> PyResult<V
 /// The dict of an anchor refinement: `anchors` `(K, 3)`, `anchor_std` `(K, 3)`,
 /// `anchor_covariances` `(K, 3, 3)`, `directions` (list of dicts `kind`, `std_ratio`, `vector`
 /// `(K, 3)`, `description`), the bias table and `range_calibration` as [`bias_dict`],
-/// `biases_estimated`, `moves` (m per pass), `converged`, `iterations`, `residual_rms` and `config` (`config`
+/// `biases_estimated`, `moves` (m per pass), `converged`, `warnings`, `iterations`, `residual_rms` and `config` (`config`
 /// with the estimated biases in its `range_calibration`).
 fn refinement_dict<'py>(py: Python<'py>, r: &AnchorRefinement, config: &FilterConfig) -> PyResult<Bound<'py, PyDict>> {
     let d = bias_dict(py, &BiasCalibration::from_anchors(r.biases.clone(), r.moves_m.len()))?;
@@ -159,6 +159,7 @@ fn refinement_dict<'py>(py: Python<'py>, r: &AnchorRefinement, config: &FilterCo
     d.set_item("biases_estimated", r.biases_estimated)?;
     d.set_item("moves", r.moves_m.clone())?;
     d.set_item("converged", r.converged)?;
+    d.set_item("warnings", r.warnings.clone())?;
     d.set_item("residual_rms", r.residual_rms_m)?;
     d.set_item("config", config_dict(py, &r.apply_to(config)?)?)?;
     Ok(d)

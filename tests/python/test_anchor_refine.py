@@ -46,6 +46,8 @@ def test_a_wrong_survey_is_refined_back_and_the_track_with_it(seed):
     assert r["anchor_std"].shape == (6, 3) and r["anchor_covariances"].shape == (6, 3, 3)
     assert np.all(r["anchor_std"] > 0) and np.all(r["anchor_std"] < 0.25)
     assert not r["biases_estimated"] and r["config"]["range_calibration"] == run.config.get("range_calibration", {})
+    # The walk stays 1 m up: the anchors' heights are open to a mirror image, and it says so.
+    assert any("of one height" in w for w in r["warnings"]), r["warnings"]
 
 
 def test_bad_settings_say_what_is_wrong():

@@ -66,6 +66,11 @@ pub const CONVERGED_M: f64 = 5e-3;
 pub const DIFFERENCE_STEP: f64 = 0.05;
 /// Smallest robust scale of an anchor's residuals, in their unit (m, or whitened innovations).
 const MIN_SCALE: f64 = 0.01;
+/// A tag whose heights (5–95 %) span less than this, m, leaves each anchor's height open up to its
+/// mirror image through the tag's plane: [`AnchorRefinement::warnings`] says so.
+pub const FLAT_TRACK_M: f64 = 0.5;
+/// An anchor that moved by more than this many prior σ along an axis is named in the warnings.
+pub const MOVE_WARNING_SIGMAS: f64 = 2.0;
 /// Step halvings at most per iteration.
 pub const HALVINGS: usize = 4;
 
@@ -150,6 +155,10 @@ pub struct AnchorRefinement {
     pub converged: bool,
     /// RMS of the weighted residuals, m.
     pub residual_rms_m: f64,
+    /// What to check: a tag that stayed at one height ([`FLAT_TRACK_M`]: the anchors' heights
+    /// are then fixed only up to a mirror image), an anchor that moved by more than
+    /// [`MOVE_WARNING_SIGMAS`] of its prior σ along an axis.
+    pub warnings: Vec<String>,
 }
 
 impl AnchorRefinement {
@@ -181,7 +190,8 @@ pub fn refine_anchors(input: &BatchInput<'_>, method: Method, settings: &RefineS
             _ => Err(Error::InvalidCall(format!("{} cannot be smoothed; refine anchors with an inertial method", method.name()))),
         }
     };
-    let (.., model) = smoothed(input.anchors, input.config)?;
+    let (_, steps, model) = smoothed(input.anchors, input.config)?;
+    let heights: Vec<f64> = steps.iter().map(|s| s.state.position.z).collect();
     let base = match model {
         Some(choice) => FilterConfig { range_calibration: input.config.range_calibration.clone(), ..choice.config },
         None => input.config.clone(),
@@ -202,7 +212,7 @@ pub fn refine_anchors(input: &BatchInput<'_>, method: Method, settings: &RefineS
             check: input.ranges.iter().map(|r| by_range.get(&((r.t_s + offset).to_bits(), r.anchor, r.tag)).copied()).collect(),
         })
     };
-    gauss_newton(input, settings, true, evaluate)
+    gauss_newton(input, settings, true, evaluate, span(heights))
 }
 
 /// Refines the anchors of `input` against the tag's ground truth `(t s, position m)`, in the
@@ -228,10 +238,17 @@ pub fn refine_anchors_with_truth(
         let (a, b) = (truth.get(k.checked_sub(1)?)?, truth.get(k)?);
         Some(a.1 + (b.1 - a.1) * ((t - a.0) / (b.0 - a.0)))
     };
-    gauss_newton(input, settings, false, |theta| {
-        let track = residuals(input, theta, tag_at);
-        Ok(Residuals { check: track.clone(), track })
-    })
+    let heights = truth.iter().map(|s| s.1.z).collect();
+    gauss_newton(
+        input,
+        settings,
+        false,
+        |theta| {
+            let track = residuals(input, theta, tag_at);
+            Ok(Residuals { check: track.clone(), track })
+        },
+        span(heights),
+    )
 }
 
 /// Checks the settings against the anchors.
@@ -323,6 +340,17 @@ fn residuals(input: &BatchInput<'_>, theta: &Theta, tag_at: impl Fn(f64, usize) 
         .collect()
 }
 
+/// The 5–95 % span of `values` (0 for fewer than two).
+fn span(mut values: Vec<f64>) -> f64 {
+    values.retain(|v| v.is_finite());
+    if values.len() < 2 {
+        return 0.0;
+    }
+    values.sort_by(f64::total_cmp);
+    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+    at(0.95) - at(0.05)
+}
+
 /// `calibration` with `c0 −= b_i` for every anchor with a bias `b_i ≠ 0`.
 fn with_biases(calibration: &RangeCalibration, bias: &[f64]) -> Result<RangeCalibration> {
     let mut by_anchor = calibration.coefficients().clone();
@@ -385,12 +413,14 @@ fn objective(e: &[Option<f64>], w: &[f64], theta: &Theta, prior: &Theta, prior_i
 }
 
 /// Robust Gauss–Newton over the anchors (and biases) with the Jacobian differenced through
-/// `evaluate` (module doc); the gauge projected off the data when `gauge_free`.
+/// `evaluate` (module doc); the gauge projected off the data when `gauge_free`;
+/// `tag_height_span_m` the tag's heights' span, for the warnings.
 fn gauss_newton(
     input: &BatchInput<'_>,
     settings: &RefineSettings,
     gauge_free: bool,
     evaluate: impl Fn(&Theta) -> Result<Residuals> + Sync,
+    tag_height_span_m: f64,
 ) -> Result<AnchorRefinement> {
     let k = input.anchors.len();
     let with_bias = settings.range_bias_std_m.is_some();
@@ -470,7 +500,35 @@ fn gauss_newton(
             break;
         }
     }
-    Ok(AnchorRefinement { converged, ..result(input, theta, &e, &w, &information, &prior_information, gauge_free, moves_m) })
+    let warnings = warnings(&prior.anchors, &theta.anchors, &settings.anchor_std_m, tag_height_span_m);
+    Ok(AnchorRefinement {
+        converged,
+        warnings,
+        ..result(input, theta, &e, &w, &information, &prior_information, gauge_free, moves_m)
+    })
+}
+
+/// The warnings of a refinement from `given` to `refined` (see [`AnchorRefinement::warnings`]).
+fn warnings(given: &[Vec3], refined: &[Vec3], std_m: &[Vec3], tag_height_span_m: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    if tag_height_span_m < FLAT_TRACK_M {
+        out.push(format!(
+            "the tag stayed within {tag_height_span_m:.2} m of one height: each anchor's height is fixed only up to its mirror \
+             image through the tag's plane; give the measured heights a small σ_z in anchor_std"
+        ));
+    }
+    for (i, ((a, b), s)) in refined.iter().zip(given).zip(std_m).enumerate() {
+        for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+            let moved = a[axis] - b[axis];
+            if moved.abs() > MOVE_WARNING_SIGMAS * s[axis] {
+                out.push(format!(
+                    "anchor {i} moved {moved:+.2} m along {name}, more than {MOVE_WARNING_SIGMAS} times its σ ({:.2} m): check it",
+                    s[axis]
+                ));
+            }
+        }
+    }
+    out
 }
 
 /// The result from the last iteration's information (module doc).
@@ -497,7 +555,7 @@ fn result(
         let cross = information.view((0, a), (a, k));
         let biases = information.view((a, a), (k, k)) + DMatrix::from_diagonal(&prior_information.rows(a, k).into_owned());
         if let Some(inverse) = biases.try_inverse() {
-            anchors_information -= &cross * inverse * cross.transpose();
+            anchors_information -= cross * inverse * cross.transpose();
         }
     }
     let sigma = DVector::from_fn(a, |j, _| prior_information[j].sqrt().recip());
@@ -526,6 +584,7 @@ fn result(
         converged: false,
         moves_m,
         residual_rms_m: if weight > 0.0 { (rss / weight).sqrt() } else { f64::NAN },
+        warnings: Vec::new(),
         anchors: theta.anchors,
     }
 }
@@ -601,18 +660,19 @@ mod tests {
         (x as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     }
 
-    /// A tag circling at 1 m height (radius `radius` about (5, 4)) for 60 s at 10 Hz, ranging every
-    /// anchor; a range error `bias(anchor)` plus uniform noise of ±`noise_m`.
-    fn log(
+    /// A tag circling about (5, 4) at radius `radius`, 1 m up (± `wave_m`), for 60 s at 10 Hz,
+    /// ranging every anchor; a range error `bias(anchor)` plus uniform noise of ±`noise_m`.
+    fn log_waving(
         anchors: &[Vec3],
         radius: f64,
+        wave_m: f64,
         noise_m: f64,
         bias: impl Fn(usize) -> f64,
     ) -> (Vec<(f64, Vec3)>, Vec<RangeMeasurement>) {
         let truth: Vec<(f64, Vec3)> = (0..=600)
             .map(|k| {
                 let t = k as f64 * 0.1;
-                (t, Vec3::new(5.0 + radius * (0.2 * t).cos(), 4.0 + radius * (0.2 * t).sin(), 1.0 + 0.3 * (0.5 * t).sin()))
+                (t, Vec3::new(5.0 + radius * (0.2 * t).cos(), 4.0 + radius * (0.2 * t).sin(), 1.0 + wave_m * (0.5 * t).sin()))
             })
             .collect();
         let mut ranges = Vec::new();
@@ -623,6 +683,16 @@ mod tests {
             }
         }
         (truth, ranges)
+    }
+
+    /// [`log_waving`] with the tag's height waving by ±0.3 m.
+    fn log(
+        anchors: &[Vec3],
+        radius: f64,
+        noise_m: f64,
+        bias: impl Fn(usize) -> f64,
+    ) -> (Vec<(f64, Vec3)>, Vec<RangeMeasurement>) {
+        log_waving(anchors, radius, 0.3, noise_m, bias)
     }
 
     fn site() -> Vec<Vec3> {
@@ -724,6 +794,27 @@ mod tests {
                 assert!(((tag_moved - a_moved).norm() - (tag - a).norm()).abs() < 1e-9);
             }
         }
+    }
+
+    #[test]
+    fn a_flat_track_and_a_move_beyond_twice_the_prior_are_warned() {
+        let truth_site = site();
+        let (truth, ranges) = log_waving(&truth_site, 3.0, 0.0, 0.02, |_| 0.0);
+        let mut given = truth_site.clone();
+        given[3].x += 0.5;
+        let config = FilterConfig::default();
+        let input = BatchInput::forward(&[], &ranges, &given, &config);
+        let r = refine_anchors_with_truth(&input, &truth, &settings(6, 0.2, None)).expect("refined");
+        assert_eq!(r.warnings.len(), 2, "{:?}", r.warnings);
+        assert!(r.warnings[0].contains("within 0.00 m of one height"), "{}", r.warnings[0]);
+        assert!(r.warnings[1].starts_with("anchor 3 moved -0.5"), "{}", r.warnings[1]);
+        let (_, ranges) = log(&truth_site, 3.0, 0.02, |_| 0.0);
+        let waving = refine_anchors_with_truth(
+            &BatchInput::forward(&[], &ranges, &truth_site, &config),
+            &log(&truth_site, 3.0, 0.02, |_| 0.0).0,
+            &settings(6, 0.2, None),
+        );
+        assert!(waving.expect("refined").warnings.is_empty());
     }
 
     #[test]
