@@ -20,9 +20,9 @@
 //! whitened by their predicted variance, `(r − h(x⁻))/√(H·P⁻·Hᵀ + R)` (weighted likewise), plus
 //! the prior's: the prediction-error decomposition of the log's likelihood, in which a layout that
 //! fits the ranges only by bending the track against the IMU pays for it; the step is halved up to
-//! [`HALVINGS`] times. The smoothed residuals alone do not charge for that: on isas-walk1 with the
-//! anchors moved 0.3 m, one seed went to a layout 0.6 m off that fitted the ranges better and
-//! doubled the track's error. The iterations stop when no anchor moves by more than
+//! [`HALVINGS`] times. The smoothed residuals alone do not charge for that: they let a layout that
+//! fits the ranges better and tracks worse win (docs/anchors.md, isas-walk1). The iterations stop
+//! when no anchor moves by more than
 //! [`CONVERGED_M`], when no step lowers the sum, or after `iterations`.
 //!
 //! **The gauge.** Moving every anchor and the track together by a translation, or turning them
