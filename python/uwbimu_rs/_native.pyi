@@ -303,7 +303,8 @@ class UpdateReport:
 class _StreamingFilter:
     """Streaming API shared by the 15-state filter classes (documented once here; each class below
     is one named composition of the shared pieces). Constructed as ``Cls(anchors, *,
-    initial=None, config=None, record=False, reorder_window_s=None, strict=False)``.
+    initial=None, config=None, record=False, reorder_window_s=None, strict=False,
+    keep_steps=10000)``.
 
     A robot loop feeds whatever arrives, in any order within the reorder window, and reads the
     state::
@@ -313,6 +314,7 @@ class _StreamingFilter:
             if msg.kind == "imu": f.add_imu(msg.t, msg.accel, msg.gyro)
             else: f.add_range(msg.t, msg.anchor, msg.range)
             if f.initialized: publish(f.state["position"])
+        track = f.steps()                                # what it estimated since the last call
 
     Every input goes through a reorder buffer: it is applied once it is ``reorder_window_s``
     older than the newest input, in the batch order (time; IMU, magnetometer, TDoA, range at
@@ -346,6 +348,9 @@ class _StreamingFilter:
         the replay's default, 0.5 s.
     strict : bool
         Raise on an input older than the window allows instead of counting and dropping it.
+    keep_steps : int
+        Steps (one per IMU sample) kept for :meth:`steps` between its calls, the oldest dropped
+        beyond; 0 keeps none.
 
     Raises
     ------
@@ -364,7 +369,24 @@ class _StreamingFilter:
         record: bool = False,
         reorder_window_s: float | None = None,
         strict: bool = False,
+        keep_steps: int = 10000,
     ) -> _S: ...
+    def steps(self) -> pl.DataFrame:
+        """The steps made since the previous call (or the start), one row per IMU sample, oldest
+        first, at most ``keep_steps`` of them. A sample's step is complete, and comes, once data
+        after its time has arrived.
+
+        Returns
+        -------
+        polars.DataFrame
+            The columns of :func:`uwbimu_rs.run_filter`'s frame (t, x, y, z, vx, vy, vz, qw, qx, qy,
+            qz, std_x, std_y, std_z, still, status): fed a whole log and flushed, the frames of
+            the calls together equal ``run_filter(..., smooth=False)`` but its last row."""
+
+    @property
+    def steps_dropped(self) -> int:
+        """Steps dropped because :meth:`steps` was not called within ``keep_steps`` IMU samples."""
+
     def smooth(self) -> pl.DataFrame:
         """RTS-smooth everything recorded (``record=True``).
 

@@ -370,3 +370,37 @@ def test_unit_slips_are_refused_batch_and_streaming():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         uwbimu_rs.run_filter("riekf", imu, ranges, run.anchors)
+
+
+@pytest.mark.parametrize("method", ["riekf", "best"])
+def test_steps_give_back_the_batch_frame_bounded(staggered, method):
+    """``steps()`` returns what the stream estimated since the previous call; the frames of all
+    calls together are ``run_filter``'s forward frame, self-initialisation included (but its last
+    row: a step is complete once data after its IMU time arrives), and at most ``keep_steps``
+    rows wait between calls."""
+    run, imu, ranges, _ = staggered
+    config = run.config
+    if uwbimu_rs.METHODS[method]["chooses_model"]:
+        config = uwbimu_rs.choose_model(method, imu, ranges, run.anchors, config=config)["config"]
+    f = CLASSES[method](run.anchors, config=config, reorder_window_s=0.2)
+    frames = []
+    for k, e in enumerate(late_arrivals(imu, ranges, None, 0.15, seed=4)):
+        feed(f, e)
+        if k % 500 == 0:
+            frames.append(f.steps())
+    f.flush()
+    frames.append(f.steps())
+    streamed = pl.concat(frames)
+    batch = uwbimu_rs.run_filter(method, imu, ranges, run.anchors, config=run.config, smooth=False)
+    assert streamed.columns == batch.columns and streamed.height == batch.height - 1 == imu.shape[0] - 1
+    assert np.array_equal(streamed.select(STATE).to_numpy(), batch.head(-1).select(STATE).to_numpy())
+    assert f.steps().height == 0 and f.steps_dropped == 0
+    # Bounded: only the newest `keep_steps` wait, the rest are counted.
+    g = CLASSES[method](run.anchors, initial=run.initial, config=config, keep_steps=100, **IN_ORDER)
+    for e in events(imu, ranges):
+        feed(g, e)
+    g.flush()
+    last = g.steps()
+    assert last.height == 100 and g.steps_dropped == imu.shape[0] - 101
+    assert last["t"][-1] == imu[-2, 0]
+    assert CLASSES[method](run.anchors, initial=run.initial, config=config, keep_steps=0).steps().height == 0

@@ -21,6 +21,7 @@ use super::super::repr;
 use super::args::{anchor_arg, check_takes, finite, non_negative, tag_arg, vec3_arg};
 use super::config::read_config;
 use super::inputs::read_anchors;
+use super::recent_steps::RecentSteps;
 use super::reports::{applied_reports, health_dict, init_info_items, PyUpdateReport};
 use super::state::{covariance_array, read_optional_initial, state_dict};
 
@@ -34,7 +35,7 @@ macro_rules! py_filter {
     ($(#[$doc:meta])* $py:ident, $core:ty) => {
         $(#[$doc])*
         #[pyclass(module = "uwbimu_rs._native")]
-        pub struct $py(Stream<$core>, Option<AnchorIds>);
+        pub struct $py(Stream<$core>, Option<AnchorIds>, RecentSteps);
 
         impl $py {
             fn estimator(&self, what: &str) -> PyResult<&$core> {
@@ -68,14 +69,21 @@ macro_rules! py_filter {
             fn push(&mut self, py: Python<'_>, call: &'static str, event: Event) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.push(call, event)?;
                 super::super::errors::warn_all(py, &self.0.take_warnings())?;
-                Ok(applied_reports(&mut self.0))
+                Ok(self.applied())
+            }
+
+            /// The reports of the updates the last call applied; the steps it made move into
+            /// the kept ones (`steps()`).
+            fn applied(&mut self) -> Vec<PyUpdateReport> {
+                self.2.collect(&mut self.0);
+                applied_reports(&mut self.0)
             }
         }
 
         #[pymethods]
         impl $py {
             #[new]
-            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false))]
+            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false, keep_steps=10_000))]
             fn new(
                 anchors: &Bound<'_, PyAny>,
                 initial: Option<&Bound<'_, PyAny>>,
@@ -83,6 +91,7 @@ macro_rules! py_filter {
                 record: bool,
                 reorder_window_s: Option<f64>,
                 strict: bool,
+                keep_steps: usize,
             ) -> PyResult<Self> {
                 let reorder_window_s = reorder_window_s.unwrap_or(DEFAULT_REORDER_WINDOW_S);
                 let (anchors, ids) = read_anchors(anchors)?;
@@ -99,11 +108,29 @@ macro_rules! py_filter {
                         Ok(filter)
                     }
                 };
-                let stream = match read_optional_initial(initial)? {
+                let mut stream = match read_optional_initial(initial)? {
                     Some(initial) => Stream::new(build(&initial)?, options)?,
                     None => Stream::self_initializing(anchors, config, Box::new(build), options)?,
                 };
-                Ok(Self(stream, ids))
+                let steps = RecentSteps::new(keep_steps, &mut stream);
+                Ok(Self(stream, ids, steps))
+            }
+
+            /// The steps made since the previous call (or since the start), one row per IMU
+            /// sample, oldest first (a sample's step comes once data after its time arrived): a
+            /// polars DataFrame with the columns of ``run_filter``'s
+            /// frame (``t, x, y, z, vx, vy, vz, qw, qx, qy, qz, std_x, std_y, std_z, still,
+            /// status``). At most ``keep_steps`` (constructor) are kept between calls, the oldest
+            /// dropped beyond (``steps_dropped`` counts them); with ``keep_steps=0`` none.
+            fn steps<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+                let steps = self.2.take();
+                data_frame(py, columns(py, step_columns(&steps, false))?)
+            }
+
+            /// Steps dropped because ``steps()`` was not called within ``keep_steps`` IMU samples.
+            #[getter]
+            fn steps_dropped(&self) -> u64 {
+                self.2.dropped()
             }
 
             /// RTS-smooths everything seen so far (needs ``record=True``): a polars DataFrame
@@ -206,7 +233,7 @@ macro_rules! py_filter {
                     .map(|(a, r)| Ok((self.anchor_row(CALL, "anchors", *a)?, non_negative(CALL, "ranges", *r)?)))
                     .collect::<PyResult<Vec<(usize, f64)>>>()?;
                 self.0.apply_ranges_now(CALL, t, &obs)?;
-                Ok(applied_reports(&mut self.0))
+                Ok(self.applied())
             }
 
             /// The end of the input so far: applies everything buffered (the reorder window and
@@ -215,7 +242,7 @@ macro_rules! py_filter {
             fn flush(&mut self, py: Python<'_>) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.flush()?;
                 super::super::errors::warn_all(py, &self.0.take_warnings())?;
-                Ok(applied_reports(&mut self.0))
+                Ok(self.applied())
             }
 
             /// `Name(anchors=4, initialized=False, t=None)`: the anchor count, whether the

@@ -1,0 +1,54 @@
+//! The newest steps of a streaming filter ([`RecentSteps`]), which its `steps()` returns as the
+//! frame `run_filter` would.
+
+use std::collections::VecDeque;
+
+use uwbimu_estimation::pipeline::{Estimator, StepRecord, Stream};
+
+/// At most `capacity` of the newest [`StepRecord`]s of a stream, the oldest dropped (and counted)
+/// beyond it; none recorded with a capacity of 0. The records move in after every call that
+/// feeds the stream ([`RecentSteps::collect`]) and out with [`RecentSteps::take`], so the memory
+/// stays bounded however long the stream runs.
+#[derive(Debug, Default)]
+pub(super) struct RecentSteps {
+    kept: VecDeque<StepRecord>,
+    capacity: usize,
+    incoming: Vec<StepRecord>,
+    dropped: u64,
+}
+
+impl RecentSteps {
+    /// Keeps up to `capacity` steps; with a capacity above 0 `stream` records them from now on.
+    pub(super) fn new<E: Estimator>(capacity: usize, stream: &mut Stream<E>) -> Self {
+        if capacity > 0 {
+            stream.record_steps();
+        }
+        Self { kept: VecDeque::new(), capacity, incoming: Vec::new(), dropped: 0 }
+    }
+
+    /// Moves the steps `stream` recorded since the last call in, dropping the oldest beyond the
+    /// capacity.
+    pub(super) fn collect<E: Estimator>(&mut self, stream: &mut Stream<E>) {
+        if self.capacity == 0 {
+            return;
+        }
+        stream.move_steps(&mut self.incoming);
+        for step in self.incoming.drain(..) {
+            if self.kept.len() == self.capacity {
+                self.kept.pop_front();
+                self.dropped += 1;
+            }
+            self.kept.push_back(step);
+        }
+    }
+
+    /// The kept steps, oldest first, leaving none.
+    pub(super) fn take(&mut self) -> Vec<StepRecord> {
+        self.kept.drain(..).collect()
+    }
+
+    /// Steps dropped so far because `take` came too late for the capacity.
+    pub(super) fn dropped(&self) -> u64 {
+        self.dropped
+    }
+}
