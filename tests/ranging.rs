@@ -139,17 +139,7 @@ fn per_anchor_fit_and_batch_preprocessing() {
         r.range_m = m;
     }
     let horizontal_rmse = |ranges: &[RangeMeasurement], config: &FilterConfig| {
-        let input = BatchInput {
-            imu: &data.imu,
-            ranges,
-            anchors: &data.anchors,
-            initial: None,
-            config,
-            smooth: false,
-            observations: &[],
-            progress: None,
-            marginals_every_s: None,
-        };
+        let input = BatchInput::forward(&data.imu, ranges, &data.anchors, config);
         let BatchOutput::Inertial { trace, .. } = run_method(Method::Ekf2d, &input).expect("run") else { unreachable!() };
         let e: Vec<f64> =
             trace.steps.iter().zip(&data.truth).map(|(s, t)| (s.state.position - t.position).xy().norm_squared()).collect();

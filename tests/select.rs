@@ -136,17 +136,7 @@ fn isas_walk1_keeps_the_plain_filter() {
         .expect("config");
     let rec = read_recording_file(&mcap, &cfg.mapping, |_| {}).expect("read");
     let defaults = FilterConfig::default();
-    let input = uwbimu_rs::app::methods::BatchInput {
-        imu: &rec.imu,
-        ranges: &rec.ranges,
-        anchors: &rec.anchors,
-        initial: None,
-        config: &defaults,
-        smooth: false,
-        observations: &[],
-        progress: None,
-        marginals_every_s: None,
-    };
+    let input = uwbimu_rs::app::methods::BatchInput::forward(&rec.imu, &rec.ranges, &rec.anchors, &defaults);
     let choice = choose(Method::Best, &input).expect("choose");
     assert_eq!(choice.chosen, 0, "{}", choice.reason);
     // Its range errors follow the walker's body: bias states chase them, and the held-out anchors
