@@ -46,11 +46,11 @@
 use std::collections::HashMap;
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
-use uwbimu_estimation::pipeline::Measured;
+use uwbimu_estimation::pipeline::{Measured, StepRecord, Trace};
 use uwbimu_estimation::robust::MEstimator;
 use uwbimu_vocabulary::config::{FilterConfig, RangeCalibration};
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{Mat3, Vec3};
+use uwbimu_vocabulary::math::{percentile, Mat3, Vec3};
 
 use crate::calibrate::AnchorBias;
 use crate::methods::run_method;
@@ -190,16 +190,12 @@ pub fn refine_anchors(input: &BatchInput<'_>, method: Method, settings: &RefineS
             _ => Err(Error::InvalidCall(format!("{} cannot be smoothed; refine anchors with an inertial method", method.name()))),
         }
     };
-    let (_, steps, model) = smoothed(input.anchors, input.config)?;
-    let heights: Vec<f64> = steps.iter().map(|s| s.state.position.z).collect();
+    let (trace, steps, model) = smoothed(input.anchors, input.config)?;
     let base = match model {
         Some(choice) => FilterConfig { range_calibration: input.config.range_calibration.clone(), ..choice.config },
         None => input.config.clone(),
     };
-    let evaluate = |theta: &Theta| -> Result<Residuals> {
-        let config =
-            FilterConfig { range_calibration: with_biases(&input.config.range_calibration, &theta.bias)?, ..base.clone() };
-        let (trace, steps, _) = smoothed(&theta.anchors, &config)?;
+    let residuals_of = |theta: &Theta, config: &FilterConfig, trace: &Trace, steps: &[StepRecord]| -> Residuals {
         let mut by_range = HashMap::new();
         for u in &trace.updates {
             if let (Measured::Range { anchor, tag, .. }, Some((innovation, variance))) = (&u.measured, u.report.prior) {
@@ -207,12 +203,22 @@ pub fn refine_anchors(input: &BatchInput<'_>, method: Method, settings: &RefineS
             }
         }
         let offset = config.ranging.time_offset_s;
-        Ok(Residuals {
-            track: residuals(input, theta, |t, tag| tag_at(&steps, t, config.mounting.lever_arm.of(tag))),
+        Residuals {
+            track: residuals(input, theta, |t, tag| tag_at(steps, t, config.mounting.lever_arm.of(tag))),
             check: input.ranges.iter().map(|r| by_range.get(&((r.t_s + offset).to_bits(), r.anchor, r.tag)).copied()).collect(),
-        })
+        }
     };
-    gauss_newton(input, settings, true, evaluate, span(heights))
+    // The first run, with the given anchors and no bias, is the first evaluation: `base` is the
+    // configuration it ran with once the model was chosen.
+    let first = residuals_of(&Theta::prior(input, settings), &base, &trace, &steps);
+    let heights: Vec<f64> = steps.iter().map(|s| s.state.position.z).collect();
+    let evaluate = |theta: &Theta| -> Result<Residuals> {
+        let config =
+            FilterConfig { range_calibration: with_biases(&input.config.range_calibration, &theta.bias)?, ..base.clone() };
+        let (trace, steps, _) = smoothed(&theta.anchors, &config)?;
+        Ok(residuals_of(theta, &config, &trace, &steps))
+    };
+    gauss_newton(input, settings, true, evaluate, first, span(heights))
 }
 
 /// Refines the anchors of `input` against the tag's ground truth `(t s, position m)`, in the
@@ -239,16 +245,12 @@ pub fn refine_anchors_with_truth(
         Some(a.1 + (b.1 - a.1) * ((t - a.0) / (b.0 - a.0)))
     };
     let heights = truth.iter().map(|s| s.1.z).collect();
-    gauss_newton(
-        input,
-        settings,
-        false,
-        |theta| {
-            let track = residuals(input, theta, tag_at);
-            Ok(Residuals { check: track.clone(), track })
-        },
-        span(heights),
-    )
+    let evaluate = |theta: &Theta| -> Result<Residuals> {
+        let track = residuals(input, theta, tag_at);
+        Ok(Residuals { check: track.clone(), track })
+    };
+    let first = evaluate(&Theta::prior(input, settings))?;
+    gauss_newton(input, settings, false, evaluate, first, span(heights))
 }
 
 /// Checks the settings against the anchors.
@@ -286,6 +288,12 @@ struct Theta {
 }
 
 impl Theta {
+    /// The given anchors, no bias: the prior's mean and the start.
+    fn prior(input: &BatchInput<'_>, settings: &RefineSettings) -> Self {
+        let k = input.anchors.len();
+        Self { anchors: input.anchors.to_vec(), bias: vec![0.0; k], with_bias: settings.range_bias_std_m.is_some() }
+    }
+
     /// Number of unknowns.
     fn len(&self) -> usize {
         self.anchors.len() * if self.with_bias { 4 } else { 3 }
@@ -340,15 +348,14 @@ fn residuals(input: &BatchInput<'_>, theta: &Theta, tag_at: impl Fn(f64, usize) 
         .collect()
 }
 
-/// The 5–95 % span of `values` (0 for fewer than two).
+/// The 5–95 % span of `values` ([`percentile`]; 0 for fewer than two finite ones).
 fn span(mut values: Vec<f64>) -> f64 {
     values.retain(|v| v.is_finite());
     if values.len() < 2 {
         return 0.0;
     }
     values.sort_by(f64::total_cmp);
-    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
-    at(0.95) - at(0.05)
+    percentile(&values, 95.0) - percentile(&values, 5.0)
 }
 
 /// `calibration` with `c0 −= b_i` for every anchor with a bias `b_i ≠ 0`.
@@ -413,18 +420,19 @@ fn objective(e: &[Option<f64>], w: &[f64], theta: &Theta, prior: &Theta, prior_i
 }
 
 /// Robust Gauss–Newton over the anchors (and biases) with the Jacobian differenced through
-/// `evaluate` (module doc); the gauge projected off the data when `gauge_free`;
-/// `tag_height_span_m` the tag's heights' span, for the warnings.
+/// `evaluate` (module doc), starting from the given anchors, whose residuals are `first`; the
+/// gauge projected off the data when `gauge_free`; `tag_height_span_m` the tag's heights' span,
+/// for the warnings.
 fn gauss_newton(
     input: &BatchInput<'_>,
     settings: &RefineSettings,
     gauge_free: bool,
     evaluate: impl Fn(&Theta) -> Result<Residuals> + Sync,
+    first: Residuals,
     tag_height_span_m: f64,
 ) -> Result<AnchorRefinement> {
     let k = input.anchors.len();
-    let with_bias = settings.range_bias_std_m.is_some();
-    let prior = Theta { anchors: input.anchors.to_vec(), bias: vec![0.0; k], with_bias };
+    let prior = Theta::prior(input, settings);
     let n = prior.len();
     let prior_information = DVector::from_fn(n, |j, _| {
         if j < 3 * k {
@@ -440,7 +448,7 @@ fn gauss_newton(
         projector -= &g * gram * g.transpose();
     }
     let mut theta = prior.clone();
-    let Residuals { track: mut e, check: mut checked } = evaluate(&theta)?;
+    let Residuals { track: mut e, check: mut checked } = first;
     let usable = checked.iter().flatten().count();
     if usable <= n {
         return Err(Error::InsufficientData(format!(
