@@ -37,8 +37,8 @@ use progress::{with_progress, Bar};
 const READ_BAR_MIN_BYTES: u64 = 8 << 20;
 
 /// Seconds between two path messages of the Foxglove output, and between two poses in them.
-const PATH_PERIOD_S: f64 = 1.0;
-const PATH_SPACING_S: f64 = 0.2;
+pub(crate) const PATH_PERIOD_S: f64 = 1.0;
+pub(crate) const PATH_SPACING_S: f64 = 0.2;
 
 /// The Foxglove output's description.
 const FOXGLOVE_TOPICS: &str =

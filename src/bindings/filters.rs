@@ -23,7 +23,7 @@ use uwbimu_app::methods::{Input, Method};
 
 use super::errors::PyResult;
 use batch::{initialize_state, run_filter, run_filters};
-use config::PyFilterConfig;
+pub(super) use config::PyFilterConfig;
 pub(super) use config::{apply_config_dict, calibration_dict, config_dict, read_config};
 use crlb::posterior_crlb;
 pub(super) use inputs::{read_inputs, read_observations, Log};

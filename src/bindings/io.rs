@@ -29,7 +29,7 @@ use crate::cli::progress::Bar;
 
 /// The replay settings from an optional TOML file with an optional mapping (JSON text) merged
 /// into its `[mapping]` ([`Mapping::merged_with_json`]).
-fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<ReplayConfig> {
+pub(super) fn settings(config_file: Option<&Path>, mapping_json: Option<&str>) -> PyResult<ReplayConfig> {
     let mut cfg = match config_file {
         Some(p) => ReplayConfig::read(p)?,
         None => ReplayConfig::from_toml("", Path::new("."))?,

@@ -8,6 +8,7 @@ mod errors;
 mod filters;
 mod interruptible;
 mod io;
+mod live;
 mod metrics;
 mod ranging;
 mod repr;
@@ -28,6 +29,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cli::register(m)?;
     filters::register(m)?;
     io::register(m)?;
+    live::register(m)?;
     metrics::register(m)?;
     ranging::register(m)?;
     sim::register(m)?;

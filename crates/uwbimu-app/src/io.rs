@@ -14,6 +14,7 @@ pub mod csv_out;
 mod error;
 pub mod field_path;
 pub mod foxglove_out;
+pub mod live_settings;
 mod mapping;
 pub mod mcap_read;
 pub mod msg_schema;
@@ -21,6 +22,8 @@ mod recording;
 pub mod recording_out;
 pub mod reorder;
 mod replay_config;
+pub mod ros_out;
+pub mod ros_types;
 pub mod spill;
 pub mod topics;
 pub mod truth_file;
@@ -32,7 +35,7 @@ pub use mapping::{
     TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
 };
 pub use recording::{
-    read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, ReadStats, RecordItem,
-    Recording, RecordingSurvey, SensorReadCounts, TopicRole, TopicStats,
+    read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, MessageDecoder, ReadStats,
+    RecordItem, Recording, RecordingSurvey, SensorReadCounts, TopicCounts, TopicRole, TopicStats,
 };
 pub use replay_config::ReplayConfig;

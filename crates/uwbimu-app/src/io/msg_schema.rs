@@ -62,6 +62,25 @@ impl Primitive {
         })
     }
 
+    /// The ROS 2 name of the type (`uint8` for `byte` and `char`, which share its wire form).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Bool => "bool",
+            Self::I8 => "int8",
+            Self::U8 => "uint8",
+            Self::I16 => "int16",
+            Self::U16 => "uint16",
+            Self::I32 => "int32",
+            Self::U32 => "uint32",
+            Self::I64 => "int64",
+            Self::U64 => "uint64",
+            Self::F32 => "float32",
+            Self::F64 => "float64",
+            Self::String => "string",
+            Self::WString => "wstring",
+        }
+    }
+
     /// Whether the value is a number (or bool) rather than text.
     pub fn is_numeric(self) -> bool {
         !matches!(self, Self::String | Self::WString)
@@ -124,8 +143,8 @@ pub struct MsgSchema {
     pub types: Vec<MsgType>,
 }
 
-/// `pkg/msg/Type` → `pkg/Type`.
-fn normalize(name: &str) -> String {
+/// `pkg/msg/Type` → `pkg/Type` (other names as they are).
+pub fn normalize(name: &str) -> String {
     let parts: Vec<&str> = name.split('/').collect();
     match parts.as_slice() {
         [pkg, "msg", ty] => format!("{pkg}/{ty}"),
@@ -284,6 +303,27 @@ impl MsgSchema {
     pub fn has_field(&self, name: &str) -> bool {
         self.root().field_index(name).is_some()
     }
+}
+
+/// The nested types the body of one `.msg` definition (`text`, of the type `name`, without
+/// dependency sections) uses, as normalised `pkg/Type` names in first-use order (builtin
+/// `Time`/`Duration` included).
+///
+/// # Errors
+/// [`Error::Format`] for unparsable lines.
+pub fn nested_type_names(name: &str, text: &str) -> Result<Vec<String>> {
+    let lines: Vec<&str> = text.lines().collect();
+    let pkg = package_of(&normalize(name)).to_string();
+    let mut out: Vec<String> = Vec::new();
+    for f in parse_fields(name, &lines)? {
+        if Primitive::parse(&f.type_name).is_none() {
+            let full = resolve_name(&f.type_name, &pkg);
+            if !out.contains(&full) {
+                out.push(full);
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Resolves a type name used inside package `pkg`.

@@ -5,6 +5,7 @@
 //! anchors and the statistics in a first pass, and [`stream_recording_file`] then gives the
 //! records one by one in time order, in memory that does not grow with the file.
 
+mod messages;
 mod reader;
 mod survey;
 
@@ -18,6 +19,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
+pub use messages::{MessageDecoder, TopicCounts};
 use reader::{read_pass, Item, ItemSink};
 use survey::{settle, Collected, Converter, Survey};
 pub use survey::{AnchorLayout, RecordItem};
@@ -193,10 +195,10 @@ pub fn read_recording<R: std::io::Read>(
     let pass = read_pass(source, size, label, mapping, Collected::default(), progress)?;
     let (layout, stats) = settle(mapping, &pass, &pass.sink.survey)?;
     let collected = pass.sink;
-    let mut converter = Converter::new(&layout, false);
+    let mut converter = Converter::new(false);
     let mut rec = Recording { stats, ..Recording::default() };
     for (t, item) in collected.ranging {
-        match converter.convert(t, item) {
+        match converter.convert(&layout, t, item) {
             Some(RecordItem::Range(r, variance)) => {
                 rec.ranges.push(r);
                 rec.range_variances.push(variance);
@@ -207,7 +209,7 @@ pub fn read_recording<R: std::io::Read>(
         }
     }
     for (t, accel, gyro) in collected.imu {
-        if let Some(RecordItem::Imu(s)) = converter.convert(t, Item::Imu(accel, gyro)) {
+        if let Some(RecordItem::Imu(s)) = converter.convert(&layout, t, Item::Imu(accel, gyro)) {
             rec.imu.push(s);
         }
     }
@@ -298,20 +300,21 @@ pub fn stream_recording_file(
     on_item: impl FnMut(RecordItem) -> Result<()>,
 ) -> Result<()> {
     let (file, size, label) = open(path)?;
-    let sink = Streamed { converter: Converter::new(&survey.anchors, survey.truth_file.is_none()), on_item };
+    let sink = Streamed { layout: &survey.anchors, converter: Converter::new(survey.truth_file.is_none()), on_item };
     read_pass(file, size, &label, mapping, sink, |_| {})?;
     Ok(())
 }
 
 /// The sink of [`stream_recording_file`].
 struct Streamed<'a, F> {
-    converter: Converter<'a>,
+    layout: &'a AnchorLayout,
+    converter: Converter,
     on_item: F,
 }
 
 impl<F: FnMut(RecordItem) -> Result<()>> ItemSink for Streamed<'_, F> {
     fn item(&mut self, t_ns: i64, item: Item) -> Result<()> {
-        match self.converter.convert(t_ns, item) {
+        match self.converter.convert(self.layout, t_ns, item) {
             Some(record) => (self.on_item)(record),
             None => Ok(()),
         }

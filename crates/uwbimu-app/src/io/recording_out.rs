@@ -106,7 +106,7 @@ fn split_time(t_s: f64) -> (u64, u64, u64) {
 }
 
 /// Appends an XCDR1 little-endian string (aligned to 4 after the encapsulation header).
-fn push_cdr_string(b: &mut Vec<u8>, text: &str) {
+pub(crate) fn push_cdr_string(b: &mut Vec<u8>, text: &str) {
     while (b.len() - 4) % 4 != 0 {
         b.push(0);
     }
@@ -116,7 +116,7 @@ fn push_cdr_string(b: &mut Vec<u8>, text: &str) {
 }
 
 /// Starts an XCDR1 little-endian message: the encapsulation header and a `std_msgs/Header`.
-fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<u8> {
+pub(crate) fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<u8> {
     let (sec, nsec, _) = split_time(t_s);
     let mut b = Vec::with_capacity(capacity);
     b.extend_from_slice(&[0, 1, 0, 0]);
@@ -127,7 +127,7 @@ fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<u8> {
 }
 
 /// Pads an XCDR1 message to the next 8-byte boundary (before a float64).
-fn align8(b: &mut Vec<u8>) {
+pub(crate) fn align8(b: &mut Vec<u8>) {
     while (b.len() - 4) % 8 != 0 {
         b.push(0);
     }

@@ -10,6 +10,7 @@ use crate::io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 
+use crate::io::live_settings::LiveSettings;
 use crate::io::Mapping;
 use crate::registry::{Method, DEFAULT_METHOD};
 
@@ -24,6 +25,8 @@ pub struct ReplayConfig {
     pub initial: Option<InitialState>,
     /// Topic and field mapping.
     pub mapping: Mapping,
+    /// The live node's settings (the `[live]` table).
+    pub live: LiveSettings,
 }
 
 fn config_error(reason: impl Into<String>) -> Error {
@@ -72,7 +75,13 @@ impl ReplayConfig {
     /// top-level keys, [`Error::Mapping`] for a bad mapping table.
     pub fn from_toml(text: &str, base_dir: &Path) -> Result<Self> {
         let table: toml::Table = toml::from_str(text).map_err(|e| config_error(e.to_string()))?;
-        let mut out = Self { method: None, config: FilterConfig::default(), initial: None, mapping: Mapping::default() };
+        let mut out = Self {
+            method: None,
+            config: FilterConfig::default(),
+            initial: None,
+            mapping: Mapping::default(),
+            live: LiveSettings::default(),
+        };
         for (key, value) in table {
             match key.as_str() {
                 "method" => {
@@ -106,14 +115,23 @@ impl ReplayConfig {
                         .map_err(|e| Error::Mapping { field: String::new(), reason: e.to_string() })?;
                     out.mapping = Mapping::from_value(tree)?;
                 }
+                "live" => {
+                    let tree = serde_json::to_value(value)
+                        .map_err(|e| Error::Mapping { field: "live".into(), reason: e.to_string() })?;
+                    out.live = LiveSettings::from_value(tree)?;
+                }
                 other => {
-                    return Err(
-                        CoreError::unknown_option("replay file key", other, ["method", "config", "initial", "mapping"]).into()
+                    return Err(CoreError::unknown_option(
+                        "replay file key",
+                        other,
+                        ["method", "config", "initial", "mapping", "live"],
                     )
+                    .into())
                 }
             }
         }
-        for path in [&mut out.mapping.anchors.file, &mut out.mapping.ground_truth.file].into_iter().flatten() {
+        let files = [&mut out.mapping.anchors.file, &mut out.mapping.ground_truth.file].into_iter().flatten();
+        for path in files.chain(out.live.msg_paths.iter_mut()) {
             if path.is_relative() {
                 *path = base_dir.join(&*path);
             }

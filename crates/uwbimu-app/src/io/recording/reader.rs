@@ -27,7 +27,7 @@ pub(super) enum Item {
 }
 
 /// The decoder chosen for a channel.
-enum Role {
+pub(super) enum Role {
     Imu(Box<ImuDecoder>),
     Uwb(Box<RangeDecoder>),
     Tdoa(Box<TdoaDecoder>),
@@ -59,9 +59,7 @@ struct Reader<'m, S> {
     uwb_misfit: Option<Error>,
     /// The items of the message being read.
     items: Vec<Item>,
-    range_scratch: Vec<RawRange>,
-    tdoa_scratch: Vec<RawTdoa>,
-    sensor_scratch: Vec<RawObservation>,
+    scratch: Scratch,
 }
 
 /// What a pass found besides the items: the statistics of the channels and messages (the
@@ -77,64 +75,145 @@ pub(super) struct Pass<S> {
     pub sink: S,
 }
 
-impl<S: ItemSink> Reader<'_, S> {
-    fn role_for(&mut self, channel: &ChannelInfo) -> Result<Role> {
-        let m = self.mapping;
-        let schema_name = channel.schema.as_ref().map_or("", |s| s.name.as_str());
-        let topic = channel.topic.as_str();
-        let is_imu = match &m.imu_topic {
-            Some(t) => t == topic,
-            None => schema_name == "sensor_msgs/msg/Imu",
-        };
-        if is_imu {
-            if self.roles.values().any(|r| matches!(r, Role::Imu(_))) {
-                return Err(Error::Mapping {
-                    field: "imu_topic".into(),
-                    reason: format!("several sensor_msgs/msg/Imu topics (at least `{topic}`): name one with imu_topic"),
-                });
-            }
-            return Ok(Role::Imu(Box::new(ImuDecoder::new(channel)?)));
+/// The decoder `mapping` gives the channel (a second IMU topic when `has_imu` is an error); why
+/// a candidate UWB channel did not fit goes to `uwb_misfit` (it is ignored).
+pub(super) fn role_for(mapping: &Mapping, channel: &ChannelInfo, has_imu: bool, uwb_misfit: &mut Option<Error>) -> Result<Role> {
+    let m = mapping;
+    let schema_name = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+    let topic = channel.topic.as_str();
+    let is_imu = match &m.imu_topic {
+        Some(t) => t == topic,
+        None => schema_name == "sensor_msgs/msg/Imu",
+    };
+    if is_imu {
+        if has_imu {
+            return Err(Error::Mapping {
+                field: "imu_topic".into(),
+                reason: format!("several sensor_msgs/msg/Imu topics (at least `{topic}`): name one with imu_topic"),
+            });
         }
-        if m.uwb.topics.iter().any(|t| t == topic) {
-            return Ok(Role::Uwb(Box::new(RangeDecoder::new(channel, &m.uwb)?)));
-        }
-        if m.altitude.topics.iter().any(|t| t == topic) {
-            return Ok(Role::Sensor(Box::new(SensorDecoder::altitude(channel, &m.altitude)?)));
-        }
-        if m.odometry.topics.iter().any(|t| t == topic) {
-            return Ok(Role::Sensor(Box::new(SensorDecoder::odometry(channel, &m.odometry)?)));
-        }
-        if m.tdoa.topics.iter().any(|t| t == topic) || (m.tdoa.topics.is_empty() && TdoaDecoder::recognises(channel)) {
-            return Ok(Role::Tdoa(Box::new(TdoaDecoder::new(channel, &m.tdoa)?)));
-        }
-        if m.anchors.topic.as_deref() == Some(topic) {
-            return Ok(Role::Anchors(Box::new(AnchorListDecoder::new(channel, &m.anchors)?)));
-        }
-        if m.ground_truth.topic.as_deref() == Some(topic) {
-            return Ok(Role::Truth(Box::new(PoseDecoder::new(channel, &m.ground_truth)?)));
-        }
-        if m.uwb.topics.is_empty() && (RangeDecoder::recognises(channel) || m.uwb.range.is_some()) {
-            match RangeDecoder::new(channel, &m.uwb) {
-                Ok(d) => return Ok(Role::Uwb(Box::new(d))),
-                Err(e) => self.uwb_misfit = Some(e),
-            }
-        }
-        Ok(Role::Ignored)
+        return Ok(Role::Imu(Box::new(ImuDecoder::new(channel)?)));
     }
+    if m.uwb.topics.iter().any(|t| t == topic) {
+        return Ok(Role::Uwb(Box::new(RangeDecoder::new(channel, &m.uwb)?)));
+    }
+    if m.altitude.topics.iter().any(|t| t == topic) {
+        return Ok(Role::Sensor(Box::new(SensorDecoder::altitude(channel, &m.altitude)?)));
+    }
+    if m.odometry.topics.iter().any(|t| t == topic) {
+        return Ok(Role::Sensor(Box::new(SensorDecoder::odometry(channel, &m.odometry)?)));
+    }
+    if m.tdoa.topics.iter().any(|t| t == topic) || (m.tdoa.topics.is_empty() && TdoaDecoder::recognises(channel)) {
+        return Ok(Role::Tdoa(Box::new(TdoaDecoder::new(channel, &m.tdoa)?)));
+    }
+    if m.anchors.topic.as_deref() == Some(topic) {
+        return Ok(Role::Anchors(Box::new(AnchorListDecoder::new(channel, &m.anchors)?)));
+    }
+    if m.ground_truth.topic.as_deref() == Some(topic) {
+        return Ok(Role::Truth(Box::new(PoseDecoder::new(channel, &m.ground_truth)?)));
+    }
+    if m.uwb.topics.is_empty() && (RangeDecoder::recognises(channel) || m.uwb.range.is_some()) {
+        match RangeDecoder::new(channel, &m.uwb) {
+            Ok(d) => return Ok(Role::Uwb(Box::new(d))),
+            Err(e) => *uwb_misfit = Some(e),
+        }
+    }
+    Ok(Role::Ignored)
+}
 
+impl Role {
+    /// What the channel is used for.
+    pub(super) fn tag(&self) -> TopicRole {
+        match self {
+            Role::Imu(_) => TopicRole::Imu,
+            Role::Uwb(_) => TopicRole::Uwb,
+            Role::Tdoa(_) => TopicRole::Tdoa,
+            Role::Sensor(d) => TopicRole::Sensor(d.kind()),
+            Role::Anchors(_) => TopicRole::Anchors,
+            Role::Truth(_) => TopicRole::GroundTruth,
+            Role::Ignored => TopicRole::Ignored,
+        }
+    }
+}
+
+/// Reusable buffers of [`decode_message`].
+#[derive(Default)]
+pub(super) struct Scratch {
+    ranges: Vec<RawRange>,
+    tdoa: Vec<RawTdoa>,
+    sensors: Vec<RawObservation>,
+}
+
+/// What one message held besides its items.
+pub(super) enum Decoded {
+    /// Items (appended to the caller's list) with the header stamp, ns (None: none, or zero).
+    Items(Option<i64>),
+    /// Anchor positions of an anchor list.
+    Anchors(Vec<(String, Vec3)>),
+    /// A message of an ignored channel.
+    Ignored,
+}
+
+/// Decodes one message of a channel with decoder `role`, appending its items to `items`.
+pub(super) fn decode_message(
+    role: &Role,
+    mapping: &Mapping,
+    data: &[u8],
+    scratch: &mut Scratch,
+    items: &mut Vec<Item>,
+) -> Result<Decoded> {
+    let stamp = match role {
+        Role::Imu(d) => {
+            let (s, a, g) = d.decode(data)?;
+            items.push(Item::Imu(a, g));
+            s
+        }
+        Role::Truth(d) => {
+            let (s, p) = d.decode(data)?;
+            items.push(Item::Truth(p));
+            s
+        }
+        Role::Anchors(d) => return Ok(Decoded::Anchors(d.decode(data)?)),
+        Role::Uwb(d) => {
+            let s = d.decode(data, &mut scratch.ranges)?;
+            let uwb = &mapping.uwb;
+            items.extend(scratch.ranges.drain(..).map(|r| {
+                let tag = uwb.tag_index(r.tag_id.as_deref());
+                Item::Range(r, tag)
+            }));
+            s
+        }
+        Role::Tdoa(d) => {
+            let s = d.decode(data, &mut scratch.tdoa)?;
+            items.extend(scratch.tdoa.drain(..).map(Item::Tdoa));
+            s
+        }
+        Role::Sensor(d) => {
+            let s = d.decode(data, &mut scratch.sensors)?;
+            items.extend(scratch.sensors.drain(..).map(Item::Sensor));
+            s
+        }
+        Role::Ignored => return Ok(Decoded::Ignored),
+    };
+    Ok(Decoded::Items(stamp))
+}
+
+/// The time of a message: its header stamp when the mapping uses header stamps and it has one,
+/// else its log (or arrival) time; the flag says whether the log time was used.
+pub(super) fn message_time(mapping: &Mapping, header_ns: Option<i64>, log_ns: i64) -> (i64, bool) {
+    match (mapping.time_source, header_ns) {
+        (TimeSource::Header, Some(t)) => (t, false),
+        _ => (log_ns, true),
+    }
+}
+
+impl<S: ItemSink> Reader<'_, S> {
     fn on_event(&mut self, event: McapEvent<'_>) -> Result<()> {
         match event {
             McapEvent::Channel(c) => {
-                let role = self.role_for(c)?;
-                let role_tag = match role {
-                    Role::Imu(_) => TopicRole::Imu,
-                    Role::Uwb(_) => TopicRole::Uwb,
-                    Role::Tdoa(_) => TopicRole::Tdoa,
-                    Role::Sensor(ref d) => TopicRole::Sensor(d.kind()),
-                    Role::Anchors(_) => TopicRole::Anchors,
-                    Role::Truth(_) => TopicRole::GroundTruth,
-                    Role::Ignored => TopicRole::Ignored,
-                };
+                let has_imu = self.roles.values().any(|r| matches!(r, Role::Imu(_)));
+                let role = role_for(self.mapping, c, has_imu, &mut self.uwb_misfit)?;
+                let role_tag = role.tag();
                 self.roles.insert(c.id, role);
                 let schema = c.schema.as_ref().map_or(String::new(), |s| s.name.clone());
                 match self.stats.topics.iter_mut().find(|t| t.topic == c.topic) {
@@ -165,44 +244,18 @@ impl<S: ItemSink> Reader<'_, S> {
                 };
                 let log_ns = i64::try_from(log_time_ns).unwrap_or(i64::MAX);
                 self.items.clear();
-                let stamp = match self.roles.get(&channel.id) {
-                    Some(Role::Imu(d)) => {
-                        let (s, a, g) = d.decode(data).map_err(in_topic)?;
-                        self.items.push(Item::Imu(a, g));
-                        s
-                    }
-                    Some(Role::Truth(d)) => {
-                        let (s, p) = d.decode(data).map_err(in_topic)?;
-                        self.items.push(Item::Truth(p));
-                        s
-                    }
-                    Some(Role::Anchors(d)) => {
-                        for (id, p) in d.decode(data).map_err(in_topic)? {
-                            self.topic_anchors.entry(id).or_insert(p);
+                let Some(role) = self.roles.get(&channel.id) else { return Ok(()) };
+                let stamp =
+                    match decode_message(role, self.mapping, data, &mut self.scratch, &mut self.items).map_err(in_topic)? {
+                        Decoded::Items(stamp) => stamp,
+                        Decoded::Anchors(anchors) => {
+                            for (id, p) in anchors {
+                                self.topic_anchors.entry(id).or_insert(p);
+                            }
+                            return Ok(());
                         }
-                        return Ok(());
-                    }
-                    Some(Role::Uwb(d)) => {
-                        let s = d.decode(data, &mut self.range_scratch).map_err(in_topic)?;
-                        let uwb = &self.mapping.uwb;
-                        self.items.extend(self.range_scratch.drain(..).map(|r| {
-                            let tag = uwb.tag_index(r.tag_id.as_deref());
-                            Item::Range(r, tag)
-                        }));
-                        s
-                    }
-                    Some(Role::Tdoa(d)) => {
-                        let s = d.decode(data, &mut self.tdoa_scratch).map_err(in_topic)?;
-                        self.items.extend(self.tdoa_scratch.drain(..).map(Item::Tdoa));
-                        s
-                    }
-                    Some(Role::Sensor(d)) => {
-                        let s = d.decode(data, &mut self.sensor_scratch).map_err(in_topic)?;
-                        self.items.extend(self.sensor_scratch.drain(..).map(Item::Sensor));
-                        s
-                    }
-                    Some(Role::Ignored) | None => return Ok(()),
-                };
+                        Decoded::Ignored => return Ok(()),
+                    };
                 let t = self.stamp(stamp, log_ns);
                 for item in self.items.drain(..) {
                     let (sink, sink_error) = (&mut self.sink, &mut self.sink_error);
@@ -217,13 +270,9 @@ impl<S: ItemSink> Reader<'_, S> {
     }
 
     fn stamp(&mut self, header_ns: Option<i64>, log_ns: i64) -> i64 {
-        match (self.mapping.time_source, header_ns) {
-            (TimeSource::Header, Some(t)) => t,
-            _ => {
-                self.stats.log_time_stamps += 1;
-                log_ns
-            }
-        }
+        let (t, from_log) = message_time(self.mapping, header_ns, log_ns);
+        self.stats.log_time_stamps += usize::from(from_log);
+        t
     }
 }
 
@@ -259,9 +308,7 @@ pub(super) fn read_pass<R: std::io::Read, S: ItemSink>(
         topic_anchors: BTreeMap::new(),
         uwb_misfit: None,
         items: Vec::new(),
-        range_scratch: Vec::new(),
-        tdoa_scratch: Vec::new(),
-        sensor_scratch: Vec::new(),
+        scratch: Scratch::default(),
     };
     r.stats.end = read_mcap(source, size, label, |e| r.on_event(e), progress)?;
     if r.stats.end != McapEnd::Complete && r.stats.messages == 0 {

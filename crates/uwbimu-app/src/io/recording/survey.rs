@@ -211,6 +211,26 @@ pub struct AnchorLayout {
 }
 
 impl AnchorLayout {
+    /// The layout of the anchors the mapping itself gives (`anchors.positions`, else
+    /// `anchors.file`), in id order as a whole-file read orders them; None when it gives none.
+    ///
+    /// # Errors
+    /// As [`read_anchor_file`].
+    pub fn of_mapping(mapping: &Mapping) -> Result<Option<Self>> {
+        let given = match (&mapping.anchors.positions, &mapping.anchors.file) {
+            (Some(p), _) => p.iter().map(|(k, v)| (k.clone(), Vec3::from(*v))).collect::<BTreeMap<_, _>>(),
+            (None, Some(f)) => read_anchor_file(f)?,
+            (None, None) => return Ok(None),
+        };
+        let mut layout = Self::default();
+        for (id, p) in given {
+            layout.index.insert(id.clone(), layout.positions.len());
+            layout.positions.push(p);
+            layout.ids.push(id);
+        }
+        Ok(Some(layout))
+    }
+
     /// The filter index of anchor `id` (None: no known position).
     pub fn index_of(&self, id: &str) -> Option<usize> {
         self.index.get(id).copied()
@@ -314,20 +334,19 @@ pub(super) fn settle<S>(mapping: &Mapping, pass: &Pass<S>, survey: &Survey) -> R
 /// Turns decoded items into [`RecordItem`]s with the anchor indices of an [`AnchorLayout`],
 /// dropping what the statistics count as dropped (repeated IMU times, unusable ranges, TDoA and
 /// readings, unknown anchors and tags), and ground-truth items when the truth comes from a file.
-pub(super) struct Converter<'a> {
-    layout: &'a AnchorLayout,
+pub(super) struct Converter {
     last_imu: Option<i64>,
     truth_from_topic: bool,
 }
 
-impl<'a> Converter<'a> {
-    /// A converter for `layout`; `truth_from_topic` keeps the ground-truth items.
-    pub(super) fn new(layout: &'a AnchorLayout, truth_from_topic: bool) -> Self {
-        Self { layout, last_imu: None, truth_from_topic }
+impl Converter {
+    /// A converter; `truth_from_topic` keeps the ground-truth items.
+    pub(super) fn new(truth_from_topic: bool) -> Self {
+        Self { last_imu: None, truth_from_topic }
     }
 
-    /// The record of `item` stamped `t_ns`, if it is used.
-    pub(super) fn convert(&mut self, t_ns: i64, item: Item) -> Option<RecordItem> {
+    /// The record of `item` stamped `t_ns`, with the anchor indices of `layout`, if it is used.
+    pub(super) fn convert(&mut self, layout: &AnchorLayout, t_ns: i64, item: Item) -> Option<RecordItem> {
         let t_s = t_ns as f64 * 1e-9;
         match item {
             Item::Imu(accel, gyro) => {
@@ -335,7 +354,7 @@ impl<'a> Converter<'a> {
             }
             Item::Range(raw, tag) => {
                 let (RangeUse::Usable, Some(tag)) = (range_use(&raw, tag), tag) else { return None };
-                let anchor = self.layout.index_of(&raw.anchor_id)?;
+                let anchor = layout.index_of(&raw.anchor_id)?;
                 Some(RecordItem::Range(
                     RangeMeasurement { t_s, anchor, range_m: raw.range_m, tag },
                     raw.variance_m2.unwrap_or(f64::NAN),
@@ -345,7 +364,7 @@ impl<'a> Converter<'a> {
                 if !raw.tdoa_m.is_finite() || raw.anchor_i == raw.anchor_j {
                     return None;
                 }
-                let (anchor_i, anchor_j) = (self.layout.index_of(&raw.anchor_i)?, self.layout.index_of(&raw.anchor_j)?);
+                let (anchor_i, anchor_j) = (layout.index_of(&raw.anchor_i)?, layout.index_of(&raw.anchor_j)?);
                 Some(RecordItem::Tdoa(TdoaMeasurement { t_s, anchor_i, anchor_j, tdoa_m: raw.tdoa_m }))
             }
             Item::Sensor((o, usable)) => usable.then(|| RecordItem::Sensor(o.at(t_s))),

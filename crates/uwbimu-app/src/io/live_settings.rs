@@ -1,0 +1,167 @@
+//! The `[live]` table of the replay file: what the live node (`uwbimu-live`) needs beyond the
+//! mapping — the DDS domain, the ROS 2 types of the input topics and where their `.msg` files
+//! are, the output topics and frame ids, the publishing and diagnostics rates, when a sensor
+//! counts as silent, and how long it watches before choosing its model.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::io::ros_types::full_definition;
+use uwbimu_vocabulary::error::Error as CoreError;
+
+use crate::io::{IoError as Error, IoResult as Result, Mapping};
+
+/// The `[live]` table (every key optional).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LiveSettings {
+    /// DDS domain id, the `ROS_DOMAIN_ID` of the ROS 2 graph.
+    pub domain_id: u32,
+    /// ROS 2 type (`pkg/msg/Type`) of an input topic, by topic. Unlisted: `sensor_msgs/msg/Imu`
+    /// for the IMU, `sensor_msgs/msg/Range` for altitude, `nav_msgs/msg/Odometry` for odometry,
+    /// `uwbimu_msgs/msg/Tdoa` for TDoA; a UWB topic must be listed.
+    pub types: BTreeMap<String, String>,
+    /// Folders with the `.msg` files of types not bundled, as a ROS 2 workspace lays them out
+    /// (`<dir>/<pkg>/msg/<Type>.msg`); relative to the replay file.
+    pub msg_paths: Vec<PathBuf>,
+    /// Output topic of `geometry_msgs/msg/PoseWithCovarianceStamped`.
+    pub pose_topic: String,
+    /// Output topic of `nav_msgs/msg/Odometry`.
+    pub odometry_topic: String,
+    /// Output topic of `diagnostic_msgs/msg/DiagnosticArray`.
+    pub diagnostics_topic: String,
+    /// The navigation frame id (`header.frame_id` of the outputs).
+    pub map_frame: String,
+    /// The body frame id (`child_frame_id` of the odometry).
+    pub base_frame: String,
+    /// Most poses published per second (0: one per filter step).
+    pub publish_rate_hz: f64,
+    /// Seconds between diagnostics messages.
+    pub diagnostics_period_s: f64,
+    /// A sensor that has sent nothing for this long (wall clock, s) is reported silent.
+    pub silent_after_s: f64,
+    /// Seconds of data (sensor time) the node watches before choosing its model (`best`'s
+    /// model choice); 0 keeps the configuration as given.
+    pub choose_after_s: f64,
+    /// Baud rate of a LinkTrack serial port.
+    pub linktrack_baud: u32,
+}
+
+impl Default for LiveSettings {
+    fn default() -> Self {
+        Self {
+            domain_id: 0,
+            types: BTreeMap::new(),
+            msg_paths: Vec::new(),
+            pose_topic: "/uwbimu/pose".into(),
+            odometry_topic: "/uwbimu/odometry".into(),
+            diagnostics_topic: "/diagnostics".into(),
+            map_frame: "map".into(),
+            base_frame: "base_link".into(),
+            publish_rate_hz: 0.0,
+            diagnostics_period_s: 1.0,
+            silent_after_s: 1.0,
+            choose_after_s: 60.0,
+            linktrack_baud: 921_600,
+        }
+    }
+}
+
+/// One input topic of the node: its name, ROS 2 type and full `.msg` definition.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Subscription {
+    /// ROS 2 topic name (`/imu`).
+    pub topic: String,
+    /// ROS 2 type (`sensor_msgs/msg/Imu`).
+    pub type_name: String,
+    /// The definition with its dependencies, as an MCAP `ros2msg` schema carries it.
+    pub definition: String,
+}
+
+impl LiveSettings {
+    /// Parses the `[live]` table.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] (field `live`) for unknown keys or wrong types, or numbers out of range.
+    pub fn from_value(value: serde_json::Value) -> Result<Self> {
+        let s: Self = serde_json::from_value(value)
+            .map_err(|e| Error::from(CoreError::InvalidConfig { field: "live".into(), reason: e.to_string() }))?;
+        let positive = [("live.diagnostics_period_s", s.diagnostics_period_s), ("live.silent_after_s", s.silent_after_s)];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(CoreError::InvalidConfig { field: field.into(), reason: format!("must be > 0, got {v}") }.into());
+            }
+        }
+        for (field, v) in [("live.publish_rate_hz", s.publish_rate_hz), ("live.choose_after_s", s.choose_after_s)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(CoreError::InvalidConfig { field: field.into(), reason: format!("must be >= 0, got {v}") }.into());
+            }
+        }
+        Ok(s)
+    }
+
+    /// The topics to subscribe to for `mapping`, with their types and definitions: the IMU
+    /// topic (`imu_topic`, default `/imu`), then the UWB, TDoA, altitude and odometry topics.
+    ///
+    /// # Errors
+    /// [`Error::Mapping`] for no UWB or TDoA topic, a UWB topic without a type in `live.types`,
+    /// or a type whose `.msg` is found nowhere.
+    pub fn subscriptions(&self, mapping: &Mapping) -> Result<Vec<Subscription>> {
+        let imu = mapping.imu_topic.clone().unwrap_or_else(|| "/imu".into());
+        let mut wanted: Vec<(String, Option<&str>)> = vec![(imu, Some("sensor_msgs/msg/Imu"))];
+        wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), None)));
+        wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), Some("uwbimu_msgs/msg/Tdoa"))));
+        wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), Some("sensor_msgs/msg/Range"))));
+        wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), Some("nav_msgs/msg/Odometry"))));
+        if mapping.uwb.topics.is_empty() && mapping.tdoa.topics.is_empty() {
+            return Err(Error::Mapping {
+                field: "uwb.topics".into(),
+                reason: "a live node needs its UWB topics named (uwb.topics or tdoa.topics)".into(),
+            });
+        }
+        wanted
+            .into_iter()
+            .map(|(topic, default)| {
+                let type_name = match (self.types.get(&topic), default) {
+                    (Some(t), _) => t.clone(),
+                    (None, Some(d)) => d.to_string(),
+                    (None, None) => {
+                        return Err(CoreError::InvalidConfig {
+                            field: "live.types".into(),
+                            reason: format!("no type for the UWB topic `{topic}`: add `\"{topic}\" = \"pkg/msg/Type\"`"),
+                        }
+                        .into())
+                    }
+                };
+                let definition = full_definition(&type_name, &self.msg_paths)?;
+                Ok(Subscription { topic, type_name, definition })
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_unknown_keys_and_subscriptions() {
+        let s =
+            LiveSettings::from_value(serde_json::json!({"domain_id": 3, "types": {"/uwb": "sensor_msgs/msg/Range"}})).unwrap();
+        assert_eq!((s.domain_id, s.map_frame.as_str(), s.choose_after_s), (3, "map", 60.0));
+        let e = LiveSettings::from_value(serde_json::json!({"domain": 3})).unwrap_err().to_string();
+        assert!(e.contains("unknown field `domain`"), "{e}");
+        assert!(LiveSettings::from_value(serde_json::json!({"silent_after_s": 0})).is_err());
+        let mut mapping = Mapping::default();
+        assert!(s.subscriptions(&mapping).unwrap_err().to_string().contains("UWB topics named"));
+        mapping.uwb.topics = vec!["/uwb".into()];
+        let subs = s.subscriptions(&mapping).unwrap();
+        assert_eq!(subs.iter().map(|s| s.topic.as_str()).collect::<Vec<_>>(), ["/imu", "/uwb"]);
+        assert_eq!(subs[1].type_name, "sensor_msgs/msg/Range");
+        mapping.uwb.topics = vec!["/ranges".into()];
+        let e = s.subscriptions(&mapping).unwrap_err().to_string();
+        assert!(e.contains("no type for the UWB topic `/ranges`"), "{e}");
+    }
+}

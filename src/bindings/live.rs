@@ -1,0 +1,341 @@
+//! Bindings of what the live node (`uwbimu_rs.live`) needs from the core: the replay file with
+//! its `[live]` table and the topics to subscribe to (`live_setup`), messages decoded one at a
+//! time through the mapping (`MessageDecoder`), the estimate as ROS 2 messages
+//! (`ros_pose_messages`, `ros_diagnostics_message`) and the Foxglove MCAP written as it goes
+//! (`TrajectoryWriter`). Transport (DDS, serial, WebSocket) stays in Python.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+use uwbimu_app::io::foxglove_out::TrajectoryMcapWriter;
+use uwbimu_app::io::msg_schema::{ArrayKind, FieldType, MsgSchema};
+use uwbimu_app::io::ros_out::{
+    diagnostic_array_cdr, odometry_cdr, pose_with_covariance_cdr, DiagnosticLevel, DiagnosticStatus, Frames, PoseEstimate,
+};
+use uwbimu_app::io::ros_types::{dds_topic_name, dds_type_name, full_definition};
+use uwbimu_app::io::{MessageDecoder as CoreDecoder, RecordItem};
+use uwbimu_vocabulary::error::Error;
+use uwbimu_vocabulary::math::{quat_from_wxyz, Cov, Vec3};
+
+use super::convert::{array, points_array};
+use super::errors::PyResult;
+use super::filters::{initial_dict, PyFilterConfig};
+use super::io::settings;
+use crate::cli::{PATH_PERIOD_S, PATH_SPACING_S};
+
+/// `n` finite numbers from `obj` (any array-like), or an error naming `call` and `name`.
+fn finite_values(call: &'static str, obj: &Bound<'_, PyAny>, name: &'static str, n: usize) -> PyResult<Vec<f64>> {
+    let values: Vec<f64> = array(obj, name)?.as_array().iter().copied().collect();
+    if values.len() != n {
+        return Err(
+            Error::BadArgument { call, arg: name.into(), reason: format!("must hold {n} values, got {}", values.len()) }.into()
+        );
+    }
+    if !values.iter().all(|v| v.is_finite()) {
+        return Err(Error::BadArgument { call, arg: name.into(), reason: "must be finite".into() }.into());
+    }
+    Ok(values)
+}
+
+/// Reads the replay file `config` (None: defaults) with the mapping JSON `mapping` merged in and
+/// returns what the live node starts from: `method` (str or None), `config` (FilterConfig),
+/// `initial` (dict or None), `live` (the `[live]` table with its defaults), `reorder_window_s`,
+/// `subscriptions` (list of `(topic, type, definition, dds_topic, dds_type)`: the IMU topic, then
+/// the UWB, TDoA, altitude and odometry topics, each type's full `.msg` definition) and
+/// `outputs` (the same tuples for the pose, odometry and diagnostics topics).
+#[pyfunction]
+#[pyo3(signature = (config=None, *, mapping=None))]
+fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
+    let cfg = settings(config.as_deref(), mapping)?;
+    let out = PyDict::new(py);
+    out.set_item("method", cfg.method.clone())?;
+    out.set_item("config", PyFilterConfig(cfg.config.clone()))?;
+    match &cfg.initial {
+        Some(i) => out.set_item("initial", initial_dict(py, i)?)?,
+        None => out.set_item("initial", py.None())?,
+    }
+    let live_json = serde_json::to_string(&cfg.live).map_err(|e| Error::InvalidCall(e.to_string()))?;
+    out.set_item("live", py.import("json")?.call_method1("loads", (live_json,))?)?;
+    out.set_item("reorder_window_s", cfg.mapping.reorder_window_s)?;
+    let entry = |topic: &str, type_name: &str, definition: &str| {
+        (topic.to_string(), type_name.to_string(), definition.to_string(), dds_topic_name(topic), dds_type_name(type_name))
+    };
+    let subs: Vec<_> =
+        cfg.live.subscriptions(&cfg.mapping)?.iter().map(|s| entry(&s.topic, &s.type_name, &s.definition)).collect();
+    out.set_item("subscriptions", subs)?;
+    let live = &cfg.live;
+    let mut outputs = Vec::new();
+    for (topic, type_name) in [
+        (&live.pose_topic, "geometry_msgs/msg/PoseWithCovarianceStamped"),
+        (&live.odometry_topic, "nav_msgs/msg/Odometry"),
+        (&live.diagnostics_topic, "diagnostic_msgs/msg/DiagnosticArray"),
+    ] {
+        outputs.push(entry(topic, type_name, &full_definition(type_name, &[])?));
+    }
+    out.set_item("outputs", outputs)?;
+    Ok(out)
+}
+
+/// The full `.msg` definition of the ROS 2 type `type_name` (`pkg/msg/Type`) with its
+/// dependencies, as an MCAP `ros2msg` schema carries it; types not bundled are looked up in
+/// `msg_paths` (`<dir>/<pkg>/msg/<Type>.msg`).
+#[pyfunction]
+#[pyo3(signature = (type_name, msg_paths=Vec::new()))]
+fn ros_definition(type_name: &str, msg_paths: Vec<PathBuf>) -> PyResult<String> {
+    Ok(full_definition(type_name, &msg_paths)?)
+}
+
+/// The types of the definition `definition` of `type_name` (as [`ros_definition`] gives it),
+/// root first: `(name, fields)` with `name` as `pkg/Type` and each field as `(field, element,
+/// array, length)`; `element` is a primitive (`float64`, `string`, …) or the name of another
+/// type of the list, `array` is `single`, `fixed`, `sequence` or `bounded` (length the bound or
+/// the fixed size, else 0).
+#[pyfunction]
+fn ros_fields(type_name: &str, definition: &str) -> PyResult<Vec<(String, Vec<(String, String, &'static str, usize)>)>> {
+    let schema = MsgSchema::parse(type_name, definition)?;
+    let element = |t: &FieldType| match t {
+        FieldType::Primitive(p) => p.name().to_string(),
+        FieldType::Nested(i) => schema.types[*i].name.clone(),
+    };
+    Ok(schema
+        .types
+        .iter()
+        .map(|t| {
+            let fields = t
+                .fields
+                .iter()
+                .map(|f| {
+                    let (array, n) = match f.array {
+                        ArrayKind::Single => ("single", 0),
+                        ArrayKind::Fixed(n) => ("fixed", n),
+                        ArrayKind::Unbounded => ("sequence", 0),
+                        ArrayKind::Bounded(n) => ("bounded", n),
+                    };
+                    (f.name.clone(), element(&f.ty), array, n)
+                })
+                .collect();
+            (t.name.clone(), fields)
+        })
+        .collect())
+}
+
+/// Decodes messages one at a time through the mapping of a replay file (`uwbimu_app::io::MessageDecoder`).
+#[pyclass(name = "MessageDecoder", module = "uwbimu_rs._native")]
+pub struct PyMessageDecoder(CoreDecoder);
+
+#[pymethods]
+impl PyMessageDecoder {
+    /// A decoder for the mapping of the replay file `config` (None: defaults) with the mapping
+    /// JSON `mapping` merged in; the mapping must give the anchor positions.
+    #[new]
+    #[pyo3(signature = (config=None, *, mapping=None))]
+    fn new(config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Self> {
+        Ok(Self(CoreDecoder::new(settings(config.as_deref(), mapping)?.mapping)?))
+    }
+
+    /// Anchor ids in filter-index order.
+    #[getter]
+    fn anchor_ids(&self) -> Vec<String> {
+        self.0.anchors().ids.clone()
+    }
+
+    /// Anchor positions (K, 3), m, in filter-index order.
+    #[getter]
+    fn anchors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        points_array(py, &self.0.anchors().positions)
+    }
+
+    /// Announces `topic` with its schema name and `ros2msg` text; returns its role (`imu`,
+    /// `uwb`, `tdoa`, `altitude`, `odometry`, `ignored`, …).
+    #[pyo3(signature = (topic, schema_name, schema_text, encoding="cdr"))]
+    fn add_topic(&mut self, topic: &str, schema_name: &str, schema_text: &str, encoding: &str) -> PyResult<String> {
+        Ok(self.0.add_topic(topic, schema_name, schema_text, encoding)?.name().to_string())
+    }
+
+    /// Decodes one message of `topic` that arrived at `arrival_s` (its time when the mapping
+    /// reads log times or it has no header stamp). Returns its records as tuples:
+    /// `("imu", t, accel, gyro)`, `("range", t, anchor, range, tag)`, `("tdoa", t, i, j, d_ij)`,
+    /// or `(sensor, t, values…)` for the other sensors (`altitude`: z; `odometry`: its table
+    /// row). A message that does not decode yields none and is counted in `counts`.
+    fn decode<'py>(&mut self, py: Python<'py>, topic: &str, arrival_s: f64, data: &[u8]) -> PyResult<Bound<'py, PyList>> {
+        let mut records = Vec::new();
+        self.0.decode(topic, (arrival_s * 1e9).round() as i64, data, &mut records)?;
+        let out = PyList::empty(py);
+        for r in records {
+            let item: Bound<'py, PyTuple> = match r {
+                RecordItem::Imu(s) => {
+                    ("imu", s.t_s, s.accel.as_slice().to_vec(), s.gyro.as_slice().to_vec()).into_pyobject(py)?
+                }
+                RecordItem::Range(m, _) => ("range", m.t_s, m.anchor, m.range_m, m.tag).into_pyobject(py)?,
+                RecordItem::Tdoa(m) => ("tdoa", m.t_s, m.anchor_i, m.anchor_j, m.tdoa_m).into_pyobject(py)?,
+                RecordItem::Sensor(o) => {
+                    let kind = o.kind();
+                    let (_, row) = kind.table(std::slice::from_ref(&o));
+                    let mut items: Vec<Bound<'py, PyAny>> = vec![kind.info().keyword.into_pyobject(py)?.into_any()];
+                    for v in row {
+                        items.push(v.into_pyobject(py)?.into_any());
+                    }
+                    PyTuple::new(py, items)?
+                }
+                RecordItem::Truth(..) => continue,
+            };
+            out.append(item)?;
+        }
+        Ok(out)
+    }
+
+    /// Per topic: `messages`, `records`, `errors`, `arrival_stamps` and `last_error`.
+    #[getter]
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for (topic, c, last) in self.0.counts() {
+            let d = PyDict::new(py);
+            d.set_item("messages", c.messages)?;
+            d.set_item("records", c.records)?;
+            d.set_item("errors", c.errors)?;
+            d.set_item("arrival_stamps", c.arrival_stamps)?;
+            d.set_item("last_error", last)?;
+            out.set_item(topic, d)?;
+        }
+        Ok(out)
+    }
+}
+
+/// The estimate at `t` as ROS 2 messages (XCDR1 payloads with their encapsulation header):
+/// `(PoseWithCovarianceStamped, Odometry)` in frame `parent` (child `child`). `quaternion` is
+/// [w, x, y, z] body → navigation, `angular_rate` the body rate without its bias, `covariance`
+/// the filter's (15, 15) in the order δp, δv, δθ (body), δb_a, δb_g; the messages carry it in
+/// their own conventions (`uwbimu_app::io::ros_out`).
+#[pyfunction]
+#[pyo3(signature = (t, position, velocity, quaternion, angular_rate, covariance, *, parent="map", child="base_link"))]
+#[allow(clippy::too_many_arguments)]
+fn ros_pose_messages<'py>(
+    py: Python<'py>,
+    t: f64,
+    position: &Bound<'py, PyAny>,
+    velocity: &Bound<'py, PyAny>,
+    quaternion: &Bound<'py, PyAny>,
+    angular_rate: &Bound<'py, PyAny>,
+    covariance: &Bound<'py, PyAny>,
+    parent: &str,
+    child: &str,
+) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyBytes>)> {
+    const CALL: &str = "ros_pose_messages";
+    let v3 = |obj, name| finite_values(CALL, obj, name, 3).map(|v| Vec3::new(v[0], v[1], v[2]));
+    let q = finite_values(CALL, quaternion, "quaternion", 4)?;
+    let orientation = quat_from_wxyz([q[0], q[1], q[2], q[3]]).ok_or_else(|| Error::BadArgument {
+        call: CALL,
+        arg: "quaternion".into(),
+        reason: "must not be zero".into(),
+    })?;
+    let cov = Cov::<15>::from_row_slice(&finite_values(CALL, covariance, "covariance", 225)?);
+    if !t.is_finite() {
+        return Err(Error::BadArgument { call: CALL, arg: format!("t={t}"), reason: "must be finite".into() }.into());
+    }
+    let e = PoseEstimate {
+        t_s: t,
+        position: v3(position, "position")?,
+        velocity: v3(velocity, "velocity")?,
+        orientation,
+        angular_rate: v3(angular_rate, "angular_rate")?,
+        covariance: &cov,
+    };
+    let frames = Frames { parent, child };
+    Ok((PyBytes::new(py, &pose_with_covariance_cdr(&e, frames)), PyBytes::new(py, &odometry_cdr(&e, frames))))
+}
+
+/// A `diagnostic_msgs/msg/DiagnosticArray` (XCDR1) stamped `t` of `statuses`: dicts with
+/// `level` (`"ok"`, `"warn"`, `"error"`, `"stale"`), `name`, `message`, `hardware_id` and
+/// `values` (dict; values are written as text).
+#[pyfunction]
+fn ros_diagnostics_message<'py>(py: Python<'py>, t: f64, statuses: &Bound<'py, PyList>) -> PyResult<Bound<'py, PyBytes>> {
+    let mut out = Vec::with_capacity(statuses.len());
+    for s in statuses.iter() {
+        let get = |key: &str| -> PyResult<String> {
+            match s.get_item(key) {
+                Ok(v) => Ok(v.str()?.to_string()),
+                Err(_) => Err(Error::InvalidCall(format!("ros_diagnostics_message: a status has no `{key}`")).into()),
+            }
+        };
+        let level = match get("level")?.as_str() {
+            "ok" => DiagnosticLevel::Ok,
+            "warn" => DiagnosticLevel::Warn,
+            "error" => DiagnosticLevel::Error,
+            "stale" => DiagnosticLevel::Stale,
+            other => {
+                return Err(Error::InvalidCall(format!(
+                    "ros_diagnostics_message: level `{other}` (expected ok, warn, error or stale)"
+                ))
+                .into())
+            }
+        };
+        let mut values = Vec::new();
+        if let Ok(v) = s.get_item("values") {
+            for (k, v) in v.cast::<PyDict>().map_err(PyErr::from)?.iter() {
+                values.push((k.str()?.to_string(), v.str()?.to_string()));
+            }
+        }
+        out.push(DiagnosticStatus {
+            level,
+            name: get("name")?,
+            message: get("message")?,
+            hardware_id: get("hardware_id")?,
+            values,
+        });
+    }
+    Ok(PyBytes::new(py, &diagnostic_array_cdr(t, &out)))
+}
+
+/// The trajectory as the replay's `--out` writes it (Foxglove `PoseInFrame`, `PosesInFrame`,
+/// `FrameTransform`), written as it goes; `close()` writes the summary.
+#[pyclass(name = "TrajectoryWriter", module = "uwbimu_rs._native")]
+pub struct PyTrajectoryWriter(Mutex<Option<TrajectoryMcapWriter<BufWriter<File>>>>);
+
+#[pymethods]
+impl PyTrajectoryWriter {
+    /// Creates (or truncates) the MCAP file `path`.
+    #[new]
+    fn new(path: PathBuf) -> PyResult<Self> {
+        let label = path.display().to_string();
+        let file = File::create(&path).map_err(|e| uwbimu_app::io::IoError::io(&label, e))?;
+        let writer = TrajectoryMcapWriter::new(BufWriter::new(file), &label, PATH_PERIOD_S, PATH_SPACING_S)?;
+        Ok(Self(Mutex::new(Some(writer))))
+    }
+
+    /// Writes the pose at `t`: position (3,), m, and quaternion [w, x, y, z].
+    fn push(&mut self, t: f64, position: &Bound<'_, PyAny>, quaternion: &Bound<'_, PyAny>) -> PyResult<()> {
+        const CALL: &str = "TrajectoryWriter.push";
+        let p = finite_values(CALL, position, "position", 3)?;
+        let q = finite_values(CALL, quaternion, "quaternion", 4)?;
+        let mut guard = self.0.lock().map_err(|_| Error::InvalidCall(format!("{CALL}: a previous write failed")))?;
+        let w = guard.as_mut().ok_or_else(|| Error::InvalidCall(format!("{CALL}: the writer is closed")))?;
+        Ok(w.push(&(t, Vec3::new(p[0], p[1], p[2]), quat_from_wxyz([q[0], q[1], q[2], q[3]])))?)
+    }
+
+    /// Writes the last path segment and the summary and closes the file (again: nothing).
+    fn close(&mut self) -> PyResult<()> {
+        let taken =
+            self.0.lock().map_err(|_| Error::InvalidCall("TrajectoryWriter.close: a previous write failed".into()))?.take();
+        if let Some(w) = taken {
+            let mut out = w.finish()?;
+            std::io::Write::flush(&mut out).map_err(|e| uwbimu_app::io::IoError::io("trajectory", e))?;
+        }
+        Ok(())
+    }
+}
+
+/// Registers the live node's functions and classes.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(live_setup, m)?)?;
+    m.add_function(wrap_pyfunction!(ros_definition, m)?)?;
+    m.add_function(wrap_pyfunction!(ros_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(ros_pose_messages, m)?)?;
+    m.add_function(wrap_pyfunction!(ros_diagnostics_message, m)?)?;
+    m.add_class::<PyMessageDecoder>()?;
+    m.add_class::<PyTrajectoryWriter>()?;
+    Ok(())
+}
