@@ -35,6 +35,7 @@ from uwbimu_rs._native import (
     FilterConfig,
     FormatError,
     Iekf,
+    LinkTrackDecoder,
     MappingError,
     NumericalError,
     Rekf,
@@ -45,6 +46,7 @@ from uwbimu_rs._native import (
     Ukf,
     UpdateReport,
     UwbImuError,
+    encode_linktrack_node_frame2,
     survey_anchors,
 )
 from uwbimu_rs._recording import read_mcap, replay
@@ -73,6 +75,7 @@ __all__ = [
     "FilterConfig",
     "FormatError",
     "Iekf",
+    "LinkTrackDecoder",
     "MappingError",
     "MethodRun",
     "MethodName",
@@ -89,6 +92,7 @@ __all__ = [
     "calibrate",
     "choose_model",
     "compare",
+    "encode_linktrack_node_frame2",
     "survey_anchors",
     "crlb",
     "fleet",

@@ -54,6 +54,8 @@ __all__ = [
     "TRUTH_COLUMNS",
     "replay_main",
     "write_mcap",
+    "LinkTrackDecoder",
+    "encode_linktrack_node_frame2",
     "FilterConfig",
     "Ekf",
     "UpdateReport",
@@ -1281,3 +1283,152 @@ def write_mcap(
     ``sensor_msgs/msg/Range`` on ``/altitude``, body velocities as ``nav_msgs/msg/Odometry`` on
     ``/odom`` (the magnetometer raises ValueError); anchor positions in the ``uwbimu.anchors``
     metadata record; zstd chunks."""
+
+# --------------------------------------------------------------------------------------------
+# Nooploop LinkTrack serial frames (src/bindings/linktrack.rs, docs/linktrack.md)
+# --------------------------------------------------------------------------------------------
+
+class _LinkTrackNode(TypedDict):
+    """One node a ``NodeFrame2`` ranged to."""
+
+    id: int
+    """The node's id."""
+    role: int
+    """Its role: 0 node, 1 anchor, 2 tag, 3 console, 4 DT master, 5 DT slave, 6 monitor."""
+    range: float
+    """The measured distance, m (1 mm steps)."""
+    fp_rssi: float
+    """First-path received power, dBm (0.5 dB steps)."""
+    rx_rssi: float
+    """Total received power, dBm (0.5 dB steps)."""
+    system_time_ms: int
+    """The network time of this measurement, ms."""
+
+class _LinkTrackFrameBase(TypedDict):
+    """The keys both LinkTrack frame kinds have."""
+
+    id: int
+    """The sending node's id."""
+    role: int
+    """The sending node's role (2 for a tag)."""
+    local_time_ms: int
+    """The node's own clock since power-up, ms."""
+    system_time_ms: int
+    """The network (system) time, ms."""
+    position: list[float]
+    """Position x, y, z in the LinkTrack frame, m."""
+    velocity: list[float]
+    """Velocity x, y, z, m/s."""
+    gyro: list[float]
+    """Gyroscope x, y, z, rad/s."""
+    accel: list[float]
+    """Accelerometer x, y, z, m/s²."""
+    angle: list[float]
+    """Euler angles roll, pitch, yaw, degrees."""
+    quaternion: list[float]
+    """Attitude quaternion w, x, y, z."""
+    eop: list[float]
+    """Estimated precision of the position per axis, m."""
+    voltage: float
+    """Supply voltage, V."""
+
+class _LinkTrackNodeFrame2(_LinkTrackFrameBase):
+    """A decoded ``NodeFrame2`` (function mark 0x04)."""
+
+    kind: Literal["node_frame2"]
+    nodes: list[_LinkTrackNode]
+    """The nodes ranged to, in frame order."""
+
+class _LinkTrackTagFrame0(_LinkTrackFrameBase):
+    """A decoded ``TagFrame0`` (function mark 0x01)."""
+
+    kind: Literal["tag_frame0"]
+    distances: list[float]
+    """Distances to anchors 0 to 7, m (0 where there is none)."""
+
+class _LinkTrackCounts(TypedDict):
+    """What a :class:`LinkTrackDecoder` has seen. ``bytes_received`` = bytes of decoded frames +
+    ``bytes_skipped`` + ``LinkTrackDecoder.buffered``."""
+
+    bytes_received: int
+    frames: int
+    """Frames decoded (``node_frame2`` + ``tag_frame0``)."""
+    node_frame2: int
+    tag_frame0: int
+    checksum_errors: int
+    """Candidate frames whose last byte was not their checksum."""
+    unknown_frames: int
+    """``0x55`` bytes followed by a function mark the decoder does not read."""
+    bad_lengths: int
+    """``NodeFrame2`` candidates with an impossible length field."""
+    bytes_skipped: int
+    """Bytes dropped while resynchronising."""
+
+@final
+class LinkTrackDecoder:
+    """A decoder of the Nooploop LinkTrack serial stream (``NodeFrame2`` and ``TagFrame0``).
+
+    Feed it the bytes read from the port, cut anywhere; it keeps an incomplete frame for the next
+    call, skips what is not a frame and resynchronises one byte after a bad checksum or an unknown
+    function mark. It never raises on data, and holds at most one incomplete frame.
+    """
+
+    def __init__(self) -> None: ...
+    def feed(self, data: bytes) -> list[_LinkTrackNodeFrame2 | _LinkTrackTagFrame0]:
+        """Append ``data`` and return the frames it completed, oldest first, each a dict with
+        ``kind`` (``"node_frame2"`` or ``"tag_frame0"``), ``id``, ``role``, ``local_time_ms``,
+        ``system_time_ms``, ``position``, ``velocity``, ``gyro``, ``accel``, ``angle``,
+        ``quaternion``, ``eop``, ``voltage``, and ``nodes`` (``NodeFrame2``: dicts ``id``,
+        ``role``, ``range``, ``fp_rssi``, ``rx_rssi``, ``system_time_ms``) or ``distances``
+        (``TagFrame0``: 8 floats)."""
+
+    @property
+    def counts(self) -> _LinkTrackCounts:
+        """What was decoded and skipped so far."""
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held back: the start of a frame not yet complete."""
+
+def encode_linktrack_node_frame2(
+    id: int,
+    local_time_ms: int,
+    gyro: Sequence[float],
+    accel: Sequence[float],
+    nodes: Sequence[tuple[int, float, float, float]],
+    *,
+    role: int = 2,
+    system_time_ms: int = 0,
+    position: Sequence[float] | None = None,
+    velocity: Sequence[float] | None = None,
+    quaternion: Sequence[float] | None = None,
+    angle: Sequence[float] | None = None,
+    eop: Sequence[float] | None = None,
+    voltage: float = 5.0,
+) -> bytes:
+    """Encode one LinkTrack ``NodeFrame2`` (checksum included), as a tag sends it.
+
+    Parameters
+    ----------
+    id : int
+        The sending node's id (0–255).
+    local_time_ms : int
+        The node's clock, ms.
+    gyro, accel : sequence of 3 floats
+        Gyroscope (rad/s) and accelerometer (m/s²) x, y, z.
+    nodes : sequence of (anchor_id, range_m, fp_rssi_dbm, rx_rssi_dbm)
+        The ranges to anchors (role 1, measured at ``system_time_ms``); at most 255.
+    role : int, default 2
+        The sending node's role (2 tag).
+    system_time_ms : int, default 0
+        The network time, ms.
+    position, velocity, angle, eop : sequence of 3 floats, optional
+        m, m/s, degrees, m; zeros when left out.
+    quaternion : sequence of 4 floats, optional
+        w, x, y, z; the identity when left out.
+    voltage : float, default 5.0
+        Supply voltage, V.
+
+    Values are rounded to the wire's steps (1 mm, 0.5 dB, …) and saturate at a field's limits.
+    Raises ``UwbImuError`` (a ValueError) for more than 255 nodes.
+    """

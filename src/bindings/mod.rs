@@ -9,6 +9,7 @@ mod filters;
 mod interruptible;
 mod io;
 mod live;
+mod linktrack;
 mod metrics;
 mod ranging;
 mod repr;
@@ -30,6 +31,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     filters::register(m)?;
     io::register(m)?;
     live::register(m)?;
+    linktrack::register(m)?;
     metrics::register(m)?;
     ranging::register(m)?;
     sim::register(m)?;

@@ -4,7 +4,8 @@
 //! reorder window ([`reorder`]), the whole-recording reader ([`read_recording`]), the reader of
 //! anchor-to-anchor ranges ([`anchor_ranges`]), ground-truth files ([`truth_file`]) and the
 //! writers: Foxglove trajectories ([`foxglove_out`]), recordings
-//! ([`recording_out`]), CSV ([`csv_out`]).
+//! ([`recording_out`]), CSV ([`csv_out`]); and the Nooploop LinkTrack serial frames
+//! ([`linktrack`]).
 
 pub mod anchor_ranges;
 pub mod anchors;
@@ -14,6 +15,7 @@ pub mod csv_out;
 mod error;
 pub mod field_path;
 pub mod foxglove_out;
+pub mod linktrack;
 pub mod live_settings;
 mod mapping;
 pub mod mcap_read;
