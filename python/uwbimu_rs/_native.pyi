@@ -10,6 +10,7 @@ navigation; error-state order δp, δv, δθ, δb_a, δb_g. Every returned array
 NumPy array (``range_labels``: uint8) owned by the caller.
 """
 
+import os
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal, TypedDict, TypeVar, final
 
@@ -56,6 +57,14 @@ __all__ = [
     "write_mcap",
     "LinkTrackDecoder",
     "encode_linktrack_node_frame2",
+    "live_setup",
+    "live_subscriptions",
+    "ros_definition",
+    "ros_fields",
+    "MessageDecoder",
+    "ros_pose_messages",
+    "ros_diagnostics_message",
+    "TrajectoryWriter",
     "FilterConfig",
     "Ekf",
     "UpdateReport",
@@ -1432,3 +1441,77 @@ def encode_linktrack_node_frame2(
     Values are rounded to the wire's steps (1 mm, 0.5 dB, …) and saturate at a field's limits.
     Raises ``UwbImuError`` (a ValueError) for more than 255 nodes.
     """
+
+# --------------------------------------------------------------------------------------------
+# The live node's core (src/bindings/live.rs, docs/live.md)
+# --------------------------------------------------------------------------------------------
+
+_TopicEntry = tuple[str, str, str, str, str]
+
+def live_setup(config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> dict[str, Any]:
+    """The replay file ``config`` (with the mapping JSON ``mapping`` merged in) as the live node
+    starts from it: ``method``, ``config`` (FilterConfig), ``initial``, ``live`` (the ``[live]``
+    table with its defaults), ``reorder_window_s`` and ``outputs`` (``(topic, type, definition,
+    dds_topic, dds_type)`` of the pose, odometry and diagnostics topics)."""
+
+def live_subscriptions(config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> list[_TopicEntry]:
+    """``(topic, type, definition, dds_topic, dds_type)`` of each topic the node subscribes to:
+    the IMU topic, then the UWB, TDoA, altitude and odometry topics of the mapping. Raises
+    ``ConfigError`` for a UWB topic without a type in ``live.types`` or a type found nowhere."""
+
+def ros_definition(type_name: str, msg_paths: Sequence[str | os.PathLike[str]] = ...) -> str:
+    """The full ``.msg`` definition of ``type_name`` with its dependencies (bundled, or found as
+    ``<dir>/<pkg>/msg/<Type>.msg`` in ``msg_paths``)."""
+
+def ros_fields(type_name: str, definition: str) -> list[tuple[str, list[tuple[str, str, str, int]]]]:
+    """The types of a definition, root first: ``(name, [(field, element, array, length)])``."""
+
+@final
+class MessageDecoder:
+    """Messages decoded one at a time through the mapping of a replay file (which must give the
+    anchor positions)."""
+
+    def __new__(cls, config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> MessageDecoder: ...
+    @property
+    def anchor_ids(self) -> list[str]:
+        """Anchor ids in filter-index order."""
+    @property
+    def anchors(self) -> NDArray[np.float64]:
+        """Anchor positions (K, 3), m, in filter-index order."""
+    def add_topic(self, topic: str, schema_name: str, schema_text: str, encoding: str = "cdr") -> str | None:
+        """Announce a topic; its role when it feeds the filter, else None."""
+    def decode(self, topic: str, arrival_s: float, data: bytes) -> list[tuple[Any, ...]]:
+        """The records of one message: ``("imu", t, accel, gyro)``, ``("range", t, anchor, range,
+        tag)``, ``("tdoa", t, i, j, d_ij)``, ``(sensor, t, values...)``; none for a message
+        that does not decode (counted)."""
+    @property
+    def counts(self) -> dict[str, dict[str, Any]]:
+        """Per topic: ``messages``, ``records``, ``errors``, ``arrival_stamps``, ``last_error``."""
+
+def ros_pose_messages(
+    t: float,
+    position: ArrayLike,
+    velocity: ArrayLike,
+    quaternion: ArrayLike,
+    angular_rate: ArrayLike,
+    covariance: ArrayLike,
+    *,
+    parent: str = "map",
+    child: str = "base_link",
+) -> tuple[bytes, bytes]:
+    """``(PoseWithCovarianceStamped, Odometry)`` XCDR1 payloads of the estimate at ``t``
+    (covariance (15, 15) in the filter's order, carried in the messages' conventions)."""
+
+def ros_diagnostics_message(t: float, statuses: list[dict[str, Any]]) -> bytes:
+    """A ``diagnostic_msgs/DiagnosticArray`` XCDR1 payload of status dicts (``level``: ok, warn,
+    error, stale; ``name``, ``message``, ``hardware_id``, ``values``)."""
+
+@final
+class TrajectoryWriter:
+    """The trajectory as ``uwbimu-replay --out`` writes it, written as it goes."""
+
+    def __new__(cls, path: str | os.PathLike[str]) -> TrajectoryWriter: ...
+    def push(self, t: float, position: ArrayLike, quaternion: ArrayLike) -> None:
+        """Write the pose at ``t``: position (3,) m, quaternion [w, x, y, z]."""
+    def close(self) -> None:
+        """Write the summary and close the file."""

@@ -41,12 +41,18 @@ fn finite_values(call: &'static str, obj: &Bound<'_, PyAny>, name: &'static str,
     Ok(values)
 }
 
+/// `(topic, type, definition, dds_topic, dds_type)` of a ROS 2 topic.
+type TopicEntry = (String, String, String, String, String);
+
+fn topic_entry(topic: &str, type_name: &str, definition: &str) -> TopicEntry {
+    (topic.to_string(), type_name.to_string(), definition.to_string(), dds_topic_name(topic), dds_type_name(type_name))
+}
+
 /// Reads the replay file `config` (None: defaults) with the mapping JSON `mapping` merged in and
 /// returns what the live node starts from: `method` (str or None), `config` (FilterConfig),
-/// `initial` (dict or None), `live` (the `[live]` table with its defaults), `reorder_window_s`,
-/// `subscriptions` (list of `(topic, type, definition, dds_topic, dds_type)`: the IMU topic, then
-/// the UWB, TDoA, altitude and odometry topics, each type's full `.msg` definition) and
-/// `outputs` (the same tuples for the pose, odometry and diagnostics topics).
+/// `initial` (dict or None), `live` (the `[live]` table with its defaults), `reorder_window_s`
+/// and `outputs` (`(topic, type, definition, dds_topic, dds_type)` of the pose, odometry and
+/// diagnostics topics).
 #[pyfunction]
 #[pyo3(signature = (config=None, *, mapping=None))]
 fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
@@ -61,12 +67,6 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
     let live_json = serde_json::to_string(&cfg.live).map_err(|e| Error::InvalidCall(e.to_string()))?;
     out.set_item("live", py.import("json")?.call_method1("loads", (live_json,))?)?;
     out.set_item("reorder_window_s", cfg.mapping.reorder_window_s)?;
-    let entry = |topic: &str, type_name: &str, definition: &str| {
-        (topic.to_string(), type_name.to_string(), definition.to_string(), dds_topic_name(topic), dds_type_name(type_name))
-    };
-    let subs: Vec<_> =
-        cfg.live.subscriptions(&cfg.mapping)?.iter().map(|s| entry(&s.topic, &s.type_name, &s.definition)).collect();
-    out.set_item("subscriptions", subs)?;
     let live = &cfg.live;
     let mut outputs = Vec::new();
     for (topic, type_name) in [
@@ -74,10 +74,21 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
         (&live.odometry_topic, "nav_msgs/msg/Odometry"),
         (&live.diagnostics_topic, "diagnostic_msgs/msg/DiagnosticArray"),
     ] {
-        outputs.push(entry(topic, type_name, &full_definition(type_name, &[])?));
+        outputs.push(topic_entry(topic, type_name, &full_definition(type_name, &[])?));
     }
     out.set_item("outputs", outputs)?;
     Ok(out)
+}
+
+/// The ROS 2 topics the live node subscribes to for the replay file `config` (with the mapping
+/// JSON `mapping` merged in): `(topic, type, definition, dds_topic, dds_type)` of the IMU topic,
+/// then the UWB, TDoA, altitude and odometry topics, each type's full `.msg` definition.
+#[pyfunction]
+#[pyo3(signature = (config=None, *, mapping=None))]
+fn live_subscriptions(config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Vec<TopicEntry>> {
+    let cfg = settings(config.as_deref(), mapping)?;
+    let subs = cfg.live.subscriptions(&cfg.mapping)?;
+    Ok(subs.iter().map(|s| topic_entry(&s.topic, &s.type_name, &s.definition)).collect())
 }
 
 /// The full `.msg` definition of the ROS 2 type `type_name` (`pkg/msg/Type`) with its
@@ -149,11 +160,14 @@ impl PyMessageDecoder {
         points_array(py, &self.0.anchors().positions)
     }
 
-    /// Announces `topic` with its schema name and `ros2msg` text; returns its role (`imu`,
-    /// `uwb`, `tdoa`, `altitude`, `odometry`, `ignored`, …).
+    /// Announces `topic` with its schema name and `ros2msg` text (or JSON schema, encoding
+    /// `json`); returns its role when its messages feed the filter (`imu`, `uwb`, `tdoa`,
+    /// `altitude`, `odometry`), else None (anchor lists, ground truth, topics the mapping does
+    /// not use).
     #[pyo3(signature = (topic, schema_name, schema_text, encoding="cdr"))]
-    fn add_topic(&mut self, topic: &str, schema_name: &str, schema_text: &str, encoding: &str) -> PyResult<String> {
-        Ok(self.0.add_topic(topic, schema_name, schema_text, encoding)?.name().to_string())
+    fn add_topic(&mut self, topic: &str, schema_name: &str, schema_text: &str, encoding: &str) -> PyResult<Option<&'static str>> {
+        let role = self.0.add_topic(topic, schema_name, schema_text, encoding)?;
+        Ok(role.feeds_filter().then(|| role.name()))
     }
 
     /// Decodes one message of `topic` that arrived at `arrival_s` (its time when the mapping
@@ -331,6 +345,7 @@ impl PyTrajectoryWriter {
 /// Registers the live node's functions and classes.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(live_setup, m)?)?;
+    m.add_function(wrap_pyfunction!(live_subscriptions, m)?)?;
     m.add_function(wrap_pyfunction!(ros_definition, m)?)?;
     m.add_function(wrap_pyfunction!(ros_fields, m)?)?;
     m.add_function(wrap_pyfunction!(ros_pose_messages, m)?)?;

@@ -59,6 +59,11 @@ impl TopicRole {
             Self::Ignored => "-",
         }
     }
+
+    /// Whether the topic's messages become filter inputs (IMU, ranges, TDoA, other sensors).
+    pub fn feeds_filter(self) -> bool {
+        matches!(self, Self::Imu | Self::Uwb | Self::Tdoa | Self::Sensor(_))
+    }
 }
 
 /// One channel of the file.

@@ -77,8 +77,9 @@ impl MessageDecoder {
     /// for. Announcing a topic again replaces its decoder.
     ///
     /// # Errors
-    /// [`Error::Mapping`] / [`Error::Format`] when the mapping's fields do not fit the schema, or
-    /// for a second IMU topic.
+    /// [`Error::Mapping`] / [`Error::Format`] when the mapping's fields do not fit the schema of
+    /// a topic it names, or for a second IMU topic. A topic the mapping does not name and whose
+    /// schema the UWB field paths do not fit is ignored (why: its `last_error`).
     pub fn add_topic(&mut self, topic: &str, schema_name: &str, schema_text: &str, encoding: &str) -> Result<TopicRole> {
         let channel = ChannelInfo {
             id: 0,
@@ -93,11 +94,9 @@ impl MessageDecoder {
         let has_imu = self.topics.iter().any(|(t, d)| t != topic && matches!(d.role, Role::Imu(_)));
         let mut misfit = None;
         let role = role_for(&self.mapping, &channel, has_imu, &mut misfit)?;
-        if let (Role::Ignored, Some(e)) = (&role, misfit) {
-            return Err(e);
-        }
         let tag = role.tag();
-        self.topics.insert(topic.to_string(), Topic { role, counts: TopicCounts::default(), last_error: None });
+        let last_error = misfit.map(|e| format!("not used as UWB: {e}"));
+        self.topics.insert(topic.to_string(), Topic { role, counts: TopicCounts::default(), last_error });
         Ok(tag)
     }
 

@@ -1,0 +1,5 @@
+"""``python -m uwbimu_rs.live``: the ``uwbimu-live`` node."""
+
+from uwbimu_rs.live._cli import main
+
+main()

@@ -1,0 +1,397 @@
+"""The live node's estimator loop, free of any transport: records in, poses and diagnostics out.
+
+A :class:`LiveNode` owns one streaming filter (``best`` unless the replay file or the command
+names another). Sources hand it decoded records (:meth:`LiveNode.feed`) or raw messages of a
+mapped topic (:meth:`LiveNode.feed_message`); after each call the new steps go to the sinks
+(:class:`Sink`: DDS, Foxglove, an MCAP file). :meth:`LiveNode.tick` runs the wall-clock duties:
+silent sensors, diagnostics, and the model choice once ``live.choose_after_s`` of data is in.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from uwbimu_rs import _native
+from uwbimu_rs._calibration import choose_model
+
+log = logging.getLogger("uwbimu.live")
+
+
+@dataclass(frozen=True)
+class Pose:
+    """One estimate to publish: the filter's newest step with its full covariance."""
+
+    t: float
+    position: np.ndarray
+    velocity: np.ndarray
+    quaternion: np.ndarray
+    """[w, x, y, z], body → navigation."""
+    angular_rate: np.ndarray
+    """Body rate of the last IMU sample less the gyro bias, rad/s."""
+    covariance: np.ndarray
+    """(15, 15): δp, δv, δθ (body), δb_a, δb_g."""
+
+
+class Sink(Protocol):
+    """Where the estimate goes (DDS publisher, Foxglove server, MCAP file)."""
+
+    def steps(self, rows: dict[str, np.ndarray]) -> None:
+        """Every new step (the columns of ``run_filter``)."""
+
+    def pose(self, pose: Pose) -> None:
+        """The newest pose, at most ``live.publish_rate_hz`` times a second."""
+
+    def diagnostics(self, t: float, statuses: list[dict[str, Any]]) -> None:
+        """The health of the node and each sensor, every ``live.diagnostics_period_s``."""
+
+    def nis(self, t: float, anchor: int, nis: float, accepted: bool) -> None:
+        """The normalised innovation squared of one range update."""
+
+    def close(self) -> None:
+        """Flush and close (the node is stopping)."""
+
+
+@dataclass
+class SensorWatch:
+    """What one input (a topic or a port) has delivered."""
+
+    name: str
+    kind: str
+    last_arrival: float | None = None
+    messages: int = 0
+    records: int = 0
+    rejected: int = 0
+    silent: bool = False
+
+
+def streaming_class(method: str) -> type:
+    """The streaming class of ``method`` (``best`` → :class:`uwbimu_rs.Best`)."""
+    cls = getattr(_native, method.capitalize(), None)
+    if cls is None or not hasattr(cls, "add_imu"):
+        streaming = sorted(m for m in _native.METHODS if hasattr(getattr(_native, m.capitalize(), None), "add_imu"))
+        raise ValueError(f"method {method!r} has no streaming class; the live node runs one of {streaming}")
+    return cls
+
+
+@dataclass
+class _Choice:
+    """The model choice: records kept until ``choose_after_s`` of data, then the job."""
+
+    after_s: float
+    imu: list[tuple[float, ...]] = field(default_factory=list)
+    ranges: list[tuple[float, float, float]] = field(default_factory=list)
+    job: Future[dict[str, Any]] | None = None
+    first_t: float | None = None
+
+
+class LiveNode:
+    """The estimator of ``uwbimu-live``: feeds records to a streaming filter and the estimate to
+    the sinks; thread-safe (sources may call from their own threads).
+
+    Parameters
+    ----------
+    setup
+        :func:`uwbimu_rs._native.live_setup` of the replay file.
+    anchors
+        (K, 3) anchor positions in filter-index order.
+    method
+        Overrides the file's ``method`` (default ``best``).
+    sinks
+        Where the estimate goes.
+    clock
+        Wall clock, s (the arrival times; a test may give its own).
+    """
+
+    def __init__(
+        self,
+        setup: dict[str, Any],
+        anchors: np.ndarray,
+        *,
+        method: str | None = None,
+        sinks: list[Sink] | None = None,
+        clock: Any = time.monotonic,
+    ) -> None:
+        self.method = method or setup["method"] or "best"
+        self.live: dict[str, Any] = setup["live"]
+        self.anchors = np.asarray(anchors, dtype=np.float64)
+        self.sinks = sinks or []
+        self.clock = clock
+        self._setup = setup
+        self._cls = streaming_class(self.method)
+        self._config: Any = setup["config"]
+        self._lock = threading.RLock()
+        self._filter = self._new_filter(self._config)
+        self._watches: dict[str, SensorWatch] = {}
+        self._last_gyro = np.zeros(3)
+        self._last_publish = -np.inf
+        self._last_diagnostics = clock()
+        self._errors: dict[str, int] = {}
+        self._initialized = False
+        self.chosen: str | None = None
+        """Label of the chosen model (None: the configuration as given)."""
+        self.poses_published = 0
+        self._waiting: deque[tuple[float, float]] = deque()
+        self.latencies: deque[float] = deque(maxlen=1_000_000)
+        """Seconds from each IMU message's arrival to the first step that includes it."""
+        choose = float(self.live["choose_after_s"])
+        self._choice = _Choice(choose) if choose > 0 and self.method == "best" else None
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="uwbimu-choice") if self._choice else None
+        log.info(
+            "method %s, %d anchors; %s",
+            self.method,
+            len(self.anchors),
+            f"choosing the model after {choose:g} s of data" if self._choice else "model as configured",
+        )
+        log.info("waiting for IMU data (the filter initialises itself once still, then moving)")
+
+    def _new_filter(self, config: Any) -> Any:
+        return self._cls(
+            self.anchors,
+            initial=self._setup["initial"],
+            config=config,
+            reorder_window_s=self._setup["reorder_window_s"],
+        )
+
+    # ---------------------------------------------------------------------------------------
+    # Input
+    # ---------------------------------------------------------------------------------------
+
+    def watch(self, name: str, kind: str) -> SensorWatch:
+        """The watch of input ``name`` (created on first use): silence and counts."""
+        w = self._watches.get(name)
+        if w is None:
+            w = self._watches[name] = SensorWatch(name, kind)
+        return w
+
+    def feed_message(self, decoder: Any, topic: str, data: bytes, arrival: float | None = None) -> int:
+        """Decode one message of ``topic`` with ``decoder`` (:class:`MessageDecoder`) and feed
+        its records; returns how many it held."""
+        now = self.clock() if arrival is None else arrival
+        records = decoder.decode(topic, time.time(), data)
+        return self.feed(topic, records, now)
+
+    def feed(self, source: str, records: list[tuple[Any, ...]], arrival: float | None = None) -> int:
+        """Feed decoded records (the tuples of :meth:`MessageDecoder.decode`) from ``source``."""
+        now = self.clock() if arrival is None else arrival
+        with self._lock:
+            w = self.watch(source, records[0][0] if records else "?")
+            w.messages += 1
+            w.last_arrival = now
+            if w.silent:
+                w.silent = False
+                log.info("%s: receiving again", source)
+            for r in records:
+                w.records += 1
+                if r[0] == "imu":
+                    self._waiting.append((r[1], now))
+                if not self._apply(r):
+                    w.rejected += 1
+                if self._choice is not None and self._choice.job is None:
+                    self._keep_for_choice(r)
+            self._emit()
+        return len(records)
+
+    def _apply(self, r: tuple[Any, ...]) -> bool:
+        """Give one record to the filter; a refused one is counted and logged once per reason."""
+        kind = r[0]
+        f = self._filter
+        try:
+            if kind == "imu":
+                self._last_gyro = np.asarray(r[3], dtype=np.float64)
+                reports = f.add_imu(r[1], r[2], r[3])
+            elif kind == "range":
+                reports = f.add_range(r[1], r[2], r[3], r[4])
+            elif kind == "tdoa":
+                reports = f.add_tdoa(r[1], r[2], r[3], r[4])
+            elif kind == "altitude":
+                reports = f.add_altitude(r[1], r[2])
+            elif kind == "odometry":
+                reports = f.add_odometry(r[1], r[2] if len(r) == 3 else list(r[2:]))
+            else:
+                return False
+            self._nis(reports)
+        except ValueError as e:
+            reason = str(e).split(":")[0]
+            n = self._errors.get(reason, 0)
+            self._errors[reason] = n + 1
+            if n == 0:
+                log.warning("refused %s (counted, not logged again): %s", kind, e)
+            return False
+        return True
+
+    def _nis(self, reports: list[Any]) -> None:
+        if not self.sinks:
+            return
+        for rep in reports:
+            if rep.anchor is not None and rep.sensor == "range":
+                for s in self.sinks:
+                    s.nis(rep.t, rep.anchor, rep.nis, rep.accepted)
+
+    def _keep_for_choice(self, r: tuple[Any, ...]) -> None:
+        c = self._choice
+        assert c is not None
+        if r[0] == "imu":
+            c.imu.append((r[1], *r[2], *r[3]))
+            c.first_t = r[1] if c.first_t is None else c.first_t
+            if r[1] - c.first_t >= c.after_s and self._pool is not None:
+                self._start_choice()
+        elif r[0] == "range" and (r[4] or 0) == 0:
+            c.ranges.append((r[1], float(r[2]), r[3]))
+
+    def _start_choice(self) -> None:
+        c = self._choice
+        assert c is not None and self._pool is not None
+        imu, ranges = np.array(c.imu), np.array(c.ranges).reshape(-1, 3)
+        log.info("choosing the model on %.0f s of data (%d IMU samples, %d ranges)", imu[-1, 0] - imu[0, 0], len(imu), len(ranges))
+        c.job = self._pool.submit(
+            choose_model, self.method, imu, ranges, self.anchors, initial=self._setup["initial"], config=self._config
+        )
+
+    def _finish_choice(self) -> None:
+        """Once the choice is made: a filter with the chosen model, fed everything kept."""
+        c = self._choice
+        if c is None or c.job is None or not c.job.done():
+            return
+        self._choice = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=False)
+        try:
+            result = c.job.result()
+        except ValueError as e:
+            log.warning("model choice failed, keeping the configured model: %s", e)
+            return
+        self.chosen = result["chosen"]
+        if not result["overrides"]:
+            log.info("model chosen: %s (%s) — the configured model, kept", result["chosen"], result["reason"])
+            return
+        log.info("model chosen: %s (%s); switching: %s", result["chosen"], result["reason"], result["overrides"])
+        self._config = result["config"]
+        self._filter = self._new_filter(self._config)
+        self._initialized = False
+        for row in c.imu:
+            self._filter.add_imu(row[0], row[1:4], row[4:7])
+        for t, a, rng in c.ranges:
+            self._filter.add_range(t, int(a), rng)
+        self._filter.steps()  # the replayed past is not published again
+
+    # ---------------------------------------------------------------------------------------
+    # Output
+    # ---------------------------------------------------------------------------------------
+
+    def _emit(self) -> None:
+        f = self._filter
+        if not f.initialized:
+            return
+        steps = f.steps()
+        if steps.height == 0:
+            return
+        if not self._initialized:
+            self._initialized = True
+            log.info("initialised: %s", f.init_info)
+            start = steps["t"][-1]
+            while self._waiting and self._waiting[0][0] <= start:  # waited for the start, not the filter
+                self._waiting.popleft()
+        rows = {c: steps[c].to_numpy() for c in steps.columns}
+        for s in self.sinks:
+            s.steps(rows)
+        now = self.clock()
+        last_t = rows["t"][-1]
+        while self._waiting and self._waiting[0][0] <= last_t:
+            self.latencies.append(now - self._waiting.popleft()[1])
+        rate = float(self.live["publish_rate_hz"])
+        if rate > 0 and now - self._last_publish < 1.0 / rate:
+            return
+        self._last_publish = now
+        state = f.state
+        pose = Pose(
+            t=float(rows["t"][-1]),
+            position=np.array([rows["x"][-1], rows["y"][-1], rows["z"][-1]]),
+            velocity=np.array([rows["vx"][-1], rows["vy"][-1], rows["vz"][-1]]),
+            quaternion=np.array([rows["qw"][-1], rows["qx"][-1], rows["qy"][-1], rows["qz"][-1]]),
+            angular_rate=self._last_gyro - state["gyro_bias"],
+            covariance=f.covariance,
+        )
+        self.poses_published += 1
+        for s in self.sinks:
+            s.pose(pose)
+
+    def tick(self) -> None:
+        """The wall-clock duties: silent sensors, the model choice, diagnostics."""
+        now = self.clock()
+        with self._lock:
+            self._finish_choice()
+            silent_after = float(self.live["silent_after_s"])
+            for w in self._watches.values():
+                if not w.silent and w.last_arrival is not None and now - w.last_arrival > silent_after:
+                    w.silent = True
+                    log.warning("%s: silent for %.1f s", w.name, now - w.last_arrival)
+            if now - self._last_diagnostics >= float(self.live["diagnostics_period_s"]):
+                self._last_diagnostics = now
+                t = self._filter.time if self._filter.time is not None else 0.0
+                statuses = self.statuses(now)
+                for s in self.sinks:
+                    s.diagnostics(t, statuses)
+
+    def statuses(self, now: float | None = None) -> list[dict[str, Any]]:
+        """The diagnostics: one status for the estimator, one per input."""
+        now = self.clock() if now is None else now
+        f = self._filter
+        health = f.health
+        values: dict[str, Any] = {
+            "method": self.method,
+            "model": self.chosen or ("choosing" if self._choice else "as configured"),
+            "initialized": f.initialized,
+            "poses_published": self.poses_published,
+            "late_dropped": health["late_dropped"],
+            "reordered": health["reordered"],
+            "numerical_repairs": health["numerical_repairs"],
+        }
+        values.update({f"latency_{k}_ms": round(v, 2) for k, v in self.latency_ms().items()})
+        values.update({f"rejected.{k}": v for k, v in health["rejected"].items() if v})
+        values.update({f"refused.{k}": v for k, v in self._errors.items()})
+        level = "ok" if f.initialized else "warn"
+        message = f"initialised ({f.init_info['from']})" if f.initialized and f.init_info else "waiting to initialise"
+        out = [{"level": level, "name": "uwbimu: estimator", "message": message, "hardware_id": self.method, "values": values}]
+        for w in self._watches.values():
+            age = None if w.last_arrival is None else now - w.last_arrival
+            out.append(
+                {
+                    "level": "warn" if w.silent else "ok",
+                    "name": f"uwbimu: {w.kind}",
+                    "message": f"silent for {age:.1f} s" if w.silent and age is not None else "receiving",
+                    "hardware_id": w.name,
+                    "values": {"messages": w.messages, "records": w.records, "rejected": w.rejected},
+                }
+            )
+        return out
+
+    def latency_ms(self) -> dict[str, float]:
+        """Percentiles (p50, p99, max) of :attr:`latencies`, ms (NaN before the first step)."""
+        if not self.latencies:
+            return {"p50": float("nan"), "p99": float("nan"), "max": float("nan")}
+        lat = np.fromiter(self.latencies, dtype=np.float64) * 1e3
+        return {"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)), "max": float(lat.max())}
+
+    @property
+    def filter(self) -> Any:
+        """The streaming filter in use."""
+        return self._filter
+
+    def close(self) -> None:
+        """Flush what the filter still holds to the sinks and close them."""
+        with self._lock:
+            self._waiting.clear()  # what the flush releases waited for the end, not the filter
+            self._filter.flush()
+            self._emit()
+            for s in self.sinks:
+                s.close()
+            if self._pool is not None:
+                self._pool.shutdown(wait=False, cancel_futures=True)

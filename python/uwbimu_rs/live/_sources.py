@@ -1,0 +1,170 @@
+"""Where the live node's data comes from: ROS 2 topics over DDS, a Nooploop LinkTrack serial
+port, or a recorded MCAP played at its recorded pace. Each source has ``poll(timeout_s)``: hand
+what has arrived to the node, waiting at most ``timeout_s``; ``finished`` says it will give no
+more (the end of a file)."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Iterator
+from typing import Any
+
+from uwbimu_rs import _native
+from uwbimu_rs.live._node import LiveNode
+
+log = logging.getLogger("uwbimu.live")
+
+
+class DdsSource:
+    """The mapped topics of a ROS 2 graph (``live_subscriptions``), decoded by the mapping."""
+
+    finished = False
+
+    def __init__(self, bus: Any, subscriptions: list[tuple[str, str, str, str, str]], decoder: Any, node: LiveNode) -> None:
+        from uwbimu_rs.live._dds import idl_type
+
+        self.bus = bus
+        for topic, type_name, definition, dds_topic, _ in subscriptions:
+            role = decoder.add_topic(topic, type_name, definition)
+            if role is None:
+                raise ValueError(f"topic {topic} ({type_name}): the mapping takes nothing from it")
+            node.watch(topic, role)
+
+            def on_sample(data: bytes, _stamp_ns: int, topic: str = topic) -> None:
+                node.feed_message(decoder, topic, data)
+
+            bus.subscribe(dds_topic, idl_type(type_name, definition), on_sample)
+            log.info("subscribed to %s (%s) as %s", topic, type_name, role)
+
+    def poll(self, timeout_s: float) -> int:
+        """Take what the graph delivered (waiting up to ``timeout_s``)."""
+        return int(self.bus.spin_once(timeout_s))
+
+
+def linktrack_records(frame: dict[str, Any], anchor_index: dict[str, int]) -> list[tuple[Any, ...]]:
+    """The records of one LinkTrack frame (a dict of :class:`LinkTrackDecoder`): the module's IMU
+    sample and its ranges to the anchors of the mapping (node id as the anchor id), all at the
+    module's local time. ``TagFrame0`` distances are by anchor slot 0–7 (0 m: no range)."""
+    t = frame["local_time_ms"] * 1e-3
+    out: list[tuple[Any, ...]] = [("imu", t, frame["accel"], frame["gyro"])]
+    if frame["kind"] == "node_frame2":
+        pairs = [(str(n["id"]), n["range"]) for n in frame["nodes"]]
+    else:
+        pairs = [(str(i), d) for i, d in enumerate(frame["distances"]) if d > 0]
+    for anchor_id, rng in pairs:
+        k = anchor_index.get(anchor_id)
+        if k is not None:
+            out.append(("range", t, k, rng, None))
+    return out
+
+
+class LinkTrackSource:
+    """A LinkTrack serial port (``pyserial``), frames decoded in Rust (:class:`LinkTrackDecoder`):
+    each frame's IMU sample and ranges go to the node at the module's clock. Anchor ids in the
+    mapping are the LinkTrack node ids (``"0"``, ``"1"``, …)."""
+
+    finished = False
+
+    def __init__(self, port: str, baud: int, anchor_ids: list[str], node: LiveNode) -> None:
+        try:
+            import serial
+        except ImportError as e:  # pragma: no cover - depends on the extra
+            raise ImportError("a LinkTrack port needs pyserial: pip install 'uwbimu_rs[live]'") from e
+        self.port = port
+        self.serial = serial.Serial(port, baudrate=baud, timeout=0)
+        self.decoder = _native.LinkTrackDecoder()
+        self.anchor_index = {a: k for k, a in enumerate(anchor_ids)}
+        self.node = node
+        self.name = f"linktrack:{port}"
+        node.watch(self.name, "linktrack")
+        log.info("reading LinkTrack frames from %s at %d baud", port, baud)
+
+    def poll(self, timeout_s: float) -> int:
+        """Read what the port has (waiting up to ``timeout_s`` for the first byte)."""
+        self.serial.timeout = timeout_s
+        data = self.serial.read(max(self.serial.in_waiting, 1))
+        if not data:
+            return 0
+        frames = self.decoder.feed(data)
+        for frame in frames:
+            self.node.feed(self.name, linktrack_records(frame, self.anchor_index))
+        return len(frames)
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """The decoder's counts (frames, checksum errors, bytes skipped, …)."""
+        return dict(self.decoder.counts)
+
+
+def mcap_messages(path: str, topics: set[str] | None = None) -> Iterator[tuple[Any, Any, Any]]:
+    """``(schema, channel, message)`` of an MCAP file in log-time order (the ``mcap`` package)."""
+    try:
+        from mcap.reader import make_reader
+    except ImportError as e:  # pragma: no cover - depends on the extra
+        raise ImportError("reading MCAP in Python needs mcap: pip install 'uwbimu_rs[live]'") from e
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        yield from reader.iter_messages(topics=list(topics) if topics else None, log_time_order=True)
+
+
+def mcap_summary_schemas(path: str) -> list[tuple[str, str]]:
+    """``(name, text)`` of the ``ros2msg`` schemas of an MCAP file (from its summary)."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    if summary is None:
+        raise ValueError(f"{path}: no summary section (an unfinished recording?)")
+    return [(s.name, s.data.decode()) for s in summary.schemas.values() if s.encoding == "ros2msg"]
+
+
+class McapSource:
+    """A recorded MCAP played in real time (``rate`` × its pace), through the mapping, as a trial
+    of the node without a robot."""
+
+    finished = False
+
+    def __init__(self, path: str, decoder: Any, node: LiveNode, *, rate: float = 1.0) -> None:
+        self.decoder = decoder
+        self.node = node
+        self.rate = rate
+        self.roles: dict[str, str | None] = {}
+        self._messages = mcap_messages(path)
+        self._next: tuple[Any, Any, Any] | None = None
+        self._t0: tuple[float, int] | None = None
+        log.info("playing %s at %g× its pace", path, rate)
+
+    def _role(self, schema: Any, channel: Any) -> str | None:
+        if channel.topic not in self.roles:
+            text = schema.data.decode() if schema is not None else ""
+            name = schema.name if schema is not None else ""
+            role = self.roles[channel.topic] = self.decoder.add_topic(channel.topic, name, text, channel.message_encoding)
+            if role is not None:
+                self.node.watch(channel.topic, role)
+        return self.roles[channel.topic]
+
+    def poll(self, timeout_s: float) -> int:
+        """Feed every message due by now; wait up to ``timeout_s`` for the next one."""
+        n = 0
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if self._next is None:
+                self._next = next(self._messages, None)
+                if self._next is None:
+                    self.finished = True
+                    return n
+            schema, channel, message = self._next
+            now = time.monotonic()
+            if self._t0 is None:
+                self._t0 = (now, message.log_time)
+            due = self._t0[0] + (message.log_time - self._t0[1]) * 1e-9 / self.rate
+            if due > now:
+                if due > deadline:
+                    time.sleep(max(deadline - now, 0.0))
+                    return n
+                time.sleep(due - now)
+            self._next = None
+            if self._role(schema, channel) is not None:
+                self.node.feed_message(self.decoder, channel.topic, message.data)
+                n += 1

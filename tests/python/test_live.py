@@ -1,0 +1,404 @@
+"""The live node (docs/live.md): its estimator loop in process (what it publishes, silent sensors,
+impossible data, the model choice), then end to end — a recording played over DDS on loopback
+through the node to a subscriber, against ``replay`` of the same log, and a simulated LinkTrack
+module through a pseudo-terminal, against the truth. The oracles are the truth of the simulator
+and the batch/streaming result of the same inputs, never the node's earlier output."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import tty
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import uwbimu_rs
+from uwbimu_rs import _native, sim
+
+ROOT = Path(__file__).resolve().parents[2]
+ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
+PY = sys.executable
+
+
+def records_of(run: Any, t_end: float) -> list[tuple[Any, ...]]:
+    """The records of a simulated run up to ``t_end``, in time order (IMU first at equal times)."""
+    imu = run.imu[run.imu[:, 0] <= t_end]
+    ranges = run.ranges[run.ranges[:, 0] <= t_end]
+    recs = [((r[0], 0), ("imu", r[0], r[1:4], r[4:7])) for r in imu]
+    recs += [((r[0], 1), ("range", r[0], int(r[1]), r[2], None)) for r in ranges]
+    recs.sort(key=lambda x: x[0])
+    return [r for _, r in recs]
+
+
+class Collect:
+    """A sink that keeps everything."""
+
+    def __init__(self) -> None:
+        self.rows: list[dict[str, np.ndarray]] = []
+        self.poses: list[Any] = []
+        self.diag_batches: list[list[dict[str, Any]]] = []
+        self.nis_values: list[tuple[float, int, float, bool]] = []
+        self.closed = False
+
+    def steps(self, rows):
+        self.rows.append(rows)
+
+    def pose(self, pose):
+        self.poses.append(pose)
+
+    def diagnostics(self, t, statuses):
+        self.diag_batches.append(statuses)
+
+    def nis(self, t, anchor, nis, accepted):
+        self.nis_values.append((t, anchor, nis, accepted))
+
+    def close(self):
+        self.closed = True
+
+    def track(self) -> np.ndarray:
+        return np.column_stack([np.concatenate([r[c] for r in self.rows]) for c in ("t", "x", "y", "z")])
+
+
+class Clock:
+    """A wall clock the test moves."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def node_for(anchors, *, choose_after_s=0.0, clock=None, sinks=None, **live):
+    from uwbimu_rs.live import LiveNode
+
+    setup = _native.live_setup(None)
+    setup["live"]["choose_after_s"] = choose_after_s
+    setup["live"].update(live)
+    return LiveNode(setup, anchors, sinks=sinks or [], clock=clock or Clock())
+
+
+def horizontal_rmse(track: np.ndarray, run: Any, after_s: float) -> float:
+    truth = run.truth.to_numpy()
+    keep = track[:, 0] > track[0, 0] + after_s
+    tr = track[keep]
+    e = np.hypot(tr[:, 1] - np.interp(tr[:, 0], truth[:, 0], truth[:, 1]), tr[:, 2] - np.interp(tr[:, 0], truth[:, 0], truth[:, 2]))
+    return float(np.sqrt(np.mean(e**2)))
+
+
+def test_importing_uwbimu_rs_loads_none_of_the_live_extras():
+    code = (
+        "import sys, uwbimu_rs; "
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'cyclonedds', 'foxglove', 'serial', 'mcap', 'uwbimu_rs.live'}))"
+    )
+    out = subprocess.run([PY, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "[]"
+
+
+def test_the_node_publishes_what_the_streaming_filter_estimates_and_tracks():
+    # stop_and_go, 40 s, self-initialised: every step the node gives its sinks equals the
+    # streaming `Best` fed the same records, and the track follows the simulator's truth.
+    run = sim.zoo("stop_and_go", seed=2)
+    recs = records_of(run, run.imu[0, 0] + 40.0)
+    clock, sink = Clock(), Collect()
+    node = node_for(run.anchors, clock=clock, sinks=[sink])
+    for r in recs:
+        clock.now = r[1]
+        node.feed("sim", [r])
+        node.tick()
+    node.close()
+    ref = uwbimu_rs.Best(run.anchors, reorder_window_s=0.5)
+    for r in recs:
+        if r[0] == "imu":
+            ref.add_imu(r[1], r[2], r[3])
+        else:
+            ref.add_range(r[1], r[2], r[3])
+    ref.flush()
+    expected = ref.steps()
+    track = sink.track()
+    assert sink.closed and len(track) == expected.height
+    np.testing.assert_array_equal(track[:, 1], expected["x"].to_numpy())
+    assert horizontal_rmse(track, run, 5.0) < 0.2
+    # One pose per call that made steps (the start's batch of kept data gives one), each with a
+    # covariance the messages can carry.
+    assert len(sink.poses) > 0.9 * (len(track) - len(sink.rows[0]["t"]))
+    p = sink.poses[-1]
+    assert p.covariance.shape == (15, 15) and np.all(np.linalg.eigvalsh(p.covariance) > 0)
+    assert sink.nis_values and all(a in range(len(run.anchors)) for _, a, _, _ in sink.nis_values)
+    # Latency in sensor time (the test's clock): the reorder window, plus the sample or two a
+    # step waits for data after its time.
+    lat = np.array(node.latencies)
+    dt = float(np.median(np.diff(run.imu[:, 0])))
+    assert lat.min() >= 0.5 - 1e-9 and lat.max() <= 0.5 + 3 * dt
+
+
+def test_a_silent_sensor_is_reported_and_its_return_too(caplog):
+    run = sim.zoo("stop_and_go", seed=1)
+    recs = records_of(run, run.imu[0, 0] + 20.0)
+    clock, sink = Clock(), Collect()
+    node = node_for(run.anchors, clock=clock, sinks=[sink], silent_after_s=1.0, diagnostics_period_s=0.5)
+    t0 = recs[0][1]
+    with caplog.at_level(logging.INFO, logger="uwbimu.live"):
+        for r in recs:
+            clock.now = r[1]
+            gap = 10.0 <= r[1] - t0 < 13.0
+            if r[0] == "range" and gap:
+                continue  # the UWB goes quiet for 3 s
+            node.feed("/uwb" if r[0] == "range" else "/imu", [r])
+            node.tick()
+    messages = [rec.getMessage() for rec in caplog.records]
+    silent = [m for m in messages if m.startswith("/uwb: silent")]
+    assert len(silent) == 1 and not any(m.startswith("/imu: silent") for m in messages)
+    assert "/uwb: receiving again" in messages
+    warned = [s for batch in sink.diag_batches for s in batch if s["hardware_id"] == "/uwb" and s["level"] == "warn"]
+    assert warned and warned[0]["message"].startswith("silent for")
+    assert any(m.startswith("initialised") for m in messages)
+
+
+def test_impossible_and_corrupt_data_are_counted_never_fatal(tmp_path):
+    # A recording written by the simulator, its messages fed as DDS delivers them, with a cut
+    # message, garbage, a range 1 km long and an IMU sample from the past mixed in.
+    run = sim.zoo("stop_and_go", seed=3)
+    path = tmp_path / "run.mcap"
+    sim.write_mcap(run, path)
+    t_end = run.imu[0, 0] + 30.0
+    config = tmp_path / "live.toml"
+    anchors = "\n".join(f'A{k} = [{a[0]}, {a[1]}, {a[2]}]' for k, a in enumerate(run.anchors))
+    config.write_text(f'[mapping]\nimu_topic = "/imu"\n[mapping.uwb]\ntopics = ["/uwb"]\n[mapping.anchors.positions]\n{anchors}\n')
+    decoder = _native.MessageDecoder(config)
+    from uwbimu_rs.live._sources import mcap_messages
+
+    clock, sink = Clock(), Collect()
+    node = node_for(decoder.anchors, clock=clock, sinks=[sink])
+    roles = {}
+    for k, (schema, channel, message) in enumerate(mcap_messages(str(path))):
+        if channel.topic not in roles:
+            roles[channel.topic] = decoder.add_topic(channel.topic, schema.name, schema.data.decode(), channel.message_encoding)
+        if roles[channel.topic] is None:
+            continue
+        clock.now = message.log_time * 1e-9
+        if clock.now > t_end:
+            break
+        data = message.data
+        if k == 500:
+            data = data[: len(data) // 2]  # cut
+        elif k == 700:
+            data = b"\x00\x01\x00\x00garbage"
+        node.feed_message(decoder, channel.topic, data)
+        if k == 900:
+            node.feed("/uwb", [("range", clock.now, 0, 1000.0, None)])  # beyond any hall
+        if k == 1100:
+            node.feed("/imu", [("imu", clock.now - 5.0, [0, 0, 9.8], [0, 0, 0])])  # 5 s late
+    node.close()
+    counts = decoder.counts
+    assert counts["/imu"]["errors"] + counts["/uwb"]["errors"] == 2
+    health = node.filter.health
+    assert health["rejected"]["range_beyond_hall"] >= 1
+    assert health["late_dropped"] >= 1
+    assert horizontal_rmse(sink.track(), run, 5.0) < 0.25
+
+
+def test_the_node_chooses_its_model_on_its_first_seconds_and_says_so(caplog):
+    run = sim.zoo("agv_loop", seed=0)  # 8 anchors: the choice runs
+    recs = records_of(run, run.imu[0, 0] + 45.0)
+    clock, sink = Clock(), Collect()
+    node = node_for(run.anchors, choose_after_s=20.0, clock=clock, sinks=[sink])
+    with caplog.at_level(logging.INFO, logger="uwbimu.live"):
+        for k, r in enumerate(recs):
+            clock.now = r[1]
+            node.feed("sim", [r])
+            if r[1] - recs[0][1] > 20.0 and node._choice is not None and node._choice.job is not None:
+                node._choice.job.result(timeout=120)  # the test waits for the choice where a robot would not
+            node.tick()
+        node.close()
+    messages = [rec.getMessage() for rec in caplog.records]
+    assert any(m.startswith("choosing the model on 20 s of data") for m in messages)
+    chosen = [m for m in messages if m.startswith("model chosen: ")]
+    assert len(chosen) == 1 and node.chosen is not None
+    assert node.statuses()[0]["values"]["model"] == node.chosen
+    track = sink.track()
+    assert np.all(np.diff(track[:, 0]) > 0)  # the switch re-emits nothing
+    assert horizontal_rmse(track, run, 5.0) < 0.2
+
+
+def test_cli_errors_exit_2_with_one_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[live]\ndomian_id = 3\n")
+    p = subprocess.run([PY, "-m", "uwbimu_rs.live", "--config", str(bad), "--no-ros", "--mcap", "x.mcap"], capture_output=True, text=True)
+    assert p.returncode == 2 and "unknown field `domian_id`" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    noanchors = tmp_path / "noanchors.toml"
+    noanchors.write_text('[mapping.uwb]\ntopics = ["/uwb"]\n')
+    p = subprocess.run([PY, "-m", "uwbimu_rs.live", "--config", str(noanchors)], capture_output=True, text=True)
+    assert p.returncode == 2 and "anchor positions" in p.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# End to end
+# ---------------------------------------------------------------------------------------------
+
+pytest.importorskip("cyclonedds", reason="the live extra (cyclonedds) is not installed")
+
+
+def _loopback_env(domain: int) -> dict[str, str]:
+    from uwbimu_rs.live import loopback_config
+
+    return {**os.environ, "CYCLONEDDS_URI": loopback_config(), "ROS_DOMAIN_ID": str(domain)}
+
+
+def _isas_config(tmp_path: Path, msgs: Path) -> Path:
+    base = (ROOT / "examples" / "isas-walk1.toml").read_text().replace('anchor_position = "ranges[].pos"\n', "")
+    cfg = tmp_path / "isas-live.toml"
+    cfg.write_text(
+        base
+        + f'\n[mapping.anchors]\nfile = "{ISAS / "anchors.csv"}"\n'
+        + "\n[config.model_selection]\nenabled = false\n"
+        + f'\n[live]\nchoose_after_s = 0\nmsg_paths = ["{msgs}"]\n[live.types]\n"/rtls_flares" = "fraunhofer_rtls_flare/msg/RTLSStick"\n'
+    )
+    return cfg
+
+
+@pytest.mark.skipif(not ISAS.is_dir(), reason="needs ../shared/data/isas-walk1 (not in a user's clone)")
+def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
+    # The player sends the recording over DDS (loopback), the node estimates live, this process
+    # subscribes to its poses: each equals the forward replay's step of the same time.
+    from uwbimu_rs.live import DdsBus, idl_type
+
+    domain = 17
+    env = _loopback_env(domain)
+    msgs = tmp_path / "msgs"
+    mcap = ISAS / "isas-walk1.mcap"
+    subprocess.run([PY, "-m", "uwbimu_rs.live._player", str(mcap), "--export-msgs", str(msgs)], check=True, env=env, capture_output=True)
+    cfg = _isas_config(tmp_path, msgs)
+    out = tmp_path / "live.mcap"
+    node = subprocess.Popen([PY, "-m", "uwbimu_rs.live", "--config", str(cfg), "--out", str(out), "--domain-id", str(domain)], env=env, stderr=subprocess.PIPE, text=True)
+    os.environ.update({"CYCLONEDDS_URI": env["CYCLONEDDS_URI"]})
+    setup = _native.live_setup(cfg)
+    pose_topic = setup["outputs"][0]
+    pose_type = idl_type(pose_topic[1], pose_topic[2])
+    bus = DdsBus(domain)
+    got: list[tuple[float, float, float, float]] = []
+
+    def on_pose(data: bytes, _ts: int) -> None:
+        m = pose_type.deserialize(data)
+        got.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z))
+
+    bus.subscribe(pose_topic[3], pose_type, on_pose)
+    player = subprocess.Popen(
+        [PY, "-m", "uwbimu_rs.live._player", str(mcap), "--rate", "4", "--domain-id", str(domain), "--wait-subscribers", "10",
+         "--topics", "/waveshare_sense_hat_b", "/rtls_flares"],
+        env=env, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        while player.poll() is None:
+            bus.spin_once(0.1)
+        end = time.monotonic() + 3.0
+        while time.monotonic() < end:
+            bus.spin_once(0.1)
+    finally:
+        node.send_signal(signal.SIGTERM)
+        _, err = node.communicate(timeout=30)
+        bus.close()
+    assert player.returncode == 0, player.stderr.read()
+    assert node.returncode == 0, err
+    assert "stopped (SIGTERM)" in err
+    replay, _ = uwbimu_rs.replay(mcap, config_file=cfg, smooth=False)
+    t = replay["t"].to_numpy()
+    ref = np.column_stack([replay["x"].to_numpy(), replay["y"].to_numpy(), replay["z"].to_numpy()])
+    live = np.array(got)
+    nearest = np.abs(t[None, :] - live[:, :1]).argmin(axis=1)
+    matched = np.abs(t[nearest] - live[:, 0]) < 1e-6
+    assert matched.mean() > 0.99 and len(live) > 0.5 * len(t)
+    assert np.abs(live[matched, 1:] - ref[nearest[matched]]).max() < 1e-9
+    # The MCAP output was closed on SIGTERM with its summary: every step is in it but the last
+    # sample's, which a stream gives only once data after it arrives (docs/streaming.md).
+    from mcap.reader import make_reader
+
+    with open(out, "rb") as f:
+        summary = make_reader(f).get_summary()
+    counts = {summary.channels[c].topic: n for c, n in summary.statistics.channel_message_counts.items()}
+    assert counts["/uwbimu/pose"] == len(t) - 1
+
+
+def _linktrack_frames(run: Any, t_end: float, ids: list[int]) -> list[bytes]:
+    """NodeFrame2 frames of a simulated module: one per IMU sample, with the ranges measured
+    since the previous sample (ranges rounded to the sample's time, as the module reports them)."""
+    imu = run.imu[run.imu[:, 0] <= t_end]
+    ranges = run.ranges
+    frames = []
+    j = 0
+    for k, row in enumerate(imu):
+        nodes = []
+        while j < len(ranges) and ranges[j, 0] <= row[0]:
+            nodes.append((ids[int(ranges[j, 1])], float(ranges[j, 2]), -80.0, -78.0))
+            j += 1
+        frames.append(_native.encode_linktrack_node_frame2(7, int(round(row[0] * 1000)), row[4:7], row[1:4], nodes))
+    return frames
+
+
+def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):
+    # A simulated run as the frames of a LinkTrack tag (IMU and ranges on one cable), written to
+    # a pseudo-terminal with garbage between some frames; the node reads the other end. Its
+    # steps equal the streaming filter fed the same frames decoded here, and follow the truth.
+    run = sim.zoo("stop_and_go", seed=4)
+    ids = [10 + k for k in range(len(run.anchors))]
+    frames = _linktrack_frames(run, run.imu[0, 0] + 30.0, ids)
+    stream = b"".join(f + (b"\x55\x04\xff" if k % 97 == 5 else b"") for k, f in enumerate(frames))
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    cfg = tmp_path / "linktrack.toml"
+    anchors = "\n".join(f'"{i}" = [{a[0]}, {a[1]}, {a[2]}]' for i, a in zip(ids, run.anchors))
+    cfg.write_text(f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n")
+    out = tmp_path / "linktrack.mcap"
+    node = subprocess.Popen(
+        [PY, "-m", "uwbimu_rs.live", "--config", str(cfg), "--linktrack", os.ttyname(slave), "--no-ros", "--out", str(out)],
+        stderr=subprocess.PIPE, text=True,
+    )
+    time.sleep(1.5)  # the node opens the port
+
+    def write() -> None:
+        for k in range(0, len(stream), 4096):
+            os.write(master, stream[k : k + 4096])
+            time.sleep(0.002)
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    writer.join()
+    time.sleep(2.0)
+    node.send_signal(signal.SIGINT)
+    _, err = node.communicate(timeout=30)
+    os.close(master)
+    os.close(slave)
+    assert node.returncode == 0, err
+    from uwbimu_rs.live import linktrack_records
+
+    decoder = _native.LinkTrackDecoder()
+    decoded = decoder.feed(stream)
+    assert len(decoded) == len(frames) and decoder.counts["bytes_skipped"] > 0
+    ref = uwbimu_rs.Best(run.anchors, reorder_window_s=0.5)
+    index = {str(i): k for k, i in enumerate(ids)}
+    for frame in decoded:
+        for r in linktrack_records(frame, index):
+            if r[0] == "imu":
+                ref.add_imu(r[1], r[2], r[3])
+            else:
+                ref.add_range(r[1], r[2], r[3])
+    ref.flush()
+    expected = ref.steps()
+    from mcap.reader import make_reader
+
+    with open(out, "rb") as f:
+        poses = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(topics=["/uwbimu/pose"])]
+    track = np.array([(p["timestamp"]["sec"] + p["timestamp"]["nsec"] * 1e-9, p["pose"]["position"]["x"], p["pose"]["position"]["y"]) for p in poses])
+    assert len(track) == expected.height
+    np.testing.assert_allclose(track[:, 0], expected["t"].to_numpy(), atol=1e-6)
+    np.testing.assert_allclose(track[:, 1], expected["x"].to_numpy(), atol=1e-9)
+    assert horizontal_rmse(np.column_stack([track, np.zeros(len(track))]), run, 5.0) < 0.2
