@@ -100,13 +100,16 @@ fn ros_definition(type_name: &str, msg_paths: Vec<PathBuf>) -> PyResult<String> 
     Ok(full_definition(type_name, &msg_paths)?)
 }
 
+/// `(field, element, array, length)` of one field ([`ros_fields`]).
+type FieldEntry = (String, String, &'static str, usize);
+
 /// The types of the definition `definition` of `type_name` (as [`ros_definition`] gives it),
 /// root first: `(name, fields)` with `name` as `pkg/Type` and each field as `(field, element,
 /// array, length)`; `element` is a primitive (`float64`, `string`, …) or the name of another
 /// type of the list, `array` is `single`, `fixed`, `sequence` or `bounded` (length the bound or
 /// the fixed size, else 0).
 #[pyfunction]
-fn ros_fields(type_name: &str, definition: &str) -> PyResult<Vec<(String, Vec<(String, String, &'static str, usize)>)>> {
+fn ros_fields(type_name: &str, definition: &str) -> PyResult<Vec<(String, Vec<FieldEntry>)>> {
     let schema = MsgSchema::parse(type_name, definition)?;
     let element = |t: &FieldType| match t {
         FieldType::Primitive(p) => p.name().to_string(),

@@ -77,7 +77,8 @@ fn own_definition(name: &str, msg_paths: &[PathBuf]) -> Result<String> {
 
 /// The whole definition of the type `name` (`pkg/msg/Type` or `pkg/Type`) as an MCAP `ros2msg`
 /// schema carries it: its own `.msg` text, then each type it uses, directly or not, after a line
-/// of 80 `=` and `MSG: pkg/msg/Type`. Types are looked up as [`own_definition`] does.
+/// of 80 `=` and `MSG: pkg/msg/Type`. Each type is bundled, else read from the first
+/// `<dir>/<pkg>/msg/<Type>.msg` (or `<dir>/<Type>.msg`) of `msg_paths`.
 ///
 /// # Errors
 /// [`Error::Mapping`] for a type found nowhere; [`Error::Format`] for an unparsable definition.
