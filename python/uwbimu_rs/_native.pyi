@@ -57,6 +57,9 @@ __all__ = [
     "write_mcap",
     "LinkTrackDecoder",
     "encode_linktrack_node_frame2",
+    "UWB_RANGE_JSON",
+    "UWB_RANGE_MSG",
+    "ros_uwb_range_from_json",
     "live_setup",
     "live_subscriptions",
     "ros_definition",
@@ -1448,6 +1451,16 @@ def encode_linktrack_node_frame2(
 
 _TopicEntry = tuple[str, str, str, str, str]
 
+UWB_RANGE_JSON: str
+"""Schema name of the JSON range message the recordings write (``uwbimu.UwbRange``)."""
+
+UWB_RANGE_MSG: str
+"""ROS 2 type of our CDR range message (``uwbimu_msgs/msg/UwbRange``: header, ``anchor_id``,
+``range``, ``variance`` (NaN: none), ``tag`` (empty: the first tag))."""
+
+def ros_uwb_range_from_json(data: bytes) -> bytes:
+    """One ``uwbimu.UwbRange`` JSON message as the XCDR1 payload of ``uwbimu_msgs/msg/UwbRange``."""
+
 def live_setup(config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> dict[str, Any]:
     """The replay file ``config`` (with the mapping JSON ``mapping`` merged in) as the live node
     starts from it: ``method``, ``config`` (FilterConfig), ``initial``, ``live`` (the ``[live]``
@@ -1471,7 +1484,13 @@ class MessageDecoder:
     """Messages decoded one at a time through the mapping of a replay file (which must give the
     anchor positions)."""
 
-    def __new__(cls, config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> MessageDecoder: ...
+    def __new__(
+        cls,
+        config: str | os.PathLike[str] | None = None,
+        *,
+        mapping: str | None = None,
+        recording: str | os.PathLike[str] | None = None,
+    ) -> MessageDecoder: ...
     @property
     def anchor_ids(self) -> list[str]:
         """Anchor ids in filter-index order."""

@@ -16,8 +16,9 @@ use uwbimu_app::io::msg_schema::{ArrayKind, FieldType, MsgSchema};
 use uwbimu_app::io::ros_out::{
     diagnostic_array_cdr, odometry_cdr, pose_with_covariance_cdr, DiagnosticLevel, DiagnosticStatus, Frames, PoseEstimate,
 };
+use uwbimu_app::io::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
 use uwbimu_app::io::ros_types::{dds_topic_name, dds_type_name, full_definition};
-use uwbimu_app::io::{MessageDecoder as CoreDecoder, RecordItem};
+use uwbimu_app::io::{survey_recording_file, AnchorLayout, MessageDecoder as CoreDecoder, RecordItem};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_from_wxyz, Cov, Vec3};
 
@@ -144,11 +145,19 @@ pub struct PyMessageDecoder(CoreDecoder);
 #[pymethods]
 impl PyMessageDecoder {
     /// A decoder for the mapping of the replay file `config` (None: defaults) with the mapping
-    /// JSON `mapping` merged in; the mapping must give the anchor positions.
+    /// JSON `mapping` merged in. The anchors are the mapping's; without any, those a replay of
+    /// the MCAP file `recording` finds (its metadata, anchor topic or range messages).
     #[new]
-    #[pyo3(signature = (config=None, *, mapping=None))]
-    fn new(config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Self> {
-        Ok(Self(CoreDecoder::new(settings(config.as_deref(), mapping)?.mapping)?))
+    #[pyo3(signature = (config=None, *, mapping=None, recording=None))]
+    fn new(py: Python<'_>, config: Option<PathBuf>, mapping: Option<&str>, recording: Option<PathBuf>) -> PyResult<Self> {
+        let mapping = settings(config.as_deref(), mapping)?.mapping;
+        match recording {
+            Some(path) if AnchorLayout::of_mapping(&mapping)?.is_none() => {
+                let survey = py.detach(|| survey_recording_file(&path, &mapping, |_| {}))?;
+                Ok(Self(CoreDecoder::with_layout(mapping, survey.anchors)))
+            }
+            _ => Ok(Self(CoreDecoder::new(mapping)?)),
+        }
     }
 
     /// Anchor ids in filter-index order.
@@ -174,7 +183,8 @@ impl PyMessageDecoder {
     }
 
     /// Decodes one message of `topic` that arrived at `arrival_s` (its time when the mapping
-    /// reads log times or it has no header stamp). Returns its records as tuples:
+    /// reads log times or its type has no stamp; a zero stamp stays zero). Returns its records
+    /// as tuples:
     /// `("imu", t, accel, gyro)`, `("range", t, anchor, range, tag)`, `("tdoa", t, i, j, d_ij)`,
     /// or `(sensor, t, values…)` for the other sensors (`altitude`: z; `odometry`: its table
     /// row). A message that does not decode yields none and is counted in `counts`.
@@ -345,14 +355,24 @@ impl PyTrajectoryWriter {
     }
 }
 
+/// One `uwbimu.UwbRange` JSON message (what the recordings write) as the XCDR1 payload of
+/// `uwbimu_msgs/msg/UwbRange`, the CDR message a ROS 2 graph can carry.
+#[pyfunction]
+fn ros_uwb_range_from_json<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyBytes>> {
+    Ok(PyBytes::new(py, &json_range_to_cdr(data)?))
+}
+
 /// Registers the live node's functions and classes.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("UWB_RANGE_JSON", UWB_RANGE_JSON)?;
+    m.add("UWB_RANGE_MSG", UWB_RANGE_MSG_NAME)?;
     m.add_function(wrap_pyfunction!(live_setup, m)?)?;
     m.add_function(wrap_pyfunction!(live_subscriptions, m)?)?;
     m.add_function(wrap_pyfunction!(ros_definition, m)?)?;
     m.add_function(wrap_pyfunction!(ros_fields, m)?)?;
     m.add_function(wrap_pyfunction!(ros_pose_messages, m)?)?;
     m.add_function(wrap_pyfunction!(ros_diagnostics_message, m)?)?;
+    m.add_function(wrap_pyfunction!(ros_uwb_range_from_json, m)?)?;
     m.add_class::<PyMessageDecoder>()?;
     m.add_class::<PyTrajectoryWriter>()?;
     Ok(())

@@ -266,37 +266,32 @@ def _isas_config(tmp_path: Path, msgs: Path) -> Path:
     return cfg
 
 
-@pytest.mark.skipif(not ISAS.is_dir(), reason="needs ../shared/data/isas-walk1 (not in a user's clone)")
-def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
-    # The player sends the recording over DDS (loopback), the node estimates live, this process
-    # subscribes to its poses: each equals the forward replay's step of the same time.
+def _through_the_node(tmp_path: Path, mcap: Path, cfg: Path, domain: int, topics: list[str] | None = None) -> tuple[np.ndarray, int, str]:
+    """Play ``mcap`` over DDS (loopback, domain ``domain``) through a node run with ``cfg``;
+    returns the poses this process received (t, x, y, z), the steps in the node's MCAP output
+    and the node's log, once SIGTERM stopped it."""
     from uwbimu_rs.live import DdsBus, idl_type
 
-    domain = 17
     env = _loopback_env(domain)
-    msgs = tmp_path / "msgs"
-    mcap = ISAS / "isas-walk1.mcap"
-    subprocess.run([PY, "-m", "uwbimu_rs.live._player", str(mcap), "--export-msgs", str(msgs)], check=True, env=env, capture_output=True)
-    cfg = _isas_config(tmp_path, msgs)
     out = tmp_path / "live.mcap"
-    node = subprocess.Popen([PY, "-m", "uwbimu_rs.live", "--config", str(cfg), "--out", str(out), "--domain-id", str(domain)], env=env, stderr=subprocess.PIPE, text=True)
-    os.environ.update({"CYCLONEDDS_URI": env["CYCLONEDDS_URI"]})
-    setup = _native.live_setup(cfg)
-    pose_topic = setup["outputs"][0]
+    node = subprocess.Popen(
+        [PY, "-m", "uwbimu_rs.live", "--config", str(cfg), "--out", str(out), "--domain-id", str(domain)],
+        env=env, stderr=subprocess.PIPE, text=True,
+    )
+    os.environ["CYCLONEDDS_URI"] = env["CYCLONEDDS_URI"]
+    pose_topic = _native.live_setup(cfg)["outputs"][0]
     pose_type = idl_type(pose_topic[1], pose_topic[2])
     bus = DdsBus(domain)
     got: list[tuple[float, float, float, float]] = []
 
     def on_pose(data: bytes, _ts: int) -> None:
         m = pose_type.deserialize(data)
-        got.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z))
+        p = m.pose.pose.position
+        got.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, p.x, p.y, p.z))
 
     bus.subscribe(pose_topic[3], pose_type, on_pose)
-    player = subprocess.Popen(
-        [PY, "-m", "uwbimu_rs.live._player", str(mcap), "--rate", "4", "--domain-id", str(domain), "--wait-subscribers", "10",
-         "--topics", "/waveshare_sense_hat_b", "/rtls_flares"],
-        env=env, stderr=subprocess.PIPE, text=True,
-    )
+    play = [PY, "-m", "uwbimu_rs.live._player", str(mcap), "--rate", "4", "--domain-id", str(domain), "--wait-subscribers", "10"]
+    player = subprocess.Popen(play + (["--topics", *topics] if topics else []), env=env, stderr=subprocess.PIPE, text=True)
     try:
         while player.poll() is None:
             bus.spin_once(0.1)
@@ -310,22 +305,56 @@ def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
     assert player.returncode == 0, player.stderr.read()
     assert node.returncode == 0, err
     assert "stopped (SIGTERM)" in err
-    replay, _ = uwbimu_rs.replay(mcap, config_file=cfg, smooth=False)
-    t = replay["t"].to_numpy()
-    ref = np.column_stack([replay["x"].to_numpy(), replay["y"].to_numpy(), replay["z"].to_numpy()])
-    live = np.array(got)
-    nearest = np.abs(t[None, :] - live[:, :1]).argmin(axis=1)
-    matched = np.abs(t[nearest] - live[:, 0]) < 1e-6
-    assert matched.mean() > 0.99 and len(live) > 0.5 * len(t)
-    assert np.abs(live[matched, 1:] - ref[nearest[matched]]).max() < 1e-9
-    # The MCAP output was closed on SIGTERM with its summary: every step is in it but the last
-    # sample's, which a stream gives only once data after it arrives (docs/streaming.md).
+    # The MCAP output was closed on SIGTERM with its summary.
     from mcap.reader import make_reader
 
     with open(out, "rb") as f:
         summary = make_reader(f).get_summary()
     counts = {summary.channels[c].topic: n for c, n in summary.statistics.channel_message_counts.items()}
-    assert counts["/uwbimu/pose"] == len(t) - 1
+    return np.array(got), counts["/uwbimu/pose"], err
+
+
+def _assert_equals_the_replay(live: np.ndarray, steps_written: int, mcap: Path, cfg: Path) -> None:
+    """Each received pose equals the forward replay's step of the same time, and the node's
+    MCAP output holds every step — but the last sample's when no data came after it, as a stream
+    gives a step only once data after it arrives (docs/streaming.md)."""
+    replay, _ = uwbimu_rs.replay(mcap, config_file=cfg, smooth=False)
+    t = replay["t"].to_numpy()
+    ref = np.column_stack([replay["x"].to_numpy(), replay["y"].to_numpy(), replay["z"].to_numpy()])
+    nearest = np.abs(t[None, :] - live[:, :1]).argmin(axis=1)
+    matched = np.abs(t[nearest] - live[:, 0]) < 1e-6
+    assert matched.mean() > 0.99 and len(live) > 0.5 * len(t)
+    assert np.abs(live[matched, 1:] - ref[nearest[matched]]).max() < 1e-9
+    assert steps_written in (len(t) - 1, len(t))
+
+
+@pytest.mark.skipif(not ISAS.is_dir(), reason="needs ../shared/data/isas-walk1 (not in a user's clone)")
+def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
+    # The player sends the recording over DDS (loopback), the node estimates live, this process
+    # subscribes to its poses: each equals the forward replay's step of the same time.
+    mcap = ISAS / "isas-walk1.mcap"
+    msgs = tmp_path / "msgs"
+    subprocess.run([PY, "-m", "uwbimu_rs.live._player", str(mcap), "--export-msgs", str(msgs)], check=True, capture_output=True)
+    cfg = _isas_config(tmp_path, msgs)
+    live, steps, _ = _through_the_node(tmp_path, mcap, cfg, 17, ["/waveshare_sense_hat_b", "/rtls_flares"])
+    _assert_equals_the_replay(live, steps, mcap, cfg)
+
+
+def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
+    # Our own recording (JSON ranges, sent as uwbimu_msgs/msg/UwbRange; its first samples
+    # stamped 0) through the player and the node, with only the anchors configured.
+    run = sim.zoo("handheld_walk", seed=6, stagger_s=0.02, jitter_s=0.005)
+    mcap = tmp_path / "sim.mcap"
+    sim.write_mcap(run, mcap)
+    cfg = tmp_path / "sim.toml"
+    anchors = "\n".join(f"A{k} = [{a[0]}, {a[1]}, {a[2]}]" for k, a in enumerate(run.anchors))
+    cfg.write_text(
+        '[config.model_selection]\nenabled = false\n[mapping]\nimu_topic = "/imu"\n[mapping.uwb]\ntopics = ["/uwb"]\n'
+        f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n"
+    )
+    live, steps, err = _through_the_node(tmp_path, mcap, cfg, 18)
+    _assert_equals_the_replay(live, steps, mcap, cfg)
+    assert "late_dropped': 0" in err
 
 
 def _linktrack_frames(run: Any, t_end: float, ids: list[int]) -> list[bytes]:

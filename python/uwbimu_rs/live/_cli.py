@@ -79,7 +79,7 @@ def run(argv: list[str]) -> int:
             live["choose_after_s"] = args.choose_after
         if args.domain_id is not None:
             live["domain_id"] = args.domain_id
-        decoder = _native.MessageDecoder(args.config, mapping=args.mapping)
+        decoder = _native.MessageDecoder(args.config, mapping=args.mapping, recording=args.mcap)
         subscriptions = None
         if not args.linktrack and not args.mcap:
             subscriptions = _native.live_subscriptions(args.config, mapping=args.mapping)

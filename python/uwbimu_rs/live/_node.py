@@ -171,12 +171,12 @@ class LiveNode:
             w = self._watches[name] = SensorWatch(name, kind)
         return w
 
-    def feed_message(self, decoder: Any, topic: str, data: bytes, arrival: float | None = None) -> int:
+    def feed_message(self, decoder: Any, topic: str, data: bytes, *, log_time_s: float | None = None) -> int:
         """Decode one message of ``topic`` with ``decoder`` (:class:`MessageDecoder`) and feed
-        its records; returns how many it held."""
-        now = self.clock() if arrival is None else arrival
-        records = decoder.decode(topic, time.time(), data)
-        return self.feed(topic, records, now)
+        its records; returns how many it held. A message without a header stamp (or a mapping
+        that reads log times) is stamped ``log_time_s``, else the wall-clock time of now."""
+        records = decoder.decode(topic, time.time() if log_time_s is None else log_time_s, data)
+        return self.feed(topic, records)
 
     def feed(self, source: str, records: list[tuple[Any, ...]], arrival: float | None = None) -> int:
         """Feed decoded records (the tuples of :meth:`MessageDecoder.decode`) from ``source``."""

@@ -1,7 +1,8 @@
 """The ``uwbimu-play`` console script: publish a recorded MCAP's ROS 2 messages over DDS at their
 recorded pace or faster, as ``ros2 bag play`` would (docs/live.md). Each CDR channel with a
 ``ros2msg`` schema becomes the DDS topic ROS 2 gives it (``/imu`` → ``rt/imu``), its type built
-from the schema the file carries; payloads are sent as recorded. ``--export-msgs DIR`` writes
+from the schema the file carries; payloads are sent as recorded. The JSON ranges our recordings
+write (``uwbimu.UwbRange``) are sent as ``uwbimu_msgs/msg/UwbRange``. ``--export-msgs DIR`` writes
 those schemas as ``.msg`` files in a ROS 2 workspace layout, for the node's ``live.msg_paths``.
 
 Exit status: 0 when the file was played (or a signal stopped it), 2 for a bad command line or
@@ -18,7 +19,10 @@ import sys
 import time
 from pathlib import Path
 from types import FrameType
+from collections.abc import Callable
 from typing import Any
+
+from uwbimu_rs import _native
 
 log = logging.getLogger("uwbimu.play")
 
@@ -105,12 +109,15 @@ def _play(args: argparse.Namespace) -> int:
     wanted = set(args.topics) if args.topics else None
     schemas = dict(mcap_summary_schemas(args.file))
     writers: dict[str, Any] = {}
-    skipped: set[str] = set()
+    converters: dict[str, Callable[[bytes], bytes]] = {}
     for topic, (name, encoding) in _channels(args.file).items():
         if wanted is not None and topic not in wanted:
             continue
-        if encoding != "cdr" or name not in schemas:
-            skipped.add(topic)
+        if encoding == "json" and name == _native.UWB_RANGE_JSON:
+            # The recordings' JSON ranges travel as our CDR range message.
+            converters[topic] = _native.ros_uwb_range_from_json
+            name, schemas[name] = _native.UWB_RANGE_MSG, _native.ros_definition(_native.UWB_RANGE_MSG)
+        elif encoding != "cdr" or name not in schemas:
             log.warning("%s: %s messages (%s) are not ROS 2 CDR: not played", topic, encoding, name or "no schema")
             continue
         writers[topic] = bus.publisher("rt/" + topic.lstrip("/"), idl_type(name, schemas[name]), depth=1000)
@@ -138,7 +145,8 @@ def _play(args: argparse.Namespace) -> int:
             delay = due - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        write(message.data)
+        convert = converters.get(channel.topic)
+        write(convert(message.data) if convert else message.data)
         n += 1
     log.info("played %d messages%s", n, " (stopped)" if stop.stopped else "")
     time.sleep(0.2)  # let reliable writers deliver what is queued

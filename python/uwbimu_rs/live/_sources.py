@@ -120,8 +120,8 @@ def mcap_summary_schemas(path: str) -> list[tuple[str, str]]:
 
 
 class McapSource:
-    """A recorded MCAP played in real time (``rate`` × its pace), through the mapping, as a trial
-    of the node without a robot."""
+    """A recorded MCAP played in real time (``rate`` × its pace; 0: as fast as it goes), through
+    the mapping, as a trial of the node without a robot."""
 
     finished = False
 
@@ -158,7 +158,7 @@ class McapSource:
             now = time.monotonic()
             if self._t0 is None:
                 self._t0 = (now, message.log_time)
-            due = self._t0[0] + (message.log_time - self._t0[1]) * 1e-9 / self.rate
+            due = self._t0[0] + (message.log_time - self._t0[1]) * 1e-9 / self.rate if self.rate > 0 else now
             if due > now:
                 if due > deadline:
                     time.sleep(max(deadline - now, 0.0))
@@ -166,5 +166,5 @@ class McapSource:
                 time.sleep(due - now)
             self._next = None
             if self._role(schema, channel) is not None:
-                self.node.feed_message(self.decoder, channel.topic, message.data)
+                self.node.feed_message(self.decoder, channel.topic, message.data, log_time_s=message.log_time * 1e-9)
                 n += 1

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::io::ros_types::full_definition;
+use crate::io::topics::UWB_RANGE_MSG_NAME;
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::io::{IoError as Error, IoResult as Result, Mapping};
@@ -21,7 +22,8 @@ pub struct LiveSettings {
     pub domain_id: u32,
     /// ROS 2 type (`pkg/msg/Type`) of an input topic, by topic. Unlisted: `sensor_msgs/msg/Imu`
     /// for the IMU, `sensor_msgs/msg/Range` for altitude, `nav_msgs/msg/Odometry` for odometry,
-    /// `uwbimu_msgs/msg/Tdoa` for TDoA; a UWB topic must be listed.
+    /// `uwbimu_msgs/msg/Tdoa` for TDoA, `uwbimu_msgs/msg/UwbRange` for UWB ranges (what
+    /// `uwbimu-play` publishes for a recording's JSON ranges).
     pub types: BTreeMap<String, String>,
     /// Folders with the `.msg` files of types not bundled, as a ROS 2 workspace lays them out
     /// (`<dir>/<pkg>/msg/<Type>.msg`); relative to the replay file.
@@ -106,15 +108,15 @@ impl LiveSettings {
     /// topic (`imu_topic`, default `/imu`), then the UWB, TDoA, altitude and odometry topics.
     ///
     /// # Errors
-    /// [`Error::Mapping`] for no UWB or TDoA topic, a UWB topic without a type in `live.types`,
-    /// or a type whose `.msg` is found nowhere.
+    /// [`Error::Mapping`] for no UWB or TDoA topic; [`CoreError::InvalidConfig`] for a type
+    /// whose `.msg` is found nowhere.
     pub fn subscriptions(&self, mapping: &Mapping) -> Result<Vec<Subscription>> {
         let imu = mapping.imu_topic.clone().unwrap_or_else(|| "/imu".into());
-        let mut wanted: Vec<(String, Option<&str>)> = vec![(imu, Some("sensor_msgs/msg/Imu"))];
-        wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), None)));
-        wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), Some("uwbimu_msgs/msg/Tdoa"))));
-        wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), Some("sensor_msgs/msg/Range"))));
-        wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), Some("nav_msgs/msg/Odometry"))));
+        let mut wanted: Vec<(String, &str)> = vec![(imu, "sensor_msgs/msg/Imu")];
+        wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), UWB_RANGE_MSG_NAME)));
+        wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), "uwbimu_msgs/msg/Tdoa")));
+        wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), "sensor_msgs/msg/Range")));
+        wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), "nav_msgs/msg/Odometry")));
         if mapping.uwb.topics.is_empty() && mapping.tdoa.topics.is_empty() {
             return Err(Error::Mapping {
                 field: "uwb.topics".into(),
@@ -124,17 +126,7 @@ impl LiveSettings {
         wanted
             .into_iter()
             .map(|(topic, default)| {
-                let type_name = match (self.types.get(&topic), default) {
-                    (Some(t), _) => t.clone(),
-                    (None, Some(d)) => d.to_string(),
-                    (None, None) => {
-                        return Err(CoreError::InvalidConfig {
-                            field: "live.types".into(),
-                            reason: format!("no type for the UWB topic `{topic}`: add `\"{topic}\" = \"pkg/msg/Type\"`"),
-                        }
-                        .into())
-                    }
-                };
+                let type_name = self.types.get(&topic).map_or(default, String::as_str).to_string();
                 let definition = full_definition(&type_name, &self.msg_paths)?;
                 Ok(Subscription { topic, type_name, definition })
             })
@@ -161,7 +153,9 @@ mod tests {
         assert_eq!(subs.iter().map(|s| s.topic.as_str()).collect::<Vec<_>>(), ["/imu", "/uwb"]);
         assert_eq!(subs[1].type_name, "sensor_msgs/msg/Range");
         mapping.uwb.topics = vec!["/ranges".into()];
-        let e = s.subscriptions(&mapping).unwrap_err().to_string();
-        assert!(e.contains("no type for the UWB topic `/ranges`"), "{e}");
+        assert_eq!(s.subscriptions(&mapping).unwrap()[1].type_name, UWB_RANGE_MSG_NAME);
+        let vendor = LiveSettings::from_value(serde_json::json!({"types": {"/ranges": "vendor/msg/Ranges"}})).unwrap();
+        let e = vendor.subscriptions(&mapping).unwrap_err().to_string();
+        assert!(e.contains("no definition of `vendor/Ranges`") && e.contains("live.msg_paths"), "{e}");
     }
 }

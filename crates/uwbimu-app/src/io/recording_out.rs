@@ -126,6 +126,22 @@ pub(crate) fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<
     b
 }
 
+/// One range as XCDR1 little-endian `uwbimu_msgs/msg/UwbRange` (see
+/// [`crate::io::topics::UWB_RANGE_MSG_NAME`]), stamped `(sec, nanosec)`, frame `uwb`.
+pub fn uwb_range_cdr((sec, nsec): (i32, u32), anchor_id: &str, range_m: f64, variance_m2: f64, tag: &str) -> Vec<u8> {
+    let mut b = Vec::with_capacity(64);
+    b.extend_from_slice(&[0, 1, 0, 0]);
+    b.extend_from_slice(&sec.to_le_bytes());
+    b.extend_from_slice(&nsec.to_le_bytes());
+    push_cdr_string(&mut b, "uwb");
+    push_cdr_string(&mut b, anchor_id);
+    align8(&mut b);
+    b.extend_from_slice(&range_m.to_le_bytes());
+    b.extend_from_slice(&variance_m2.to_le_bytes());
+    push_cdr_string(&mut b, tag);
+    b
+}
+
 /// Pads an XCDR1 message to the next 8-byte boundary (before a float64).
 pub(crate) fn align8(b: &mut Vec<u8>) {
     while (b.len() - 4) % 8 != 0 {

@@ -19,10 +19,11 @@ use serde::Deserialize;
 use uwbimu_vocabulary::math::Vec3;
 
 use crate::io::anchors::json_id;
+use crate::io::recording_out::uwb_range_cdr;
 use crate::io::cdr::{decode, Value};
 use crate::io::field_path::{Condition, FieldPath, PointPath};
 use crate::io::mcap_read::ChannelInfo;
-use crate::io::msg_schema::MsgSchema;
+use crate::io::msg_schema::{normalize, MsgSchema};
 use crate::io::{
     AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
     TDOA_DEFAULT,
@@ -47,6 +48,11 @@ pub struct RawRange {
     /// Id of the tag that measured it, as text (None: the message names no tag).
     pub tag_id: Option<String>,
 }
+
+/// Schema name of our CDR range message (the fields of [`UWB_RANGE_JSON`]: `anchor_id`,
+/// `range`, `variance` (NaN: none), `tag` (empty: the first tag)), which `uwbimu-play` publishes
+/// for a recording's JSON ranges and a live node reads without a mapping.
+pub const UWB_RANGE_MSG_NAME: &str = "uwbimu_msgs/msg/UwbRange";
 
 /// Schema name of the TDoA message the recordings we write carry (CDR; `idA`, `idB`,
 /// `distanceDiff` as in the Crazyflie `estTDOA` event, see [`crate::io::recording_out::TDOA_MSG`]).
@@ -210,7 +216,10 @@ fn key(name: &str) -> String {
 impl RangeDecoder {
     /// Whether a channel looks like a range topic without any field mapping.
     pub fn recognises(channel: &ChannelInfo) -> bool {
-        channel.schema.as_ref().is_some_and(|s| s.name == UWB_RANGE_JSON || s.name == "sensor_msgs/msg/Range")
+        channel
+            .schema
+            .as_ref()
+            .is_some_and(|s| s.name == UWB_RANGE_JSON || s.name == "sensor_msgs/msg/Range" || s.name == UWB_RANGE_MSG_NAME)
     }
 
     /// Builds the decoder for a channel.
@@ -238,6 +247,8 @@ impl RangeDecoder {
         }
         let schema = cdr_schema(channel)?;
         let is_range_msg = schema.name() == "sensor_msgs/Range";
+        // Our CDR range message: the fields of the JSON one, read without a mapping.
+        let ours = schema.name() == normalize(UWB_RANGE_MSG_NAME);
         let range_text = m.range.as_deref().unwrap_or("range");
         let range = FieldPath::resolve(&schema, &key("range"), range_text)?.require_numeric(&key("range"))?;
         let id = match m.anchor_id.as_deref() {
@@ -251,6 +262,7 @@ impl RangeDecoder {
                 IdSource::Index
             }
             Some(p) => IdSource::Path(FieldPath::resolve(&schema, &key("anchor_id"), p)?.require_id(&key("anchor_id"))?),
+            None if ours => IdSource::Path(FieldPath::resolve(&schema, &key("anchor_id"), "anchor_id")?),
             None if is_range_msg && m.anchor_from == AnchorFrom::FrameId => {
                 IdSource::Path(FieldPath::resolve(&schema, &key("anchor_id"), "header.frame_id")?)
             }
@@ -263,6 +275,7 @@ impl RangeDecoder {
             }
         };
         let tag = match m.tag.as_deref() {
+            None if ours => Some(IdSource::Path(FieldPath::resolve(&schema, &key("tag"), "tag")?)),
             None => None,
             Some("topic") => Some(IdSource::Constant(channel.topic.clone())),
             Some(p) => Some(IdSource::Path(FieldPath::resolve(&schema, &key("tag"), p)?.require_id(&key("tag"))?)),
@@ -273,7 +286,7 @@ impl RangeDecoder {
         let variance = match m.variance.as_deref() {
             Some(p) => Some(FieldPath::resolve(&schema, &key("variance"), p)?.require_numeric(&key("variance"))?),
             // sensor_msgs/Range gained `variance` after Humble: only when the schema has it.
-            None if is_range_msg && schema.has_field("variance") => {
+            None if (is_range_msg || ours) && schema.has_field("variance") => {
                 Some(FieldPath::resolve(&schema, &key("variance"), "variance")?)
             }
             None => None,
@@ -323,6 +336,20 @@ fn decode_json(data: &[u8], topic_tag: Option<&str>, out: &mut Vec<RawRange>) ->
     Ok((ns != 0).then_some(ns))
 }
 
+/// One [`UWB_RANGE_JSON`] message as XCDR1 little-endian [`UWB_RANGE_MSG_NAME`] (the stamp as
+/// it is; a missing variance written NaN, a missing tag empty; the anchor position, which the
+/// CDR message has no field for, left out).
+///
+/// # Errors
+/// [`Error::Format`] for a message that is not [`UWB_RANGE_JSON`].
+pub fn json_range_to_cdr(data: &[u8]) -> Result<Vec<u8>> {
+    let m: JsonRange = serde_json::from_slice(data)
+        .map_err(|e| Error::Format { what: format!("{UWB_RANGE_JSON} message"), reason: e.to_string() })?;
+    let tag = m.tag.as_ref().map(json_id).unwrap_or_default();
+    let stamp = (m.timestamp.sec as i32, m.timestamp.nsec as u32);
+    Ok(uwb_range_cdr(stamp, &json_id(&m.anchor_id), m.range, m.variance.unwrap_or(f64::NAN), &tag))
+}
+
 impl CdrRangeDecoder {
     fn decode(&self, data: &[u8], out: &mut Vec<RawRange>) -> Result<Option<i64>> {
         let v = decode(&self.schema, data)?;
@@ -368,10 +395,11 @@ impl CdrRangeDecoder {
             out.push(RawRange {
                 anchor_id: ids[i].clone(),
                 range_m: r.as_f64().unwrap_or(f64::NAN) * self.scale,
-                variance_m2: variances[i],
                 anchor_position: positions[i],
                 valid: valid[i],
-                tag_id: tags.as_ref().map(|t| t[i].clone()),
+                // An empty tag id is the first tag, as a message without one.
+                tag_id: tags.as_ref().map(|t| t[i].clone()).filter(|t| !t.is_empty()),
+                variance_m2: variances[i].filter(|v| !v.is_nan()),
             });
         }
         stamp_ns(self.stamp.as_ref(), &v)
@@ -584,6 +612,25 @@ mod tests {
         assert_eq!(decode_json(&bytes, Some("/uwb/t9"), &mut out).unwrap(), Some(12_250_000_000));
         assert_eq!((out[0].anchor_id.as_str(), out[0].range_m, out[0].variance_m2), ("A3", 4.5, Some(0.01)));
         assert_eq!(out[0].tag_id.as_deref(), Some("1"), "the message's tag wins over the topic");
+        // The same message as our CDR one decodes to the same range without a mapping.
+        let cdr_channel = ChannelInfo {
+            id: 1,
+            topic: "/uwb".into(),
+            message_encoding: "cdr".into(),
+            schema: Some(std::sync::Arc::new(crate::io::mcap_read::SchemaInfo {
+                name: UWB_RANGE_MSG_NAME.into(),
+                encoding: "ros2msg".into(),
+                data: crate::io::ros_types::full_definition(UWB_RANGE_MSG_NAME, &[]).unwrap().into_bytes(),
+            })),
+        };
+        assert!(RangeDecoder::recognises(&cdr_channel));
+        let cdr = RangeDecoder::new(&cdr_channel, &UwbMapping::default()).unwrap();
+        let mut again = Vec::new();
+        let json = br#"{"timestamp": {"sec": 3, "nsec": 5}, "anchor_id": "A2", "range": 4.5, "tag": "1"}"#;
+        let stamp = cdr.decode(&json_range_to_cdr(json).unwrap(), &mut again).unwrap();
+        assert_eq!(stamp, Some(3_000_000_005));
+        assert_eq!((again[0].anchor_id.as_str(), again[0].range_m, again[0].tag_id.as_deref()), ("A2", 4.5, Some("1")));
+        assert_eq!(again[0].variance_m2, None);
         let untagged = crate::io::recording_out::range_json(1.0, "A3", 4.5, None, 0);
         decode_json(&untagged, Some("/uwb/t9"), &mut out).unwrap();
         decode_json(&untagged, None, &mut out).unwrap();

@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::io::mcap_read::{ChannelInfo, SchemaInfo};
+use crate::io::msg_schema::MsgSchema;
 use crate::io::{IoError as Error, IoResult as Result, Mapping};
 
 use super::reader::{decode_message, message_time, role_for, Decoded, Item, Role, Scratch};
@@ -31,6 +32,8 @@ pub struct TopicCounts {
 /// A topic's decoder and what it has seen.
 struct Topic {
     role: Role,
+    /// Whether its messages carry a stamp (JSON, a `header`, or a mapped stamp path).
+    stamped: bool,
     counts: TopicCounts,
     last_error: Option<String>,
 }
@@ -57,14 +60,20 @@ impl MessageDecoder {
             field: "anchors".into(),
             reason: "a live stream needs the anchor positions: give anchors.file or anchors.positions".into(),
         })?;
-        Ok(Self {
+        Ok(Self::with_layout(mapping, layout))
+    }
+
+    /// A decoder for `mapping` with the anchors of `layout` (those a read of a whole recording
+    /// found, [`super::RecordingSurvey::anchors`]).
+    pub fn with_layout(mapping: Mapping, layout: AnchorLayout) -> Self {
+        Self {
             mapping,
             layout,
             topics: BTreeMap::new(),
             converter: Converter::new(false),
             scratch: Scratch::default(),
             items: Vec::new(),
-        })
+        }
     }
 
     /// The anchors: ids and positions in filter-index order.
@@ -96,12 +105,22 @@ impl MessageDecoder {
         let role = role_for(&self.mapping, &channel, has_imu, &mut misfit)?;
         let tag = role.tag();
         let last_error = misfit.map(|e| format!("not used as UWB: {e}"));
-        self.topics.insert(topic.to_string(), Topic { role, counts: TopicCounts::default(), last_error });
+        let m = &self.mapping;
+        let mapped_stamp = match tag {
+            TopicRole::Uwb => m.uwb.stamp.is_some(),
+            TopicRole::Tdoa => m.tdoa.stamp.is_some(),
+            _ => false,
+        };
+        let stamped = encoding == "json"
+            || mapped_stamp
+            || MsgSchema::parse(schema_name, schema_text).is_ok_and(|s| s.has_field("header"));
+        self.topics.insert(topic.to_string(), Topic { role, stamped, counts: TopicCounts::default(), last_error });
         Ok(tag)
     }
 
-    /// Decodes one message of `topic` that arrived at `arrival_ns` (used when the mapping reads
-    /// the log time, or the message has no header stamp) and appends its records to `out`: IMU
+    /// Decodes one message of `topic` that arrived at `arrival_ns` (its time when the mapping
+    /// reads log times or its type has no stamp; a zero stamp stays zero) and appends its
+    /// records to `out`: IMU
     /// samples, ranges and TDoA with anchor indices, readings of the other sensors. Ranges of
     /// anchors without a position, invalid or negative ranges and repeated IMU times are dropped
     /// as a file read drops them. Returns the number of records appended.
@@ -124,7 +143,12 @@ impl MessageDecoder {
                 return Ok(0);
             }
         };
-        let (t_ns, from_arrival) = message_time(&self.mapping, stamp, arrival_ns);
+        // A live stream has no log time: a stamped message whose stamp is zero keeps it (0, far
+        // behind a stamped stream, so the filter drops it as late; the start of a simulated
+        // run); only messages without a stamp, or a mapping that reads log times, take the
+        // arrival time.
+        let header = if entry.stamped { Some(stamp.unwrap_or(0)) } else { None };
+        let (t_ns, from_arrival) = message_time(&self.mapping, header, arrival_ns);
         entry.counts.arrival_stamps += u64::from(from_arrival);
         let before = out.len();
         for item in self.items.drain(..) {
@@ -194,6 +218,26 @@ mod tests {
         let uwb = d.counts().find(|c| c.0 == "/uwb").unwrap();
         assert_eq!((uwb.1.messages, uwb.1.records, uwb.1.errors), (4, 1, 1));
         assert!(uwb.2.is_some());
+    }
+
+    #[test]
+    fn a_zero_stamp_stays_zero_and_an_unstamped_type_takes_the_arrival_time() {
+        let mut m = mapping();
+        m.uwb.topics.push("/bare".into());
+        let mut d = MessageDecoder::new(m).unwrap();
+        d.add_topic("/uwb", "my_uwb/msg/Range", RANGE_TEXT, "cdr").unwrap();
+        d.add_topic("/bare", "my_uwb/msg/Bare", "string anchor\nfloat64 range\n", "cdr").unwrap();
+        let mut out = Vec::new();
+        d.decode("/uwb", 7_000_000_000, &range_cdr(0.0, "A0", 2.0), &mut out).unwrap();
+        let mut bare = vec![0u8, 1, 0, 0];
+        crate::io::recording_out::push_cdr_string(&mut bare, "A1");
+        crate::io::recording_out::align8(&mut bare);
+        bare.extend_from_slice(&3.0f64.to_le_bytes());
+        d.decode("/bare", 7_000_000_000, &bare, &mut out).unwrap();
+        let times: Vec<f64> = out.iter().map(|r| if let RecordItem::Range(m, _) = r { m.t_s } else { f64::NAN }).collect();
+        assert_eq!(times, [0.0, 7.0]);
+        let bare_counts = d.counts().find(|c| c.0 == "/bare").unwrap().1.clone();
+        assert_eq!(bare_counts.arrival_stamps, 1);
     }
 
     #[test]
