@@ -16,8 +16,8 @@ use uwbimu_app::io::msg_schema::{ArrayKind, FieldType, MsgSchema};
 use uwbimu_app::io::ros_out::{
     diagnostic_array_cdr, odometry_cdr, pose_with_covariance_cdr, DiagnosticLevel, DiagnosticStatus, Frames, PoseEstimate,
 };
-use uwbimu_app::io::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
 use uwbimu_app::io::ros_types::{dds_topic_name, dds_type_name, full_definition};
+use uwbimu_app::io::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
 use uwbimu_app::io::{survey_recording_file, AnchorLayout, MessageDecoder as CoreDecoder, RecordItem};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_from_wxyz, Cov, Vec3};

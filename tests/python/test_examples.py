@@ -33,6 +33,7 @@ def example(name: str):
         ["examples/model_selection_table.py", "--seeds", "25", "--rigs", "drone_flight+steady", "lab_robot"],
         ["examples/robust_smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
         ["benches/python_api.py", "--repeat", "1"],
+        ["examples/power_gap_nlos.py"],
     ],
     ids=lambda s: s[0],
 )

@@ -9,10 +9,10 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 import tty
 from pathlib import Path
@@ -23,6 +23,7 @@ import pytest
 
 import uwbimu_rs
 from uwbimu_rs import _native, sim
+from uwbimu_rs.live import apply_record
 
 ROOT = Path(__file__).resolve().parents[2]
 ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
@@ -78,13 +79,13 @@ class Clock:
         return self.now
 
 
-def node_for(anchors, *, choose_after_s=0.0, clock=None, sinks=None, **live):
+def node_for(anchors, *, choose_after_s=0.0, clock=None, sinks=None, method=None, **live):
     from uwbimu_rs.live import LiveNode
 
     setup = _native.live_setup(None)
     setup["live"]["choose_after_s"] = choose_after_s
     setup["live"].update(live)
-    return LiveNode(setup, anchors, sinks=sinks or [], clock=clock or Clock())
+    return LiveNode(setup, anchors, sinks=sinks or [], clock=clock or Clock(), method=method)
 
 
 def horizontal_rmse(track: np.ndarray, run: Any, after_s: float) -> float:
@@ -104,24 +105,22 @@ def test_importing_uwbimu_rs_loads_none_of_the_live_extras():
     assert out == "[]"
 
 
-def test_the_node_publishes_what_the_streaming_filter_estimates_and_tracks():
+@pytest.mark.parametrize("method", ["best", "riekf"])
+def test_the_node_publishes_what_the_streaming_filter_estimates_and_tracks(method):
     # stop_and_go, 40 s, self-initialised: every step the node gives its sinks equals the
-    # streaming `Best` fed the same records, and the track follows the simulator's truth.
+    # streaming class of the method fed the same records, and the track follows the truth.
     run = sim.zoo("stop_and_go", seed=2)
     recs = records_of(run, run.imu[0, 0] + 40.0)
     clock, sink = Clock(), Collect()
-    node = node_for(run.anchors, clock=clock, sinks=[sink])
+    node = node_for(run.anchors, clock=clock, sinks=[sink], method=method)
     for r in recs:
         clock.now = r[1]
         node.feed("sim", [r])
         node.tick()
     node.close()
-    ref = uwbimu_rs.Best(run.anchors, reorder_window_s=0.5)
+    ref = getattr(uwbimu_rs, method.capitalize())(run.anchors, reorder_window_s=0.5)
     for r in recs:
-        if r[0] == "imu":
-            ref.add_imu(r[1], r[2], r[3])
-        else:
-            ref.add_range(r[1], r[2], r[3])
+        apply_record(ref, r)
     ref.flush()
     expected = ref.steps()
     track = sink.track()
@@ -213,11 +212,10 @@ def test_the_node_chooses_its_model_on_its_first_seconds_and_says_so(caplog):
     clock, sink = Clock(), Collect()
     node = node_for(run.anchors, choose_after_s=20.0, clock=clock, sinks=[sink])
     with caplog.at_level(logging.INFO, logger="uwbimu.live"):
-        for k, r in enumerate(recs):
+        for r in recs:
             clock.now = r[1]
             node.feed("sim", [r])
-            if r[1] - recs[0][1] > 20.0 and node._choice is not None and node._choice.job is not None:
-                node._choice.job.result(timeout=120)  # the test waits for the choice where a robot would not
+            node.wait_for_choice(120)  # the test waits for the choice where a robot would not
             node.tick()
         node.close()
     messages = [rec.getMessage() for rec in caplog.records]
@@ -228,6 +226,11 @@ def test_the_node_chooses_its_model_on_its_first_seconds_and_says_so(caplog):
     track = sink.track()
     assert np.all(np.diff(track[:, 0]) > 0)  # the switch re-emits nothing
     assert horizontal_rmse(track, run, 5.0) < 0.2
+
+
+def test_a_method_without_a_streaming_class_is_refused():
+    with pytest.raises(ValueError, match="'uwb_ls' has no streaming class; the live node runs one of"):
+        node_for(np.eye(4, 3), method="uwb_ls")
 
 
 def test_cli_errors_exit_2_with_one_line(tmp_path):
@@ -357,29 +360,16 @@ def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
     assert "late_dropped': 0" in err
 
 
-def _linktrack_frames(run: Any, t_end: float, ids: list[int]) -> list[bytes]:
-    """NodeFrame2 frames of a simulated module: one per IMU sample, with the ranges measured
-    since the previous sample (ranges rounded to the sample's time, as the module reports them)."""
-    imu = run.imu[run.imu[:, 0] <= t_end]
-    ranges = run.ranges
-    frames = []
-    j = 0
-    for k, row in enumerate(imu):
-        nodes = []
-        while j < len(ranges) and ranges[j, 0] <= row[0]:
-            nodes.append((ids[int(ranges[j, 1])], float(ranges[j, 2]), -80.0, -78.0))
-            j += 1
-        frames.append(_native.encode_linktrack_node_frame2(7, int(round(row[0] * 1000)), row[4:7], row[1:4], nodes))
-    return frames
-
-
 def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):
     # A simulated run as the frames of a LinkTrack tag (IMU and ranges on one cable), written to
     # a pseudo-terminal with garbage between some frames; the node reads the other end. Its
     # steps equal the streaming filter fed the same frames decoded here, and follow the truth.
     run = sim.zoo("stop_and_go", seed=4)
+    from uwbimu_rs.live import linktrack_frames, linktrack_records
+
     ids = [10 + k for k in range(len(run.anchors))]
-    frames = _linktrack_frames(run, run.imu[0, 0] + 30.0, ids)
+    imu = run.imu[run.imu[:, 0] <= run.imu[0, 0] + 30.0]
+    frames = linktrack_frames(imu, run.ranges, [str(i) for i in ids], tag_id=7)
     stream = b"".join(f + (b"\x55\x04\xff" if k % 97 == 5 else b"") for k, f in enumerate(frames))
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -392,23 +382,15 @@ def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):
         stderr=subprocess.PIPE, text=True,
     )
     time.sleep(1.5)  # the node opens the port
-
-    def write() -> None:
-        for k in range(0, len(stream), 4096):
-            os.write(master, stream[k : k + 4096])
-            time.sleep(0.002)
-
-    writer = threading.Thread(target=write)
-    writer.start()
-    writer.join()
+    for k in range(0, len(stream), 4096):  # blocks while the node has not read what came before
+        os.write(master, stream[k : k + 4096])
     time.sleep(2.0)
     node.send_signal(signal.SIGINT)
     _, err = node.communicate(timeout=30)
     os.close(master)
     os.close(slave)
     assert node.returncode == 0, err
-    from uwbimu_rs.live import linktrack_records
-
+    assert re.search(r"linktrack \[linktrack:/dev/pts/\d+\] .*'checksum_errors': 0, .*'bytes_skipped': [1-9]", err), err[-1500:]
     decoder = _native.LinkTrackDecoder()
     decoded = decoder.feed(stream)
     assert len(decoded) == len(frames) and decoder.counts["bytes_skipped"] > 0
@@ -416,10 +398,7 @@ def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):
     index = {str(i): k for k, i in enumerate(ids)}
     for frame in decoded:
         for r in linktrack_records(frame, index):
-            if r[0] == "imu":
-                ref.add_imu(r[1], r[2], r[3])
-            else:
-                ref.add_range(r[1], r[2], r[3])
+            apply_record(ref, r)
     ref.flush()
     expected = ref.steps()
     from mcap.reader import make_reader
@@ -431,3 +410,75 @@ def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):
     np.testing.assert_allclose(track[:, 0], expected["t"].to_numpy(), atol=1e-6)
     np.testing.assert_allclose(track[:, 1], expected["x"].to_numpy(), atol=1e-9)
     assert horizontal_rmse(np.column_stack([track, np.zeros(len(track))]), run, 5.0) < 0.2
+
+
+def _ws_frames(sock: Any, n: int, timeout: float = 5.0) -> list[bytes]:
+    """The payloads of the next ``n`` WebSocket frames from ``sock`` (server frames: unmasked)."""
+    sock.settimeout(timeout)
+    buf = b""
+    out: list[bytes] = []
+
+    def need(k: int) -> None:
+        nonlocal buf
+        while len(buf) < k:
+            chunk = sock.recv(65536)
+            if not chunk:
+                raise ConnectionError("closed")
+            buf += chunk
+
+    while len(out) < n:
+        need(2)
+        length, head = buf[1] & 0x7F, 2
+        if length == 126:
+            need(4)
+            length, head = int.from_bytes(buf[2:4], "big"), 4
+        elif length == 127:
+            need(10)
+            length, head = int.from_bytes(buf[2:10], "big"), 10
+        need(head + length)
+        out.append(buf[head : head + length])
+        buf = buf[head + length :]
+    return out
+
+
+def test_the_foxglove_view_serves_pose_path_and_nis():
+    # A WebSocket client does Foxglove's handshake (subprotocol foxglove.sdk.v1) and sees the
+    # server advertise the node's channels.
+    import base64
+    import socket
+
+    from uwbimu_rs.live import FoxgloveSink, Pose
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    sink = FoxgloveSink(_native.live_setup(None), port=port)
+    try:
+        pose = Pose(1.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3), np.eye(15))
+        sink.pose(pose)
+        sink.nis(1.0, 2, 0.5, True)
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+            key = base64.b64encode(os.urandom(16)).decode()
+            s.sendall(
+                (
+                    f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                    f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
+                ).encode()
+            )
+            head = b""
+            while b"\r\n\r\n" not in head:
+                head += s.recv(1)
+            assert head.startswith(b"HTTP/1.1 101") and b"foxglove.sdk.v1" in head
+            messages = [json.loads(f) for f in _ws_frames(s, 2) if f[:1] == b"{"]
+            assert messages[0]["op"] == "serverInfo"
+            advertised = {c["topic"] for m in messages if m["op"] == "advertise" for c in m["channels"]}
+            assert {"/uwbimu/pose", "/uwbimu/path", "/tf", "/uwbimu/nis"} <= advertised
+    finally:
+        sink.close()
+
+
+def test_docs_list_every_live_key():
+    # docs/live.md's table of [live] keys is checked against the keys the Rust struct declares.
+    text = (ROOT / "docs" / "live.md").read_text()
+    table = {line.split("|")[1].strip().strip("`") for line in text.splitlines() if line.startswith("| `")}
+    assert set(_native.live_setup(None)["live"]) <= table

@@ -4,7 +4,8 @@ Importing :mod:`uwbimu_rs` does not import this package, and this package import
 dependencies (the ``live`` extra: ``cyclonedds``, ``foxglove-sdk``, ``pyserial``, ``mcap``) only
 when a transport that needs them starts.
 
-- :class:`LiveNode`: the estimator loop without transport (records in, poses out).
+- :class:`LiveNode`: the estimator loop without transport (records in, poses out);
+  :func:`apply_record` gives one decoded record to a streaming filter.
 - :class:`DdsBus`: ROS 2 topics over Cyclone DDS with raw CDR payloads.
 - Sources: :class:`DdsSource`, :class:`LinkTrackSource`, :class:`McapSource`.
 - Sinks: :class:`RosSink`, :class:`FoxgloveSink`, :class:`McapSink`.
@@ -13,9 +14,9 @@ when a transport that needs them starts.
 from __future__ import annotations
 
 from uwbimu_rs.live._dds import DdsBus, idl_type, loopback_config
-from uwbimu_rs.live._node import LiveNode, Pose, Sink
+from uwbimu_rs.live._node import LiveNode, Pose, Sink, apply_record
 from uwbimu_rs.live._sinks import FoxgloveSink, McapSink, RosSink
-from uwbimu_rs.live._sources import DdsSource, LinkTrackSource, McapSource, linktrack_records
+from uwbimu_rs.live._sources import DdsSource, LinkTrackSource, McapSource, linktrack_frames, linktrack_records
 
 __all__ = [
     "DdsBus",
@@ -28,7 +29,9 @@ __all__ = [
     "Pose",
     "RosSink",
     "Sink",
+    "apply_record",
     "idl_type",
+    "linktrack_frames",
     "linktrack_records",
     "loopback_config",
 ]

@@ -131,7 +131,7 @@ def run(argv: list[str]) -> int:
         status = 1
     finally:
         wall, cpu = time.monotonic() - started, time.process_time() - cpu0
-        why = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}.get(stop.signal or 0, "end of input")
+        why = {int(signal.SIGINT): "Ctrl-C", int(signal.SIGTERM): "SIGTERM"}.get(stop.signal or 0, "end of input")
         node.close()
         if bus is not None:
             bus.close()

@@ -47,7 +47,9 @@ def idl_type(type_name: str, definition: str) -> type:
     (nested types built as its dependencies); its DDS name is the one ROS 2 gives it."""
     _import_cyclonedds()
     from cyclonedds.idl import make_idl_struct
-    from cyclonedds.idl import types as t
+    from cyclonedds.idl import types as idl_types
+
+    t: Any = idl_types  # its array and sequence are subscripted at run time
 
     layout = {name: fields for name, fields in _native.ros_fields(type_name, definition)}
     built: dict[str, type] = {}
@@ -115,18 +117,20 @@ class DdsBus:
 
     def subscribe(self, dds_topic: str, idl: type, on_sample: Callable[[bytes, int], None], *, depth: int = 1000) -> None:
         """Call ``on_sample(payload, source_timestamp_ns)`` for each sample of ``dds_topic``
-        (reliable, keep last ``depth``) from :meth:`spin_once`."""
+        from :meth:`spin_once`. The reader is best effort (keep last ``depth``), so it matches
+        both reliable publishers and the best-effort ones of ROS 2's sensor-data profile."""
         from cyclonedds.core import ReadCondition, SampleState, ViewState, InstanceState
         from cyclonedds.sub import DataReader
 
-        reader = DataReader(self.participant, self._topic(dds_topic, idl), qos=_qos(True, depth))
+        reader = DataReader(self.participant, self._topic(dds_topic, idl), qos=_qos(False, depth))
         cond = ReadCondition(reader, SampleState.Any | ViewState.Any | InstanceState.Any)
         self.waitset.attach(cond)
         self._readers.append((reader, on_sample, cond))
 
     def publisher(self, dds_topic: str, idl: type, *, depth: int = 100) -> Callable[[bytes], None]:
-        """A function that publishes a payload (XCDR1 with its header) on ``dds_topic``."""
-        from cyclonedds._clayer import ddspy_write
+        """A function that publishes a payload (XCDR1 with its header) on ``dds_topic``
+        (reliable, keep last ``depth``: it reaches reliable and best-effort readers)."""
+        from cyclonedds._clayer import ddspy_write  # type: ignore[import-not-found]
         from cyclonedds.pub import DataWriter
 
         writer = DataWriter(self.participant, self._topic(dds_topic, idl), qos=_qos(True, depth))
@@ -142,7 +146,7 @@ class DdsBus:
 
     def spin_once(self, timeout_s: float) -> int:
         """Wait up to ``timeout_s`` for samples and hand each to its callback; returns how many."""
-        from cyclonedds._clayer import ddspy_take
+        from cyclonedds._clayer import ddspy_take  # type: ignore[import-not-found]
         from cyclonedds.core import InstanceState, SampleState, ViewState
         from cyclonedds.util import duration
 

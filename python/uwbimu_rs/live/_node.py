@@ -15,12 +15,13 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 
 from uwbimu_rs import _native
 from uwbimu_rs._calibration import choose_model
+from uwbimu_rs._typing import MethodName
 
 log = logging.getLogger("uwbimu.live")
 
@@ -70,6 +71,8 @@ class SensorWatch:
     records: int = 0
     rejected: int = 0
     silent: bool = False
+    extra: dict[str, Any] = field(default_factory=dict)
+    """More counts of the input (a serial decoder's checksum errors, …)."""
 
 
 def streaming_class(method: str) -> type:
@@ -79,6 +82,24 @@ def streaming_class(method: str) -> type:
         streaming = sorted(m for m in _native.METHODS if hasattr(getattr(_native, m.capitalize(), None), "add_imu"))
         raise ValueError(f"method {method!r} has no streaming class; the live node runs one of {streaming}")
     return cls
+
+
+def apply_record(f: Any, r: tuple[Any, ...]) -> list[Any]:
+    """Give one record (a tuple of :meth:`MessageDecoder.decode` or :func:`linktrack_records`)
+    to the streaming filter ``f``; returns the update reports of the call. Raises ``ValueError``
+    as the call does, and for a record of no kind the filter takes."""
+    kind = r[0]
+    if kind == "imu":
+        return list(f.add_imu(r[1], r[2], r[3]))
+    if kind == "range":
+        return list(f.add_range(r[1], r[2], r[3], r[4]))
+    if kind == "tdoa":
+        return list(f.add_tdoa(r[1], r[2], r[3], r[4]))
+    if kind == "altitude":
+        return list(f.add_altitude(r[1], r[2]))
+    if kind == "odometry":
+        return list(f.add_odometry(r[1], r[2] if len(r) == 3 else list(r[2:])))
+    raise ValueError(f"a record of kind {kind!r}: the filter takes imu, range, tdoa, altitude and odometry")
 
 
 @dataclass
@@ -202,21 +223,10 @@ class LiveNode:
     def _apply(self, r: tuple[Any, ...]) -> bool:
         """Give one record to the filter; a refused one is counted and logged once per reason."""
         kind = r[0]
-        f = self._filter
         try:
+            reports = apply_record(self._filter, r)
             if kind == "imu":
                 self._last_gyro = np.asarray(r[3], dtype=np.float64)
-                reports = f.add_imu(r[1], r[2], r[3])
-            elif kind == "range":
-                reports = f.add_range(r[1], r[2], r[3], r[4])
-            elif kind == "tdoa":
-                reports = f.add_tdoa(r[1], r[2], r[3], r[4])
-            elif kind == "altitude":
-                reports = f.add_altitude(r[1], r[2])
-            elif kind == "odometry":
-                reports = f.add_odometry(r[1], r[2] if len(r) == 3 else list(r[2:]))
-            else:
-                return False
             self._nis(reports)
         except ValueError as e:
             reason = str(e).split(":")[0]
@@ -251,9 +261,19 @@ class LiveNode:
         assert c is not None and self._pool is not None
         imu, ranges = np.array(c.imu), np.array(c.ranges).reshape(-1, 3)
         log.info("choosing the model on %.0f s of data (%d IMU samples, %d ranges)", imu[-1, 0] - imu[0, 0], len(imu), len(ranges))
+        method = cast(MethodName, self.method)
         c.job = self._pool.submit(
-            choose_model, self.method, imu, ranges, self.anchors, initial=self._setup["initial"], config=self._config
+            choose_model, method, imu, ranges, self.anchors, initial=self._setup["initial"], config=self._config
         )
+
+    def wait_for_choice(self, timeout_s: float) -> bool:
+        """Block until a model choice that has started is made (for trials and tests: a robot
+        does not wait; :meth:`tick` applies it). Returns whether one was waited for."""
+        c = self._choice
+        if c is None or c.job is None:
+            return False
+        c.job.exception(timeout=timeout_s)
+        return True
 
     def _finish_choice(self) -> None:
         """Once the choice is made: a filter with the chosen model, fed everything kept."""
@@ -368,7 +388,7 @@ class LiveNode:
                     "name": f"uwbimu: {w.kind}",
                     "message": f"silent for {age:.1f} s" if w.silent and age is not None else "receiving",
                     "hardware_id": w.name,
-                    "values": {"messages": w.messages, "records": w.records, "rejected": w.rejected},
+                    "values": {"messages": w.messages, "records": w.records, "rejected": w.rejected, **w.extra},
                 }
             )
         return out

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 from uwbimu_rs import _native
@@ -42,7 +42,7 @@ class DdsSource:
         return int(self.bus.spin_once(timeout_s))
 
 
-def linktrack_records(frame: dict[str, Any], anchor_index: dict[str, int]) -> list[tuple[Any, ...]]:
+def linktrack_records(frame: Mapping[str, Any], anchor_index: Mapping[str, int]) -> list[tuple[Any, ...]]:
     """The records of one LinkTrack frame (a dict of :class:`LinkTrackDecoder`): the module's IMU
     sample and its ranges to the anchors of the mapping (node id as the anchor id), all at the
     module's local time. ``TagFrame0`` distances are by anchor slot 0–7 (0 m: no range)."""
@@ -59,6 +59,23 @@ def linktrack_records(frame: dict[str, Any], anchor_index: dict[str, int]) -> li
     return out
 
 
+def linktrack_frames(imu: Any, ranges: Any, anchor_ids: list[str], *, tag_id: int = 0) -> list[bytes]:
+    """The ``NodeFrame2`` frames a LinkTrack tag would send for a run (a simulated module, for
+    trials and tests): one per IMU sample (``imu`` (N, 7)), carrying the ranges (``ranges``
+    (M, 3), anchor indices into ``anchor_ids``, which must be numbers 0–255) measured since the
+    previous sample, all at the sample's time in ms; the inverse of :func:`linktrack_records` up
+    to the wire's steps."""
+    frames = []
+    j = 0
+    for row in imu:
+        nodes = []
+        while j < len(ranges) and ranges[j, 0] <= row[0]:
+            nodes.append((int(anchor_ids[int(ranges[j, 1])]), float(ranges[j, 2]), -80.0, -78.0))
+            j += 1
+        frames.append(_native.encode_linktrack_node_frame2(tag_id, int(round(row[0] * 1000)), row[4:7], row[1:4], nodes))
+    return frames
+
+
 class LinkTrackSource:
     """A LinkTrack serial port (``pyserial``), frames decoded in Rust (:class:`LinkTrackDecoder`):
     each frame's IMU sample and ranges go to the node at the module's clock. Anchor ids in the
@@ -68,7 +85,7 @@ class LinkTrackSource:
 
     def __init__(self, port: str, baud: int, anchor_ids: list[str], node: LiveNode) -> None:
         try:
-            import serial
+            import serial  # type: ignore[import-untyped]
         except ImportError as e:  # pragma: no cover - depends on the extra
             raise ImportError("a LinkTrack port needs pyserial: pip install 'uwbimu_rs[live]'") from e
         self.port = port
@@ -89,12 +106,10 @@ class LinkTrackSource:
         frames = self.decoder.feed(data)
         for frame in frames:
             self.node.feed(self.name, linktrack_records(frame, self.anchor_index))
+        # The decoder's counts (frames, checksum errors, bytes skipped) go into the diagnostics.
+        self.node.watch(self.name, "linktrack").extra = {k: v for k, v in self.decoder.counts.items() if k != "bytes_received"}
         return len(frames)
 
-    @property
-    def counts(self) -> dict[str, int]:
-        """The decoder's counts (frames, checksum errors, bytes skipped, …)."""
-        return dict(self.decoder.counts)
 
 
 def mcap_messages(path: str, topics: set[str] | None = None) -> Iterator[tuple[Any, Any, Any]]:

@@ -50,10 +50,7 @@ const BUNDLED: &[(&str, &str)] = &[
          string hardware_id\nKeyValue[] values\n",
     ),
     ("diagnostic_msgs/DiagnosticArray", "std_msgs/Header header\nDiagnosticStatus[] status\n"),
-    (
-        "uwbimu_msgs/UwbRange",
-        "std_msgs/Header header\nstring anchor_id\nfloat64 range\nfloat64 variance\nstring tag\n",
-    ),
+    ("uwbimu_msgs/UwbRange", "std_msgs/Header header\nstring anchor_id\nfloat64 range\nfloat64 variance\nstring tag\n"),
     ("uwbimu_msgs/Tdoa", "std_msgs/Header header\nstring idA\nstring idB\nfloat64 distanceDiff\n"),
     ("uwbimu_msgs/AnchorRange", "std_msgs/Header header\nstring anchor_i\nstring anchor_j\nfloat64 range\n"),
 ];

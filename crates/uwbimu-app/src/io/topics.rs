@@ -19,11 +19,11 @@ use serde::Deserialize;
 use uwbimu_vocabulary::math::Vec3;
 
 use crate::io::anchors::json_id;
-use crate::io::recording_out::uwb_range_cdr;
 use crate::io::cdr::{decode, Value};
 use crate::io::field_path::{Condition, FieldPath, PointPath};
 use crate::io::mcap_read::ChannelInfo;
 use crate::io::msg_schema::{normalize, MsgSchema};
+use crate::io::recording_out::uwb_range_cdr;
 use crate::io::{
     AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
     TDOA_DEFAULT,

@@ -111,9 +111,8 @@ impl MessageDecoder {
             TopicRole::Tdoa => m.tdoa.stamp.is_some(),
             _ => false,
         };
-        let stamped = encoding == "json"
-            || mapped_stamp
-            || MsgSchema::parse(schema_name, schema_text).is_ok_and(|s| s.has_field("header"));
+        let stamped =
+            encoding == "json" || mapped_stamp || MsgSchema::parse(schema_name, schema_text).is_ok_and(|s| s.has_field("header"));
         self.topics.insert(topic.to_string(), Topic { role, stamped, counts: TopicCounts::default(), last_error });
         Ok(tag)
     }
