@@ -47,7 +47,7 @@ class Collect:
         self.rows: list[dict[str, np.ndarray]] = []
         self.poses: list[Any] = []
         self.diag_batches: list[list[dict[str, Any]]] = []
-        self.nis_values: list[tuple[float, int, float, bool]] = []
+        self.updates: list[Any] = []
         self.closed = False
 
     def steps(self, rows):
@@ -59,8 +59,8 @@ class Collect:
     def diagnostics(self, t, statuses):
         self.diag_batches.append(statuses)
 
-    def nis(self, t, anchor, nis, accepted):
-        self.nis_values.append((t, anchor, nis, accepted))
+    def range_update(self, u):
+        self.updates.append(u)
 
     def close(self):
         self.closed = True
@@ -132,7 +132,7 @@ def test_the_node_publishes_what_the_streaming_filter_estimates_and_tracks(metho
     assert len(sink.poses) > 0.9 * (len(track) - len(sink.rows[0]["t"]))
     p = sink.poses[-1]
     assert p.covariance.shape == (15, 15) and np.all(np.linalg.eigvalsh(p.covariance) > 0)
-    assert sink.nis_values and all(a in range(len(run.anchors)) for _, a, _, _ in sink.nis_values)
+    assert sink.updates and all(u.anchor in range(len(run.anchors)) and u.fp_power_dbm is None for u in sink.updates)
     # Latency in sensor time (the test's clock): the reorder window, plus the sample or two a
     # step waits for data after its time.
     lat = np.array(node.latencies)
@@ -226,6 +226,24 @@ def test_the_node_chooses_its_model_on_its_first_seconds_and_says_so(caplog):
     track = sink.track()
     assert np.all(np.diff(track[:, 0]) > 0)  # the switch re-emits nothing
     assert horizontal_rmse(track, run, 5.0) < 0.2
+
+
+def test_linktrack_signal_powers_reach_the_range_updates():
+    # Each NodeFrame2 range carries its powers to the update it makes (the Foxglove NIS channel).
+    from uwbimu_rs.live import linktrack_frames, linktrack_records
+
+    run = sim.zoo("stop_and_go", seed=1)
+    ids = [str(20 + k) for k in range(len(run.anchors))]
+    imu = run.imu[run.imu[:, 0] <= run.imu[0, 0] + 15.0]
+    clock, sink = Clock(), Collect()
+    node = node_for(run.anchors, clock=clock, sinks=[sink])
+    index = {a: k for k, a in enumerate(ids)}
+    for frame in _native.LinkTrackDecoder().feed(b"".join(linktrack_frames(imu, run.ranges, ids))):
+        clock.now = frame["local_time_ms"] * 1e-3
+        node.feed("linktrack", linktrack_records(frame, index))
+    node.close()
+    assert len(sink.updates) > 50
+    assert {(u.fp_power_dbm, u.rx_power_dbm) for u in sink.updates} == {(-80.0, -78.0)}
 
 
 def test_a_method_without_a_streaming_class_is_refused():
@@ -447,7 +465,7 @@ def test_the_foxglove_view_serves_pose_path_and_nis():
     import base64
     import socket
 
-    from uwbimu_rs.live import FoxgloveSink, Pose
+    from uwbimu_rs.live import FoxgloveSink, Pose, RangeUpdate
 
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
@@ -456,7 +474,7 @@ def test_the_foxglove_view_serves_pose_path_and_nis():
     try:
         pose = Pose(1.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3), np.eye(15))
         sink.pose(pose)
-        sink.nis(1.0, 2, 0.5, True)
+        sink.range_update(RangeUpdate(1.0, 2, 0.5, True, -80.0, -78.5))
         with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
             key = base64.b64encode(os.urandom(16)).decode()
             s.sendall(

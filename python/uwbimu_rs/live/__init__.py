@@ -14,7 +14,7 @@ when a transport that needs them starts.
 from __future__ import annotations
 
 from uwbimu_rs.live._dds import DdsBus, idl_type, loopback_config
-from uwbimu_rs.live._node import LiveNode, Pose, Sink, apply_record
+from uwbimu_rs.live._node import LiveNode, Pose, RangeUpdate, Sink, apply_record
 from uwbimu_rs.live._sinks import FoxgloveSink, McapSink, RosSink
 from uwbimu_rs.live._sources import DdsSource, LinkTrackSource, McapSource, linktrack_frames, linktrack_records
 
@@ -27,6 +27,7 @@ __all__ = [
     "McapSink",
     "McapSource",
     "Pose",
+    "RangeUpdate",
     "RosSink",
     "Sink",
     "apply_record",

@@ -13,7 +13,7 @@ import logging
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
-from collections import deque
+from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from typing import Any, Protocol, cast
 
@@ -41,6 +41,22 @@ class Pose:
     """(15, 15): δp, δv, δθ (body), δb_a, δb_g."""
 
 
+@dataclass(frozen=True)
+class RangeUpdate:
+    """One range update of the filter, with the signal powers of its range when the source
+    gave them (a LinkTrack ``NodeFrame2``)."""
+
+    t: float
+    anchor: int
+    nis: float
+    """Normalised innovation squared."""
+    accepted: bool
+    fp_power_dbm: float | None = None
+    """First-path power."""
+    rx_power_dbm: float | None = None
+    """Total received power; ``rx − fp`` large is a (weak, docs/power-gap.md) NLOS cue."""
+
+
 class Sink(Protocol):
     """Where the estimate goes (DDS publisher, Foxglove server, MCAP file)."""
 
@@ -53,8 +69,8 @@ class Sink(Protocol):
     def diagnostics(self, t: float, statuses: list[dict[str, Any]]) -> None:
         """The health of the node and each sensor, every ``live.diagnostics_period_s``."""
 
-    def nis(self, t: float, anchor: int, nis: float, accepted: bool) -> None:
-        """The normalised innovation squared of one range update."""
+    def range_update(self, u: RangeUpdate) -> None:
+        """One range update: its NIS, whether accepted, the range's signal powers."""
 
     def close(self) -> None:
         """Flush and close (the node is stopping)."""
@@ -155,6 +171,7 @@ class LiveNode:
         self._last_publish = -np.inf
         self._last_diagnostics = clock()
         self._errors: dict[str, int] = {}
+        self._powers: OrderedDict[tuple[float, int], tuple[float, float]] = OrderedDict()
         self._initialized = False
         self.chosen: str | None = None
         """Label of the chosen model (None: the configuration as given)."""
@@ -227,7 +244,11 @@ class LiveNode:
             reports = apply_record(self._filter, r)
             if kind == "imu":
                 self._last_gyro = np.asarray(r[3], dtype=np.float64)
-            self._nis(reports)
+            if kind == "range" and len(r) >= 7:
+                self._powers[(r[1], r[2])] = (r[5], r[6])
+                if len(self._powers) > 4096:
+                    self._powers.popitem(last=False)
+            self._range_updates(reports)
         except ValueError as e:
             reason = str(e).split(":")[0]
             n = self._errors.get(reason, 0)
@@ -237,13 +258,15 @@ class LiveNode:
             return False
         return True
 
-    def _nis(self, reports: list[Any]) -> None:
+    def _range_updates(self, reports: list[Any]) -> None:
         if not self.sinks:
             return
         for rep in reports:
             if rep.anchor is not None and rep.sensor == "range":
+                fp, rx = self._powers.get((rep.t, rep.anchor), (None, None))
+                u = RangeUpdate(rep.t, rep.anchor, rep.nis, rep.accepted, fp, rx)
                 for s in self.sinks:
-                    s.nis(rep.t, rep.anchor, rep.nis, rep.accepted)
+                    s.range_update(u)
 
     def _keep_for_choice(self, r: tuple[Any, ...]) -> None:
         c = self._choice

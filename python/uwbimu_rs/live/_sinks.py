@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from uwbimu_rs import _native
-from uwbimu_rs.live._node import Pose
+from uwbimu_rs.live._node import Pose, RangeUpdate
 
 log = logging.getLogger("uwbimu.live")
 
@@ -28,7 +28,7 @@ class _NoSteps:
     def diagnostics(self, t: float, statuses: list[dict[str, Any]]) -> None:
         """Ignored."""
 
-    def nis(self, t: float, anchor: int, nis: float, accepted: bool) -> None:
+    def range_update(self, u: RangeUpdate) -> None:
         """Ignored."""
 
     def close(self) -> None:
@@ -83,7 +83,7 @@ class FoxgloveSink(_NoSteps):
     """A Foxglove WebSocket server (``foxglove-sdk``): ``/uwbimu/pose`` (PoseInFrame),
     ``/uwbimu/path`` (PosesInFrame, the last ``path_length`` poses 0.2 s apart), ``/tf``
     (FrameTransform map → base_link) and ``/uwbimu/nis`` (per range update: anchor, NIS,
-    accepted)."""
+    accepted, and the range's first-path and received power when the source gives them)."""
 
     PATH_SPACING_S = 0.2
 
@@ -107,6 +107,9 @@ class FoxgloveSink(_NoSteps):
                 "anchor": {"type": "integer"},
                 "nis": {"type": "number"},
                 "accepted": {"type": "boolean"},
+                "fp_power_dbm": {"type": ["number", "null"]},
+                "rx_power_dbm": {"type": ["number", "null"]},
+                "power_gap_db": {"type": ["number", "null"]},
             },
         }
         self._nis = foxglove.Channel("/uwbimu/nis", schema=nis_schema)
@@ -136,9 +139,20 @@ class FoxgloveSink(_NoSteps):
             self._path_poses.append(fp)
             self._path.log(fm.PosesInFrame(timestamp=stamp, frame_id=self.frame, poses=list(self._path_poses)))
 
-    def nis(self, t: float, anchor: int, nis: float, accepted: bool) -> None:
-        """Log one range update's NIS."""
-        self._nis.log({"t": t, "anchor": anchor, "nis": nis, "accepted": accepted})
+    def range_update(self, u: RangeUpdate) -> None:
+        """Log one range update: NIS, accepted, and the signal powers when known."""
+        gap = None if u.fp_power_dbm is None or u.rx_power_dbm is None else u.rx_power_dbm - u.fp_power_dbm
+        self._nis.log(
+            {
+                "t": u.t,
+                "anchor": u.anchor,
+                "nis": u.nis,
+                "accepted": u.accepted,
+                "fp_power_dbm": u.fp_power_dbm,
+                "rx_power_dbm": u.rx_power_dbm,
+                "power_gap_db": gap,
+            }
+        )
 
     def close(self) -> None:
         """Stop the server."""

@@ -45,17 +45,21 @@ class DdsSource:
 def linktrack_records(frame: Mapping[str, Any], anchor_index: Mapping[str, int]) -> list[tuple[Any, ...]]:
     """The records of one LinkTrack frame (a dict of :class:`LinkTrackDecoder`): the module's IMU
     sample and its ranges to the anchors of the mapping (node id as the anchor id), all at the
-    module's local time. ``TagFrame0`` distances are by anchor slot 0–7 (0 m: no range)."""
+    module's local time; a ``NodeFrame2`` range carries its first-path and received power (dBm)
+    after the tag: ``("range", t, anchor, range, None, fp, rx)``. ``TagFrame0`` distances are
+    by anchor slot 0–7 (0 m: no range)."""
     t = frame["local_time_ms"] * 1e-3
     out: list[tuple[Any, ...]] = [("imu", t, frame["accel"], frame["gyro"])]
     if frame["kind"] == "node_frame2":
-        pairs = [(str(n["id"]), n["range"]) for n in frame["nodes"]]
+        for n in frame["nodes"]:
+            k = anchor_index.get(str(n["id"]))
+            if k is not None:
+                out.append(("range", t, k, n["range"], None, n["fp_rssi"], n["rx_rssi"]))
     else:
-        pairs = [(str(i), d) for i, d in enumerate(frame["distances"]) if d > 0]
-    for anchor_id, rng in pairs:
-        k = anchor_index.get(anchor_id)
-        if k is not None:
-            out.append(("range", t, k, rng, None))
+        for i, d in enumerate(frame["distances"]):
+            k = anchor_index.get(str(i))
+            if k is not None and d > 0:
+                out.append(("range", t, k, d, None))
     return out
 
 
