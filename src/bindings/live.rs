@@ -83,14 +83,25 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
 
 /// The ROS 2 topics the live node subscribes to for the replay file `config` (with the mapping
 /// JSON `mapping` merged in): `(topic, type, definition, dds_topic, dds_type)` of the IMU topic,
-/// then the UWB, TDoA, altitude and odometry topics, each type's full `.msg` definition.
+/// then the UWB, TDoA, altitude and odometry topics. `type` (and `dds_type`) is None for a UWB
+/// topic without a type in `live.types`; `definition` is None when the type is None or its
+/// `.msg` is found nowhere (the node then learns both from the graph).
 #[pyfunction]
 #[pyo3(signature = (config=None, *, mapping=None))]
-fn live_subscriptions(config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Vec<TopicEntry>> {
+fn live_subscriptions(config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Vec<SubscriptionEntry>> {
     let cfg = settings(config.as_deref(), mapping)?;
     let subs = cfg.live.subscriptions(&cfg.mapping)?;
-    Ok(subs.iter().map(|s| topic_entry(&s.topic, &s.type_name, &s.definition)).collect())
+    Ok(subs
+        .into_iter()
+        .map(|s| {
+            let (dds_topic, dds_type) = (dds_topic_name(&s.topic), s.type_name.as_deref().map(dds_type_name));
+            (s.topic, s.type_name, s.definition, dds_topic, dds_type)
+        })
+        .collect())
 }
+
+/// `(topic, type, definition, dds_topic, dds_type)` of a subscription ([`live_subscriptions`]).
+type SubscriptionEntry = (String, Option<String>, Option<String>, String, Option<String>);
 
 /// The full `.msg` definition of the ROS 2 type `type_name` (`pkg/msg/Type`) with its
 /// dependencies, as an MCAP `ros2msg` schema carries it; types not bundled are looked up in

@@ -246,6 +246,26 @@ def test_linktrack_signal_powers_reach_the_range_updates():
     assert {(u.fp_power_dbm, u.rx_power_dbm) for u in sink.updates} == {(-80.0, -78.0)}
 
 
+def test_a_discovered_type_is_written_back_as_its_msg_definition():
+    # A type built from a definition with every kind of field, read back as .msg text: the
+    # same types, fields, elements and array kinds.
+    from uwbimu_rs.live import idl_type
+    from uwbimu_rs.live._graph import msg_definition
+
+    text = (
+        "std_msgs/Header header\nuint16 id\nfloat32[3] pos\nstring name\nbool ok\nint8 k\n"
+        "Item[] items\nItem[<=4] few\nItem[2] pair\nfloat64[] values\n"
+        f"{'=' * 80}\nMSG: my_pkg/Item\nuint32 code\ngeometry_msgs/Point p\n"
+        f"{'=' * 80}\nMSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
+    )
+    full = text + f"{'=' * 80}\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+    name, back = msg_definition(idl_type("my_pkg/msg/Thing", full))
+    assert name == "my_pkg/msg/Thing"
+    expected = {t: sorted(f) for t, f in _native.ros_fields("my_pkg/msg/Thing", full)}
+    got = {t: sorted(f) for t, f in _native.ros_fields(name, back)}
+    assert got == expected
+
+
 def test_a_method_without_a_streaming_class_is_refused():
     with pytest.raises(ValueError, match="'uwb_ls' has no streaming class; the live node runs one of"):
         node_for(np.eye(4, 3), method="uwb_ls")
@@ -275,14 +295,16 @@ def _loopback_env(domain: int) -> dict[str, str]:
     return {**os.environ, "CYCLONEDDS_URI": loopback_config(), "ROS_DOMAIN_ID": str(domain)}
 
 
-def _isas_config(tmp_path: Path, msgs: Path) -> Path:
+def _isas_config(tmp_path: Path) -> Path:
+    """The replay file of isas-walk1 with the anchors of its file and no model choice; the UWB
+    topic's type is left for the node to learn from the graph."""
     base = (ROOT / "examples" / "isas-walk1.toml").read_text().replace('anchor_position = "ranges[].pos"\n', "")
     cfg = tmp_path / "isas-live.toml"
     cfg.write_text(
         base
-        + f'\n[mapping.anchors]\nfile = "{ISAS / "anchors.csv"}"\n'
         + "\n[config.model_selection]\nenabled = false\n"
-        + f'\n[live]\nchoose_after_s = 0\nmsg_paths = ["{msgs}"]\n[live.types]\n"/rtls_flares" = "fraunhofer_rtls_flare/msg/RTLSStick"\n'
+        + f'\n[mapping.anchors]\nfile = "{ISAS / "anchors.csv"}"\n'
+        + "\n[live]\nchoose_after_s = 0\n"
     )
     return cfg
 
@@ -351,14 +373,14 @@ def _assert_equals_the_replay(live: np.ndarray, steps_written: int, mcap: Path, 
 
 @pytest.mark.skipif(not ISAS.is_dir(), reason="needs ../shared/data/isas-walk1 (not in a user's clone)")
 def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
-    # The player sends the recording over DDS (loopback), the node estimates live, this process
-    # subscribes to its poses: each equals the forward replay's step of the same time.
+    # The player sends the recording over DDS (loopback), the node learns the vendor's UWB type
+    # from the player's type information and estimates live, this process subscribes to its
+    # poses: each equals the forward replay's step of the same time.
     mcap = ISAS / "isas-walk1.mcap"
-    msgs = tmp_path / "msgs"
-    subprocess.run([PY, "-m", "uwbimu_rs.live._player", str(mcap), "--export-msgs", str(msgs)], check=True, capture_output=True)
-    cfg = _isas_config(tmp_path, msgs)
-    live, steps, _ = _through_the_node(tmp_path, mcap, cfg, 17, ["/waveshare_sense_hat_b", "/rtls_flares"])
+    cfg = _isas_config(tmp_path)
+    live, steps, err = _through_the_node(tmp_path, mcap, cfg, 17, ["/waveshare_sense_hat_b", "/rtls_flares"])
     _assert_equals_the_replay(live, steps, mcap, cfg)
+    assert "/rtls_flares: learnt fraunhofer_rtls_flare/msg/RTLSStick from its publisher" in err
 
 
 def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
@@ -376,6 +398,7 @@ def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
     live, steps, err = _through_the_node(tmp_path, mcap, cfg, 18)
     _assert_equals_the_replay(live, steps, mcap, cfg)
     assert "late_dropped': 0" in err
+    assert "subscribed to /uwb (uwbimu_msgs/msg/UwbRange) as uwb" in err
 
 
 def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):

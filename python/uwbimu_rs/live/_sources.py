@@ -17,28 +17,79 @@ log = logging.getLogger("uwbimu.live")
 
 
 class DdsSource:
-    """The mapped topics of a ROS 2 graph (``live_subscriptions``), decoded by the mapping."""
+    """The mapped topics of a ROS 2 graph (``live_subscriptions``), decoded by the mapping.
+
+    A topic whose type and ``.msg`` are known is subscribed at once. One whose type is not
+    named (a UWB topic without ``live.types``), or whose ``.msg`` is found nowhere, is subscribed
+    when its first publisher appears: the type is the publisher's, the definition the bundled
+    or ``live.msg_paths`` one, else the one the publisher's type information gives."""
 
     finished = False
 
-    def __init__(self, bus: Any, subscriptions: list[tuple[str, str, str, str, str]], decoder: Any, node: LiveNode) -> None:
+    def __init__(
+        self, bus: Any, subscriptions: list[tuple[Any, ...]], decoder: Any, node: LiveNode, msg_paths: list[str]
+    ) -> None:
+        from uwbimu_rs.live._graph import Graph
+
+        self.bus, self.decoder, self.node, self.msg_paths = bus, decoder, node, msg_paths
+        self.pending: dict[str, tuple[str, str | None]] = {}
+        self._failed: set[str] = set()
+        for topic, type_name, definition, dds_topic, _ in subscriptions:
+            if type_name is not None and definition is not None:
+                self._subscribe(topic, type_name, definition, dds_topic)
+            else:
+                self.pending[dds_topic] = (topic, type_name)
+                log.info("%s: waiting for a publisher to learn its %s", topic, "definition" if type_name else "type")
+        self.graph = Graph(bus.participant) if self.pending else None
+
+    def _subscribe(self, topic: str, type_name: str, definition: str, dds_topic: str) -> None:
         from uwbimu_rs.live._dds import idl_type
 
-        self.bus = bus
-        for topic, type_name, definition, dds_topic, _ in subscriptions:
-            role = decoder.add_topic(topic, type_name, definition)
-            if role is None:
-                raise ValueError(f"topic {topic} ({type_name}): the mapping takes nothing from it")
-            node.watch(topic, role)
+        role = self.decoder.add_topic(topic, type_name, definition)
+        if role is None:
+            raise ValueError(f"topic {topic} ({type_name}): the mapping takes nothing from it")
+        self.node.watch(topic, role)
+        node, decoder = self.node, self.decoder
 
-            def on_sample(data: bytes, _stamp_ns: int, topic: str = topic) -> None:
-                node.feed_message(decoder, topic, data)
+        def on_sample(data: bytes, _stamp_ns: int) -> None:
+            node.feed_message(decoder, topic, data)
 
-            bus.subscribe(dds_topic, idl_type(type_name, definition), on_sample)
-            log.info("subscribed to %s (%s) as %s", topic, type_name, role)
+        self.bus.subscribe(dds_topic, idl_type(type_name, definition), on_sample)
+        log.info("subscribed to %s (%s) as %s", topic, type_name, role)
+
+    def _discover(self) -> None:
+        """Subscribe to pending topics whose publishers have appeared."""
+        from uwbimu_rs.live._graph import ros_type_name
+
+        assert self.graph is not None
+        for pub in self.graph.publications():
+            entry = self.pending.get(pub.topic_name)
+            if entry is None or pub.topic_name in self._failed:
+                continue
+            topic, named = entry
+            type_name = named or ros_type_name(pub.type_name)
+            try:
+                definition = _native.ros_definition(type_name, self.msg_paths)
+            except ValueError as missing:
+                found = self.graph.definition(pub)
+                if found is None or (named is not None and found[0] != named):
+                    self._failed.add(pub.topic_name)
+                    log.error("%s: %s, and its publisher sends no type information", topic, missing)
+                    continue
+                type_name, definition = found
+                log.info("%s: learnt %s from its publisher", topic, type_name)
+            try:
+                self._subscribe(topic, type_name, definition, pub.topic_name)
+            except ValueError as e:
+                self._failed.add(pub.topic_name)
+                log.error("%s: %s", topic, e)
+                continue
+            del self.pending[pub.topic_name]
 
     def poll(self, timeout_s: float) -> int:
         """Take what the graph delivered (waiting up to ``timeout_s``)."""
+        if self.pending:
+            self._discover()
         return int(self.bus.spin_once(timeout_s))
 
 

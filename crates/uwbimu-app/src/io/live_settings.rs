@@ -9,7 +9,6 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::io::ros_types::full_definition;
-use crate::io::topics::UWB_RANGE_MSG_NAME;
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::io::{IoError as Error, IoResult as Result, Mapping};
@@ -22,8 +21,7 @@ pub struct LiveSettings {
     pub domain_id: u32,
     /// ROS 2 type (`pkg/msg/Type`) of an input topic, by topic. Unlisted: `sensor_msgs/msg/Imu`
     /// for the IMU, `sensor_msgs/msg/Range` for altitude, `nav_msgs/msg/Odometry` for odometry,
-    /// `uwbimu_msgs/msg/Tdoa` for TDoA, `uwbimu_msgs/msg/UwbRange` for UWB ranges (what
-    /// `uwbimu-play` publishes for a recording's JSON ranges).
+    /// `uwbimu_msgs/msg/Tdoa` for TDoA; a UWB topic's type is learnt from its publishers.
     pub types: BTreeMap<String, String>,
     /// Folders with the `.msg` files of types not bundled, as a ROS 2 workspace lays them out
     /// (`<dir>/<pkg>/msg/<Type>.msg`); relative to the replay file.
@@ -76,10 +74,11 @@ impl Default for LiveSettings {
 pub struct Subscription {
     /// ROS 2 topic name (`/imu`).
     pub topic: String,
-    /// ROS 2 type (`sensor_msgs/msg/Imu`).
-    pub type_name: String,
-    /// The definition with its dependencies, as an MCAP `ros2msg` schema carries it.
-    pub definition: String,
+    /// ROS 2 type (`sensor_msgs/msg/Imu`); None for a UWB topic whose type is not named.
+    pub type_name: Option<String>,
+    /// The definition with its dependencies, as an MCAP `ros2msg` schema carries it; None when
+    /// the type is not named or its `.msg` is found nowhere.
+    pub definition: Option<String>,
 }
 
 impl LiveSettings {
@@ -106,31 +105,32 @@ impl LiveSettings {
 
     /// The topics to subscribe to for `mapping`, with their types and definitions: the IMU
     /// topic (`imu_topic`, default `/imu`), then the UWB, TDoA, altitude and odometry topics.
+    /// A UWB topic without a type in `live.types` has none (the node learns it from the graph);
+    /// a type whose `.msg` is found nowhere has no definition.
     ///
     /// # Errors
-    /// [`Error::Mapping`] for no UWB or TDoA topic; [`CoreError::InvalidConfig`] for a type
-    /// whose `.msg` is found nowhere.
+    /// [`Error::Mapping`] for no UWB or TDoA topic.
     pub fn subscriptions(&self, mapping: &Mapping) -> Result<Vec<Subscription>> {
         let imu = mapping.imu_topic.clone().unwrap_or_else(|| "/imu".into());
-        let mut wanted: Vec<(String, &str)> = vec![(imu, "sensor_msgs/msg/Imu")];
-        wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), UWB_RANGE_MSG_NAME)));
-        wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), "uwbimu_msgs/msg/Tdoa")));
-        wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), "sensor_msgs/msg/Range")));
-        wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), "nav_msgs/msg/Odometry")));
+        let mut wanted: Vec<(String, Option<&str>)> = vec![(imu, Some("sensor_msgs/msg/Imu"))];
+        wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), None)));
+        wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), Some("uwbimu_msgs/msg/Tdoa"))));
+        wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), Some("sensor_msgs/msg/Range"))));
+        wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), Some("nav_msgs/msg/Odometry"))));
         if mapping.uwb.topics.is_empty() && mapping.tdoa.topics.is_empty() {
             return Err(Error::Mapping {
                 field: "uwb.topics".into(),
                 reason: "a live node needs its UWB topics named (uwb.topics or tdoa.topics)".into(),
             });
         }
-        wanted
+        Ok(wanted
             .into_iter()
             .map(|(topic, default)| {
-                let type_name = self.types.get(&topic).map_or(default, String::as_str).to_string();
-                let definition = full_definition(&type_name, &self.msg_paths)?;
-                Ok(Subscription { topic, type_name, definition })
+                let type_name = self.types.get(&topic).map(String::as_str).or(default).map(str::to_string);
+                let definition = type_name.as_deref().and_then(|t| full_definition(t, &self.msg_paths).ok());
+                Subscription { topic, type_name, definition }
             })
-            .collect()
+            .collect())
     }
 }
 
@@ -148,14 +148,22 @@ mod tests {
         assert!(LiveSettings::from_value(serde_json::json!({"silent_after_s": 0})).is_err());
         let mut mapping = Mapping::default();
         assert!(s.subscriptions(&mapping).unwrap_err().to_string().contains("UWB topics named"));
-        mapping.uwb.topics = vec!["/uwb".into()];
-        let subs = s.subscriptions(&mapping).unwrap();
-        assert_eq!(subs.iter().map(|s| s.topic.as_str()).collect::<Vec<_>>(), ["/imu", "/uwb"]);
-        assert_eq!(subs[1].type_name, "sensor_msgs/msg/Range");
-        mapping.uwb.topics = vec!["/ranges".into()];
-        assert_eq!(s.subscriptions(&mapping).unwrap()[1].type_name, UWB_RANGE_MSG_NAME);
-        let vendor = LiveSettings::from_value(serde_json::json!({"types": {"/ranges": "vendor/msg/Ranges"}})).unwrap();
-        let e = vendor.subscriptions(&mapping).unwrap_err().to_string();
-        assert!(e.contains("no definition of `vendor/Ranges`") && e.contains("live.msg_paths"), "{e}");
+        mapping.uwb.topics = vec!["/uwb".into(), "/ranges".into(), "/vendor".into()];
+        let vendor = LiveSettings::from_value(
+            serde_json::json!({"types": {"/uwb": "sensor_msgs/msg/Range", "/vendor": "vendor/msg/Ranges"}}),
+        )
+        .unwrap();
+        let subs = vendor.subscriptions(&mapping).unwrap();
+        let names: Vec<(&str, Option<&str>, bool)> =
+            subs.iter().map(|s| (s.topic.as_str(), s.type_name.as_deref(), s.definition.is_some())).collect();
+        assert_eq!(
+            names,
+            [
+                ("/imu", Some("sensor_msgs/msg/Imu"), true),
+                ("/uwb", Some("sensor_msgs/msg/Range"), true),
+                ("/ranges", None, false),
+                ("/vendor", Some("vendor/msg/Ranges"), false),
+            ]
+        );
     }
 }
