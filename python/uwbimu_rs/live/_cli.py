@@ -33,7 +33,7 @@ def _parser() -> argparse.ArgumentParser:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--linktrack", metavar="PORT", help="read a Nooploop LinkTrack serial port (NodeFrame2/TagFrame0)")
     src.add_argument("--mcap", metavar="FILE", help="play a recorded MCAP in real time instead of listening")
-    p.add_argument("--rate", type=float, default=1.0, help="pace of --mcap (2 = twice as fast)")
+    p.add_argument("--rate", type=float, default=1.0, help="pace of --mcap (2 = twice as fast; 0 = as fast as it goes)")
     p.add_argument("--no-ros", action="store_true", help="do not publish over DDS")
     p.add_argument("--foxglove", metavar="[HOST:]PORT", nargs="?", const="127.0.0.1:8765", help="serve a Foxglove live view")
     p.add_argument("--out", metavar="FILE.mcap", help="also write every step to an MCAP file (as uwbimu-replay --out)")

@@ -28,7 +28,11 @@ log = logging.getLogger("uwbimu.play")
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="uwbimu-play", description=__doc__.split("\n\n")[0].replace("\n", " "))
+    p = argparse.ArgumentParser(
+        prog="uwbimu-play",
+        description="Publish a recorded MCAP's ROS 2 messages over DDS at their recorded pace or faster, as "
+        "ros2 bag play would; our JSON ranges go out as uwbimu_msgs/msg/UwbRange (docs/live.md).",
+    )
     p.add_argument("file", help="MCAP recording with ROS 2 (CDR) messages")
     p.add_argument("--rate", type=float, default=1.0, help="pace (2 = twice as fast; 0 = as fast as possible)")
     p.add_argument("--topics", nargs="+", help="play only these topics")
