@@ -157,6 +157,13 @@ def test_a_silent_sensor_is_reported_and_its_return_too(caplog):
     messages = [rec.getMessage() for rec in caplog.records]
     silent = [m for m in messages if m.startswith("/uwb: silent")]
     assert len(silent) == 1 and not any(m.startswith("/imu: silent") for m in messages)
+    # An input that never sends anything is reported too.
+    clock.now += 0.5
+    node.watch("/altitude", "altitude")
+    clock.now += 1.5
+    with caplog.at_level(logging.INFO, logger="uwbimu.live"):
+        node.tick()
+    assert "/altitude: nothing received in 1.5 s" in [rec.getMessage() for rec in caplog.records]
     assert "/uwb: receiving again" in messages
     warned = [s for batch in sink.diag_batches for s in batch if s["hardware_id"] == "/uwb" and s["level"] == "warn"]
     assert warned and warned[0]["message"].startswith("silent for")

@@ -82,6 +82,8 @@ class SensorWatch:
 
     name: str
     kind: str
+    since: float
+    """When the node started watching it (wall clock)."""
     last_arrival: float | None = None
     messages: int = 0
     records: int = 0
@@ -203,10 +205,12 @@ class LiveNode:
     # ---------------------------------------------------------------------------------------
 
     def watch(self, name: str, kind: str) -> SensorWatch:
-        """The watch of input ``name`` (created on first use): silence and counts."""
+        """The watch of input ``name``, what it carries being ``kind`` (created on first use):
+        silence and counts."""
         w = self._watches.get(name)
         if w is None:
-            w = self._watches[name] = SensorWatch(name, kind)
+            w = self._watches[name] = SensorWatch(name, kind, self.clock())
+        w.kind = kind
         return w
 
     def feed_message(self, decoder: Any, topic: str, data: bytes, *, log_time_s: float | None = None) -> int:
@@ -220,7 +224,7 @@ class LiveNode:
         """Feed decoded records (the tuples of :meth:`MessageDecoder.decode`) from ``source``."""
         now = self.clock() if arrival is None else arrival
         with self._lock:
-            w = self.watch(source, records[0][0] if records else "?")
+            w = self._watches.get(source) or self.watch(source, records[0][0] if records else "?")
             w.messages += 1
             w.last_arrival = now
             if w.silent:
@@ -373,9 +377,13 @@ class LiveNode:
             self._finish_choice()
             silent_after = float(self.live["silent_after_s"])
             for w in self._watches.values():
-                if not w.silent and w.last_arrival is not None and now - w.last_arrival > silent_after:
+                last = w.since if w.last_arrival is None else w.last_arrival
+                if not w.silent and now - last > silent_after:
                     w.silent = True
-                    log.warning("%s: silent for %.1f s", w.name, now - w.last_arrival)
+                    if w.last_arrival is None:
+                        log.warning("%s: nothing received in %.1f s", w.name, now - last)
+                    else:
+                        log.warning("%s: silent for %.1f s", w.name, now - last)
             if now - self._last_diagnostics >= float(self.live["diagnostics_period_s"]):
                 self._last_diagnostics = now
                 t = self._filter.time if self._filter.time is not None else 0.0
@@ -404,12 +412,14 @@ class LiveNode:
         message = f"initialised ({f.init_info['from']})" if f.initialized and f.init_info else "waiting to initialise"
         out = [{"level": level, "name": "uwbimu: estimator", "message": message, "hardware_id": self.method, "values": values}]
         for w in self._watches.values():
-            age = None if w.last_arrival is None else now - w.last_arrival
+            age = now - (w.since if w.last_arrival is None else w.last_arrival)
             out.append(
                 {
                     "level": "warn" if w.silent else "ok",
                     "name": f"uwbimu: {w.kind}",
-                    "message": f"silent for {age:.1f} s" if w.silent and age is not None else "receiving",
+                    "message": (f"silent for {age:.1f} s" if w.last_arrival is not None else f"nothing received in {age:.1f} s")
+                    if w.silent
+                    else "receiving",
                     "hardware_id": w.name,
                     "values": {"messages": w.messages, "records": w.records, "rejected": w.rejected, **w.extra},
                 }

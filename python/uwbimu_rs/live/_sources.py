@@ -39,6 +39,7 @@ class DdsSource:
                 self._subscribe(topic, type_name, definition, dds_topic)
             else:
                 self.pending[dds_topic] = (topic, type_name)
+                node.watch(topic, "uwb" if type_name is None else "pending")
                 log.info("%s: waiting for a publisher to learn its %s", topic, "definition" if type_name else "type")
         self.graph = Graph(bus.participant) if self.pending else None
 
