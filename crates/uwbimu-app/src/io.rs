@@ -4,14 +4,15 @@
 //! reorder window ([`reorder`]), the whole-recording reader ([`read_recording`]), the reader of
 //! anchor-to-anchor ranges ([`anchor_ranges`]), ground-truth files ([`truth_file`]) and the
 //! writers: Foxglove trajectories ([`foxglove_out`]), recordings
-//! ([`recording_out`]), CSV ([`csv_out`]); and the Nooploop LinkTrack serial frames
-//! ([`linktrack`]).
+//! ([`recording_out`]), CSV ([`csv_out`]); the Nooploop LinkTrack serial frames ([`linktrack`])
+//! and the DWM1001 UART TLV `dwm_loc_get` response ([`dwm1001`]).
 
 pub mod anchor_ranges;
 pub mod anchors;
 pub mod atomic_file;
 pub mod cdr;
 pub mod csv_out;
+pub mod dwm1001;
 mod error;
 pub mod field_path;
 pub mod foxglove_out;
