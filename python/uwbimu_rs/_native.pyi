@@ -57,6 +57,8 @@ __all__ = [
     "write_mcap",
     "LinkTrackDecoder",
     "encode_linktrack_node_frame2",
+    "DwmDecoder",
+    "encode_dwm_loc_get",
     "UWB_RANGE_JSON",
     "UWB_RANGE_MSG",
     "ros_uwb_range_from_json",
@@ -1443,6 +1445,97 @@ def encode_linktrack_node_frame2(
 
     Values are rounded to the wire's steps (1 mm, 0.5 dB, …) and saturate at a field's limits.
     Raises ``UwbImuError`` (a ValueError) for more than 255 nodes.
+    """
+
+# --------------------------------------------------------------------------------------------
+# DWM1001 UART TLV dwm_loc_get responses (src/bindings/dwm1001.rs, docs/dwm1001.md)
+# --------------------------------------------------------------------------------------------
+
+class _DwmRange(TypedDict):
+    """One distance of a ``dwm_loc_get`` response."""
+
+    anchor_id: int
+    """The other node's UWB address: 16-bit short address (tag node) or 64-bit address (anchor
+    node)."""
+    range: float
+    """The distance, m (1 mm steps)."""
+    quality: int
+    """The distance quality factor (0–100)."""
+    anchor_position: list[float] | None
+    """The anchor's x, y, z, m (tag node); None from an anchor node."""
+
+class _DwmLocation(TypedDict):
+    """One decoded ``dwm_loc_get`` response."""
+
+    status: int
+    """The return value: 0 ok; otherwise the call failed and nothing else is set."""
+    position: list[float] | None
+    """The node's own x, y, z, m; None if the response has no position frame."""
+    position_quality: int | None
+    """The position's quality factor (0–100); None with ``position``."""
+    ranges: list[_DwmRange]
+    """The distances, in wire order."""
+
+class _DwmCounts(TypedDict):
+    """What a :class:`DwmDecoder` has seen. ``bytes_received`` = bytes of responses +
+    ``bytes_skipped`` + ``DwmDecoder.buffered``."""
+
+    bytes_received: int
+    responses: int
+    """Responses handed out (successful and failed calls)."""
+    failed_calls: int
+    """Of ``responses``, those with a non-zero return value."""
+    errors: int
+    """Candidates rejected: a position not 13 bytes, a range block whose length disagrees with
+    its count, a response running past the longest possible."""
+    bytes_skipped: int
+    """Bytes dropped while resynchronising."""
+
+@final
+class DwmDecoder:
+    """A decoder of DWM1001 ``dwm_loc_get`` responses (UART TLV API) from a serial stream.
+
+    Feed it the bytes read from the port after sending ``b"\\x0c\\x00"``, cut anywhere. A response
+    starts at ``0x40 0x01``; it ends after its ``0x49``/``0x48`` range block or before the next
+    ``0x40 0x01``. The decoder keeps an incomplete response for the next call, skips what is not
+    a response and resynchronises one byte after a rejected one. It never raises on data, and
+    holds at most one incomplete response.
+    """
+
+    def __init__(self) -> None: ...
+    def feed(self, data: bytes) -> list[_DwmLocation]:
+        """Append ``data`` and return the responses it completed, oldest first, each a dict with
+        ``status``, ``position`` ([x, y, z] m or None), ``position_quality`` and ``ranges``
+        (dicts ``anchor_id``, ``range``, ``quality``, ``anchor_position``)."""
+
+    @property
+    def counts(self) -> _DwmCounts:
+        """What was decoded and skipped so far."""
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held back: the start of a response not yet complete."""
+
+def encode_dwm_loc_get(
+    position: tuple[float, float, float, int] | None,
+    ranges: Sequence[tuple[int, float, int, tuple[float, float, float, int] | None]],
+    *,
+    tag: bool = True,
+) -> bytes:
+    """Encode one successful DWM1001 ``dwm_loc_get`` response, as the module answers it.
+
+    Parameters
+    ----------
+    position : (x, y, z, quality) or None
+        The node's own position, m, and quality factor; None leaves the position frame out.
+    ranges : sequence of (anchor_id, range_m, quality, anchor_position)
+        The distances; ``anchor_position`` is (x, y, z, quality) or None (zeros on the wire).
+    tag : bool, default True
+        A tag node's ``0x49`` block (16-bit addresses, at most 12 ranges) or, if False, an
+        anchor node's ``0x48`` block (64-bit addresses, no positions, at most 19 ranges).
+
+    Values are rounded to whole millimetres and saturate at a field's limits. Raises
+    ``UwbImuError`` (a ValueError) for too many ranges.
     """
 
 # --------------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@
 mod calibrate;
 mod cli;
 mod convert;
+mod dwm1001;
 mod errors;
 mod filters;
 mod interruptible;
@@ -28,6 +29,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("FormatError", m.py().get_type::<errors::FormatError>())?;
     calibrate::register(m)?;
     cli::register(m)?;
+    dwm1001::register(m)?;
     filters::register(m)?;
     io::register(m)?;
     linktrack::register(m)?;
