@@ -1560,13 +1560,13 @@ def live_setup(config: str | os.PathLike[str] | None = None, *, mapping: str | N
     table with its defaults), ``reorder_window_s`` and ``outputs`` (``(topic, type, definition,
     dds_topic, dds_type)`` of the pose, odometry and diagnostics topics)."""
 
-def live_subscriptions(
-    config: str | os.PathLike[str] | None = None, *, mapping: str | None = None
-) -> list[tuple[str, str | None, str | None, str, str | None]]:
-    """``(topic, type, definition, dds_topic, dds_type)`` of each topic the node subscribes to:
-    the IMU topic, then the UWB, TDoA, altitude and odometry topics of the mapping. ``type`` is
-    None for a UWB topic without a type in ``live.types``, ``definition`` None when the type is
-    None or its ``.msg`` is found nowhere: the node learns them from the graph."""
+def live_subscriptions(config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> dict[str, Any]:
+    """``topics``: ``(topic, type, definition, dds_topic, dds_type)`` of each topic the node
+    subscribes to (the IMU topic, then the UWB, TDoA, altitude and odometry topics of the
+    mapping; ``type`` None for a UWB topic without a type in ``live.types``, ``definition`` None
+    when the type is None or its ``.msg`` is found nowhere: the node learns them from the
+    graph); ``discover``: whether it also takes every other topic the mapping can read (the
+    mapping names no UWB or TDoA topic)."""
 
 def ros_definition(type_name: str, msg_paths: Sequence[str | os.PathLike[str]] = ...) -> str:
     """The full ``.msg`` definition of ``type_name`` with its dependencies (bundled, or found as

@@ -12,6 +12,7 @@ use std::sync::Mutex;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
 use uwbimu_app::io::foxglove_out::TrajectoryMcapWriter;
+use uwbimu_app::io::live_settings::LiveSettings;
 use uwbimu_app::io::msg_schema::{ArrayKind, FieldType, MsgSchema};
 use uwbimu_app::io::ros_out::{
     diagnostic_array_cdr, odometry_cdr, pose_with_covariance_cdr, DiagnosticLevel, DiagnosticStatus, Frames, PoseEstimate,
@@ -82,22 +83,29 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
 }
 
 /// The ROS 2 topics the live node subscribes to for the replay file `config` (with the mapping
-/// JSON `mapping` merged in): `(topic, type, definition, dds_topic, dds_type)` of the IMU topic,
-/// then the UWB, TDoA, altitude and odometry topics. `type` (and `dds_type`) is None for a UWB
-/// topic without a type in `live.types`; `definition` is None when the type is None or its
-/// `.msg` is found nowhere (the node then learns both from the graph).
+/// JSON `mapping` merged in), and whether it also takes every other topic the mapping can read
+/// (`discover`: the mapping names no UWB or TDoA topic). `topics` holds
+/// `(topic, type, definition, dds_topic, dds_type)` of the IMU topic, then the UWB, TDoA,
+/// altitude and odometry topics. `type` (and `dds_type`) is None for a UWB topic without a type
+/// in `live.types`; `definition` is None when the type is None or its `.msg` is found nowhere
+/// (the node then learns both from the graph).
 #[pyfunction]
 #[pyo3(signature = (config=None, *, mapping=None))]
-fn live_subscriptions(config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Vec<SubscriptionEntry>> {
+fn live_subscriptions<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
     let cfg = settings(config.as_deref(), mapping)?;
-    let subs = cfg.live.subscriptions(&cfg.mapping)?;
-    Ok(subs
+    let topics: Vec<SubscriptionEntry> = cfg
+        .live
+        .subscriptions(&cfg.mapping)
         .into_iter()
         .map(|s| {
             let (dds_topic, dds_type) = (dds_topic_name(&s.topic), s.type_name.as_deref().map(dds_type_name));
             (s.topic, s.type_name, s.definition, dds_topic, dds_type)
         })
-        .collect())
+        .collect();
+    let out = PyDict::new(py);
+    out.set_item("topics", topics)?;
+    out.set_item("discover", LiveSettings::discovers(&cfg.mapping))?;
+    Ok(out)
 }
 
 /// `(topic, type, definition, dds_topic, dds_type)` of a subscription ([`live_subscriptions`]).

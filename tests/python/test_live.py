@@ -392,20 +392,23 @@ def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
 
 def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
     # Our own recording (JSON ranges, sent as uwbimu_msgs/msg/UwbRange; its first samples
-    # stamped 0) through the player and the node, with only the anchors configured.
+    # stamped 0) through the player and the node, with only the anchors configured: the node
+    # takes the topics it can read from the graph, as a file read takes the channels.
     run = sim.zoo("handheld_walk", seed=6, stagger_s=0.02, jitter_s=0.005)
     mcap = tmp_path / "sim.mcap"
     sim.write_mcap(run, mcap)
     cfg = tmp_path / "sim.toml"
     anchors = "\n".join(f"A{k} = [{a[0]}, {a[1]}, {a[2]}]" for k, a in enumerate(run.anchors))
     cfg.write_text(
-        '[config.model_selection]\nenabled = false\n[mapping]\nimu_topic = "/imu"\n[mapping.uwb]\ntopics = ["/uwb"]\n'
+        '[config.model_selection]\nenabled = false\n'
         f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n"
     )
     live, steps, err = _through_the_node(tmp_path, mcap, cfg, 18)
     _assert_equals_the_replay(live, steps, mcap, cfg)
     assert "late_dropped': 0" in err
+    assert "no UWB topic named: taking every topic on the graph that the mapping reads" in err
     assert "subscribed to /uwb (uwbimu_msgs/msg/UwbRange) as uwb" in err
+    assert "subscribed to /imu (sensor_msgs/msg/Imu) as imu" in err
 
 
 def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):

@@ -112,7 +112,7 @@ def run(argv: list[str]) -> int:
             source = McapSource(args.mcap, decoder, node, rate=args.rate)
         else:
             assert subscriptions is not None
-            source = DdsSource(bus, subscriptions, decoder, node, live["msg_paths"])
+            source = DdsSource(bus, subscriptions["topics"], decoder, node, live["msg_paths"], discover=subscriptions["discover"])
     except (ValueError, OSError, ImportError) as e:
         print(f"uwbimu-live: {e}", file=sys.stderr)
         for s in sinks:

@@ -22,26 +22,39 @@ class DdsSource:
     A topic whose type and ``.msg`` are known is subscribed at once. One whose type is not
     named (a UWB topic without ``live.types``), or whose ``.msg`` is found nowhere, is subscribed
     when its first publisher appears: the type is the publisher's, the definition the bundled
-    or ``live.msg_paths`` one, else the one the publisher's type information gives."""
+    or ``live.msg_paths`` one, else the one the publisher's type information gives. With
+    ``discover`` (the mapping names no UWB or TDoA topic) every other topic that appears is
+    offered to the mapping the same way, and taken when it reads it (an IMU, a range message)."""
 
     finished = False
 
     def __init__(
-        self, bus: Any, subscriptions: list[tuple[Any, ...]], decoder: Any, node: LiveNode, msg_paths: list[str]
+        self,
+        bus: Any,
+        subscriptions: list[tuple[Any, ...]],
+        decoder: Any,
+        node: LiveNode,
+        msg_paths: list[str],
+        *,
+        discover: bool = False,
     ) -> None:
         from uwbimu_rs.live._graph import Graph
 
         self.bus, self.decoder, self.node, self.msg_paths = bus, decoder, node, msg_paths
+        self.discover = discover
         self.pending: dict[str, tuple[str, str | None]] = {}
-        self._failed: set[str] = set()
+        self._seen: set[str] = set()
         for topic, type_name, definition, dds_topic, _ in subscriptions:
+            self._seen.add(dds_topic)
             if type_name is not None and definition is not None:
                 self._subscribe(topic, type_name, definition, dds_topic)
             else:
                 self.pending[dds_topic] = (topic, type_name)
                 node.watch(topic, "uwb" if type_name is None else "pending")
                 log.info("%s: waiting for a publisher to learn its %s", topic, "definition" if type_name else "type")
-        self.graph = Graph(bus.participant) if self.pending else None
+        if discover:
+            log.info("no UWB topic named: taking every topic on the graph that the mapping reads")
+        self.graph = Graph(bus.participant) if self.pending or discover else None
 
     def _subscribe(self, topic: str, type_name: str, definition: str, dds_topic: str) -> None:
         from uwbimu_rs.live._dds import idl_type
@@ -59,37 +72,51 @@ class DdsSource:
         log.info("subscribed to %s (%s) as %s", topic, type_name, role)
 
     def _discover(self) -> None:
-        """Subscribe to pending topics whose publishers have appeared."""
+        """Subscribe to pending topics whose publishers have appeared, and with ``discover`` to
+        new topics the mapping reads; one odd publication is logged, never the end of the node."""
+        assert self.graph is not None
+        for pub in self.graph.publications():
+            if not isinstance(pub.topic_name, str) or not isinstance(pub.type_name, str):
+                continue  # a publication that went away
+            try:
+                self._take(pub)
+            except Exception as e:  # noqa: BLE001
+                log.warning("%s: not taken: %s", pub.topic_name, e)
+
+    def _take(self, pub: Any) -> None:
+        """Subscribe to the publication's topic if it is pending, or new and read by the mapping."""
         from uwbimu_rs.live._graph import ros_type_name
 
         assert self.graph is not None
-        for pub in self.graph.publications():
-            entry = self.pending.get(pub.topic_name)
-            if entry is None or pub.topic_name in self._failed:
-                continue
-            topic, named = entry
-            type_name = named or ros_type_name(pub.type_name)
-            try:
-                definition = _native.ros_definition(type_name, self.msg_paths)
-            except ValueError as missing:
-                found = self.graph.definition(pub)
-                if found is None or (named is not None and found[0] != named):
-                    self._failed.add(pub.topic_name)
-                    log.error("%s: %s, and its publisher sends no type information", topic, missing)
-                    continue
-                type_name, definition = found
-                log.info("%s: learnt %s from its publisher", topic, type_name)
-            try:
+        entry = self.pending.get(pub.topic_name)
+        required = entry is not None
+        if entry is None:
+            if not self.discover or pub.topic_name in self._seen or not pub.topic_name.startswith("rt/"):
+                return
+            self._seen.add(pub.topic_name)
+            entry = ("/" + pub.topic_name[3:], None)
+        topic, named = entry
+        type_name = named or ros_type_name(pub.type_name)
+        try:
+            definition = _native.ros_definition(type_name, self.msg_paths)
+        except ValueError as missing:
+            found = self.graph.definition(pub)
+            if found is None or (named is not None and found[0] != named):
+                self.pending.pop(pub.topic_name, None)
+                (log.error if required else log.debug)("%s: %s, and its publisher sends no type information", topic, missing)
+                return
+            type_name, definition = found
+            log.info("%s: learnt %s from its publisher", topic, type_name)
+        self.pending.pop(pub.topic_name, None)
+        try:
+            if required or self.decoder.add_topic(topic, type_name, definition) is not None:
                 self._subscribe(topic, type_name, definition, pub.topic_name)
-            except ValueError as e:
-                self._failed.add(pub.topic_name)
-                log.error("%s: %s", topic, e)
-                continue
-            del self.pending[pub.topic_name]
+        except ValueError as e:
+            (log.error if required else log.warning)("%s (%s): %s", topic, type_name, e)
 
     def poll(self, timeout_s: float) -> int:
         """Take what the graph delivered (waiting up to ``timeout_s``)."""
-        if self.pending:
+        if self.graph is not None:
             self._discover()
         return int(self.bus.spin_once(timeout_s))
 

@@ -103,34 +103,33 @@ impl LiveSettings {
         Ok(s)
     }
 
+    /// Whether the node finds its topics on the graph: the mapping names no UWB or TDoA topic,
+    /// so every publication whose type the mapping can read is taken, as a file read takes
+    /// every channel.
+    pub fn discovers(mapping: &Mapping) -> bool {
+        mapping.uwb.topics.is_empty() && mapping.tdoa.topics.is_empty()
+    }
+
     /// The topics to subscribe to for `mapping`, with their types and definitions: the IMU
-    /// topic (`imu_topic`, default `/imu`), then the UWB, TDoA, altitude and odometry topics.
-    /// A UWB topic without a type in `live.types` has none (the node learns it from the graph);
-    /// a type whose `.msg` is found nowhere has no definition.
-    ///
-    /// # Errors
-    /// [`Error::Mapping`] for no UWB or TDoA topic.
-    pub fn subscriptions(&self, mapping: &Mapping) -> Result<Vec<Subscription>> {
-        let imu = mapping.imu_topic.clone().unwrap_or_else(|| "/imu".into());
-        let mut wanted: Vec<(String, Option<&str>)> = vec![(imu, Some("sensor_msgs/msg/Imu"))];
+    /// topic (`imu_topic`, default `/imu` unless the node [discovers](Self::discovers) its
+    /// topics), then the UWB, TDoA, altitude and odometry topics. A UWB topic without a type in
+    /// `live.types` has none (the node learns it from the graph); a type whose `.msg` is found
+    /// nowhere has no definition.
+    pub fn subscriptions(&self, mapping: &Mapping) -> Vec<Subscription> {
+        let imu = mapping.imu_topic.clone().or_else(|| (!Self::discovers(mapping)).then(|| "/imu".to_string()));
+        let mut wanted: Vec<(String, Option<&str>)> = imu.into_iter().map(|t| (t, Some("sensor_msgs/msg/Imu"))).collect();
         wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), None)));
         wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), Some("uwbimu_msgs/msg/Tdoa"))));
         wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), Some("sensor_msgs/msg/Range"))));
         wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), Some("nav_msgs/msg/Odometry"))));
-        if mapping.uwb.topics.is_empty() && mapping.tdoa.topics.is_empty() {
-            return Err(Error::Mapping {
-                field: "uwb.topics".into(),
-                reason: "a live node needs its UWB topics named (uwb.topics or tdoa.topics)".into(),
-            });
-        }
-        Ok(wanted
+        wanted
             .into_iter()
             .map(|(topic, default)| {
                 let type_name = self.types.get(&topic).map(String::as_str).or(default).map(str::to_string);
                 let definition = type_name.as_deref().and_then(|t| full_definition(t, &self.msg_paths).ok());
                 Subscription { topic, type_name, definition }
             })
-            .collect())
+            .collect()
     }
 }
 
@@ -147,13 +146,14 @@ mod tests {
         assert!(e.contains("unknown field `domain`"), "{e}");
         assert!(LiveSettings::from_value(serde_json::json!({"silent_after_s": 0})).is_err());
         let mut mapping = Mapping::default();
-        assert!(s.subscriptions(&mapping).unwrap_err().to_string().contains("UWB topics named"));
+        assert!(LiveSettings::discovers(&mapping) && s.subscriptions(&mapping).is_empty());
         mapping.uwb.topics = vec!["/uwb".into(), "/ranges".into(), "/vendor".into()];
         let vendor = LiveSettings::from_value(
             serde_json::json!({"types": {"/uwb": "sensor_msgs/msg/Range", "/vendor": "vendor/msg/Ranges"}}),
         )
         .unwrap();
-        let subs = vendor.subscriptions(&mapping).unwrap();
+        assert!(!LiveSettings::discovers(&mapping));
+        let subs = vendor.subscriptions(&mapping);
         let names: Vec<(&str, Option<&str>, bool)> =
             subs.iter().map(|s| (s.topic.as_str(), s.type_name.as_deref(), s.definition.is_some())).collect();
         assert_eq!(
