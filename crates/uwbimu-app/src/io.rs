@@ -25,6 +25,7 @@ mod recording;
 pub mod recording_out;
 pub mod reorder;
 mod replay_config;
+mod resync;
 pub mod ros_out;
 pub mod ros_types;
 pub mod spill;

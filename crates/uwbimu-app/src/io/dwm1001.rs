@@ -18,6 +18,8 @@
 //! "DWM1001 Firmware API Guide" and was checked against public host code; see `docs/dwm1001.md`
 //! for the sources and what is assumed.
 
+use crate::io::resync::{push_frames, Framing, Scan};
+
 /// The `dwm_loc_get` request: TLV type `0x0C`, length 0.
 pub const LOC_GET_REQUEST: [u8; 2] = [0x0C, 0x00];
 /// TLV type of the return value frame that starts every response.
@@ -337,16 +339,6 @@ pub struct DwmStream {
     counts: DwmCounts,
 }
 
-/// What the bytes at the front of the buffer are.
-enum Candidate {
-    /// A whole response of this many bytes (status byte at offset 2).
-    Response(usize),
-    /// Not a response start: skip one byte.
-    Reject,
-    /// Possibly a response, not all of it here yet.
-    Incomplete,
-}
-
 impl DwmStream {
     /// An empty decoder.
     pub fn new() -> Self {
@@ -357,10 +349,9 @@ impl DwmStream {
     /// an incomplete response at the end stay buffered for the next call.
     pub fn push(&mut self, bytes: &[u8], out: &mut impl FnMut(DwmLocation)) {
         self.counts.bytes_received += bytes.len() as u64;
-        for piece in bytes.chunks(MAX_RESPONSE_LEN) {
-            self.buf.extend_from_slice(piece);
-            self.drain(out);
-        }
+        let skipped = push_frames(&mut self.buf, bytes, MAX_RESPONSE_LEN, &mut Responses { counts: &mut self.counts, out });
+        self.counts.bytes_skipped += skipped;
+        debug_assert!(self.buf.len() <= MAX_RESPONSE_LEN + 1, "buffer above one response");
     }
 
     /// [`push`](Self::push), appending the responses to `responses`.
@@ -382,85 +373,69 @@ impl DwmStream {
     pub fn clear(&mut self) {
         self.buf.clear();
     }
+}
 
-    fn drain(&mut self, out: &mut impl FnMut(DwmLocation)) {
-        let mut pos = 0;
-        while pos < self.buf.len() {
-            let rest = &self.buf[pos..];
-            let Some(start) = rest.iter().position(|&b| b == TLV_RET_VAL) else {
-                self.counts.bytes_skipped += rest.len() as u64;
-                pos = self.buf.len();
-                break;
-            };
-            self.counts.bytes_skipped += start as u64;
-            pos += start;
-            match self.candidate(pos) {
-                Candidate::Incomplete => break,
-                Candidate::Reject => {
-                    self.counts.bytes_skipped += 1;
-                    pos += 1;
-                }
-                Candidate::Response(len) => {
-                    let bytes = &self.buf[pos..pos + len];
-                    let loc = match decode_loc_get(bytes) {
-                        Ok(loc) => Some(loc),
-                        Err(DwmError::Status(s)) => {
-                            self.counts.failed_calls += 1;
-                            Some(DwmLocation { status: s, position: None, ranges: Vec::new() })
-                        }
-                        // Unreachable after `candidate`'s checks; treat as a rejected start.
-                        Err(_) => None,
-                    };
-                    if let Some(loc) = loc {
-                        self.counts.responses += 1;
-                        out(loc);
-                        pos += len;
-                    } else {
-                        self.counts.errors += 1;
-                        self.counts.bytes_skipped += 1;
-                        pos += 1;
-                    }
-                }
-            }
-        }
-        self.buf.drain(..pos);
-        debug_assert!(self.buf.len() <= MAX_RESPONSE_LEN + 1, "buffer above one response");
-    }
+/// The DWM1001 part of the scan: the stream's counts and where its responses go.
+struct Responses<'a, F> {
+    counts: &'a mut DwmCounts,
+    out: &'a mut F,
+}
 
-    /// Classifies the bytes from `pos` (a `0x40` byte), counting a rejection.
-    fn candidate(&mut self, pos: usize) -> Candidate {
-        let rest = &self.buf[pos..];
+impl<F: FnMut(DwmLocation)> Framing for Responses<'_, F> {
+    const START: u8 = TLV_RET_VAL;
+
+    /// Classifies the bytes from a `0x40` byte, counting a rejection.
+    fn classify(&mut self, rest: &[u8]) -> Scan {
         let (Some(&l), Some(&s)) = (rest.get(1), rest.get(2)) else {
-            return if rest.get(1).is_some_and(|&l| l != 1) { Candidate::Reject } else { Candidate::Incomplete };
+            return if rest.get(1).is_some_and(|&l| l != 1) { Scan::Reject } else { Scan::Incomplete };
         };
         if l != 1 {
-            return Candidate::Reject;
+            return Scan::Reject;
         }
         if s != 0 {
-            return Candidate::Response(3);
+            return Scan::Whole(3);
         }
         let mut at = 3;
         loop {
-            let Some(&tlv) = rest.get(at) else { return Candidate::Incomplete };
-            let Some(&vlen) = rest.get(at + 1) else { return Candidate::Incomplete };
+            let Some(&tlv) = rest.get(at) else { return Scan::Incomplete };
+            let Some(&vlen) = rest.get(at + 1) else { return Scan::Incomplete };
             if tlv == TLV_RET_VAL && vlen == 1 {
-                return Candidate::Response(at);
+                return Scan::Whole(at);
             }
             let end = at + 2 + usize::from(vlen);
             if end > MAX_RESPONSE_LEN {
                 self.counts.errors += 1;
-                return Candidate::Reject;
+                return Scan::Reject;
             }
-            let Some(value) = rest.get(at + 2..end) else { return Candidate::Incomplete };
+            let Some(value) = rest.get(at + 2..end) else { return Scan::Incomplete };
             if tlv == TLV_RET_VAL || check_tlv(tlv, value).is_err() {
                 self.counts.errors += 1;
-                return Candidate::Reject;
+                return Scan::Reject;
             }
             if tlv == TLV_RNG_AN_DIST || tlv == TLV_RNG_AN_POS_DIST {
-                return Candidate::Response(end);
+                return Scan::Whole(end);
             }
             at = end;
         }
+    }
+    /// Decodes a response that passed [`Self::classify`] (a failed call as its status alone),
+    /// counts it and hands it out.
+    fn take(&mut self, bytes: &[u8]) -> bool {
+        let loc = match decode_loc_get(bytes) {
+            Ok(loc) => loc,
+            Err(DwmError::Status(s)) => {
+                self.counts.failed_calls += 1;
+                DwmLocation { status: s, position: None, ranges: Vec::new() }
+            }
+            // Unreachable after `classify`'s checks; treat as a rejected start.
+            Err(_) => {
+                self.counts.errors += 1;
+                return false;
+            }
+        };
+        self.counts.responses += 1;
+        (self.out)(loc);
+        true
     }
 }
 

@@ -5,6 +5,7 @@ use super::{
     LinkTrackFrame, FRAME_HEADER, NODE_FRAME2_FIXED_LEN, NODE_FRAME2_MARK, NODE_FRAME2_MAX_LEN, NODE_FRAME2_MIN_LEN,
     TAG_FRAME0_LEN, TAG_FRAME0_MARK,
 };
+use crate::io::resync::{push_frames, Framing, Scan};
 
 /// Bytes appended to the buffer per step of [`LinkTrackStream::push`]: the buffer never holds
 /// more than this plus one incomplete frame.
@@ -55,16 +56,6 @@ pub struct LinkTrackStream {
     counts: LinkTrackCounts,
 }
 
-/// What the bytes at the front of the buffer are.
-enum Candidate {
-    /// A whole frame of this many bytes, checksum correct.
-    Frame(usize),
-    /// Not a frame start: skip one byte.
-    Reject,
-    /// Possibly a frame, not all of it here yet.
-    Incomplete,
-}
-
 impl LinkTrackStream {
     /// An empty decoder.
     pub fn new() -> Self {
@@ -75,10 +66,9 @@ impl LinkTrackStream {
     /// incomplete frame at the end stay buffered for the next call.
     pub fn push(&mut self, bytes: &[u8], out: &mut impl FnMut(LinkTrackFrame)) {
         self.counts.bytes_received += bytes.len() as u64;
-        for piece in bytes.chunks(CHUNK) {
-            self.buf.extend_from_slice(piece);
-            self.drain(out);
-        }
+        let skipped = push_frames(&mut self.buf, bytes, CHUNK, &mut Frames { counts: &mut self.counts, out });
+        self.counts.bytes_skipped += skipped;
+        debug_assert!(self.buf.len() < NODE_FRAME2_MAX_LEN, "buffer above one frame");
     }
 
     /// [`push`](Self::push), appending the frames to `frames`.
@@ -100,62 +90,27 @@ impl LinkTrackStream {
     pub fn clear(&mut self) {
         self.buf.clear();
     }
+}
 
-    /// Decodes and removes every whole frame in the buffer, skipping what is not a frame, and
-    /// leaves only the start of an incomplete frame.
-    fn drain(&mut self, out: &mut impl FnMut(LinkTrackFrame)) {
-        let mut pos = 0;
-        while pos < self.buf.len() {
-            let rest = &self.buf[pos..];
-            let Some(start) = rest.iter().position(|&b| b == FRAME_HEADER) else {
-                self.counts.bytes_skipped += rest.len() as u64;
-                pos = self.buf.len();
-                break;
-            };
-            self.counts.bytes_skipped += start as u64;
-            pos += start;
-            match self.candidate(pos) {
-                Candidate::Incomplete => break,
-                Candidate::Reject => {
-                    self.counts.bytes_skipped += 1;
-                    pos += 1;
-                }
-                Candidate::Frame(len) => {
-                    match decode_frame(&self.buf[pos..pos + len]) {
-                        Ok(frame) => {
-                            self.counts.frames += 1;
-                            match frame {
-                                LinkTrackFrame::NodeFrame2(_) => self.counts.node_frame2 += 1,
-                                LinkTrackFrame::TagFrame0(_) => self.counts.tag_frame0 += 1,
-                            }
-                            out(frame);
-                            pos += len;
-                        }
-                        // Unreachable after `candidate`'s checks; treat as a rejected start.
-                        Err(_) => {
-                            self.counts.bad_lengths += 1;
-                            self.counts.bytes_skipped += 1;
-                            pos += 1;
-                        }
-                    }
-                }
-            }
-        }
-        self.buf.drain(..pos);
-        debug_assert!(self.buf.len() < NODE_FRAME2_MAX_LEN, "buffer above one frame");
-    }
+/// The LinkTrack part of the scan: the stream's counts and where its frames go.
+struct Frames<'a, F> {
+    counts: &'a mut LinkTrackCounts,
+    out: &'a mut F,
+}
 
-    /// Classifies the bytes from `pos` (a header byte), counting a rejection's reason.
-    fn candidate(&mut self, pos: usize) -> Candidate {
-        let rest = &self.buf[pos..];
+impl<F: FnMut(LinkTrackFrame)> Framing for Frames<'_, F> {
+    const START: u8 = FRAME_HEADER;
+
+    /// Classifies the bytes from a header byte, counting a rejection's reason.
+    fn classify(&mut self, rest: &[u8]) -> Scan {
         let Some(&mark) = rest.get(1) else {
-            return Candidate::Incomplete;
+            return Scan::Incomplete;
         };
         let len = match mark {
             TAG_FRAME0_MARK => TAG_FRAME0_LEN,
             NODE_FRAME2_MARK => {
                 let [Some(&lo), Some(&hi)] = [rest.get(2), rest.get(3)] else {
-                    return Candidate::Incomplete;
+                    return Scan::Incomplete;
                 };
                 let declared = usize::from(u16::from_le_bytes([lo, hi]));
                 let count_ok = match rest.get(NODE_FRAME2_FIXED_LEN - 1) {
@@ -164,23 +119,42 @@ impl LinkTrackStream {
                 };
                 if !(NODE_FRAME2_MIN_LEN..=NODE_FRAME2_MAX_LEN).contains(&declared) || !count_ok {
                     self.counts.bad_lengths += 1;
-                    return Candidate::Reject;
+                    return Scan::Reject;
                 }
                 declared
             }
             _ => {
                 self.counts.unknown_frames += 1;
-                return Candidate::Reject;
+                return Scan::Reject;
             }
         };
         let Some(frame) = rest.get(..len) else {
-            return Candidate::Incomplete;
+            return Scan::Incomplete;
         };
         match frame.split_last() {
-            Some((&last, body)) if last == checksum(body) => Candidate::Frame(len),
+            Some((&last, body)) if last == checksum(body) => Scan::Whole(len),
             _ => {
                 self.counts.checksum_errors += 1;
-                Candidate::Reject
+                Scan::Reject
+            }
+        }
+    }
+    /// Decodes a frame that passed [`Self::classify`], counts it and hands it out.
+    fn take(&mut self, frame: &[u8]) -> bool {
+        match decode_frame(frame) {
+            Ok(frame) => {
+                self.counts.frames += 1;
+                match frame {
+                    LinkTrackFrame::NodeFrame2(_) => self.counts.node_frame2 += 1,
+                    LinkTrackFrame::TagFrame0(_) => self.counts.tag_frame0 += 1,
+                }
+                (self.out)(frame);
+                true
+            }
+            // Unreachable after `classify`'s checks; treat as a rejected start.
+            Err(_) => {
+                self.counts.bad_lengths += 1;
+                false
             }
         }
     }
