@@ -188,3 +188,10 @@ pub fn config_value_to_py<'py>(py: Python<'py>, v: &ConfigValue) -> PyResult<Bou
         ConfigValue::Flag(b) => Ok(PyBool::new(py, *b).to_owned().into_any()),
     }
 }
+
+/// A value with named fields (a `serde::Serialize` struct) as a Python dict of its fields, so the
+/// names are declared once, in the struct.
+pub fn fields_dict<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(value).map_err(|e| Error::InvalidCall(e.to_string()))?;
+    Ok(py.import("json")?.call_method1("loads", (text,))?)
+}

@@ -4,9 +4,10 @@
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
-use uwbimu_app::io::dwm1001::{encode_loc_get, DwmCounts, DwmLocation, DwmPosition, DwmRange, DwmStream};
+use uwbimu_app::io::dwm1001::{encode_loc_get, DwmLocation, DwmPosition, DwmRange, DwmStream};
 use uwbimu_vocabulary::error::Error;
 
+use super::convert::fields_dict;
 use super::errors::PyResult;
 
 /// A position tuple from Python: x, y, z (m) and quality factor.
@@ -39,16 +40,6 @@ fn location_dict<'py>(py: Python<'py>, loc: &DwmLocation) -> PyResult<Bound<'py,
     Ok(d)
 }
 
-fn counts_dict<'py>(py: Python<'py>, c: &DwmCounts) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("bytes_received", c.bytes_received)?;
-    d.set_item("responses", c.responses)?;
-    d.set_item("failed_calls", c.failed_calls)?;
-    d.set_item("errors", c.errors)?;
-    d.set_item("bytes_skipped", c.bytes_skipped)?;
-    Ok(d)
-}
-
 #[pymethods]
 impl PyDwmDecoder {
     /// An empty decoder.
@@ -71,8 +62,8 @@ impl PyDwmDecoder {
 
     /// What was decoded and skipped so far (a dict of ints).
     #[getter]
-    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        counts_dict(py, &self.0.counts())
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        fields_dict(py, &self.0.counts())
     }
 
     /// Bytes held back: the start of a response not yet complete.

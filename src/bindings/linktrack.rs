@@ -4,11 +4,10 @@
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
-use uwbimu_app::io::linktrack::{
-    encode_node_frame2, LinkTrackCounts, LinkTrackFrame, LinkTrackStream, NodeFrame2, NodeRange2, TagFrame0,
-};
+use uwbimu_app::io::linktrack::{encode_node_frame2, LinkTrackFrame, LinkTrackStream, NodeFrame2, NodeRange2, TagFrame0};
 use uwbimu_vocabulary::error::Error;
 
+use super::convert::fields_dict;
 use super::errors::PyResult;
 
 /// The role byte of an anchor in LinkTrack frames.
@@ -108,19 +107,6 @@ fn tag_frame0_dict<'py>(py: Python<'py>, f: &TagFrame0) -> PyResult<Bound<'py, P
     Ok(d)
 }
 
-fn counts_dict<'py>(py: Python<'py>, c: &LinkTrackCounts) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("bytes_received", c.bytes_received)?;
-    d.set_item("frames", c.frames)?;
-    d.set_item("node_frame2", c.node_frame2)?;
-    d.set_item("tag_frame0", c.tag_frame0)?;
-    d.set_item("checksum_errors", c.checksum_errors)?;
-    d.set_item("unknown_frames", c.unknown_frames)?;
-    d.set_item("bad_lengths", c.bad_lengths)?;
-    d.set_item("bytes_skipped", c.bytes_skipped)?;
-    Ok(d)
-}
-
 #[pymethods]
 impl PyLinkTrackDecoder {
     /// An empty decoder.
@@ -146,8 +132,8 @@ impl PyLinkTrackDecoder {
 
     /// What was decoded and skipped so far (a dict of ints).
     #[getter]
-    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        counts_dict(py, &self.0.counts())
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        fields_dict(py, &self.0.counts())
     }
 
     /// Bytes held back: the start of a frame not yet complete.

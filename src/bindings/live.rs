@@ -23,7 +23,7 @@ use uwbimu_app::io::{survey_recording_file, AnchorLayout, MessageDecoder as Core
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_from_wxyz, Cov, Vec3};
 
-use super::convert::{array, points_array};
+use super::convert::{array, fields_dict, points_array};
 use super::errors::PyResult;
 use super::filters::{initial_dict, PyFilterConfig};
 use super::io::settings;
@@ -66,8 +66,7 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
         Some(i) => out.set_item("initial", initial_dict(py, i)?)?,
         None => out.set_item("initial", py.None())?,
     }
-    let live_json = serde_json::to_string(&cfg.live).map_err(|e| Error::InvalidCall(e.to_string()))?;
-    out.set_item("live", py.import("json")?.call_method1("loads", (live_json,))?)?;
+    out.set_item("live", fields_dict(py, &cfg.live)?)?;
     out.set_item("reorder_window_s", cfg.mapping.reorder_window_s)?;
     let live = &cfg.live;
     let mut outputs = Vec::new();

@@ -305,7 +305,7 @@ pub fn encode_loc_get(loc: &DwmLocation, tag: bool) -> Result<Vec<u8>, DwmError>
 /// What a [`DwmStream`] has seen since it was made. Every byte pushed is, in the end, part of a
 /// handed-out response, skipped, or still buffered: `bytes_received` = bytes of responses +
 /// `bytes_skipped` + [`DwmStream::buffered_len`].
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct DwmCounts {
     /// Bytes pushed in.
     pub bytes_received: u64,

@@ -14,7 +14,7 @@ const CHUNK: usize = NODE_FRAME2_MAX_LEN;
 /// What a [`LinkTrackStream`] has seen since it was made. Every byte pushed is, in the end, part
 /// of a decoded frame, skipped, or still buffered: `bytes_received` = bytes of decoded frames +
 /// `bytes_skipped` + [`LinkTrackStream::buffered_len`].
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct LinkTrackCounts {
     /// Bytes pushed in.
     pub bytes_received: u64,
