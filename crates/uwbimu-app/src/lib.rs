@@ -21,6 +21,7 @@ pub mod generality;
 pub mod io;
 #[cfg(feature = "io")]
 pub mod log_survey;
+pub mod map_smoothing;
 pub mod methods;
 pub mod metrics;
 mod model_choice;

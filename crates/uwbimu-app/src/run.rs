@@ -6,12 +6,15 @@
 //! ([`crate::methods::run_method`]) sit above it, as does the model selection
 //! ([`crate::select`]), which runs its candidates through it.
 
+use std::sync::Arc;
+
 use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::gate::Gate;
 use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
 use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, Progress, StepRecord, Streams, Trace};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_estimation::smoother::Guide;
 use uwbimu_estimation::units::check_imu_units;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
@@ -19,8 +22,9 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
+use crate::map_smoothing::{map_passes, MapPasses};
 use crate::model_choice::ModelChoice;
-use crate::outlier_smoothing::{leave_out_long_ranges, ResidualWalk};
+use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Input, Method};
 
 /// What a batch run produced.
@@ -217,21 +221,20 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
-    let (trace, smoothed, smoothing) = run_pass(&build, &initial, input)?;
+    let (trace, smoothed, smoothing) = run_pass(&build, &initial, input, None)?;
+    if smoothing.map_passes_or_zero() > 0 {
+        let ((mut trace, smoothed, init), done) = map_smooth(&build, &initial, input, (trace, smoothed, init), &smoothing)?;
+        trace.health.map_passes = done.passes;
+        return Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None });
+    }
     let quiet = input.progress.map(Progress::sharing_cancel);
-    let residuals = |(_, smoothed, _): &mut SmoothedPass| {
-        Ok(smoothed.as_deref().map(|steps| {
-            let mut walk = ResidualWalk::new(input.ranges, input.anchors, input.config.mounting.lever_arm);
-            steps.iter().for_each(|s| walk.push(s));
-            walk.finish()
-        }))
-    };
+    let residuals = |(_, smoothed, _): &mut SmoothedPass| Ok(smoothed.as_deref().map(|steps| residuals_of(input, steps)));
     let again = |left_out: &[bool]| {
         let kept: Vec<RangeMeasurement> = input.ranges.iter().zip(left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
         let again_input = BatchInput { ranges: &kept, progress: quiet.as_ref(), ..*input };
         // A log that cannot start without the ranges left out keeps the pass before.
         let rerun = initial_state(&again_input)
-            .and_then(|(initial, init)| run_pass(&build, &initial, &again_input).map(|pass| (pass, init)));
+            .and_then(|(initial, init)| run_pass(&build, &initial, &again_input, None).map(|pass| (pass, init)));
         let ((trace, smoothed, _), init) = match rerun {
             Err(Error::InsufficientData(_)) => return Ok(None),
             other => other?,
@@ -246,20 +249,58 @@ fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, i
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
 }
 
+/// The residuals of the ranges of `input` against the smoothed `steps`.
+fn residuals_of(input: &BatchInput<'_>, steps: &[StepRecord]) -> Vec<Option<Residual>> {
+    let mut walk = ResidualWalk::new(input.ranges, input.anchors, input.config.mounting.lever_arm);
+    steps.iter().for_each(|s| walk.push(s));
+    walk.finish()
+}
+
+/// The MAP passes of [`run_inertial`] after its `first` smoothed pass ([`crate::map_smoothing`]):
+/// each pass runs from the same `initial` state with the filter guided by the previous pass's
+/// track. A filter that takes no guide keeps the first pass; a cancelled run ends the passes.
+fn map_smooth<F: InertialFilter>(
+    build: &impl Fn(&InitialState) -> Result<F>,
+    initial: &InitialState,
+    input: &BatchInput<'_>,
+    first: SmoothedPass,
+    smoothing: &SmoothingConfig,
+) -> Result<(SmoothedPass, MapPasses)> {
+    let (trace, smoothed, init) = first;
+    let unguided = MapPasses { passes: 0, converged: false };
+    if !build(initial)?.set_guide(None) {
+        return Ok(((trace, smoothed, init), unguided));
+    }
+    let quiet = input.progress.map(Progress::sharing_cancel);
+    let again_input = BatchInput { progress: quiet.as_ref(), ..*input };
+    let again = |guide: Guide| {
+        let (trace, smoothed, _) = run_pass(build, initial, &again_input, Some(Arc::new(guide)))?;
+        let complete = smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
+        Ok::<_, Error>(complete.then_some((trace, smoothed)))
+    };
+    let track = |(_, smoothed): &mut (Trace, Option<Vec<StepRecord>>)| Ok(smoothed.clone());
+    let ((trace, smoothed), done) =
+        map_passes((trace, smoothed), input.ranges, input.anchors, smoothing, input.config.mounting.lever_arm, track, again)?;
+    Ok(((trace, smoothed, init), done))
+}
+
 /// A complete pass of [`run_inertial`]: the forward trace, its RTS-smoothed steps (None when the
 /// run was not smoothed) and the self-initialisation it started from.
 type SmoothedPass = (Trace, Option<Vec<StepRecord>>, Option<Box<SelfInit>>);
 
-/// One pass of [`run_inertial`] from `initial`: the forward run, its RTS-smoothed steps when
+/// One pass of [`run_inertial`] from `initial`, guided by `guide` when given (a MAP pass,
+/// [`InertialFilter::set_guide`]): the forward run, its RTS-smoothed steps when
 /// smoothing was asked for (None when the run was cancelled), and the smoothing settings the
 /// filter runs with (its composition's where the configuration leaves them unset).
 fn run_pass<F: InertialFilter>(
     build: &impl Fn(&InitialState) -> Result<F>,
     initial: &InitialState,
     input: &BatchInput<'_>,
+    guide: Option<Arc<Guide>>,
 ) -> Result<(Trace, Option<Vec<StepRecord>>, SmoothingConfig)> {
     let BatchInput { imu, ranges, smooth, observations, progress, .. } = *input;
     let mut filter = build(initial)?;
+    filter.set_guide(guide);
     if smooth {
         filter.core_mut().start_recording(imu.len() + ranges.len() + observations.len());
     }

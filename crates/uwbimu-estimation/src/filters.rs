@@ -83,6 +83,10 @@ macro_rules! delegate_filter {
             fn still(&self) -> bool {
                 self.0.still()
             }
+
+            fn set_guide(&mut self, guide: Option<std::sync::Arc<crate::smoother::Guide>>) -> bool {
+                self.0.set_guide(guide)
+            }
         }
     };
 }
@@ -191,6 +195,15 @@ pub trait InertialFilter: Filter {
     /// `constraints.zupt`, during an outage with `constraints.outage_zupt`); this is its
     /// decision, not whether a constraint was applied.
     fn still(&self) -> bool {
+        false
+    }
+
+    /// From now on, linearises its measurements at the track of `guide` and weighs its ranges by
+    /// the guide's weights, in place of its own robust test (a pass of the batch MAP smoother,
+    /// [`crate::smoother::Guide`]); None: back to its own linearisation and test. Returns whether
+    /// the filter takes a guide: the tightly coupled Kalman strategies do; the others (a loosely
+    /// coupled filter, the unscented strategy) return false and run as they are.
+    fn set_guide(&mut self, _guide: Option<std::sync::Arc<crate::smoother::Guide>>) -> bool {
         false
     }
 }

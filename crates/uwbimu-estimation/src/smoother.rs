@@ -28,6 +28,9 @@ use crate::robust::fade_position_velocity;
 use dense::{cholesky_lower, plus_congruence, solve_right};
 
 mod dense;
+mod guide;
+
+pub use guide::{Guide, MIN_WEIGHT};
 
 /// Segments smoothed between two looks at the stop flag of [`rts_smooth`].
 const STOP_CHECK_SEGMENTS: usize = 1024;

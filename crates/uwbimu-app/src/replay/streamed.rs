@@ -24,10 +24,12 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_estimation::smoother::Guide;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
@@ -45,6 +47,7 @@ use truth_match::TruthMatch;
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::io::{IoResult as Result, Mapping, RecordingSurvey};
+use crate::map_smoothing::map_passes;
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Method};
@@ -163,6 +166,9 @@ pub(crate) struct FilterKind<E> {
     /// The smoothing settings it runs with (its composition's where the configuration leaves
     /// them unset).
     pub smoothing: fn(&E) -> SmoothingConfig,
+    /// Guides it in a pass of the MAP smoother; false when it takes no guide
+    /// ([`uwbimu_estimation::filters::InertialFilter::set_guide`]).
+    pub guide: fn(&mut E, Option<Arc<Guide>>) -> bool,
 }
 
 /// The state of a run while the events stream past.
@@ -180,6 +186,8 @@ struct Run<'a, 'f, E> {
     record: SmoothingRecord,
     handed_on: u64,
     last_t_s: Option<f64>,
+    /// The guide of a MAP pass, given to the filter when it is built.
+    guide: Option<Arc<Guide>>,
 }
 
 impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
@@ -188,8 +196,10 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
         let anchors = self.input.survey.anchors.positions.clone();
         let options = StreamOptions { reorder_window_s: 0.0, strict: true };
         let (build, core, smooth) = (self.kind.build, self.kind.core, self.input.smooth);
+        let (guide, set_guide) = (self.guide.clone(), self.kind.guide);
         let make = move |anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig| {
             let mut filter = build(anchors, initial, config)?;
+            set_guide(&mut filter, guide.clone());
             if smooth {
                 if let Some(c) = core(&mut filter) {
                     c.start_recording(1024);
@@ -326,16 +336,39 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     if !input.smooth {
         let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
         let out = StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) };
-        return run_pass(method, input, kind, imu_span_s, out, &mut RangesOfPass::default(), None)?.finish(survey, None);
+        return run_pass(method, input, kind, imu_span_s, out, &mut RangesOfPass::default(), None, None)?.finish(survey, None);
     }
     let mut ranges = RangesOfPass { kept: Some(Vec::new()), left_out: &[], seen: 0 };
-    let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None)?;
+    let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None, None)?;
     pass.smooth(input, kind.core)?;
     let all = ranges.kept.take().unwrap_or_default();
     let Some(smoothing) = pass.stream.estimator().map(kind.smoothing) else {
         return pass.finish(survey, Some(on_step));
     };
     let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
+    let guided = pass.stream.estimator_mut().is_some_and(|f| (kind.guide)(f, None));
+    if smoothing.map_passes_or_zero() > 0 && guided {
+        let track = |pass: &mut Pass<'_, E>| -> Result<Option<Vec<StepRecord>>> {
+            let Some(smoothed) = pass.smoothed.as_mut() else { return Ok(None) };
+            let mut steps = smoothed.newest_first()?.map(|v| v.map(|v| step_from_flat(&v))).collect::<Result<Vec<_>>>()?;
+            steps.reverse();
+            Ok(Some(steps))
+        };
+        let again = |guide: Guide| -> Result<Option<Pass<'_, E>>> {
+            let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
+            let out = StepsOut::spilled(input.spill_dir)?;
+            let mut all_ranges = RangesOfPass::default();
+            let guide = Some(Arc::new(guide));
+            let mut rerun = run_pass(method, &again_input, kind, imu_span_s, out, &mut all_ranges, model.as_ref(), guide)?;
+            rerun.smooth(&again_input, kind.core)?;
+            let complete = rerun.smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
+            Ok(complete.then_some(rerun))
+        };
+        let lever_arms = input.config.mounting.lever_arm;
+        let (mut pass, done) = map_passes(pass, &all, &survey.anchors.positions, &smoothing, lever_arms, track, again)?;
+        pass.map_passes = done.passes;
+        return pass.finish(survey, Some(on_step));
+    }
     let residuals = |pass: &mut Pass<'_, E>| -> Result<Option<Vec<Option<Residual>>>> {
         let Some(smoothed) = pass.smoothed.as_mut() else { return Ok(None) };
         let mut walk = ResidualWalk::new(&all, &survey.anchors.positions, input.config.mounting.lever_arm);
@@ -350,7 +383,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         let mut again_ranges = RangesOfPass { kept: None, left_out, seen: 0 };
         let out = StepsOut::spilled(input.spill_dir)?;
         // A log that cannot start without the ranges left out keeps the pass before.
-        let mut rerun = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref()) {
+        let mut rerun = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref(), None) {
             Err(crate::io::IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
             other => other?,
         };
@@ -406,6 +439,7 @@ macro_rules! declare_streamed_dispatch {
             build: uwbimu_estimation::filters::$ty::new,
             core: |f: &mut uwbimu_estimation::filters::$ty| Some(f.core_mut()),
             smoothing: |f: &uwbimu_estimation::filters::$ty| f.config().smoothing,
+            guide: |f: &mut uwbimu_estimation::filters::$ty, g| f.set_guide(g),
         };
         run($method, $input, &kind, $on_step)
     }};
@@ -414,6 +448,7 @@ macro_rules! declare_streamed_dispatch {
             build: |anchors, initial, config| PlanarFilter::new(PlanarKind::$kind, anchors, initial, &config),
             core: |_: &mut PlanarFilter| None,
             smoothing: |_: &PlanarFilter| SmoothingConfig::default(),
+            guide: |_: &mut PlanarFilter, _| false,
         };
         run($method, $input, &kind, $on_step)
     }};

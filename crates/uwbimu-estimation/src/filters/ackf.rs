@@ -195,4 +195,8 @@ impl InertialFilter for Ackf {
     fn still(&self) -> bool {
         self.inner.still()
     }
+
+    fn set_guide(&mut self, guide: Option<std::sync::Arc<crate::smoother::Guide>>) -> bool {
+        self.inner.set_guide(guide)
+    }
 }

@@ -94,6 +94,10 @@ pub const BEST_NLOS_SKEW: f64 = 4.0;
 /// times (figures: docs/model-selection.md#robust-smoothing).
 pub const BEST_OUTLIER_PASSES: u32 = 3;
 
+/// The batch MAP passes of `best`'s smoothed batch run unless `smoothing.map_passes` is set; they
+/// replace its re-smoothing passes (figures: docs/smoothing.md).
+pub const BEST_MAP_PASSES: u32 = 5;
+
 named_filter!(
     /// `best` (ours): the RIEKF composition (Li & Wang 2020 Algorithm 1, eqs. (39)–(40)) with the
     /// zero-velocity constraint of the CRIEKF (Li & Wang 2020 eqs. (13)–(19)), applied only while the
@@ -107,6 +111,7 @@ named_filter!(
         constraints: ConstraintSwitches::ZUPT,
         nlos_skew: Some(BEST_NLOS_SKEW),
         outlier_passes: BEST_OUTLIER_PASSES,
+        map_passes: BEST_MAP_PASSES,
         ..Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
     }
 );

@@ -3,6 +3,8 @@
 //! ([`RangeNoisePolicy`]) + an update strategy ([`UpdateStrategy`]: single step, iterated as in
 //! Li & Wang 2020 Algorithm 1, or unscented).
 
+use std::sync::Arc;
+
 use nalgebra::SMatrix;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
@@ -23,6 +25,7 @@ use crate::models::ScalarPrediction;
 #[cfg(doc)]
 use crate::robust::tested_nis;
 use crate::robust::{RangeNoisePolicy, RobustnessFactor, SageHusa, SageHusaConfig, SageHusaVariant};
+use crate::smoother::Guide;
 use crate::update::UpdateReport;
 
 mod apply;
@@ -84,6 +87,10 @@ pub struct TightFilter {
     factors: Scratch<RobustnessFactor>,
     /// Scratch for one epoch's measurements predicted at the prior (as `epoch`).
     at_prior: Scratch<Option<PriorPrediction>>,
+    /// The previous MAP pass's track and range weights, when guided ([`InertialFilter::set_guide`]).
+    guide: Option<Arc<Guide>>,
+    /// Scratch for one guided epoch's range weights (as `epoch`).
+    weights: Scratch<f64>,
 }
 
 /// A measurement predicted at the prior of its epoch, with its predicted variance `h·P⁻·hᵀ` over
@@ -161,6 +168,8 @@ impl TightFilter {
             epoch: Scratch::with_capacity(anchors.len()),
             factors: Scratch::with_capacity(anchors.len()),
             at_prior: Scratch::with_capacity(anchors.len()),
+            weights: Scratch::with_capacity(anchors.len()),
+            guide: None,
             anchors,
             policy: composition.policy,
             strategy,
@@ -273,5 +282,15 @@ impl InertialFilter for TightFilter {
 
     fn still(&self) -> bool {
         self.constraints.still()
+    }
+
+    /// Takes the guide with the Kalman strategies (single step or iterated: a guided epoch is
+    /// one step at the guide's state); the unscented strategy refuses it.
+    fn set_guide(&mut self, guide: Option<Arc<Guide>>) -> bool {
+        if matches!(self.strategy, Strategy::Unscented(_)) {
+            return false;
+        }
+        self.guide = guide;
+        true
     }
 }

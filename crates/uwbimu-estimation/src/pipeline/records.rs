@@ -57,6 +57,9 @@ pub struct Health {
     /// Ranges a smoothed batch run left out as far longer than its smoothed track predicts, and
     /// ran again without (`smoothing.outlier_passes`, `uwbimu_app::outlier_smoothing`).
     pub smoothing_left_out: usize,
+    /// Guided passes of the batch MAP smoother after the first smoothed run
+    /// (`smoothing.map_passes`, `uwbimu_app::map_smoothing`; 0 when it did not run).
+    pub map_passes: u32,
 }
 
 /// What an update measured: a range of an epoch or an observation of the sensor registry.

@@ -382,6 +382,25 @@ section! {
         /// many robust σ (1.4826·MAD) of its anchor's residuals above their median, and by more
         /// than 0.1 m.
         outlier_sigmas: f64 = 3.0, positive;
+        /// Passes of the batch MAP smoother at most (`uwbimu_app::map_smoothing`; 0: off). Each
+        /// pass filters and smooths the log again with every measurement linearised at the
+        /// previous pass's smoothed track and each range weighted by the kernel of its residual
+        /// there; it replaces the outlier passes. Unset: the method's own (0 but in `best`).
+        map_passes: Option<u32> = None, |f, v| some_whole(f, v, MAX_MAP_PASSES);
+        /// The MAP passes stop when no smoothed position moves more than this from one pass to the
+        /// next, m.
+        map_tolerance: f64 = 0.005, positive;
+        /// Width `c` of the MAP smoother's kernel, in robust σ of the anchor's residuals (0:
+        /// Gaussian, every range of weight 1): Cauchy's weighs a range `1/(1 + (u/c)²)`, Huber's
+        /// `min(1, c/|u|)`, the hard kernel leaves it out beyond `c` (and 0.1 m).
+        kernel_width: f64 = 2.385, non_negative;
+        /// Huber's kernel instead of Cauchy's.
+        huber: bool = false, flag;
+        /// The hard kernel instead of Cauchy's (and of Huber's): the rule of the outlier passes.
+        hard: bool = false, flag;
+        /// Weigh short ranges by the kernel too (symmetric); off: the asymmetric NLOS kernel, which
+        /// weighs only ranges longer than the track predicts (NLOS lengthens a range).
+        symmetric: bool = false, flag;
     }
 }
 
@@ -390,10 +409,18 @@ impl SmoothingConfig {
     pub fn outlier_passes_or_zero(&self) -> u32 {
         self.outlier_passes.unwrap_or(0)
     }
+
+    /// The MAP passes in force: `map_passes`, or 0 (off) when unset.
+    pub fn map_passes_or_zero(&self) -> u32 {
+        self.map_passes.unwrap_or(0)
+    }
 }
 
 /// Largest `smoothing.outlier_passes`: every pass is a whole filtered and smoothed run.
 pub const MAX_OUTLIER_PASSES: u32 = 10;
+
+/// Largest `smoothing.map_passes`: every pass is a whole filtered and smoothed run.
+pub const MAX_MAP_PASSES: u32 = 20;
 
 section! {
     /// The unscented transform (Wang et al. 2018 eqs. (13)–(14)) of `ukf`, `ukf2d` and any unscented

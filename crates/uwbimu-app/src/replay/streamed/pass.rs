@@ -2,8 +2,11 @@
 //! ranges of the pass left out or kept, and the steps handed on or spilled; then smoothed and
 //! finished into what the replay found.
 
+use std::sync::Arc;
+
 use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Estimator, Event, Progress, Stream};
+use uwbimu_estimation::smoother::Guide;
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
@@ -54,10 +57,13 @@ pub(super) struct Pass<'f, E> {
     pub(super) smoothed: Option<Spill<STEP_FLAT_LEN>>,
     /// Ranges the pass left out ([`Health::smoothing_left_out`]).
     pub(super) left_out: usize,
+    /// MAP passes run before this one ([`Health::map_passes`]).
+    pub(super) map_passes: u32,
 }
 
 /// Reads the file once through `method` into `out`, leaving out and keeping ranges as `ranges`
-/// says, with the model `chosen` on an earlier pass (None: chosen now, when the method chooses).
+/// says, with the model `chosen` on an earlier pass (None: chosen now, when the method chooses),
+/// the filter guided by `guide` when given (a MAP pass).
 pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     method: Method,
     input: &StreamedInput<'_>,
@@ -66,6 +72,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     out: StepsOut<'f>,
     ranges: &mut RangesOfPass<'_>,
     chosen: Option<&ModelChoice>,
+    guide: Option<Arc<Guide>>,
 ) -> Result<Pass<'f, E>> {
     let survey = input.survey;
     let choosing = chosen.is_none() && method.chooses_its_model() && input.config.model_selection.enabled;
@@ -87,6 +94,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         record: SmoothingRecord::default(),
         handed_on: 0,
         last_t_s: None,
+        guide,
     };
     if let Some(choice) = chosen {
         run.start(&choice.config)?;
@@ -139,7 +147,18 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     run.collect(true)?;
     let Run { stream, model, out, tally, handed_on, last_t_s, .. } = run;
     let Some(stream) = stream else { return Err(CoreError::InvalidCall("the stream was not started".into()).into()) };
-    Ok(Pass { stream, model, out, tally, handed_on, last_t_s, cancelled: cancelled_run, smoothed: None, left_out: 0 })
+    Ok(Pass {
+        stream,
+        model,
+        out,
+        tally,
+        handed_on,
+        last_t_s,
+        cancelled: cancelled_run,
+        smoothed: None,
+        left_out: 0,
+        map_passes: 0,
+    })
 }
 
 impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
@@ -192,6 +211,7 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
         };
         let mut health = self.stream.health();
         health.smoothing_left_out = self.left_out;
+        health.map_passes = self.map_passes;
         Ok(StreamedReplay {
             smoothed,
             steps: self.handed_on,

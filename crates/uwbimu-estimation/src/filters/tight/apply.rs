@@ -4,7 +4,9 @@
 
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::records::TdoaMeasurement;
+use uwbimu_vocabulary::state::NominalState;
 
+use super::strategies::Guided;
 use super::{PriorPrediction, TightFilter};
 #[cfg(doc)]
 use crate::filters::constraints::Constraints;
@@ -66,11 +68,18 @@ impl TightFilter {
         self.solve_one(m, at_prior)
     }
 
-    /// [`TightFilter::solve`] of the one measurement `m`, predicted at the prior as `at_prior`.
+    /// [`TightFilter::solve`] of the one measurement `m`, predicted at the prior as `at_prior`;
+    /// with a guide, linearised at its state and tested by the policy there.
     fn solve_one<M: ScalarModel>(&mut self, m: M, at_prior: Option<PriorPrediction>) -> Result<UpdateReport> {
         let mut report = [UpdateReport::skipped()];
-        self.solve(&[m], &[at_prior], &mut report, None, 1.0)?;
+        let guided = self.guide_state().map(|op| Guided { op, weights: None });
+        self.solve(&[m], &[at_prior], &mut report, None, 1.0, guided)?;
         Ok(report[0])
+    }
+
+    /// The guide's state at the filter time, when guided and inside the guide's track.
+    fn guide_state(&self) -> Option<NominalState> {
+        self.guide.as_ref().zip(self.core.time_s()).and_then(|(g, t)| g.state_at(t))
     }
 
     /// The hold of the heading for an update of the core by the owner ([`Constraints::hold_heading`]):
@@ -105,6 +114,16 @@ impl TightFilter {
         factors: &mut Vec<RobustnessFactor>,
         reports: &mut [UpdateReport],
     ) -> Result<()> {
+        if let Some((op, guide)) = self.guide_state().zip(self.guide.clone()) {
+            // A MAP pass: one step at the guide's state, each range tested by the policy there
+            // and weighted by the guide (no re-acquisition, robustness factors or fading).
+            let (t_s, window_s) = (self.core.time_s().unwrap_or(f64::NAN), self.config.ranging.epoch_window_s);
+            let mut weights = self.weights.take_cleared();
+            weights.extend(epoch.iter().map(|m| guide.range_weight(t_s, window_s, tag, m.anchor)));
+            let solved = self.solve(epoch, at_prior, reports, None, 1.0, Some(Guided { op, weights: Some(&weights) }));
+            self.weights.put_back(weights);
+            return solved;
+        }
         if self.reacquire && tag == 0 {
             let failed = self.failed_at_prior(epoch, at_prior);
             if let Some((innovation, nis)) =
@@ -130,14 +149,14 @@ impl TightFilter {
             }
             _ => (false, 1.0),
         };
-        self.solve(epoch, at_prior, reports, weighted.then_some(factors.as_slice()), fading)
+        self.solve(epoch, at_prior, reports, weighted.then_some(factors.as_slice()), fading, None)
     }
 
     /// Applies one checked TDoA at the filter time (re-acquisition, the strategy's update).
     pub(super) fn apply_tdoa(&mut self, m: &TdoaMeasurement) -> Result<UpdateReport> {
         let tdoa = Tdoa { anchor_i: m.anchor_i, anchor_j: m.anchor_j, tdoa_m: m.tdoa_m };
         let at_prior = [self.predict_at_prior(&tdoa)];
-        if self.reacquire {
+        if self.reacquire && self.guide_state().is_none() {
             let r_var = self.config.ranging.tdoa_std.powi(2);
             let failed = at_prior[0].is_some_and(|pred| pred.nis(tdoa.value(), r_var) > RANGE_FAIL_NIS);
             let watch = &mut self.tdoa_watch;

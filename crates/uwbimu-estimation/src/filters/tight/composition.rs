@@ -45,6 +45,9 @@ pub struct Composition {
     /// Re-smoothing passes of a smoothed batch run when `smoothing.outlier_passes` is unset (0:
     /// the plain RTS pass; the batch runner applies them, `uwbimu_app::outlier_smoothing`).
     pub outlier_passes: u32,
+    /// Passes of the batch MAP smoother when `smoothing.map_passes` is unset (0: none;
+    /// `uwbimu_app::map_smoothing`).
+    pub map_passes: u32,
 }
 
 /// The INS bias model of a composition.
@@ -93,12 +96,13 @@ impl Composition {
             nlos_skew: None,
             reacquire: true,
             outlier_passes: 0,
+            map_passes: 0,
         }
     }
 
     /// `config` with the row's settings applied: its constraints switched on, its NLOS skew where
     /// `robust.nlos_skew` is unset, its re-smoothing passes where `smoothing.outlier_passes` is
-    /// unset, the complementary bias model's τ where unset and its process noise.
+    /// unset, its MAP passes where `smoothing.map_passes` is unset, the complementary bias model's τ where unset and its process noise.
     pub fn configure(&self, mut config: FilterConfig) -> FilterConfig {
         if self.biases == BiasModel::Complementary {
             config.ins.accel_bias_tau = config.ins.accel_bias_tau.or(Some(DEFAULT_BIAS_TAU_S));
@@ -112,6 +116,9 @@ impl Composition {
         }
         if self.outlier_passes > 0 {
             config.smoothing.outlier_passes.get_or_insert(self.outlier_passes);
+        }
+        if self.map_passes > 0 {
+            config.smoothing.map_passes.get_or_insert(self.map_passes);
         }
         config
     }

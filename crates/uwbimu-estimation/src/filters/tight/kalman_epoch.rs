@@ -17,6 +17,9 @@ use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse
 pub(super) struct KalmanEpoch<'a> {
     pub(super) geometry: Geometry<'a>,
     pub(super) noise: EpochNoise<'a>,
+    /// Where the first iterate is linearised: the MAP smoother's guide state (then the prior
+    /// predictions are not used), or None for the prior.
+    pub(super) operating_point: Option<NominalState>,
     pub(super) max_iterations: u32,
     pub(super) tolerance: f64,
     pub(super) at_prior: PriorPredictions<'a>,
@@ -90,7 +93,7 @@ impl KalmanEpoch<'_> {
         estimated: usize,
     ) -> Result<u32> {
         let (prior, params_prior) = (*x, *params);
-        let prior_hph = N == ERR_DIM && self.at_prior.hph_valid;
+        let prior_hph = N == ERR_DIM && self.at_prior.hph_valid && self.operating_point.is_none();
         if self.max_iterations == 1 && prior_hph {
             // The single EKF step needs the prior covariance for nothing but the γ the prior
             // predictions carry: it steps in place (the error starts at zero, the operating
@@ -119,7 +122,7 @@ impl KalmanEpoch<'_> {
         // be, and the result is copied straight into `p_out`, not through a tuple temporary: a
         // whole-matrix copy between buffers a few bytes apart modulo 4 KiB is slow
         // ([`CacheAligned`]).
-        let (mut op, mut params_op) = (prior, params_prior);
+        let (mut op, mut params_op) = (self.operating_point.unwrap_or(prior), params_prior);
         let (mut first, mut second) = (CacheAligned(*p_out), CacheAligned(*p_out));
         let (mut work, mut last) = (&mut first.0, &mut second.0);
         let mut iterations = 0;
@@ -176,8 +179,9 @@ impl KalmanEpoch<'_> {
         iterations: u32,
         param_h: &impl Fn(&M) -> SVector<f64, N>,
     ) -> Option<(Option<PriorPrediction>, f64, SVector<f64, N>)> {
-        let at_prior = if iterations == 1 { self.at_prior.predictions.get(k).copied().flatten() } else { None };
-        let pred = if iterations == 1 { at_prior.map(|c| c.prediction) } else { m.predict(op, &self.geometry) }?;
+        let from_prior = iterations == 1 && self.operating_point.is_none();
+        let at_prior = if from_prior { self.at_prior.predictions.get(k).copied().flatten() } else { None };
+        let pred = if from_prior { at_prior.map(|c| c.prediction) } else { m.predict(op, &self.geometry) }?;
         let mut residual = m.value() - pred.value;
         let mut h = SVector::<f64, N>::zeros();
         h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);

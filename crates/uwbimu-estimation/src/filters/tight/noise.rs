@@ -68,6 +68,8 @@ pub(super) struct EpochNoise<'a> {
     range_noise: &'a mut [SageHusa<1>],
     factors: Option<&'a [RobustnessFactor]>,
     fading: f64,
+    /// The MAP smoother's weight of each measurement, on top of the policy ([`EpochNoise::decide`]).
+    weights: Option<&'a [f64]>,
 }
 
 /// What the noise policy decided for one scalar measurement.
@@ -98,15 +100,17 @@ impl NoiseDecision {
 impl<'a> EpochNoise<'a> {
     /// The noise of an epoch under `policy` with the configured variances and NLOS skew, the
     /// per-anchor adaptive estimators `range_noise` (empty when off), the epoch's robustness
-    /// factors and the prior's fading.
+    /// factors, the prior's fading and, in a guided epoch of the MAP smoother, the weight of each
+    /// measurement.
     pub(super) fn new(
         config: &'a FilterConfig,
         policy: RangeNoisePolicy,
         range_noise: &'a mut [SageHusa<1>],
         factors: Option<&'a [RobustnessFactor]>,
         fading: f64,
+        weights: Option<&'a [f64]>,
     ) -> Self {
-        Self { config, policy, nlos_skew: config.robust.nlos_skew_or_symmetric(), range_noise, factors, fading }
+        Self { config, policy, nlos_skew: config.robust.nlos_skew_or_symmetric(), range_noise, factors, fading, weights }
     }
 
     /// The noise of measurement `k` of the epoch, `m`, with innovation `residual` (corrected in
@@ -114,7 +118,9 @@ impl<'a> EpochNoise<'a> {
     /// unscented one). `first`: the first evaluation at this epoch (the adaptive estimators step
     /// only then). `kept_inflation`: an inflation decided earlier to keep instead of testing again.
     /// In a faded epoch (abnormal state) the trusted ranges keep their weight (the ARCKF paper's
-    /// Algorithm 1, adaptive branch); only capped ones are inflated (robust branch).
+    /// Algorithm 1, adaptive branch); only capped ones are inflated (robust branch). In a guided
+    /// epoch of the MAP smoother, the policy's variance is divided by the measurement's weight
+    /// `w_k` (iteratively reweighted least squares on top of the filter's own test).
     pub(super) fn decide<M: ScalarModel>(
         &mut self,
         k: usize,
@@ -133,7 +139,8 @@ impl<'a> EpochNoise<'a> {
             Some(kept) => kept,
             None => self.policy.inflation(tested_nis(nis, *residual, m.policies() != Policies::Robust, self.nlos_skew)),
         };
-        NoiseDecision { base_var, inflation, nis, nominal_var }
+        let weight = self.weights.and_then(|w| w.get(k)).copied().unwrap_or(1.0);
+        NoiseDecision { base_var, inflation: inflation / weight, nis, nominal_var }
     }
 }
 

@@ -3,7 +3,7 @@
 //! in [`super::kalman_epoch`]) or the unscented one.
 
 use uwbimu_vocabulary::error::Result;
-use uwbimu_vocabulary::state::{ErrVec, ERR_DIM};
+use uwbimu_vocabulary::state::{ErrVec, NominalState, ERR_DIM};
 
 use super::kalman_epoch::{BiasedEpoch, KalmanEpoch, PriorPredictions};
 use super::noise::EpochNoise;
@@ -24,6 +24,16 @@ pub(super) enum Strategy {
     Unscented(UnscentedWeights),
 }
 
+/// An epoch linearised at the MAP smoother's guide ([`crate::smoother::Guide`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Guided<'a> {
+    /// The guide's state at the epoch's time: the operating point of its one step.
+    pub(super) op: NominalState,
+    /// The weight of each measurement of the epoch: the variance the policy decides, on the
+    /// residual at `op`, is divided by it; None: weight 1.
+    pub(super) weights: Option<&'a [f64]>,
+}
+
 /// Sigma points of the 15-state unscented update: 2n + 1 with n = 15 (checked at compile time
 /// by [`scalar_moments`]).
 pub const SIGMA_POINTS: usize = 2 * ERR_DIM + 1;
@@ -32,7 +42,9 @@ impl TightFilter {
     /// Solves one epoch of scalar measurements with the filter's strategy; `at_prior` are the
     /// measurements predicted at the prior (before the fading), `factors` the
     /// robustness factors `Cu_k` (the ARCKF paper's eq. (38)) of the measurements, `fading` the prior's
-    /// fading factor already applied (the ARCKF paper's eq. (42)).
+    /// fading factor already applied (the ARCKF paper's eq. (42)), `guided` the guide's operating
+    /// point and weights (one Kalman step at the operating point; the unscented strategy takes no
+    /// guide, [`TightFilter::set_guide`]).
     pub(super) fn solve<M: ScalarModel>(
         &mut self,
         measurements: &[M],
@@ -40,11 +52,12 @@ impl TightFilter {
         reports: &mut [UpdateReport],
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
+        guided: Option<Guided<'_>>,
     ) -> Result<()> {
         match self.strategy {
             Strategy::Iterated { max_iterations, tolerance } => {
-                let max_iterations = if M::RELINEARISE { max_iterations } else { 1 };
-                self.solve_iterated(measurements, at_prior, reports, factors, fading, max_iterations, tolerance)?;
+                let max_iterations = if M::RELINEARISE && guided.is_none() { max_iterations } else { 1 };
+                self.solve_iterated(measurements, at_prior, reports, factors, fading, max_iterations, tolerance, guided)?;
             }
             Strategy::Unscented(weights) => self.solve_unscented(&weights, measurements, reports, factors, fading)?,
         }
@@ -68,11 +81,14 @@ impl TightFilter {
         fading: f64,
         max_iterations: u32,
         tolerance: f64,
+        guided: Option<Guided<'_>>,
     ) -> Result<()> {
         let time_s = self.core.time_s().unwrap_or(0.0);
+        let weights = guided.and_then(|g| g.weights);
         let mut epoch = KalmanEpoch {
             geometry: Geometry { anchors: &self.anchors, lever_arms: self.config.mounting.lever_arm.as_slice() },
-            noise: EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading),
+            noise: EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading, weights),
+            operating_point: guided.map(|g| g.op),
             max_iterations,
             tolerance,
             // A faded prior is no longer the covariance the predictions' h·P·hᵀ were taken on.
@@ -111,7 +127,7 @@ impl TightFilter {
         factors: Option<&[RobustnessFactor]>,
         fading: f64,
     ) -> Result<()> {
-        let mut noise = EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading);
+        let mut noise = EpochNoise::new(&self.config, self.policy, &mut self.range_noise, factors, fading, None);
         let geometry = Geometry { anchors: &self.anchors, lever_arms: self.config.mounting.lever_arm.as_slice() };
         let (x, p_out) = self.core.state_and_covariance_mut();
         let prior = *x;
