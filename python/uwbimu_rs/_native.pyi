@@ -320,7 +320,7 @@ class _StreamingFilter:
     """Streaming API shared by the 15-state filter classes (documented once here; each class below
     is one named composition of the shared pieces). Constructed as ``Cls(anchors, *,
     initial=None, config=None, record=False, reorder_window_s=None, strict=False,
-    keep_steps=10000)``.
+    keep_steps=10000, lag_s=None)``.
 
     A robot loop feeds whatever arrives, in any order within the reorder window, and reads the
     state::
@@ -366,14 +366,21 @@ class _StreamingFilter:
         Raise on an input older than the window allows instead of counting and dropping it.
     keep_steps : int
         Steps (one per IMU sample) kept for :meth:`steps` between its calls, the oldest dropped
-        beyond; 0 keeps none.
+        beyond; 0 keeps none. Bounds the rows waiting for :meth:`lagged_steps` too.
+    lag_s : float, optional
+        Fixed-lag smoothing: beside the causal steps, every ``lag_s / 2`` of filter time the
+        filter RTS-smooths the last ``1.5 * lag_s`` of its run and emits the estimates at least
+        ``lag_s`` old (:meth:`lagged_steps`), in bounded memory (docs/streaming.md,
+        "Fixed-lag smoothing"). None: off. Not with ``record=True``.
 
     Raises
     ------
     ConfigError
         Unknown or invalid ``initial`` / ``config`` key.
     ValueError
-        Bad anchor shape or values, ``initial`` / ``config`` not a dict, a negative window.
+        Bad anchor shape or values, ``initial`` / ``config`` not a dict, a negative window, a
+        negative, infinite or NaN ``lag_s``, or ``lag_s`` with ``record=True`` or
+        ``keep_steps=0``.
     """
 
     def __new__(
@@ -386,6 +393,7 @@ class _StreamingFilter:
         reorder_window_s: float | None = None,
         strict: bool = False,
         keep_steps: int = 10000,
+        lag_s: float | None = None,
     ) -> _S: ...
     def steps(self) -> pl.DataFrame:
         """The steps made since the previous call (or the start), one row per IMU sample, oldest
@@ -414,6 +422,43 @@ class _StreamingFilter:
             sample and each epoch time between samples) plus the current time. The plain RTS
             pass: the batch ``best``'s robust smoothing (``smoothing.outlier_passes``) needs the
             whole log again."""
+
+    def lagged_steps(self) -> pl.DataFrame:
+        """The fixed-lag smoothed estimates emitted since the previous call (needs ``lag_s``).
+
+        Each row is the node of the full RTS pass over the run up to the moment it was emitted
+        (:meth:`smooth` of a ``record=True`` twin fed the same data, bit for bit): smoothed over
+        at least ``lag_s`` and at most ``1.5 * lag_s`` of later data. :meth:`flush` emits the
+        rest, the current time last; fed a whole log and flushed, the frames together equal
+        :meth:`smooth` of the twin. At most ``keep_steps`` rows wait between calls, the oldest
+        dropped beyond (:attr:`lagged_steps_dropped`).
+
+        Returns
+        -------
+        polars.DataFrame
+            The columns of :meth:`steps`, one row per propagation start (each IMU sample and each
+            epoch time between samples, as :meth:`smooth`), oldest first; ``still`` false,
+            ``status`` 0.
+
+        Raises
+        ------
+        UwbImuError
+            The filter was created without ``lag_s``."""
+
+    @property
+    def lagged_steps_dropped(self) -> int:
+        """Fixed-lag rows dropped because :meth:`lagged_steps` was not called within
+        ``keep_steps`` rows (0 without ``lag_s``)."""
+
+    @property
+    def lag_s(self) -> float | None:
+        """The lag of the fixed-lag smoothing, s (None: off)."""
+
+    @property
+    def lagged_covariance(self) -> _F64 | None:
+        """The (15, 15) smoothed error covariance (δp, δv, δθ, δb_a, δb_g) of the newest
+        fixed-lag row emitted, a copy; None before the first. Raises ``UwbImuError`` without
+        ``lag_s``."""
 
     def add_imu(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]:
         """Take the IMU sample at time ``t``.
@@ -1558,7 +1603,8 @@ def live_setup(config: str | os.PathLike[str] | None = None, *, mapping: str | N
     """The replay file ``config`` (with the mapping JSON ``mapping`` merged in) as the live node
     starts from it: ``method``, ``config`` (FilterConfig), ``initial``, ``live`` (the ``[live]``
     table with its defaults), ``reorder_window_s`` and ``outputs`` (``(topic, type, definition,
-    dds_topic, dds_type)`` of the pose, odometry and diagnostics topics)."""
+    dds_topic, dds_type)`` of the pose, odometry, diagnostics and fixed-lag smoothed pose
+    topics; the last published only with ``live.lag_s``)."""
 
 def live_subscriptions(config: str | os.PathLike[str] | None = None, *, mapping: str | None = None) -> dict[str, Any]:
     """``topics``: ``(topic, type, definition, dds_topic, dds_type)`` of each topic the node

@@ -13,6 +13,7 @@ mod classes;
 mod config;
 mod crlb;
 mod inputs;
+mod lagged;
 mod recent_steps;
 mod registry;
 mod reports;

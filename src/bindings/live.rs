@@ -53,8 +53,8 @@ fn topic_entry(topic: &str, type_name: &str, definition: &str) -> TopicEntry {
 /// Reads the replay file `config` (None: defaults) with the mapping JSON `mapping` merged in and
 /// returns what the live node starts from: `method` (str or None), `config` (FilterConfig),
 /// `initial` (dict or None), `live` (the `[live]` table with its defaults), `reorder_window_s`
-/// and `outputs` (`(topic, type, definition, dds_topic, dds_type)` of the pose, odometry and
-/// diagnostics topics).
+/// and `outputs` (`(topic, type, definition, dds_topic, dds_type)` of the pose, odometry,
+/// diagnostics and fixed-lag smoothed pose topics; the last published only with `live.lag_s`).
 #[pyfunction]
 #[pyo3(signature = (config=None, *, mapping=None))]
 fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
@@ -74,6 +74,7 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
         (&live.pose_topic, "geometry_msgs/msg/PoseWithCovarianceStamped"),
         (&live.odometry_topic, "nav_msgs/msg/Odometry"),
         (&live.diagnostics_topic, "diagnostic_msgs/msg/DiagnosticArray"),
+        (&live.smoothed_pose_topic, "geometry_msgs/msg/PoseWithCovarianceStamped"),
     ] {
         outputs.push(topic_entry(topic, type_name, &full_definition(type_name, &[])?));
     }

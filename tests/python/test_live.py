@@ -140,6 +140,46 @@ def test_the_node_publishes_what_the_streaming_filter_estimates_and_tracks(metho
     assert lat.min() >= 0.5 - 1e-9 and lat.max() <= 0.5 + 3 * dt
 
 
+class CollectSmoothed(Collect):
+    """A sink that also takes the fixed-lag smoothed poses."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.smoothed: list[Any] = []
+
+    def smoothed_pose(self, pose):
+        self.smoothed.append(pose)
+
+
+def test_with_lag_s_the_node_publishes_the_fixed_lag_smoothed_pose():
+    # stop_and_go, 30 s, lag 1 s: each smoothed pose is the newest row of a pass of the streaming
+    # class fed the same records, with its smoothed covariance; the last comes at the close,
+    # at the filter's time; a sink without `smoothed_pose` still works.
+    run = sim.zoo("stop_and_go", seed=2)
+    recs = records_of(run, run.imu[0, 0] + 30.0)
+    clock, sink, plain = Clock(), CollectSmoothed(), Collect()
+    node = node_for(run.anchors, clock=clock, sinks=[sink, plain], lag_s=1.0)
+    ref = uwbimu_rs.Best(run.anchors, reorder_window_s=0.5, lag_s=1.0)
+    newest = []
+    for r in recs:
+        clock.now = r[1]
+        node.feed("sim", [r])
+        apply_record(ref, r)
+        rows = ref.lagged_steps()
+        if rows.height:
+            newest.append((rows.row(-1, named=True), ref.lagged_covariance))
+    node.close()
+    ref.flush()
+    newest.append((ref.lagged_steps().row(-1, named=True), ref.lagged_covariance))
+    assert len(sink.smoothed) == len(newest) > 40 and node.smoothed_poses_published == len(newest)
+    for pose, (row, cov) in zip(sink.smoothed, newest):
+        assert pose.t == row["t"] and list(pose.position) == [row["x"], row["y"], row["z"]]
+        np.testing.assert_array_equal(pose.covariance, cov)
+    assert np.all(np.linalg.eigvalsh(sink.smoothed[-1].covariance) > 0)
+    assert sink.smoothed[-1].t == ref.time and len(plain.poses) == len(sink.poses)
+    assert node.statuses()[0]["values"]["smoothed_poses_published"] == len(newest)
+
+
 def test_a_silent_sensor_is_reported_and_its_return_too(caplog):
     run = sim.zoo("stop_and_go", seed=1)
     recs = records_of(run, run.imu[0, 0] + 20.0)

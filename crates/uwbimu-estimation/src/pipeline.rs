@@ -22,12 +22,14 @@
 //! covariance that is no longer finite) never ends a run: the state and covariance from before
 //! the step are put back, the covariance repaired ([`crate::repair`]), the measurement skipped and
 //! the repair counted and flagged. [`Stream`] adds what a robot loop needs: late data put back in
-//! order within a window, and self-initialisation on the data as it arrives.
+//! order within a window, and self-initialisation on the data as it arrives; [`FixedLag`] the
+//! estimate smoothed over the last seconds of the run, in bounded memory.
 
 mod batch;
 mod estimator;
 mod event;
 mod event_loop;
+mod fixed_lag;
 mod marginals;
 mod progress;
 mod records;
@@ -39,6 +41,7 @@ pub use batch::{run, run_streams, Streams};
 pub use estimator::Estimator;
 pub use event::Event;
 pub use event_loop::Pipeline;
+pub use fixed_lag::{FixedLag, FIXED_LAG_BLOCK_FRACTION};
 pub use marginals::Marginals;
 pub use progress::Progress;
 pub use records::{Health, Measured, StepRecord, Trace, UpdateRecord, STATUS_LATE, STATUS_REJECTED, STATUS_REPAIRED};

@@ -81,14 +81,27 @@ pub fn rts_smooth(
 /// As [`rts_smooth`]; the errors of the two iterators and of `emit` as they are.
 pub fn rts_smooth_backward<E: From<Error>>(
     segments_newest_first: impl Iterator<Item = std::result::Result<Segment, E>>,
-    mut checkpoints_newest_first: impl Iterator<Item = std::result::Result<Checkpoint, E>>,
+    checkpoints_newest_first: impl Iterator<Item = std::result::Result<Checkpoint, E>>,
     last: (f64, NominalState, ErrCov),
     ins: &InsConfig,
     stop: &dyn Fn() -> bool,
     mut emit: impl FnMut(SmoothedNode) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
+    backward_pass(segments_newest_first, checkpoints_newest_first, last, ins, stop, |t_s, x, p| emit(node(t_s, *x, p)))
+}
+
+/// [`rts_smooth_backward`] giving `emit` each node's time, smoothed state and full smoothed
+/// covariance (the fixed-lag smoother keeps the newest node's, [`crate::pipeline::FixedLag`]).
+pub(crate) fn backward_pass<E: From<Error>>(
+    segments_newest_first: impl Iterator<Item = std::result::Result<Segment, E>>,
+    mut checkpoints_newest_first: impl Iterator<Item = std::result::Result<Checkpoint, E>>,
+    last: (f64, NominalState, ErrCov),
+    ins: &InsConfig,
+    stop: &dyn Fn() -> bool,
+    mut emit: impl FnMut(f64, &NominalState, &ErrCov) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
     let (t_s, last_state, last_covariance) = last;
-    emit(node(t_s, last_state, &last_covariance))?;
+    emit(t_s, &last_state, &last_covariance)?;
     let mut segments = segments_newest_first;
     // The smoothed state and covariance of the node after the one being smoothed.
     let mut next = (last_state, last_covariance);
@@ -121,7 +134,7 @@ pub fn rts_smooth_backward<E: From<Error>>(
             let plain = seg.prior_fading == 1.0 && seg.prior_widening.is_none();
             let prediction = (j > 0 && plain).then(|| &starts[run.len() - j]);
             next = smooth_segment(seg, start, prediction, &next, ins)?;
-            emit(node(seg.t_s, next.0, &next.1))?;
+            emit(seg.t_s, &next.0, &next.1)?;
         }
     }
 }

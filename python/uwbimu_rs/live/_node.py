@@ -3,7 +3,8 @@
 A :class:`LiveNode` owns one streaming filter (``best`` unless the replay file or the command
 names another). Sources hand it decoded records (:meth:`LiveNode.feed`) or raw messages of a
 mapped topic (:meth:`LiveNode.feed_message`); after each call the new steps go to the sinks
-(:class:`Sink`: DDS, Foxglove, an MCAP file). :meth:`LiveNode.tick` runs the wall-clock duties:
+(:class:`Sink`: DDS, Foxglove, an MCAP file), and with ``live.lag_s`` the fixed-lag smoothed pose
+(:meth:`Sink.smoothed_pose`). :meth:`LiveNode.tick` runs the wall-clock duties:
 silent sensors, diagnostics, and the model choice once ``live.choose_after_s`` of data is in.
 """
 
@@ -65,6 +66,12 @@ class Sink(Protocol):
 
     def pose(self, pose: Pose) -> None:
         """The newest pose, at most ``live.publish_rate_hz`` times a second."""
+
+    def smoothed_pose(self, pose: Pose) -> None:
+        """With ``live.lag_s``: the newest fixed-lag smoothed estimate, once per smoothing pass
+        (every ``lag_s / 2`` of sensor time) and at most ``live.publish_rate_hz`` times a
+        second, ``lag_s`` to ``1.5 * lag_s`` old; ``angular_rate`` is zero (not smoothed). A
+        sink without this method does not get it."""
 
     def diagnostics(self, t: float, statuses: list[dict[str, Any]]) -> None:
         """The health of the node and each sensor, every ``live.diagnostics_period_s``."""
@@ -171,6 +178,8 @@ class LiveNode:
         self._watches: dict[str, SensorWatch] = {}
         self._last_gyro = np.zeros(3)
         self._last_publish = -np.inf
+        self._last_smoothed_publish = -np.inf
+        self.smoothed_poses_published = 0
         self._last_diagnostics = clock()
         self._errors: dict[str, int] = {}
         self._powers: OrderedDict[tuple[float, int], tuple[float, float]] = OrderedDict()
@@ -198,6 +207,7 @@ class LiveNode:
             initial=self._setup["initial"],
             config=config,
             reorder_window_s=self._setup["reorder_window_s"],
+            lag_s=self.live.get("lag_s"),
         )
 
     # ---------------------------------------------------------------------------------------
@@ -328,6 +338,8 @@ class LiveNode:
         for t, a, rng in c.ranges:
             self._filter.add_range(t, int(a), rng)
         self._filter.steps()  # the replayed past is not published again
+        if self._filter.lag_s is not None:
+            self._filter.lagged_steps()
 
     # ---------------------------------------------------------------------------------------
     # Output
@@ -337,6 +349,8 @@ class LiveNode:
         f = self._filter
         if not f.initialized:
             return
+        if f.lag_s is not None:
+            self._emit_smoothed()
         steps = f.steps()
         if steps.height == 0:
             return
@@ -370,6 +384,32 @@ class LiveNode:
         for s in self.sinks:
             s.pose(pose)
 
+    def _emit_smoothed(self) -> None:
+        """The newest fixed-lag row, if a pass emitted any, to the sinks that take it."""
+        f = self._filter
+        lagged = f.lagged_steps()
+        if lagged.height == 0:
+            return
+        now = self.clock()
+        rate = float(self.live["publish_rate_hz"])
+        if rate > 0 and now - self._last_smoothed_publish < 1.0 / rate:
+            return
+        self._last_smoothed_publish = now
+        row = lagged.row(-1, named=True)
+        pose = Pose(
+            t=float(row["t"]),
+            position=np.array([row["x"], row["y"], row["z"]]),
+            velocity=np.array([row["vx"], row["vy"], row["vz"]]),
+            quaternion=np.array([row["qw"], row["qx"], row["qy"], row["qz"]]),
+            angular_rate=np.zeros(3),
+            covariance=f.lagged_covariance,
+        )
+        self.smoothed_poses_published += 1
+        for s in self.sinks:
+            publish = getattr(s, "smoothed_pose", None)
+            if publish is not None:
+                publish(pose)
+
     def tick(self) -> None:
         """The wall-clock duties: silent sensors, the model choice, diagnostics."""
         now = self.clock()
@@ -401,6 +441,7 @@ class LiveNode:
             "model": self.chosen or ("choosing" if self._choice else "as configured"),
             "initialized": f.initialized,
             "poses_published": self.poses_published,
+            "smoothed_poses_published": self.smoothed_poses_published,
             "late_dropped": health["late_dropped"],
             "reordered": health["reordered"],
             "numerical_repairs": health["numerical_repairs"],

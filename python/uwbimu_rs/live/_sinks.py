@@ -25,6 +25,9 @@ class _NoSteps:
     def pose(self, pose: Pose) -> None:
         """Ignored."""
 
+    def smoothed_pose(self, pose: Pose) -> None:
+        """Ignored."""
+
     def diagnostics(self, t: float, statuses: list[dict[str, Any]]) -> None:
         """Ignored."""
 
@@ -37,17 +40,23 @@ class _NoSteps:
 
 class RosSink(_NoSteps):
     """``geometry_msgs/PoseWithCovarianceStamped``, ``nav_msgs/Odometry`` and
-    ``diagnostic_msgs/DiagnosticArray`` on the topics of ``[live]``, over a :class:`DdsBus`."""
+    ``diagnostic_msgs/DiagnosticArray`` on the topics of ``[live]``, over a :class:`DdsBus`;
+    with ``live.lag_s`` also the fixed-lag smoothed ``PoseWithCovarianceStamped`` on
+    ``live.smoothed_pose_topic``."""
 
     def __init__(self, bus: Any, setup: dict[str, Any]) -> None:
         from uwbimu_rs.live._dds import idl_type
 
         live = setup["live"]
         self.frames = {"parent": live["map_frame"], "child": live["base_frame"]}
-        pose, odom, diag = setup["outputs"]
+        pose, odom, diag, smoothed = setup["outputs"]
         self._pose = bus.publisher(pose[3], idl_type(pose[1], pose[2]))
         self._odom = bus.publisher(odom[3], idl_type(odom[1], odom[2]))
         self._diag = bus.publisher(diag[3], idl_type(diag[1], diag[2]))
+        self._smoothed = None
+        if live.get("lag_s") is not None:
+            self._smoothed = bus.publisher(smoothed[3], idl_type(smoothed[1], smoothed[2]))
+            log.info("publishing the pose smoothed over %g s on %s", live["lag_s"], smoothed[0])
         log.info("publishing %s, %s and %s (frame %s → %s)", pose[0], odom[0], diag[0], live["map_frame"], live["base_frame"])
 
     def pose(self, pose: Pose) -> None:
@@ -57,6 +66,15 @@ class RosSink(_NoSteps):
         )
         self._pose(p)
         self._odom(o)
+
+    def smoothed_pose(self, pose: Pose) -> None:
+        """Publish the fixed-lag smoothed pose (its odometry is not: the rate is not smoothed)."""
+        if self._smoothed is None:
+            return
+        p, _ = _native.ros_pose_messages(
+            pose.t, pose.position, pose.velocity, pose.quaternion, pose.angular_rate, pose.covariance, **self.frames
+        )
+        self._smoothed(p)
 
     def diagnostics(self, t: float, statuses: list[dict[str, Any]]) -> None:
         """Publish the diagnostics."""

@@ -8,7 +8,7 @@ use uwbimu_app::columns::step_columns;
 use uwbimu_app::methods::Input;
 use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::pipeline::DEFAULT_REORDER_WINDOW_S;
-use uwbimu_estimation::pipeline::{smoothed_nodes, Event, Stream, StreamOptions};
+use uwbimu_estimation::pipeline::{smoothed_nodes, Event, FixedLag, Stream, StreamOptions};
 use uwbimu_vocabulary::anchor_ids::AnchorIds;
 use uwbimu_vocabulary::config::InitialState;
 use uwbimu_vocabulary::error::Error;
@@ -21,6 +21,7 @@ use super::super::repr;
 use super::args::{anchor_arg, check_takes, finite, non_negative, tag_arg, vec3_arg};
 use super::config::read_config;
 use super::inputs::read_anchors;
+use super::lagged::Lagged;
 use super::recent_steps::RecentSteps;
 use super::reports::{applied_reports, health_dict, init_info_items, PyUpdateReport};
 use super::state::{covariance_array, read_optional_initial, state_dict};
@@ -35,7 +36,7 @@ macro_rules! py_filter {
     ($(#[$doc:meta])* $py:ident, $core:ty) => {
         $(#[$doc])*
         #[pyclass(module = "uwbimu_rs._native")]
-        pub struct $py(Stream<$core>, Option<AnchorIds>, RecentSteps);
+        pub struct $py(Stream<$core>, Option<AnchorIds>, RecentSteps, Option<Lagged>);
 
         impl $py {
             fn estimator(&self, what: &str) -> PyResult<&$core> {
@@ -69,21 +70,33 @@ macro_rules! py_filter {
             fn push(&mut self, py: Python<'_>, call: &'static str, event: Event) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.push(call, event)?;
                 super::super::errors::warn_all(py, &self.0.take_warnings())?;
-                Ok(self.applied())
+                self.applied(false)
             }
 
             /// The reports of the updates the last call applied; the steps it made move into
-            /// the kept ones (`steps()`).
-            fn applied(&mut self) -> Vec<PyUpdateReport> {
+            /// the kept ones (`steps()`), and the fixed-lag smoother (`lag_s`) passes when due
+            /// (with `finish`, emits the rest).
+            fn applied(&mut self, finish: bool) -> PyResult<Vec<PyUpdateReport>> {
                 self.2.collect(&mut self.0);
-                applied_reports(&mut self.0)
+                let reports = applied_reports(&mut self.0);
+                if let Some(lagged) = self.3.as_mut() {
+                    lagged.after(&mut self.0, finish)?;
+                }
+                Ok(reports)
+            }
+
+            fn lagged(&self, what: &str) -> PyResult<&Lagged> {
+                self.3.as_ref().ok_or_else(|| {
+                    Error::InvalidCall(format!("{what}: no fixed-lag smoothing: create the filter with lag_s=<seconds>")).into()
+                })
             }
         }
 
         #[pymethods]
         impl $py {
             #[new]
-            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false, keep_steps=10_000))]
+            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false, keep_steps=10_000, lag_s=None))]
+            #[allow(clippy::too_many_arguments)]
             fn new(
                 anchors: &Bound<'_, PyAny>,
                 initial: Option<&Bound<'_, PyAny>>,
@@ -92,8 +105,11 @@ macro_rules! py_filter {
                 reorder_window_s: Option<f64>,
                 strict: bool,
                 keep_steps: usize,
+                lag_s: Option<f64>,
             ) -> PyResult<Self> {
                 let reorder_window_s = reorder_window_s.unwrap_or(DEFAULT_REORDER_WINDOW_S);
+                let lagged = Lagged::new(lag_s, record, keep_steps)?;
+                let lag = lagged.is_some();
                 let (anchors, ids) = read_anchors(anchors)?;
                 let config = read_config(config)?;
                 let options = StreamOptions { reorder_window_s, strict };
@@ -105,6 +121,9 @@ macro_rules! py_filter {
                         if record {
                             filter.core_mut().start_recording(RECORD_CAPACITY);
                         }
+                        if lag {
+                            FixedLag::start_recording(filter.core_mut());
+                        }
                         Ok(filter)
                     }
                 };
@@ -113,7 +132,7 @@ macro_rules! py_filter {
                     None => Stream::self_initializing(anchors, config, Box::new(build), options)?,
                 };
                 let steps = RecentSteps::new(keep_steps, &mut stream);
-                Ok(Self(stream, ids, steps))
+                Ok(Self(stream, ids, steps, lagged))
             }
 
             /// The steps made since the previous call (or since the start), one row per IMU
@@ -143,6 +162,40 @@ macro_rules! py_filter {
                 let core = self.estimator("smooth")?.core();
                 let steps = py.detach(|| smoothed_nodes(core))?;
                 data_frame(py, columns(py, step_columns(&steps, false))?)
+            }
+
+            /// The fixed-lag smoothed estimates emitted since the previous call (needs
+            /// ``lag_s``): a polars DataFrame with the columns of ``steps()``, one row per
+            /// propagation start (as ``smooth()``: each IMU sample and each epoch time between
+            /// samples), oldest first, each smoothed over at least ``lag_s`` (at most 1.5·``lag_s``)
+            /// of later data; ``still`` false, ``status`` 0. ``flush()`` emits the rest, the
+            /// current time last. At most ``keep_steps`` rows wait between calls, the oldest
+            /// dropped beyond (``lagged_steps_dropped`` counts them).
+            fn lagged_steps<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+                self.lagged("lagged_steps")?;
+                let steps = self.3.as_mut().map(Lagged::take).unwrap_or_default();
+                data_frame(py, columns(py, step_columns(&steps, false))?)
+            }
+
+            /// Fixed-lag rows dropped because ``lagged_steps()`` was not called within
+            /// ``keep_steps`` rows (0 without ``lag_s``).
+            #[getter]
+            fn lagged_steps_dropped(&self) -> u64 {
+                self.3.as_ref().map_or(0, Lagged::dropped)
+            }
+
+            /// The lag of the fixed-lag smoothing, s (None: off).
+            #[getter]
+            fn lag_s(&self) -> Option<f64> {
+                self.3.as_ref().map(Lagged::lag_s)
+            }
+
+            /// The full 15×15 smoothed error covariance (order δp, δv, δθ, δb_a, δb_g) of the
+            /// newest fixed-lag row emitted, a copy; None before the first; raises without
+            /// ``lag_s``.
+            #[getter]
+            fn lagged_covariance<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                self.lagged("lagged_covariance")?.newest_covariance().map(|p| covariance_array(py, p)).transpose()
             }
 
             /// Takes the IMU sample at `t` (s): specific force (3,) m/s², angular rate (3,)
@@ -233,16 +286,16 @@ macro_rules! py_filter {
                     .map(|(a, r)| Ok((self.anchor_row(CALL, "anchors", *a)?, non_negative(CALL, "ranges", *r)?)))
                     .collect::<PyResult<Vec<(usize, f64)>>>()?;
                 self.0.apply_ranges_now(CALL, t, &obs)?;
-                Ok(self.applied())
+                self.applied(false)
             }
 
             /// The end of the input so far: applies everything buffered (the reorder window and
-            /// the open epoch; initialises on what was seen when still waiting). Returns the
-            /// reports.
+            /// the open epoch; initialises on what was seen when still waiting) and, with
+            /// ``lag_s``, emits every fixed-lag row not yet emitted. Returns the reports.
             fn flush(&mut self, py: Python<'_>) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.flush()?;
                 super::super::errors::warn_all(py, &self.0.take_warnings())?;
-                Ok(self.applied())
+                self.applied(true)
             }
 
             /// `Name(anchors=4, initialized=False, t=None)`: the anchor count, whether the

@@ -33,6 +33,27 @@ impl RecentSteps {
             return;
         }
         stream.move_steps(&mut self.incoming);
+        self.keep_incoming();
+    }
+
+    /// Keeps up to `capacity` steps moved in with [`RecentSteps::keep`] (a stream's fixed-lag
+    /// rows), none with a capacity of 0.
+    pub(super) fn bounded(capacity: usize) -> Self {
+        Self { kept: VecDeque::new(), capacity, incoming: Vec::new(), dropped: 0 }
+    }
+
+    /// Moves `steps` in (leaving it empty), dropping the oldest beyond the capacity.
+    pub(super) fn keep(&mut self, steps: &mut Vec<StepRecord>) {
+        std::mem::swap(&mut self.incoming, steps);
+        self.keep_incoming();
+        std::mem::swap(&mut self.incoming, steps);
+    }
+
+    fn keep_incoming(&mut self) {
+        if self.capacity == 0 {
+            self.incoming.clear();
+            return;
+        }
         for step in self.incoming.drain(..) {
             if self.kept.len() == self.capacity {
                 self.kept.pop_front();

@@ -1,7 +1,8 @@
 //! The `[live]` table of the replay file: what the live node (`uwbimu-live`) needs beyond the
 //! mapping — the DDS domain, the ROS 2 types of the input topics and where their `.msg` files
 //! are, the output topics and frame ids, the publishing and diagnostics rates, when a sensor
-//! counts as silent, and how long it watches before choosing its model.
+//! counts as silent, how long it watches before choosing its model, and the lag of its
+//! fixed-lag smoothed pose.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -47,6 +48,12 @@ pub struct LiveSettings {
     pub choose_after_s: f64,
     /// Baud rate of a LinkTrack serial port.
     pub linktrack_baud: u32,
+    /// Lag of the fixed-lag smoothed pose, s (finite, ≥ 0; the streaming classes' `lag_s`,
+    /// `uwbimu_estimation::pipeline::FixedLag`); None (the key absent): none published.
+    pub lag_s: Option<f64>,
+    /// Output topic of the fixed-lag smoothed `geometry_msgs/msg/PoseWithCovarianceStamped`
+    /// (published only with `lag_s`).
+    pub smoothed_pose_topic: String,
 }
 
 impl Default for LiveSettings {
@@ -65,6 +72,8 @@ impl Default for LiveSettings {
             silent_after_s: 1.0,
             choose_after_s: 60.0,
             linktrack_baud: 921_600,
+            lag_s: None,
+            smoothed_pose_topic: "/uwbimu/pose_smoothed".into(),
         }
     }
 }
@@ -85,7 +94,8 @@ impl LiveSettings {
     /// Parses the `[live]` table.
     ///
     /// # Errors
-    /// [`Error::Mapping`] (field `live`) for unknown keys or wrong types, or numbers out of range.
+    /// [`Error::Mapping`] (field `live`) for unknown keys or wrong types, or numbers out of range
+    /// (`lag_s` negative or not finite among them).
     pub fn from_value(value: serde_json::Value) -> Result<Self> {
         let s: Self = serde_json::from_value(value)
             .map_err(|e| Error::from(CoreError::InvalidConfig { field: "live".into(), reason: e.to_string() }))?;
@@ -95,7 +105,10 @@ impl LiveSettings {
                 return Err(CoreError::InvalidConfig { field: field.into(), reason: format!("must be > 0, got {v}") }.into());
             }
         }
-        for (field, v) in [("live.publish_rate_hz", s.publish_rate_hz), ("live.choose_after_s", s.choose_after_s)] {
+        let lag = s.lag_s.map(|v| ("live.lag_s", v));
+        for (field, v) in
+            [("live.publish_rate_hz", s.publish_rate_hz), ("live.choose_after_s", s.choose_after_s)].into_iter().chain(lag)
+        {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(CoreError::InvalidConfig { field: field.into(), reason: format!("must be >= 0, got {v}") }.into());
             }
@@ -145,6 +158,10 @@ mod tests {
         let e = LiveSettings::from_value(serde_json::json!({"domain": 3})).unwrap_err().to_string();
         assert!(e.contains("unknown field `domain`"), "{e}");
         assert!(LiveSettings::from_value(serde_json::json!({"silent_after_s": 0})).is_err());
+        assert_eq!((s.lag_s, s.smoothed_pose_topic.as_str()), (None, "/uwbimu/pose_smoothed"));
+        assert_eq!(LiveSettings::from_value(serde_json::json!({"lag_s": 1.5})).unwrap().lag_s, Some(1.5));
+        let e = LiveSettings::from_value(serde_json::json!({"lag_s": -1.0})).unwrap_err().to_string();
+        assert!(e.contains("live.lag_s"), "{e}");
         let mut mapping = Mapping::default();
         assert!(LiveSettings::discovers(&mapping) && s.subscriptions(&mapping).is_empty());
         mapping.uwb.topics = vec!["/uwb".into(), "/ranges".into(), "/vendor".into()];
