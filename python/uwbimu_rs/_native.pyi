@@ -428,7 +428,8 @@ class _StreamingFilter:
 
         Each row is the node of the full RTS pass over the run up to the moment it was emitted
         (:meth:`smooth` of a ``record=True`` twin fed the same data, bit for bit): smoothed over
-        at least ``lag_s`` and at most ``1.5 * lag_s`` of later data. :meth:`flush` emits the
+        at least ``lag_s`` and at most ``1.5 * lag_s`` of later data (more when one call brings
+        more, as a flush of the reorder window does). :meth:`flush` emits the
         rest, the current time last; fed a whole log and flushed, the frames together equal
         :meth:`smooth` of the twin. At most ``keep_steps`` rows wait between calls, the oldest
         dropped beyond (:attr:`lagged_steps_dropped`).

@@ -15,8 +15,8 @@
 //! An emitted node is therefore, bit for bit, the node of the full RTS pass over the run
 //! truncated at the time of the pass that emitted it: the backward recursion at a node uses
 //! only that node's posterior and prediction and the smoothed node after it. Each node is
-//! smoothed over between `lag_s` and `lag_s + B` of later data; it comes out that much after
-//! its time. Memory: about `(lag_s + B)` of segments (one per IMU sample and per measurement
+//! smoothed over between `lag_s` and `lag_s + B` of later data (more when one call brings
+//! more than a block); it comes out that much after its time. Memory: about `(lag_s + B)` of segments (one per IMU sample and per measurement
 //! time between samples) with their checkpoints, plus 64 segments; a pass costs one RTS step
 //! per segment of the window, so `(lag_s + B) / B = 3` RTS steps per segment, amortised.
 
