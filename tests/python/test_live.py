@@ -327,6 +327,8 @@ def test_cli_errors_exit_2_with_one_line(tmp_path):
     noanchors.write_text('[mapping.uwb]\ntopics = ["/uwb"]\n')
     p = subprocess.run([PY, "-m", "uwbimu_rs.live", "--config", str(noanchors)], capture_output=True, text=True)
     assert p.returncode == 2 and "anchor positions" in p.stderr
+    p = subprocess.run([PY, "-m", "uwbimu_rs.live", "--no-ros", "--mcap", "x.mcap", "--lag", "nan"], capture_output=True, text=True)
+    assert p.returncode == 2 and "--lag nan: must be finite" in p.stderr and len(p.stderr.strip().splitlines()) == 1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -334,6 +336,45 @@ def test_cli_errors_exit_2_with_one_line(tmp_path):
 # ---------------------------------------------------------------------------------------------
 
 pytest.importorskip("cyclonedds", reason="the live extra (cyclonedds) is not installed")
+
+
+def test_the_smoothed_pose_goes_out_on_its_own_topic_over_dds():
+    # With live.lag_s the ROS sink publishes the smoothed pose on smoothed_pose_topic, as a
+    # PoseWithCovarianceStamped with the pose's covariance; without, it publishes nothing there.
+    from uwbimu_rs.live import DdsBus, Pose, RosSink, idl_type
+
+    os.environ.setdefault("CYCLONEDDS_URI", _native_loopback())
+    setup = _native.live_setup(None)
+    setup["live"]["lag_s"] = 1.0
+    smoothed = setup["outputs"][3]
+    assert smoothed[0] == "/uwbimu/pose_smoothed"
+    pose_type = idl_type(smoothed[1], smoothed[2])
+    bus = DdsBus(23)
+    got: list[Any] = []
+    try:
+        bus.subscribe(smoothed[3], pose_type, lambda data, _ts: got.append(pose_type.deserialize(data)))
+        sink = RosSink(bus, setup)
+        cov = np.diag(np.arange(1.0, 16.0)) * 1e-3
+        pose = Pose(2.5, np.array([1.0, 2.0, 0.5]), np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), cov)
+        end = time.monotonic() + 10.0
+        while not got and time.monotonic() < end:
+            sink.smoothed_pose(pose)
+            bus.spin_once(0.1)
+        assert got, "no smoothed pose received"
+        m = got[0]
+        assert (m.header.stamp.sec, m.header.stamp.nanosec) == (2, 500_000_000)
+        assert (m.pose.pose.position.x, m.pose.pose.position.y) == (1.0, 2.0)
+        assert np.isclose(m.pose.covariance[0], 1e-3) and np.isclose(m.pose.covariance[7], 2e-3)
+        setup["live"]["lag_s"] = None
+        assert RosSink(bus, setup)._smoothed is None
+    finally:
+        bus.close()
+
+
+def _native_loopback() -> str:
+    from uwbimu_rs.live import loopback_config
+
+    return loopback_config()
 
 
 def _loopback_env(domain: int) -> dict[str, str]:

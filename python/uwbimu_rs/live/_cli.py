@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import signal
 import sys
 import time
@@ -40,6 +41,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--domain-id", type=int, help="DDS domain (default: [live] domain_id, else 0)")
     p.add_argument("--loopback", action="store_true", help="DDS on 127.0.0.1 only, no multicast (trials on one machine)")
     p.add_argument("--choose-after", type=float, metavar="S", help="seconds of data before the model choice (0: none)")
+    p.add_argument("--lag", type=float, metavar="S", help="also publish the pose smoothed over S seconds (fixed lag; [live] lag_s)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (wall clock)")
     p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     return p
@@ -79,6 +81,10 @@ def run(argv: list[str]) -> int:
             live["choose_after_s"] = args.choose_after
         if args.domain_id is not None:
             live["domain_id"] = args.domain_id
+        if args.lag is not None:
+            if not (math.isfinite(args.lag) and args.lag >= 0):
+                raise ValueError(f"--lag {args.lag}: must be finite and >= 0 s (the [live] lag_s)")
+            live["lag_s"] = args.lag
         decoder = _native.MessageDecoder(args.config, mapping=args.mapping, recording=args.mcap)
         subscriptions = None
         if not args.linktrack and not args.mcap:

@@ -100,8 +100,9 @@ def _fox_pose(position: np.ndarray, q: np.ndarray) -> Any:
 class FoxgloveSink(_NoSteps):
     """A Foxglove WebSocket server (``foxglove-sdk``): ``/uwbimu/pose`` (PoseInFrame),
     ``/uwbimu/path`` (PosesInFrame, the last ``path_length`` poses 0.2 s apart), ``/tf``
-    (FrameTransform map → base_link) and ``/uwbimu/nis`` (per range update: anchor, NIS,
-    accepted, and the range's first-path and received power when the source gives them)."""
+    (FrameTransform map → base_link), ``/uwbimu/nis`` (per range update: anchor, NIS,
+    accepted, and the range's first-path and received power when the source gives them) and,
+    with ``live.lag_s``, ``/uwbimu/pose_smoothed`` (PoseInFrame, the fixed-lag smoothed pose)."""
 
     PATH_SPACING_S = 0.2
 
@@ -131,6 +132,7 @@ class FoxgloveSink(_NoSteps):
             },
         }
         self._nis = foxglove.Channel("/uwbimu/nis", schema=nis_schema)
+        self._smoothed = fc.PoseInFrameChannel("/uwbimu/pose_smoothed") if live.get("lag_s") is not None else None
         self._path_poses: deque[Any] = deque(maxlen=path_length)
         self._last_path_t = -np.inf
         log.info("Foxglove live view on ws://%s:%d (open it in Foxglove: Open connection)", host, self.server.port)
@@ -156,6 +158,14 @@ class FoxgloveSink(_NoSteps):
             self._last_path_t = pose.t
             self._path_poses.append(fp)
             self._path.log(fm.PosesInFrame(timestamp=stamp, frame_id=self.frame, poses=list(self._path_poses)))
+
+    def smoothed_pose(self, pose: Pose) -> None:
+        """Log the fixed-lag smoothed pose (with ``live.lag_s``)."""
+        import foxglove.messages as fm
+
+        if self._smoothed is not None:
+            fp = _fox_pose(pose.position, pose.quaternion)
+            self._smoothed.log(fm.PoseInFrame(timestamp=_stamp(pose.t), frame_id=self.frame, pose=fp))
 
     def range_update(self, u: RangeUpdate) -> None:
         """Log one range update: NIS, accepted, and the signal powers when known."""
