@@ -17,7 +17,8 @@ use uwbimu_rs::vocabulary::config::FilterConfig;
 /// `best` smoothed, self-initialised: the steps and the ranges the robust smoothing left out.
 fn best_smoothed(input: &BatchInput<'_>, passes: Option<u32>) -> (Vec<StepRecord>, usize) {
     let mut config = input.config.clone();
-    config.smoothing.outlier_passes = passes;
+    // The outlier passes as such: `best`'s MAP passes, which replace them, off.
+    (config.smoothing.outlier_passes, config.smoothing.map_passes) = (passes, Some(0));
     let BatchOutput::Inertial { trace, smoothed: Some(steps), .. } =
         run_method(Method::Best, &BatchInput { config: &config, smooth: true, ..*input }).unwrap()
     else {

@@ -199,7 +199,8 @@ def run_filter(
         Also return what the run counted and chose, as a dict (last in the tuple):
         ``health`` (``rejected`` {gate kind: count}, ``numerical_repairs``,
         ``ranges_before_start``, ``reordered``, ``late_dropped``, ``smoothing_left_out``: the
-        ranges the robust smoothing left out), ``ranges_before_start``, after
+        ranges the robust smoothing left out, ``map_passes``: the MAP passes of the smoothing),
+        ``ranges_before_start``, after
         self-initialisation ``still_start`` and ``heading_from``, and for ``"best"`` ``model``:
         the range-error model it chose on the log and why, the dict of :func:`choose_model`
         (``chosen``, ``reason``, ``overrides``, ``candidates``, ``config``). Empty for ``uwb_ls``.

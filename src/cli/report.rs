@@ -179,6 +179,9 @@ fn stats_lines(
             summary.smoothing_left_out
         )?;
     }
+    if summary.map_passes > 0 {
+        writeln!(out, "MAP smoothing: {} passes", summary.map_passes)?;
+    }
     match summary.mean_nis {
         Some(n) => writeln!(out, "mean NIS: {n:.3} (1 for a consistent filter)")?,
         None => writeln!(out, "mean NIS: -")?,

@@ -32,6 +32,7 @@ def example(name: str):
         ["examples/zoo_matrix.py", "--seeds", "1", "--scenarios", "outage", "nlos_two"],
         ["examples/model_selection_table.py", "--seeds", "25", "--rigs", "drone_flight+steady", "lab_robot"],
         ["examples/robust_smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
+        ["examples/smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
         ["benches/python_api.py", "--repeat", "1"],
         ["examples/power_gap_nlos.py"],
     ],

@@ -186,9 +186,9 @@ def test_streaming_smoother_equals_batch(staggered, method):
     f = CLASSES[method](run.anchors, initial=run.initial, config=run.config, record=True, **IN_ORDER)
     stream(f, imu, ranges)
     nodes = f.smooth()
-    # The streaming smoother is the plain RTS pass: `best`'s batch robust smoothing, which runs the
-    # log again without the ranges its smoothed track calls NLOS, is off for the comparison.
-    plain = {**run.config, "smoothing": {"outlier_passes": 0}}
+    # The streaming smoother is the plain RTS pass: `best`'s batch robust smoothing and MAP passes,
+    # which run the log again, are off for the comparison.
+    plain = {**run.config, "smoothing": {"outlier_passes": 0, "map_passes": 0}}
     batch = uwbimu_rs.run_filter(method, imu, ranges, run.anchors, initial=run.initial, config=plain, smooth=True)
     # The same frame: the same columns and dtypes; every IMU time is a node of the streaming
     # smoother, and there the two agree in every estimated column.

@@ -43,8 +43,8 @@ def test_best_is_the_smoothed_riekf_composition_and_bias_states_report():
     cfg = {"mounting": run.config["mounting"]}
     best = uwbimu_rs.run_filter("best", run.imu, run.ranges, run.anchors, config=cfg)
     # best = riekf + the zero-velocity constraint + the NLOS skew of 4, smoothed by default with
-    # three robust-smoothing passes.
-    composed = {**cfg, "constraints": {"zupt": True}, "robust": {"nlos_skew": 4.0}, "smoothing": {"outlier_passes": 3}}
+    # five MAP passes.
+    composed = {**cfg, "constraints": {"zupt": True}, "robust": {"nlos_skew": 4.0}, "smoothing": {"map_passes": 5}}
     smoothed = uwbimu_rs.run_filter("riekf", run.imu, run.ranges, run.anchors, config=composed, smooth=True)
     forward = uwbimu_rs.run_filter("best", run.imu, run.ranges, run.anchors, config=cfg, smooth=False)
     np.testing.assert_array_equal(best["x"].to_numpy(), smoothed["x"].to_numpy())

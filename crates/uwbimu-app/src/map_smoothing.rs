@@ -4,52 +4,51 @@
 //!
 //! Each pass filters and RTS-smooths the log again, guided by the previous pass's smoothed track
 //! ([`uwbimu_estimation::smoother::Guide`]): every measurement is linearised at that track, and
-//! each range `i` is weighted by the kernel of its residual there, its variance `σ²/w_i` in place
-//! of the filter's own robust test. The residual is `e_i = r_i − ‖p_tag − a‖` against the smoothed
-//! track ([`crate::outlier_smoothing::ResidualWalk`]); per anchor it is centred on its median (a
-//! steady bias of the anchor is not an outlier) and scaled by `s = √(σ_a² + σ_track²)`, σ_a the
-//! robust σ (1.4826·MAD) of the anchor's residuals and `σ_track² = uᵀ·P·u` the track's variance
-//! along the line of sight, so `u_i = (e_i − median_a) / s`. The kernels ([`kernel_weight`]):
-//! Cauchy `w = 1/(1 + (u/c)²)`, Huber `w = min(1, k/|u|)`, Gaussian `w = 1` (width 0), on both
-//! sides (`smoothing.symmetric`) or, by default, only on ranges longer than the median (the
-//! asymmetric NLOS kernel: NLOS lengthens a range, a short range is weighed as Gaussian).
+//! each range `i` is weighted by the kernel of its residual there: the variance the filter's own
+//! robust test gives it at the guide is divided by `w_i` (docs/smoothing.md says why the test is
+//! kept). The residual is `e_i = r_i − ‖p_tag − a‖` against the smoothed track
+//! ([`crate::outlier_smoothing::ResidualWalk`]); per anchor it is centred on its median (a steady
+//! bias of the anchor is not an outlier) and scaled by `s = √(σ_a² + σ_track²)`, σ_a the robust σ
+//! (1.4826·MAD) of the anchor's residuals and `σ_track² = uᵀ·P·u` the track's variance along the
+//! line of sight, so `u_i = (e_i − median_a) / s`. The kernels ([`kernel_weight`]): the hard
+//! kernel (0 beyond `c`, the default), Cauchy `w = 1/(1 + (u/c)²)`, Huber `w = min(1, c/|u|)`,
+//! Gaussian `w = 1` (width 0), on both sides (`smoothing.symmetric`) or, by default, only on ranges
+//! longer than the median (the asymmetric NLOS kernel: NLOS lengthens a range, a short range is
+//! weighed as Gaussian).
 //!
 //! The passes stop when no smoothed position moves more than `smoothing.map_tolerance` from one
 //! pass to the next (converged), or after `smoothing.map_passes` passes. Each pass costs one
 //! filtered and smoothed run: linear in the log's length in time, and in memory the guide's track
-//! (one state per IMU sample) besides the run's own.
+//! (one state per 45 ms at most) besides the run's own.
 
 use uwbimu_estimation::pipeline::StepRecord;
 use uwbimu_estimation::smoother::Guide;
-use uwbimu_vocabulary::config::{LeverArms, SmoothingConfig};
-use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::config::SmoothingConfig;
 use uwbimu_vocabulary::records::RangeMeasurement;
+use uwbimu_vocabulary::state::NominalState;
 
-use crate::outlier_smoothing::{median_and_robust_sigma, Residual, ResidualWalk, OUTLIER_FLOOR_M};
+use crate::outlier_smoothing::{median_and_robust_sigma, Residual, OUTLIER_FLOOR_M};
 
 /// The kernel weight of a range longer than its anchor's median by `excess_m`, `u` times its
-/// scale (module doc), under `smoothing`'s kernel, in [0, 1]: with `c` = `kernel_width`,
-/// Cauchy's `1/(1 + (u/c)²)` (the default), Huber's `min(1, c/|u|)` (`huber`), or the hard
-/// kernel (`hard`): 0 when `u > c` and `excess_m` > [`OUTLIER_FLOOR_M`] (the rule of the outlier
-/// passes, [`crate::outlier_smoothing`]), else 1. A shorter range (`u ≤ 0`) has weight 1 unless
-/// `symmetric` (then the kernel of `|u|` and `|excess_m|`); every range has weight 1 when `c` = 0
-/// (Gaussian).
+/// scale (module doc), under `smoothing`'s kernel, in [0, 1]: with `c` = `kernel_width`, the hard
+/// kernel (the default): 0 when `u > c` and `excess_m` > [`OUTLIER_FLOOR_M`] (the rule of the
+/// outlier passes, [`crate::outlier_smoothing`]), else 1; Cauchy's `1/(1 + (u/c)²)` (`cauchy`);
+/// Huber's `min(1, c/|u|)` (`huber`). A shorter range (`u ≤ 0`) has weight 1 unless `symmetric`
+/// (then the kernel of `|u|` and `|excess_m|`); every range has weight 1 when `c` = 0 (Gaussian).
 pub fn kernel_weight(u: f64, excess_m: f64, smoothing: &SmoothingConfig) -> f64 {
     let c = smoothing.kernel_width;
     if c == 0.0 || (u <= 0.0 && !smoothing.symmetric) {
         return 1.0;
     }
     let u = u.abs();
-    if smoothing.hard {
-        if u > c && excess_m.abs() > OUTLIER_FLOOR_M {
-            0.0
-        } else {
-            1.0
-        }
-    } else if smoothing.huber {
+    if smoothing.huber {
         (c / u.max(1e-12)).min(1.0)
-    } else {
+    } else if smoothing.cauchy {
         1.0 / (1.0 + (u / c).powi(2))
+    } else if u > c && excess_m.abs() > OUTLIER_FLOOR_M {
+        0.0
+    } else {
+        1.0
     }
 }
 
@@ -85,24 +84,54 @@ pub fn range_weights(residuals: &[Option<Residual>], ranges: &[RangeMeasurement]
         .collect()
 }
 
-/// The guide of the next pass: along the smoothed `steps`, each range weighted by `weights`.
-pub fn guide(steps: &[StepRecord], ranges: &[RangeMeasurement], weights: &[f64]) -> Guide {
-    Guide::new(steps).with_weights(ranges.iter().zip(weights).map(|(r, w)| (r.t_s, r.tag, r.anchor, *w)))
+/// Spacing of the guide's nodes, s: the track is kept at about 20 Hz (a node when at least 45 ms
+/// have passed since the last one kept, and the last step), so that an hour holds 80 000 states
+/// (11 MB) whatever the IMU rate; the guide interpolates between its nodes, which on a turn of
+/// 2 m radius at 1 m/s is off the arc by `v²·Δt²/8R` = 0.13 mm.
+const GUIDE_SPACING_S: f64 = 0.045;
+
+/// The guide of the next pass: along the smoothed `steps` (oldest first, kept at about 20 Hz),
+/// each range weighted by `weights`.
+pub fn guide<Err>(
+    steps: impl Iterator<Item = Result<StepRecord, Err>>,
+    ranges: &[RangeMeasurement],
+    weights: &[f64],
+) -> Result<Guide, Err> {
+    let mut track: Vec<(f64, NominalState)> = Vec::new();
+    let mut last = None;
+    for step in steps {
+        let step = step?;
+        match track.last() {
+            Some(&(t, _)) if step.t_s - t < GUIDE_SPACING_S => last = Some((step.t_s, step.state)),
+            _ => {
+                track.push((step.t_s, step.state));
+                last = None;
+            }
+        }
+    }
+    track.extend(last);
+    let weighted = ranges.iter().zip(weights).map(|(r, w)| (r.t_s, r.tag, r.anchor, *w));
+    Ok(Guide::along(track).with_weights(weighted))
 }
 
-/// The largest distance between the positions of two smoothed tracks of the same steps, m (+∞
-/// when they differ in length or a position is not finite).
-pub fn largest_move(a: &[StepRecord], b: &[StepRecord]) -> f64 {
-    if a.len() != b.len() {
-        return f64::INFINITY;
-    }
-    a.iter().zip(b).map(|(a, b)| (a.state.position - b.state.position).norm()).fold(0.0, |m, d| {
-        if d.is_nan() {
-            f64::INFINITY
-        } else {
-            m.max(d)
+/// The largest distance between the positions of two smoothed tracks of the same steps (both
+/// oldest first), m; +∞ when they differ in length or a distance is not finite.
+pub fn largest_move<Err>(
+    a: impl Iterator<Item = Result<StepRecord, Err>>,
+    b: impl Iterator<Item = Result<StepRecord, Err>>,
+) -> Result<f64, Err> {
+    let (mut a, mut b) = (a.fuse(), b.fuse());
+    let mut largest = 0.0_f64;
+    loop {
+        match (a.next(), b.next()) {
+            (None, None) => return Ok(largest),
+            (Some(x), Some(y)) => {
+                let d = (x?.state.position - y?.state.position).norm();
+                largest = if d.is_nan() { f64::INFINITY } else { largest.max(d) };
+            }
+            _ => return Ok(f64::INFINITY),
         }
-    })
+    }
 }
 
 /// What the MAP passes did.
@@ -114,33 +143,47 @@ pub struct MapPasses {
     pub converged: bool,
 }
 
-/// The passes of the MAP smoother, for a runner that runs its passes its own way (in memory or
-/// spilled to disk): from the smoothed `first` pass, at most `smoothing.map_passes` times, the
-/// pass's smoothed track (`track`, oldest first; None when it has none), the residuals of `ranges`
-/// against it ([`crate::outlier_smoothing::ResidualWalk`]), the guide built from them
-/// ([`range_weights`], [`guide`]) and the log run and smoothed again with it (`again`; None when
-/// the run was cancelled), until no smoothed position moves more than `smoothing.map_tolerance`.
-/// Returns the last complete pass and what the passes did.
-pub fn map_passes<P, E>(
-    first: P,
+/// How a runner keeps its passes (in memory or spilled to disk), for [`map_passes`].
+pub trait MapRunner {
+    /// A filtered and smoothed pass.
+    type Pass;
+    /// The runner's error.
+    type Error;
+
+    /// The residuals of the ranges (in their order) against the pass's smoothed track
+    /// ([`crate::outlier_smoothing::ResidualWalk`]); None when the pass has no smoothed track.
+    fn residuals(&mut self, pass: &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>, Self::Error>;
+
+    /// The guide along the pass's smoothed track with these range weights ([`guide`]).
+    fn guide(&mut self, pass: &mut Self::Pass, weights: &[f64]) -> Result<Guide, Self::Error>;
+
+    /// The largest move of a smoothed position from pass `a` to pass `b` ([`largest_move`]).
+    fn moved(&mut self, a: &mut Self::Pass, b: &mut Self::Pass) -> Result<f64, Self::Error>;
+
+    /// The log filtered and smoothed again, guided by `guide`; None when the run was cancelled.
+    fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>, Self::Error>;
+}
+
+/// The passes of the MAP smoother: from the smoothed `first` pass, at most `smoothing.map_passes`
+/// times, the weights of `ranges` from their residuals against the pass's smoothed track
+/// ([`range_weights`]), the guide along that track, and the log run and smoothed again with it,
+/// until no smoothed position moves more than `smoothing.map_tolerance` (or a pass has no
+/// smoothed track, or is cancelled). Returns the last complete pass and what the passes did.
+pub fn map_passes<R: MapRunner>(
+    runner: &mut R,
+    first: R::Pass,
     ranges: &[RangeMeasurement],
-    anchors: &[Vec3],
     smoothing: &SmoothingConfig,
-    lever_arms: LeverArms,
-    mut track: impl FnMut(&mut P) -> Result<Option<Vec<StepRecord>>, E>,
-    mut again: impl FnMut(Guide) -> Result<Option<P>, E>,
-) -> Result<(P, MapPasses), E> {
+) -> Result<(R::Pass, MapPasses), R::Error> {
     let mut pass = first;
     let mut done = MapPasses { passes: 0, converged: false };
-    let Some(mut steps) = track(&mut pass)? else { return Ok((pass, done)) };
     for _ in 0..smoothing.map_passes_or_zero() {
-        let mut walk = ResidualWalk::new(ranges, anchors, lever_arms);
-        steps.iter().for_each(|s| walk.push(s));
-        let weights = range_weights(&walk.finish(), ranges, smoothing);
-        let Some(mut next) = again(guide(&steps, ranges, &weights))? else { break };
-        let Some(next_steps) = track(&mut next)? else { break };
-        let moved = largest_move(&steps, &next_steps);
-        (pass, steps) = (next, next_steps);
+        let Some(residuals) = runner.residuals(&mut pass)? else { break };
+        let weights = range_weights(&residuals, ranges, smoothing);
+        let guide = runner.guide(&mut pass, &weights)?;
+        let Some(mut next) = runner.again(guide)? else { break };
+        let moved = runner.moved(&mut pass, &mut next)?;
+        pass = next;
         done.passes += 1;
         if moved <= smoothing.map_tolerance {
             done.converged = true;
@@ -153,12 +196,11 @@ pub fn map_passes<P, E>(
 #[cfg(test)]
 mod tests {
     use uwbimu_vocabulary::math::{Mat3, Quat, Vec3};
-    use uwbimu_vocabulary::state::NominalState;
 
     use super::*;
 
     fn smoothing(width: f64, huber: bool, hard: bool, symmetric: bool) -> SmoothingConfig {
-        SmoothingConfig { kernel_width: width, huber, hard, symmetric, ..SmoothingConfig::default() }
+        SmoothingConfig { kernel_width: width, huber, cauchy: !hard, symmetric, ..SmoothingConfig::default() }
     }
 
     #[test]
@@ -199,14 +241,15 @@ mod tests {
         let expected = |u: f64| 1.0 / (1.0 + (u / 2.385).powi(2));
         assert!((w[20] - expected(0.3 / sigma)).abs() < 1e-9, "{}", w[20]);
         assert!((w[21] - expected(0.3 / (sigma * sigma + 0.09).sqrt())).abs() < 1e-9, "{}", w[21]);
-        assert_eq!((w[0], w[1], w[23]), (1.0, 1.0, 1.0), "the median's own ranges and a range without residual");
+        // Ranges at or below their anchor's median (k = 1, 2) and a range without residual.
+        assert_eq!((w[2], w[3], w[4], w[5], w[23]), (1.0, 1.0, 1.0, 1.0, 1.0));
         assert!(w[20] < 0.1 && w[21] > 0.8);
     }
 
-    fn track(shift: f64) -> Vec<StepRecord> {
+    fn track(shift: f64, dt: f64) -> Vec<StepRecord> {
         (0..5)
             .map(|k| StepRecord {
-                t_s: k as f64,
+                t_s: k as f64 * dt,
                 state: NominalState {
                     position: Vec3::new(k as f64 + shift, 0.0, 0.0),
                     velocity: Vec3::zeros(),
@@ -221,31 +264,53 @@ mod tests {
             .collect()
     }
 
+    fn ok(steps: Vec<StepRecord>) -> impl Iterator<Item = Result<StepRecord, ()>> {
+        steps.into_iter().map(Ok)
+    }
+
+    #[test]
+    fn the_guide_keeps_at_most_a_node_per_45_ms_and_the_last_step() {
+        let g = guide(ok(track(0.0, 0.02)), &[], &[]).unwrap();
+        // Steps at 0, 20, 40, 60, 80 ms: nodes at 0 and 60 ms, and the last (80 ms).
+        let x = |t: f64| g.state_at(t).expect("inside").position.x;
+        assert!((x(0.03) - 1.5).abs() < 1e-12, "between 0 and 60 ms: interpolated");
+        assert!((x(0.08) - 4.0).abs() < 1e-12 && g.state_at(0.085).is_none());
+        assert_eq!(largest_move(ok(track(0.0, 0.01)), ok(track(0.25, 0.01))), Ok(0.25));
+        assert_eq!(largest_move(ok(track(0.0, 0.01)), ok(track(0.0, 0.01)[..4].to_vec())), Ok(f64::INFINITY));
+    }
+
+    /// Passes in memory: a pass is its track's shift, each guided pass halves it.
+    struct Halving;
+
+    impl MapRunner for Halving {
+        type Pass = f64;
+        type Error = ();
+        fn residuals(&mut self, _: &mut f64) -> Result<Option<Vec<Option<Residual>>>, ()> {
+            Ok(Some(vec![None]))
+        }
+        fn guide(&mut self, shift: &mut f64, weights: &[f64]) -> Result<Guide, ()> {
+            assert_eq!(weights, [1.0]);
+            guide(ok(track(*shift, 0.01)), &[], &[])
+        }
+        fn moved(&mut self, a: &mut f64, b: &mut f64) -> Result<f64, ()> {
+            largest_move(ok(track(*a, 0.01)), ok(track(*b, 0.01)))
+        }
+        fn again(&mut self, g: Guide) -> Result<Option<f64>, ()> {
+            Ok(Some(g.state_at(0.0).expect("inside").position.x / 2.0))
+        }
+    }
+
     #[test]
     fn passes_stop_when_the_track_settles_or_are_spent() {
         let ranges = [RangeMeasurement { t_s: 1.0, anchor: 0, range_m: 5.0, tag: 0 }];
-        let anchors = [Vec3::new(0.0, 0.0, 10.0)];
         let config = SmoothingConfig { map_passes: Some(10), map_tolerance: 0.005, ..SmoothingConfig::default() };
-        // Each pass halves the track's shift: 0.1, 0.05, …; it settles once a pass moves ≤ 5 mm.
-        let run = |config: &SmoothingConfig| {
-            map_passes(
-                0.1,
-                &ranges,
-                &anchors,
-                config,
-                LeverArms::default(),
-                |shift: &mut f64| Ok::<_, ()>(Some(track(*shift))),
-                |g: Guide| Ok(Some(g.state_at(0.0).expect("inside").position.x / 2.0)),
-            )
-            .unwrap()
-        };
-        let (shift, done) = run(&config);
         // Moves 0.05, 0.025, 0.0125, 0.00625, 0.003125: the fifth pass settles.
+        let (shift, done) = map_passes(&mut Halving, 0.1, &ranges, &config).unwrap();
         assert_eq!(done, MapPasses { passes: 5, converged: true });
         assert!((shift - 0.1 / 32.0).abs() < 1e-15);
-        let (_, done) = run(&SmoothingConfig { map_passes: Some(2), ..config });
+        let (_, done) = map_passes(&mut Halving, 0.1, &ranges, &SmoothingConfig { map_passes: Some(2), ..config }).unwrap();
         assert_eq!(done, MapPasses { passes: 2, converged: false });
-        let (_, done) = run(&SmoothingConfig { map_passes: None, ..config });
+        let (_, done) = map_passes(&mut Halving, 0.1, &ranges, &SmoothingConfig { map_passes: None, ..config }).unwrap();
         assert_eq!(done, MapPasses { passes: 0, converged: false });
     }
 }

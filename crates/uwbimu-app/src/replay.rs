@@ -109,6 +109,10 @@ impl Replay {
                 BatchOutput::Inertial { trace, .. } => trace.health.smoothing_left_out,
                 BatchOutput::Multilateration(_) => 0,
             },
+            map_passes: match &self.output {
+                BatchOutput::Inertial { trace, .. } => trace.health.map_passes,
+                BatchOutput::Multilateration(_) => 0,
+            },
             rmse,
         })
     }
@@ -150,6 +154,9 @@ pub struct ReplaySummary {
     /// (`smoothing.outlier_passes`, [`crate::outlier_smoothing`]; 0 for a forward run). The
     /// per-anchor counts are those of the last pass, which did not see them.
     pub smoothing_left_out: usize,
+    /// MAP passes the smoothing ran (`smoothing.map_passes`, [`crate::map_smoothing`]; 0 for a
+    /// forward run).
+    pub map_passes: u32,
     /// The errors against ground truth (only with ground truth; its keys sit at the top level).
     #[serde(flatten)]
     pub rmse: Option<TruthRmse>,

@@ -22,7 +22,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
-use crate::map_smoothing::{map_passes, MapPasses};
+use crate::map_smoothing::{self, largest_move, map_passes, MapPasses, MapRunner};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Input, Method};
@@ -267,21 +267,44 @@ fn map_smooth<F: InertialFilter>(
     smoothing: &SmoothingConfig,
 ) -> Result<(SmoothedPass, MapPasses)> {
     let (trace, smoothed, init) = first;
-    let unguided = MapPasses { passes: 0, converged: false };
     if !build(initial)?.set_guide(None) {
-        return Ok(((trace, smoothed, init), unguided));
+        return Ok(((trace, smoothed, init), MapPasses { passes: 0, converged: false }));
     }
     let quiet = input.progress.map(Progress::sharing_cancel);
-    let again_input = BatchInput { progress: quiet.as_ref(), ..*input };
-    let again = |guide: Guide| {
-        let (trace, smoothed, _) = run_pass(build, initial, &again_input, Some(Arc::new(guide)))?;
-        let complete = smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
-        Ok::<_, Error>(complete.then_some((trace, smoothed)))
-    };
-    let track = |(_, smoothed): &mut (Trace, Option<Vec<StepRecord>>)| Ok(smoothed.clone());
-    let ((trace, smoothed), done) =
-        map_passes((trace, smoothed), input.ranges, input.anchors, smoothing, input.config.mounting.lever_arm, track, again)?;
+    let mut runner = InMemory { build, initial, input: BatchInput { progress: quiet.as_ref(), ..*input } };
+    let ((trace, smoothed), done) = map_passes(&mut runner, (trace, smoothed), input.ranges, smoothing)?;
     Ok(((trace, smoothed, init), done))
+}
+
+/// The MAP passes of a batch run, held in memory: a pass is its trace and smoothed steps.
+struct InMemory<'a, B> {
+    build: &'a B,
+    initial: &'a InitialState,
+    input: BatchInput<'a>,
+}
+
+impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemory<'_, B> {
+    type Pass = (Trace, Option<Vec<StepRecord>>);
+    type Error = Error;
+
+    fn residuals(&mut self, (_, smoothed): &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
+        Ok(smoothed.as_deref().map(|steps| residuals_of(&self.input, steps)))
+    }
+
+    fn guide(&mut self, (_, smoothed): &mut Self::Pass, weights: &[f64]) -> Result<Guide> {
+        let steps = smoothed.iter().flatten().map(|s| Ok(*s));
+        map_smoothing::guide(steps, self.input.ranges, weights)
+    }
+
+    fn moved(&mut self, (_, a): &mut Self::Pass, (_, b): &mut Self::Pass) -> Result<f64> {
+        largest_move(a.iter().flatten().map(|s| Ok(*s)), b.iter().flatten().map(|s| Ok(*s)))
+    }
+
+    fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>> {
+        let (trace, smoothed, _) = run_pass(self.build, self.initial, &self.input, Some(Arc::new(guide)))?;
+        let complete = smoothed.is_some() && !self.input.progress.is_some_and(Progress::cancelled);
+        Ok(complete.then_some((trace, smoothed)))
+    }
 }
 
 /// A complete pass of [`run_inertial`]: the forward trace, its RTS-smoothed steps (None when the

@@ -47,7 +47,7 @@ use truth_match::TruthMatch;
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::io::{IoResult as Result, Mapping, RecordingSurvey};
-use crate::map_smoothing::map_passes;
+use crate::map_smoothing::{largest_move, map_passes, MapRunner};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Method};
@@ -119,6 +119,7 @@ impl StreamedReplay {
             mean_nis: self.mean_nis,
             model: self.model.as_ref().map(ModelSummary::of),
             smoothing_left_out: self.health.smoothing_left_out,
+            map_passes: self.health.map_passes,
             rmse: self.rmse,
         }
     }
@@ -348,24 +349,8 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
     let guided = pass.stream.estimator_mut().is_some_and(|f| (kind.guide)(f, None));
     if smoothing.map_passes_or_zero() > 0 && guided {
-        let track = |pass: &mut Pass<'_, E>| -> Result<Option<Vec<StepRecord>>> {
-            let Some(smoothed) = pass.smoothed.as_mut() else { return Ok(None) };
-            let mut steps = smoothed.newest_first()?.map(|v| v.map(|v| step_from_flat(&v))).collect::<Result<Vec<_>>>()?;
-            steps.reverse();
-            Ok(Some(steps))
-        };
-        let again = |guide: Guide| -> Result<Option<Pass<'_, E>>> {
-            let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
-            let out = StepsOut::spilled(input.spill_dir)?;
-            let mut all_ranges = RangesOfPass::default();
-            let guide = Some(Arc::new(guide));
-            let mut rerun = run_pass(method, &again_input, kind, imu_span_s, out, &mut all_ranges, model.as_ref(), guide)?;
-            rerun.smooth(&again_input, kind.core)?;
-            let complete = rerun.smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
-            Ok(complete.then_some(rerun))
-        };
-        let lever_arms = input.config.mounting.lever_arm;
-        let (mut pass, done) = map_passes(pass, &all, &survey.anchors.positions, &smoothing, lever_arms, track, again)?;
+        let mut runner = Spilled { method, input, kind, imu_span_s, model: model.as_ref(), quiet: quiet.as_ref(), ranges: &all };
+        let (mut pass, done) = map_passes(&mut runner, pass, &all, &smoothing)?;
         pass.map_passes = done.passes;
         return pass.finish(survey, Some(on_step));
     }
@@ -395,6 +380,63 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     let (mut pass, left_out) = leave_out_long_ranges(pass, passes, &all, smoothing.outlier_sigmas, residuals, again)?;
     pass.left_out = left_out;
     pass.finish(survey, Some(on_step))
+}
+
+/// The MAP passes of a streamed replay: a pass reads the file again, its smoothed steps spilled to
+/// disk and read back oldest first.
+struct Spilled<'a, 'i, E> {
+    method: Method,
+    input: &'a StreamedInput<'i>,
+    kind: &'a FilterKind<E>,
+    imu_span_s: (f64, f64),
+    model: Option<&'a ModelChoice>,
+    quiet: Option<&'a Progress>,
+    /// Every range of the first pass, in stream order.
+    ranges: &'a [uwbimu_vocabulary::records::RangeMeasurement],
+}
+
+/// The smoothed steps of a pass, oldest first (None when it has none).
+fn smoothed_steps<'p, E>(pass: &'p mut Pass<'_, E>) -> Result<Option<impl Iterator<Item = Result<StepRecord>> + 'p>> {
+    let Some(smoothed) = pass.smoothed.as_mut() else { return Ok(None) };
+    // Kept newest first, the smoothed steps come back oldest first.
+    Ok(Some(smoothed.newest_first()?.map(|v| v.map(|v| step_from_flat(&v)))))
+}
+
+impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i, E> {
+    type Pass = Pass<'a, E>;
+    type Error = crate::io::IoError;
+
+    fn residuals(&mut self, pass: &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
+        let Some(steps) = smoothed_steps(pass)? else { return Ok(None) };
+        let mut walk = ResidualWalk::new(self.ranges, &self.input.survey.anchors.positions, self.input.config.mounting.lever_arm);
+        for step in steps {
+            walk.push(&step?);
+        }
+        Ok(Some(walk.finish()))
+    }
+
+    fn guide(&mut self, pass: &mut Self::Pass, weights: &[f64]) -> Result<Guide> {
+        let Some(steps) = smoothed_steps(pass)? else { return Ok(Guide::default()) };
+        crate::map_smoothing::guide(steps, self.ranges, weights)
+    }
+
+    fn moved(&mut self, a: &mut Self::Pass, b: &mut Self::Pass) -> Result<f64> {
+        match (smoothed_steps(a)?, smoothed_steps(b)?) {
+            (Some(a), Some(b)) => largest_move(a, b),
+            _ => Ok(f64::INFINITY),
+        }
+    }
+
+    fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>> {
+        let input = StreamedInput { progress: self.quiet, ..*self.input };
+        let out = StepsOut::spilled(input.spill_dir)?;
+        let guide = Some(Arc::new(guide));
+        let mut rerun =
+            run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut RangesOfPass::default(), self.model, guide)?;
+        rerun.smooth(&input, self.kind.core)?;
+        let complete = rerun.smoothed.is_some() && !self.quiet.is_some_and(Progress::cancelled);
+        Ok(complete.then_some(rerun))
+    }
 }
 
 /// Replays a recording streamed from its file through `method`, in memory bounded whatever the

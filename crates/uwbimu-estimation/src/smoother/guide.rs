@@ -30,9 +30,15 @@ pub struct Guide {
 }
 
 impl Guide {
-    /// A guide along the smoothed `steps` (in time order), every range of weight 1.
+    /// A guide along a smoothed track given as (time s, state) in increasing time, every range
+    /// of weight 1.
+    pub fn along(track: impl IntoIterator<Item = (f64, NominalState)>) -> Self {
+        Self { track: track.into_iter().collect(), weights: Vec::new() }
+    }
+
+    /// A guide along smoothed steps in time order ([`Guide::along`]).
     pub fn new(steps: &[StepRecord]) -> Self {
-        Self { track: steps.iter().map(|s| (s.t_s, s.state)).collect(), weights: Vec::new() }
+        Self::along(steps.iter().map(|s| (s.t_s, s.state)))
     }
 
     /// Sets the weights of ranges given as (time s, tag, anchor, weight); a weight is clamped to

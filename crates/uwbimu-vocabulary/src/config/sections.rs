@@ -391,13 +391,13 @@ section! {
         /// next, m.
         map_tolerance: f64 = 0.005, positive;
         /// Width `c` of the MAP smoother's kernel, in robust σ of the anchor's residuals (0:
-        /// Gaussian, every range of weight 1): Cauchy's weighs a range `1/(1 + (u/c)²)`, Huber's
-        /// `min(1, c/|u|)`, the hard kernel leaves it out beyond `c` (and 0.1 m).
-        kernel_width: f64 = 2.385, non_negative;
-        /// Huber's kernel instead of Cauchy's.
+        /// Gaussian, every range of weight 1): the hard kernel leaves a range out beyond `c` (and
+        /// 0.1 m), Cauchy's weighs it `1/(1 + (u/c)²)`, Huber's `min(1, c/|u|)`.
+        kernel_width: f64 = 3.0, non_negative;
+        /// Cauchy's kernel instead of the hard one (for its usual width set `kernel_width` 2.385).
+        cauchy: bool = false, flag;
+        /// Huber's kernel instead of the hard one (and of Cauchy's; its usual width is 1.345).
         huber: bool = false, flag;
-        /// The hard kernel instead of Cauchy's (and of Huber's): the rule of the outlier passes.
-        hard: bool = false, flag;
         /// Weigh short ranges by the kernel too (symmetric); off: the asymmetric NLOS kernel, which
         /// weighs only ranges longer than the track predicts (NLOS lengthens a range).
         symmetric: bool = false, flag;

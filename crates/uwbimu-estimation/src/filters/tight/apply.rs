@@ -167,3 +167,101 @@ impl TightFilter {
         self.solve_one(tdoa, at_prior[0])
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use uwbimu_vocabulary::config::{FilterConfig, InitialState};
+    use uwbimu_vocabulary::math::Vec3;
+    use uwbimu_vocabulary::records::AltitudeSample;
+    use uwbimu_vocabulary::sensors::Observation;
+    use uwbimu_vocabulary::state::NominalState;
+
+    use crate::filters::{Ekf, Filter, InertialFilter};
+    use crate::pipeline::StepRecord;
+    use crate::smoother::Guide;
+    use crate::update::UpdateReport;
+
+    const ANCHORS: [Vec3; 4] =
+        [Vec3::new(0.0, 0.0, 2.0), Vec3::new(8.0, 0.0, 1.0), Vec3::new(8.0, 6.0, 2.0), Vec3::new(0.0, 6.0, 1.0)];
+
+    /// An `ekf` (fixed noise, one step per epoch) one second into a slow turn.
+    fn moving(config: &FilterConfig) -> Ekf {
+        let initial =
+            InitialState { position: Vec3::new(3.0, 2.0, 1.0), velocity: Vec3::new(0.3, 0.1, 0.0), ..InitialState::default() };
+        let mut f = Ekf::new(ANCHORS.to_vec(), &initial, config.clone()).expect("filter");
+        for k in 0..=100 {
+            f.predict(0.01 * f64::from(k), &Vec3::new(0.1, 0.0, 9.81), &Vec3::new(0.0, 0.0, 0.2)).expect("predict");
+        }
+        f
+    }
+
+    /// A guide whose track is `state` at every time.
+    fn guide_at(state: NominalState, weights: &[(f64, usize, usize, f64)]) -> Arc<Guide> {
+        let step = |t_s| StepRecord { t_s, state, position_cov: Default::default(), still: false, status: 0 };
+        Arc::new(Guide::new(&[step(0.0), step(10.0)]).with_weights(weights.iter().copied()))
+    }
+
+    fn ranges(f: &mut Ekf, t_s: f64, r: &[(usize, f64)]) {
+        let mut reports = vec![UpdateReport::skipped(); r.len()];
+        f.update_ranges(t_s, r, &mut reports).expect("ranges");
+    }
+
+    fn close(a: &Ekf, b: &Ekf, tol: f64) -> bool {
+        let (x, y) = (a.core().state(), b.core().state());
+        (x.position - y.position).norm() < tol
+            && (x.velocity - y.velocity).norm() < tol
+            && x.orientation.angle_to(&y.orientation) < tol
+            && (a.core().covariance() - b.core().covariance()).abs().max() < tol
+    }
+
+    #[test]
+    fn a_linear_measurement_updates_the_same_wherever_it_is_linearised() {
+        // An altitude is linear in the position: the Gauss–Newton step at any operating point of
+        // the same attitude (the error state composes additively in position and velocity) is the
+        // Kalman step.
+        let config = FilterConfig::default();
+        let (mut plain, mut guided) = (moving(&config), moving(&config));
+        let mut far = *plain.core().state();
+        far.position += Vec3::new(1.0, -2.0, 0.7);
+        far.velocity += Vec3::new(0.3, 0.2, -0.1);
+        assert!(guided.set_guide(Some(guide_at(far, &[]))));
+        let z = Observation::Altitude(AltitudeSample { t_s: 1.0, z_m: 1.2 });
+        plain.observe(&z).expect("altitude");
+        guided.observe(&z).expect("altitude");
+        assert!(close(&plain, &guided, 1e-9));
+        assert!((plain.core().state().position.z - 1.0).abs() > 0.01, "the update moved the height");
+    }
+
+    #[test]
+    fn a_range_linearised_at_the_prior_is_the_ekf_step_and_elsewhere_is_not() {
+        let config = FilterConfig::default();
+        let (mut plain, mut at_prior, mut far) = (moving(&config), moving(&config), moving(&config));
+        let prior = *plain.core().state();
+        assert!(at_prior.set_guide(Some(guide_at(prior, &[]))));
+        let mut off = prior;
+        off.position += Vec3::new(0.8, 0.5, 0.0);
+        assert!(far.set_guide(Some(guide_at(off, &[]))));
+        let epoch = [(0, 3.9), (1, 5.6), (2, 6.1)];
+        for f in [&mut plain, &mut at_prior, &mut far] {
+            ranges(f, 1.0, &epoch);
+        }
+        assert!(close(&plain, &at_prior, 1e-9));
+        assert!(!close(&plain, &far, 1e-6), "a range is not linear: the operating point matters");
+    }
+
+    #[test]
+    fn a_range_of_weight_w_is_a_range_of_variance_over_w() {
+        let config = FilterConfig::default();
+        let mut wider = config.clone();
+        wider.ranging.range_std *= 2.0;
+        let (mut weighted, mut noisier) = (moving(&config), moving(&wider));
+        let prior = *weighted.core().state();
+        assert!(weighted.set_guide(Some(guide_at(prior, &[(1.0, 0, 1, 0.25)]))));
+        assert!(noisier.set_guide(Some(guide_at(prior, &[]))));
+        ranges(&mut weighted, 1.0, &[(1, 5.6)]);
+        ranges(&mut noisier, 1.0, &[(1, 5.6)]);
+        assert!(close(&weighted, &noisier, 1e-12));
+    }
+}
