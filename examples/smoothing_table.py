@@ -54,7 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|---|")
     walk = isas_walk1()
     if walk is not None:
-        print(row("isas-walk1", *walk, {}), flush=True)
+        imu, ranges, anchors, truth = walk
+        print(row("isas-walk1", imu, ranges, anchors, truth, {}), flush=True)
     for name, imu, ranges, anchors, truth, config in rig_runs(args.rigs, args.seeds):
         print(row(name, imu, ranges, anchors, truth, config), flush=True)
     return 0

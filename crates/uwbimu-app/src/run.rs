@@ -28,6 +28,8 @@ use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Input, Method};
 
 /// What a batch run produced.
+// Made once per run and taken apart at once: boxing the trace would only add an indirection.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum BatchOutput {
     /// An inertial filter's trace, with the self-initialisation used (None if the caller gave

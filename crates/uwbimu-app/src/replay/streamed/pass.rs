@@ -64,6 +64,7 @@ pub(super) struct Pass<'f, E> {
 /// Reads the file once through `method` into `out`, leaving out and keeping ranges as `ranges`
 /// says, with the model `chosen` on an earlier pass (None: chosen now, when the method chooses),
 /// the filter guided by `guide` when given (a MAP pass).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     method: Method,
     input: &StreamedInput<'_>,
