@@ -184,7 +184,9 @@ def choose_model(
 
     Each candidate runs once per anchor without that anchor's ranges and is scored by how well it
     predicts them (the held-out range RMS, m, each anchor's residuals centred on their median, the
-    half nearest it kept); a candidate must beat the current choice by 10 %. The same
+    half nearest it kept); a candidate must beat the current choice by 10 %. With four anchors it
+    holds out 2 s blocks of time instead (4 folds; each range of a block predicted through it by
+    the IMU alone, less the anchor's bias as estimated before it; 15 %). The same
     computation ``run_filter("best", ...)`` makes: the returned ``config`` (selection off) given
     to ``run_filter`` reproduces its run, and the streaming :class:`Best` takes it. Runs over the
     first ``model_selection.window_s`` of the log (300 s), (6 + 2) candidates × up to 8 folds in
@@ -200,7 +202,7 @@ def choose_model(
     dict
         ``config`` (nested dict of the chosen configuration), ``overrides`` (``{key: value}`` it
         changes against ``config``), ``chosen`` (label, None when no selection ran), ``reason``
-        (the scores behind it, or why no selection ran: fewer than 5 anchors, no ranges),
+        (the scores behind it, or why no selection ran: fewer than 4 anchors, no ranges),
         ``candidates`` (polars DataFrame: ``label``, ``score`` m, ``per_anchor`` list of m).
 
     Raises

@@ -30,10 +30,10 @@ def test_tune_by_held_out_ranges_returns_a_config_that_helps():
     # The tuned run and the held-out score it was chosen by, each held to its measured figure.
     hold("python", "tune,handheld_walk,8,riekf,tuned_rmse", after)
     hold("python", "tune,handheld_walk,8,riekf,held_out_score", out["score"])
-    # Without truth the score holds anchors out, so it needs five (each fold leaves four).
-    few = run.ranges[run.ranges[:, 1] < 4]
-    with pytest.raises(ValueError, match="5 anchors"):
-        uwbimu_rs.tune("riekf", run.imu, few, run.anchors[:4], config=base)
+    # Without truth the score holds anchors out (five or more) or time blocks (four), so it needs four.
+    few = run.ranges[run.ranges[:, 1] < 3]
+    with pytest.raises(ValueError, match="4 anchors"):
+        uwbimu_rs.tune("riekf", run.imu, few, run.anchors[:3], config=base)
     with pytest.raises(ValueError, match="uwb_ls"):
         uwbimu_rs.tune("uwb_ls", run.imu, run.ranges, run.anchors)
 
@@ -112,7 +112,10 @@ def test_best_chooses_bias_states_where_they_pay_and_says_why():
     # Without biases nothing pays: it stays the plain filter.
     clean = uwbimu_rs.choose_model("best", run.imu, run.ranges, run.anchors, config=cfg)
     assert not clean["config"]["range_bias"]["states"], clean["reason"]
-    # With four anchors each fold would leave three: it says so and keeps the configuration.
-    few = run.ranges[run.ranges[:, 1] < 4]
-    none = uwbimu_rs.choose_model("best", run.imu, few, run.anchors[:4], config=cfg)
-    assert none["chosen"] is None and "4 anchors" in none["reason"] and none["candidates"].height == 0
+    # Four anchors hold out time blocks instead of anchors; with three it says so and keeps the
+    # configuration.
+    four = uwbimu_rs.choose_model("best", run.imu, run.ranges[run.ranges[:, 1] < 4], run.anchors[:4], config=cfg)
+    assert four["candidates"].height == 8, four["reason"]
+    few = run.ranges[run.ranges[:, 1] < 3]
+    none = uwbimu_rs.choose_model("best", run.imu, few, run.anchors[:3], config=cfg)
+    assert none["chosen"] is None and "3 anchors" in none["reason"] and none["candidates"].height == 0

@@ -15,6 +15,8 @@ pub struct Candidate {
     pub score_m: f64,
     /// The held-out RMS per anchor, m (NaN for an anchor with too few scored ranges).
     pub per_anchor_m: Vec<f64>,
+    /// The held-out RMS of each fold, m (+∞ for a fold whose run failed or scored nothing).
+    pub per_fold_m: Vec<f64>,
 }
 
 /// What [`crate::select::choose`] decided.

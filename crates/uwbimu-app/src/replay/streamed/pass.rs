@@ -79,7 +79,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     let choosing = chosen.is_none() && method.chooses_its_model() && input.config.model_selection.enabled;
     // A log the selection cannot score for its anchors or its lack of ranges needs no window
     // kept: the choice (the input configuration, and why) comes at once.
-    let scorable = survey.anchors.positions.len() >= crate::select::MIN_ANCHORS && survey.n_ranges > 0;
+    let scorable = survey.anchors.positions.len() >= crate::select::MIN_BLOCK_ANCHORS && survey.n_ranges > 0;
     let selecting = choosing && scorable;
     let mut run = Run {
         method,
