@@ -27,7 +27,7 @@ use uwbimu_vocabulary::config::SmoothingConfig;
 use uwbimu_vocabulary::records::RangeMeasurement;
 use uwbimu_vocabulary::state::NominalState;
 
-use crate::outlier_smoothing::{median_and_robust_sigma, Residual, OUTLIER_FLOOR_M};
+use crate::outlier_smoothing::{anchor_spreads, Residual, OUTLIER_FLOOR_M};
 
 /// The kernel weight of a range longer than its anchor's median by `excess_m`, `u` times its
 /// scale (module doc), under `smoothing`'s kernel, in [0, 1]: with `c` = `kernel_width`, the hard
@@ -55,22 +55,7 @@ pub fn kernel_weight(u: f64, excess_m: f64, smoothing: &SmoothingConfig) -> f64 
 /// The weight of each range (in the order of `ranges`) from its residual against a smoothed
 /// track (module doc); 1 where it has none.
 pub fn range_weights(residuals: &[Option<Residual>], ranges: &[RangeMeasurement], smoothing: &SmoothingConfig) -> Vec<f64> {
-    let n_anchors = ranges.iter().map(|r| r.anchor + 1).max().unwrap_or(0);
-    let mut by_anchor: Vec<Vec<f64>> = vec![Vec::new(); n_anchors];
-    for (r, e) in ranges.iter().zip(residuals) {
-        if let Some(e) = e.filter(|e| e.range_m.is_finite()) {
-            by_anchor[r.anchor].push(e.range_m);
-        }
-    }
-    let spread: Vec<Option<(f64, f64)>> = by_anchor
-        .iter_mut()
-        .map(|e| {
-            (!e.is_empty()).then(|| {
-                e.sort_by(f64::total_cmp);
-                median_and_robust_sigma(e)
-            })
-        })
-        .collect();
+    let spread = anchor_spreads(residuals, ranges);
     ranges
         .iter()
         .zip(residuals)

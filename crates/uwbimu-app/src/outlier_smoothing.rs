@@ -96,6 +96,27 @@ impl<'a> ResidualWalk<'a> {
     }
 }
 
+/// Per anchor (indexed by anchor), the median and robust σ of its finite residuals
+/// ([`median_and_robust_sigma`]), None for an anchor without any.
+pub(crate) fn anchor_spreads(residuals: &[Option<Residual>], ranges: &[RangeMeasurement]) -> Vec<Option<(f64, f64)>> {
+    let n_anchors = ranges.iter().map(|r| r.anchor + 1).max().unwrap_or(0);
+    let mut by_anchor: Vec<Vec<f64>> = vec![Vec::new(); n_anchors];
+    for (r, e) in ranges.iter().zip(residuals) {
+        if let Some(e) = e.filter(|e| e.range_m.is_finite()) {
+            by_anchor[r.anchor].push(e.range_m);
+        }
+    }
+    by_anchor
+        .iter_mut()
+        .map(|e| {
+            (!e.is_empty()).then(|| {
+                e.sort_by(f64::total_cmp);
+                median_and_robust_sigma(e)
+            })
+        })
+        .collect()
+}
+
 /// Marks in `left_out` the ranges whose residual is longer than its anchor's median by more than
 /// `sigmas`·`√(σ² + σ_track²)` and [`OUTLIER_FLOOR_M`] (module doc); the median and σ are taken
 /// over all the anchor's residuals, also those already left out. Returns how many it newly marked.
@@ -105,22 +126,7 @@ pub fn mark_long_ranges(
     sigmas: f64,
     left_out: &mut [bool],
 ) -> usize {
-    let n_anchors = ranges.iter().map(|r| r.anchor + 1).max().unwrap_or(0);
-    let mut by_anchor: Vec<Vec<f64>> = vec![Vec::new(); n_anchors];
-    for (r, e) in ranges.iter().zip(residuals) {
-        if let Some(e) = e.filter(|e| e.range_m.is_finite()) {
-            by_anchor[r.anchor].push(e.range_m);
-        }
-    }
-    let spread: Vec<Option<(f64, f64)>> = by_anchor
-        .iter_mut()
-        .map(|e| {
-            (!e.is_empty()).then(|| {
-                e.sort_by(f64::total_cmp);
-                median_and_robust_sigma(e)
-            })
-        })
-        .collect();
+    let spread = anchor_spreads(residuals, ranges);
     let mut marked = 0;
     for ((r, e), out) in ranges.iter().zip(residuals).zip(left_out.iter_mut()) {
         let (Some(e), Some((median, sigma))) = (e, spread[r.anchor]) else { continue };

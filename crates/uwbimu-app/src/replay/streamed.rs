@@ -33,7 +33,7 @@ use uwbimu_estimation::smoother::Guide;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::ImuSample;
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::SensorKind;
 
 mod ordered;
@@ -354,15 +354,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         pass.map_passes = done.passes;
         return pass.finish(survey, Some(on_step));
     }
-    let residuals = |pass: &mut Pass<'_, E>| -> Result<Option<Vec<Option<Residual>>>> {
-        let Some(smoothed) = pass.smoothed.as_mut() else { return Ok(None) };
-        let mut walk = ResidualWalk::new(&all, &survey.anchors.positions, input.config.mounting.lever_arm);
-        // Kept newest first, the smoothed steps come back oldest first.
-        for v in smoothed.newest_first()? {
-            walk.push(&step_from_flat(&v?));
-        }
-        Ok(Some(walk.finish()))
-    };
+    let residuals = |pass: &mut Pass<'_, E>| residuals_of(pass, &all, input);
     let again = |left_out: &[bool]| -> Result<Option<Pass<'_, E>>> {
         let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
         let mut again_ranges = RangesOfPass { kept: None, left_out, seen: 0 };
@@ -392,7 +384,7 @@ struct Spilled<'a, 'i, E> {
     model: Option<&'a ModelChoice>,
     quiet: Option<&'a Progress>,
     /// Every range of the first pass, in stream order.
-    ranges: &'a [uwbimu_vocabulary::records::RangeMeasurement],
+    ranges: &'a [RangeMeasurement],
 }
 
 /// The smoothed steps of a pass, oldest first (None when it has none).
@@ -402,17 +394,26 @@ fn smoothed_steps<'p, E>(pass: &'p mut Pass<'_, E>) -> Result<Option<impl Iterat
     Ok(Some(smoothed.newest_first()?.map(|v| v.map(|v| step_from_flat(&v)))))
 }
 
+/// The residuals of `ranges` against a pass's smoothed track (None when it has none).
+fn residuals_of<E>(
+    pass: &mut Pass<'_, E>,
+    ranges: &[RangeMeasurement],
+    input: &StreamedInput<'_>,
+) -> Result<Option<Vec<Option<Residual>>>> {
+    let Some(steps) = smoothed_steps(pass)? else { return Ok(None) };
+    let mut walk = ResidualWalk::new(ranges, &input.survey.anchors.positions, input.config.mounting.lever_arm);
+    for step in steps {
+        walk.push(&step?);
+    }
+    Ok(Some(walk.finish()))
+}
+
 impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i, E> {
     type Pass = Pass<'a, E>;
     type Error = crate::io::IoError;
 
     fn residuals(&mut self, pass: &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
-        let Some(steps) = smoothed_steps(pass)? else { return Ok(None) };
-        let mut walk = ResidualWalk::new(self.ranges, &self.input.survey.anchors.positions, self.input.config.mounting.lever_arm);
-        for step in steps {
-            walk.push(&step?);
-        }
-        Ok(Some(walk.finish()))
+        residuals_of(pass, self.ranges, self.input)
     }
 
     fn guide(&mut self, pass: &mut Self::Pass, weights: &[f64]) -> Result<Guide> {
