@@ -43,7 +43,7 @@ def test_public_package_types_match_runtime():
 
 def test_examples_type_check_against_the_public_api():
     scripts = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "examples").glob("*.py"))
-    proc = run_module("mypy", *scripts, "benches/python_api.py", "benches/fleet.py", "benches/fixed_lag.py")
+    proc = run_module("mypy", *scripts, "benches/python_api.py", "benches/fleet.py", "benches/fixed_lag.py", "benches/whole_run.py")
     assert proc.returncode == 0, f"mypy failed:\n{proc.stdout}\n{proc.stderr}"
 
 

@@ -27,23 +27,26 @@
 //!    yaw is 0 with a standard deviation of π (the filter has to find the heading from the ranges
 //!    by itself).
 //!
-//! **On a prefix** ([`SelfInitializer`], the one way both the batch API and a streaming filter
-//! initialise): the data is taken in time order and the initialisation is tried every
-//! [`ATTEMPT_INTERVAL_S`] of IMU time from `init.still_s` on, on everything seen so far; it is
-//! decided once a fix exists and the heading is settled — its last epoch closed (older than the
-//! epoch window) or the timeout passed. A log that ends first is initialised on all of it.
+//! **In one pass** ([`SelfInitializer`], the one way both the batch API, [`initialize`] and a
+//! streaming filter initialise): the data is taken in time order and kept; each range epoch and
+//! TDoA window is solved once, when it closes, and screened once; the heading's dead reckoning
+//! runs only up to the fixes that have moved (none at a standstill) and resumes where it stopped.
+//! From `init.still_s` on, every [`ATTEMPT_INTERVAL_S`] of IMU time, the initialisation is
+//! evaluated on everything seen so far (the open epoch solved as if closed), at a cost that does
+//! not grow with the data seen; it is decided once a fix exists and the heading is settled — its
+//! last epoch closed (older than the epoch window) or the timeout passed. A log that ends first
+//! is initialised on all of it.
 
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::percentile;
-use uwbimu_vocabulary::math::{Quat, Vec3};
+use uwbimu_vocabulary::math::{percentile, Mat3, Quat, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::state::NominalState;
 
-use crate::epoch::{group_epochs, Epoch};
+use crate::epoch::EpochAssembler;
 use crate::ins::{propagate_nominal, ImuInterval};
-use crate::multilateration::tdoa::tdoa_fixes;
-use crate::multilateration::{solve_epoch, Fix, LsConfig};
+use crate::multilateration::tdoa::{solve_tdoa, TdoaWindow};
+use crate::multilateration::{solve_epoch, ConsistencyTest, Fix, LsConfig};
 
 /// Accelerometer standard deviation below which the start window counts as still, m/s².
 const STILL_ACCEL_STD: f64 = 0.2;
@@ -105,7 +108,7 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
 }
 
 /// [`initialize`] that also takes TDoA (validated, time-ordered): their fixes serve when the
-/// ranges give none (a TDoA-only run).
+/// ranges give none (a TDoA-only run); through a [`SelfInitializer`].
 pub fn initialize_with_tdoa(
     imu: &[ImuSample],
     ranges: &[RangeMeasurement],
@@ -113,48 +116,225 @@ pub fn initialize_with_tdoa(
     anchors: &[Vec3],
     config: &FilterConfig,
 ) -> Result<SelfInit> {
-    Ok(self_init(imu, ranges, tdoa, anchors, config)?.0)
+    let mut initializer = SelfInitializer::new(anchors, config)?;
+    // No attempt is made before `finish`, so the streams can be taken one after the other.
+    imu.iter().for_each(|s| initializer.take_imu(s));
+    ranges.iter().for_each(|r| initializer.range(r));
+    tdoa.iter().for_each(|m| initializer.tdoa(m));
+    initializer.finish()
 }
 
-/// [`initialize_with_tdoa`] on the data seen so far, and whether more data could still change it
-/// (see the module doc): Some once decided, None before.
-pub fn initialize_if_decided(
-    imu: &[ImuSample],
-    ranges: &[RangeMeasurement],
-    tdoa: &[TdoaMeasurement],
-    anchors: &[Vec3],
-    config: &FilterConfig,
-) -> Result<Option<SelfInit>> {
-    let (Some(first), Some(last)) = (imu.first(), imu.last()) else {
-        return Ok(None);
-    };
-    let (t0, t_s) = (first.t_s, last.t_s);
-    if t_s < t0 + config.init.still_s {
-        return Ok(None);
+/// A UWB fix of self-initialisation: its time, s, the fix, and the ranges it was solved from
+/// (none for a TDoA fix).
+#[derive(Debug, Clone)]
+struct SolvedFix {
+    t_s: f64,
+    fix: Fix,
+    obs: Vec<(usize, f64)>,
+}
+
+/// The fixes of one source in time order: all of them, and those that passed the consistency
+/// test (α = [`CONSISTENCY_ALPHA`]).
+#[derive(Debug, Clone)]
+struct FixList {
+    all: Vec<SolvedFix>,
+    consistent: Vec<SolvedFix>,
+    test: ConsistencyTest,
+}
+
+impl FixList {
+    fn new(std_m: f64) -> Self {
+        Self { all: Vec::new(), consistent: Vec::new(), test: ConsistencyTest::new(std_m, CONSISTENCY_ALPHA) }
     }
-    let (init, heading_settled_s) = match self_init(imu, ranges, tdoa, anchors, config) {
-        Ok(found) => found,
-        Err(Error::InsufficientData(_)) => return Ok(None),
-        Err(e) => return Err(e),
-    };
-    let settled_s = heading_settled_s.unwrap_or(t0 + config.init.heading_timeout_s);
-    Ok((t_s > settled_s + config.ranging.epoch_window_s).then_some(init))
+
+    fn push(&mut self, fix: SolvedFix) {
+        if self.test.passes(&fix.fix) {
+            self.consistent.push(fix.clone());
+        }
+        self.all.push(fix);
+    }
+
+    fn extend(&mut self, fix: Option<SolvedFix>) {
+        if let Some(fix) = fix {
+            self.push(fix);
+        }
+    }
+
+    /// The lengths of both lists, to [`FixList::truncate`] back to.
+    fn lens(&self) -> (usize, usize) {
+        (self.all.len(), self.consistent.len())
+    }
+
+    fn truncate(&mut self, (all, consistent): (usize, usize)) {
+        self.all.truncate(all);
+        self.consistent.truncate(consistent);
+    }
 }
 
-/// The self-initialisation and, when the heading came from a full set of epochs, the time of the
-/// last one (later data cannot change it).
-fn self_init(
-    imu: &[ImuSample],
-    ranges: &[RangeMeasurement],
-    tdoa: &[TdoaMeasurement],
-    anchors: &[Vec3],
-    config: &FilterConfig,
-) -> Result<(SelfInit, Option<f64>)> {
-    let first = imu.first().ok_or_else(|| Error::InsufficientData("self-initialisation needs IMU samples".into()))?;
-    let t0 = first.t_s;
-    let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
+/// Closed epochs or windows not solved yet: solved at the next evaluation, so that between two
+/// attempts a stream's calls only store them. Their measurements back to back, and where each
+/// one ends.
+#[derive(Debug, Clone)]
+struct Unsolved<T> {
+    items: Vec<T>,
+    ends: Vec<usize>,
+}
 
-    // 1. Roll, pitch, gyro bias from the start window.
+impl<T: Copy> Unsolved<T> {
+    fn new() -> Self {
+        Self { items: Vec::new(), ends: Vec::new() }
+    }
+
+    fn close(&mut self, window: &[T]) {
+        if !window.is_empty() {
+            self.items.extend_from_slice(window);
+            self.ends.push(self.items.len());
+        }
+    }
+
+    /// Calls `solve` on each closed window in order and forgets them.
+    fn drain(&mut self, mut solve: impl FnMut(&[T])) {
+        let mut start = 0;
+        for &end in &self.ends {
+            solve(&self.items[start..end]);
+            start = end;
+        }
+        self.items.clear();
+        self.ends.clear();
+    }
+}
+
+/// One tag's ranges gathered into epochs as they arrive (the epoch rule of [`crate::epoch`]),
+/// each epoch solved once, after it closed.
+#[derive(Debug, Clone)]
+struct RangeFixes {
+    open: EpochAssembler,
+    closed: Unsolved<RangeMeasurement>,
+    fixes: FixList,
+}
+
+impl RangeFixes {
+    fn new(ls: &LsConfig, anchor_count: usize) -> Result<Self> {
+        Ok(Self {
+            open: EpochAssembler::new(ls.epoch_window_s, anchor_count)?,
+            closed: Unsolved::new(),
+            fixes: FixList::new(ls.range_std_m),
+        })
+    }
+
+    fn push(&mut self, r: &RangeMeasurement) {
+        if self.open.closes_before(r) {
+            self.close();
+        }
+        self.open.push(*r);
+        if self.open.is_full() {
+            self.close();
+        }
+    }
+
+    fn close(&mut self) {
+        self.closed.close(self.open.ranges());
+        self.open.clear();
+    }
+
+    /// Solves the closed epochs into the fix list.
+    fn solve_closed(&mut self, anchors: &[Vec3], ls: &LsConfig) {
+        let fixes = &mut self.fixes;
+        self.closed.drain(|epoch| fixes.extend(solve_ranges(epoch, anchors, ls)));
+    }
+
+    /// The open epoch solved as if it closed now.
+    fn open_fix(&self, anchors: &[Vec3], ls: &LsConfig) -> Option<SolvedFix> {
+        solve_ranges(self.open.ranges(), anchors, ls)
+    }
+}
+
+/// The fix of one epoch's ranges (at the time of its last one).
+fn solve_ranges(epoch: &[RangeMeasurement], anchors: &[Vec3], ls: &LsConfig) -> Option<SolvedFix> {
+    let t_s = epoch.last()?.t_s;
+    let obs: Vec<(usize, f64)> = epoch.iter().map(|r| (r.anchor, r.range_m)).collect();
+    Some(SolvedFix { t_s, fix: solve_epoch(anchors, &obs, ls)?, obs })
+}
+
+/// TDoA gathered into fix windows as they arrive ([`TdoaWindow`]), each solved once, after it
+/// closed; those older than half a second before the first IMU sample are left out.
+#[derive(Debug, Clone)]
+struct TdoaFixes {
+    early: Vec<TdoaMeasurement>,
+    open: TdoaWindow,
+    closed: Unsolved<TdoaMeasurement>,
+    fixes: FixList,
+    ls: LsConfig,
+    seen: bool,
+}
+
+impl TdoaFixes {
+    fn new(ls: LsConfig) -> Self {
+        Self {
+            early: Vec::new(),
+            open: TdoaWindow::default(),
+            closed: Unsolved::new(),
+            fixes: FixList::new(ls.range_std_m),
+            ls,
+            seen: false,
+        }
+    }
+
+    fn push(&mut self, m: &TdoaMeasurement, t0: Option<f64>) {
+        self.seen = true;
+        let Some(t0) = t0 else {
+            self.early.push(*m);
+            return;
+        };
+        if m.t_s < t0 - 0.5 {
+            return;
+        }
+        if self.open.closes_before(m) {
+            self.closed.close(self.open.measurements());
+            self.open.clear();
+        }
+        self.open.push(*m);
+    }
+
+    /// Solves the closed windows into the fix list.
+    fn solve_closed(&mut self, anchors: &[Vec3]) {
+        let (fixes, ls) = (&mut self.fixes, &self.ls);
+        self.closed.drain(|window| fixes.extend(solve_window(window, anchors, ls)));
+    }
+
+    /// The open window solved as if it closed now.
+    fn open_fix(&self, anchors: &[Vec3]) -> Option<SolvedFix> {
+        solve_window(self.open.measurements(), anchors, &self.ls)
+    }
+
+    /// The first IMU sample came at `t0`: the TDoA held until then join the windows.
+    fn start(&mut self, t0: f64) {
+        for m in std::mem::take(&mut self.early) {
+            self.push(&m, Some(t0));
+        }
+    }
+}
+
+/// The fix of one window of TDoA (at the time of its last one).
+fn solve_window(window: &[TdoaMeasurement], anchors: &[Vec3], ls: &LsConfig) -> Option<SolvedFix> {
+    let t_s = window.last()?.t_s;
+    Some(SolvedFix { t_s, fix: solve_tdoa(anchors, window, ls)?, obs: Vec::new() })
+}
+
+/// Roll, pitch and gyro bias from the start window (step 1 of the module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Levelling {
+    still: bool,
+    roll: f64,
+    pitch: f64,
+    level: Quat,
+    gyro_bias: Vec3,
+}
+
+/// Step 1 on the samples of the start window (the first `init.still_s` of `imu`).
+fn levelling(imu: &[ImuSample], config: &FilterConfig) -> Levelling {
+    let t0 = imu.first().map_or(0.0, |s| s.t_s);
+    let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
     let window: Vec<(Vec3, Vec3)> = imu.iter().take_while(|s| s.t_s < t0 + config.init.still_s).map(body).collect();
     let n = window.len() as f64;
     let f_mean = window.iter().map(|w| w.0).sum::<Vec3>() / n;
@@ -164,112 +344,318 @@ fn self_init(
     let roll = f_mean.y.atan2(f_mean.z);
     let pitch = (-f_mean.x).atan2((f_mean.y * f_mean.y + f_mean.z * f_mean.z).sqrt());
     let level = Quat::from_euler_angles(roll, pitch, 0.0);
-    let gyro_bias = if still { w_mean } else { Vec3::zeros() };
+    Levelling { still, roll, pitch, level, gyro_bias: if still { w_mean } else { Vec3::zeros() } }
+}
 
-    // 2. Tag position from UWB fixes (tag 0's: a fix is of one antenna).
-    let all_ranges = ranges;
-    let tag0_ranges: Vec<RangeMeasurement>;
-    let ranges = if ranges.iter().all(|r| r.tag == 0) {
-        ranges
-    } else {
-        tag0_ranges = ranges.iter().filter(|r| r.tag == 0).copied().collect();
-        &tag0_ranges
-    };
-    let ls = LsConfig::from_filter_config(config);
-    let epochs: Vec<Epoch> =
-        group_epochs(ranges, ls.epoch_window_s, anchors.len()).into_iter().filter(|e| e.t_s >= t0 - 0.5).collect();
-    let mut all: Vec<SolvedFix<'_>> =
-        epochs.iter().filter_map(|e| solve_epoch(anchors, &e.obs, &ls).map(|f| (e.t_s, f, e.obs.as_slice()))).collect();
-    let mut std_m = config.ranging.range_std;
-    if all.is_empty() && !tdoa.is_empty() {
-        std_m = config.ranging.tdoa_std;
-        let from = tdoa.partition_point(|m| m.t_s < t0 - 0.5);
-        all = tdoa_fixes(anchors, &tdoa[from..], &LsConfig { range_std_m: std_m, ..ls })
-            .into_iter()
-            .map(|(t, f)| (t, f, &[][..]))
-            .collect();
+/// What the heading from motion was scanned against: the start position, the levelling, and
+/// the fix list (its source and whether only its consistent fixes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ScanKey {
+    tag0: Vec3,
+    level: Quat,
+    gyro_bias: Vec3,
+    from_tdoa: bool,
+    consistent: bool,
+}
+
+/// The heading from motion (step 3) scanned fix by fix: the yaw's sums over the fixes past the
+/// heading distance, and the dead reckoning with yaw 0 from rest, run only up to the last of
+/// them (the IMU sample `k`).
+#[derive(Debug, Clone)]
+struct MotionScan {
+    key: ScanKey,
+    next: usize,
+    x: NominalState,
+    k: usize,
+    dr0: Vec3,
+    cross: f64,
+    dot: f64,
+    used: usize,
+    settled_s: Option<f64>,
+    done: bool,
+}
+
+impl MotionScan {
+    fn new(key: ScanKey, config: &FilterConfig) -> Self {
+        let x = at_rest(key.level, key.gyro_bias);
+        let dr0 = x.position + x.orientation * config.mounting.lever_arm.first();
+        Self { key, next: 0, x, k: 0, dr0, cross: 0.0, dot: 0.0, used: 0, settled_s: None, done: false }
     }
-    // Fixes whose measurements disagree (an outlier, NLOS) are left out when any others exist.
-    let consistent: Vec<SolvedFix<'_>> =
-        all.iter().filter(|(_, f, _)| f.is_consistent(std_m, CONSISTENCY_ALPHA)).copied().collect();
-    let fixes = if consistent.is_empty() { all } else { consistent };
-    let Some((_, first_fix, _)) = fixes.first() else {
-        return Err(Error::InsufficientData("self-initialisation found no solvable UWB epoch after the first IMU sample".into()));
-    };
-    let start: Vec<&SolvedFix<'_>> = fixes.iter().filter(|(t, _, _)| still && *t <= t0 + config.init.still_s).collect();
-    let start_fixes: Vec<&Fix> = start.iter().map(|(_, f, _)| f).collect();
-    // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
-    // errors (anchor survey, multipath, NLOS) are the same in every fix.
-    let (mut tag0, tag0_cov) = if start_fixes.is_empty() {
-        (first_fix.position, first_fix.covariance)
-    } else {
-        let k = start_fixes.len() as f64;
-        let median = Vec3::from_fn(|i, _| {
-            let mut axis: Vec<f64> = start_fixes.iter().map(|f| f.position[i]).collect();
-            axis.sort_by(f64::total_cmp);
-            percentile(&axis, 50.0)
-        });
-        (median, start_fixes.iter().map(|f| f.covariance).sum::<uwbimu_vocabulary::math::Mat3>() / k)
-    };
-    let mut height = if first_fix.planar { Height::OnAnchorPlane } else { Height::Fixed(tag0_cov[(2, 2)]) };
-    if start_fixes.iter().any(|f| f.planar) {
-        let start_ranges: Vec<&[(usize, f64)]> = start.iter().map(|(_, _, obs)| *obs).collect();
-        if let Some((z, pooled)) = still_height(&start_ranges, anchors, &ls) {
-            (tag0.z, height) = (z, pooled);
+
+    /// Takes the next fix: past the heading distance from the start, its displacement and the
+    /// dead-reckoned one add to the sums; the scan ends at [`HEADING_EPOCHS`] such fixes or the
+    /// timeout.
+    fn take(&mut self, t_fix: f64, position: &Vec3, imu: &[ImuSample], config: &FilterConfig) {
+        self.next += 1;
+        let t0 = imu.first().map_or(t_fix, |s| s.t_s);
+        if self.done || t_fix > t0 + config.init.heading_timeout_s || self.used >= HEADING_EPOCHS {
+            self.done = true;
+            return;
+        }
+        let d_uwb = position - self.key.tag0;
+        if d_uwb.xy().norm() >= config.init.heading_distance_m {
+            dead_reckon_to(&mut self.x, imu, &mut self.k, t_fix, config);
+            let d_dr = self.x.position + self.x.orientation * config.mounting.lever_arm.first() - self.dr0;
+            self.cross += d_dr.x * d_uwb.y - d_dr.y * d_uwb.x;
+            self.dot += d_dr.x * d_uwb.x + d_dr.y * d_uwb.y;
+            self.used += 1;
+            if self.used == HEADING_EPOCHS {
+                self.settled_s = Some(t_fix);
+            }
         }
     }
 
-    // 3. Heading from two tags' baseline, else from dead reckoning against UWB displacement.
-    let from_tags = if all_ranges.len() != ranges.len() {
-        let tag1: Vec<RangeMeasurement> = all_ranges.iter().filter(|r| r.tag == 1).copied().collect();
-        let tag1_fixes: Vec<(f64, Fix)> = group_epochs(&tag1, ls.epoch_window_s, anchors.len())
-            .iter()
-            .filter(|e| e.t_s >= t0)
-            .filter_map(|e| Some((e.t_s, solve_epoch(anchors, &e.obs, &ls)?)))
-            .filter(|(_, f)| f.is_consistent(ls.range_std_m, CONSISTENCY_ALPHA))
-            .collect();
-        heading_from_tags(imu, &tag1_fixes, &fixes, level, gyro_bias, config).filter(|h| h.std_rad <= TAGS_HEADING_MAX_STD)
-    } else {
-        None
-    };
-    let (yaw_rad, yaw_std, heading, settled_s) = match from_tags {
-        Some(h) => (h.yaw_rad, h.std_rad, HeadingSource::Tags, h.settled_s),
-        None => match heading_from_motion(imu, &fixes, tag0, level, gyro_bias, config) {
-            (Some(y), settled_s) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion, settled_s),
-            (None, settled_s) => (0.0, std::f64::consts::PI, HeadingSource::Fallback, settled_s),
-        },
-    };
-    let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
-    let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
-    position_std.z = match height {
-        Height::OnAnchorPlane => 1.0,
-        Height::Fixed(var) => var.sqrt().max(0.05),
-    };
-    let tilt_std = if still { 0.02 } else { 0.1 };
-    Ok((
-        SelfInit {
-            initial: InitialState {
-                position: tag0 - orientation * config.mounting.lever_arm.first(),
-                velocity: Vec3::zeros(),
-                orientation,
-                position_std,
-                velocity_std: Vec3::repeat(if still { 0.05 } else { 0.5 }),
-                orientation_std: Vec3::new(tilt_std, tilt_std, yaw_std),
-                accel_bias: Vec3::zeros(),
-                gyro_bias,
-                accel_bias_std: None,
-                gyro_bias_std: None,
-            },
-            still,
-            heading,
-        },
-        settled_s,
-    ))
+    /// The yaw that best rotates the dead-reckoned tag displacement onto the UWB one (None
+    /// without a fix past the heading distance), and the time of the last fix once all
+    /// [`HEADING_EPOCHS`] were used.
+    fn heading(&self) -> (Option<f64>, Option<f64>) {
+        ((self.used > 0 && (self.cross != 0.0 || self.dot != 0.0)).then(|| self.cross.atan2(self.dot)), self.settled_s)
+    }
 }
 
-/// A UWB fix of self-initialisation: its time, s, the fix, and the ranges it was solved from
-/// (none for a TDoA fix).
-type SolvedFix<'a> = (f64, Fix, &'a [(usize, f64)]);
+/// Gathers the data of a run in time order and initialises on it as soon as that is decided
+/// (see the module doc: each measurement is solved once, each attempt costs what is new); the
+/// batch API and the self-initialising streaming filters both initialise through it, so they
+/// start alike.
+#[derive(Debug, Clone)]
+pub struct SelfInitializer {
+    anchors: Vec<Vec3>,
+    config: FilterConfig,
+    ls: LsConfig,
+    imu: Vec<ImuSample>,
+    tag0: RangeFixes,
+    tag1: RangeFixes,
+    other_tags: bool,
+    tdoa: TdoaFixes,
+    scan: Option<MotionScan>,
+    next_attempt_s: Option<f64>,
+}
+
+impl SelfInitializer {
+    /// An empty initializer for `anchors` with `config` (its epoch window must be valid).
+    pub fn new(anchors: &[Vec3], config: &FilterConfig) -> Result<Self> {
+        let ls = LsConfig::from_filter_config(config);
+        let tdoa_ls = LsConfig { range_std_m: config.ranging.tdoa_std, ..ls };
+        Ok(Self {
+            anchors: anchors.to_vec(),
+            config: config.clone(),
+            tag0: RangeFixes::new(&ls, anchors.len())?,
+            tag1: RangeFixes::new(&ls, anchors.len())?,
+            other_tags: false,
+            tdoa: TdoaFixes::new(tdoa_ls),
+            ls,
+            imu: Vec::new(),
+            scan: None,
+            next_attempt_s: None,
+        })
+    }
+
+    /// The anchors it was made for.
+    pub fn anchors(&self) -> &[Vec3] {
+        &self.anchors
+    }
+
+    /// The configuration it was made with.
+    pub fn config(&self) -> &FilterConfig {
+        &self.config
+    }
+
+    /// Takes a range (in time order with the other calls).
+    pub fn range(&mut self, r: &RangeMeasurement) {
+        match r.tag {
+            0 => self.tag0.push(r),
+            tag => {
+                self.other_tags = true;
+                if tag == 1 {
+                    self.tag1.push(r);
+                }
+            }
+        }
+    }
+
+    /// Takes a TDoA.
+    pub fn tdoa(&mut self, m: &TdoaMeasurement) {
+        let t0 = self.imu.first().map(|s| s.t_s);
+        self.tdoa.push(m, t0);
+    }
+
+    /// Takes an IMU sample without attempting.
+    fn take_imu(&mut self, s: &ImuSample) {
+        self.imu.push(*s);
+        if self.imu.len() == 1 {
+            self.tdoa.start(s.t_s);
+        }
+    }
+
+    /// Takes an IMU sample and, when an attempt is due, evaluates the initialisation on
+    /// everything taken so far: Some once decided.
+    pub fn imu(&mut self, s: &ImuSample) -> Result<Option<SelfInit>> {
+        self.take_imu(s);
+        let due = *self.next_attempt_s.get_or_insert(s.t_s + self.config.init.still_s);
+        if s.t_s < due {
+            return Ok(None);
+        }
+        self.next_attempt_s = Some(due + ATTEMPT_INTERVAL_S * (((s.t_s - due) / ATTEMPT_INTERVAL_S).floor() + 1.0));
+        let t0 = self.imu[0].t_s;
+        let (init, heading_settled_s) = match self.evaluate() {
+            Ok(found) => found,
+            Err(Error::InsufficientData(_)) => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        let settled_s = heading_settled_s.unwrap_or(t0 + self.config.init.heading_timeout_s);
+        Ok((s.t_s > settled_s + self.config.ranging.epoch_window_s).then_some(init))
+    }
+
+    /// Initialises on everything taken (the data ended before it was decided).
+    pub fn finish(&mut self) -> Result<SelfInit> {
+        Ok(self.evaluate()?.0)
+    }
+
+    /// The initialisation on everything taken so far, the open epochs and windows solved as if
+    /// they closed now, and, when the heading came from a full set of epochs, the time of the
+    /// last one (later data cannot change it).
+    fn evaluate(&mut self) -> Result<(SelfInit, Option<f64>)> {
+        let Some(t0) = self.imu.first().map(|s| s.t_s) else {
+            return Err(Error::InsufficientData("self-initialisation needs IMU samples".into()));
+        };
+        self.tag0.solve_closed(&self.anchors, &self.ls);
+        self.tag1.solve_closed(&self.anchors, &self.ls);
+        self.tdoa.solve_closed(&self.anchors);
+        let marks = [self.tag0.fixes.lens(), self.tag1.fixes.lens(), self.tdoa.fixes.lens()];
+        let open = [self.tag0.open_fix(&self.anchors, &self.ls), self.tag1.open_fix(&self.anchors, &self.ls)];
+        let [open0, open1] = open;
+        let open_tdoa = self.tdoa.open_fix(&self.anchors);
+        self.tag0.fixes.extend(open0);
+        self.tag1.fixes.extend(open1);
+        self.tdoa.fixes.extend(open_tdoa);
+        let found = self.evaluate_on_fixes(t0, [marks[0], marks[2]]);
+        self.tag0.fixes.truncate(marks[0]);
+        self.tag1.fixes.truncate(marks[1]);
+        self.tdoa.fixes.truncate(marks[2]);
+        found
+    }
+
+    /// [`SelfInitializer::evaluate`] with the open fixes pushed onto the lists (`closed`: the
+    /// lengths of the tag-0 and the TDoA lists before, [`FixList::lens`]).
+    fn evaluate_on_fixes(&mut self, t0: f64, closed: [(usize, usize); 2]) -> Result<(SelfInit, Option<f64>)> {
+        let config = &self.config;
+        // 1. Roll, pitch, gyro bias from the start window.
+        let Levelling { still, roll, pitch, level, gyro_bias } = levelling(&self.imu, config);
+
+        // 2. Tag position from UWB fixes (tag 0's: a fix is of one antenna); TDoA fixes when the
+        // ranges give none. Fixes whose measurements disagree (an outlier, NLOS) are left out
+        // when any others exist.
+        let since = |list: &[SolvedFix]| list.partition_point(|f| f.t_s < t0 - 0.5);
+        let from_tdoa = self.tag0.fixes.all[since(&self.tag0.fixes.all)..].is_empty() && self.tdoa.seen;
+        let source = if from_tdoa { &self.tdoa.fixes } else { &self.tag0.fixes };
+        let consistent = !source.consistent[since(&source.consistent)..].is_empty();
+        let list = if consistent { &source.consistent } else { &source.all };
+        let fixes = &list[since(list)..];
+        let Some(first_fix) = fixes.first().map(|f| f.fix) else {
+            return Err(Error::InsufficientData(
+                "self-initialisation found no solvable UWB epoch after the first IMU sample".into(),
+            ));
+        };
+        let start: Vec<&SolvedFix> = fixes.iter().take_while(|f| still && f.t_s <= t0 + config.init.still_s).collect();
+        // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
+        // errors (anchor survey, multipath, NLOS) are the same in every fix.
+        let (mut tag0, tag0_cov) = if start.is_empty() {
+            (first_fix.position, first_fix.covariance)
+        } else {
+            let k = start.len() as f64;
+            let median = Vec3::from_fn(|i, _| {
+                let mut axis: Vec<f64> = start.iter().map(|f| f.fix.position[i]).collect();
+                axis.sort_by(f64::total_cmp);
+                percentile(&axis, 50.0)
+            });
+            (median, start.iter().map(|f| f.fix.covariance).sum::<Mat3>() / k)
+        };
+        let mut height = if first_fix.planar { Height::OnAnchorPlane } else { Height::Fixed(tag0_cov[(2, 2)]) };
+        if start.iter().any(|f| f.fix.planar) {
+            if let Some((z, pooled)) = still_height(&start, &self.anchors, &self.ls) {
+                (tag0.z, height) = (z, pooled);
+            }
+        }
+
+        // 3. Heading from two tags' baseline, else from dead reckoning against UWB displacement.
+        let from_tags = if self.other_tags {
+            let tag1 = &self.tag1.fixes.consistent;
+            let tag1 = &tag1[tag1.partition_point(|f| f.t_s < t0)..];
+            heading_from_tags(&self.imu, tag1, fixes, level, gyro_bias, config).filter(|h| h.std_rad <= TAGS_HEADING_MAX_STD)
+        } else {
+            None
+        };
+        let (yaw_rad, yaw_std, heading, settled_s) = match from_tags {
+            Some(h) => (h.yaw_rad, h.std_rad, HeadingSource::Tags, h.settled_s),
+            None => {
+                let key = ScanKey { tag0, level, gyro_bias, from_tdoa, consistent };
+                let lens = closed[usize::from(from_tdoa)];
+                let closed = if consistent { lens.1 } else { lens.0 };
+                let scan = scan_motion(&mut self.scan, key, list, since(list), closed, &self.imu, config);
+                match scan.heading() {
+                    (Some(y), settled_s) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion, settled_s),
+                    (None, settled_s) => (0.0, std::f64::consts::PI, HeadingSource::Fallback, settled_s),
+                }
+            }
+        };
+        let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
+        let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
+        position_std.z = match height {
+            Height::OnAnchorPlane => 1.0,
+            Height::Fixed(var) => var.sqrt().max(0.05),
+        };
+        let tilt_std = if still { 0.02 } else { 0.1 };
+        Ok((
+            SelfInit {
+                initial: InitialState {
+                    position: tag0 - orientation * config.mounting.lever_arm.first(),
+                    velocity: Vec3::zeros(),
+                    orientation,
+                    position_std,
+                    velocity_std: Vec3::repeat(if still { 0.05 } else { 0.5 }),
+                    orientation_std: Vec3::new(tilt_std, tilt_std, yaw_std),
+                    accel_bias: Vec3::zeros(),
+                    gyro_bias,
+                    accel_bias_std: None,
+                    gyro_bias_std: None,
+                },
+                still,
+                heading,
+            },
+            settled_s,
+        ))
+    }
+}
+
+/// The heading from motion over `list[from..]`: the kept scan (`kept`, restarted when its key
+/// changed) takes the closed fixes (`list[..closed]`) the IMU has passed, so that no fix is
+/// scanned twice; a copy of it takes the rest (later samples or a closed epoch may still move
+/// them) and is returned.
+fn scan_motion(
+    kept: &mut Option<MotionScan>,
+    key: ScanKey,
+    list: &[SolvedFix],
+    from: usize,
+    closed: usize,
+    imu: &[ImuSample],
+    config: &FilterConfig,
+) -> MotionScan {
+    let scan = match kept {
+        Some(scan) if scan.key == key => scan,
+        _ => kept.insert(MotionScan { next: from, ..MotionScan::new(key, config) }),
+    };
+    let t_imu = imu.last().map_or(f64::NEG_INFINITY, |s| s.t_s);
+    while scan.next < closed && list[scan.next].t_s <= t_imu {
+        let f = &list[scan.next];
+        scan.take(f.t_s, &f.fix.position, imu, config);
+    }
+    let mut copy = scan.clone();
+    while copy.next < list.len() {
+        let f = &list[copy.next];
+        copy.take(f.t_s, &f.fix.position, imu, config);
+    }
+    copy
+}
 
 /// How the initial height was found.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -280,57 +666,19 @@ enum Height {
     OnAnchorPlane,
 }
 
-/// The height of one fix of every range of the still start window at once (`epochs`: the ranges
-/// of each still fix the position was taken from), m, and how it was found: at a standstill they
-/// measure one position. For coplanar anchors, whose single-epoch fixes fall back to the anchors'
-/// plane when one epoch's ranges cannot show the tag below it (ranges a steady bias shortens, in
-/// a long hall where most anchors are far), the pooled ranges can
+/// The height of one fix of every range of the still start window at once (`start`: the still
+/// fixes the position was taken from, with their ranges), m, and how it was found: at a
+/// standstill they measure one position. For coplanar anchors, whose single-epoch fixes fall
+/// back to the anchors' plane when one epoch's ranges cannot show the tag below it (ranges a
+/// steady bias shortens, in a long hall where most anchors are far), the pooled ranges can
 /// ([`crate::multilateration::solve_epoch`]'s test of the height below the plane, with all of
 /// them). Its height variance is one epoch's (the pooled variance times the epoch count), as for
 /// the median of the fixes. None without ranges (TDoA fixes) or without a solvable pool.
-fn still_height(epochs: &[&[(usize, f64)]], anchors: &[Vec3], ls: &LsConfig) -> Option<(f64, Height)> {
-    let obs: Vec<(usize, f64)> = epochs.iter().flat_map(|e| e.iter().copied()).collect();
+fn still_height(start: &[&SolvedFix], anchors: &[Vec3], ls: &LsConfig) -> Option<(f64, Height)> {
+    let obs: Vec<(usize, f64)> = start.iter().flat_map(|f| f.obs.iter().copied()).collect();
     let fix = solve_epoch(anchors, &obs, ls)?;
-    let height = if fix.planar { Height::OnAnchorPlane } else { Height::Fixed(fix.covariance[(2, 2)] * epochs.len() as f64) };
+    let height = if fix.planar { Height::OnAnchorPlane } else { Height::Fixed(fix.covariance[(2, 2)] * start.len() as f64) };
     Some((fix.position.z, height))
-}
-
-/// Dead-reckons with yaw 0 from rest and returns the yaw that best rotates the dead-reckoned tag
-/// displacement onto the UWB one, over the first epochs past the heading distance, with the time
-/// of the last of them once all [`HEADING_EPOCHS`] were used.
-fn heading_from_motion(
-    imu: &[ImuSample],
-    fixes: &[SolvedFix<'_>],
-    tag0: Vec3,
-    level: Quat,
-    gyro_bias: Vec3,
-    config: &FilterConfig,
-) -> (Option<f64>, Option<f64>) {
-    let Some(t0) = imu.first().map(|s| s.t_s) else {
-        return (None, None);
-    };
-    let mut x = at_rest(level, gyro_bias);
-    let tag_dr = |x: &NominalState| x.position + x.orientation * config.mounting.lever_arm.first();
-    let dr0 = tag_dr(&x);
-    let (mut cross, mut dot, mut used, mut settled_s) = (0.0, 0.0, 0usize, None);
-    let mut k = 0;
-    for (t_fix, fix, _) in fixes {
-        if *t_fix > t0 + config.init.heading_timeout_s || used >= HEADING_EPOCHS {
-            break;
-        }
-        dead_reckon_to(&mut x, imu, &mut k, *t_fix, config);
-        let d_uwb = fix.position - tag0;
-        let d_dr = tag_dr(&x) - dr0;
-        if d_uwb.xy().norm() >= config.init.heading_distance_m {
-            cross += d_dr.x * d_uwb.y - d_dr.y * d_uwb.x;
-            dot += d_dr.x * d_uwb.x + d_dr.y * d_uwb.y;
-            used += 1;
-            if used == HEADING_EPOCHS {
-                settled_s = Some(*t_fix);
-            }
-        }
-    }
-    ((used > 0 && (cross != 0.0 || dot != 0.0)).then(|| cross.atan2(dot)), settled_s)
 }
 
 /// The state dead reckoning starts from: at the origin, at rest, levelled by `level` with yaw 0,
@@ -372,8 +720,8 @@ struct TagsHeading {
 /// or a pair.
 fn heading_from_tags(
     imu: &[ImuSample],
-    tag1: &[(f64, Fix)],
-    tag0: &[SolvedFix<'_>],
+    tag1: &[SolvedFix],
+    tag0: &[SolvedFix],
     level: Quat,
     gyro_bias: Vec3,
     config: &FilterConfig,
@@ -389,14 +737,15 @@ fn heading_from_tags(
     let (mut cross, mut dot, mut used, mut k) = (0.0, 0.0, 0usize, 0usize);
     let (mut var_sum, mut last_s) = (0.0, t0);
     let horizontal_var = |f: &Fix| 0.5 * (f.covariance[(0, 0)] + f.covariance[(1, 1)]);
-    for (t1, f1) in tag1 {
+    for SolvedFix { t_s: t1, fix: f1, .. } in tag1 {
         if used >= HEADING_EPOCHS || *t1 > t0 + config.init.heading_timeout_s {
             break;
         }
-        let after = tag0.partition_point(|(t, _, _)| t < t1);
-        let (Some((ta, fa, _)), Some((tb, fb, _))) = (after.checked_sub(1).and_then(|i| tag0.get(i)), tag0.get(after)) else {
+        let after = tag0.partition_point(|f| f.t_s < *t1);
+        let (Some(a), Some(b)) = (after.checked_sub(1).and_then(|i| tag0.get(i)), tag0.get(after)) else {
             continue;
         };
+        let (ta, fa, tb, fb) = (&a.t_s, &a.fix, &b.t_s, &b.fix);
         if tb - ta > TAGS_BRACKET_S {
             continue;
         }
@@ -414,49 +763,4 @@ fn heading_from_tags(
         std_rad: (var_sum / used as f64).sqrt() / horizontal_baseline_m,
         settled_s: (used == HEADING_EPOCHS).then_some(last_s),
     })
-}
-
-/// Gathers the data of a run in time order and initialises on it as soon as that is decided
-/// ([`initialize_if_decided`], tried every [`ATTEMPT_INTERVAL_S`]); the batch API and the
-/// self-initialising streaming filters both initialise through it, so they start alike.
-#[derive(Debug, Clone, Default)]
-pub struct SelfInitializer {
-    imu: Vec<ImuSample>,
-    ranges: Vec<RangeMeasurement>,
-    tdoa: Vec<TdoaMeasurement>,
-    next_attempt_s: Option<f64>,
-}
-
-impl SelfInitializer {
-    /// An empty initializer.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Takes a range (in time order with the other calls).
-    pub fn range(&mut self, r: &RangeMeasurement) {
-        self.ranges.push(*r);
-    }
-
-    /// Takes a TDoA.
-    pub fn tdoa(&mut self, m: &TdoaMeasurement) {
-        self.tdoa.push(*m);
-    }
-
-    /// Takes an IMU sample and, when an attempt is due, tries to initialise on everything taken
-    /// so far: Some once decided.
-    pub fn imu(&mut self, s: &ImuSample, anchors: &[Vec3], config: &FilterConfig) -> Result<Option<SelfInit>> {
-        self.imu.push(*s);
-        let due = *self.next_attempt_s.get_or_insert(s.t_s + config.init.still_s);
-        if s.t_s < due {
-            return Ok(None);
-        }
-        self.next_attempt_s = Some(due + ATTEMPT_INTERVAL_S * (((s.t_s - due) / ATTEMPT_INTERVAL_S).floor() + 1.0));
-        initialize_if_decided(&self.imu, &self.ranges, &self.tdoa, anchors, config)
-    }
-
-    /// Initialises on everything taken (the data ended before it was decided).
-    pub fn finish(&self, anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
-        initialize_with_tdoa(&self.imu, &self.ranges, &self.tdoa, anchors, config)
-    }
 }

@@ -132,11 +132,41 @@ impl Fix {
     /// residuals `SSR/σ²` is below the `χ²` quantile with the redundancy's degrees of freedom
     /// (global test of the adjustment). Always true without redundancy.
     pub fn is_consistent(&self, range_std_m: f64, alpha: f64) -> bool {
-        let redundancy = self.redundancy();
-        match chi2_quantile(redundancy, alpha) {
-            Ok(q) if range_std_m > 0.0 => self.variance_factor(range_std_m) * redundancy as f64 <= q,
+        self.is_within(range_std_m, chi2_quantile(self.redundancy(), alpha).ok())
+    }
+
+    /// The test of [`Fix::is_consistent`] against the quantile `q` of its redundancy (None: no
+    /// test, true).
+    fn is_within(&self, range_std_m: f64, q: Option<f64>) -> bool {
+        match q {
+            Some(q) if range_std_m > 0.0 => self.variance_factor(range_std_m) * self.redundancy() as f64 <= q,
             _ => true,
         }
+    }
+}
+
+/// [`Fix::is_consistent`] at one σ and significance, its χ² quantiles computed once per
+/// redundancy (the quantile's bisection costs more than a fix): for a caller testing many fixes.
+#[derive(Debug, Clone)]
+pub struct ConsistencyTest {
+    range_std_m: f64,
+    alpha: f64,
+    quantiles: Vec<Option<f64>>,
+}
+
+impl ConsistencyTest {
+    /// The test at σ = `range_std_m` and significance `alpha`.
+    pub fn new(range_std_m: f64, alpha: f64) -> Self {
+        Self { range_std_m, alpha, quantiles: Vec::new() }
+    }
+
+    /// [`Fix::is_consistent`] of `fix` (the same decision).
+    pub fn passes(&mut self, fix: &Fix) -> bool {
+        let redundancy = fix.redundancy();
+        while self.quantiles.len() <= redundancy {
+            self.quantiles.push(chi2_quantile(self.quantiles.len(), self.alpha).ok());
+        }
+        fix.is_within(self.range_std_m, self.quantiles[redundancy])
     }
 }
 
@@ -152,22 +182,31 @@ pub(crate) fn normal_step(jtj: &Mat3, rhs: &Vec3, planar: bool) -> Option<Vec3> 
     }
 }
 
-/// Step halving of Gauss–Newton: `step` halved until the sum of squares `ssr_at(step)` (None:
-/// undefined there) is below `ssr`, or zero after [`MAX_STEP_HALVINGS`] halvings — so an outlier or
-/// a poorly conditioned height cannot send the iteration away (undamped, it reached kilometres on
-/// near-coplanar anchors).
-pub(crate) fn halved_until_lower(mut step: Vec3, ssr_at: impl Fn(&Vec3) -> Option<f64>, ssr: f64) -> Vec3 {
-    for _ in 0..MAX_STEP_HALVINGS {
-        if ssr_at(&step).is_some_and(|s| s <= ssr) {
-            return step;
+/// The normal equations of a least-squares problem at a point: `JᵀJ`, the right-hand side of the
+/// Gauss–Newton step, and the sum of squared residuals.
+pub(crate) type Equations = (Mat3, Vec3, f64);
+
+/// A Gauss–Newton step with halving from `p` (`at_p` its [`Equations`]): `step` halved until the
+/// sum of squares at `p + step` (`equations`, None: undefined there) is at most that at `p`, or
+/// no step after [`MAX_STEP_HALVINGS`] halvings — so an outlier or a poorly conditioned height
+/// cannot send the iteration away (undamped, it reached kilometres on near-coplanar anchors).
+/// Returns the new point with its equations (the next step's, evaluated once) and the step.
+pub(crate) fn halving_step(
+    p: Vec3,
+    at_p: Equations,
+    mut step: Vec3,
+    equations: impl Fn(&Vec3) -> Option<Equations>,
+) -> (Vec3, Equations, Vec3) {
+    for halvings in 0..=MAX_STEP_HALVINGS {
+        if halvings > 0 {
+            step *= 0.5;
         }
-        step *= 0.5;
+        let moved = p + step;
+        if let Some(at) = equations(&moved).filter(|at| at.2 <= at_p.2) {
+            return (moved, at, step);
+        }
     }
-    if ssr_at(&step).is_some_and(|s| s <= ssr) {
-        step
-    } else {
-        Vec3::zeros()
-    }
+    (p, at_p, Vec3::zeros())
 }
 
 /// Checks that every observation names an existing anchor with finite coordinates and has a
@@ -355,20 +394,21 @@ pub fn gauss_newton_fix(
         return None;
     }
     let mut iterations = 0;
+    let mut at_p = normal_equations(anchors, obs, &p)?;
     while iterations < cfg.max_iterations {
-        let (jtj, jte, sse) = normal_equations(anchors, obs, &p)?;
+        let (jtj, jte, _) = at_p;
         let step = normal_step(&jtj, &(-jte), planar)?;
         if !step.iter().all(|v| v.is_finite()) {
             return None;
         }
-        let step = halved_until_lower(step, |s| normal_equations(anchors, obs, &(p + s)).map(|(_, _, x)| x), sse);
-        p += step;
+        let taken;
+        (p, at_p, taken) = halving_step(p, at_p, step, |q| normal_equations(anchors, obs, q));
         iterations += 1;
-        if step.norm() < cfg.tolerance_m {
+        if taken.norm() < cfg.tolerance_m {
             break;
         }
     }
-    let (jtj, _, sse) = normal_equations(anchors, obs, &p)?;
+    let (jtj, _, sse) = at_p;
     let covariance = invert_normal(&jtj, planar)? * cfg.range_std_m.powi(2);
     let fix = Fix {
         position: p,
@@ -521,6 +561,30 @@ mod tests {
     use rand_distr::{Distribution, Normal};
 
     use super::*;
+
+    #[test]
+    fn the_consistency_test_with_kept_quantiles_decides_as_each_fix_alone() {
+        // Oracle: Fix::is_consistent, its χ² quantile computed for each fix. Fixes of every
+        // redundancy, planar and not, around the quantile (variance factors 0.2–3), in an order
+        // that computes the quantiles out of turn.
+        let mut test = ConsistencyTest::new(0.1, 0.01);
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let (mut passed, mut failed) = (0, 0);
+        for k in 0..400 {
+            let fix = Fix {
+                position: Vec3::zeros(),
+                covariance: Mat3::identity(),
+                residual_rms_m: rng.random_range(0.02..0.2),
+                ranges_used: 1 + (k * 7) % 12,
+                iterations: 0,
+                planar: k % 3 == 0,
+            };
+            let expected = fix.is_consistent(0.1, 0.01);
+            assert_eq!(test.passes(&fix), expected, "{fix:?}");
+            (passed, failed) = if expected { (passed + 1, failed) } else { (passed, failed + 1) };
+        }
+        assert!(passed > 50 && failed > 50, "both outcomes are tested: {passed} passed, {failed} failed");
+    }
 
     /// Six anchors at low and high heights around a 10 m × 8 m room (also used by the
     /// [`super::l1`] tests).

@@ -14,13 +14,13 @@
 use uwbimu_vocabulary::math::{Mat3, Vec3};
 use uwbimu_vocabulary::records::TdoaMeasurement;
 
-use crate::multilateration::{halved_until_lower, invert_normal, normal_step, Fix, LsConfig};
+use crate::multilateration::{halving_step, invert_normal, normal_step, Equations, Fix, LsConfig};
 
 /// Longest window of TDoA solved as one fix, s (a round of 4–8 anchors at 10 Hz).
 pub const TDOA_FIX_WINDOW_S: f64 = 0.2;
 
 /// Sum of squared residuals, `JᵀJ` and `Jᵀr` of the TDoA at `p`; None when `p` sits on an anchor.
-fn normal_equations(anchors: &[Vec3], obs: &[TdoaMeasurement], p: &Vec3) -> Option<(Mat3, Vec3, f64)> {
+fn normal_equations(anchors: &[Vec3], obs: &[TdoaMeasurement], p: &Vec3) -> Option<Equations> {
     let (mut jtj, mut jtr, mut ssr) = (Mat3::zeros(), Vec3::zeros(), 0.0);
     for m in obs {
         let (di, dj) = (p - anchors[m.anchor_i], p - anchors[m.anchor_j]);
@@ -40,73 +40,108 @@ fn normal_equations(anchors: &[Vec3], obs: &[TdoaMeasurement], p: &Vec3) -> Opti
 /// Gauss–Newton from `start`; in the plane `z = start.z` when `planar`.
 fn gauss_newton(anchors: &[Vec3], obs: &[TdoaMeasurement], start: Vec3, planar: bool, cfg: &LsConfig) -> Option<(Vec3, f64)> {
     let mut p = start;
+    let mut at_p = normal_equations(anchors, obs, &p)?;
     for _ in 0..cfg.max_iterations {
-        let (jtj, jtr, ssr) = normal_equations(anchors, obs, &p)?;
-        let step = normal_step(&jtj, &jtr, planar)?;
-        let step = halved_until_lower(step, |s| normal_equations(anchors, obs, &(p + s)).map(|(_, _, x)| x), ssr);
-        p += step;
-        if step.norm() < cfg.tolerance_m {
+        let step = normal_step(&at_p.0, &at_p.1, planar)?;
+        let taken;
+        (p, at_p, taken) = halving_step(p, at_p, step, |q| normal_equations(anchors, obs, q));
+        if taken.norm() < cfg.tolerance_m {
             break;
         }
     }
-    let (_, _, ssr) = normal_equations(anchors, obs, &p)?;
-    p.iter().all(|v| v.is_finite()).then_some((p, ssr))
+    p.iter().all(|v| v.is_finite()).then_some((p, at_p.2))
 }
 
 /// One fix from a window of TDoA (see the module doc); None when it cannot be solved (too few
 /// differences, degenerate geometry).
 pub fn solve_tdoa(anchors: &[Vec3], obs: &[TdoaMeasurement], cfg: &LsConfig) -> Option<Fix> {
-    let mut used: Vec<usize> = obs.iter().flat_map(|m| [m.anchor_i, m.anchor_j]).collect();
-    used.sort_unstable();
-    used.dedup();
-    if obs.len() < 2 || used.len() < 3 || used.iter().any(|&a| a >= anchors.len()) {
-        return None;
-    }
-    let heights = used.iter().map(|&a| anchors[a].z);
-    let span = heights.clone().fold(f64::NEG_INFINITY, f64::max) - heights.fold(f64::INFINITY, f64::min);
-    let planar = !(used.len() >= 4 && obs.len() >= 3 && span >= cfg.min_vertical_span_m);
-    let centroid = used.iter().map(|&a| anchors[a]).sum::<Vec3>() / used.len() as f64;
-    let height = cfg.planar_height_m.unwrap_or(centroid.z);
-    let seeds = std::iter::once(centroid).chain(used.iter().map(|&a| 0.5 * (anchors[a] + centroid)));
-    let (position, ssr) = seeds
-        .filter_map(|mut s| {
-            if planar {
-                s.z = height;
-            }
-            gauss_newton(anchors, obs, s, planar, cfg)
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    let (jtj, _, _) = normal_equations(anchors, obs, &position)?;
-    let covariance = invert_normal(&jtj, planar)? * (cfg.range_std_m * cfg.range_std_m);
-    Some(Fix {
-        position,
-        covariance,
-        residual_rms_m: (ssr / obs.len() as f64).sqrt(),
-        ranges_used: obs.len(),
-        iterations: 0,
-        planar,
-    })
+    let geometry = Geometry::of(anchors, obs, cfg)?;
+    let seeds = std::iter::once(geometry.centroid).chain(geometry.used.iter().map(|&a| 0.5 * (anchors[a] + geometry.centroid)));
+    let (position, ssr) = seeds.filter_map(|s| geometry.gauss_newton(anchors, obs, s, cfg)).min_by(|a, b| a.1.total_cmp(&b.1))?;
+    geometry.fix(anchors, obs, position, ssr, cfg)
 }
 
-/// Fixes from time-ordered TDoA, one per window (see the module doc): `(time of the window's last
-/// TDoA, fix)`. `cfg.range_std_m` is the TDoA σ.
-pub fn tdoa_fixes(anchors: &[Vec3], tdoa: &[TdoaMeasurement], cfg: &LsConfig) -> Vec<(f64, Fix)> {
-    let mut out = Vec::new();
-    let mut start = 0;
-    while start < tdoa.len() {
-        let mut end = start + 1;
-        while end < tdoa.len()
-            && tdoa[end].t_s - tdoa[start].t_s <= TDOA_FIX_WINDOW_S
-            && !tdoa[start..end].iter().any(|m| (m.anchor_i, m.anchor_j) == (tdoa[end].anchor_i, tdoa[end].anchor_j))
-        {
-            end += 1;
+/// What a window of TDoA can be solved for: the anchors it involves, their centroid, and
+/// whether the fix is held in a plane (at `height`, m).
+struct Geometry {
+    used: Vec<usize>,
+    centroid: Vec3,
+    planar: bool,
+    height: f64,
+}
+
+impl Geometry {
+    /// None with too few differences or anchors, or an unknown anchor.
+    fn of(anchors: &[Vec3], obs: &[TdoaMeasurement], cfg: &LsConfig) -> Option<Self> {
+        let mut used: Vec<usize> = obs.iter().flat_map(|m| [m.anchor_i, m.anchor_j]).collect();
+        used.sort_unstable();
+        used.dedup();
+        if obs.len() < 2 || used.len() < 3 || used.iter().any(|&a| a >= anchors.len()) {
+            return None;
         }
-        if let Some(fix) = solve_tdoa(anchors, &tdoa[start..end], cfg) {
-            out.push((tdoa[end - 1].t_s, fix));
-        }
-        start = end;
+        let heights = used.iter().map(|&a| anchors[a].z);
+        let span = heights.clone().fold(f64::NEG_INFINITY, f64::max) - heights.fold(f64::INFINITY, f64::min);
+        let planar = !(used.len() >= 4 && obs.len() >= 3 && span >= cfg.min_vertical_span_m);
+        let centroid = used.iter().map(|&a| anchors[a]).sum::<Vec3>() / used.len() as f64;
+        let height = cfg.planar_height_m.unwrap_or(centroid.z);
+        Some(Self { used, centroid, planar, height })
     }
-    out
+
+    /// Gauss–Newton from `start` (in the plane when planar): the position and its sum of squares.
+    fn gauss_newton(&self, anchors: &[Vec3], obs: &[TdoaMeasurement], mut start: Vec3, cfg: &LsConfig) -> Option<(Vec3, f64)> {
+        if self.planar {
+            start.z = self.height;
+        }
+        gauss_newton(anchors, obs, start, self.planar, cfg)
+    }
+
+    /// The fix at `position` with sum of squares `ssr`: its covariance `σ²·(JᵀJ)⁻¹`.
+    fn fix(&self, anchors: &[Vec3], obs: &[TdoaMeasurement], position: Vec3, ssr: f64, cfg: &LsConfig) -> Option<Fix> {
+        let (jtj, _, _) = normal_equations(anchors, obs, &position)?;
+        let covariance = invert_normal(&jtj, self.planar)? * (cfg.range_std_m * cfg.range_std_m);
+        Some(Fix {
+            position,
+            covariance,
+            residual_rms_m: (ssr / obs.len() as f64).sqrt(),
+            ranges_used: obs.len(),
+            iterations: 0,
+            planar: self.planar,
+        })
+    }
+}
+
+/// The open fix window of a time-ordered TDoA stream (the rule of the module doc: consecutive
+/// measurements within [`TDOA_FIX_WINDOW_S`] of its first, no pair twice), as
+/// [`crate::epoch::EpochAssembler`] is for ranges.
+#[derive(Debug, Clone, Default)]
+pub struct TdoaWindow {
+    open: Vec<TdoaMeasurement>,
+}
+
+impl TdoaWindow {
+    /// Whether `m` cannot join the open window (too late, or its pair is already there): the
+    /// window must be closed before `m` is pushed.
+    pub fn closes_before(&self, m: &TdoaMeasurement) -> bool {
+        self.open.first().is_some_and(|first| {
+            m.t_s - first.t_s > TDOA_FIX_WINDOW_S
+                || self.open.iter().any(|o| (o.anchor_i, o.anchor_j) == (m.anchor_i, m.anchor_j))
+        })
+    }
+
+    /// Adds `m` to the open window (call [`TdoaWindow::closes_before`] first).
+    pub fn push(&mut self, m: TdoaMeasurement) {
+        self.open.push(m);
+    }
+
+    /// The open window's measurements, in arrival order.
+    pub fn measurements(&self) -> &[TdoaMeasurement] {
+        &self.open
+    }
+
+    /// Empties the open window.
+    pub fn clear(&mut self) {
+        self.open.clear();
+    }
 }
 
 #[cfg(test)]
@@ -140,9 +175,18 @@ mod tests {
         let fix = solve_tdoa(&flat, &exact(&flat, &p, &pairs), &cfg).expect("fix");
         assert!(fix.planar && (fix.position - p).xy().norm() < 1e-6, "{}", fix.position);
         let five = exact(&cuboid, &Vec3::new(3.0, 2.0, 1.2), &[(3, 0), (0, 1), (1, 2), (2, 3), (3, 0)]);
-        let fixes = tdoa_fixes(&cuboid, &five, &cfg);
-        // The repeated pair starts a new window (of one TDoA: no fix).
-        assert_eq!(fixes.len(), 1);
-        assert_eq!(fixes[0].0, five[3].t_s);
+        let mut window = TdoaWindow::default();
+        for m in &five[..4] {
+            assert!(!window.closes_before(m));
+            window.push(*m);
+        }
+        // The repeated pair starts a new window; so does a TDoA past the window's length.
+        assert!(window.closes_before(&five[4]));
+        assert!(window.closes_before(&TdoaMeasurement { t_s: five[0].t_s + TDOA_FIX_WINDOW_S + 1e-6, ..five[1] }));
+        let fix = solve_tdoa(&cuboid, window.measurements(), &cfg).expect("fix");
+        assert!((fix.position - Vec3::new(3.0, 2.0, 1.2)).norm() < 1e-6);
+        window.clear();
+        window.push(five[4]);
+        assert!(solve_tdoa(&cuboid, window.measurements(), &cfg).is_none(), "one TDoA gives no fix");
     }
 }

@@ -3,7 +3,7 @@
 
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
-use uwbimu_vocabulary::sensors::Observation;
+use uwbimu_vocabulary::sensors::{Observation, RANGE_RANK};
 
 use super::{Estimator, Event, Pipeline, Progress, Trace};
 
@@ -36,20 +36,24 @@ impl Streams<'_> {
     pub fn events(&self) -> impl Iterator<Item = Event> + '_ {
         let mut next = [0usize; 3];
         std::iter::from_fn(move || {
-            let heads = [
-                self.imu.get(next[0]).map(|s| Event::Imu(*s)),
-                self.observations.get(next[1]).map(|o| Event::Observation(*o)),
-                self.ranges.get(next[2]).map(|r| Event::Range(*r)),
+            // The key (time, rank) of each head; the earliest wins, the lower rank at equal times.
+            let keys = [
+                self.imu.get(next[0]).map(|s| (s.t_s, 0)),
+                self.observations.get(next[1]).map(|o| (o.t_s(), o.rank())),
+                self.ranges.get(next[2]).map(|r| (r.t_s, RANGE_RANK)),
             ];
-            // The earliest head; the lower rank wins ties ([`Event::rank`]).
-            let (k, event) = heads.into_iter().enumerate().filter_map(|(k, e)| e.map(|e| (k, e))).reduce(|best, cand| {
-                let key = |e: &Event| (e.t_s(), e.rank());
-                if key(&cand.1) < key(&best.1) {
-                    cand
-                } else {
-                    best
+            let mut first: Option<(usize, (f64, u8))> = None;
+            for (k, key) in keys.into_iter().enumerate() {
+                if let Some(key) = key.filter(|key| first.map_or(true, |(_, best)| *key < best)) {
+                    first = Some((k, key));
                 }
-            })?;
+            }
+            let (k, _) = first?;
+            let event = match k {
+                0 => Event::Imu(self.imu[next[0]]),
+                1 => Event::Observation(self.observations[next[1]]),
+                _ => Event::Range(self.ranges[next[2]]),
+            };
             next[k] += 1;
             Some(event)
         })

@@ -83,8 +83,6 @@ struct Waiting<E> {
     initializer: SelfInitializer,
     events: Vec<Event>,
     build: Builder<E>,
-    anchors: Vec<Vec3>,
-    config: FilterConfig,
     gate: Gate,
 }
 
@@ -153,7 +151,7 @@ impl<E: Estimator> Stream<E> {
         check_window(&options)?;
         config.validate()?;
         let gate = Gate::new(&anchors, &config.gate);
-        let waiting = Waiting { initializer: SelfInitializer::new(), events: Vec::new(), build, anchors, config, gate };
+        let waiting = Waiting { initializer: SelfInitializer::new(&anchors, &config)?, events: Vec::new(), build, gate };
         Ok(Self::with_phase(Phase::Waiting(Box::new(waiting)), options))
     }
 
@@ -203,7 +201,7 @@ impl<E: Estimator> Stream<E> {
         }
         let refuse = match &self.phase {
             Phase::Running { estimator, .. } => estimator.gate_config().refuse_unit_slips,
-            Phase::Waiting(w) => w.config.gate.refuse_unit_slips,
+            Phase::Waiting(w) => w.initializer.config().gate.refuse_unit_slips,
             Phase::Switching => GateConfig::default().refuse_unit_slips,
         };
         match check_imu_units(samples, refuse) {
@@ -271,7 +269,7 @@ impl<E: Estimator> Stream<E> {
             Phase::Running { estimator, pipeline, .. } => pipeline.event(estimator, &event),
             Phase::Waiting(w) => {
                 w.events.push(event);
-                if let Some(init) = take(&mut w.initializer, &w.gate, &event, &w.anchors, &w.config)? {
+                if let Some(init) = take(&mut w.initializer, &w.gate, &event)? {
                     self.start(init)?;
                 }
                 Ok(())
@@ -323,8 +321,8 @@ impl<E: Estimator> Stream<E> {
     fn release_all(&mut self) -> Result<()> {
         self.check_units("flush", None, true)?;
         self.release_until(f64::INFINITY)?;
-        if let Phase::Waiting(w) = &self.phase {
-            match w.initializer.finish(&w.anchors, &w.config) {
+        if let Phase::Waiting(w) = &mut self.phase {
+            match w.initializer.finish() {
                 Ok(init) => self.start(init)?,
                 Err(Error::InsufficientData(_)) => return Ok(()),
                 Err(e) => return Err(e),
@@ -392,7 +390,7 @@ impl<E: Estimator> Stream<E> {
     pub fn anchor_count(&self) -> usize {
         match &self.phase {
             Phase::Running { estimator, .. } => estimator.anchors().len(),
-            Phase::Waiting(w) => w.anchors.len(),
+            Phase::Waiting(w) => w.initializer.anchors().len(),
             Phase::Switching => 0,
         }
     }
@@ -402,7 +400,7 @@ impl<E: Estimator> Stream<E> {
     pub fn tag_count(&self) -> usize {
         match &self.phase {
             Phase::Running { estimator, .. } => estimator.tags(),
-            Phase::Waiting(w) => w.config.mounting.lever_arm.tags(),
+            Phase::Waiting(w) => w.initializer.config().mounting.lever_arm.tags(),
             Phase::Switching => 0,
         }
     }
@@ -436,18 +434,12 @@ impl<E: Estimator> Stream<E> {
 }
 
 /// Feeds `event` to `initializer` unless the gate rejects it; Some once it has decided.
-fn take(
-    initializer: &mut SelfInitializer,
-    gate: &Gate,
-    event: &Event,
-    anchors: &[Vec3],
-    config: &FilterConfig,
-) -> Result<Option<SelfInit>> {
+fn take(initializer: &mut SelfInitializer, gate: &Gate, event: &Event) -> Result<Option<SelfInit>> {
     if gate.check(event).is_some() {
         return Ok(None);
     }
     match event {
-        Event::Imu(s) => initializer.imu(s, anchors, config),
+        Event::Imu(s) => initializer.imu(s),
         Event::Range(r) => {
             initializer.range(r);
             Ok(None)
@@ -466,11 +458,11 @@ fn take(
 /// [`Stream`] fed the same data reaches.
 pub fn self_initialize(streams: &Streams<'_>, anchors: &[Vec3], config: &FilterConfig) -> Result<SelfInit> {
     let gate = Gate::new(anchors, &config.gate);
-    let mut initializer = SelfInitializer::new();
+    let mut initializer = SelfInitializer::new(anchors, config)?;
     for event in streams.events() {
-        if let Some(init) = take(&mut initializer, &gate, &event, anchors, config)? {
+        if let Some(init) = take(&mut initializer, &gate, &event)? {
             return Ok(init);
         }
     }
-    initializer.finish(anchors, config)
+    initializer.finish()
 }
