@@ -12,34 +12,48 @@ pub type Columns = Vec<(&'static str, Vec<f64>)>;
 const COV_ENTRIES: [(&str, usize, usize); 6] =
     [("cov_xx", 0, 0), ("cov_xy", 0, 1), ("cov_xz", 0, 2), ("cov_yy", 1, 1), ("cov_yz", 1, 2), ("cov_zz", 2, 2)];
 
-/// A column of [`step_columns`]: its name and its value in a [`StepRecord`].
-type StepField = (&'static str, fn(&StepRecord) -> f64);
+/// Declares the step columns before the covariance entries once: their names
+/// (`STEP_NAMES`) and their values in a record (`step_values`, one inlined function rather than
+/// a call per column).
+macro_rules! step_fields {
+    ($($name:literal => |$r:ident| $value:expr),+ $(,)?) => {
+        /// The names of the step columns before the covariance entries.
+        const STEP_NAMES: &[&str] = &[$($name),+];
 
-/// The step columns before the covariance entries.
-const STEP_FIELDS: [StepField; 16] = [
-    ("t", |r| r.t_s),
-    ("x", |r| r.state.position.x),
-    ("y", |r| r.state.position.y),
-    ("z", |r| r.state.position.z),
-    ("vx", |r| r.state.velocity.x),
-    ("vy", |r| r.state.velocity.y),
-    ("vz", |r| r.state.velocity.z),
-    ("qw", |r| r.state.orientation.w),
-    ("qx", |r| r.state.orientation.i),
-    ("qy", |r| r.state.orientation.j),
-    ("qz", |r| r.state.orientation.k),
-    ("std_x", |r| r.position_cov[(0, 0)].sqrt()),
-    ("std_y", |r| r.position_cov[(1, 1)].sqrt()),
-    ("std_z", |r| r.position_cov[(2, 2)].sqrt()),
-    ("still", |r| f64::from(u8::from(r.still))),
-    ("status", |r| f64::from(r.status)),
-];
+        /// The values of the step columns of `record` before the covariance entries.
+        fn step_values(record: &StepRecord) -> [f64; STEP_NAMES.len()] {
+            [$({
+                let $r = record;
+                $value
+            }),+]
+        }
+    };
+}
+
+step_fields! {
+    "t" => |r| r.t_s,
+    "x" => |r| r.state.position.x,
+    "y" => |r| r.state.position.y,
+    "z" => |r| r.state.position.z,
+    "vx" => |r| r.state.velocity.x,
+    "vy" => |r| r.state.velocity.y,
+    "vz" => |r| r.state.velocity.z,
+    "qw" => |r| r.state.orientation.w,
+    "qx" => |r| r.state.orientation.i,
+    "qy" => |r| r.state.orientation.j,
+    "qz" => |r| r.state.orientation.k,
+    "std_x" => |r| r.position_cov[(0, 0)].sqrt(),
+    "std_y" => |r| r.position_cov[(1, 1)].sqrt(),
+    "std_z" => |r| r.position_cov[(2, 2)].sqrt(),
+    "still" => |r| f64::from(u8::from(r.still)),
+    "status" => |r| f64::from(r.status),
+}
 
 /// The names of the step columns ([`step_columns`]), in order: `t, x, y, z, vx, vy, vz, qw,
 /// qx, qy, qz, std_x, std_y, std_z, still, status`, then `cov_xx, cov_xy, cov_xz, cov_yy,
 /// cov_yz, cov_zz` when `covariance`.
 pub fn step_column_names(covariance: bool) -> Vec<&'static str> {
-    let mut names: Vec<&'static str> = STEP_FIELDS.iter().map(|f| f.0).collect();
+    let mut names: Vec<&'static str> = STEP_NAMES.to_vec();
     if covariance {
         names.extend(COV_ENTRIES.iter().map(|c| c.0));
     }
@@ -50,7 +64,7 @@ pub fn step_column_names(covariance: bool) -> Vec<&'static str> {
 /// [`step_column_names`]`(covariance)`.
 pub fn step_row(record: &StepRecord, covariance: bool, out: &mut Vec<f64>) {
     out.clear();
-    out.extend(STEP_FIELDS.iter().map(|f| f.1(record)));
+    out.extend(step_values(record));
     if covariance {
         out.extend(COV_ENTRIES.iter().map(|&(_, i, j)| record.position_cov[(i, j)]));
     }
@@ -60,13 +74,17 @@ pub fn step_row(record: &StepRecord, covariance: bool, out: &mut Vec<f64>) {
 /// velocity, orientation (`qw, qx, qy, qz`), position standard deviations, `still`, `status`
 /// (the bits of [`StepRecord::status`]), then the position covariance entries when `covariance`.
 pub fn step_columns(s: &[StepRecord], covariance: bool) -> Columns {
-    let mut cols: Columns = step_column_names(covariance).into_iter().map(|name| (name, Vec::with_capacity(s.len()))).collect();
-    let mut row = Vec::with_capacity(cols.len());
-    for record in s {
-        step_row(record, covariance, &mut row);
-        for ((_, values), value) in cols.iter_mut().zip(&row) {
-            values.push(*value);
+    let mut cols: Columns = step_column_names(covariance).into_iter().map(|name| (name, vec![0.0; s.len()])).collect();
+    let (fields, entries) = cols.split_at_mut(STEP_NAMES.len());
+    // Written by index into columns of their final length: one store per value.
+    let mut fields: Vec<&mut [f64]> = fields.iter_mut().map(|(_, values)| values.as_mut_slice()).collect();
+    for (row, record) in s.iter().enumerate() {
+        for (values, value) in fields.iter_mut().zip(step_values(record)) {
+            values[row] = value;
         }
+    }
+    for ((_, values), &(_, i, j)) in entries.iter_mut().zip(&COV_ENTRIES) {
+        values.iter_mut().zip(s).for_each(|(value, record)| *value = record.position_cov[(i, j)]);
     }
     cols
 }

@@ -17,7 +17,7 @@ pub fn repair_covariance<const N: usize>(p: &mut SMatrix<f64, N, N>) -> bool {
         return false;
     }
     *p = (*p + p.transpose()) * 0.5;
-    if p.cholesky().is_some() {
+    if is_positive_definite(p) {
         return true;
     }
     // A failure path, not the hot path: the eigen decomposition runs on a dynamic copy.
@@ -26,6 +26,34 @@ pub fn repair_covariance<const N: usize>(p: &mut SMatrix<f64, N, N>) -> bool {
     eigen.eigenvalues.iter_mut().for_each(|l| *l = l.max(floor));
     let q = eigen.recompose();
     *p = SMatrix::from_fn(|i, j| 0.5 * (q[(i, j)] + q[(j, i)]));
+    true
+}
+
+/// Whether `p` (symmetric; its lower triangle is read) has a Cholesky factor `p = L·Lᵀ`: positive
+/// definite to working precision. The right-looking factorisation on a copy, column by column
+/// (each update of a later column is one contiguous `a_k −= l_kj·a_j`, which vectorises), stopping
+/// at the first pivot that is not positive (or not a number). It decides as nalgebra's
+/// `cholesky().is_some()` but for matrices within rounding of singular, without forming the factor:
+/// the test of every update's covariance ([`crate::pipeline::Estimator::is_positive_definite`]).
+pub fn is_positive_definite<const N: usize>(p: &SMatrix<f64, N, N>) -> bool {
+    let mut a = p.data.0;
+    for j in 0..N {
+        let pivot = a[j][j];
+        if !(pivot > 0.0 && pivot.is_finite()) {
+            return false;
+        }
+        let scale = 1.0 / pivot.sqrt();
+        let (done, rest) = a.split_at_mut(j + 1);
+        let column = &mut done[j];
+        column[j + 1..].iter_mut().for_each(|v| *v *= scale);
+        for (offset, later) in rest.iter_mut().enumerate() {
+            let k = j + 1 + offset;
+            let l_kj = column[k];
+            if l_kj != 0.0 {
+                later[k..].iter_mut().zip(&column[k..]).for_each(|(v, c)| *v -= c * l_kj);
+            }
+        }
+    }
     true
 }
 
@@ -61,6 +89,40 @@ mod tests {
     use nalgebra::Matrix3;
 
     use super::*;
+
+    #[test]
+    fn the_definiteness_test_decides_as_a_cholesky_factorisation() {
+        // Oracle: nalgebra's Cholesky. Covariances of a 15-state filter's shape (strong
+        // correlations, scales 1e-8–1e2) and the same with one eigenvalue pushed negative or to
+        // zero, or a NaN.
+        let mut state = 12345_u64;
+        let mut uniform = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut definite, mut not) = (0, 0);
+        for case in 0..300 {
+            let m = SMatrix::<f64, 15, 15>::from_fn(|_, _| uniform());
+            let scales = SMatrix::<f64, 15, 1>::from_fn(|i, _| 10f64.powf(-4.0 + (i % 6) as f64 * (1.0 + uniform())));
+            let d = SMatrix::<f64, 15, 15>::from_diagonal(&scales);
+            let mut p = d * (m * m.transpose()) * d;
+            match case % 4 {
+                1 => {
+                    let v = SMatrix::<f64, 15, 1>::from_fn(|_, _| uniform()).normalize();
+                    let rayleigh = (v.transpose() * p * v)[(0, 0)];
+                    p -= v * v.transpose() * (rayleigh * 1.5 + 1e-6);
+                }
+                2 => p[(case % 15, case % 15)] = -1e-3,
+                3 if case % 8 == 3 => p[(case % 15, 0)] = f64::NAN,
+                _ => {}
+            }
+            p = (p + p.transpose()) * 0.5;
+            let expected = p.cholesky().is_some();
+            assert_eq!(is_positive_definite(&p), expected, "case {case}");
+            (definite, not) = if expected { (definite + 1, not) } else { (definite, not + 1) };
+        }
+        assert!(definite > 100 && not > 100, "both outcomes: {definite} definite, {not} not");
+    }
 
     #[test]
     fn an_indefinite_matrix_becomes_positive_definite_and_close_to_its_psd_part() {

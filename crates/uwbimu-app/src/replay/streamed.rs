@@ -250,7 +250,7 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
         let imu = matches!(event, Event::Imu(_));
         stream.push("replay", event)?;
         if let (true, Some(p)) = (imu, self.input.progress) {
-            p.imu_sample();
+            p.imu_samples(1);
         }
         self.collect(false)
     }

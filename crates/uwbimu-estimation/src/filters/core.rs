@@ -3,7 +3,7 @@
 
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
 
 use super::pending::PendingPropagation;
@@ -103,8 +103,9 @@ impl InertialCore {
         }
         check_finite3("predict accel", row, accel)?;
         check_finite3("predict gyro", row, gyro)?;
-        let accel = self.mounting.imu_rotation * accel;
-        let gyro = self.mounting.imu_rotation * gyro;
+        // Most IMUs are mounted as the body: no rotation to compute.
+        let rotation = self.mounting.imu_rotation;
+        let (accel, gyro) = if rotation == Quat::identity() { (*accel, *gyro) } else { (rotation * accel, rotation * gyro) };
         if let Some(t0) = self.time_s {
             if t_s <= t0 {
                 return Err(Error::NonMonotonicTime { name: "predict", row, prev_s: t0, got_s: t_s });

@@ -19,9 +19,11 @@ use crate::multilateration::{halving_step, invert_normal, normal_step, Equations
 /// Longest window of TDoA solved as one fix, s (a round of 4–8 anchors at 10 Hz).
 pub const TDOA_FIX_WINDOW_S: f64 = 0.2;
 
-/// Sum of squared residuals, `JᵀJ` and `Jᵀr` of the TDoA at `p`; None when `p` sits on an anchor.
+/// `JᵀJ`, `Jᵀr` and the sum of squared residuals of the TDoA at `p`; None when `p` sits on an
+/// anchor. `JᵀJ` is summed over its upper triangle and mirrored (the products `j_a·j_b` are the
+/// same either way round).
 fn normal_equations(anchors: &[Vec3], obs: &[TdoaMeasurement], p: &Vec3) -> Option<Equations> {
-    let (mut jtj, mut jtr, mut ssr) = (Mat3::zeros(), Vec3::zeros(), 0.0);
+    let (mut upper, mut jtr, mut ssr) = ([0.0; 6], Vec3::zeros(), 0.0);
     for m in obs {
         let (di, dj) = (p - anchors[m.anchor_i], p - anchors[m.anchor_j]);
         let (ni, nj) = (di.norm(), dj.norm());
@@ -30,11 +32,13 @@ fn normal_equations(anchors: &[Vec3], obs: &[TdoaMeasurement], p: &Vec3) -> Opti
         }
         let r = m.tdoa_m - (nj - ni);
         let j = dj / nj - di / ni;
-        jtj += j * j.transpose();
+        let products = [j.x * j.x, j.x * j.y, j.x * j.z, j.y * j.y, j.y * j.z, j.z * j.z];
+        upper.iter_mut().zip(products).for_each(|(sum, product)| *sum += product);
         jtr += j * r;
         ssr += r * r;
     }
-    Some((jtj, jtr, ssr))
+    let [xx, xy, xz, yy, yz, zz] = upper;
+    Some((Mat3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz), jtr, ssr))
 }
 
 /// Gauss–Newton from `start`; in the plane `z = start.z` when `planar`.

@@ -60,6 +60,9 @@ impl Streams<'_> {
     }
 }
 
+/// IMU samples counted at once in a [`Progress`] (a bar drawn a few times a second needs no more).
+const PROGRESS_BATCH: u64 = 256;
+
 /// Runs `filter` over all streams merged by time ([`Streams::events`]; see the module doc).
 pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Result<Trace> {
     let mut pipeline = Pipeline::for_estimator(filter)?;
@@ -70,14 +73,22 @@ pub fn run_streams<F: Estimator>(filter: &mut F, streams: &Streams<'_>) -> Resul
     let Some(last_imu_s) = streams.imu.last().map(|s| s.t_s) else {
         return Ok(Trace::default());
     };
+    // The progress counter is shared with another thread: counted in batches, not per sample.
+    let mut uncounted = 0;
     for event in streams.events().take_while(|e| e.t_s() <= last_imu_s) {
         if streams.progress.is_some_and(Progress::cancelled) {
             break;
         }
         pipeline.event(filter, &event)?;
         if let (Event::Imu(_), Some(p)) = (&event, streams.progress) {
-            p.imu_sample();
+            uncounted += 1;
+            if uncounted == PROGRESS_BATCH {
+                p.imu_samples(std::mem::take(&mut uncounted));
+            }
         }
+    }
+    if let Some(p) = streams.progress {
+        p.imu_samples(uncounted);
     }
     pipeline.finish(filter)?;
     let mut updates = Vec::with_capacity(streams.ranges.len() + streams.observations.len());

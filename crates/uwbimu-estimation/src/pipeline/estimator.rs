@@ -126,7 +126,7 @@ impl<F: InertialFilter> Estimator for F {
     }
 
     fn is_positive_definite(&self) -> bool {
-        self.core().covariance().cholesky().is_some()
+        crate::repair::is_positive_definite(self.core().covariance())
     }
 
     fn repair_covariance(&mut self) {

@@ -1,5 +1,5 @@
-//! How far a batch run has got, for a progress bar drawn by another thread: the loop bumps a
-//! counter per IMU sample (one relaxed atomic add, no allocation) and the method runner marks the
+//! How far a batch run has got, for a progress bar drawn by another thread: the loop adds the IMU
+//! samples it processed to a counter (a relaxed atomic add, no allocation) and the method runner marks the
 //! start of the smoothing pass. The other way, another thread (a signal handler, Python's Ctrl-C
 //! check) can ask the runs to stop: the loop then ends after the event it is on, with the steps
 //! so far ([`Progress::cancel`]).
@@ -50,9 +50,9 @@ impl Progress {
         self.smoothing.load(Ordering::Relaxed)
     }
 
-    /// Counts one processed IMU sample.
-    pub fn imu_sample(&self) {
-        self.imu_done.fetch_add(1, Ordering::Relaxed);
+    /// Counts `n` more processed IMU samples.
+    pub fn imu_samples(&self, n: u64) {
+        self.imu_done.fetch_add(n, Ordering::Relaxed);
     }
 
     /// Marks the start of a smoothing pass.
