@@ -19,7 +19,6 @@ import argparse
 import subprocess
 import sys
 import time
-import tomllib
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -33,27 +32,21 @@ from uwbimu_rs import sim
 from uwbimu_rs.sim import ZooName
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "examples"))
+from model_selection_table import isas_walk1  # noqa: E402  (the one loader of the walk)
+
 LAGS = (0.5, 1.0, 2.0, 5.0)
 ZOO: tuple[tuple[ZooName, int], ...] = (("handheld_walk", 101), ("walk_nlos", 101))
 SKIP_S = 10.0
 
 
 def isas(data: Path) -> dict[str, Any] | None:
-    """isas-walk1 as examples/isas_walk1_table.py loads it (None when absent)."""
-    if not (data / "isas-walk1.mcap").exists():
-        print(f"isas-walk1 skipped: {data} is not present", file=sys.stderr)
+    """isas-walk1 as the examples load it (None when absent)."""
+    walk = isas_walk1(data)
+    if walk is None:
         return None
-    mapping = tomllib.loads((ROOT / "examples" / "isas-walk1.toml").read_text())["mapping"]
-    mapping["ground_truth"] = {"file": str(data / "gt_anchor_frame.csv")}
-    d = uwbimu_rs.read_mcap(data / "isas-walk1.mcap", mapping=mapping)
-    return {
-        "name": "isas-walk1",
-        "imu": d["imu"].to_numpy(),
-        "ranges": d["ranges"].select("t", "anchor", "range").to_numpy(),
-        "anchors": d["anchors"].select("x", "y", "z").to_numpy(),
-        "truth": d["ground_truth"],
-        "config": None,
-    }
+    imu, ranges, anchors, truth = walk
+    return {"name": "isas-walk1", "imu": imu, "ranges": ranges, "anchors": anchors, "truth": truth, "config": None}
 
 
 def zoo(name: ZooName, seed: int) -> dict[str, Any]:

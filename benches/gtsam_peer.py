@@ -62,6 +62,7 @@ import polars as pl
 
 import uwbimu_rs
 from uwbimu_rs import metrics, sim
+from rotations import quat_mul, quat_to_rot, skew
 
 try:
     import gtsam  # type: ignore[import-untyped,import-not-found,unused-ignore]
@@ -96,36 +97,21 @@ class Log:
 # ------------------------------------------------------------------------------------------------
 
 
-def quat_to_rot(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ])
+def unit(q: Any) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    return q / np.linalg.norm(q)
 
 
 def exp_so3(phi: np.ndarray) -> np.ndarray:
     angle = float(np.linalg.norm(phi))
-    k = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    k = skew(phi)
     if angle < 1e-12:
         return np.eye(3) + k
     return np.eye(3) + np.sin(angle) / angle * k + (1 - np.cos(angle)) / angle**2 * (k @ k)
 
 
 def yaw_of(q: np.ndarray) -> float:
-    r = quat_to_rot(q)
+    r = quat_to_rot(unit(q))
     return float(np.arctan2(r[1, 0], r[0, 0]))
 
 
@@ -149,7 +135,7 @@ def oracle_heading(imu: np.ndarray, truth: pl.DataFrame, init: dict[str, Any], d
     onset = int(np.argmax(moved > 0.05))
     gravity = np.array([0.0, 0.0, -9.80665])
     bg = np.asarray(init.get("gyro_bias", np.zeros(3)))
-    r = quat_to_rot(np.asarray(init["orientation"]))
+    r = quat_to_rot(unit(init["orientation"]))
     for i in range(onset):  # attitude only up to the onset
         r = r @ exp_so3((imu[i, 4:7] - bg) * (t[i + 1] - t[i]))
     h = 0.2  # truth velocity at the onset: central difference over ±0.2 s
@@ -315,7 +301,7 @@ def build_graph(log: Log, kernel: str, times: np.ndarray, which: np.ndarray, war
     # Prior: the EKF's initial state and σ, at the first IMU sample (keyframe 0).
     init = log.initial
     cfg = uwbimu_rs.FilterConfig(**{k: v for k, v in log.config.items() if not k.startswith("mounting")}).to_dict()
-    r0 = quat_to_rot(np.asarray(init["orientation"], dtype=float))
+    r0 = quat_to_rot(unit(init["orientation"]))
     att_nav = np.diag(np.broadcast_to(np.asarray(init.get("orientation_std", [0.05, 0.05, 0.2]), dtype=float), 3) ** 2)
     pos_std = np.broadcast_to(np.asarray(init.get("position_std", 0.3), dtype=float), 3)
     cov = np.zeros((6, 6))

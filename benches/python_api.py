@@ -18,6 +18,7 @@ import numpy as np
 
 import uwbimu_rs
 from uwbimu_rs import sim
+from rotations import quat_exp, quat_mul, quat_to_rot, skew
 
 
 def best_of(fn, repeat: int) -> float:
@@ -27,37 +28,6 @@ def best_of(fn, repeat: int) -> float:
         fn()
         best = min(best, time.perf_counter() - t0)
     return best
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ])
-
-
-def _quat_exp(theta: np.ndarray) -> np.ndarray:
-    angle = np.linalg.norm(theta)
-    if angle < 1e-12:
-        return np.array([1.0, *(0.5 * theta)])
-    return np.array([np.cos(0.5 * angle), *(np.sin(0.5 * angle) / angle * theta)])
-
-
-def _rotation(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 def numpy_eskf(imu, ranges, anchors, initial, lever_arm, range_std=0.15, accel_noise=0.3, gyro_noise=0.01) -> np.ndarray:
@@ -75,39 +45,39 @@ def numpy_eskf(imu, ranges, anchors, initial, lever_arm, range_std=0.15, accel_n
         if k > 0:
             dt = t - imu[k - 1, 0]
             f, w = imu[k - 1, 1:4] - ba, imu[k - 1, 4:7] - bg
-            R = _rotation(q)
+            R = quat_to_rot(q)
             a = R @ f + gravity
             p = p + v * dt + 0.5 * a * dt * dt
             v = v + a * dt
-            q = _quat_mul(q, _quat_exp(w * dt))
+            q = quat_mul(q, quat_exp(w * dt))
             F = np.eye(15)
             F[0:3, 3:6] = np.eye(3) * dt
-            F[3:6, 6:9] = -R @ _skew(f) * dt
+            F[3:6, 6:9] = -R @ skew(f) * dt
             F[3:6, 9:12] = -R * dt
-            F[6:9, 6:9] = np.eye(3) - _skew(w) * dt
+            F[6:9, 6:9] = np.eye(3) - skew(w) * dt
             F[6:9, 12:15] = -np.eye(3) * dt
             Q = np.diag([0.0] * 3 + [accel_noise**2 * dt] * 3 + [gyro_noise**2 * dt] * 3 + [1e-8 * dt] * 3 + [1e-10 * dt] * 3)
             P = F @ P @ F.T + Q
         while j < ranges.shape[0] and ranges[j, 0] <= t:
-            R = _rotation(q)
+            R = quat_to_rot(q)
             anchor = anchors[int(ranges[j, 1])]
             d = p + R @ lever_arm - anchor
             dist = np.linalg.norm(d)
             u = d / dist
             h = np.zeros(15)
             h[0:3] = u
-            h[6:9] = -u @ R @ _skew(lever_arm)
+            h[6:9] = -u @ R @ skew(lever_arm)
             s = h @ P @ h + range_std**2
             K = P @ h / s
             dx = K * (ranges[j, 2] - dist)
             IKH = eye15 - np.outer(K, h)
             P = IKH @ P @ IKH.T + np.outer(K, K) * range_std**2
             p, v = p + dx[0:3], v + dx[3:6]
-            q = _quat_mul(q, _quat_exp(dx[6:9]))
+            q = quat_mul(q, quat_exp(dx[6:9]))
             q /= np.linalg.norm(q)
             ba, bg = ba + dx[9:12], bg + dx[12:15]
             j += 1
-        out[k] = p + _rotation(q) @ lever_arm
+        out[k] = p + quat_to_rot(q) @ lever_arm
     return out
 
 

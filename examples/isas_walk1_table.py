@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tomllib
 from pathlib import Path
 
 import polars as pl
 
 import uwbimu_rs
 import uwbimu_rs.metrics as metrics
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from model_selection_table import isas_walk1  # noqa: E402  (the one loader of the walk)
 
 ROOT = Path(__file__).resolve().parent.parent
 SMOOTHABLE = {name for name, row in uwbimu_rs.METHODS.items() if row["smoothing"] != "never"}
@@ -33,14 +35,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data" / "isas-walk1")
     parser.add_argument("--methods", nargs="*", choices=uwbimu_rs.FILTERS, default=uwbimu_rs.FILTERS)
     args = parser.parse_args(argv)
-    if not (args.data / "isas-walk1.mcap").exists():
-        print(f"skipped: {args.data} is not present", file=sys.stderr)
+    walk = isas_walk1(args.data)
+    if walk is None:
         return 0
-    mapping = tomllib.loads((ROOT / "examples" / "isas-walk1.toml").read_text())["mapping"]
-    mapping["ground_truth"] = {"file": str(args.data / "gt_anchor_frame.csv")}
-    d = uwbimu_rs.read_mcap(args.data / "isas-walk1.mcap", mapping=mapping)
-    imu, anchors, truth = d["imu"].to_numpy(), d["anchors"].select("x", "y", "z").to_numpy(), d["ground_truth"]
-    ranges = d["ranges"].select("t", "anchor", "range").to_numpy()
+    imu, ranges, anchors, truth = walk
     print("| method | defaults forward | defaults smoothed | tuned forward | tuned smoothed |")
     print("|---|---|---|---|---|")
     for method in args.methods:

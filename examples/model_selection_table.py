@@ -129,14 +129,15 @@ def rig_runs(rigs: list[str], seeds: list[int]):
             yield f"{rig} s{seed}", run.imu, ranges, run.anchors, run.truth, config
 
 
-def isas_walk1():
-    """`(imu, ranges, anchors, truth)` of isas-walk1, or None (said on stderr) when ../shared is absent."""
-    if not (ISAS / "isas-walk1.mcap").exists():
-        print(f"skipped isas-walk1: {ISAS} is not present", file=sys.stderr)
+def isas_walk1(data: Path = ISAS):
+    """`(imu, ranges, anchors, truth)` of isas-walk1 in the folder `data` with the checked-in
+    mapping, or None (said on stderr) when it is absent (a clone without ../shared)."""
+    if not (data / "isas-walk1.mcap").exists():
+        print(f"skipped isas-walk1: {data} is not present", file=sys.stderr)
         return None
     mapping = tomllib.loads((ROOT / "examples" / "isas-walk1.toml").read_text())["mapping"]
-    mapping["ground_truth"] = {"file": str(ISAS / "gt_anchor_frame.csv")}
-    d = uwbimu_rs.read_mcap(ISAS / "isas-walk1.mcap", mapping=mapping)
+    mapping["ground_truth"] = {"file": str(data / "gt_anchor_frame.csv")}
+    d = uwbimu_rs.read_mcap(data / "isas-walk1.mcap", mapping=mapping)
     imu, anchors = d["imu"].to_numpy(), d["anchors"].select("x", "y", "z").to_numpy()
     return imu, d["ranges"].select("t", "anchor", "range").to_numpy(), anchors, d["ground_truth"]
 

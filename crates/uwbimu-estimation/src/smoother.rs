@@ -196,7 +196,7 @@ fn smooth_segment(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use uwbimu_vocabulary::config::{FilterConfig, InitialState};
     use uwbimu_vocabulary::math::Vec3;
     use uwbimu_vocabulary::state::{ErrVec, PackedErrCov};
@@ -205,16 +205,11 @@ mod tests {
     use crate::filters::{Checkpoint, InertialCore};
     use crate::update::leading_rows_step;
 
-    /// A run of 1500 IMU samples with a position fix every 7th sample, a fading every 50th
-    /// and an update at a measurement time between samples every 11th: the recorded core, and
-    /// the record of the same run with every posterior kept (built beside it).
-    fn recorded_run() -> (InertialCore, SmoothingRecord) {
-        let mut core = InertialCore::new(&InitialState::default(), &FilterConfig::default()).expect("core");
-        core.start_recording(0);
-        let mut starts: Vec<Checkpoint> = Vec::new();
-        let mut keep_start = |core: &InertialCore| {
-            starts.push(Checkpoint { state: *core.state(), covariance: PackedErrCov::pack(core.covariance()) });
-        };
+    /// Step `k` of the test run at 100 Hz, applied to `core`: a position fix every 7th sample, a
+    /// fading every 50th, an update at a measurement time between samples every 11th;
+    /// `before_propagation` sees the core before each propagation (the fixed-lag smoother's
+    /// tests run the same steps).
+    pub(crate) fn test_step(core: &mut InertialCore, k: usize, mut before_propagation: impl FnMut(&InertialCore)) {
         let fix = |core: &mut InertialCore, k: usize| {
             let (state, p) = core.state_and_covariance_mut();
             let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
@@ -224,24 +219,35 @@ mod tests {
             leading_rows_step::<3>(&mut dx, p, &z, &h, &(Mat3::identity() * 0.01)).expect("fix");
             state.inject(&dx);
         };
+        let t = 0.01 * k as f64;
+        if k > 0 && k % 11 == 0 {
+            before_propagation(core);
+            core.advance_to(t - 0.004).expect("advance");
+            fix(core, k);
+        }
+        if k > 0 {
+            before_propagation(core);
+        }
+        let w = 0.3 * (0.01 * k as f64).cos();
+        core.predict(t, &Vec3::new(0.2 * w, -0.1, 9.81), &Vec3::new(0.01, -0.02, w)).expect("predict");
+        if k % 50 == 49 {
+            core.fade_prior(1.2);
+        }
+        if k % 7 == 3 {
+            fix(core, k);
+        }
+    }
+
+    /// 1500 steps of [`test_step`]: the recorded core, and the record of the same run with every
+    /// posterior kept (built beside it).
+    fn recorded_run() -> (InertialCore, SmoothingRecord) {
+        let mut core = InertialCore::new(&InitialState::default(), &FilterConfig::default()).expect("core");
+        core.start_recording(0);
+        let mut starts: Vec<Checkpoint> = Vec::new();
         for k in 0..1500 {
-            let t = 0.01 * k as f64;
-            if k > 0 && k % 11 == 0 {
-                keep_start(&core);
-                core.advance_to(t - 0.004).expect("advance");
-                fix(&mut core, k);
-            }
-            if k > 0 {
-                keep_start(&core);
-            }
-            let w = 0.3 * (0.01 * k as f64).cos();
-            core.predict(t, &Vec3::new(0.2 * w, -0.1, 9.81), &Vec3::new(0.01, -0.02, w)).expect("predict");
-            if k % 50 == 49 {
-                core.fade_prior(1.2);
-            }
-            if k % 7 == 3 {
-                fix(&mut core, k);
-            }
+            test_step(&mut core, k, |core| {
+                starts.push(Checkpoint { state: *core.state(), covariance: PackedErrCov::pack(core.covariance()) });
+            });
         }
         let record = core.smoothing_record().expect("recorded");
         let segments = record.segments.iter().map(|s| Segment { checkpoint: true, ..*s }).collect();

@@ -247,38 +247,13 @@ impl FixedLag {
 #[cfg(test)]
 mod tests {
     use uwbimu_vocabulary::config::{FilterConfig, InitialState};
-    use uwbimu_vocabulary::math::{Mat3, Vec3};
-    use uwbimu_vocabulary::state::ErrVec;
 
     use super::*;
     use crate::pipeline::smooth_recording;
-    use crate::update::leading_rows_step;
 
-    /// Step `k` of a run at 100 Hz (as the smoother's own test): a position fix every 7th
-    /// sample, a fading every 50th, an update between samples every 11th, applied to `core`.
+    /// Step `k` of the smoother's own test run ([`crate::smoother::tests::test_step`]).
     fn step(core: &mut InertialCore, k: usize) {
-        let fix = |core: &mut InertialCore, k: usize| {
-            let (state, p) = core.state_and_covariance_mut();
-            let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
-            h.fixed_view_mut::<3, 3>(0, POS).copy_from(&Mat3::identity());
-            let z = Vec3::new(0.01 * (k as f64).sin(), 0.02, -0.01) - state.position;
-            let mut dx = ErrVec::zeros();
-            leading_rows_step::<3>(&mut dx, p, &z, &h, &(Mat3::identity() * 0.01)).expect("fix");
-            state.inject(&dx);
-        };
-        let t = 0.01 * k as f64;
-        if k > 0 && k % 11 == 0 {
-            core.advance_to(t - 0.004).expect("advance");
-            fix(core, k);
-        }
-        let w = 0.3 * (0.01 * k as f64).cos();
-        core.predict(t, &Vec3::new(0.2 * w, -0.1, 9.81), &Vec3::new(0.01, -0.02, w)).expect("predict");
-        if k % 50 == 49 {
-            core.fade_prior(1.2);
-        }
-        if k % 7 == 3 {
-            fix(core, k);
-        }
+        crate::smoother::tests::test_step(core, k, |_| {});
     }
 
     /// The same run into a fixed-lag smoother (`lag`) and a full recording (`full`), checking
