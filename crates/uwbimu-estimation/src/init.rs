@@ -28,12 +28,14 @@
 //!    by itself).
 //!
 //! **In one pass** ([`SelfInitializer`], the one way both the batch API, [`initialize`] and a
-//! streaming filter initialise): the data is taken in time order and kept; each range epoch and
-//! TDoA window is solved once, when it closes, and screened once; the heading's dead reckoning
-//! runs only up to the fixes that have moved (none at a standstill) and resumes where it stopped.
-//! From `init.still_s` on, every [`ATTEMPT_INTERVAL_S`] of IMU time, the initialisation is
-//! evaluated on everything seen so far (the open epoch solved as if closed), at a cost that does
-//! not grow with the data seen; it is decided once a fix exists and the heading is settled — its
+//! streaming filter initialise): the data is taken in time order and kept. From `init.still_s`
+//! on, every [`ATTEMPT_INTERVAL_S`] of IMU time, the initialisation is evaluated on everything
+//! seen so far, at a cost that does not grow with the data seen: the range epochs and TDoA
+//! windows that closed since the last attempt are solved and screened (each once; between
+//! attempts a call only stores), the open ones solved as if closed, and the heading's dead
+//! reckoning runs only up to the fixes that have moved (none at a standstill), resuming where it
+//! stopped. The χ² quantiles of the screening are computed once per redundancy
+//! ([`ConsistencyTest`]). It is decided once a fix exists and the heading is settled — its
 //! last epoch closed (older than the epoch window) or the timeout passed. A log that ends first
 //! is initialised on all of it.
 
