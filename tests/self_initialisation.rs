@@ -93,3 +93,21 @@ fn a_streamed_decision_is_the_one_shot_initialisation_of_its_prefix() {
     println!("{decided} of {total} runs decided before their end");
     assert!(decided >= total / 2, "{decided} of {total} runs decided before their end");
 }
+
+#[test]
+fn tdoa_before_the_first_imu_sample_join_the_windows_as_in_one_evaluation() {
+    // The stream holds the TDoA that come before the first IMU sample until it knows the start
+    // (those older than half a second before it are left out); one evaluation takes them after
+    // the IMU. Oracle: the one-shot evaluation of the same data, with the IMU starting 0.8 s
+    // after the TDoA, on the still start and on the TDoA drone.
+    for name in ["still_tdoa_lost", "tdoa_drone"] {
+        let s = zoo(name, 5).unwrap();
+        let mut data = simulate(&s.sim).unwrap();
+        let first_tdoa_s = data.observations_for(|k| k == SensorKind::Tdoa)[0].t_s();
+        data.imu.retain(|imu| imu.t_s >= first_tdoa_s + 0.8);
+        let (init, _, taken) = streamed(&data, true, &s.config);
+        assert!(taken.tdoa.first().is_some_and(|m| m.t_s < taken.imu[0].t_s - 0.5), "{name}: TDoA before the cut-off");
+        let one_shot = initialize_with_tdoa(&taken.imu, &taken.ranges, &taken.tdoa, &data.anchors, &s.config).unwrap();
+        assert_eq!(init, one_shot, "{name}");
+    }
+}
