@@ -136,17 +136,20 @@ struct SolvedFix {
 }
 
 /// The fixes of one source in time order: all of them, and those that passed the consistency
-/// test (α = [`CONSISTENCY_ALPHA`]).
+/// test (α = [`CONSISTENCY_ALPHA`]); during an evaluation, the open epoch's fix last
+/// ([`FixList::push_open`]).
 #[derive(Debug, Clone)]
 struct FixList {
     all: Vec<SolvedFix>,
     consistent: Vec<SolvedFix>,
     test: ConsistencyTest,
+    /// The lengths of both lists before the open fix was pushed (None: none is).
+    closed: Option<(usize, usize)>,
 }
 
 impl FixList {
     fn new(std_m: f64) -> Self {
-        Self { all: Vec::new(), consistent: Vec::new(), test: ConsistencyTest::new(std_m, CONSISTENCY_ALPHA) }
+        Self { all: Vec::new(), consistent: Vec::new(), test: ConsistencyTest::new(std_m, CONSISTENCY_ALPHA), closed: None }
     }
 
     fn push(&mut self, fix: SolvedFix) {
@@ -162,14 +165,28 @@ impl FixList {
         }
     }
 
-    /// The lengths of both lists, to [`FixList::truncate`] back to.
-    fn lens(&self) -> (usize, usize) {
-        (self.all.len(), self.consistent.len())
+    /// Pushes the fix of the open epoch (or window) for one evaluation, until
+    /// [`FixList::drop_open`].
+    fn push_open(&mut self, fix: Option<SolvedFix>) {
+        self.closed = Some((self.all.len(), self.consistent.len()));
+        self.extend(fix);
     }
 
-    fn truncate(&mut self, (all, consistent): (usize, usize)) {
-        self.all.truncate(all);
-        self.consistent.truncate(consistent);
+    fn drop_open(&mut self) {
+        if let Some((all, consistent)) = self.closed.take() {
+            self.all.truncate(all);
+            self.consistent.truncate(consistent);
+        }
+    }
+
+    /// How many fixes of all of them, or of the consistent ones, are of closed epochs.
+    fn closed_len(&self, consistent: bool) -> usize {
+        let (all, kept) = self.closed.unwrap_or((self.all.len(), self.consistent.len()));
+        if consistent {
+            kept
+        } else {
+            all
+        }
     }
 }
 
@@ -523,23 +540,21 @@ impl SelfInitializer {
         self.tag0.solve_closed(&self.anchors, &self.ls);
         self.tag1.solve_closed(&self.anchors, &self.ls);
         self.tdoa.solve_closed(&self.anchors);
-        let marks = [self.tag0.fixes.lens(), self.tag1.fixes.lens(), self.tdoa.fixes.lens()];
-        let open = [self.tag0.open_fix(&self.anchors, &self.ls), self.tag1.open_fix(&self.anchors, &self.ls)];
-        let [open0, open1] = open;
+        let open0 = self.tag0.open_fix(&self.anchors, &self.ls);
+        let open1 = self.tag1.open_fix(&self.anchors, &self.ls);
         let open_tdoa = self.tdoa.open_fix(&self.anchors);
-        self.tag0.fixes.extend(open0);
-        self.tag1.fixes.extend(open1);
-        self.tdoa.fixes.extend(open_tdoa);
-        let found = self.evaluate_on_fixes(t0, [marks[0], marks[2]]);
-        self.tag0.fixes.truncate(marks[0]);
-        self.tag1.fixes.truncate(marks[1]);
-        self.tdoa.fixes.truncate(marks[2]);
+        self.tag0.fixes.push_open(open0);
+        self.tag1.fixes.push_open(open1);
+        self.tdoa.fixes.push_open(open_tdoa);
+        let found = self.evaluate_on_fixes(t0);
+        self.tag0.fixes.drop_open();
+        self.tag1.fixes.drop_open();
+        self.tdoa.fixes.drop_open();
         found
     }
 
-    /// [`SelfInitializer::evaluate`] with the open fixes pushed onto the lists (`closed`: the
-    /// lengths of the tag-0 and the TDoA lists before, [`FixList::lens`]).
-    fn evaluate_on_fixes(&mut self, t0: f64, closed: [(usize, usize); 2]) -> Result<(SelfInit, Option<f64>)> {
+    /// [`SelfInitializer::evaluate`] with the open fixes pushed onto the lists.
+    fn evaluate_on_fixes(&mut self, t0: f64) -> Result<(SelfInit, Option<f64>)> {
         let config = &self.config;
         // 1. Roll, pitch, gyro bias from the start window.
         let Levelling { still, roll, pitch, level, gyro_bias } = levelling(&self.imu, config);
@@ -591,8 +606,7 @@ impl SelfInitializer {
             Some(h) => (h.yaw_rad, h.std_rad, HeadingSource::Tags, h.settled_s),
             None => {
                 let key = ScanKey { tag0, level, gyro_bias, from_tdoa, consistent };
-                let lens = closed[usize::from(from_tdoa)];
-                let closed = if consistent { lens.1 } else { lens.0 };
+                let closed = source.closed_len(consistent);
                 let scan = scan_motion(&mut self.scan, key, list, since(list), closed, &self.imu, config);
                 match scan.heading() {
                     (Some(y), settled_s) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion, settled_s),
