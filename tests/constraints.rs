@@ -180,6 +180,9 @@ fn zoo_forward_rmse(method: uwbimu_rs::app::methods::Method, name: &str, seed: u
     config.constraints.outage_zupt = false;
     // `best`'s composition as declared: its choice of model on the log is tested in tests/select.rs.
     config.model_selection.enabled = false;
+    // The update in the invariant error for every method (`best`'s own): the comparison is of
+    // the constraint and the skew.
+    config.ins.invariant_update = Some(true);
     let input = uwbimu_rs::app::methods::BatchInput { smooth: false, ..common::batch(&data, None, &config) };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
     let errors = common::horizontal_errors(&trace.steps, &data);

@@ -44,11 +44,11 @@ fn streamed(data: &SimData, tdoa_only: bool, config: &FilterConfig) -> (SelfInit
             }
             Event::Range(r) => {
                 taken.ranges.push(r);
-                initializer.range(&r);
+                initializer.range(&r).unwrap();
             }
             Event::Observation(Observation::Tdoa(m)) => {
                 taken.tdoa.push(m);
-                initializer.tdoa(&m);
+                initializer.tdoa(&m).unwrap();
             }
             Event::Observation(_) => {}
         }

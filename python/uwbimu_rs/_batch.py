@@ -412,8 +412,10 @@ def initialize(
     """Initialise a filter from the start of a recording.
 
     Roll and pitch (and gyro bias) from the first ``init.still_s`` seconds, position from
-    UWB multilateration, heading from the first ``init.heading_distance_m`` metres of motion
-    against UWB (fallback: yaw 0 with σ = π).
+    UWB multilateration (at rest or driving steadily), heading from a Gaussian-sum bank of
+    inertial filters fed the UWB (and the tags' baseline with two tags), taken when its σ is at
+    most ``init.heading_std`` (fallback after ``init.heading_timeout_s``: the bank's heading
+    with its σ). See docs/heading.md.
 
     Returns
     -------

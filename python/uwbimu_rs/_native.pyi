@@ -350,7 +350,9 @@ class _StreamingFilter:
         Initial state valid at the first IMU time: ``position`` (3,) m, ``velocity`` (3,) m/s,
         ``orientation`` (4,) w, x, y, z, and optional ``position_std`` (m), ``velocity_std``
         (m/s), ``orientation_std`` (rad) (each a scalar or 3 values), ``accel_bias`` (3,) m/s²,
-        ``gyro_bias`` (3,) rad/s, ``accel_bias_std`` (m/s²), ``gyro_bias_std`` (rad/s). None: the
+        ``gyro_bias`` (3,) rad/s, ``accel_bias_std`` (m/s²), ``gyro_bias_std`` (rad/s),
+        ``levelled`` (bool: the tilt was levelled at rest, its error correlated with the
+        accelerometer bias; :func:`initialize` sets it). None: the
         filter keeps the data until the self-initialisation of the batch API decides (see
         :func:`initialize`; ``init.heading_timeout_s`` bounds the wait), then starts from it and
         replays what it kept (``initialized`` says when).
@@ -631,7 +633,7 @@ class Criekf(_StreamingFilter):
 
 @final
 class Best(_StreamingFilter):
-    """``best`` (ours): RIEKF with its range test skewed against long ranges and the zero-velocity constraint while still; API of :class:`_StreamingFilter`."""
+    """``best`` (ours): RIEKF with its range test skewed against long ranges, updates in the invariant error, the zero-velocity constraint while still and a heading watch; API of :class:`_StreamingFilter`."""
 
 @final
 class Ckf(_StreamingFilter):
@@ -891,8 +893,9 @@ def initialize_state(
     """Self-initialisation from the start of a recording.
 
     Roll, pitch and gyro bias from the first ``init.still_s`` seconds; position from UWB
-    multilateration; heading from the first ``init.heading_distance_m`` metres of motion
-    (fallback: yaw 0 with σ = π).
+    multilateration; heading from a Gaussian-sum bank of inertial filters fed the UWB, taken
+    when its σ is at most ``init.heading_std`` (fallback after ``init.heading_timeout_s``: the
+    bank's heading with its σ). See docs/heading.md.
 
     Parameters
     ----------

@@ -171,7 +171,7 @@ def test_with_lag_s_the_node_publishes_the_fixed_lag_smoothed_pose():
     node.close()
     ref.flush()
     newest.append((ref.lagged_steps().row(-1, named=True), ref.lagged_covariance))
-    assert len(sink.smoothed) == len(newest) > 40 and node.smoothed_poses_published == len(newest)
+    assert len(sink.smoothed) == len(newest) > 25 and node.smoothed_poses_published == len(newest)
     for pose, (row, cov) in zip(sink.smoothed, newest):
         assert pose.t == row["t"] and list(pose.position) == [row["x"], row["y"], row["z"]]
         np.testing.assert_array_equal(pose.covariance, cov)
@@ -454,7 +454,10 @@ def _assert_equals_the_replay(live: np.ndarray, steps_written: int, mcap: Path, 
     ref = np.column_stack([replay["x"].to_numpy(), replay["y"].to_numpy(), replay["z"].to_numpy()])
     nearest = np.abs(t[None, :] - live[:, :1]).argmin(axis=1)
     matched = np.abs(t[nearest] - live[:, 0]) < 1e-6
-    assert matched.mean() > 0.99 and len(live) > 0.5 * len(t)
+    # The replay starts at the first IMU sample (the self-initialisation replays from there); the
+    # node publishes from the moment it decided (isas-walk1: 30 s into the 59 s walk): most steps
+    # from its first pose on (measured 91 % on isas-walk1, 98 % on the simulated recording).
+    assert matched.mean() > 0.99 and len(live) > 0.8 * np.sum(t >= live[0, 0])
     assert np.abs(live[matched, 1:] - ref[nearest[matched]]).max() < 1e-9
     assert steps_written in (len(t) - 1, len(t))
 

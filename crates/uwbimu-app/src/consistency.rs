@@ -36,8 +36,12 @@
 //! blocks ([`uwbimu_estimation::pipeline::Marginals`]); `uwb_ls`'s fixes at the same times (the
 //! last fix at or before each) with their least-squares covariance.
 
+mod self_start;
 mod stats;
 
+pub use self_start::{
+    self_start_inputs, self_start_monte_carlo, self_start_scenario, SelfStart, StartSample, AFTER_START_S, SELF_START_SCENARIOS,
+};
 pub use stats::{chi2_mean_interval, NeesSeries, NisStats};
 
 use nalgebra::{Cholesky, Matrix2};

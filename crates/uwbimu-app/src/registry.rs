@@ -131,8 +131,9 @@ macro_rules! methods {
     Cekf2d { name: "cekf2d", run: planar(Cekf), takes: [Ranges], smoothing: Never },
     /// The recommended method for real logs (ours), smoothed unless a forward pass is asked for.
     ///
-    /// RIEKF with its range test skewed against long ranges and the zero-velocity constraint while
-    /// still ([`uwbimu_estimation::filters::Best`]), re-acquisition on divergence and
+    /// RIEKF with its range test skewed against long ranges, updates in the invariant error and
+    /// the zero-velocity constraint while still ([`uwbimu_estimation::filters::Best`]),
+    /// re-acquisition on divergence, a heading watch that resets a wrong heading, and
     /// self-initialisation when no initial state is given. Before it runs it chooses its
     /// range-error model, NLOS skew and range noise on the log by held-out anchors
     /// ([`crate::select`]).

@@ -302,8 +302,12 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
         largest_move(a.iter().flatten().map(|s| Ok(*s)), b.iter().flatten().map(|s| Ok(*s)))
     }
 
+    /// A guided pass that fails numerically is declined ([`MapRunner::again`]).
     fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>> {
-        let (trace, smoothed, _) = run_pass(self.build, self.initial, &self.input, Some(Arc::new(guide)))?;
+        let (trace, smoothed, _) = match run_pass(self.build, self.initial, &self.input, Some(Arc::new(guide))) {
+            Err(Error::NotPositiveDefinite { .. }) => return Ok(None),
+            other => other?,
+        };
         let complete = smoothed.is_some() && !self.input.progress.is_some_and(Progress::cancelled);
         Ok(complete.then_some((trace, smoothed)))
     }

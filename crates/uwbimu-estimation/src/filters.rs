@@ -11,7 +11,7 @@
 //! | [`Rekf`] | χ² inflation | single | |
 //! | [`Riekf`] | χ² inflation | iterated | |
 //! | [`Criekf`] | χ² inflation | iterated | zero-velocity, pseudo-velocity, plane constraints |
-//! | [`Best`] | χ² inflation, skewed against long ranges | iterated | zero-velocity constraint (ours) |
+//! | [`Best`] | χ² inflation, skewed against long ranges | iterated, invariant error | zero-velocity constraint, heading watch ([`heading_watch`]) (ours) |
 //! | [`Ckf`] | fixed | single | complementary bias model (Markov biases, trapezoidal `Q`; the ARCKF paper) |
 //! | [`Arckf`] | adaptive-robust (L1 `Cu`, prior fading, χ²) | single | as `Ckf` |
 //! | [`Ukf`] | fixed | unscented | |
@@ -87,6 +87,10 @@ macro_rules! delegate_filter {
             fn set_guide(&mut self, guide: Option<std::sync::Arc<crate::smoother::Guide>>) -> bool {
                 self.0.set_guide(guide)
             }
+
+            fn reported_covariance(&self) -> uwbimu_vocabulary::state::ErrCov {
+                self.0.reported_covariance()
+            }
         }
     };
 }
@@ -95,6 +99,7 @@ mod ackf;
 pub mod bias_states;
 pub mod constraints;
 mod core;
+pub mod heading_watch;
 mod loose;
 mod named;
 mod pending;
@@ -205,5 +210,12 @@ pub trait InertialFilter: Filter {
     /// coupled filter, the unscented strategy) return false and run as they are.
     fn set_guide(&mut self, _guide: Option<std::sync::Arc<crate::smoother::Guide>>) -> bool {
         false
+    }
+
+    /// The error covariance the filter reports (order δp, δv, δθ, δb_a, δb_g): its core's, with
+    /// the heading's variance raised to the spread of its heading watch's bank while that is
+    /// wider ([`heading_watch`]; the filter estimates with its own).
+    fn reported_covariance(&self) -> uwbimu_vocabulary::state::ErrCov {
+        *self.core().covariance()
     }
 }

@@ -1,54 +1,59 @@
 //! Self-initialisation of an inertial filter from the start of a recording, used when the user
-//! gives no initial state:
+//! gives no initial state (docs/heading.md has the figures):
 //!
 //! 1. **Roll, pitch, gyro bias** from the mean accelerometer and gyroscope over the first
-//!    `init_still_s` seconds (the platform is assumed still there; if the window is not still,
-//!    roll and pitch still come from the mean specific force, the gyro bias is left at zero and
-//!    the attitude and velocity uncertainties are widened).
-//! 2. **Position** from UWB-only multilateration: the median of the fixes inside the still
-//!    window, or the first fix after the start. Without ranges, the fixes come from the TDoA
-//!    ([`crate::multilateration::tdoa`]). Fixes whose ranges fail the least-squares
+//!    `init.still_s` seconds. A window whose specific force and rate are steady is *levelled*
+//!    (tilt σ from the spread of the mean, at least `LEVELLED_TILT_STD`; the gyro bias
+//!    measured); otherwise roll and pitch still come from the mean specific force with σ
+//!    `MOVING_TILT_STD` and the gyro bias is left at zero.
+//! 2. **Position and velocity** from UWB-only multilateration: the median of the fixes inside a
+//!    levelled window, or the first fix after the start. Without ranges, the fixes come from the
+//!    TDoA ([`crate::multilateration::tdoa`]). Fixes whose ranges fail the least-squares
 //!    consistency test ([`Fix::is_consistent`], α = 0.01: an outlier or NLOS range) are left out
-//!    here and in step 3 unless no fix passes. When a still fix fell back to the plane of
-//!    coplanar anchors, the height is that of one fix of all the still window's ranges
-//!    (`still_height`).
-//! 3. **Heading from the first metres of motion against UWB**: the IMU is dead-reckoned from the
-//!    start with yaw 0; once the UWB tag has moved `init_heading_distance_m`, the yaw is the angle
-//!    that rotates the dead-reckoned tag displacement onto the UWB displacement (least squares over
-//!    the next few epochs).
-//!    **From two tags** (ranges from a second tag with its lever arm): the yaw is the angle that
-//!    rotates the tags' baseline in the body frame (turned by roll, pitch and the gyro since the
-//!    start) onto the baseline between their UWB fixes, tag 0's fix interpolated to the time of
-//!    tag 1's (least squares over the first few pairs):
-//!    no motion needed, so the filter starts as soon as those fixes exist. It is used when its
-//!    standard deviation (one pair's horizontal fix error across the baseline) is at most
-//!    [`TAGS_HEADING_MAX_STD`]; else the heading comes from motion.
-//!    **Fallback**: if the tag never moves that far within `init.heading_timeout_s` (30 s), the
-//!    yaw is 0 with a standard deviation of π (the filter has to find the heading from the ranges
-//!    by itself).
+//!    unless no fix passes. When a still fix fell back to the plane of coplanar anchors, the
+//!    height is that of one fix of all the still window's ranges (`still_height`). A levelled
+//!    window is at rest **or driving steadily** (the IMU cannot tell them apart): the velocity is
+//!    the straight line through the fixes of the quiet span that begins with it
+//!    (`quiet_until`) when they lie on it within their noise, else zero with the fitted speed as
+//!    its σ (`still_velocity`); a moving start takes the line through its first second of fixes.
+//! 3. **Heading from a Gaussian-sum bank** ([`heading_bank`]): at the first attempt with a fix,
+//!    [`heading_bank::BANK_MEMBERS`] INS filters start from the levelled attitude, the latest fix
+//!    and the velocity, their yaws spread over the circle, and take every later IMU sample and
+//!    tag 0's ranges (or TDoA), each weighted by its innovations' likelihood. **Two tags**: each
+//!    pair of fixes (tag 0's interpolated to tag 1's time) is a yaw measurement of every member,
+//!    the baseline between the fixes against the body baseline turned by the gyro since the
+//!    start, with its honest variance — the fixes' across the baseline plus a bias their
+//!    covariance does not show, measured from the baseline's length residuals and shared by the
+//!    pairs of `BASELINE_CORRELATION_S` (`BaselinePairs`). However short the baseline, it
+//!    helps instead of being dropped. The start's heading is the bank's at the first IMU sample
+//!    ([`heading_bank::HeadingBank::heading_at_reference`]) with σ at least
+//!    `START_YAW_STD`. It is **settled** when the bank's σ is at most `init.heading_std` at
+//!    two attempts in a row on one heading, or half of it once a tag baseline was taken.
+//!    **Fallback**: if it has not settled within `init.heading_timeout_s`, the bank's heading
+//!    with its σ (the mixture's spread, up to ~π).
 //!
 //! **In one pass** ([`SelfInitializer`], the one way both the batch API, [`initialize`] and a
 //! streaming filter initialise): the data is taken in time order and kept. From `init.still_s`
 //! on, every [`ATTEMPT_INTERVAL_S`] of IMU time, the initialisation is evaluated on everything
-//! seen so far, at a cost that does not grow with the data seen: the range epochs and TDoA
-//! windows that closed since the last attempt are solved and screened (each once; between
-//! attempts a call only stores), the open ones solved as if closed, and the heading's dead
-//! reckoning runs only up to the fixes that have moved (none at a standstill), resuming where it
-//! stopped. The χ² quantiles of the screening are computed once per redundancy
-//! ([`ConsistencyTest`]). It is decided once a fix exists and the heading is settled — its
-//! last epoch closed (older than the epoch window) or the timeout passed. A log that ends first
-//! is initialised on all of it.
+//! seen so far: the range epochs and TDoA windows that closed since the last attempt are solved
+//! and screened (each once; between attempts a call only stores, and the bank takes it), the open
+//! ones solved as if closed. The χ² quantiles of the screening are computed once per redundancy
+//! ([`ConsistencyTest`]). It is decided once a fix exists and the heading is settled, or the
+//! timeout passed. A log that ends first is initialised on all of it.
 
 use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
-use uwbimu_vocabulary::math::{percentile, Mat3, Quat, Vec3};
+use uwbimu_vocabulary::math::{percentile, quat_exp, Mat3, Quat, Vec3};
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};
-use uwbimu_vocabulary::state::NominalState;
+use uwbimu_vocabulary::sensors::{Observation, RANGE_RANK};
 
+use self::heading_bank::{BankStart, Heading, HeadingBank, Reference, Spread};
 use crate::epoch::EpochAssembler;
-use crate::ins::{propagate_nominal, ImuInterval};
+use crate::ins::ImuInterval;
 use crate::multilateration::tdoa::{solve_tdoa, TdoaWindow};
 use crate::multilateration::{solve_epoch, ConsistencyTest, Fix, LsConfig};
+
+pub mod heading_bank;
 
 /// Accelerometer standard deviation below which the start window counts as still, m/s².
 const STILL_ACCEL_STD: f64 = 0.2;
@@ -56,28 +61,47 @@ const STILL_ACCEL_STD: f64 = 0.2;
 const STILL_GYRO_RATE: f64 = 0.05;
 /// Interval between two attempts of a [`SelfInitializer`], s of IMU time.
 pub const ATTEMPT_INTERVAL_S: f64 = 0.5;
-/// Epochs past `init_heading_distance_m` used for the heading least squares.
-const HEADING_EPOCHS: usize = 5;
 /// Significance of the consistency test that screens the UWB fixes used (see
 /// [`Fix::is_consistent`]).
 const CONSISTENCY_ALPHA: f64 = 0.01;
-/// Yaw standard deviation when the heading comes from motion, rad (≈ 11°).
-const HEADING_FROM_MOTION_STD: f64 = 0.2;
-
-/// Largest standard deviation of a heading from two tags' fixes that self-initialisation uses,
-/// rad (≈ 29°; a shorter baseline, or noisier fixes, leave the heading to motion).
-pub const TAGS_HEADING_MAX_STD: f64 = 0.5;
+/// The smallest standard deviation of a tilt levelled at rest beyond the accelerometer bias, rad.
+const LEVELLED_TILT_STD: f64 = 0.003;
+/// The standard deviation of the tilt of a moving start, rad (the mean specific force holds the
+/// mean acceleration).
+const MOVING_TILT_STD: f64 = 0.1;
+/// The smallest standard deviation of a gyro bias measured at rest, rad/s.
+const STILL_GYRO_BIAS_STD: f64 = 2e-4;
+/// Velocity standard deviation of a still start, m/s.
+const STILL_VELOCITY_STD: f64 = 0.05;
+/// A levelled start's fitted speed within this many standard deviations of the fit is rest
+/// (`still_velocity`).
+const STILL_SPEED_SIGMAS: f64 = 3.0;
+/// Velocity standard deviation of a moving start without fixes to measure it, m/s.
+const MOVING_VELOCITY_STD: f64 = 1.0;
+/// The span of fixes a moving start's velocity is measured over, s.
+const VELOCITY_SPAN_S: f64 = 1.0;
+/// The acceleration a straight line through a second of fixes leaves out, m/s² (a vehicle
+/// turning at 1 m/s on a 1 m radius).
+const UNMODELLED_ACCEL_MPS2: f64 = 1.0;
+/// The smallest heading standard deviation self-initialisation starts a filter with, rad (the
+/// bank's heading at the start comes from the data the filter then takes again: a prior this
+/// wide leaves the filter's heading to that data).
+const START_YAW_STD: f64 = 0.2;
 /// Longest gap between the two tag-0 fixes that tag 0's position is interpolated across, s.
 const TAGS_BRACKET_S: f64 = 0.5;
+/// The errors of two tags' fixes beyond their covariance are taken as shared by the pairs of
+/// this long, s.
+const BASELINE_CORRELATION_S: f64 = 1.0;
 
 /// Where the initial heading came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum HeadingSource {
-    /// Dead-reckoned motion matched to the UWB displacement.
+    /// The heading bank settled on the motion against UWB.
     Motion,
-    /// The baseline between two tags' UWB fixes against their lever arms.
+    /// The heading bank settled with the baseline between two tags' UWB fixes.
     Tags,
-    /// No usable motion: yaw 0 with a standard deviation of π.
+    /// The bank had not settled by `init.heading_timeout_s` (or the end of the data): its
+    /// heading with its wide σ (π without a fix to start it).
     Fallback,
 }
 
@@ -101,6 +125,9 @@ pub struct SelfInit {
     pub still: bool,
     /// How the heading was found.
     pub heading: HeadingSource,
+    /// The time it was decided, s: the last IMU sample it had taken (a streaming filter's first
+    /// state is of this time).
+    pub decided_s: f64,
 }
 
 /// Initialises from the data (see the module doc). `imu` and `ranges` must be validated and
@@ -110,7 +137,9 @@ pub fn initialize(imu: &[ImuSample], ranges: &[RangeMeasurement], anchors: &[Vec
 }
 
 /// [`initialize`] that also takes TDoA (validated, time-ordered): their fixes serve when the
-/// ranges give none (a TDoA-only run); through a [`SelfInitializer`].
+/// ranges give none (a TDoA-only run). The data goes through a [`SelfInitializer`] in time order
+/// (at equal times the IMU first, then TDoA, then ranges, as the pipeline merges them); the first
+/// decision is returned, else the initialisation on all of it.
 pub fn initialize_with_tdoa(
     imu: &[ImuSample],
     ranges: &[RangeMeasurement],
@@ -119,11 +148,34 @@ pub fn initialize_with_tdoa(
     config: &FilterConfig,
 ) -> Result<SelfInit> {
     let mut initializer = SelfInitializer::new(anchors, config)?;
-    // No attempt is made before `finish`, so the streams can be taken one after the other.
-    imu.iter().for_each(|s| initializer.take_imu(s));
-    ranges.iter().for_each(|r| initializer.range(r));
-    tdoa.iter().for_each(|m| initializer.tdoa(m));
-    initializer.finish()
+    let tdoa_rank = tdoa.first().map_or(0, |m| Observation::Tdoa(*m).rank());
+    let (mut i, mut j, mut k) = (0, 0, 0);
+    loop {
+        let keys =
+            [imu.get(i).map(|s| (s.t_s, 0)), tdoa.get(j).map(|m| (m.t_s, tdoa_rank)), ranges.get(k).map(|r| (r.t_s, RANGE_RANK))];
+        let first = keys
+            .iter()
+            .enumerate()
+            .filter_map(|(n, key)| key.map(|key| (n, key)))
+            .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0).then(a.1 .1.cmp(&b.1 .1)));
+        match first.map(|(n, _)| n) {
+            Some(0) => {
+                if let Some(init) = initializer.imu(&imu[i])? {
+                    return Ok(init);
+                }
+                i += 1;
+            }
+            Some(1) => {
+                initializer.tdoa(&tdoa[j])?;
+                j += 1;
+            }
+            Some(_) => {
+                initializer.range(&ranges[k])?;
+                k += 1;
+            }
+            None => return initializer.finish(),
+        }
+    }
 }
 
 /// A UWB fix of self-initialisation: its time, s, the fix, and the ranges it was solved from
@@ -340,7 +392,8 @@ fn solve_window(window: &[TdoaMeasurement], anchors: &[Vec3], ls: &LsConfig) -> 
     Some(SolvedFix { t_s, fix: solve_tdoa(anchors, window, ls)?, obs: Vec::new() })
 }
 
-/// Roll, pitch and gyro bias from the start window (step 1 of the module doc).
+/// Roll, pitch and gyro bias from the start window (step 1 of the module doc), and how well they
+/// are known.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Levelling {
     still: bool,
@@ -348,88 +401,282 @@ struct Levelling {
     pitch: f64,
     level: Quat,
     gyro_bias: Vec3,
+    /// The window's mean specific force, body frame, m/s².
+    specific_force: Vec3,
+    /// Standard deviation of the tilt beyond the accelerometer bias (levelled at rest) or of the
+    /// tilt (moving), rad.
+    tilt_std: f64,
+    /// Standard deviation of the gyro bias of a still window (None: the configuration's).
+    gyro_bias_std: Option<f64>,
 }
 
-/// Step 1 on the samples of the start window (the first `init.still_s` of `imu`).
+/// Step 1 on the samples of the start window (the first `init.still_s` of `imu`). At rest, the
+/// tilt's own error is the mean specific force's (its spread over √n, over gravity) and the gyro
+/// bias's the mean rate's, each with a floor for what a window of white noise does not show
+/// ([`LEVELLED_TILT_STD`], [`STILL_GYRO_BIAS_STD`]).
 fn levelling(imu: &[ImuSample], config: &FilterConfig) -> Levelling {
     let t0 = imu.first().map_or(0.0, |s| s.t_s);
-    let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
-    let window: Vec<(Vec3, Vec3)> = imu.iter().take_while(|s| s.t_s < t0 + config.init.still_s).map(body).collect();
-    let n = window.len() as f64;
-    let f_mean = window.iter().map(|w| w.0).sum::<Vec3>() / n;
-    let w_mean = window.iter().map(|w| w.1).sum::<Vec3>() / n;
-    let f_std = (window.iter().map(|w| (w.0 - f_mean).norm_squared()).sum::<f64>() / n).sqrt();
-    let still = window.len() >= 2 && f_std < STILL_ACCEL_STD && w_mean.norm() < STILL_GYRO_RATE;
+    let window = &imu[..imu.partition_point(|s| s.t_s < t0 + config.init.still_s)];
+    let Quiet { f_mean, w_mean, f_std, w_std, n } = Quiet::of(window, config);
+    let still = n >= 2.0 && f_std < STILL_ACCEL_STD && w_mean.norm() < STILL_GYRO_RATE;
     let roll = f_mean.y.atan2(f_mean.z);
     let pitch = (-f_mean.x).atan2((f_mean.y * f_mean.y + f_mean.z * f_mean.z).sqrt());
     let level = Quat::from_euler_angles(roll, pitch, 0.0);
-    Levelling { still, roll, pitch, level, gyro_bias: if still { w_mean } else { Vec3::zeros() } }
+    let (tilt_std, gyro_bias_std) = if still {
+        let tilt = (f_std / (f_mean.norm().max(1.0) * n.sqrt())).max(LEVELLED_TILT_STD);
+        (tilt, Some((w_std / n.sqrt()).max(STILL_GYRO_BIAS_STD)))
+    } else {
+        (MOVING_TILT_STD, None)
+    };
+    Levelling {
+        still,
+        roll,
+        pitch,
+        level,
+        gyro_bias: if still { w_mean } else { Vec3::zeros() },
+        specific_force: f_mean,
+        tilt_std,
+        gyro_bias_std,
+    }
 }
 
-/// What the heading from motion was scanned against: the start position, the levelling, and
-/// the fix list (its source and whether only its consistent fixes).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct ScanKey {
-    tag0: Vec3,
-    level: Quat,
-    gyro_bias: Vec3,
-    from_tdoa: bool,
-    consistent: bool,
+/// The body-frame mean and spread of the specific force and rate over a run of IMU samples.
+struct Quiet {
+    f_mean: Vec3,
+    w_mean: Vec3,
+    f_std: f64,
+    w_std: f64,
+    n: f64,
 }
 
-/// The heading from motion (step 3) scanned fix by fix: the yaw's sums over the fixes past the
-/// heading distance, and the dead reckoning with yaw 0 from rest, run only up to the last of
-/// them (the IMU sample `k`).
+impl Quiet {
+    /// The statistics of `samples` (turned into the body frame by the mounting of `config`).
+    fn of(samples: &[ImuSample], config: &FilterConfig) -> Self {
+        let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
+        let n = samples.len() as f64;
+        let f_mean = samples.iter().map(|s| body(s).0).sum::<Vec3>() / n;
+        let w_mean = samples.iter().map(|s| body(s).1).sum::<Vec3>() / n;
+        let f_std = (samples.iter().map(|s| (body(s).0 - f_mean).norm_squared()).sum::<f64>() / n).sqrt();
+        let w_std = (samples.iter().map(|s| (body(s).1 - w_mean).norm_squared()).sum::<f64>() / n).sqrt();
+        Self { f_mean, w_mean, f_std, w_std, n }
+    }
+}
+
+/// The end of the quiet span a levelled start window begins: the last of the consecutive blocks
+/// of [`ATTEMPT_INTERVAL_S`] after the window whose specific force keeps the window's mean and
+/// spread and whose rate keeps its mean (each within the levelling's thresholds). Over it the
+/// platform neither accelerates nor turns: at rest or driving steadily.
+fn quiet_until(imu: &[ImuSample], level: &Levelling, config: &FilterConfig) -> f64 {
+    let t0 = imu.first().map_or(0.0, |s| s.t_s);
+    let mut end = t0 + config.init.still_s;
+    loop {
+        let (from, to) = (imu.partition_point(|s| s.t_s < end), imu.partition_point(|s| s.t_s < end + ATTEMPT_INTERVAL_S));
+        if to == imu.len() || to - from < 2 {
+            return end;
+        }
+        let block = Quiet::of(&imu[from..to], config);
+        let quiet = block.f_std < STILL_ACCEL_STD
+            && (block.f_mean - level.specific_force).norm() < STILL_ACCEL_STD
+            && (block.w_mean - level.gyro_bias).norm() < STILL_GYRO_RATE;
+        if !quiet {
+            return end;
+        }
+        end += ATTEMPT_INTERVAL_S;
+    }
+}
+
+/// The attitude dead-reckoned by the gyro from the levelled start with yaw 0 (less the start
+/// window's gyro bias), one orientation per IMU sample taken: the reference the heading bank's
+/// start and the tags' body baseline are turned by.
 #[derive(Debug, Clone)]
-struct MotionScan {
-    key: ScanKey,
-    next: usize,
-    x: NominalState,
-    k: usize,
-    dr0: Vec3,
-    cross: f64,
-    dot: f64,
-    used: usize,
-    settled_s: Option<f64>,
-    done: bool,
+struct AttitudeChain {
+    orientations: Vec<Quat>,
+    gyro_bias: Vec3,
+    /// `∫ Rᵀ·e_z dt` along the chain: how a change of the gyro bias turns the heading, s.
+    up_integral: Vec3,
 }
 
-impl MotionScan {
-    fn new(key: ScanKey, config: &FilterConfig) -> Self {
-        let x = at_rest(key.level, key.gyro_bias);
-        let dr0 = x.position + x.orientation * config.mounting.lever_arm.first();
-        Self { key, next: 0, x, k: 0, dr0, cross: 0.0, dot: 0.0, used: 0, settled_s: None, done: false }
+impl AttitudeChain {
+    fn new(level: Quat, gyro_bias: Vec3) -> Self {
+        Self { orientations: vec![level], gyro_bias, up_integral: Vec3::zeros() }
     }
 
-    /// Takes the next fix: past the heading distance from the start, its displacement and the
-    /// dead-reckoned one add to the sums; the scan ends at [`HEADING_EPOCHS`] such fixes or the
-    /// timeout.
-    fn take(&mut self, t_fix: f64, position: &Vec3, imu: &[ImuSample], config: &FilterConfig) {
-        self.next += 1;
-        let t0 = imu.first().map_or(t_fix, |s| s.t_s);
-        if self.done || t_fix > t0 + config.init.heading_timeout_s || self.used >= HEADING_EPOCHS {
-            self.done = true;
-            return;
+    /// What the heading bank needs of the chain now ([`Reference`]).
+    fn reference(&self) -> Reference {
+        let (first, last) = (self.orientations.first(), self.orientations.last());
+        let turn = match (first, last) {
+            (Some(a), Some(b)) => heading_bank::angle_difference(heading_bank::yaw_of(b), heading_bank::yaw_of(a)),
+            _ => 0.0,
+        };
+        Reference { turn_rad: turn, up_integral: self.up_integral, gyro_bias: self.gyro_bias }
+    }
+
+    /// Propagates the chain through the samples of `imu` it has not reached (the mean rate of
+    /// each interval, as the strapdown mechanisation).
+    fn extend(&mut self, imu: &[ImuSample], rotation: &Quat) {
+        while self.orientations.len() < imu.len() {
+            let k = self.orientations.len();
+            let interval = ImuInterval::between(&imu[k - 1], &imu[k], rotation);
+            let rate = 0.5 * (interval.gyro_start + interval.gyro_end) - self.gyro_bias;
+            let last = self.orientations[k - 1];
+            self.up_integral += (last.inverse() * Vec3::z()) * interval.dt_s;
+            self.orientations.push(last * quat_exp(&(rate * interval.dt_s)));
         }
-        let d_uwb = position - self.key.tag0;
-        if d_uwb.xy().norm() >= config.init.heading_distance_m {
-            dead_reckon_to(&mut self.x, imu, &mut self.k, t_fix, config);
-            let d_dr = self.x.position + self.x.orientation * config.mounting.lever_arm.first() - self.dr0;
-            self.cross += d_dr.x * d_uwb.y - d_dr.y * d_uwb.x;
-            self.dot += d_dr.x * d_uwb.x + d_dr.y * d_uwb.y;
-            self.used += 1;
-            if self.used == HEADING_EPOCHS {
-                self.settled_s = Some(t_fix);
+    }
+
+    /// The orientation at the last sample of `imu` at or before `t_s`.
+    fn at(&self, imu: &[ImuSample], t_s: f64) -> Option<Quat> {
+        let k = imu.partition_point(|s| s.t_s <= t_s).checked_sub(1)?;
+        self.orientations.get(k).copied()
+    }
+}
+
+/// The tags' baseline yaws fed to the heading bank (step 3 of the module doc): which tag-1 fixes
+/// were paired, and the length residuals that measure how far the fixes are off beyond their
+/// covariance.
+#[derive(Debug, Clone, Default)]
+struct BaselinePairs {
+    /// Tag-1 fixes (consistent, closed) already paired or passed over.
+    next: usize,
+    /// Σ (|b_uwb| − |b|)² over the pairs, m².
+    length_residuals: f64,
+    /// Σ of the pairs' predicted variance along the baseline, m².
+    predicted: f64,
+    /// Times of the pairs applied, s (those of the last [`BASELINE_CORRELATION_S`]).
+    recent: Vec<f64>,
+    pairs: usize,
+}
+
+impl BaselinePairs {
+    /// Pairs the closed, consistent tag-1 fixes `tag1` not yet paired with tag 0's (`tag0`, each
+    /// interpolated between the fixes on either side, at most [`TAGS_BRACKET_S`] apart) and gives
+    /// the bank each pair's yaw offset: the heading of the UWB baseline less that of the body
+    /// baseline turned by `chain` to the fix's time, with variance (σ²_across + σ²_sys·n)/|b|²,
+    /// σ²_across the two fixes' horizontal variance, σ²_sys the squared length residuals beyond
+    /// their predicted variance (a bias of the fixes, which the covariance does not show: shared
+    /// by the pairs of the last [`BASELINE_CORRELATION_S`], n of them).
+    fn feed(
+        &mut self,
+        bank: &mut HeadingBank,
+        tag1: &[SolvedFix],
+        tag0: &[SolvedFix],
+        chain: &AttitudeChain,
+        imu: &[ImuSample],
+        baseline: &Vec3,
+    ) -> Result<()> {
+        let horizontal_var = |f: &Fix| 0.5 * (f.covariance[(0, 0)] + f.covariance[(1, 1)]);
+        while let Some(SolvedFix { t_s: t1, fix: f1, .. }) = tag1.get(self.next) {
+            let after = tag0.partition_point(|f| f.t_s < *t1);
+            let Some(b) = tag0.get(after) else { break };
+            self.next += 1;
+            let Some(a) = after.checked_sub(1).and_then(|i| tag0.get(i)) else { continue };
+            let Some(turned) = chain.at(imu, *t1).map(|q| q * baseline) else { continue };
+            let length = turned.xy().norm();
+            if b.t_s - a.t_s > TAGS_BRACKET_S || length < 1e-3 {
+                continue;
             }
+            let w = if b.t_s > a.t_s { (t1 - a.t_s) / (b.t_s - a.t_s) } else { 0.0 };
+            let measured = (f1.position - (a.fix.position + (b.fix.position - a.fix.position) * w)).xy();
+            let noise = horizontal_var(f1) + horizontal_var(&a.fix).max(horizontal_var(&b.fix));
+            self.pairs += 1;
+            self.length_residuals += (measured.norm() - length).powi(2);
+            self.predicted += noise;
+            let systematic = ((self.length_residuals - self.predicted) / self.pairs as f64).max(0.0);
+            self.recent.retain(|t| *t > t1 - BASELINE_CORRELATION_S);
+            self.recent.push(*t1);
+            let var = (noise + systematic * self.recent.len() as f64) / (length * length);
+            let offset = heading_bank::angle_difference(measured.y.atan2(measured.x), turned.y.atan2(turned.x));
+            let now = chain.orientations.last().copied().unwrap_or_else(Quat::identity);
+            bank.baseline_yaw(offset, var, &now)?;
         }
+        Ok(())
     }
+}
 
-    /// The yaw that best rotates the dead-reckoned tag displacement onto the UWB one (None
-    /// without a fix past the heading distance), and the time of the last fix once all
-    /// [`HEADING_EPOCHS`] were used.
-    fn heading(&self) -> (Option<f64>, Option<f64>) {
-        ((self.used > 0 && (self.cross != 0.0 || self.dot != 0.0)).then(|| self.cross.atan2(self.dot)), self.settled_s)
+/// A straight line through fixes by least squares: the horizontal velocity (the vertical taken
+/// as zero: a fix's height is the least certain of its axes, anchors at one or two heights), the
+/// fixes' noise on it (standard deviation per axis, from their mean horizontal variance over
+/// Σ(t − t̄)²), that variance, the residual variance about the line, the mean time and the span, s. None for fewer than two fixes or no span.
+fn line_fit(window: &[&SolvedFix]) -> Option<LineFit> {
+    let (first, last) = (window.first()?, window.last()?);
+    let n = window.len() as f64;
+    let t_mean = window.iter().map(|f| f.t_s).sum::<f64>() / n;
+    let p_mean = window.iter().map(|f| f.fix.position).sum::<Vec3>() / n;
+    let stt: f64 = window.iter().map(|f| (f.t_s - t_mean).powi(2)).sum();
+    if window.len() < 2 || stt <= 0.0 {
+        return None;
     }
+    let mut velocity = window.iter().map(|f| (f.fix.position - p_mean) * (f.t_s - t_mean)).sum::<Vec3>() / stt;
+    velocity.z = 0.0;
+    let fix_var = window.iter().map(|f| 0.5 * f.fix.covariance.fixed_view::<2, 2>(0, 0).trace()).sum::<f64>() / n;
+    let residual_var =
+        window.iter().map(|f| 0.5 * (f.fix.position - p_mean - velocity * (f.t_s - t_mean)).xy().norm_squared()).sum::<f64>() / n;
+    Some(LineFit { velocity, noise_std: (fix_var / stt).sqrt(), fix_var, residual_var, t_mean, span_s: last.t_s - first.t_s })
+}
+
+/// What [`line_fit`] finds.
+#[derive(Debug, Clone, Copy)]
+struct LineFit {
+    velocity: Vec3,
+    noise_std: f64,
+    /// The fixes' mean horizontal variance per axis, m².
+    fix_var: f64,
+    /// The mean squared horizontal residual about the line per axis, m².
+    residual_var: f64,
+    t_mean: f64,
+    span_s: f64,
+}
+
+/// The horizontal velocity of the fixes over `[t_s − span_s, t_s]` ([`line_fit`] through at
+/// least three fixes spanning half of it), with its standard deviation per axis: the fixes'
+/// noise plus [`UNMODELLED_ACCEL_MPS2`] over half the span; at `at_s`, the latter over the time
+/// from the span's centre too. None without such fixes.
+fn fix_velocity(fixes: &[SolvedFix], t_s: f64, span_s: f64, at_s: f64) -> Option<(Vec3, f64)> {
+    let window: Vec<&SolvedFix> = fixes.iter().filter(|f| f.t_s <= t_s && f.t_s >= t_s - span_s).collect();
+    let fit = line_fit(&window)?;
+    if window.len() < 3 || fit.span_s < 0.5 * span_s {
+        return None;
+    }
+    let lever_s = 0.5 * fit.span_s + (fit.t_mean - at_s).abs();
+    Some((fit.velocity, fit.noise_std.hypot(UNMODELLED_ACCEL_MPS2 * lever_s)))
+}
+
+/// The velocity of a levelled start from the fixes of its quiet span (`quiet`, [`quiet_until`]),
+/// with its standard deviation per axis. The IMU cannot tell rest from a steady drive; the fixes
+/// can. Through a straight line fitted to them ([`line_fit`]):
+/// - over fixes spanning `still_s` or more, a speed within [`STILL_SPEED_SIGMAS`] of the fit's
+///   noise is rest: zero, σ [`STILL_VELOCITY_STD`] (the slow drift of an NLOS fix is not a drive:
+///   a wider prior let the robust filters' first ranges pull the velocity, Li & Wang's NLOS hall
+///   0.38 → 0.49 m; fewer fixes cannot tell: a vehicle at 1 m/s passed as rest on three);
+/// - a significant speed with the fixes on the line within their noise (mean squared horizontal
+///   residual at most four times their variance) is a steady drive: the line's velocity, σ twice
+///   the fit's noise, at least [`STILL_VELOCITY_STD`];
+/// - a significant speed off the line is a step of a fix (multipath, NLOS): zero, with the fitted
+///   speed plus twice its noise as σ (wide, never wrong).
+///
+/// Also that wide σ whatever the case (for the heading bank, [`StillVelocity`]).
+fn still_velocity(quiet: &[&SolvedFix], still_s: f64) -> StillVelocity {
+    let Some(fit) = line_fit(quiet) else {
+        return StillVelocity { velocity: Vec3::zeros(), std: STILL_VELOCITY_STD, wide_std: STILL_VELOCITY_STD };
+    };
+    let speed = fit.velocity.norm();
+    let wide_std = (speed + 2.0 * fit.noise_std).max(STILL_VELOCITY_STD);
+    if quiet.len() < 3 || (fit.span_s >= still_s && speed <= STILL_SPEED_SIGMAS * fit.noise_std) {
+        StillVelocity { velocity: Vec3::zeros(), std: STILL_VELOCITY_STD, wide_std }
+    } else if fit.residual_var <= 4.0 * fit.fix_var {
+        let std = (2.0 * fit.noise_std).max(STILL_VELOCITY_STD);
+        StillVelocity { velocity: fit.velocity, std, wide_std: std }
+    } else {
+        StillVelocity { velocity: Vec3::zeros(), std: wide_std, wide_std }
+    }
+}
+
+/// What [`still_velocity`] finds: the velocity, its σ per axis, and a σ that covers the fitted
+/// speed whatever the test said (the heading bank's prior), m/s.
+struct StillVelocity {
+    velocity: Vec3,
+    std: f64,
+    wide_std: f64,
 }
 
 /// Gathers the data of a run in time order and initialises on it as soon as that is decided
@@ -446,8 +693,14 @@ pub struct SelfInitializer {
     tag1: RangeFixes,
     other_tags: bool,
     tdoa: TdoaFixes,
-    scan: Option<MotionScan>,
     next_attempt_s: Option<f64>,
+    /// The start window's levelling and the attitude dead-reckoned from it, once the window is
+    /// complete.
+    chain: Option<AttitudeChain>,
+    bank: Option<Box<HeadingBank>>,
+    pairs: BaselinePairs,
+    /// The bank's heading at the reference time at the previous attempt.
+    previous: Option<Heading>,
 }
 
 impl SelfInitializer {
@@ -464,8 +717,11 @@ impl SelfInitializer {
             tdoa: TdoaFixes::new(tdoa_ls),
             ls,
             imu: Vec::new(),
-            scan: None,
             next_attempt_s: None,
+            chain: None,
+            bank: None,
+            pairs: BaselinePairs::default(),
+            previous: None,
         })
     }
 
@@ -479,8 +735,8 @@ impl SelfInitializer {
         &self.config
     }
 
-    /// Takes a range (in time order with the other calls).
-    pub fn range(&mut self, r: &RangeMeasurement) {
+    /// Takes a range (in time order with the other calls); a running heading bank takes tag 0's.
+    pub fn range(&mut self, r: &RangeMeasurement) -> Result<()> {
         match r.tag {
             0 => self.tag0.push(r),
             tag => {
@@ -490,39 +746,43 @@ impl SelfInitializer {
                 }
             }
         }
+        self.bank.as_mut().map_or(Ok(()), |bank| bank.range(r))
     }
 
-    /// Takes a TDoA.
-    pub fn tdoa(&mut self, m: &TdoaMeasurement) {
+    /// Takes a TDoA; a running heading bank takes it.
+    pub fn tdoa(&mut self, m: &TdoaMeasurement) -> Result<()> {
         let t0 = self.imu.first().map(|s| s.t_s);
         self.tdoa.push(m, t0);
+        self.bank.as_mut().map_or(Ok(()), |bank| bank.tdoa(m))
     }
 
-    /// Takes an IMU sample without attempting.
-    fn take_imu(&mut self, s: &ImuSample) {
+    /// Takes an IMU sample without attempting; the attitude chain and a running heading bank
+    /// take it.
+    fn take_imu(&mut self, s: &ImuSample) -> Result<()> {
         self.imu.push(*s);
         if self.imu.len() == 1 {
             self.tdoa.start(s.t_s);
         }
+        if let Some(chain) = self.chain.as_mut() {
+            chain.extend(&self.imu, &self.config.mounting.imu_rotation);
+        }
+        self.bank.as_mut().map_or(Ok(()), |bank| bank.imu(s))
     }
 
     /// Takes an IMU sample and, when an attempt is due, evaluates the initialisation on
     /// everything taken so far: Some once decided.
     pub fn imu(&mut self, s: &ImuSample) -> Result<Option<SelfInit>> {
-        self.take_imu(s);
+        self.take_imu(s)?;
         let due = *self.next_attempt_s.get_or_insert(s.t_s + self.config.init.still_s);
         if s.t_s < due {
             return Ok(None);
         }
         self.next_attempt_s = Some(due + ATTEMPT_INTERVAL_S * (((s.t_s - due) / ATTEMPT_INTERVAL_S).floor() + 1.0));
-        let t0 = self.imu[0].t_s;
-        let (init, heading_settled_s) = match self.evaluate() {
-            Ok(found) => found,
-            Err(Error::InsufficientData(_)) => return Ok(None),
-            Err(e) => return Err(e),
-        };
-        let settled_s = heading_settled_s.unwrap_or(t0 + self.config.init.heading_timeout_s);
-        Ok((s.t_s > settled_s + self.config.ranging.epoch_window_s).then_some(init))
+        match self.evaluate() {
+            Ok((init, decided)) => Ok(decided.then_some(init)),
+            Err(Error::InsufficientData(_)) => Ok(None),
+            Err(e) => Err(e),
+        }
     }
 
     /// Initialises on everything taken (the data ended before it was decided).
@@ -531,9 +791,9 @@ impl SelfInitializer {
     }
 
     /// The initialisation on everything taken so far, the open epochs and windows solved as if
-    /// they closed now, and, when the heading came from a full set of epochs, the time of the
-    /// last one (later data cannot change it).
-    fn evaluate(&mut self) -> Result<(SelfInit, Option<f64>)> {
+    /// they closed now, and whether it is decided: the heading bank's σ is at most
+    /// `init.heading_std`, or `init.heading_timeout_s` has passed.
+    fn evaluate(&mut self) -> Result<(SelfInit, bool)> {
         let Some(t0) = self.imu.first().map(|s| s.t_s) else {
             return Err(Error::InsufficientData("self-initialisation needs IMU samples".into()));
         };
@@ -554,10 +814,12 @@ impl SelfInitializer {
     }
 
     /// [`SelfInitializer::evaluate`] with the open fixes pushed onto the lists.
-    fn evaluate_on_fixes(&mut self, t0: f64) -> Result<(SelfInit, Option<f64>)> {
+    fn evaluate_on_fixes(&mut self, t0: f64) -> Result<(SelfInit, bool)> {
         let config = &self.config;
+        let t_now = self.imu.last().map_or(t0, |s| s.t_s);
         // 1. Roll, pitch, gyro bias from the start window.
-        let Levelling { still, roll, pitch, level, gyro_bias } = levelling(&self.imu, config);
+        let levelling = levelling(&self.imu, config);
+        let Levelling { still: levelled, roll, pitch, level, gyro_bias, tilt_std, gyro_bias_std, .. } = levelling;
 
         // 2. Tag position from UWB fixes (tag 0's: a fix is of one antenna); TDoA fixes when the
         // ranges give none. Fixes whose measurements disagree (an outlier, NLOS) are left out
@@ -568,11 +830,13 @@ impl SelfInitializer {
         let consistent = !source.consistent[since(&source.consistent)..].is_empty();
         let list = if consistent { &source.consistent } else { &source.all };
         let fixes = &list[since(list)..];
-        let Some(first_fix) = fixes.first().map(|f| f.fix) else {
+        let Some(first) = fixes.first() else {
             return Err(Error::InsufficientData(
                 "self-initialisation found no solvable UWB epoch after the first IMU sample".into(),
             ));
         };
+        let first_fix = first.fix;
+        let still = levelled;
         let start: Vec<&SolvedFix> = fixes.iter().take_while(|f| still && f.t_s <= t0 + config.init.still_s).collect();
         // The uncertainty is one fix's, not shrunk by the number of still fixes: at a standstill their
         // errors (anchor survey, multipath, NLOS) are the same in every fix.
@@ -593,84 +857,124 @@ impl SelfInitializer {
                 (tag0.z, height) = (z, pooled);
             }
         }
-
-        // 3. Heading from two tags' baseline, else from dead reckoning against UWB displacement.
-        let from_tags = if self.other_tags {
-            let tag1 = &self.tag1.fixes.consistent;
-            let tag1 = &tag1[tag1.partition_point(|f| f.t_s < t0)..];
-            heading_from_tags(&self.imu, tag1, fixes, level, gyro_bias, config).filter(|h| h.std_rad <= TAGS_HEADING_MAX_STD)
+        // The velocity at the first IMU sample: when levelled, at rest or a steady drive
+        // ([`still_velocity`]), else the fixes' over their first second; the position then moved
+        // back to the first IMU sample. The lag is how far the position's time is from the first
+        // sample's: the still fixes' mean time (their median's, on a line), else the first fix's.
+        // The bank, started on the first fixes, takes the velocity with the σ that covers the
+        // fitted speed (`wide_std`): at rest by a test on three fixes is not sure enough to
+        // hold its members to 0.05 m/s (a vehicle at 1 m/s whose first three fixes passed as
+        // rest sent every member to the opposite heading).
+        let (velocity, velocity_std, wide_std, lag_s) = if still {
+            let lag_s =
+                if start.is_empty() { first.t_s } else { start.iter().map(|f| f.t_s).sum::<f64>() / start.len() as f64 } - t0;
+            let quiet_end = quiet_until(&self.imu, &levelling, config);
+            let quiet: Vec<&SolvedFix> = fixes.iter().take_while(|f| f.t_s <= quiet_end).collect();
+            let StillVelocity { velocity: v, std, wide_std } = still_velocity(&quiet, config.init.still_s);
+            tag0 -= v * lag_s;
+            (v, std, wide_std, lag_s)
         } else {
-            None
+            let (v, std) = fix_velocity(fixes, first.t_s + VELOCITY_SPAN_S, VELOCITY_SPAN_S, t0)
+                .unwrap_or((Vec3::zeros(), MOVING_VELOCITY_STD));
+            tag0 -= v * (first.t_s - t0);
+            (v, std, std, first.t_s - t0)
         };
-        let (yaw_rad, yaw_std, heading, settled_s) = match from_tags {
-            Some(h) => (h.yaw_rad, h.std_rad, HeadingSource::Tags, h.settled_s),
-            None => {
-                let key = ScanKey { tag0, level, gyro_bias, from_tdoa, consistent };
-                let closed = source.closed_len(consistent);
-                let scan = scan_motion(&mut self.scan, key, list, since(list), closed, &self.imu, config);
-                match scan.heading() {
-                    (Some(y), settled_s) => (y, HEADING_FROM_MOTION_STD, HeadingSource::Motion, settled_s),
-                    (None, settled_s) => (0.0, std::f64::consts::PI, HeadingSource::Fallback, settled_s),
-                }
+
+        // 3. Heading from the bank, started at the first attempt with a fix.
+        let chain = self.chain.get_or_insert_with(|| AttitudeChain::new(level, gyro_bias));
+        chain.extend(&self.imu, &config.mounting.imu_rotation);
+        if self.bank.is_none() {
+            let latest = fixes.iter().rev().find(|f| f.t_s <= t_now).unwrap_or(first);
+            let moving_since = t_now - latest.t_s;
+            let (bank_velocity, bank_velocity_std) = match fix_velocity(fixes, latest.t_s, VELOCITY_SPAN_S, t_now) {
+                _ if still => (velocity, wide_std),
+                Some((v, std)) => (v, std.max(STILL_VELOCITY_STD)),
+                None => (Vec3::zeros(), MOVING_VELOCITY_STD),
+            };
+            let position_std = Vec3::from_fn(|i, _| {
+                (latest.fix.covariance[(i, i)] + (bank_velocity_std * moving_since).powi(2)).sqrt().max(0.05)
+            });
+            let (Some(last), Some(orientation)) = (self.imu.last(), chain.orientations.last()) else {
+                return Err(Error::InsufficientData("self-initialisation needs IMU samples".into()));
+            };
+            let position_std = if latest.fix.planar { Vec3::new(position_std.x, position_std.y, 1.0) } else { position_std };
+            let tag = latest.fix.position + bank_velocity * moving_since;
+            let prior = InitialState {
+                position: tag - orientation * config.mounting.lever_arm.first(),
+                velocity: bank_velocity,
+                orientation: *orientation,
+                position_std,
+                velocity_std: Vec3::repeat(bank_velocity_std),
+                orientation_std: Vec3::new(tilt_std, tilt_std, heading_bank::MEMBER_YAW_STD),
+                accel_bias: Vec3::zeros(),
+                gyro_bias,
+                accel_bias_std: None,
+                gyro_bias_std,
+                levelled,
+            };
+            let start =
+                BankStart { imu: *last, state: prior.nominal(), covariance: prior.covariance(config), spread: Spread::Circle };
+            self.bank = Some(HeadingBank::new(&start, &self.anchors, config)?);
+        }
+        let bank = self.bank.as_mut().ok_or_else(|| Error::InvalidCall("the heading bank did not start".into()))?;
+        if self.other_tags && !from_tdoa {
+            let (tag1, tag0_closed) = (&self.tag1.fixes.consistent, &self.tag0.fixes.consistent);
+            let (n1, n0) = (self.tag1.fixes.closed_len(true), self.tag0.fixes.closed_len(true));
+            let baseline = *config.mounting.lever_arm.of(1) - *config.mounting.lever_arm.first();
+            if config.mounting.lever_arm.tags() >= 2 {
+                self.pairs.feed(bank, &tag1[..n1], &tag0_closed[..n0], chain, &self.imu, &baseline)?;
             }
+        }
+        let now = bank.heading();
+        let at_start = bank.heading_at_reference(&chain.reference());
+        // Settled: narrow at this attempt and the one before, and both on the same heading (the
+        // first second of motion can favour a wrong basin for an attempt); at once, half as
+        // wide, when the tags' baseline measured the heading.
+        let narrow = |h: &Heading| h.std_rad <= config.init.heading_std;
+        let measured = bank.baseline_updates() > 0 && now.std_rad <= 0.5 * config.init.heading_std;
+        let settled = narrow(&now)
+            && (measured
+                || self.previous.is_some_and(|p| {
+                    narrow(&p)
+                        && heading_bank::angle_difference(p.yaw_rad, at_start.yaw_rad).abs() <= p.std_rad.max(at_start.std_rad)
+                }));
+        self.previous = Some(at_start);
+        let decided = settled || t_now > t0 + config.init.heading_timeout_s;
+        let heading = match (settled, bank.baseline_updates() > 0) {
+            (false, _) => HeadingSource::Fallback,
+            (true, true) => HeadingSource::Tags,
+            (true, false) => HeadingSource::Motion,
         };
-        let orientation = Quat::from_euler_angles(roll, pitch, yaw_rad);
-        let mut position_std = Vec3::from_fn(|i, _| tag0_cov[(i, i)].sqrt().max(0.05));
+        let yaw_std = at_start.std_rad.max(START_YAW_STD);
+        let orientation = Quat::from_euler_angles(roll, pitch, at_start.yaw_rad);
+        let lag_s = lag_s.max(0.0);
+        let mut position_std = Vec3::from_fn(|i, _| (tag0_cov[(i, i)] + (velocity_std * lag_s).powi(2)).sqrt().max(0.05));
         position_std.z = match height {
             Height::OnAnchorPlane => 1.0,
-            Height::Fixed(var) => var.sqrt().max(0.05),
+            Height::Fixed(var) => (var + (velocity_std * lag_s).powi(2)).sqrt().max(0.05),
         };
-        let tilt_std = if still { 0.02 } else { 0.1 };
         Ok((
             SelfInit {
                 initial: InitialState {
                     position: tag0 - orientation * config.mounting.lever_arm.first(),
-                    velocity: Vec3::zeros(),
+                    velocity,
                     orientation,
                     position_std,
-                    velocity_std: Vec3::repeat(if still { 0.05 } else { 0.5 }),
+                    velocity_std: Vec3::repeat(velocity_std),
                     orientation_std: Vec3::new(tilt_std, tilt_std, yaw_std),
                     accel_bias: Vec3::zeros(),
                     gyro_bias,
                     accel_bias_std: None,
-                    gyro_bias_std: None,
+                    gyro_bias_std,
+                    levelled,
                 },
                 still,
                 heading,
+                decided_s: t_now,
             },
-            settled_s,
+            decided,
         ))
     }
-}
-
-/// The heading from motion over `list[from..]`: the kept scan (`kept`, restarted when its key
-/// changed) takes the closed fixes (`list[..closed]`) the IMU has passed, so that no fix is
-/// scanned twice; a copy of it takes the rest (later samples or a closed epoch may still move
-/// them) and is returned.
-fn scan_motion(
-    kept: &mut Option<MotionScan>,
-    key: ScanKey,
-    list: &[SolvedFix],
-    from: usize,
-    closed: usize,
-    imu: &[ImuSample],
-    config: &FilterConfig,
-) -> MotionScan {
-    let scan = match kept {
-        Some(scan) if scan.key == key => scan,
-        _ => kept.insert(MotionScan { next: from, ..MotionScan::new(key, config) }),
-    };
-    let t_imu = imu.last().map_or(f64::NEG_INFINITY, |s| s.t_s);
-    while scan.next < closed && list[scan.next].t_s <= t_imu {
-        let f = &list[scan.next];
-        scan.take(f.t_s, &f.fix.position, imu, config);
-    }
-    let mut copy = scan.clone();
-    while copy.next < list.len() {
-        let f = &list[copy.next];
-        copy.take(f.t_s, &f.fix.position, imu, config);
-    }
-    copy
 }
 
 /// How the initial height was found.
@@ -695,88 +999,4 @@ fn still_height(start: &[&SolvedFix], anchors: &[Vec3], ls: &LsConfig) -> Option
     let fix = solve_epoch(anchors, &obs, ls)?;
     let height = if fix.planar { Height::OnAnchorPlane } else { Height::Fixed(fix.covariance[(2, 2)] * start.len() as f64) };
     Some((fix.position.z, height))
-}
-
-/// The state dead reckoning starts from: at the origin, at rest, levelled by `level` with yaw 0,
-/// the gyro bias of the start window.
-fn at_rest(level: Quat, gyro_bias: Vec3) -> NominalState {
-    NominalState { position: Vec3::zeros(), velocity: Vec3::zeros(), orientation: level, accel_bias: Vec3::zeros(), gyro_bias }
-}
-
-/// Propagates `x` from the IMU sample `*k` through the samples up to time `t_s` (the strapdown
-/// mechanisation, `config.ins`, the mounting's rotation), leaving `*k` at the last of them.
-fn dead_reckon_to(x: &mut NominalState, imu: &[ImuSample], k: &mut usize, t_s: f64, config: &FilterConfig) {
-    while *k + 1 < imu.len() && imu[*k + 1].t_s <= t_s {
-        let interval = ImuInterval::between(&imu[*k], &imu[*k + 1], &config.mounting.imu_rotation);
-        *x = propagate_nominal(x, &interval, &config.ins);
-        *k += 1;
-    }
-}
-
-/// A heading from two tags ([`heading_from_tags`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct TagsHeading {
-    /// Yaw at the first IMU sample, rad.
-    yaw_rad: f64,
-    /// Its standard deviation: one pair's horizontal fix error (the mean variance of the pairs)
-    /// across the baseline, rad.
-    std_rad: f64,
-    /// The time of the last pair once all [`HEADING_EPOCHS`] were used (later data cannot change
-    /// it).
-    settled_s: Option<f64>,
-}
-
-/// The yaw at the first IMU sample that best rotates the tags' baseline `b = l₁ − l₀` (body
-/// frame, lever arms of tags 1 and 0) onto the baseline between their UWB fixes: for each of the
-/// first [`HEADING_EPOCHS`] fixes of tag 1 (`tag1`, consistent, after the start), tag 0's
-/// position is interpolated between its fixes on either side (`tag0`, at most
-/// [`TAGS_BRACKET_S`] apart) and the body baseline is turned by the attitude dead-reckoned from
-/// `level` with yaw 0 (the gyro since the start); the yaw is `atan2(Σ b_dr × b_uwb, Σ b_dr ·
-/// b_uwb)` over the horizontal components. None without a second tag with a horizontal baseline
-/// or a pair.
-fn heading_from_tags(
-    imu: &[ImuSample],
-    tag1: &[SolvedFix],
-    tag0: &[SolvedFix],
-    level: Quat,
-    gyro_bias: Vec3,
-    config: &FilterConfig,
-) -> Option<TagsHeading> {
-    let t0 = imu.first()?.t_s;
-    let arms = &config.mounting.lever_arm;
-    let baseline = *arms.of(1) - *arms.first();
-    let horizontal_baseline_m = (level * baseline).xy().norm();
-    if arms.tags() < 2 || horizontal_baseline_m < 1e-3 {
-        return None;
-    }
-    let mut x = at_rest(level, gyro_bias);
-    let (mut cross, mut dot, mut used, mut k) = (0.0, 0.0, 0usize, 0usize);
-    let (mut var_sum, mut last_s) = (0.0, t0);
-    let horizontal_var = |f: &Fix| 0.5 * (f.covariance[(0, 0)] + f.covariance[(1, 1)]);
-    for SolvedFix { t_s: t1, fix: f1, .. } in tag1 {
-        if used >= HEADING_EPOCHS || *t1 > t0 + config.init.heading_timeout_s {
-            break;
-        }
-        let after = tag0.partition_point(|f| f.t_s < *t1);
-        let (Some(a), Some(b)) = (after.checked_sub(1).and_then(|i| tag0.get(i)), tag0.get(after)) else {
-            continue;
-        };
-        let (ta, fa, tb, fb) = (&a.t_s, &a.fix, &b.t_s, &b.fix);
-        if tb - ta > TAGS_BRACKET_S {
-            continue;
-        }
-        let w = if tb > ta { (t1 - ta) / (tb - ta) } else { 0.0 };
-        let p0 = fa.position + (fb.position - fa.position) * w;
-        dead_reckon_to(&mut x, imu, &mut k, *t1, config);
-        let (b_dr, b_uwb) = (x.orientation * baseline, f1.position - p0);
-        cross += b_dr.x * b_uwb.y - b_dr.y * b_uwb.x;
-        dot += b_dr.x * b_uwb.x + b_dr.y * b_uwb.y;
-        var_sum += horizontal_var(f1) + horizontal_var(fa).max(horizontal_var(fb));
-        (used, last_s) = (used + 1, *t1);
-    }
-    (used > 0).then(|| TagsHeading {
-        yaw_rad: cross.atan2(dot),
-        std_rad: (var_sum / used as f64).sqrt() / horizontal_baseline_m,
-        settled_s: (used == HEADING_EPOCHS).then_some(last_s),
-    })
 }

@@ -10,6 +10,7 @@ pub mod filters;
 pub mod gate;
 pub mod init;
 pub mod ins;
+pub mod invariant;
 pub mod models;
 pub mod multilateration;
 pub mod pipeline;

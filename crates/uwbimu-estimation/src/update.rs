@@ -169,6 +169,13 @@ pub fn times_sparse<const N: usize>(p: &Cov<N>, h: &SVector<f64, N>) -> SVector<
 /// 15 INS error states first; the parameter states past them are left to the caller.
 pub fn inject_and_reset<const N: usize>(x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
     x.inject(dx);
+    reset(p, dx);
+}
+
+/// The reset of [`inject_and_reset`] alone: `P ← G·P·Gᵀ` with `G = I − [½δθ]×` on the attitude
+/// block, the covariance of the error about a state moved by `dx` from the one `P` was about.
+/// `P` must be symmetric; it stays so exactly.
+pub fn reset<const N: usize>(p: &mut Cov<N>, dx: &SVector<f64, N>) {
     let h = Vec3::new(0.5 * dx[ATT], 0.5 * dx[ATT + 1], 0.5 * dx[ATT + 2]);
     let g: Mat3 = Mat3::identity() - skew(&h);
     // G·P·Gᵀ changes the attitude rows and columns only: column by column, the attitude rows

@@ -13,7 +13,7 @@ mod parse;
 mod range_calibration;
 mod sections;
 
-use parse::{non_negative, quaternion, vec3, vec3_or_scalar};
+use parse::{flag, non_negative, quaternion, vec3, vec3_or_scalar};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
@@ -247,6 +247,11 @@ pub struct InitialState {
     pub accel_bias_std: Option<f64>,
     /// Gyroscope-bias standard deviation, rad/s (None: [`InitConfig::gyro_bias_std`]).
     pub gyro_bias_std: Option<f64>,
+    /// Whether roll and pitch were levelled on the mean specific force of the platform at rest:
+    /// their error is then the horizontal accelerometer bias over gravity, correlated with it in
+    /// the covariance ([`InitialState::covariance`]), and `orientation_std`'s tilt is the
+    /// levelling's own error beyond it.
+    pub levelled: bool,
 }
 
 impl Default for InitialState {
@@ -262,11 +267,23 @@ impl Default for InitialState {
             gyro_bias: Vec3::zeros(),
             accel_bias_std: None,
             gyro_bias_std: None,
+            levelled: false,
         }
     }
 }
 
 impl InitialState {
+    /// The nominal state it gives (its position, velocity, orientation and biases).
+    pub fn nominal(&self) -> crate::state::NominalState {
+        crate::state::NominalState {
+            position: self.position,
+            velocity: self.velocity,
+            orientation: self.orientation,
+            accel_bias: self.accel_bias,
+            gyro_bias: self.gyro_bias,
+        }
+    }
+
     /// The initial error covariance (order δp, δv, δθ, δb_a, δb_g): diagonal from the standard
     /// deviations, but for the attitude block. The attitude error δθ is a body-frame rotation,
     /// while `orientation_std` is about the navigation axes, so that block is `Rᵀ·diag(σ²)·R` (`R`
@@ -276,18 +293,37 @@ impl InitialState {
     /// specific force: the updates turned the heading by tens of degrees on a still platform and
     /// the tilted gravity moved it (docs/design-notes.md#uwb-lost). Bias standard deviations
     /// fall back to the configuration's.
+    ///
+    /// **Levelled** ([`InitialState::levelled`]): levelling takes the measured specific force
+    /// `f` as gravity, so the specific force error perpendicular to it, `−[f]×·δθ − δb_a`, is
+    /// zero: the tilt error is `δθ = M·δb_a` with `M = [f̂]×/g` (`f̂ = Rᵀ·e_z`, g the gravity
+    /// magnitude), and the attitude block gains `M·P_bb·Mᵀ`, the attitude–accelerometer-bias
+    /// block `M·P_bb`. A platform started at rest then knows its horizontal specific force far
+    /// better than its tilt and bias apart.
     pub fn covariance(&self, config: &FilterConfig) -> crate::state::ErrCov {
+        use crate::state::{ATT, BA};
         let ba = Vec3::repeat(self.accel_bias_std.unwrap_or(config.init.accel_bias_std));
         let bg = Vec3::repeat(self.gyro_bias_std.unwrap_or(config.init.gyro_bias_std));
         let mut p = crate::state::diagonal_covariance([self.position_std, self.velocity_std, Vec3::zeros(), ba, bg]);
         let r = self.orientation.to_rotation_matrix().into_inner();
         let nav = crate::math::Mat3::from_diagonal(&self.orientation_std.component_mul(&self.orientation_std));
-        p.fixed_view_mut::<3, 3>(crate::state::ATT, crate::state::ATT).copy_from(&(r.transpose() * nav * r));
+        let mut att = r.transpose() * nav * r;
+        let gravity = config.ins.gravity.norm();
+        if self.levelled && gravity > 0.0 {
+            let m = crate::math::skew(&(r.transpose() * Vec3::z())) / gravity;
+            let p_bb = p.fixed_view::<3, 3>(BA, BA).into_owned();
+            let cross = m * p_bb;
+            att += cross * m.transpose();
+            p.fixed_view_mut::<3, 3>(ATT, BA).copy_from(&cross);
+            p.fixed_view_mut::<3, 3>(BA, ATT).copy_from(&cross.transpose());
+        }
+        crate::math::symmetrize(&mut att);
+        p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&att);
         p
     }
 
     /// Every key accepted by [`InitialState::set`].
-    pub const KEYS: [&'static str; 10] = [
+    pub const KEYS: [&'static str; 11] = [
         "position",
         "velocity",
         "orientation",
@@ -298,6 +334,7 @@ impl InitialState {
         "gyro_bias",
         "accel_bias_std",
         "gyro_bias_std",
+        "levelled",
     ];
 
     /// Sets one field by name; standard deviations accept a scalar (all axes) or 3 numbers. A
@@ -321,6 +358,7 @@ impl InitialState {
             "gyro_bias" => self.gyro_bias = vec3(key, value)?,
             "accel_bias_std" => self.accel_bias_std = Some(non_negative(key, value)?),
             "gyro_bias_std" => self.gyro_bias_std = Some(non_negative(key, value)?),
+            "levelled" => self.levelled = flag(key, value)?,
             _ => return Err(Error::unknown_option("initial-state key", key, Self::KEYS)),
         }
         Ok(())

@@ -369,11 +369,13 @@ macro_rules! py_filter {
                 state_dict(py, self.estimator("state")?.core().state())
             }
 
-            /// The 15×15 error-state covariance (order δp, δv, δθ, δb_a, δb_g), a copy; raises
-            /// before the filter is initialised.
+            /// The 15×15 error-state covariance the filter reports (order δp, δv, δθ, δb_a,
+            /// δb_g; the heading's variance at least its heading watch's spread, for `best`), a
+            /// copy; raises before the filter is initialised.
             #[getter]
             fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-                covariance_array(py, self.estimator("covariance")?.core().covariance())
+                use uwbimu_estimation::filters::InertialFilter;
+                covariance_array(py, &self.estimator("covariance")?.reported_covariance())
             }
         }
     };

@@ -14,7 +14,8 @@ use super::super::errors::PyResult;
 
 /// An initial state as the dict `initial=` takes: `position`, `velocity`, `orientation`
 /// (w, x, y, z), `position_std`, `velocity_std`, `orientation_std`, `accel_bias`, `gyro_bias`
-/// (and the bias stds when set).
+/// (and the bias stds when set), and `levelled` when the tilt was levelled at rest (its error
+/// then correlated with the accelerometer bias).
 pub(crate) fn initial_dict<'py>(py: Python<'py>, i: &InitialState) -> PyResult<Bound<'py, PyDict>> {
     let v = |v: &Vec3| v.iter().copied().collect::<Vec<f64>>().into_pyarray(py);
     let x = NominalState {
@@ -33,6 +34,9 @@ pub(crate) fn initial_dict<'py>(py: Python<'py>, i: &InitialState) -> PyResult<B
     }
     if let Some(s) = i.gyro_bias_std {
         d.set_item("gyro_bias_std", s)?;
+    }
+    if i.levelled {
+        d.set_item("levelled", true)?;
     }
     Ok(d)
 }

@@ -428,13 +428,22 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
         }
     }
 
+    /// A guided pass that fails numerically is declined ([`MapRunner::again`]).
     fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>> {
         let input = StreamedInput { progress: self.quiet, ..*self.input };
         let out = StepsOut::spilled(input.spill_dir)?;
         let guide = Some(Arc::new(guide));
+        let declined = |e: &crate::io::IoError| matches!(e, crate::io::IoError::Core(CoreError::NotPositiveDefinite { .. }));
         let mut rerun =
-            run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut RangesOfPass::default(), self.model, guide)?;
-        rerun.smooth(&input, self.kind.core)?;
+            match run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut RangesOfPass::default(), self.model, guide)
+            {
+                Err(e) if declined(&e) => return Ok(None),
+                other => other?,
+            };
+        match rerun.smooth(&input, self.kind.core) {
+            Err(e) if declined(&e) => return Ok(None),
+            other => other?,
+        }
         let complete = rerun.smoothed.is_some() && !self.quiet.is_some_and(Progress::cancelled);
         Ok(complete.then_some(rerun))
     }

@@ -4,7 +4,7 @@
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, InsConfig, MountingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
-use uwbimu_vocabulary::state::{ErrCov, NominalState, POS, VEL};
+use uwbimu_vocabulary::state::{ErrCov, NominalState, ATT, POS, VEL};
 
 use super::pending::PendingPropagation;
 use super::smoothing_record::{Recorder, SmoothingRecord};
@@ -91,6 +91,21 @@ impl InertialCore {
             last_good: None,
             pending: None,
         })
+    }
+
+    /// Starts again from `state` with error covariance `covariance`, as [`InertialCore::new`]
+    /// starts from an initial state: the next [`InertialCore::predict`] sets the filter time;
+    /// the last good state, the pending propagation and the cross-covariance's columns are
+    /// dropped (the recording, if any, goes on).
+    pub fn reset_to(&mut self, state: &NominalState, covariance: &ErrCov) {
+        (self.state, self.covariance) = (*state, *covariance);
+        (self.time_s, self.last_imu_t_s, self.last_interval_s) = (None, None, None);
+        (self.held_accel, self.held_gyro, self.imu_count) = (Vec3::zeros(), Vec3::zeros(), 0);
+        self.pending = None;
+        self.last_good = None;
+        if let Some(cross) = self.cross.as_mut() {
+            cross.fill(0.0);
+        }
     }
 
     /// Takes an IMU sample at `t_s` (IMU frame; rotated into the body frame by
@@ -198,14 +213,18 @@ impl InertialCore {
     }
 
     /// Widens the current (prior) covariance for a re-acquisition
-    /// ([`ReacquisitionWidening::apply`], [`crate::filters::reacquire`]) and notes it on the last
-    /// recorded segment for the RTS pass (one per segment: a later one at the same time replaces
-    /// the note).
+    /// ([`ReacquisitionWidening::apply`], [`crate::filters::reacquire`], the heading watch) and
+    /// notes it on the last recorded segment for the RTS pass (one per segment and part: a later
+    /// position widening at the same time replaces the note's, and a later heading widening its
+    /// heading).
     pub fn widen_prior(&mut self, widening: &ReacquisitionWidening) {
         self.flush_covariance();
         widening.apply(&mut self.covariance);
         if let Some(last) = self.recording.as_deref_mut().and_then(|r| r.record.segments.last_mut()) {
-            last.prior_widening = Some(*widening);
+            last.prior_widening = Some(match last.prior_widening {
+                Some(noted) => noted.merged(widening),
+                None => *widening,
+            });
         }
     }
 
@@ -344,16 +363,39 @@ impl InertialCore {
 
 /// The widening of a prior before a re-acquisition (ours, [`crate::filters::reacquire`]): the
 /// filter's position is `discrepancy` (m) away from a trusted fix, an error that built up over
-/// `horizon_s` (since its last good epoch; infinite when not read as a velocity error).
+/// `horizon_s` (since its last good epoch; infinite when not read as a velocity error); or its
+/// heading is less certain than the filter's covariance says (`heading`, the heading watch of
+/// [`crate::filters::heading_watch`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReacquisitionWidening {
     /// Fix minus the filter's tag position, m (zero height component for a horizontal re-acquisition).
     pub discrepancy: Vec3,
     /// Time the discrepancy built up over, s; `f64::INFINITY` for a position-only widening.
     pub horizon_s: f64,
+    /// The attitude rows (body frame) of a heading widening `w`, rad: the covariance gains `w·wᵀ`
+    /// on δθ, a turn about the navigation z axis of that standard deviation (zero: none).
+    pub heading: Vec3,
 }
 
 impl ReacquisitionWidening {
+    /// A widening of the heading alone of `state`, by a standard deviation `std_rad`: `w =
+    /// σ·Rᵀ·e_z` (the velocity, which the UWB measures in the navigation frame, is left).
+    pub fn heading(state: &NominalState, std_rad: f64) -> Self {
+        Self {
+            discrepancy: Vec3::zeros(),
+            horizon_s: f64::INFINITY,
+            heading: (state.orientation.inverse() * Vec3::z()) * std_rad,
+        }
+    }
+
+    /// `self` with `later`'s parts that widen something (its position part when its discrepancy
+    /// is not zero, its heading part when not zero).
+    fn merged(&self, later: &Self) -> Self {
+        let position = if later.discrepancy == Vec3::zeros() { self } else { later };
+        let heading = if later.heading == Vec3::zeros() { self.heading } else { later.heading };
+        Self { discrepancy: position.discrepancy, horizon_s: position.horizon_s, heading }
+    }
+
     /// Widens `p` into the re-acquisition prior: the discrepancy `d` is explained as a velocity
     /// error `d/T` held over `T = max(horizon_s, 0.5 s)`: `w·wᵀ` with `w = [d; d/T]` is added on
     /// the position–velocity block (so the fix corrects the velocity too: widening position and
@@ -362,6 +404,7 @@ impl ReacquisitionWidening {
     /// position is widened, by `d·dᵀ`: enough for the fix to move it all the way (unwidened, a fix
     /// metres from ARCKF's faded prior moved it only part of the way and, through the prior's
     /// correlations, tilted it; docs/design-notes.md#reacquisition). A zero `d` leaves `p` unchanged.
+    /// The heading part adds its `w·wᵀ` on the attitude block.
     pub fn apply(&self, p: &mut ErrCov) {
         let v = self.discrepancy / self.horizon_s.max(MIN_WIDENING_HORIZON_S);
         let mut w = uwbimu_vocabulary::state::ErrVec::zeros();
@@ -370,6 +413,8 @@ impl ReacquisitionWidening {
         *p += w * w.transpose();
         let mut vel = p.fixed_view_mut::<3, 3>(VEL, VEL);
         vel += uwbimu_vocabulary::math::Mat3::identity() * v.norm_squared();
+        let mut att = p.fixed_view_mut::<3, 3>(ATT, ATT);
+        att += self.heading * self.heading.transpose();
     }
 }
 
@@ -389,7 +434,7 @@ mod tests {
     /// measurement): returns the error-state correction and the posterior covariance.
     fn fix_after_widening(d: Vec3, horizon_s: f64) -> (ErrVec, ErrCov) {
         let mut p = ErrCov::identity() * 1e-4;
-        ReacquisitionWidening { discrepancy: d, horizon_s }.apply(&mut p);
+        ReacquisitionWidening { discrepancy: d, horizon_s, heading: Vec3::zeros() }.apply(&mut p);
         let mut h = nalgebra::SMatrix::<f64, 3, 15>::zeros();
         h.fixed_view_mut::<3, 3>(0, POS).copy_from(&Mat3::identity());
         let mut dx = ErrVec::zeros();

@@ -112,6 +112,8 @@ named_filter!(
         nlos_skew: Some(BEST_NLOS_SKEW),
         outlier_passes: BEST_OUTLIER_PASSES,
         map_passes: BEST_MAP_PASSES,
+        invariant: true,
+        heading_watch: true,
         ..Composition::new(RangeNoisePolicy::ChiSquareInflation { threshold: chi2_quantile_1dof(config.robust.significance)? }, UpdateStrategy::Iterated)
     }
 );

@@ -138,10 +138,20 @@ fn disagrees(core: &InertialCore, fix: &Fix) -> bool {
 /// `χ²₂` quantile at α = 1e-6 (`−2 ln α`).
 const DIVERGED_NIS_BOUND: f64 = 27.631_021_115_928_547;
 
+/// A re-acquisition on an epoch's UWB-only fix ([`reacquire`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reacquisition {
+    /// The position innovation norm, m.
+    pub innovation: f64,
+    /// Its normalised innovation squared.
+    pub nis: f64,
+    /// Whether the divergence watch called it (else the prior was merely wide).
+    pub diverged: bool,
+}
+
 /// If the prior of `core` calls for it (module doc) — far less precise than the epoch's fix, or
-/// diverged by `watch` — applies the epoch `ranges` as its UWB-only fix and returns the position
-/// innovation norm (m) and its normalised innovation squared; otherwise leaves the filter
-/// unchanged and returns None. `failed` counts the epoch's ranges that fail their `χ²₁` test at
+/// diverged by `watch` — applies the epoch `ranges` as its UWB-only fix and returns what it did
+/// ([`Reacquisition`]); otherwise leaves the filter unchanged and returns None. `failed` counts the epoch's ranges that fail their `χ²₁` test at
 /// the prior ([`RANGE_FAIL_NIS`]); `config` gives the least-squares settings.
 ///
 /// A prior that does not cover the discrepancy to the fix (`disagrees`) is first widened by it
@@ -164,7 +174,7 @@ pub fn reacquire(
     anchors: &[Vec3],
     ranges: &[(usize, f64)],
     failed: usize,
-) -> Result<Option<(f64, f64)>> {
+) -> Result<Option<Reacquisition>> {
     let p_xy = core.covariance().fixed_view::<2, 2>(POS, POS).trace();
     let ls = LsConfig::from_filter_config(config);
     let (fix, diverged) = match reacquisition_fix(p_xy, anchors, ranges, &ls) {
@@ -174,7 +184,8 @@ pub fn reacquire(
             None => return Ok(None),
         },
     };
-    apply_fix(core, &mut watch.last_good_s, &fix, diverged).map(Some)
+    let (innovation, nis) = apply_fix(core, &mut watch.last_good_s, &fix, diverged)?;
+    Ok(Some(Reacquisition { innovation, nis, diverged }))
 }
 
 /// Re-acquires on `fix`: widens the prior where it does not cover the fix (after a divergence,
@@ -194,7 +205,7 @@ fn apply_fix(core: &mut InertialCore, last_good_s: &mut Option<f64>, fix: &Fix, 
         _ => f64::INFINITY,
     };
     if diverged || disagrees(core, fix) {
-        core.widen_prior(&ReacquisitionWidening { discrepancy, horizon_s });
+        core.widen_prior(&ReacquisitionWidening { discrepancy, horizon_s, heading: Vec3::zeros() });
     }
     *last_good_s = now;
     let lever_arm = *core.mounting().lever_arm.first();

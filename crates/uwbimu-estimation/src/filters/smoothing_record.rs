@@ -46,7 +46,7 @@ pub struct Checkpoint {
 }
 
 /// Numbers in the flat form of a [`Segment`] ([`Segment::to_flat`]).
-pub const SEGMENT_FLAT_LEN: usize = 1 + 13 + 1 + 5 + 1;
+pub const SEGMENT_FLAT_LEN: usize = 1 + 13 + 1 + 5 + 3 + 1;
 
 /// Numbers in the flat form of a [`Checkpoint`] ([`Checkpoint::to_flat`]).
 pub const CHECKPOINT_FLAT_LEN: usize = STATE_FLAT_LEN + PACKED_LEN;
@@ -54,14 +54,14 @@ pub const CHECKPOINT_FLAT_LEN: usize = STATE_FLAT_LEN + PACKED_LEN;
 impl Segment {
     /// The segment as numbers, bit for bit (to keep a long recording in a file): time, interval
     /// (dt, specific force and rate at start and end), fading, the widening (a 0/1 flag, the
-    /// discrepancy, the horizon) and the checkpoint flag (0/1).
+    /// discrepancy, the horizon, the heading's attitude rows) and the checkpoint flag (0/1).
     pub fn to_flat(&self) -> [f64; SEGMENT_FLAT_LEN] {
         let i = &self.interval;
-        let (flag, d, horizon) = match &self.prior_widening {
-            Some(w) => (1.0, w.discrepancy, w.horizon_s),
-            None => (0.0, nalgebra::Vector3::zeros(), 0.0),
+        let (flag, d, horizon, heading) = match &self.prior_widening {
+            Some(w) => (1.0, w.discrepancy, w.horizon_s, w.heading),
+            None => (0.0, nalgebra::Vector3::zeros(), 0.0, nalgebra::Vector3::zeros()),
         };
-        let parts: [&[f64]; 9] = [
+        let parts: [&[f64]; 10] = [
             &[self.t_s, i.dt_s],
             i.accel_start.as_slice(),
             i.accel_end.as_slice(),
@@ -70,6 +70,7 @@ impl Segment {
             &[self.prior_fading, flag],
             d.as_slice(),
             &[horizon],
+            heading.as_slice(),
             &[f64::from(u8::from(self.checkpoint))],
         ];
         let mut out = [0.0; SEGMENT_FLAT_LEN];
@@ -88,8 +89,12 @@ impl Segment {
             t_s: v[0],
             interval: ImuInterval { dt_s: v[1], accel_start: v3(2), accel_end: v3(5), gyro_start: v3(8), gyro_end: v3(11) },
             prior_fading: v[14],
-            prior_widening: (v[15] != 0.0).then(|| ReacquisitionWidening { discrepancy: v3(16), horizon_s: v[19] }),
-            checkpoint: v[20] != 0.0,
+            prior_widening: (v[15] != 0.0).then(|| ReacquisitionWidening {
+                discrepancy: v3(16),
+                horizon_s: v[19],
+                heading: v3(20),
+            }),
+            checkpoint: v[23] != 0.0,
         }
     }
 }
@@ -226,7 +231,7 @@ mod tests {
     fn segments_and_checkpoints_survive_their_flat_forms_bit_for_bit() {
         let v = Vector3::new(0.7, -0.1, 0.2);
         for (widening, checkpoint) in
-            [(None, true), (Some(ReacquisitionWidening { discrepancy: v, horizon_s: f64::INFINITY }), false)]
+            [(None, true), (Some(ReacquisitionWidening { discrepancy: v, horizon_s: f64::INFINITY, heading: -v }), false)]
         {
             let seg = Segment { t_s: 1234.5678, interval: interval(), prior_fading: 1.3, prior_widening: widening, checkpoint };
             let back = Segment::from_flat(&seg.to_flat());

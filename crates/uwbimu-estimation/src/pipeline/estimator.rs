@@ -70,7 +70,7 @@ impl<F: InertialFilter> Estimator for F {
 
     /// The position, velocity and attitude blocks of the 15-state error covariance.
     fn marginals(&self, t_s: f64) -> Marginals {
-        let p = self.core().covariance();
+        let p = &self.reported_covariance();
         Marginals {
             t_s,
             state: *self.core().state(),

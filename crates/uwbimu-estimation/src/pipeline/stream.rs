@@ -441,11 +441,11 @@ fn take(initializer: &mut SelfInitializer, gate: &Gate, event: &Event) -> Result
     match event {
         Event::Imu(s) => initializer.imu(s),
         Event::Range(r) => {
-            initializer.range(r);
+            initializer.range(r)?;
             Ok(None)
         }
         Event::Observation(Observation::Tdoa(m)) => {
-            initializer.tdoa(m);
+            initializer.tdoa(m)?;
             Ok(None)
         }
         // The initial fix is from UWB alone (the first range epoch's multilateration).

@@ -105,6 +105,11 @@ pub fn flag(field: &str, v: &ConfigValue) -> Result<bool> {
     }
 }
 
+/// A switch that makes an optional field set.
+pub fn some_flag(field: &str, v: &ConfigValue) -> Result<Option<bool>> {
+    flag(field, v).map(Some)
+}
+
 /// A bool as Python writes it.
 fn py_bool(b: bool) -> &'static str {
     if b {
@@ -199,6 +204,12 @@ impl ToValue for u32 {
 impl ToValue for Option<f64> {
     fn to_value(&self) -> Option<ConfigValue> {
         self.map(ConfigValue::Scalar)
+    }
+}
+
+impl ToValue for Option<bool> {
+    fn to_value(&self) -> Option<ConfigValue> {
+        self.map(ConfigValue::Flag)
     }
 }
 

@@ -6,7 +6,7 @@
 use crate::config::lever_arms::{lever_arms, LeverArms};
 use crate::config::parse::{
     at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
-    quaternion, scalar, some_at_least_one, some_positive, some_scalar, some_whole, ToValue,
+    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole, ToValue,
 };
 use crate::config::ConfigValue;
 use crate::error::{Error, Result};
@@ -201,6 +201,11 @@ section! {
         /// 0: at every IMU sample. Updates bring the covariance to their time first; a smoothed
         /// run or one with range-bias states propagates it at every sample whatever this says.
         covariance_interval_s: f64 = 0.0, non_negative;
+        /// Make the measurement updates of the Kalman strategies in the right-invariant error of
+        /// attitude and velocity, the position's staying additive (`uwbimu_estimation::invariant`;
+        /// Barrau & Bonnabel 2017), which stays consistent from a heading tenths of a radian off;
+        /// False: the papers' multiplicative error. Unset: the method's own (invariant in `best`).
+        invariant_update: Option<bool> = None, some_flag;
         /// Gravity in the navigation frame, m/s² (a magnitude `g` means `[0, 0, −g]`).
         gravity: Vec3 = Vec3::new(0.0, 0.0, -9.80665), gravity;
     }
@@ -231,11 +236,13 @@ section! {
         /// Self-initialisation: length of the still window at the start used for roll, pitch and
         /// gyro bias, s.
         still_s: f64 = 1.0, positive;
-        /// Self-initialisation: UWB displacement after which the heading is taken from motion, m.
-        heading_distance_m: f64 = 1.0, positive;
-        /// Self-initialisation: how long after the first IMU sample the heading may still come
-        /// from motion, s; past it the yaw is 0 ± π. A self-initialising streaming filter starts
-        /// once the heading is found or this time has passed (lower it on a robot that waits).
+        /// Self-initialisation: the filter starts once the heading bank's standard deviation is at
+        /// most this, rad (≈ 29°: within the basin the invariant update converges from; the
+        /// filter's heading watch keeps what it reports honest after).
+        heading_std: f64 = 0.5, positive;
+        /// Self-initialisation: how long after the first IMU sample the filter waits for the
+        /// heading bank to settle, s; past it the filter starts with the bank's heading and its
+        /// wide σ (lower it on a robot that waits).
         heading_timeout_s: f64 = 30.0, positive;
     }
 }

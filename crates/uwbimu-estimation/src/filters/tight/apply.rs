@@ -126,10 +126,9 @@ impl TightFilter {
         }
         if self.reacquire && tag == 0 {
             let failed = self.failed_at_prior(epoch, at_prior);
-            if let Some((innovation, nis)) =
-                reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)?
-            {
-                reports.iter_mut().for_each(|r| *r = UpdateReport::reacquired(innovation, nis));
+            if let Some(r) = reacquire(&mut self.core, &self.config, &mut self.divergence, &self.anchors, ranges, failed)? {
+                reports.iter_mut().for_each(|report| *report = UpdateReport::reacquired(r.innovation, r.nis));
+                self.diverged = r.diverged;
                 return Ok(());
             }
         }

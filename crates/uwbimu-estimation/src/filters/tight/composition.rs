@@ -48,6 +48,12 @@ pub struct Composition {
     /// Passes of the batch MAP smoother when `smoothing.map_passes` is unset (0: none;
     /// `uwbimu_app::map_smoothing`).
     pub map_passes: u32,
+    /// Update in the right-invariant error when `ins.invariant_update` is unset
+    /// ([`crate::invariant`]; false: the papers' multiplicative error).
+    pub invariant: bool,
+    /// Run the heading watch ([`crate::filters::heading_watch`], ours): a heading bank beside the
+    /// filter while its heading is in doubt, which keeps it honest and resets it when wrong.
+    pub heading_watch: bool,
 }
 
 /// The INS bias model of a composition.
@@ -97,6 +103,8 @@ impl Composition {
             reacquire: true,
             outlier_passes: 0,
             map_passes: 0,
+            invariant: false,
+            heading_watch: false,
         }
     }
 
@@ -111,6 +119,7 @@ impl Composition {
         }
         let (c, on) = (&mut config.constraints, self.constraints);
         (c.zupt, c.pseudo_velocity, c.plane) = (c.zupt || on.zupt, c.pseudo_velocity || on.pseudo_velocity, c.plane || on.plane);
+        config.ins.invariant_update.get_or_insert(self.invariant);
         if let Some(skew) = self.nlos_skew {
             config.robust.nlos_skew.get_or_insert(skew);
         }

@@ -10,8 +10,9 @@ use uwbimu_vocabulary::state::{NominalState, ERR_DIM};
 use super::noise::EpochNoise;
 use super::PriorPrediction;
 use crate::filters::bias_states::{BiasLayout, JointStep};
+use crate::invariant::ErrorConvention;
 use crate::models::{Geometry, Policies, ScalarModel};
-use crate::update::{inject_and_reset, parameter_rows, schmidt_step, times_sparse, UpdateReport};
+use crate::update::{parameter_rows, schmidt_step, times_sparse, UpdateReport};
 
 /// What the Kalman strategy needs from the filter for one epoch.
 pub(super) struct KalmanEpoch<'a> {
@@ -23,6 +24,8 @@ pub(super) struct KalmanEpoch<'a> {
     pub(super) max_iterations: u32,
     pub(super) tolerance: f64,
     pub(super) at_prior: PriorPredictions<'a>,
+    /// The error the update steps in ([`crate::invariant`]).
+    pub(super) convention: ErrorConvention,
 }
 
 /// The Kalman strategy's epoch over the joint state of the range bias states
@@ -76,6 +79,15 @@ impl<const N: usize> Against<'_, N> {
     }
 }
 
+/// Ends an epoch's update: injects the error `dx` of the convention's coordinates (about `x`,
+/// the operating point `p` is about) into `x`, resets `p` to the updated state and turns it back
+/// into the multiplicative coordinates there ([`crate::invariant`]).
+fn finish<const N: usize>(convention: ErrorConvention, x: &mut NominalState, p: &mut Cov<N>, dx: &SVector<f64, N>) {
+    convention.inject(x, dx);
+    convention.reset(p, dx);
+    convention.covariance_out(p, x);
+}
+
 impl KalmanEpoch<'_> {
     /// The iterations of the Kalman strategy over an error state of dimension `N`: the 15 INS
     /// error states, then parameters that enter the measurements linearly with Jacobian
@@ -93,6 +105,10 @@ impl KalmanEpoch<'_> {
         estimated: usize,
     ) -> Result<u32> {
         let (prior, params_prior) = (*x, *params);
+        let convention = self.convention;
+        // The prior covariance in the update's error coordinates (at the prior); each iterate's
+        // posterior is turned back at its own state ([`finish`]).
+        convention.covariance_in(p_out, &prior);
         let prior_hph = N == ERR_DIM && self.at_prior.hph_valid && self.operating_point.is_none();
         if self.max_iterations == 1 && prior_hph {
             // The single EKF step needs the prior covariance for nothing but the γ the prior
@@ -111,7 +127,7 @@ impl KalmanEpoch<'_> {
                 &param_h,
                 estimated,
             )?;
-            inject_and_reset(x, p_out, &dx);
+            finish(convention, x, p_out, &dx);
             *params = params_prior + parameter_rows(&dx);
             return Ok(1);
         }
@@ -132,9 +148,17 @@ impl KalmanEpoch<'_> {
         loop {
             iterations += 1;
             let mut dx = params_prior - params_op;
-            dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&prior.boxminus(&op));
+            dx.fixed_rows_mut::<ERR_DIM>(0).copy_from(&convention.boxminus(&prior, &op));
             if previous.is_some() {
                 work.copy_from(p_out);
+                if convention == ErrorConvention::Invariant {
+                    // The prior covariance of the error about this operating point (the invariant
+                    // coordinates depend on it; the multiplicative iterates keep the prior's, as
+                    // Li & Wang 2020 eqs. (38)–(39)).
+                    let mut moved = SVector::<f64, N>::zeros();
+                    moved.fixed_rows_mut::<ERR_DIM>(0).copy_from(&convention.boxminus(&op, &prior));
+                    convention.reset(work, &moved);
+                }
             }
             let against = match previous {
                 Some(_) => Against::Covariance(last),
@@ -146,19 +170,19 @@ impl KalmanEpoch<'_> {
             if let Some((mut op_prev, params_prev, dx_prev)) = previous.filter(|(_, _, d)| step > d.norm()) {
                 // Gauss–Newton diverges (gross outliers can send it to kilometres and the attitude
                 // to thousands of radians): keep the previous iterate.
-                inject_and_reset(&mut op_prev, last, &dx_prev);
+                finish(convention, &mut op_prev, last, &dx_prev);
                 p_out.copy_from(last);
                 (*x, *params) = (op_prev, params_prev + parameter_rows(&dx_prev));
                 break;
             }
             if iterations >= self.max_iterations || step < self.tolerance {
-                inject_and_reset(&mut op, work, &dx);
+                finish(convention, &mut op, work, &dx);
                 p_out.copy_from(work);
                 (*x, *params) = (op, params_op + parameter_rows(&dx));
                 break;
             }
             previous = Some((op, params_op, dx));
-            op.inject(&dx);
+            convention.inject(&mut op, &dx);
             params_op += parameter_rows(&dx);
             std::mem::swap(&mut work, &mut last);
         }
@@ -185,6 +209,7 @@ impl KalmanEpoch<'_> {
         let mut residual = m.value() - pred.value;
         let mut h = SVector::<f64, N>::zeros();
         h.fixed_rows_mut::<ERR_DIM>(0).copy_from(&pred.jacobian);
+        self.convention.jacobian(&mut h, op);
         if N > ERR_DIM {
             let hb = param_h(m);
             residual -= hb.dot(params_op);

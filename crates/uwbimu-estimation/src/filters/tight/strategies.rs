@@ -11,6 +11,7 @@ use super::noise::EpochNoise;
 use super::UpdateStrategy;
 use super::{PriorPrediction, TightFilter};
 use crate::filters::sigma_points::{apply_scalar, scalar_moments, UnscentedWeights};
+use crate::invariant::ErrorConvention;
 use crate::models::{Geometry, ScalarModel};
 use crate::robust::RobustnessFactor;
 use crate::update::{inject_and_reset, UpdateReport};
@@ -93,6 +94,10 @@ impl TightFilter {
             tolerance,
             // A faded prior is no longer the covariance the predictions' h·P·hᵀ were taken on.
             at_prior: PriorPredictions { predictions: at_prior, hph_valid: fading == 1.0 },
+            // A guided epoch (a pass of the MAP smoother) linearises at the smoothed track of the
+            // pass before and steps in the multiplicative error the smoother's passes were built
+            // on (in the invariant error they diverged on the zoo).
+            convention: if guided.is_some() { ErrorConvention::Multiplicative } else { self.convention },
         };
         let (x, p, cross) = self.core.parts_mut();
         let iterations = match (self.biases.as_mut(), cross) {
