@@ -282,13 +282,20 @@ pub fn monte_carlo(methods: &[Method], name: &str, seeds: &[u64], settings: Sett
         let initial = drawn_initial(truth0, &initial_uncertainty(name), &mut rng);
         methods.iter().map(|&method| run_once(method, &sim, &data, &config, &initial)).collect::<Result<Vec<_>>>()
     });
-    let mut by_method: Vec<Vec<RunSamples>> = methods.iter().map(|_| Vec::with_capacity(seeds.len())).collect();
+    let by_method = by_method(methods.len(), per_seed)?;
+    methods.iter().zip(by_method).map(|(&method, runs)| gather(method, scenario_name, runs)).collect()
+}
+
+/// The runs of each of `methods` methods from the runs of each seed (each seed's in the order of
+/// the methods): per method, its runs in the order of the seeds. The first failed seed's error.
+fn by_method<R>(methods: usize, per_seed: Vec<Result<Vec<R>>>) -> Result<Vec<Vec<R>>> {
+    let mut by_method: Vec<Vec<R>> = (0..methods).map(|_| Vec::with_capacity(per_seed.len())).collect();
     for runs in per_seed {
         for (slot, run) in by_method.iter_mut().zip(runs?) {
             slot.push(run);
         }
     }
-    methods.iter().zip(by_method).map(|(&method, runs)| gather(method, scenario_name, runs)).collect()
+    Ok(by_method)
 }
 
 /// The runs of `method` on `scenario` gathered into its [`Consistency`].

@@ -137,15 +137,9 @@ pub fn self_start_monte_carlo(methods: &[Method], name: &str, seeds: &[u64], set
         let config = settings_config(&sim, settings);
         methods.iter().map(|&method| run_once(method, &sim, &data, &config)).collect::<Result<Vec<_>>>()
     });
-    let mut by_method: Vec<Vec<Run>> = methods.iter().map(|_| Vec::with_capacity(seeds.len())).collect();
-    for runs in per_seed {
-        for (slot, run) in by_method.iter_mut().zip(runs?) {
-            slot.push(run);
-        }
-    }
     methods
         .iter()
-        .zip(by_method)
+        .zip(super::by_method(methods.len(), per_seed)?)
         .map(|(&method, runs)| {
             let k = runs.iter().map(|r| r.attitude_nees.len()).min().unwrap_or(0);
             if k == 0 {
