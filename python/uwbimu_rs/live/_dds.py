@@ -145,14 +145,17 @@ class DdsBus:
         return write
 
     def spin_once(self, timeout_s: float) -> int:
-        """Wait up to ``timeout_s`` for samples and hand each to its callback; returns how many."""
+        """Wait up to ``timeout_s`` for samples and hand each to its callback, across readers in
+        the order they were written (source timestamp; each reader's own order kept); returns how
+        many. Reader by reader, a backlog (the node busy deciding its start) gave one topic's
+        seconds before another's, and the later topic's data fell behind the reorder window."""
         from cyclonedds._clayer import ddspy_take  # type: ignore[import-not-found]
         from cyclonedds.core import InstanceState, SampleState, ViewState
         from cyclonedds.util import duration
 
         self.waitset.wait(duration(microseconds=max(int(timeout_s * 1e6), 0)))
-        n = 0
         mask = SampleState.Any | ViewState.Any | InstanceState.Any
+        taken: list[tuple[int, int, Callable[[bytes, int], None], bytes]] = []
         for reader, on_sample, _ in self._readers:
             while True:
                 got = ddspy_take(reader._ref, mask, 256)
@@ -162,9 +165,11 @@ class DdsBus:
                     break
                 for data, info in got:
                     if info.valid_data:
-                        on_sample(bytes(data), int(info.source_timestamp))
-                        n += 1
-        return n
+                        taken.append((int(info.source_timestamp), len(taken), on_sample, bytes(data)))
+        taken.sort(key=lambda s: (s[0], s[1]))
+        for stamp, _, on_sample, data in taken:
+            on_sample(data, stamp)
+        return len(taken)
 
     def matched_subscribers(self, write: Callable[[bytes], None]) -> int:
         """How many readers a publisher of :meth:`publisher` reaches."""
