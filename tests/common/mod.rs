@@ -69,12 +69,15 @@ pub fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
 
-/// The real recording `../shared/data/isas-walk1/<name>` beside the repository, or None (with a
-/// message) when it is not there: a user's clone has no `../shared`; CI has it beside the clone.
+/// The real recording `../shared/data/isas-walk1/<name>` beside the repository (or under the
+/// directory `UWBIMU_SHARED` names), or None (with a message) when it is not there: a user's
+/// clone has no `../shared`; CI has it beside the clone.
 /// A skip is also appended to the file `UWBIMU_SKIPPED_LOG` names, when set, so that
 /// `scripts/test.sh` can count the skipped tests (cargo hides a passing test's messages).
 pub fn isas_walk1(name: &str) -> Option<std::path::PathBuf> {
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/isas-walk1").join(name);
+    let shared = std::env::var_os("UWBIMU_SHARED")
+        .map_or_else(|| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"), std::path::PathBuf::from);
+    let path = shared.join("data/isas-walk1").join(name);
     if path.exists() {
         return Some(path);
     }

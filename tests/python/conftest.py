@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from shared_data import skip_reason
 
 from uwbimu_rs import sim
 
@@ -18,3 +19,16 @@ def filter_config(los_run):
     """Filter settings matching the sensors of the Li & Wang 2020 preset (σ 0.1 m, consumer-MEMS IMU, IMU
     5 cm below the tag): the library defaults are chosen for real logs, not this simulator."""
     return dict(los_run.config)
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "needs_isas: reads ../shared/data/isas-walk1 (skipped without it)")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Skips the ``needs_isas`` tests, with the reason, when the recording is not there."""
+    reason = skip_reason()
+    if reason is not None:
+        for item in items:
+            if item.get_closest_marker("needs_isas") is not None:
+                item.add_marker(pytest.mark.skip(reason=reason))

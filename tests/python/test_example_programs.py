@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 import uwbimu_rs
+from shared_data import ISAS, needs_isas
 
 ROOT = Path(__file__).resolve().parents[2]
-ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
 needs_cargo = pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is not on PATH")
 
 
@@ -85,10 +85,10 @@ def test_uwb_lost_ends_near_the_truth_when_still():
     assert worst < 0.04, text
 
 
-@pytest.mark.skipif(not ISAS.exists(), reason=f"{ISAS} is not present (real-log tests need ../shared/data beside the clone)")
+@needs_isas
 def test_isas_walk1_table_best_beats_uwb_ls():
     out = subprocess.run(
-        [sys.executable, "examples/isas_walk1_table.py", "--methods", "uwb_ls", "riekf", "best"],
+        [sys.executable, "examples/isas_walk1_table.py", "--data", str(ISAS), "--methods", "uwb_ls", "riekf", "best"],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )
     assert out.returncode == 0, out.stderr

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from shared_data import ISAS, needs_isas
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -34,7 +35,7 @@ def example(name: str):
         ["examples/robust_smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
         ["examples/smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
         ["benches/python_api.py", "--repeat", "1"],
-        ["examples/power_gap_nlos.py"],
+        pytest.param(["examples/power_gap_nlos.py", "--data", str(ISAS)], marks=needs_isas),
     ],
     ids=lambda s: s[0],
 )

@@ -19,14 +19,11 @@ import pytest
 
 import uwbimu_rs
 from uwbimu_rs import fleet, sim
+from shared_data import ISAS, needs_isas
 
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'uwbimu_rs[fleet]')")
 
 ROOT = Path(__file__).resolve().parents[2]
-ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
-NEEDS_ISAS = pytest.mark.skipif(
-    not (ISAS / "isas-walk1.mcap").exists(), reason=f"{ISAS} is not present (real-log tests need ../shared/data beside the clone)"
-)
 
 SCENARIOS = ("hall_vehicle_nlos", "hall_vehicle", "garage_rectangle", "garage_figure8")
 
@@ -205,7 +202,7 @@ def test_bad_arguments_fail_before_any_task(logs, tmp_path):
     assert not any(tmp_path.iterdir()), "nothing is written for rejected arguments"
 
 
-@NEEDS_ISAS
+@needs_isas
 def test_real_log_copies_and_a_truncated_one(local_ray, tmp_path):
     """The bar of issue 25: copies of isas-walk1 plus a truncated one, outputs equal to serial replay."""
     source = (ISAS / "isas-walk1.mcap").read_bytes()

@@ -24,9 +24,9 @@ import pytest
 import uwbimu_rs
 from uwbimu_rs import _native, sim
 from uwbimu_rs.live import apply_record
+from shared_data import ISAS, needs_isas
 
 ROOT = Path(__file__).resolve().parents[2]
-ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
 PY = sys.executable
 
 
@@ -462,7 +462,7 @@ def _assert_equals_the_replay(live: np.ndarray, steps_written: int, mcap: Path, 
     assert steps_written in (len(t) - 1, len(t))
 
 
-@pytest.mark.skipif(not ISAS.is_dir(), reason="needs ../shared/data/isas-walk1 (not in a user's clone)")
+@needs_isas
 def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
     # The player sends the recording over DDS (loopback), the node learns the vendor's UWB type
     # from the player's type information and estimates live, this process subscribes to its

@@ -13,9 +13,9 @@ import polars as pl
 import pytest
 
 import uwbimu_rs
+from shared_data import ISAS, needs_isas
 
 ROOT = Path(__file__).resolve().parents[2]
-ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
 VENDOR = {
     "uwb": {
         "topics": ["/uwb"],
@@ -135,7 +135,7 @@ def test_errors(fixture_dir, tmp_path):
         uwbimu_rs.read_mcap(fixture_dir / "zstd.mcap", mapping={"uwbb": {}})
 
 
-@pytest.mark.skipif(not (ISAS / "isas-walk1.mcap").exists(), reason="shared isas-walk1 data not present")
+@needs_isas
 def test_isas_walk1_replay_with_the_checked_in_config():
     config_file = ROOT / "examples" / "isas-walk1.toml"
     mapping = tomllib.loads(config_file.read_text())["mapping"]

@@ -15,10 +15,10 @@ import pytest
 
 import uwbimu_rs
 from uwbimu_rs import metrics
+from shared_data import ISAS, needs_isas
 
 SCRIPT = Path(sys.executable).with_name("uwbimu-replay")
 ROOT = Path(__file__).resolve().parents[2]
-ISAS = ROOT.parent / "shared" / "data" / "isas-walk1"
 CONFIG = {"mounting.lever_arm": [0, 0, 0.05]}
 
 
@@ -149,7 +149,7 @@ def test_progress_goes_to_stderr_only_when_asked(recording, capfd):
     assert "filtering" in capfd.readouterr().err
 
 
-@pytest.mark.skipif(not (ISAS / "isas-walk1.mcap").exists(), reason="shared isas-walk1 data not present (../shared)")
+@needs_isas
 def test_isas_walk1_json_and_replay_agree_on_the_real_log():
     config = ROOT / "examples" / "isas-walk1.toml"
     truth = ISAS / "gt_anchor_frame.csv"
