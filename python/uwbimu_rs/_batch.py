@@ -199,7 +199,10 @@ def run_filter(
         Also return what the run counted and chose, as a dict (last in the tuple):
         ``health`` (``rejected`` {gate kind: count}, ``numerical_repairs``,
         ``ranges_before_start``, ``reordered``, ``late_dropped``, ``smoothing_left_out``: the
-        ranges the robust smoothing left out, ``map_passes``: the MAP passes of the smoothing),
+        ranges the robust smoothing left out, ``map_passes``: the MAP passes of the smoothing,
+        ``smoothing_repairs``: predicted covariances the smoother repaired, ``smoothing_failed``:
+        the smoother failed numerically and the smoothed columns hold the forward estimate, with
+        a warning),
         ``ranges_before_start``, after
         self-initialisation ``still_start`` and ``heading_from``, and for ``"best"`` ``model``:
         the range-error model it chose on the log and why, the dict of :func:`choose_model`

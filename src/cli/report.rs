@@ -182,6 +182,9 @@ fn stats_lines(
     if summary.map_passes > 0 {
         writeln!(out, "MAP smoothing: {} passes", summary.map_passes)?;
     }
+    if summary.smoothing_repairs > 0 {
+        writeln!(out, "smoothing: {} predicted covariances repaired (lost definiteness to rounding)", summary.smoothing_repairs)?;
+    }
     match summary.mean_nis {
         Some(n) => writeln!(out, "mean NIS: {n:.3} (1 for a consistent filter)")?,
         None => writeln!(out, "mean NIS: -")?,

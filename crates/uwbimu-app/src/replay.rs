@@ -113,6 +113,10 @@ impl Replay {
                 BatchOutput::Inertial { trace, .. } => trace.health.map_passes,
                 BatchOutput::Multilateration(_) => 0,
             },
+            smoothing_repairs: match &self.output {
+                BatchOutput::Inertial { trace, .. } => trace.health.smoothing_repairs,
+                BatchOutput::Multilateration(_) => 0,
+            },
             rmse,
         })
     }
@@ -157,6 +161,9 @@ pub struct ReplaySummary {
     /// MAP passes the smoothing ran (`smoothing.map_passes`, [`crate::map_smoothing`]; 0 for a
     /// forward run).
     pub map_passes: u32,
+    /// Predicted covariances the RTS smoother repaired ([`uwbimu_estimation::pipeline::Health::smoothing_repairs`]; 0 for a
+    /// forward run).
+    pub smoothing_repairs: usize,
     /// The errors against ground truth (only with ground truth; its keys sit at the top level).
     #[serde(flatten)]
     pub rmse: Option<TruthRmse>,

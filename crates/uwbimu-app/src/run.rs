@@ -12,6 +12,8 @@ use uwbimu_estimation::filters::InertialFilter;
 use uwbimu_estimation::gate::Gate;
 use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
+#[cfg(doc)]
+use uwbimu_estimation::pipeline::Health;
 use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, Progress, StepRecord, Streams, Trace};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_estimation::smoother::Guide;
@@ -97,6 +99,10 @@ impl<'a> BatchInput<'a> {
         }
     }
 }
+
+/// The warning of a smoothed run whose smoother failed numerically ([`Health::smoothing_failed`]).
+pub const SMOOTHING_FAILED: &str =
+    "smoothing failed numerically (a covariance not finite); the smoothed columns hold the forward estimate";
 
 /// Time left out at the start of a self-initialised run when scoring it, s: the filter is still
 /// aligning. Tuning against truth ([`crate::tune`]), the generality matrix ([`crate::generality`])
@@ -221,12 +227,13 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 /// the last complete pass (the one before, if a log without them cannot start), with the ranges
 /// left out counted in its health.
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    let warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
+    let mut warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let (trace, smoothed, smoothing) = run_pass(&build, &initial, input, None)?;
     if smoothing.map_passes_or_zero() > 0 {
         let ((mut trace, smoothed, init), done) = map_smooth(&build, &initial, input, (trace, smoothed, init), &smoothing)?;
         trace.health.map_passes = done.passes;
+        warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
         return Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None });
     }
     let quiet = input.progress.map(Progress::sharing_cancel);
@@ -241,13 +248,14 @@ fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, i
             Err(Error::InsufficientData(_)) => return Ok(None),
             other => other?,
         };
-        let complete = smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
+        let complete = smoothed.is_some() && !trace.health.smoothing_failed && !quiet.as_ref().is_some_and(Progress::cancelled);
         Ok(complete.then_some((trace, smoothed, init)))
     };
     let passes = smoothing.outlier_passes_or_zero();
     let ((mut trace, smoothed, init), left_out) =
         leave_out_long_ranges((trace, smoothed, init), passes, input.ranges, smoothing.outlier_sigmas, residuals, again)?;
     trace.health.smoothing_left_out = left_out;
+    warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
 }
 
@@ -308,7 +316,8 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
             Err(Error::NotPositiveDefinite { .. }) => return Ok(None),
             other => other?,
         };
-        let complete = smoothed.is_some() && !self.input.progress.is_some_and(Progress::cancelled);
+        let complete =
+            smoothed.is_some() && !trace.health.smoothing_failed && !self.input.progress.is_some_and(Progress::cancelled);
         Ok(complete.then_some((trace, smoothed)))
     }
 }
@@ -319,8 +328,9 @@ type SmoothedPass = (Trace, Option<Vec<StepRecord>>, Option<Box<SelfInit>>);
 
 /// One pass of [`run_inertial`] from `initial`, guided by `guide` when given (a MAP pass,
 /// [`InertialFilter::set_guide`]): the forward run, its RTS-smoothed steps when
-/// smoothing was asked for (None when the run was cancelled), and the smoothing settings the
-/// filter runs with (its composition's where the configuration leaves them unset).
+/// smoothing was asked for (None when the run was cancelled; the forward steps, with
+/// `health.smoothing_failed`, when the smoother failed numerically), and the smoothing settings
+/// the filter runs with (its composition's where the configuration leaves them unset).
 fn run_pass<F: InertialFilter>(
     build: &impl Fn(&InitialState) -> Result<F>,
     initial: &InitialState,
@@ -333,7 +343,7 @@ fn run_pass<F: InertialFilter>(
     if smooth {
         filter.core_mut().start_recording(imu.len() + ranges.len() + observations.len());
     }
-    let trace = run_streams(&mut filter, &input.streams())?;
+    let mut trace = run_streams(&mut filter, &input.streams())?;
     // A cancelled run keeps its forward steps so far; it is not smoothed.
     let cancelled = || progress.is_some_and(Progress::cancelled);
     let smoothed = if smooth && !cancelled() {
@@ -342,7 +352,17 @@ fn run_pass<F: InertialFilter>(
         }
         match smoothed_steps(&trace, filter.core(), progress) {
             Err(Error::Interrupted { .. }) => None,
-            other => Some(other?),
+            // A covariance the smoother cannot repair (not finite): the forward estimate stands in
+            // for the smoothed one, flagged, so that the run is never lost.
+            Err(Error::NotPositiveDefinite { .. }) => {
+                trace.health.smoothing_failed = true;
+                Some(trace.steps.clone())
+            }
+            other => {
+                let (steps, repairs) = other?;
+                trace.health.smoothing_repairs = repairs;
+                Some(steps)
+            }
         }
     } else {
         None

@@ -11,7 +11,11 @@
 //!
 //! `C = P·Φᵀ·(P⁻)⁻¹`, `x_s = x ⊕ C·(x_s,next ⊖ x⁻)`, `P_s = P + C·(P_s,next − P⁻)·Cᵀ`,
 //!
-//! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. It runs offline and
+//! with `⊕`/`⊖` the error-state injection and difference of [`NominalState`]. A prediction `P⁻`
+//! that lost its definiteness to rounding (a posterior made nearly singular by many precise
+//! updates) is repaired as the forward pass repairs a covariance
+//! ([`crate::repair::repair_covariance`]: symmetrised, eigenvalues raised to a floor) and counted;
+//! only a non-finite one fails the pass. It runs offline and
 //! uses dense 15×15 products on column arrays (`dense`), but for `Φ·P`, taken by Φ's blocks.
 //! Memory: the record (0.2 kB per segment, 1.1 kB per checkpoint), one run of posteriors (at most
 //! [`crate::filters::CHECKPOINT_EVERY`]) and, per smoothed node, the state and the position block;
@@ -24,6 +28,7 @@ use uwbimu_vocabulary::state::{ErrCov, NominalState, POS};
 
 use crate::filters::{Checkpoint, Segment, SmoothingRecord, CHECKPOINT_EVERY};
 use crate::ins::{propagate_nominal, ProcessNoise, Transition};
+use crate::repair::repair_covariance;
 use crate::robust::fade_position_velocity;
 use dense::{cholesky_lower, plus_congruence, solve_right};
 
@@ -50,24 +55,25 @@ pub struct SmoothedNode {
 
 /// Smooths a recording: node `i < n` is the posterior at the start of `record.segments[i]`,
 /// node `n` is the final posterior (`t_s`, `state`, `covariance`). Returns the `n + 1` smoothed
-/// nodes in time order. `stop` is asked every 1024 segments whether to give up. Fails if a
-/// predicted covariance is not positive definite, if the record is inconsistent (a run without
-/// its checkpoint), or with [`Error::Interrupted`] when `stop` says so.
+/// nodes in time order and how many predicted covariances were repaired (module doc). `stop` is
+/// asked every 1024 segments whether to give up. Fails if a predicted covariance is not finite,
+/// if the record is inconsistent (a run without its checkpoint), or with [`Error::Interrupted`]
+/// when `stop` says so.
 pub fn rts_smooth(
     record: &SmoothingRecord,
     last: (f64, NominalState, ErrCov),
     ins: &InsConfig,
     stop: &dyn Fn() -> bool,
-) -> Result<Vec<SmoothedNode>> {
+) -> Result<(Vec<SmoothedNode>, usize)> {
     let mut out = Vec::with_capacity(record.segments.len() + 1);
     let segments = record.segments.iter().rev().map(|s| Ok::<_, Error>(*s));
     let checkpoints = record.checkpoints.iter().rev().map(|c| Ok::<_, Error>(*c));
-    rts_smooth_backward(segments, checkpoints, last, ins, stop, |node| {
+    let repairs = rts_smooth_backward(segments, checkpoints, last, ins, stop, |node| {
         out.push(node);
         Ok(())
     })?;
     out.reverse();
-    Ok(out)
+    Ok((out, repairs))
 }
 
 /// The backward pass of [`rts_smooth`] over a record given newest first (`segments_newest_first`
@@ -75,7 +81,8 @@ pub fn rts_smooth(
 /// that error): `emit` gets the final node first, then one node per segment, newest first.
 /// Memory is one run of [`CHECKPOINT_EVERY`] segments and their posteriors, whatever the length
 /// of the recording. `E` is the caller's error type (the I/O errors of a file-backed recording),
-/// which the smoother's own errors convert into.
+/// which the smoother's own errors convert into. Returns how many predicted covariances were
+/// repaired (module doc).
 ///
 /// # Errors
 /// As [`rts_smooth`]; the errors of the two iterators and of `emit` as they are.
@@ -86,12 +93,13 @@ pub fn rts_smooth_backward<E: From<Error>>(
     ins: &InsConfig,
     stop: &dyn Fn() -> bool,
     mut emit: impl FnMut(SmoothedNode) -> std::result::Result<(), E>,
-) -> std::result::Result<(), E> {
+) -> std::result::Result<usize, E> {
     backward_pass(segments_newest_first, checkpoints_newest_first, last, ins, stop, |t_s, x, p| emit(node(t_s, *x, p)))
 }
 
 /// [`rts_smooth_backward`] giving `emit` each node's time, smoothed state and full smoothed
-/// covariance (the fixed-lag smoother keeps the newest node's, [`crate::pipeline::FixedLag`]).
+/// covariance (the fixed-lag smoother keeps the newest node's, [`crate::pipeline::FixedLag`]);
+/// returns how many predicted covariances were repaired.
 pub(crate) fn backward_pass<E: From<Error>>(
     segments_newest_first: impl Iterator<Item = std::result::Result<Segment, E>>,
     mut checkpoints_newest_first: impl Iterator<Item = std::result::Result<Checkpoint, E>>,
@@ -99,7 +107,7 @@ pub(crate) fn backward_pass<E: From<Error>>(
     ins: &InsConfig,
     stop: &dyn Fn() -> bool,
     mut emit: impl FnMut(f64, &NominalState, &ErrCov) -> std::result::Result<(), E>,
-) -> std::result::Result<(), E> {
+) -> std::result::Result<usize, E> {
     let (t_s, last_state, last_covariance) = last;
     emit(t_s, &last_state, &last_covariance)?;
     let mut segments = segments_newest_first;
@@ -108,6 +116,7 @@ pub(crate) fn backward_pass<E: From<Error>>(
     let mut run: Vec<Segment> = Vec::with_capacity(CHECKPOINT_EVERY);
     let mut starts: Vec<(NominalState, ErrCov)> = Vec::with_capacity(CHECKPOINT_EVERY);
     let mut smoothed = 0usize;
+    let mut repairs = 0usize;
     loop {
         run.clear();
         for seg in segments.by_ref() {
@@ -117,7 +126,7 @@ pub(crate) fn backward_pass<E: From<Error>>(
                 break;
             }
         }
-        let Some(oldest) = run.last() else { return Ok(()) };
+        let Some(oldest) = run.last() else { return Ok(repairs) };
         let checkpoint = match (oldest.checkpoint, checkpoints_newest_first.next()) {
             (true, Some(c)) => c?,
             _ => return Err(Error::InvalidCall("smoothing record: a run of segments without its checkpoint".into()).into()),
@@ -133,7 +142,9 @@ pub(crate) fn backward_pass<E: From<Error>>(
             // fading or widening followed it.
             let plain = seg.prior_fading == 1.0 && seg.prior_widening.is_none();
             let prediction = (j > 0 && plain).then(|| &starts[run.len() - j]);
-            next = smooth_segment(seg, start, prediction, &next, ins)?;
+            let (state, covariance, repaired) = smooth_segment(seg, start, prediction, &next, ins)?;
+            repairs += usize::from(repaired);
+            next = (state, covariance);
             emit(seg.t_s, &next.0, &next.1)?;
         }
     }
@@ -161,17 +172,18 @@ fn recompute_starts(run: &[Segment], checkpoint: &Checkpoint, ins: &InsConfig, s
 /// One RTS step: the smoothed estimate at the start of `seg` (posterior `start`) from the
 /// smoothed estimate `next` at its end. `prediction` is the segment's prediction when already
 /// known (the next start of its run), else it is recomputed with the segment's fading and
-/// widening.
+/// widening. The third value says whether the prediction's covariance had to be repaired
+/// (module doc).
 fn smooth_segment(
     seg: &Segment,
     start: &(NominalState, ErrCov),
     prediction: Option<&(NominalState, ErrCov)>,
     next: &(NominalState, ErrCov),
     ins: &InsConfig,
-) -> Result<(NominalState, ErrCov)> {
+) -> Result<(NominalState, ErrCov, bool)> {
     let (x, p) = start;
     let phi = Transition::new(x, &seg.interval, ins);
-    let (x_pred, p_pred) = match prediction {
+    let (x_pred, mut p_pred) = match prediction {
         Some(known) => *known,
         None => {
             let mut p_pred = *p;
@@ -185,14 +197,19 @@ fn smooth_segment(
             (propagate_nominal(x, &seg.interval, ins), p_pred)
         }
     };
-    let factor = cholesky_lower(&p_pred).ok_or(Error::NotPositiveDefinite { what: "RTS predicted covariance" })?;
+    let failed = || Error::NotPositiveDefinite { what: "RTS predicted covariance" };
+    let (factor, repaired) = match cholesky_lower(&p_pred) {
+        Some(factor) => (factor, false),
+        None if repair_covariance(&mut p_pred) => (cholesky_lower(&p_pred).ok_or_else(failed)?, true),
+        None => return Err(failed()),
+    };
     // C = P·Φᵀ·(P⁻)⁻¹ solves C·P⁻ = (Φ·P)ᵀ, since P is symmetric.
     let mut gain = phi.apply_rows(p).transpose();
     solve_right(&factor, &mut gain);
     let mut state = *x;
     state.inject(&(gain * next.0.boxminus(&x_pred)));
     let covariance = plus_congruence(p, &gain, &(next.1 - p_pred));
-    Ok((state, covariance))
+    Ok((state, covariance, repaired))
 }
 
 #[cfg(test)]
@@ -262,11 +279,33 @@ pub(crate) mod tests {
         assert!(record.checkpoints.len() * 3 < every.checkpoints.len(), "{} checkpoints", record.checkpoints.len());
         let last = (core.time_s().expect("time"), *core.state(), *core.covariance());
         let ins = core.ins();
-        let a = rts_smooth(record, last, ins, &|| false).expect("smooth");
+        let (a, repairs) = rts_smooth(record, last, ins, &|| false).expect("smooth");
         let b = rts_smooth(&every, last, ins, &|| false).expect("smooth");
-        assert_eq!(a, b);
+        assert_eq!((a.clone(), repairs), b);
+        assert_eq!(repairs, 0);
         let filtered = every.checkpoints[700].state.position;
         assert!((a[700].state.position - filtered).norm() > 1e-6, "smoothing moved the estimate");
+    }
+
+    #[test]
+    fn a_prediction_that_lost_its_definiteness_is_repaired_and_counted() {
+        // A checkpoint's position variance along x made negative (as rounding can leave a
+        // posterior after many precise updates): its segment's prediction has no Cholesky factor.
+        let (core, _) = recorded_run();
+        let mut record = core.smoothing_record().expect("recorded").clone();
+        let k = record.checkpoints.len() / 2;
+        let mut p = record.checkpoints[k].covariance.unpack();
+        p[(POS, POS)] = -p[(POS, POS)];
+        record.checkpoints[k].covariance = PackedErrCov::pack(&p);
+        let last = (core.time_s().expect("time"), *core.state(), *core.covariance());
+        let (nodes, repairs) = rts_smooth(&record, last, core.ins(), &|| false).expect("repaired, not failed");
+        assert!(repairs >= 1, "{repairs} repairs");
+        assert!(nodes.iter().all(|n| n.state.is_finite() && n.position_cov.iter().all(|v| v.is_finite())));
+        // A covariance that is not finite cannot be repaired: the pass fails.
+        p[(POS, POS)] = f64::NAN;
+        record.checkpoints[k].covariance = PackedErrCov::pack(&p);
+        let err = rts_smooth(&record, last, core.ins(), &|| false).expect_err("not finite");
+        assert!(matches!(err, Error::NotPositiveDefinite { .. }), "{err}");
     }
 
     #[test]

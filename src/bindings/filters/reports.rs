@@ -125,7 +125,9 @@ pub(super) fn init_info_items(d: &Bound<'_, PyDict>, s: &SelfInit) -> PyResult<(
 
 /// What a run or stream counted, as a dict: `rejected` ({gate kind: count}), `numerical_repairs`,
 /// `ranges_before_start`, `reordered`, `late_dropped`, `smoothing_left_out` (a smoothed batch
-/// run's robust smoothing; 0 for a stream), `map_passes` (its MAP passes; 0 for a stream).
+/// run's robust smoothing; 0 for a stream), `map_passes` (its MAP passes; 0 for a stream),
+/// `smoothing_repairs` (predicted covariances its RTS smoother repaired) and `smoothing_failed`
+/// (its smoother failed numerically and the forward estimate stands in).
 pub(crate) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let rejected = PyDict::new(py);
@@ -139,5 +141,7 @@ pub(crate) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'p
     d.set_item("late_dropped", h.late_dropped)?;
     d.set_item("smoothing_left_out", h.smoothing_left_out)?;
     d.set_item("map_passes", h.map_passes)?;
+    d.set_item("smoothing_repairs", h.smoothing_repairs)?;
+    d.set_item("smoothing_failed", h.smoothing_failed)?;
     Ok(d)
 }

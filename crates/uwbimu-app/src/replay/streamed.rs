@@ -120,6 +120,7 @@ impl StreamedReplay {
             model: self.model.as_ref().map(ModelSummary::of),
             smoothing_left_out: self.health.smoothing_left_out,
             map_passes: self.health.map_passes,
+            smoothing_repairs: self.health.smoothing_repairs,
             rmse: self.rmse,
         }
     }

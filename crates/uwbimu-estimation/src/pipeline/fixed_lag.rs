@@ -222,7 +222,7 @@ impl FixedLag {
         self.emitted = end;
         self.trim();
         match outcome {
-            Ok(()) | Err(Halt::Done) => {
+            Ok(_) | Err(Halt::Done) => {
                 self.newest_covariance = newest.or(self.newest_covariance);
                 self.ready.extend(self.scratch.drain(..).rev());
                 Ok(())
@@ -280,7 +280,7 @@ mod tests {
                 continue;
             }
             let now = full.time_s().expect("time");
-            let nodes = smooth_recording(&full, &|| false).expect("smooth");
+            let (nodes, _) = smooth_recording(&full, &|| false).expect("smooth");
             for row in fresh.drain(..) {
                 assert!(k == steps || row.t_s <= now - lag_s, "node at {} emitted at {now}", row.t_s);
                 let node = nodes.iter().rev().find(|n| n.t_s == row.t_s).expect("a node of the full pass");
@@ -288,7 +288,7 @@ mod tests {
                 all.push(row);
             }
         }
-        let nodes = smooth_recording(&full, &|| false).expect("smooth");
+        let (nodes, _) = smooth_recording(&full, &|| false).expect("smooth");
         let times: Vec<f64> = nodes.iter().map(|n| n.t_s).collect();
         assert_eq!(all.iter().map(|r| r.t_s).collect::<Vec<_>>(), times, "every node once, in order");
         (all, widest)

@@ -57,6 +57,12 @@ pub struct Health {
     /// Ranges a smoothed batch run left out as far longer than its smoothed track predicts, and
     /// ran again without (`smoothing.outlier_passes`, `uwbimu_app::outlier_smoothing`).
     pub smoothing_left_out: usize,
+    /// Predicted covariances the RTS smoother of a smoothed batch run repaired
+    /// ([`crate::smoother`]: lost definiteness to rounding; the last pass's).
+    pub smoothing_repairs: usize,
+    /// Whether the smoothing of a batch run failed numerically (a covariance not finite): the
+    /// forward estimate is returned in its place, with a warning.
+    pub smoothing_failed: bool,
     /// Guided passes of the batch MAP smoother after the first smoothed run
     /// (`smoothing.map_passes`, `uwbimu_app::map_smoothing`; 0 when it did not run).
     pub map_passes: u32,

@@ -10,26 +10,28 @@ use crate::filters::{InertialCore, InertialFilter, SmoothingRecord};
 use crate::smoother::{rts_smooth, SmoothedNode};
 
 /// Runs `filter` like [`run`] while recording, then smooths the run backwards
-/// ([`crate::smoother::rts_smooth`]). Returns the filtered trace and one smoothed record per IMU
-/// sample.
+/// ([`crate::smoother::rts_smooth`]). Returns the filtered trace (its health counting the
+/// smoother's repairs) and one smoothed record per IMU sample.
 pub fn run_smoothed<F: InertialFilter>(
     filter: &mut F,
     imu: &[ImuSample],
     ranges: &[RangeMeasurement],
 ) -> Result<(Trace, Vec<StepRecord>)> {
     filter.core_mut().start_recording(imu.len() + ranges.len());
-    let trace = run(filter, imu, ranges)?;
-    let smoothed = smoothed_steps(&trace, filter.core(), None)?;
+    let mut trace = run(filter, imu, ranges)?;
+    let (smoothed, repairs) = smoothed_steps(&trace, filter.core(), None)?;
+    trace.health.smoothing_repairs = repairs;
     Ok((trace, smoothed))
 }
 
 /// RTS-smooths what `core` recorded during the run that produced `trace` and returns one
-/// smoothed record per IMU step of `trace` (the node starting at each step's time). Gives up with
+/// smoothed record per IMU step of `trace` (the node starting at each step's time), with the
+/// number of predicted covariances the smoother repaired ([`crate::smoother`]). Gives up with
 /// [`Error::Interrupted`] once `progress` is cancelled ([`Progress::cancel`]).
-pub fn smoothed_steps(trace: &Trace, core: &InertialCore, progress: Option<&Progress>) -> Result<Vec<StepRecord>> {
-    let nodes = smooth_recording(core, &|| progress.is_some_and(Progress::cancelled))?;
+pub fn smoothed_steps(trace: &Trace, core: &InertialCore, progress: Option<&Progress>) -> Result<(Vec<StepRecord>, usize)> {
+    let (nodes, repairs) = smooth_recording(core, &|| progress.is_some_and(Progress::cancelled))?;
     let mut k = 0;
-    Ok(trace
+    let steps = trace
         .steps
         .iter()
         .map(|step| {
@@ -39,7 +41,8 @@ pub fn smoothed_steps(trace: &Trace, core: &InertialCore, progress: Option<&Prog
             let n = &nodes[k];
             StepRecord { state: n.state, position_cov: n.position_cov, ..*step }
         })
-        .collect())
+        .collect();
+    Ok((steps, repairs))
 }
 
 /// The smoothed track of a streaming filter: one record per node of [`smooth_recording`] (each
@@ -49,14 +52,16 @@ pub fn smoothed_nodes(core: &InertialCore) -> Result<Vec<StepRecord>> {
         return Err(Error::InvalidCall("nothing recorded: create the filter with record=True and feed it first".into()));
     }
     Ok(smooth_recording(core, &|| false)?
+        .0
         .iter()
         .map(|n| StepRecord { t_s: n.t_s, state: n.state, position_cov: n.position_cov, still: false, status: 0 })
         .collect())
 }
 
 /// Smooths what `core` recorded since [`InertialCore::start_recording`]; one node per recorded
-/// propagation start plus the current state. `stop` as in [`rts_smooth`].
-pub fn smooth_recording(core: &InertialCore, stop: &dyn Fn() -> bool) -> Result<Vec<SmoothedNode>> {
+/// propagation start plus the current state, and how many predicted covariances were repaired.
+/// `stop` as in [`rts_smooth`].
+pub fn smooth_recording(core: &InertialCore, stop: &dyn Fn() -> bool) -> Result<(Vec<SmoothedNode>, usize)> {
     let Some(t_s) = core.time_s() else {
         return Err(Error::InvalidCall("nothing to smooth: the filter has not started".into()));
     };

@@ -59,6 +59,11 @@ pub(super) struct Pass<'f, E> {
     pub(super) left_out: usize,
     /// MAP passes run before this one ([`Health::map_passes`]).
     pub(super) map_passes: u32,
+    /// Predicted covariances the smoother repaired ([`Health::smoothing_repairs`]).
+    pub(super) smoothing_repairs: usize,
+    /// Whether the smoother failed numerically: the forward steps are handed on
+    /// ([`Health::smoothing_failed`]).
+    pub(super) smoothing_failed: bool,
 }
 
 /// Reads the file once through `method` into `out`, leaving out and keeping ranges as `ranges`
@@ -159,12 +164,14 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         smoothed: None,
         left_out: 0,
         map_passes: 0,
+        smoothing_repairs: 0,
+        smoothing_failed: false,
     })
 }
 
 impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
     /// RTS-smooths a spilled pass that ran to the end ([`smooth_spilled`]); a cancelled smoothing
-    /// leaves it unsmoothed.
+    /// leaves it unsmoothed, and so does one that failed numerically (flagged, with a warning).
     pub(super) fn smooth(&mut self, input: &StreamedInput<'_>, core: fn(&mut E) -> Option<&mut InertialCore>) -> Result<()> {
         let StepsOut::Spilled(spills) = &mut self.out else { return Ok(()) };
         let Some(core) = self.stream.estimator_mut().and_then(core).filter(|_| !self.cancelled) else { return Ok(()) };
@@ -174,8 +181,15 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
         let cancelled = || input.progress.is_some_and(Progress::cancelled);
         let Spills { steps, segments, checkpoints, .. } = &mut **spills;
         self.smoothed = match smooth_spilled(core, steps, (segments, checkpoints), input.spill_dir, &cancelled) {
-            Ok(s) => Some(s),
+            Ok((s, repairs)) => {
+                self.smoothing_repairs = repairs;
+                Some(s)
+            }
             Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
+            Err(crate::io::IoError::Core(CoreError::NotPositiveDefinite { .. })) => {
+                self.smoothing_failed = true;
+                None
+            }
             Err(e) => return Err(e),
         };
         Ok(())
@@ -213,6 +227,10 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
         let mut health = self.stream.health();
         health.smoothing_left_out = self.left_out;
         health.map_passes = self.map_passes;
+        health.smoothing_repairs = self.smoothing_repairs;
+        health.smoothing_failed = self.smoothing_failed;
+        let mut warnings = self.stream.take_warnings();
+        warnings.extend(self.smoothing_failed.then(|| crate::run::SMOOTHING_FAILED.to_string()));
         Ok(StreamedReplay {
             smoothed,
             steps: self.handed_on,
@@ -221,7 +239,7 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
             sensors,
             mean_nis,
             model: self.model,
-            warnings: self.stream.take_warnings(),
+            warnings,
             rmse,
             health,
             cancelled: self.cancelled,

@@ -75,14 +75,14 @@ pub(super) struct Spills {
 
 /// Smooths the spilled run newest first ([`rts_smooth_backward`]) and keeps the smoothed steps,
 /// newest first, in a new spill: each step takes the first node at or after its time, as the
-/// batch smoother's steps do.
+/// batch smoother's steps do. Also returns how many predicted covariances the smoother repaired.
 pub(super) fn smooth_spilled(
     core: &InertialCore,
     steps: &mut Spill<STEP_FLAT_LEN>,
     (segments, checkpoints): (&mut Spill<SEGMENT_FLAT_LEN>, &mut Spill<CHECKPOINT_FLAT_LEN>),
     dir: &Path,
     stop: &dyn Fn() -> bool,
-) -> Result<Spill<STEP_FLAT_LEN>> {
+) -> Result<(Spill<STEP_FLAT_LEN>, usize)> {
     let Some(t_s) = core.time_s() else {
         return Err(CoreError::InvalidCall("nothing to smooth: the filter has not started".into()).into());
     };
@@ -94,7 +94,7 @@ pub(super) fn smooth_spilled(
     let mut later: Option<SmoothedNode> = None;
     let segments_newest_first = segments.newest_first()?.map(|r| r.map(|v| Segment::from_flat(&v)));
     let checkpoints_newest_first = checkpoints.newest_first()?.map(|r| r.map(|v| Checkpoint::from_flat(&v)));
-    rts_smooth_backward(
+    let repairs = rts_smooth_backward(
         segments_newest_first,
         checkpoints_newest_first,
         (t_s, *core.state(), *core.covariance()),
@@ -115,5 +115,5 @@ pub(super) fn smooth_spilled(
             out.push(&smoothed(&step?, first))?;
         }
     }
-    Ok(out)
+    Ok((out, repairs))
 }
