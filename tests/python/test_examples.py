@@ -34,6 +34,7 @@ def example(name: str):
         ["examples/model_selection_table.py", "--seeds", "25", "--rigs", "drone_flight+steady", "lab_robot"],
         ["examples/robust_smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
         ["examples/smoothing_table.py", "--seeds", "29", "--rigs", "hall_vehicle_nlos"],
+        ["examples/map_passes_table.py", "--seeds", "0", "--scenarios", "outage", "--isas", "no-isas-here"],
         ["benches/python_api.py", "--repeat", "1"],
         pytest.param(["examples/power_gap_nlos.py", "--data", str(ISAS)], marks=needs_isas),
     ],
