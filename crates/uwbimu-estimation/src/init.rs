@@ -14,7 +14,7 @@
 //!    height is that of one fix of all the still window's ranges (`still_height`). A levelled
 //!    window is at rest **or driving steadily** (the IMU cannot tell them apart): the velocity is
 //!    the straight line through the fixes of the quiet span that begins with it
-//!    (`quiet_until`) when they lie on it within their noise, else zero with the fitted speed as
+//!    (`QuietSpan`) when they lie on it within their noise, else zero with the fitted speed as
 //!    its σ (`still_velocity`); a moving start takes the line through its first second of fixes.
 //! 3. **Heading from a Gaussian-sum bank** ([`heading_bank`]): at the first attempt with a fix,
 //!    [`heading_bank::BANK_MEMBERS`] INS filters start from the levelled attitude, the latest fix
@@ -417,7 +417,7 @@ struct Levelling {
 fn levelling(imu: &[ImuSample], config: &FilterConfig) -> Levelling {
     let t0 = imu.first().map_or(0.0, |s| s.t_s);
     let window = &imu[..imu.partition_point(|s| s.t_s < t0 + config.init.still_s)];
-    let Quiet { f_mean, w_mean, f_std, w_std, n } = Quiet::of(window, config);
+    let WindowStats { f_mean, w_mean, f_std, w_std, n } = WindowStats::of(window, config);
     let still = n >= 2.0 && f_std < STILL_ACCEL_STD && w_mean.norm() < STILL_GYRO_RATE;
     let roll = f_mean.y.atan2(f_mean.z);
     let pitch = (-f_mean.x).atan2((f_mean.y * f_mean.y + f_mean.z * f_mean.z).sqrt());
@@ -441,7 +441,7 @@ fn levelling(imu: &[ImuSample], config: &FilterConfig) -> Levelling {
 }
 
 /// The body-frame mean and spread of the specific force and rate over a run of IMU samples.
-struct Quiet {
+struct WindowStats {
     f_mean: Vec3,
     w_mean: Vec3,
     f_std: f64,
@@ -449,39 +449,63 @@ struct Quiet {
     n: f64,
 }
 
-impl Quiet {
-    /// The statistics of `samples` (turned into the body frame by the mounting of `config`).
+impl WindowStats {
+    /// The statistics of `samples` (turned into the body frame by the mounting of `config`): the
+    /// means in one pass, the spreads about them in a second.
     fn of(samples: &[ImuSample], config: &FilterConfig) -> Self {
         let body = |s: &ImuSample| (config.mounting.imu_rotation * s.accel, config.mounting.imu_rotation * s.gyro);
         let n = samples.len() as f64;
-        let f_mean = samples.iter().map(|s| body(s).0).sum::<Vec3>() / n;
-        let w_mean = samples.iter().map(|s| body(s).1).sum::<Vec3>() / n;
-        let f_std = (samples.iter().map(|s| (body(s).0 - f_mean).norm_squared()).sum::<f64>() / n).sqrt();
-        let w_std = (samples.iter().map(|s| (body(s).1 - w_mean).norm_squared()).sum::<f64>() / n).sqrt();
-        Self { f_mean, w_mean, f_std, w_std, n }
+        let (f_sum, w_sum) = samples.iter().map(body).fold((Vec3::zeros(), Vec3::zeros()), |(fs, ws), (f, w)| (fs + f, ws + w));
+        let (f_mean, w_mean) = (f_sum / n, w_sum / n);
+        let (f_sq, w_sq) = samples
+            .iter()
+            .map(body)
+            .fold((0.0, 0.0), |(fs, ws), (f, w)| (fs + (f - f_mean).norm_squared(), ws + (w - w_mean).norm_squared()));
+        Self { f_mean, w_mean, f_std: (f_sq / n).sqrt(), w_std: (w_sq / n).sqrt(), n }
     }
 }
 
-/// The end of the quiet span a levelled start window begins: the last of the consecutive blocks
-/// of [`ATTEMPT_INTERVAL_S`] after the window whose specific force keeps the window's mean and
+/// The quiet span a levelled start window begins: the consecutive blocks of
+/// [`ATTEMPT_INTERVAL_S`] after the window whose specific force keeps the window's mean and
 /// spread and whose rate keeps its mean (each within the levelling's thresholds). Over it the
-/// platform neither accelerates nor turns: at rest or driving steadily.
-fn quiet_until(imu: &[ImuSample], level: &Levelling, config: &FilterConfig) -> f64 {
-    let t0 = imu.first().map_or(0.0, |s| s.t_s);
-    let mut end = t0 + config.init.still_s;
-    loop {
-        let (from, to) = (imu.partition_point(|s| s.t_s < end), imu.partition_point(|s| s.t_s < end + ATTEMPT_INTERVAL_S));
-        if to == imu.len() || to - from < 2 {
-            return end;
+/// platform neither accelerates nor turns: at rest or driving steadily. It grows block by block
+/// as IMU data comes, from where it stopped, until a block that is not quiet (or has fewer than
+/// two samples) closes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct QuietSpan {
+    /// The end of the span, s.
+    end: f64,
+    /// Whether a block closed it.
+    closed: bool,
+}
+
+impl QuietSpan {
+    /// The span of no blocks, ending where the start window of `imu` ends.
+    fn new(imu: &[ImuSample], config: &FilterConfig) -> Self {
+        Self { end: imu.first().map_or(0.0, |s| s.t_s) + config.init.still_s, closed: false }
+    }
+
+    /// Takes the complete blocks of `imu` after the span's end (module doc of the type); returns
+    /// the end.
+    fn extend(&mut self, imu: &[ImuSample], level: &Levelling, config: &FilterConfig) -> f64 {
+        while !self.closed {
+            let from = imu.partition_point(|s| s.t_s < self.end);
+            let to = imu.partition_point(|s| s.t_s < self.end + ATTEMPT_INTERVAL_S);
+            if to == imu.len() {
+                break;
+            }
+            let block = WindowStats::of(&imu[from..to], config);
+            let quiet = to - from >= 2
+                && block.f_std < STILL_ACCEL_STD
+                && (block.f_mean - level.specific_force).norm() < STILL_ACCEL_STD
+                && (block.w_mean - level.gyro_bias).norm() < STILL_GYRO_RATE;
+            if quiet {
+                self.end += ATTEMPT_INTERVAL_S;
+            } else {
+                self.closed = true;
+            }
         }
-        let block = Quiet::of(&imu[from..to], config);
-        let quiet = block.f_std < STILL_ACCEL_STD
-            && (block.f_mean - level.specific_force).norm() < STILL_ACCEL_STD
-            && (block.w_mean - level.gyro_bias).norm() < STILL_GYRO_RATE;
-        if !quiet {
-            return end;
-        }
-        end += ATTEMPT_INTERVAL_S;
+        self.end
     }
 }
 
@@ -641,7 +665,7 @@ fn fix_velocity(fixes: &[SolvedFix], t_s: f64, span_s: f64, at_s: f64) -> Option
     Some((fit.velocity, fit.noise_std.hypot(UNMODELLED_ACCEL_MPS2 * lever_s)))
 }
 
-/// The velocity of a levelled start from the fixes of its quiet span (`quiet`, [`quiet_until`]),
+/// The velocity of a levelled start from the fixes of its quiet span (`quiet`, [`QuietSpan`]),
 /// with its standard deviation per axis. The IMU cannot tell rest from a steady drive; the fixes
 /// can. Through a straight line fitted to them ([`line_fit`]):
 /// - over fixes spanning `still_s` or more, a speed within [`STILL_SPEED_SIGMAS`] of the fit's
@@ -694,8 +718,10 @@ pub struct SelfInitializer {
     other_tags: bool,
     tdoa: TdoaFixes,
     next_attempt_s: Option<f64>,
-    /// The start window's levelling and the attitude dead-reckoned from it, once the window is
-    /// complete.
+    /// The start window's levelling and the quiet span after it, once the window is complete
+    /// (the span grows at each attempt).
+    start: Option<(Levelling, QuietSpan)>,
+    /// The attitude dead-reckoned from the start window's levelling.
     chain: Option<AttitudeChain>,
     bank: Option<Box<HeadingBank>>,
     pairs: BaselinePairs,
@@ -718,6 +744,7 @@ impl SelfInitializer {
             ls,
             imu: Vec::new(),
             next_attempt_s: None,
+            start: None,
             chain: None,
             bank: None,
             pairs: BaselinePairs::default(),
@@ -817,8 +844,15 @@ impl SelfInitializer {
     fn evaluate_on_fixes(&mut self, t0: f64) -> Result<(SelfInit, bool)> {
         let config = &self.config;
         let t_now = self.imu.last().map_or(t0, |s| s.t_s);
-        // 1. Roll, pitch, gyro bias from the start window.
-        let levelling = levelling(&self.imu, config);
+        // 1. Roll, pitch, gyro bias from the start window (kept once the window is complete).
+        let mut start_window = match self.start {
+            Some(window) => window,
+            None => (levelling(&self.imu, config), QuietSpan::new(&self.imu, config)),
+        };
+        if t_now >= t0 + config.init.still_s {
+            self.start = Some(start_window);
+        }
+        let levelling = start_window.0;
         let Levelling { still: levelled, roll, pitch, level, gyro_bias, tilt_std, gyro_bias_std, .. } = levelling;
 
         // 2. Tag position from UWB fixes (tag 0's: a fix is of one antenna); TDoA fixes when the
@@ -868,7 +902,10 @@ impl SelfInitializer {
         let (velocity, velocity_std, wide_std, lag_s) = if still {
             let lag_s =
                 if start.is_empty() { first.t_s } else { start.iter().map(|f| f.t_s).sum::<f64>() / start.len() as f64 } - t0;
-            let quiet_end = quiet_until(&self.imu, &levelling, config);
+            let quiet_end = match self.start.as_mut() {
+                Some((_, span)) => span.extend(&self.imu, &levelling, config),
+                None => start_window.1.extend(&self.imu, &levelling, config),
+            };
             let quiet: Vec<&SolvedFix> = fixes.iter().take_while(|f| f.t_s <= quiet_end).collect();
             let StillVelocity { velocity: v, std, wide_std } = still_velocity(&quiet, config.init.still_s);
             tag0 -= v * lag_s;
