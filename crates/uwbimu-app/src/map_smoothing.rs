@@ -159,10 +159,9 @@ pub trait MapRunner {
 /// ([`residual_cost`], on the first pass's per-anchor scale) by over [`DECLINE_SIGMAS`] standard
 /// deviations of a χ² sum over its `n` ranges (`√(2n)`) is not taken and ends the passes: the
 /// hard kernel can flip a set of ranges in and out from pass to pass, and a pass guided by a
-/// track that left them out can start off (the zoo's `mixed_rates` seed 0 with the default noise:
-/// 0.024 m after one pass, 0.055 m after two, the start 0.69 m off, its cost up by 2.7 of them).
-/// A pass that trades the fit of a few ranges for the track's dynamics stays below it (`nlos_one`:
-/// up by 0.2–0.6 while its error halves). Returns the last pass taken and what the passes did.
+/// track that left them out can start off; a pass that trades the fit of a few ranges for the
+/// track's dynamics stays below the bound (the cases that set it: docs/smoothing.md, "Why the
+/// decline rule"). Returns the last pass taken and what the passes did.
 pub fn map_passes<R: MapRunner>(
     runner: &mut R,
     first: R::Pass,

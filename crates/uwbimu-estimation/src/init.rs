@@ -669,9 +669,9 @@ fn fix_velocity(fixes: &[SolvedFix], t_s: f64, span_s: f64, at_s: f64) -> Option
 /// with its standard deviation per axis. The IMU cannot tell rest from a steady drive; the fixes
 /// can. Through a straight line fitted to them ([`line_fit`]):
 /// - over fixes spanning `still_s` or more, a speed within [`STILL_SPEED_SIGMAS`] of the fit's
-///   noise is rest: zero, σ [`STILL_VELOCITY_STD`] (the slow drift of an NLOS fix is not a drive:
-///   a wider prior let the robust filters' first ranges pull the velocity, Li & Wang's NLOS hall
-///   0.38 → 0.49 m; fewer fixes cannot tell: a vehicle at 1 m/s passed as rest on three);
+///   noise is rest: zero, σ [`STILL_VELOCITY_STD`] (the slow drift of an NLOS fix is not a drive,
+///   and a wider prior let the robust filters' first ranges pull the velocity; fewer fixes cannot
+///   tell: docs/heading.md, "Why these rules");
 /// - a significant speed with the fixes on the line within their noise (mean squared horizontal
 ///   residual at most four times their variance) is a steady drive: the line's velocity, σ twice
 ///   the fit's noise, at least [`STILL_VELOCITY_STD`];

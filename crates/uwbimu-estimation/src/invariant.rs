@@ -14,9 +14,9 @@
 //!
 //! The position's error is `δp = p − p̂` in both. The full SE₂(3) error also turns the position
 //! about the origin of its coordinates; its second-order terms then tie each position correction
-//! to the heading's uncertainty (the reset's `½·[δρp]×·ξθ`): on a still, tilted drone whose
-//! heading was known to 0.2 rad only, 180 TDoA a second swung the heading by 10° within a
-//! second. Kept additive, a position correction is exact, as in the multiplicative filter.
+//! to the heading's uncertainty (the reset's `½·[δρp]×·ξθ`), and frequent position updates swing
+//! a poorly known heading (docs/heading.md, "Why these rules"). Kept additive, a position
+//! correction is exact, as in the multiplicative filter.
 //!
 //! Both are first-order coordinates of the same error, related at the estimate `x̂` by
 //! `ξ = T(x̂)·δx` ([`to_invariant`]): `ξθ = R̂·δθ`, `ξv = δv + [v̂]×·R̂·δθ`, the position and the

@@ -25,8 +25,7 @@
 //!   heading's variance raised to `σ_b²` (about the navigation z axis); the filter estimates with
 //!   its own. A single Gaussian that settled in one basin while the data still allow others
 //!   reports the spread of the hypotheses; widening its own covariance instead threw away what it
-//!   had learnt at every epoch (the horizontal RMSE of a self-initialised `agv_loop` rose by
-//!   12–37 %).
+//!   had learnt at every epoch (docs/heading.md, "Why these rules").
 
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::Result;
@@ -50,7 +49,7 @@ const RESET_SIGMAS: f64 = 3.0;
 
 /// The bank resets the filter's heading only when its own σ is at most this, rad (≈ 8.6°): a
 /// bank that has not settled does not overrule the filter (after a divergence on a straight
-/// corridor a bank over the circle drifted to 75° ± 25° and turned a right heading).
+/// corridor an unsettled bank turned a right heading: docs/heading.md, "Why these rules").
 const RESET_MAX_STD: f64 = 0.15;
 
 /// ... and has been so, on one heading, for this long, s: a bank started beside a converged

@@ -319,8 +319,8 @@ impl InertialFilter for TightFilter {
     /// Takes the guide with the Kalman strategies (single step or iterated: a guided epoch is
     /// one step at the guide's state); the unscented strategy refuses it. A guided filter runs no
     /// heading watch: the pass linearises at the track of the pass before, whose heading the
-    /// watch of that pass already kept (a watch in the guided pass, resetting against the guide,
-    /// made `mixed_rates` seed 0 with the default noise 0.0546 m instead of 0.0240 m).
+    /// watch of that pass already kept (a watch in the guided pass resets against the guide:
+    /// docs/smoothing.md, "Why the decline rule").
     fn set_guide(&mut self, guide: Option<Arc<Guide>>) -> bool {
         if matches!(self.strategy, Strategy::Unscented(_)) {
             return false;
