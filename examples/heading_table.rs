@@ -13,12 +13,12 @@
 //! Arguments: suite (`zoo`, `tags`, `moving`), runs per scenario, method (`best`), `matched` (the
 //! simulator's noise configured) or `defaults`, and one scenario name. `VERBOSE=1` prints each run.
 
+use uwbimu_rs::app::consistency::heading_error_and_std;
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::parallel::map_all;
 use uwbimu_rs::app::sim::{self, simulate, zoo, Scenario, SimConfig, Trajectory, ZOO_NAMES};
-use uwbimu_rs::estimation::pipeline::{self_initialize, Marginals, Streams};
 use uwbimu_rs::vocabulary::config::FilterConfig;
-use uwbimu_rs::vocabulary::math::{Mat3, Quat, Vec3};
+use uwbimu_rs::vocabulary::math::Vec3;
 
 type Res<T> = Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
@@ -35,15 +35,6 @@ struct Row {
     sig5: f64,
     rmse_self: f64,
     rmse_given: f64,
-}
-
-/// The heading error of `m` against the truth and the heading σ it reports, °.
-fn yaw_err_sigma(m: &Marginals, truth_q: &Quat) -> (f64, f64) {
-    let e = (m.state.orientation * truth_q.inverse()).scaled_axis().z;
-    let r: Mat3 = m.state.orientation.to_rotation_matrix().into_inner();
-    let p = m.attitude_cov.unwrap_or_else(Mat3::zeros);
-    let nav = r * p * r.transpose();
-    (e.to_degrees(), nav[(2, 2)].sqrt().to_degrees())
 }
 
 /// A vehicle already driving a figure-8 (`fig8`) or an ellipse at t = 0, at a point of its lap
@@ -83,19 +74,22 @@ fn run(name: &str, s: &Scenario, seed: u64, method: Method, defaults: bool) -> R
         if defaults { FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() } } else { s.config.clone() };
     config.model_selection.enabled = false;
     let body_from_filter = s.sim.imu_rotation * config.mounting.imu_rotation.inverse();
-    let streams = Streams { imu: &data.imu, ranges: &data.ranges, ..Streams::default() };
-    let init = self_initialize(&streams, &data.anchors, &config)?;
     let t0 = data.imu[0].t_s;
     let input =
         BatchInput { marginals_every_s: Some(0.05), ..BatchInput::forward(&data.imu, &data.ranges, &data.anchors, &config) };
-    let BatchOutput::Inertial { trace, .. } = run_method(method, &input)? else { return Err("not inertial".into()) };
+    let BatchOutput::Inertial { trace, init: Some(init), .. } = run_method(method, &input)? else {
+        return Err("not a self-initialised inertial run".into());
+    };
     let truth_q = |t: f64| {
         let k = data.truth.partition_point(|x| x.t_s <= t).saturating_sub(1);
         data.truth[k].orientation * body_from_filter
     };
     let at = |t: f64| -> (f64, f64) {
         match trace.marginals.iter().find(|m| m.t_s >= t - 1e-9) {
-            Some(m) => yaw_err_sigma(m, &truth_q(m.t_s)),
+            Some(m) => {
+                let (err, std) = heading_error_and_std(m, &truth_q(m.t_s));
+                (err.to_degrees(), std.to_degrees())
+            }
             None => (f64::NAN, f64::NAN),
         }
     };

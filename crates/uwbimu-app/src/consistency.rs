@@ -40,7 +40,8 @@ mod self_start;
 mod stats;
 
 pub use self_start::{
-    self_start_inputs, self_start_monte_carlo, self_start_scenario, SelfStart, StartSample, AFTER_START_S, SELF_START_SCENARIOS,
+    heading_error_and_std, self_start_inputs, self_start_monte_carlo, self_start_scenario, SelfStart, StartSample, AFTER_START_S,
+    SELF_START_SCENARIOS,
 };
 pub use stats::{chi2_mean_interval, NeesSeries, NisStats};
 

@@ -164,6 +164,16 @@ struct Run {
     heading_error_5s_rad: f64,
 }
 
+/// The heading error of the sampled estimate `m` against the true orientation `truth` (body to
+/// navigation): the difference of their yaws about the navigation z axis, wrapped to (−π, π],
+/// and the heading σ the estimate reports (its attitude covariance about that axis; 0 without
+/// one), rad.
+pub fn heading_error_and_std(m: &Marginals, truth: &Quat) -> (f64, f64) {
+    let mut p = ErrCov::zeros();
+    p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&m.attitude_cov.unwrap_or_default());
+    (angle_difference(yaw_of(&m.state.orientation), yaw_of(truth)), nav_yaw_variance(&m.state.orientation, &p).sqrt())
+}
+
 /// One self-initialised run of `method` (forward, the first [`LOG_S`] of the log).
 fn run_once(method: Method, sim: &SimConfig, data: &SimData, config: &FilterConfig) -> Result<Run> {
     let t0 = data.imu.first().map(|s| s.t_s).ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
@@ -182,12 +192,7 @@ fn run_once(method: Method, sim: &SimConfig, data: &SimData, config: &FilterConf
         data.truth[k].orientation * body_from_filter
     };
     let at = |t_s: f64| trace.marginals.iter().find(|m| m.t_s >= t_s - 1e-9);
-    let heading = |m: &Marginals| -> (f64, f64) {
-        let truth = truth_at(m.t_s);
-        let mut p = ErrCov::zeros();
-        p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&m.attitude_cov.unwrap_or_default());
-        (angle_difference(yaw_of(&m.state.orientation), yaw_of(&truth)), nav_yaw_variance(&m.state.orientation, &p).sqrt())
-    };
+    let heading = |m: &Marginals| heading_error_and_std(m, &truth_at(m.t_s));
     let first = at(decided).ok_or_else(|| Error::InvalidCall(format!("no sample after the start at {decided} s")))?;
     let (heading_error_rad, heading_std_rad) = heading(first);
     let start = StartSample { decided_s: decided - t0, heading_error_rad, heading_std_rad };
