@@ -221,21 +221,35 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
-/// A smoothed run whose filter runs with `smoothing.outlier_passes` > 0 then leaves out the ranges
-/// its smoothed track calls NLOS and runs again (initialised as a log without them would be),
-/// until no range is added or the passes are spent ([`crate::outlier_smoothing`]); it returns
-/// the last complete pass (the one before, if a log without them cannot start), with the ranges
-/// left out counted in its health.
+/// A smoothed run then runs its MAP passes (`smoothing.map_passes` > 0, [`map_smooth`]) or its
+/// outlier passes ([`outlier_smooth`]); a run whose smoother failed numerically carries the
+/// warning [`SMOOTHING_FAILED`].
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let mut warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let (trace, smoothed, smoothing) = run_pass(&build, &initial, input, None)?;
-    if smoothing.map_passes_or_zero() > 0 {
+    let (trace, smoothed, init) = if smoothing.map_passes_or_zero() > 0 {
         let ((mut trace, smoothed, init), done) = map_smooth(&build, &initial, input, (trace, smoothed, init), &smoothing)?;
         trace.health.map_passes = done.passes;
-        warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
-        return Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None });
-    }
+        (trace, smoothed, init)
+    } else {
+        outlier_smooth(&build, input, (trace, smoothed, init), &smoothing)?
+    };
+    warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
+    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
+}
+
+/// The outlier passes of [`run_inertial`] after its `first` smoothed pass: with
+/// `smoothing.outlier_passes` > 0, the ranges its smoothed track calls NLOS are left out and the
+/// log runs again (initialised as a log without them would be), until no range is added or the
+/// passes are spent ([`crate::outlier_smoothing`]). Returns the last complete pass (the one
+/// before, if a log without them cannot start), with the ranges left out counted in its health.
+fn outlier_smooth<F: InertialFilter>(
+    build: &impl Fn(&InitialState) -> Result<F>,
+    input: &BatchInput<'_>,
+    first: SmoothedPass,
+    smoothing: &SmoothingConfig,
+) -> Result<SmoothedPass> {
     let quiet = input.progress.map(Progress::sharing_cancel);
     let residuals = |(_, smoothed, _): &mut SmoothedPass| Ok(smoothed.as_deref().map(|steps| residuals_of(input, steps)));
     let again = |left_out: &[bool]| {
@@ -243,20 +257,24 @@ fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, i
         let again_input = BatchInput { ranges: &kept, progress: quiet.as_ref(), ..*input };
         // A log that cannot start without the ranges left out keeps the pass before.
         let rerun = initial_state(&again_input)
-            .and_then(|(initial, init)| run_pass(&build, &initial, &again_input, None).map(|pass| (pass, init)));
+            .and_then(|(initial, init)| run_pass(build, &initial, &again_input, None).map(|pass| (pass, init)));
         let ((trace, smoothed, _), init) = match rerun {
             Err(Error::InsufficientData(_)) => return Ok(None),
             other => other?,
         };
-        let complete = smoothed.is_some() && !trace.health.smoothing_failed && !quiet.as_ref().is_some_and(Progress::cancelled);
-        Ok(complete.then_some((trace, smoothed, init)))
+        Ok(complete(&trace, &smoothed, quiet.as_ref()).then_some((trace, smoothed, init)))
     };
     let passes = smoothing.outlier_passes_or_zero();
     let ((mut trace, smoothed, init), left_out) =
-        leave_out_long_ranges((trace, smoothed, init), passes, input.ranges, smoothing.outlier_sigmas, residuals, again)?;
+        leave_out_long_ranges(first, passes, input.ranges, smoothing.outlier_sigmas, residuals, again)?;
     trace.health.smoothing_left_out = left_out;
-    warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
-    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
+    Ok((trace, smoothed, init))
+}
+
+/// Whether a pass of the smoothing ran to its end: smoothed, neither failed numerically nor
+/// cancelled.
+fn complete(trace: &Trace, smoothed: &Option<Vec<StepRecord>>, progress: Option<&Progress>) -> bool {
+    smoothed.is_some() && !trace.health.smoothing_failed && !progress.is_some_and(Progress::cancelled)
 }
 
 /// The residuals of the ranges of `input` against the smoothed `steps`.
@@ -316,9 +334,7 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
             Err(Error::NotPositiveDefinite { .. }) => return Ok(None),
             other => other?,
         };
-        let complete =
-            smoothed.is_some() && !trace.health.smoothing_failed && !self.input.progress.is_some_and(Progress::cancelled);
-        Ok(complete.then_some((trace, smoothed)))
+        Ok(complete(&trace, &smoothed, self.input.progress).then_some((trace, smoothed)))
     }
 }
 
