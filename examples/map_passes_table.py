@@ -23,9 +23,8 @@ ROOT = Path(__file__).resolve().parent.parent
 SETTLE_S = 10.0
 
 
-def zoo_rmse(name: str, seed: int, map_passes: int | None) -> tuple[float, int]:
+def zoo_rmse(run: sim.SimResult, map_passes: int | None) -> tuple[float, int]:
     """Horizontal RMSE after the first 10 s and the MAP passes run, for one setting."""
-    run = sim.zoo(name, seed=seed)
     config = copy.deepcopy(dict(run.config))
     if map_passes is not None:
         config.setdefault("smoothing", {})["map_passes"] = map_passes
@@ -46,7 +45,8 @@ def main() -> None:
     worse = 0
     for name in args.scenarios:
         for seed in args.seeds:
-            (none, _), (default, passes) = zoo_rmse(name, seed, 0), zoo_rmse(name, seed, None)
+            run = sim.zoo(name, seed=seed)
+            (none, _), (default, passes) = zoo_rmse(run, 0), zoo_rmse(run, None)
             worse += default > 1.02 * none
             print(f"| {name} | {seed} | {none:.4f} | {default:.4f} | {default / none:.3f} | {passes} |")
     if (args.isas / "isas-walk1.mcap").exists():
