@@ -28,8 +28,8 @@ def zoo_rmse(run: sim.SimResult, map_passes: int | None) -> tuple[float, int]:
     config = copy.deepcopy(dict(run.config))
     if map_passes is not None:
         config.setdefault("smoothing", {})["map_passes"] = map_passes
-    extra = {"tdoa": run.tdoa} if run.tdoa is not None and len(run.tdoa) else {}
-    df, info = uwbimu_rs.run_filter("best", run.imu, run.ranges, run.anchors, config=config, smooth=True, info=True, **extra)
+    tdoa = run.tdoa if run.tdoa is not None and len(run.tdoa) else None
+    df, info = uwbimu_rs.run_filter("best", run.imu, run.ranges, run.anchors, config=config, smooth=True, info=True, tdoa=tdoa)
     settled = df.filter(pl.col("t") >= df["t"][0] + SETTLE_S)
     return evaluate(settled, run.truth).horizontal.rmse, info["health"]["map_passes"]
 
