@@ -441,10 +441,8 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
                 Err(e) if declined(&e) => return Ok(None),
                 other => other?,
             };
-        match rerun.smooth(&input, self.kind.core) {
-            Err(e) if declined(&e) => return Ok(None),
-            other => other?,
-        }
+        // A smoothing that failed numerically leaves the pass unsmoothed: declined below.
+        rerun.smooth(&input, self.kind.core)?;
         let complete = rerun.smoothed.is_some() && !self.quiet.is_some_and(Progress::cancelled);
         Ok(complete.then_some(rerun))
     }
