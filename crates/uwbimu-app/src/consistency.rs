@@ -268,11 +268,7 @@ struct RunSamples {
 /// simulated once for all methods, the seeds in parallel. Fails when a run fails or the runs of a
 /// method sample different times (they share the scenario's clock).
 pub fn monte_carlo(methods: &[Method], name: &str, seeds: &[u64], settings: Settings<'_>) -> Result<Vec<Consistency>> {
-    let scenario_name = SCENARIOS
-        .iter()
-        .copied()
-        .find(|s| *s == name)
-        .ok_or_else(|| Error::unknown_option("consistency scenario", name, SCENARIOS.iter().copied()))?;
+    let scenario_name = known_scenario(SCENARIOS, "consistency scenario", name)?;
     let per_seed = crate::parallel::map_all(seeds, |&seed| {
         let sim = scenario(name, seed)?;
         let data = simulate(&sim)?;
@@ -285,6 +281,12 @@ pub fn monte_carlo(methods: &[Method], name: &str, seeds: &[u64], settings: Sett
     });
     let by_method = by_method(methods.len(), per_seed)?;
     methods.iter().zip(by_method).map(|(&method, runs)| gather(method, scenario_name, runs)).collect()
+}
+
+/// `name` as the entry of `names`, the scenarios of a Monte Carlo runner (`what` they are); an
+/// unknown name is an error listing them.
+fn known_scenario(names: &[&'static str], what: &'static str, name: &str) -> Result<&'static str> {
+    names.iter().copied().find(|s| *s == name).ok_or_else(|| Error::unknown_option(what, name, names.iter().copied()))
 }
 
 /// The runs of each of `methods` methods from the runs of each seed (each seed's in the order of

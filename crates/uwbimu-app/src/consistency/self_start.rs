@@ -27,7 +27,7 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::state::{ErrCov, ATT};
 
-use super::{nees, scenario, settings_config, NeesSeries, LOG_S};
+use super::{known_scenario, nees, scenario, settings_config, NeesSeries, LOG_S};
 use crate::generality::Settings;
 use crate::methods::run_method;
 use crate::registry::{Input, Method};
@@ -126,11 +126,7 @@ pub struct SelfStart {
 /// Runs each of `methods` self-initialised on scenario `name` once per seed of `seeds` with the
 /// configuration `settings` give it ([`settings_config`]), the seeds in parallel.
 pub fn self_start_monte_carlo(methods: &[Method], name: &str, seeds: &[u64], settings: Settings<'_>) -> Result<Vec<SelfStart>> {
-    let scenario_name = SELF_START_SCENARIOS
-        .iter()
-        .copied()
-        .find(|s| *s == name)
-        .ok_or_else(|| Error::unknown_option("self-initialised scenario", name, SELF_START_SCENARIOS.iter().copied()))?;
+    let scenario_name = known_scenario(SELF_START_SCENARIOS, "self-initialised scenario", name)?;
     let per_seed = crate::parallel::map_all(seeds, |&seed| {
         let sim = self_start_scenario(name, seed)?;
         let data = simulate(&sim)?;
