@@ -49,7 +49,7 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("smoothing.outlier_passes", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
     ("smoothing.outlier_sigmas", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
     ("smoothing.map_passes", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.map_tolerance", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
+    ("smoothing.map_min_decrease", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
     ("smoothing.kernel_width", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
     ("smoothing.cauchy", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
     ("smoothing.huber", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),

@@ -199,7 +199,8 @@ def run_filter(
         Also return what the run counted and chose, as a dict (last in the tuple):
         ``health`` (``rejected`` {gate kind: count}, ``numerical_repairs``,
         ``ranges_before_start``, ``reordered``, ``late_dropped``, ``smoothing_left_out``: the
-        ranges the robust smoothing left out, ``map_passes``: the MAP passes of the smoothing,
+        ranges the robust smoothing left out, ``map_passes``: the MAP passes the smoothing kept,
+        ``map_objective``: the MAP objective at its first pass and after each kept one (a list),
         ``smoothing_repairs``: predicted covariances the smoother repaired, ``smoothing_failed``:
         the smoother failed numerically and the smoothed columns hold the forward estimate, with
         a warning),

@@ -179,8 +179,8 @@ fn stats_lines(
             summary.smoothing_left_out
         )?;
     }
-    if summary.map_passes > 0 {
-        writeln!(out, "MAP smoothing: {} passes", summary.map_passes)?;
+    if let (Some(first), Some(last)) = (summary.map_objective.first(), summary.map_objective.last()) {
+        writeln!(out, "MAP smoothing: {} passes kept, objective {first:.1} -> {last:.1}", summary.map_passes)?;
     }
     if summary.smoothing_repairs > 0 {
         writeln!(out, "smoothing: {} predicted covariances repaired (lost definiteness to rounding)", summary.smoothing_repairs)?;

@@ -16,18 +16,37 @@
 //! longer than the median (the asymmetric NLOS kernel: NLOS lengthens a range, a short range is
 //! weighed as Gaussian).
 //!
-//! The passes stop when no smoothed position moves more than `smoothing.map_tolerance` from one
-//! pass to the next (converged), or after `smoothing.map_passes` passes. Each pass costs one
-//! filtered and smoothed run: linear in the log's length in time, and in memory the guide's track
-//! (one state per 45 ms at most) besides the run's own.
+//! **The objective** ([`Objective`]) is twice the robust negative log-likelihood of the whole log
+//! (constants dropped) at a track `x(t)`, taken at the guide's nodes (one per 45 ms):
+//!
+//! `J = (x₀ ⊖ x̂₀)ᵀ·P₀⁻¹·(x₀ ⊖ x̂₀) + Σ_jk r_jkᵀ·Q_jk⁻¹·r_jk + Σ_i ρ(u_i)`,
+//!
+//! the prior on the first state, the IMU process terms between nodes
+//! ([`uwbimu_estimation::smoother::objective`]) and each range's kernel ([`kernel_cost`]: the
+//! hard kernel's `min(u², c²)`, Cauchy's `c²·ln(1 + (u/c)²)`, Huber's, `u²` for Gaussian and for a
+//! short range under the asymmetric kernel), `u_i = (e_i − median_a)/σ_a` on the first pass's
+//! per-anchor scale, held through the passes so that they compare on one scale (the track's own
+//! variance, which the weights add, is not part of it: the nodes carry none).
+//!
+//! **A pass is kept only if it lowers `J`.** The guided pass is a Gauss–Newton direction: from the
+//! kept track `x_a` to the pass's `x_b`, `J` is tried at `x_a ⊕ α·(x_b ⊖ x_a)` for α = 1, ½, ¼, ⅛
+//! ([`HALVINGS`]) and the first that lowers it is taken (the whole run blended so); when none does,
+//! the passes end with the track before. They also end when a pass lowers `J` by less than
+//! `smoothing.map_min_decrease` of it (converged), or after `smoothing.map_passes` passes. `J` of
+//! the first pass and of each kept one is reported ([`MapPasses::objective`], `health`). Each
+//! pass costs one filtered and smoothed run and up to four evaluations of `J` (an IMU propagation
+//! with its covariance): linear in the log's length in time, and in memory the guide's track (one
+//! state per 45 ms at most) besides the run's own.
 
-use uwbimu_estimation::pipeline::StepRecord;
+use uwbimu_estimation::pipeline::{MapObjective, StepRecord};
+use uwbimu_estimation::smoother::objective::{prior_cost, ProcessCost};
 use uwbimu_estimation::smoother::Guide;
-use uwbimu_vocabulary::config::SmoothingConfig;
-use uwbimu_vocabulary::records::RangeMeasurement;
+use uwbimu_vocabulary::config::{FilterConfig, InitialState, LeverArms, SmoothingConfig};
+use uwbimu_vocabulary::math::{Mat3, Vec3};
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::state::NominalState;
 
-use crate::outlier_smoothing::{anchor_spreads, Residual, OUTLIER_FLOOR_M};
+use crate::outlier_smoothing::{anchor_spreads, Residual, ResidualWalk, OUTLIER_FLOOR_M};
 
 /// The kernel weight of a range longer than its anchor's median by `excess_m`, `u` times its
 /// scale (module doc), under `smoothing`'s kernel, in [0, 1]: with `c` = `kernel_width`, the hard
@@ -75,14 +94,12 @@ pub fn range_weights(residuals: &[Option<Residual>], ranges: &[RangeMeasurement]
 /// 2 m radius at 1 m/s is off the arc by `v²·Δt²/8R` = 0.13 mm.
 const GUIDE_SPACING_S: f64 = 0.045;
 
-/// The guide of the next pass: along the smoothed `steps` (oldest first, kept at about 20 Hz),
-/// each range weighted by `weights`.
-pub fn guide<Err>(
-    steps: impl Iterator<Item = Result<StepRecord, Err>>,
-    ranges: &[RangeMeasurement],
-    weights: &[f64],
-) -> Result<Guide, Err> {
-    let mut track: Vec<(f64, NominalState)> = Vec::new();
+/// A track at the guide's nodes: (time s, state), oldest first.
+pub type Track = Vec<(f64, NominalState)>;
+
+/// The nodes of smoothed `steps` (oldest first): about 20 Hz, and the last step.
+pub fn node_track<Err>(steps: impl Iterator<Item = Result<StepRecord, Err>>) -> Result<Track, Err> {
+    let mut track: Track = Vec::new();
     let mut last = None;
     for step in steps {
         let step = step?;
@@ -95,38 +112,146 @@ pub fn guide<Err>(
         }
     }
     track.extend(last);
-    let weighted = ranges.iter().zip(weights).map(|(r, w)| (r.t_s, r.tag, r.anchor, *w));
-    Ok(Guide::along(track).with_weights(weighted))
+    Ok(track)
 }
 
-/// The largest distance between the positions of two smoothed tracks of the same steps (both
-/// oldest first), m; +∞ when they differ in length or a distance is not finite.
-pub fn largest_move<Err>(
-    a: impl Iterator<Item = Result<StepRecord, Err>>,
-    b: impl Iterator<Item = Result<StepRecord, Err>>,
-) -> Result<f64, Err> {
-    let (mut a, mut b) = (a.fuse(), b.fuse());
-    let mut largest = 0.0_f64;
-    loop {
-        match (a.next(), b.next()) {
-            (None, None) => return Ok(largest),
-            (Some(x), Some(y)) => {
-                let d = (x?.state.position - y?.state.position).norm();
-                largest = if d.is_nan() { f64::INFINITY } else { largest.max(d) };
-            }
-            _ => return Ok(f64::INFINITY),
-        }
+/// The guide of the next pass: along `track`, each range weighted by `weights`.
+pub fn guide(track: &[(f64, NominalState)], ranges: &[RangeMeasurement], weights: &[f64]) -> Guide {
+    let weighted = ranges.iter().zip(weights).map(|(r, w)| (r.t_s, r.tag, r.anchor, *w));
+    Guide::along(track.iter().copied()).with_weights(weighted)
+}
+
+/// `a ⊕ α·(b ⊖ a)`, the state a fraction `alpha` of the way from `a` to `b`.
+pub fn blend_state(a: &NominalState, b: &NominalState, alpha: f64) -> NominalState {
+    let mut x = *a;
+    x.inject(&(b.boxminus(a) * alpha));
+    x
+}
+
+/// The track a fraction `alpha` of the way from `a` to `b` node by node ([`blend_state`]); None
+/// when their nodes differ in number or time.
+pub fn blend_track(a: &[(f64, NominalState)], b: &[(f64, NominalState)], alpha: f64) -> Option<Track> {
+    (a.len() == b.len()).then_some(())?;
+    a.iter().zip(b).map(|(x, y)| (x.0 == y.0).then(|| (x.0, blend_state(&x.1, &y.1, alpha)))).collect()
+}
+
+/// The residuals of `ranges` against a node track ([`ResidualWalk`], no track variance).
+pub fn track_residuals(
+    track: &[(f64, NominalState)],
+    ranges: &[RangeMeasurement],
+    anchors: &[Vec3],
+    lever_arms: LeverArms,
+) -> Vec<Option<Residual>> {
+    let mut walk = ResidualWalk::new(ranges, anchors, lever_arms);
+    for &(t_s, state) in track {
+        walk.push(&StepRecord { t_s, state, position_cov: Mat3::zeros(), still: false, status: 0 });
+    }
+    walk.finish()
+}
+
+/// The prior and process terms of [`Objective`] for a track: the IMU samples `imu` (in time order)
+/// rotated into the body frame by `config.mounting.imu_rotation`, the passes' start `initial`.
+pub fn dynamics_cost<Err>(
+    track: &[(f64, NominalState)],
+    imu: impl Iterator<Item = Result<ImuSample, Err>>,
+    initial: &InitialState,
+    config: &FilterConfig,
+) -> Result<(f64, f64), Err> {
+    let prior = track.first().map_or(0.0, |(_, x)| prior_cost(x, &initial.nominal(), &initial.covariance(config)));
+    let mut process = ProcessCost::new(track, &config.ins, config.mounting.imu_rotation);
+    for sample in imu {
+        process.push(&sample?);
+    }
+    Ok((prior, process.finish().0))
+}
+
+/// What a runner finds of a track for the objective ([`MapRunner::fit`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackFit {
+    /// The prior and the IMU process terms ([`dynamics_cost`]).
+    pub dynamics: (f64, f64),
+    /// The residual of each range ([`track_residuals`]).
+    pub residuals: Vec<Option<Residual>>,
+}
+
+/// The MAP objective at a track (module doc), by its terms.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Objective {
+    /// The prior on the first state.
+    pub prior: f64,
+    /// The IMU process terms.
+    pub process: f64,
+    /// The ranges' kernels.
+    pub ranges: f64,
+}
+
+impl Objective {
+    /// `J`, the sum of the terms.
+    pub fn total(&self) -> f64 {
+        self.prior + self.process + self.ranges
     }
 }
 
-/// What the MAP passes did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct MapPasses {
-    /// Guided passes run (0: the first, unguided pass only).
-    pub passes: u32,
-    /// Whether the last pass moved no position more than `smoothing.map_tolerance`.
-    pub converged: bool,
+/// `ρ(u)` of a range longer than its anchor's median by `excess_m`, `u` times its scale, under
+/// `smoothing`'s kernel, in units of `u²` (the kernel whose IRLS weight `ρ'(u)/2u` is
+/// [`kernel_weight`]): with `c` = `kernel_width`, the hard kernel's `c²` when `u > c` and
+/// `excess_m` > [`OUTLIER_FLOOR_M`], else `u²`; Cauchy's `c²·ln(1 + (u/c)²)`; Huber's `u²` up to `c`
+/// and `2c·|u| − c²` beyond. `u²` for a shorter range (`u ≤ 0`) unless `symmetric`, and for every
+/// range when `c` = 0 (Gaussian).
+pub fn kernel_cost(u: f64, excess_m: f64, smoothing: &SmoothingConfig) -> f64 {
+    let c = smoothing.kernel_width;
+    if c == 0.0 || (u <= 0.0 && !smoothing.symmetric) {
+        return u * u;
+    }
+    let a = u.abs();
+    if smoothing.huber {
+        if a <= c {
+            u * u
+        } else {
+            2.0 * c * a - c * c
+        }
+    } else if smoothing.cauchy {
+        c * c * (u / c).powi(2).ln_1p()
+    } else if a > c && excess_m.abs() > OUTLIER_FLOOR_M {
+        c * c
+    } else {
+        u * u
+    }
 }
+
+/// `Σ ρ(u_i)` over the ranges with a residual ([`kernel_cost`]), `u = (e − median_a)/σ_a` with the
+/// per-anchor median and robust σ of `scale`.
+pub fn range_cost(
+    residuals: &[Option<Residual>],
+    ranges: &[RangeMeasurement],
+    scale: &[Option<(f64, f64)>],
+    smoothing: &SmoothingConfig,
+) -> f64 {
+    ranges
+        .iter()
+        .zip(residuals)
+        .filter_map(|(r, e)| {
+            let e = e.filter(|e| e.range_m.is_finite())?;
+            let (median, sigma) = (*scale.get(r.anchor)?)?;
+            let excess = e.range_m - median;
+            Some(kernel_cost(excess / sigma.max(1e-6), excess, smoothing))
+        })
+        .sum()
+}
+
+/// What the MAP passes did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MapPasses {
+    /// Guided passes kept (0: the first, unguided pass only).
+    pub passes: u32,
+    /// Whether the last pass lowered the objective by less than `smoothing.map_min_decrease`.
+    pub converged: bool,
+    /// The objective of the first pass and after each kept pass (module doc).
+    pub objective: MapObjective,
+}
+
+/// Step halvings at most per pass: α = 1, ½, ¼, ⅛ of the pass's change (module doc).
+pub const HALVINGS: usize = 3;
 
 /// How a runner keeps its passes (in memory or spilled to disk), for [`map_passes`].
 pub trait MapRunner {
@@ -139,11 +264,16 @@ pub trait MapRunner {
     /// ([`crate::outlier_smoothing::ResidualWalk`]); None when the pass has no smoothed track.
     fn residuals(&mut self, pass: &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>, Self::Error>;
 
-    /// The guide along the pass's smoothed track with these range weights ([`guide`]).
-    fn guide(&mut self, pass: &mut Self::Pass, weights: &[f64]) -> Result<Guide, Self::Error>;
+    /// The pass's smoothed track at the guide's nodes ([`node_track`]); None when it has none.
+    fn track(&mut self, pass: &mut Self::Pass) -> Result<Option<Track>, Self::Error>;
 
-    /// The largest move of a smoothed position from pass `a` to pass `b` ([`largest_move`]).
-    fn moved(&mut self, a: &mut Self::Pass, b: &mut Self::Pass) -> Result<f64, Self::Error>;
+    /// The prior and process terms of the objective at `track` ([`dynamics_cost`]) and the
+    /// residuals of the ranges against it ([`track_residuals`]).
+    fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit, Self::Error>;
+
+    /// Makes `b`'s smoothed steps `a ⊕ α·(b ⊖ a)` step by step ([`blend_state`]; the position
+    /// covariance `b`'s).
+    fn blend(&mut self, a: &mut Self::Pass, b: &mut Self::Pass, alpha: f64) -> Result<(), Self::Error>;
 
     /// The log filtered and smoothed again, guided by `guide`; None when the run was cancelled
     /// or failed numerically (a covariance not positive definite: the pass is declined, the
@@ -151,17 +281,25 @@ pub trait MapRunner {
     fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>, Self::Error>;
 }
 
-/// The passes of the MAP smoother: from the smoothed `first` pass, at most `smoothing.map_passes`
-/// times, the weights of `ranges` from their residuals against the pass's smoothed track
-/// ([`range_weights`]), the guide along that track, and the log run and smoothed again with it,
-/// until no smoothed position moves more than `smoothing.map_tolerance` (or a pass has no
-/// smoothed track, or is cancelled). A pass whose residuals cost more than the pass before
-/// ([`residual_cost`], on the first pass's per-anchor scale) by over [`DECLINE_SIGMAS`] standard
-/// deviations of a χ² sum over its `n` ranges (`√(2n)`) is not taken and ends the passes: the
-/// hard kernel can flip a set of ranges in and out from pass to pass, and a pass guided by a
-/// track that left them out can start off; a pass that trades the fit of a few ranges for the
-/// track's dynamics stays below the bound (the cases that set it: docs/smoothing.md, "Why the
-/// decline rule"). Returns the last pass taken and what the passes did.
+/// The objective at `track` (module doc).
+fn objective<R: MapRunner>(
+    runner: &mut R,
+    track: &[(f64, NominalState)],
+    ranges: &[RangeMeasurement],
+    scale: &[Option<(f64, f64)>],
+    smoothing: &SmoothingConfig,
+) -> Result<Objective, R::Error> {
+    let TrackFit { dynamics: (prior, process), residuals } = runner.fit(track)?;
+    Ok(Objective { prior, process, ranges: range_cost(&residuals, ranges, scale, smoothing) })
+}
+
+/// The passes of the MAP smoother (module doc): from the smoothed `first` pass, at most
+/// `smoothing.map_passes` times, the weights of `ranges` from their residuals against the kept
+/// pass's smoothed track ([`range_weights`]), the guide along that track, the log run and
+/// smoothed again with it, and the step to it halved until the objective is lower; the passes end
+/// when no step lowers it, when a pass lowers it by less than `smoothing.map_min_decrease` of it,
+/// or when a pass has no smoothed track or is cancelled. Returns the last pass kept and what the
+/// passes did; the objective never rises from one kept pass to the next.
 pub fn map_passes<R: MapRunner>(
     runner: &mut R,
     first: R::Pass,
@@ -169,26 +307,44 @@ pub fn map_passes<R: MapRunner>(
     smoothing: &SmoothingConfig,
 ) -> Result<(R::Pass, MapPasses), R::Error> {
     let mut pass = first;
-    let mut done = MapPasses { passes: 0, converged: false };
+    let mut done = MapPasses::default();
     if smoothing.map_passes_or_zero() == 0 {
         return Ok((pass, done));
     }
-    let Some(mut residuals) = runner.residuals(&mut pass)? else { return Ok((pass, done)) };
+    let (Some(mut residuals), Some(mut track)) = (runner.residuals(&mut pass)?, runner.track(&mut pass)?) else {
+        return Ok((pass, done));
+    };
     let scale = anchor_spreads(&residuals, ranges);
-    let mut cost = residual_cost(&residuals, ranges, &scale, smoothing);
+    let mut cost = objective(runner, &track, ranges, &scale, smoothing)?.total();
+    if !cost.is_finite() {
+        return Ok((pass, done));
+    }
+    done.objective.push(cost);
     for _ in 0..smoothing.map_passes_or_zero() {
         let weights = range_weights(&residuals, ranges, smoothing);
-        let guide = runner.guide(&mut pass, &weights)?;
-        let Some(mut next) = runner.again(guide)? else { break };
-        let Some(next_residuals) = runner.residuals(&mut next)? else { break };
-        let next_cost = residual_cost(&next_residuals, ranges, &scale, smoothing);
-        if next_cost.0 > cost.0 + DECLINE_SIGMAS * (2.0 * cost.1 as f64).sqrt() {
-            break;
+        let Some(mut next) = runner.again(guide(&track, ranges, &weights))? else { break };
+        let Some(next_track) = runner.track(&mut next)? else { break };
+        let mut kept = None;
+        for halving in 0..=HALVINGS {
+            let alpha = 0.5_f64.powi(halving as i32);
+            let trial = if halving == 0 { Some(next_track.clone()) } else { blend_track(&track, &next_track, alpha) };
+            let Some(trial) = trial else { break };
+            let trial_cost = objective(runner, &trial, ranges, &scale, smoothing)?.total();
+            if trial_cost < cost {
+                kept = Some((alpha, trial, trial_cost));
+                break;
+            }
         }
-        let moved = runner.moved(&mut pass, &mut next)?;
-        (pass, residuals, cost) = (next, next_residuals, next_cost);
+        let Some((alpha, next_track, next_cost)) = kept else { break };
+        if alpha < 1.0 {
+            runner.blend(&mut pass, &mut next, alpha)?;
+        }
+        let Some(next_residuals) = runner.residuals(&mut next)? else { break };
+        let decrease = (cost - next_cost) / cost.abs().max(f64::MIN_POSITIVE);
+        (pass, residuals, track, cost) = (next, next_residuals, next_track, next_cost);
         done.passes += 1;
-        if moved <= smoothing.map_tolerance {
+        done.objective.push(cost);
+        if decrease < smoothing.map_min_decrease {
             done.converged = true;
             break;
         }
@@ -196,37 +352,9 @@ pub fn map_passes<R: MapRunner>(
     Ok((pass, done))
 }
 
-/// A guided pass whose residual cost rises by more than this many standard deviations of the
-/// cost's χ² sum is declined ([`map_passes`]).
-pub const DECLINE_SIGMAS: f64 = 2.0;
-
-/// The robust cost of a smoothed track's range residuals and how many ranges it sums over:
-/// `Σ min(u², c²)` over the ranges with a residual, `u = (e − median_a)/σ_a` with the per-anchor median and robust σ of `scale` (held
-/// from one pass to the next so that passes compare on one scale), `c` the kernel width (3 for
-/// the Gaussian width 0): the truncated quadratic of the hard kernel, so that a range every pass
-/// calls an outlier costs each the same.
-pub fn residual_cost(
-    residuals: &[Option<Residual>],
-    ranges: &[RangeMeasurement],
-    scale: &[Option<(f64, f64)>],
-    smoothing: &SmoothingConfig,
-) -> (f64, usize) {
-    let c = if smoothing.kernel_width > 0.0 { smoothing.kernel_width } else { 3.0 };
-    ranges
-        .iter()
-        .zip(residuals)
-        .filter_map(|(r, e)| {
-            let e = e.filter(|e| e.range_m.is_finite())?;
-            let (median, sigma) = (*scale.get(r.anchor)?)?;
-            let u = (e.range_m - median) / sigma.max(1e-6);
-            Some((u * u).min(c * c))
-        })
-        .fold((0.0, 0), |(sum, n), cost| (sum + cost, n + 1))
-}
-
 #[cfg(test)]
 mod tests {
-    use uwbimu_vocabulary::math::{Mat3, Quat, Vec3};
+    use uwbimu_vocabulary::math::Quat;
 
     use super::*;
 
@@ -300,48 +428,116 @@ mod tests {
     }
 
     #[test]
-    fn the_guide_keeps_at_most_a_node_per_45_ms_and_the_last_step() {
-        let g = guide(ok(track(0.0, 0.02)), &[], &[]).unwrap();
+    fn the_track_keeps_at_most_a_node_per_45_ms_and_the_last_step() {
+        let t = node_track(ok(track(0.0, 0.02))).unwrap();
         // Steps at 0, 20, 40, 60, 80 ms: nodes at 0 and 60 ms, and the last (80 ms).
-        let x = |t: f64| g.state_at(t).expect("inside").position.x;
-        assert!((x(0.03) - 1.5).abs() < 1e-12, "between 0 and 60 ms: interpolated");
-        assert!((x(0.08) - 4.0).abs() < 1e-12 && g.state_at(0.085).is_none());
-        assert_eq!(largest_move(ok(track(0.0, 0.01)), ok(track(0.25, 0.01))), Ok(0.25));
-        assert_eq!(largest_move(ok(track(0.0, 0.01)), ok(track(0.0, 0.01)[..4].to_vec())), Ok(f64::INFINITY));
+        assert_eq!(t.iter().map(|n| n.0).collect::<Vec<_>>(), [0.0, 0.06, 0.08]);
+        let g = guide(&t, &[], &[]);
+        assert!((g.state_at(0.03).expect("inside").position.x - 1.5).abs() < 1e-12, "interpolated");
+        assert!(g.state_at(0.085).is_none());
     }
 
-    /// Passes in memory: a pass is its track's shift, each guided pass halves it.
-    struct Halving;
+    #[test]
+    fn a_blend_goes_the_fraction_of_the_way_on_each_state_and_needs_the_same_nodes() {
+        let (a, mut b) = (track(0.0, 0.05), track(0.4, 0.05));
+        b[1].state.orientation = Quat::from_euler_angles(0.0, 0.0, 0.8);
+        b[1].state.gyro_bias = Vec3::new(0.0, 0.0, 0.02);
+        let nodes = |steps: &[StepRecord]| node_track(ok(steps.to_vec())).unwrap();
+        let half = blend_track(&nodes(&a), &nodes(&b), 0.25).expect("same nodes");
+        assert!((half[1].1.position.x - 1.1).abs() < 1e-12);
+        assert!((half[1].1.orientation.euler_angles().2 - 0.2).abs() < 1e-12);
+        assert!((half[1].1.gyro_bias.z - 0.005).abs() < 1e-15);
+        assert!(blend_track(&nodes(&a), &nodes(&b[..4]), 0.5).is_none());
+        assert!(blend_track(&nodes(&a), &nodes(&track(0.0, 0.06)), 0.5).is_none(), "other times");
+    }
 
-    impl MapRunner for Halving {
+    #[test]
+    fn each_kernel_cost_has_its_weight_as_irls_weight() {
+        // w = ρ'(u)/2u, by central differences, for each kernel away from the hard kernel's step.
+        for config in
+            [smoothing(2.385, false, false, true), smoothing(1.345, true, false, true), smoothing(0.0, false, false, true)]
+        {
+            for u in [-4.0, -1.0, 0.5, 1.2, 3.0, 7.0] {
+                let h = 1e-6;
+                let slope = (kernel_cost(u + h, 1.0, &config) - kernel_cost(u - h, 1.0, &config)) / (2.0 * h);
+                assert!((slope / (2.0 * u) - kernel_weight(u, 1.0, &config)).abs() < 1e-6, "{config:?} u={u}");
+            }
+        }
+        let hard = smoothing(3.0, false, true, false);
+        assert_eq!(
+            (kernel_cost(3.5, 0.2, &hard), kernel_cost(2.0, 0.2, &hard), kernel_cost(3.5, 0.05, &hard)),
+            (9.0, 4.0, 12.25)
+        );
+        assert_eq!(kernel_cost(-5.0, -0.5, &hard), 25.0, "asymmetric: a short range is Gaussian");
+        assert!((kernel_cost(4.0, 0.5, &smoothing(2.0, false, false, false)) - 4.0 * 5f64.ln()).abs() < 1e-12);
+        assert_eq!(kernel_cost(-4.0, -0.5, &smoothing(2.0, true, false, true)), 12.0);
+    }
+
+    /// Passes in memory: a pass is its track's shift `s`; the objective is `(s − 1)² + 1`, and a
+    /// guided pass from `s` goes to `s + gain·(1 − s)`.
+    struct Towards {
+        gain: f64,
+        blends: usize,
+    }
+
+    impl MapRunner for Towards {
         type Pass = f64;
         type Error = ();
         fn residuals(&mut self, _: &mut f64) -> Result<Option<Vec<Option<Residual>>>, ()> {
             Ok(Some(vec![None]))
         }
-        fn guide(&mut self, shift: &mut f64, weights: &[f64]) -> Result<Guide, ()> {
-            assert_eq!(weights, [1.0]);
-            guide(ok(track(*shift, 0.01)), &[], &[])
+        fn track(&mut self, shift: &mut f64) -> Result<Option<Track>, ()> {
+            node_track(ok(track(*shift, 0.05))).map(Some)
         }
-        fn moved(&mut self, a: &mut f64, b: &mut f64) -> Result<f64, ()> {
-            largest_move(ok(track(*a, 0.01)), ok(track(*b, 0.01)))
+        fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit, ()> {
+            Ok(TrackFit { dynamics: ((track[0].1.position.x - 1.0).powi(2) + 1.0, 0.0), residuals: vec![None] })
+        }
+        fn blend(&mut self, a: &mut f64, b: &mut f64, alpha: f64) -> Result<(), ()> {
+            self.blends += 1;
+            *b = *a + alpha * (*b - *a);
+            Ok(())
         }
         fn again(&mut self, g: Guide) -> Result<Option<f64>, ()> {
-            Ok(Some(g.state_at(0.0).expect("inside").position.x / 2.0))
+            let s = g.state_at(0.0).expect("inside").position.x;
+            Ok(Some(s + self.gain * (1.0 - s)))
         }
     }
 
-    #[test]
-    fn passes_stop_when_the_track_settles_or_are_spent() {
+    fn run(gain: f64, passes: u32) -> (f64, MapPasses, usize) {
         let ranges = [RangeMeasurement { t_s: 1.0, anchor: 0, range_m: 5.0, tag: 0 }];
-        let config = SmoothingConfig { map_passes: Some(10), map_tolerance: 0.005, ..SmoothingConfig::default() };
-        // Moves 0.05, 0.025, 0.0125, 0.00625, 0.003125: the fifth pass settles.
-        let (shift, done) = map_passes(&mut Halving, 0.1, &ranges, &config).unwrap();
-        assert_eq!(done, MapPasses { passes: 5, converged: true });
-        assert!((shift - 0.1 / 32.0).abs() < 1e-15);
-        let (_, done) = map_passes(&mut Halving, 0.1, &ranges, &SmoothingConfig { map_passes: Some(2), ..config }).unwrap();
-        assert_eq!(done, MapPasses { passes: 2, converged: false });
-        let (_, done) = map_passes(&mut Halving, 0.1, &ranges, &SmoothingConfig { map_passes: None, ..config }).unwrap();
-        assert_eq!(done, MapPasses { passes: 0, converged: false });
+        let config = SmoothingConfig { map_passes: Some(passes), ..SmoothingConfig::default() };
+        let mut runner = Towards { gain, blends: 0 };
+        let (shift, done) = map_passes(&mut runner, 0.0, &ranges, &config).unwrap();
+        (shift, done, runner.blends)
+    }
+
+    #[test]
+    fn passes_stop_when_the_objective_settles_or_are_spent() {
+        // J: 2, 1.25, 1.0625, 1.0156, 1.0039, 1.00098, 1.000244 (lowered by 7.3e-4 < 1e-3).
+        let (shift, done, blends) = run(0.5, 20);
+        assert_eq!((done.passes, done.converged, blends), (6, true, 0));
+        assert!((shift - (1.0 - 0.5f64.powi(6))).abs() < 1e-15);
+        let j = done.objective.as_slice();
+        assert_eq!(j.len(), 7);
+        assert!((j[0] - 2.0).abs() < 1e-15 && (j[6] - (1.0 + 0.25f64.powi(6))).abs() < 1e-12);
+        let (_, done, _) = run(0.5, 2);
+        assert_eq!((done.passes, done.converged, done.objective.as_slice().len()), (2, false, 3));
+        let config = SmoothingConfig { map_passes: None, ..SmoothingConfig::default() };
+        let (_, done) = map_passes(&mut Towards { gain: 0.5, blends: 0 }, 0.0, &[], &config).unwrap();
+        assert_eq!(done, MapPasses::default());
+    }
+
+    #[test]
+    fn an_overshooting_pass_is_halved_and_one_that_only_climbs_is_declined() {
+        // From 0 a pass goes to 3 (J = 5 > 2): halved to 1.5 (J = 1.25), then from 1.5 to 0,
+        // halved to 0.75, ...: every kept pass lowers J.
+        let (shift, done, blends) = run(3.0, 20);
+        assert!(done.passes >= 3 && blends == done.passes as usize, "{done:?} {blends}");
+        assert!(done.objective.as_slice().windows(2).all(|w| w[1] < w[0]), "{:?}", done.objective);
+        assert!((shift - 1.0).abs() < 0.05, "{shift}");
+        // A pass away from the optimum at every step length: nothing kept.
+        let (shift, done, blends) = run(-1.0, 20);
+        assert_eq!((shift, done.passes, done.converged, blends), (0.0, 0, false, 0));
+        assert_eq!(done.objective.as_slice(), [2.0]);
     }
 }

@@ -113,6 +113,10 @@ impl Replay {
                 BatchOutput::Inertial { trace, .. } => trace.health.map_passes,
                 BatchOutput::Multilateration(_) => 0,
             },
+            map_objective: match &self.output {
+                BatchOutput::Inertial { trace, .. } => trace.health.map_objective.as_slice().to_vec(),
+                BatchOutput::Multilateration(_) => Vec::new(),
+            },
             smoothing_repairs: match &self.output {
                 BatchOutput::Inertial { trace, .. } => trace.health.smoothing_repairs,
                 BatchOutput::Multilateration(_) => 0,
@@ -161,6 +165,9 @@ pub struct ReplaySummary {
     /// MAP passes the smoothing ran (`smoothing.map_passes`, [`crate::map_smoothing`]; 0 for a
     /// forward run).
     pub map_passes: u32,
+    /// The MAP objective at the first smoothed pass and after each kept pass
+    /// ([`uwbimu_estimation::pipeline::Health::map_objective`]; empty when the MAP did not run).
+    pub map_objective: Vec<f64>,
     /// Predicted covariances the RTS smoother repaired ([`uwbimu_estimation::pipeline::Health::smoothing_repairs`]; 0 for a
     /// forward run).
     pub smoothing_repairs: usize,

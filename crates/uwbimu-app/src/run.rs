@@ -23,8 +23,11 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
+use uwbimu_vocabulary::state::NominalState;
 
-use crate::map_smoothing::{self, largest_move, map_passes, MapPasses, MapRunner};
+use crate::map_smoothing::{
+    blend_state, dynamics_cost, map_passes, node_track, track_residuals, MapPasses, MapRunner, Track, TrackFit,
+};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Input, Method};
@@ -221,20 +224,23 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
-/// A smoothed run then runs its MAP passes (`smoothing.map_passes` > 0, [`map_smooth`]) or its
-/// outlier passes ([`outlier_smooth`]); a run whose smoother failed numerically carries the
-/// warning [`SMOOTHING_FAILED`].
+/// A smoothed run then runs its outlier passes ([`outlier_smooth`]) and, from their last pass, its
+/// MAP passes (`smoothing.map_passes` > 0, [`map_smooth`]), which keep a pass only when it lowers
+/// the objective, so that they never end above where the outlier passes left it; a run whose
+/// smoother failed numerically carries the warning [`SMOOTHING_FAILED`].
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let mut warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let (trace, smoothed, smoothing) = run_pass(&build, &initial, input, None)?;
-    let (trace, smoothed, init) = if smoothing.map_passes_or_zero() > 0 {
-        let ((mut trace, smoothed, init), done) = map_smooth(&build, &initial, input, (trace, smoothed, init), &smoothing)?;
-        trace.health.map_passes = done.passes;
-        (trace, smoothed, init)
-    } else {
-        outlier_smooth(&build, input, (trace, smoothed, init), &smoothing)?
-    };
+    let mut pass = outlier_smooth(&build, input, (trace, smoothed, init), &smoothing)?;
+    if smoothing.map_passes_or_zero() > 0 {
+        let left_out = pass.0.health.smoothing_left_out;
+        let done;
+        (pass, done) = map_smooth(&build, &initial, input, pass, &smoothing)?;
+        let health = &mut pass.0.health;
+        (health.smoothing_left_out, health.map_passes, health.map_objective) = (left_out, done.passes, done.objective);
+    }
+    let (trace, smoothed, init) = pass;
     warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
 }
@@ -286,7 +292,8 @@ fn residuals_of(input: &BatchInput<'_>, steps: &[StepRecord]) -> Vec<Option<Resi
 
 /// The MAP passes of [`run_inertial`] after its `first` smoothed pass ([`crate::map_smoothing`]):
 /// each pass runs from the same `initial` state with the filter guided by the previous pass's
-/// track. A filter that takes no guide keeps the first pass; a cancelled run ends the passes.
+/// track. A filter that takes no guide, or a log with other sensors than the IMU and the ranges
+/// (the objective has no terms for them), keeps the first pass; a cancelled run ends the passes.
 fn map_smooth<F: InertialFilter>(
     build: &impl Fn(&InitialState) -> Result<F>,
     initial: &InitialState,
@@ -295,11 +302,14 @@ fn map_smooth<F: InertialFilter>(
     smoothing: &SmoothingConfig,
 ) -> Result<(SmoothedPass, MapPasses)> {
     let (trace, smoothed, init) = first;
-    if !build(initial)?.set_guide(None) {
-        return Ok(((trace, smoothed, init), MapPasses { passes: 0, converged: false }));
+    let mut filter = build(initial)?;
+    // The objective has no terms for the other sensors: it could not judge a pass on them.
+    if !filter.set_guide(None) || !input.observations.is_empty() {
+        return Ok(((trace, smoothed, init), MapPasses::default()));
     }
     let quiet = input.progress.map(Progress::sharing_cancel);
-    let mut runner = InMemory { build, initial, input: BatchInput { progress: quiet.as_ref(), ..*input } };
+    let config = filter.config().clone();
+    let mut runner = InMemory { build, initial, config: &config, input: BatchInput { progress: quiet.as_ref(), ..*input } };
     let ((trace, smoothed), done) = map_passes(&mut runner, (trace, smoothed), input.ranges, smoothing)?;
     Ok(((trace, smoothed, init), done))
 }
@@ -308,6 +318,8 @@ fn map_smooth<F: InertialFilter>(
 struct InMemory<'a, B> {
     build: &'a B,
     initial: &'a InitialState,
+    /// The configuration the filter runs with (the objective's noise and mounting).
+    config: &'a FilterConfig,
     input: BatchInput<'a>,
 }
 
@@ -319,13 +331,24 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
         Ok(smoothed.as_deref().map(|steps| residuals_of(&self.input, steps)))
     }
 
-    fn guide(&mut self, (_, smoothed): &mut Self::Pass, weights: &[f64]) -> Result<Guide> {
-        let steps = smoothed.iter().flatten().map(|s| Ok(*s));
-        map_smoothing::guide(steps, self.input.ranges, weights)
+    fn track(&mut self, (_, smoothed): &mut Self::Pass) -> Result<Option<Track>> {
+        smoothed.as_deref().map(|steps| node_track(steps.iter().map(|s| Ok(*s)))).transpose()
     }
 
-    fn moved(&mut self, (_, a): &mut Self::Pass, (_, b): &mut Self::Pass) -> Result<f64> {
-        largest_move(a.iter().flatten().map(|s| Ok(*s)), b.iter().flatten().map(|s| Ok(*s)))
+    fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
+        let imu = self.input.imu.iter().map(|s| Ok(*s));
+        let dynamics = dynamics_cost(track, imu, self.initial, self.config)?;
+        let BatchInput { ranges, anchors, .. } = self.input;
+        Ok(TrackFit { dynamics, residuals: track_residuals(track, ranges, anchors, self.config.mounting.lever_arm) })
+    }
+
+    fn blend(&mut self, (_, a): &mut Self::Pass, (_, b): &mut Self::Pass, alpha: f64) -> Result<()> {
+        if let (Some(a), Some(b)) = (a.as_deref(), b.as_deref_mut()) {
+            for (x, y) in a.iter().zip(b.iter_mut()) {
+                y.state = blend_state(&x.state, &y.state, alpha);
+            }
+        }
+        Ok(())
     }
 
     /// A guided pass that fails numerically is declined ([`MapRunner::again`]).

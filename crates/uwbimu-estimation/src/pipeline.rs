@@ -44,6 +44,8 @@ pub use event_loop::Pipeline;
 pub use fixed_lag::{FixedLag, FIXED_LAG_BLOCK_FRACTION};
 pub use marginals::Marginals;
 pub use progress::Progress;
-pub use records::{Health, Measured, StepRecord, Trace, UpdateRecord, STATUS_LATE, STATUS_REJECTED, STATUS_REPAIRED};
+pub use records::{
+    Health, MapObjective, Measured, StepRecord, Trace, UpdateRecord, STATUS_LATE, STATUS_REJECTED, STATUS_REPAIRED,
+};
 pub use smoothing::{run_smoothed, smooth_recording, smoothed_nodes, smoothed_steps};
 pub use stream::{self_initialize, Builder, Stream, StreamOptions, DEFAULT_REORDER_WINDOW_S};

@@ -34,6 +34,7 @@ use dense::{cholesky_lower, plus_congruence, solve_right};
 
 mod dense;
 mod guide;
+pub mod objective;
 
 pub use guide::{Guide, MIN_WEIGHT};
 

@@ -24,8 +24,8 @@ pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, AltitudeConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig,
     ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig,
     SageHusaSection, Section, SmoothingConfig, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S,
-    DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_OUTLIER_PASSES,
-    MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
+    DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_MAP_PASSES,
+    MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
 /// A configuration value as it arrives from a dict: a scalar or a vector.

@@ -125,7 +125,9 @@ pub(super) fn init_info_items(d: &Bound<'_, PyDict>, s: &SelfInit) -> PyResult<(
 
 /// What a run or stream counted, as a dict: `rejected` ({gate kind: count}), `numerical_repairs`,
 /// `ranges_before_start`, `reordered`, `late_dropped`, `smoothing_left_out` (a smoothed batch
-/// run's robust smoothing; 0 for a stream), `map_passes` (its MAP passes; 0 for a stream),
+/// run's robust smoothing; 0 for a stream), `map_passes` (its MAP passes kept; 0 for a stream),
+/// `map_objective` (the MAP objective at its first smoothed pass and after each kept pass, a list;
+/// empty when the MAP did not run),
 /// `smoothing_repairs` (predicted covariances its RTS smoother repaired) and `smoothing_failed`
 /// (its smoother failed numerically and the forward estimate stands in).
 pub(crate) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'py, PyDict>> {
@@ -141,6 +143,7 @@ pub(crate) fn health_dict<'py>(py: Python<'py>, h: &Health) -> PyResult<Bound<'p
     d.set_item("late_dropped", h.late_dropped)?;
     d.set_item("smoothing_left_out", h.smoothing_left_out)?;
     d.set_item("map_passes", h.map_passes)?;
+    d.set_item("map_objective", h.map_objective.as_slice().to_vec())?;
     d.set_item("smoothing_repairs", h.smoothing_repairs)?;
     d.set_item("smoothing_failed", h.smoothing_failed)?;
     Ok(d)

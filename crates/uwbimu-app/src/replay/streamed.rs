@@ -11,7 +11,7 @@
 //! - self-initialisation is the streaming filter's ([`Stream::self_initializing`]), which equals
 //!   the batch decision;
 //! - smoothing keeps the forward pass's segments and steps in temporary files
-//!   ([`Spill`](crate::io::spill::Spill)) and runs the RTS pass over them newest first
+//!   ([`Spill`]) and runs the RTS pass over them newest first
 //!   ([`rts_smooth_backward`](uwbimu_estimation::smoother::rts_smooth_backward)): the output equals the
 //!   batch smoother's, at the cost of temporary disk while it runs (docs/replay.md has the figure).
 //!
@@ -26,6 +26,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
+use crate::io::spill::Spill;
 use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
@@ -35,19 +36,20 @@ use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::SensorKind;
+use uwbimu_vocabulary::state::NominalState;
 
 mod ordered;
 mod pass;
 mod spilled;
 mod truth_match;
 
-use pass::{run_pass, Pass, RangesOfPass};
+use pass::{imu_from_flat, run_pass, EventsOfPass, Pass, IMU_FLAT_LEN};
 use spilled::{step_from_flat, step_to_flat, StepsOut};
 use truth_match::TruthMatch;
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::io::{IoResult as Result, Mapping, RecordingSurvey};
-use crate::map_smoothing::{largest_move, map_passes, MapRunner};
+use crate::map_smoothing::{blend_state, dynamics_cost, map_passes, node_track, track_residuals, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Method};
@@ -120,6 +122,7 @@ impl StreamedReplay {
             model: self.model.as_ref().map(ModelSummary::of),
             smoothing_left_out: self.health.smoothing_left_out,
             map_passes: self.health.map_passes,
+            map_objective: self.health.map_objective.as_slice().to_vec(),
             smoothing_repairs: self.health.smoothing_repairs,
             rmse: self.rmse,
         }
@@ -309,8 +312,9 @@ fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> 
 /// `on_step` in time order: the forward step as soon as the events at its time are in, or, when
 /// smoothing, the smoothed steps after the RTS pass. A smoothed run whose filter runs with
 /// `smoothing.outlier_passes` > 0 reads the file again without the ranges its smoothed track
-/// calls NLOS, as the batch runner does ([`crate::outlier_smoothing`]), and hands on the last
-/// pass; it keeps the ranges (24 B each) in memory meanwhile. When the progress's cancel flag is
+/// calls NLOS, as the batch runner does ([`crate::outlier_smoothing`]), then its MAP passes
+/// (`smoothing.map_passes` > 0, [`crate::map_smoothing`]), and hands on the last pass kept; it
+/// keeps the ranges (24 B each) in memory meanwhile and spills the IMU samples (56 B each). When the progress's cancel flag is
 /// raised the run stops after the current event and hands on the forward steps so far (not
 /// smoothed).
 ///
@@ -338,27 +342,21 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     if !input.smooth {
         let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
         let out = StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) };
-        return run_pass(method, input, kind, imu_span_s, out, &mut RangesOfPass::default(), None, None)?.finish(survey, None);
+        return run_pass(method, input, kind, imu_span_s, out, &mut EventsOfPass::default(), None, None)?.finish(survey, None);
     }
-    let mut ranges = RangesOfPass { kept: Some(Vec::new()), left_out: &[], seen: 0 };
+    let imu = Some(Spill::create(input.spill_dir, "IMU samples")?);
+    let mut ranges = EventsOfPass { kept: Some(Vec::new()), imu, left_out: &[], seen: 0 };
     let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None, None)?;
     pass.smooth(input, kind.core)?;
-    let all = ranges.kept.take().unwrap_or_default();
+    let (all, imu) = (ranges.kept.take().unwrap_or_default(), ranges.imu.take());
     let Some(smoothing) = pass.stream.estimator().map(kind.smoothing) else {
         return pass.finish(survey, Some(on_step));
     };
     let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
-    let guided = pass.stream.estimator_mut().is_some_and(|f| (kind.guide)(f, None));
-    if smoothing.map_passes_or_zero() > 0 && guided {
-        let mut runner = Spilled { method, input, kind, imu_span_s, model: model.as_ref(), quiet: quiet.as_ref(), ranges: &all };
-        let (mut pass, done) = map_passes(&mut runner, pass, &all, &smoothing)?;
-        pass.map_passes = done.passes;
-        return pass.finish(survey, Some(on_step));
-    }
     let residuals = |pass: &mut Pass<'_, E>| residuals_of(pass, &all, input);
     let again = |left_out: &[bool]| -> Result<Option<Pass<'_, E>>> {
         let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
-        let mut again_ranges = RangesOfPass { kept: None, left_out, seen: 0 };
+        let mut again_ranges = EventsOfPass { left_out, ..EventsOfPass::default() };
         let out = StepsOut::spilled(input.spill_dir)?;
         // A log that cannot start without the ranges left out keeps the pass before.
         let mut rerun = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref(), None) {
@@ -372,6 +370,29 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     let passes = smoothing.outlier_passes_or_zero();
     let (mut pass, left_out) = leave_out_long_ranges(pass, passes, &all, smoothing.outlier_sigmas, residuals, again)?;
     pass.left_out = left_out;
+    // As the batch runner: the MAP passes from the outlier passes' last, on a log of the IMU and
+    // ranges only (the objective has no terms for other sensors).
+    let guided = pass.stream.estimator_mut().is_some_and(|f| (kind.guide)(f, None));
+    let initial = input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
+    let only_ranges = survey_sensors(survey).next().is_none();
+    let (Some(imu), Some(initial), true) = (imu, initial, smoothing.map_passes_or_zero() > 0 && guided && only_ranges) else {
+        return pass.finish(survey, Some(on_step));
+    };
+    let config = model.as_ref().map_or(input.config, |m| &m.config).clone();
+    let mut runner = Spilled {
+        method,
+        input,
+        kind,
+        imu_span_s,
+        model: model.as_ref(),
+        quiet: quiet.as_ref(),
+        ranges: &all,
+        imu,
+        config,
+        initial,
+    };
+    let (mut pass, done) = map_passes(&mut runner, pass, &all, &smoothing)?;
+    (pass.left_out, pass.map_passes, pass.map_objective) = (left_out, done.passes, done.objective);
     pass.finish(survey, Some(on_step))
 }
 
@@ -386,6 +407,12 @@ struct Spilled<'a, 'i, E> {
     quiet: Option<&'a Progress>,
     /// Every range of the first pass, in stream order.
     ranges: &'a [RangeMeasurement],
+    /// Every IMU sample of the first pass, in time order.
+    imu: Spill<IMU_FLAT_LEN>,
+    /// The configuration the filter runs with (the objective's noise and mounting).
+    config: FilterConfig,
+    /// The state every pass starts from (the objective's prior).
+    initial: InitialState,
 }
 
 /// The smoothed steps of a pass, oldest first (None when it has none).
@@ -417,16 +444,28 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
         residuals_of(pass, self.ranges, self.input)
     }
 
-    fn guide(&mut self, pass: &mut Self::Pass, weights: &[f64]) -> Result<Guide> {
-        let Some(steps) = smoothed_steps(pass)? else { return Ok(Guide::default()) };
-        crate::map_smoothing::guide(steps, self.ranges, weights)
+    fn track(&mut self, pass: &mut Self::Pass) -> Result<Option<Track>> {
+        smoothed_steps(pass)?.map(node_track).transpose()
     }
 
-    fn moved(&mut self, a: &mut Self::Pass, b: &mut Self::Pass) -> Result<f64> {
-        match (smoothed_steps(a)?, smoothed_steps(b)?) {
-            (Some(a), Some(b)) => largest_move(a, b),
-            _ => Ok(f64::INFINITY),
+    fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
+        let imu = self.imu.oldest_first()?.map(|v| v.map(|v| imu_from_flat(&v)));
+        let dynamics = dynamics_cost(track, imu, &self.initial, &self.config)?;
+        let anchors = &self.input.survey.anchors.positions;
+        Ok(TrackFit { dynamics, residuals: track_residuals(track, self.ranges, anchors, self.config.mounting.lever_arm) })
+    }
+
+    /// Writes the blend into a new spill, newest first as the smoothed steps are kept.
+    fn blend(&mut self, a: &mut Self::Pass, b: &mut Self::Pass, alpha: f64) -> Result<()> {
+        let (Some(sa), Some(sb)) = (a.smoothed.as_mut(), b.smoothed.as_mut()) else { return Ok(()) };
+        let mut blended = Spill::create(self.input.spill_dir, "smoothed steps")?;
+        for (x, y) in sa.oldest_first()?.zip(sb.oldest_first()?) {
+            let (x, mut y) = (step_from_flat(&x?), step_from_flat(&y?));
+            y.state = blend_state(&x.state, &y.state, alpha);
+            blended.push(&step_to_flat(&y))?;
         }
+        b.smoothed = Some(blended);
+        Ok(())
     }
 
     /// A guided pass that fails numerically is declined ([`MapRunner::again`]).
@@ -436,7 +475,7 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
         let guide = Some(Arc::new(guide));
         let declined = |e: &crate::io::IoError| matches!(e, crate::io::IoError::Core(CoreError::NotPositiveDefinite { .. }));
         let mut rerun =
-            match run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut RangesOfPass::default(), self.model, guide)
+            match run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut EventsOfPass::default(), self.model, guide)
             {
                 Err(e) if declined(&e) => return Ok(None),
                 other => other?,

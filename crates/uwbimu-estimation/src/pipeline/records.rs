@@ -42,7 +42,7 @@ pub const STATUS_REPAIRED: u8 = 2;
 pub const STATUS_LATE: u8 = 4;
 
 /// What a run counted besides its estimates.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Health {
     /// Measurements the plausibility gate rejected, per kind.
     pub rejected: GateCounts,
@@ -66,6 +66,37 @@ pub struct Health {
     /// Guided passes of the batch MAP smoother after the first smoothed run
     /// (`smoothing.map_passes`, `uwbimu_app::map_smoothing`; 0 when it did not run).
     pub map_passes: u32,
+    /// The MAP smoother's objective at the first smoothed pass and after each kept pass (empty
+    /// when it did not run).
+    pub map_objective: MapObjective,
+}
+
+/// The objective of the MAP smoother (`uwbimu_app::map_smoothing`: twice the robust negative
+/// log-likelihood of the whole log, constants dropped) at its first smoothed pass and after each
+/// pass it kept, in order; at most `MAX_MAP_PASSES` + 1 values, held without allocating so that
+/// [`Health`] stays `Copy`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MapObjective {
+    values: [f64; MAP_OBJECTIVE_LEN],
+    len: usize,
+}
+
+/// Values a [`MapObjective`] holds: the first pass and `MAX_MAP_PASSES` more.
+const MAP_OBJECTIVE_LEN: usize = uwbimu_vocabulary::config::MAX_MAP_PASSES as usize + 1;
+
+impl MapObjective {
+    /// Appends the objective of the next kept pass (ignored once full).
+    pub fn push(&mut self, value: f64) {
+        if let Some(slot) = self.values.get_mut(self.len) {
+            *slot = value;
+            self.len += 1;
+        }
+    }
+
+    /// The values, first pass first.
+    pub fn as_slice(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
 }
 
 /// What an update measured: a range of an epoch or an observation of the sensor registry.

@@ -392,11 +392,13 @@ section! {
         /// Passes of the batch MAP smoother at most (`uwbimu_app::map_smoothing`; 0: off). Each
         /// pass filters and smooths the log again with every measurement linearised at the
         /// previous pass's smoothed track and each range weighted by the kernel of its residual
-        /// there; it replaces the outlier passes. Unset: the method's own (0 but in `best`).
+        /// there, and is kept only if it lowers the whole log's robust negative log-likelihood;
+        /// the passes start from the outlier passes' last. Unset: the method's own (0 but in
+        /// `best`).
         map_passes: Option<u32> = None, |f, v| some_whole(f, v, MAX_MAP_PASSES);
-        /// The MAP passes stop when no smoothed position moves more than this from one pass to the
-        /// next, m.
-        map_tolerance: f64 = 0.005, positive;
+        /// The MAP passes stop when a pass lowers the objective (the whole log's robust negative
+        /// log-likelihood) by less than this fraction of it.
+        map_min_decrease: f64 = 1e-3, positive;
         /// Width `c` of the MAP smoother's kernel, in robust σ of the anchor's residuals (0:
         /// Gaussian, every range of weight 1): the hard kernel leaves a range out beyond `c` (and
         /// 0.1 m), Cauchy's weighs it `1/(1 + (u/c)²)`, Huber's `min(1, c/|u|)`.

@@ -5,11 +5,11 @@
 use std::sync::Arc;
 
 use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
-use uwbimu_estimation::pipeline::{Estimator, Event, Progress, Stream};
+use uwbimu_estimation::pipeline::{Estimator, Event, MapObjective, Progress, Stream};
 use uwbimu_estimation::smoother::Guide;
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::RangeMeasurement;
+use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::Observation;
 
 use super::ordered::Ordered;
@@ -21,26 +21,50 @@ use crate::io::{stream_recording_file, IoResult as Result, RecordItem, Recording
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
 
-/// The ranges of one pass of [`run`], by their order in the stream: those to leave out, and all
-/// of them kept when `kept` is Some (the first pass, for the residuals).
-#[derive(Debug, Default)]
-pub(super) struct RangesOfPass<'a> {
+/// What one pass of [`run`] does with the events besides filtering them: the ranges to leave
+/// out, by their order in the stream; all of them kept when `kept` is Some, and the IMU samples
+/// spilled in time order when `imu` is Some (the first pass, for the residuals and the MAP
+/// objective, [`crate::map_smoothing`]).
+#[derive(Default)]
+pub(super) struct EventsOfPass<'a> {
     pub(super) kept: Option<Vec<RangeMeasurement>>,
+    pub(super) imu: Option<Spill<IMU_FLAT_LEN>>,
     pub(super) left_out: &'a [bool],
     pub(super) seen: usize,
 }
 
-impl RangesOfPass<'_> {
+/// Numbers of an IMU sample spilled by [`EventsOfPass`]: t, accel, gyro.
+pub(super) const IMU_FLAT_LEN: usize = 7;
+
+impl EventsOfPass<'_> {
     /// Whether the released `event` goes to the filter (a range left out does not).
-    pub(super) fn passes(&mut self, event: &Event) -> bool {
-        let Event::Range(r) = event else { return true };
+    ///
+    /// # Errors
+    /// [`crate::io::IoError::Io`] when an IMU sample cannot be spilled.
+    pub(super) fn passes(&mut self, event: &Event) -> Result<bool> {
+        let r = match event {
+            Event::Range(r) => r,
+            Event::Imu(s) => {
+                if let Some(spill) = self.imu.as_mut() {
+                    let (a, g) = (s.accel, s.gyro);
+                    spill.push(&[s.t_s, a.x, a.y, a.z, g.x, g.y, g.z])?;
+                }
+                return Ok(true);
+            }
+            _ => return Ok(true),
+        };
         let k = self.seen;
         self.seen += 1;
         if let Some(kept) = self.kept.as_mut() {
             kept.push(*r);
         }
-        !self.left_out.get(k).copied().unwrap_or(false)
+        Ok(!self.left_out.get(k).copied().unwrap_or(false))
     }
+}
+
+/// An IMU sample from its spilled numbers ([`EventsOfPass`]).
+pub(super) fn imu_from_flat(v: &[f64; IMU_FLAT_LEN]) -> ImuSample {
+    ImuSample { t_s: v[0], accel: Vec3::new(v[1], v[2], v[3]), gyro: Vec3::new(v[4], v[5], v[6]) }
 }
 
 /// One pass of [`run`] read to the end of the file — its steps handed on when forward, spilled
@@ -59,6 +83,8 @@ pub(super) struct Pass<'f, E> {
     pub(super) left_out: usize,
     /// MAP passes run before this one ([`Health::map_passes`]).
     pub(super) map_passes: u32,
+    /// The MAP objective of the first pass and each kept one ([`Health::map_objective`]).
+    pub(super) map_objective: MapObjective,
     /// Predicted covariances the smoother repaired ([`Health::smoothing_repairs`]).
     pub(super) smoothing_repairs: usize,
     /// Whether the smoother failed numerically: the forward steps are handed on
@@ -76,7 +102,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     kind: &FilterKind<E>,
     imu_span_s: (f64, f64),
     out: StepsOut<'f>,
-    ranges: &mut RangesOfPass<'_>,
+    ranges: &mut EventsOfPass<'_>,
     chosen: Option<&ModelChoice>,
     guide: Option<Arc<Guide>>,
 ) -> Result<Pass<'f, E>> {
@@ -128,7 +154,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
             RecordItem::Truth(t, p) => return run.truth(t, p),
         };
         ordered.push(event, &mut released)?;
-        released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))
+        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.event(e) } else { Ok(()) })
     });
     let cancelled_run = match read {
         Ok(()) => false,
@@ -137,7 +163,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     };
     if !cancelled_run {
         ordered.release(f64::INFINITY, &mut released);
-        released.drain(..).filter(|e| ranges.passes(e)).try_for_each(|e| run.event(e))?;
+        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.event(e) } else { Ok(()) })?;
     }
     run.choose()?;
     let Some(stream) = run.stream.as_mut() else {
@@ -164,6 +190,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         smoothed: None,
         left_out: 0,
         map_passes: 0,
+        map_objective: MapObjective::default(),
         smoothing_repairs: 0,
         smoothing_failed: false,
     })
@@ -226,7 +253,7 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
         };
         let mut health = self.stream.health();
         health.smoothing_left_out = self.left_out;
-        health.map_passes = self.map_passes;
+        (health.map_passes, health.map_objective) = (self.map_passes, self.map_objective);
         health.smoothing_repairs = self.smoothing_repairs;
         health.smoothing_failed = self.smoothing_failed;
         let mut warnings = self.stream.take_warnings();
