@@ -40,7 +40,7 @@ def main() -> None:
     p.add_argument("--scenarios", nargs="+", default=list(sim.ZOO_NAMES), choices=sim.ZOO_NAMES)
     p.add_argument("--isas", type=Path, default=ROOT.parent / "shared" / "data" / "isas-walk1")
     args = p.parse_args()
-    print("| log | seed | RMSE, no MAP, m | RMSE, MAP default, m | ratio | passes |")
+    print("| log | seed | RMSE, no MAP, m | RMSE, MAP default, m | ratio | passes kept |")
     print("|---|---|---|---|---|---|")
     worse = 0
     for name in args.scenarios:
