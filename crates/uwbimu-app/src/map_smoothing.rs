@@ -174,6 +174,22 @@ pub struct TrackFit {
     pub residuals: Vec<Option<Residual>>,
 }
 
+impl TrackFit {
+    /// The fit of `track` to the log: its prior and process terms with the IMU samples `imu` (in
+    /// time order) from the passes' start `initial` under `config` ([`dynamics_cost`]), and the
+    /// residuals of `ranges` to `anchors` with `config`'s lever arms ([`track_residuals`]).
+    pub fn of<Err>(
+        track: &[(f64, NominalState)],
+        imu: impl Iterator<Item = Result<ImuSample, Err>>,
+        initial: &InitialState,
+        config: &FilterConfig,
+        (ranges, anchors): (&[RangeMeasurement], &[Vec3]),
+    ) -> Result<Self, Err> {
+        let dynamics = dynamics_cost(track, imu, initial, config)?;
+        Ok(Self { dynamics, residuals: track_residuals(track, ranges, anchors, config.mounting.lever_arm) })
+    }
+}
+
 /// The MAP objective at a track (module doc), by its terms.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Objective {
@@ -267,8 +283,8 @@ pub trait MapRunner {
     /// The pass's smoothed track at the guide's nodes ([`node_track`]); None when it has none.
     fn track(&mut self, pass: &mut Self::Pass) -> Result<Option<Track>, Self::Error>;
 
-    /// The prior and process terms of the objective at `track` ([`dynamics_cost`]) and the
-    /// residuals of the ranges against it ([`track_residuals`]).
+    /// The prior and process terms of the objective at `track` and the residuals of the ranges
+    /// against it ([`TrackFit::of`]).
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit, Self::Error>;
 
     /// Makes `b`'s smoothed steps `a ⊕ α·(b ⊖ a)` step by step ([`blend_state`]; the position
@@ -327,11 +343,12 @@ pub fn map_passes<R: MapRunner>(
         let mut kept = None;
         for halving in 0..=HALVINGS {
             let alpha = 0.5_f64.powi(halving as i32);
-            let trial = if halving == 0 { Some(next_track.clone()) } else { blend_track(&track, &next_track, alpha) };
-            let Some(trial) = trial else { break };
-            let trial_cost = objective(runner, &trial, ranges, &scale, smoothing)?.total();
+            // The full step is the pass's own track; a shorter one a blend (none: nodes differ).
+            let blended = if halving == 0 { None } else { Some(blend_track(&track, &next_track, alpha)) };
+            let Some(trial) = blended.as_ref().map_or(Some(&next_track), Option::as_ref) else { break };
+            let trial_cost = objective(runner, trial, ranges, &scale, smoothing)?.total();
             if trial_cost < cost {
-                kept = Some((alpha, trial, trial_cost));
+                kept = Some((alpha, blended.flatten().unwrap_or(next_track), trial_cost));
                 break;
             }
         }

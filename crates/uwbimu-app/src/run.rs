@@ -25,9 +25,7 @@ use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 use uwbimu_vocabulary::state::NominalState;
 
-use crate::map_smoothing::{
-    blend_state, dynamics_cost, map_passes, node_track, track_residuals, MapPasses, MapRunner, Track, TrackFit,
-};
+use crate::map_smoothing::{blend_state, map_passes, node_track, MapPasses, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Input, Method};
@@ -336,10 +334,8 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
     }
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
-        let imu = self.input.imu.iter().map(|s| Ok(*s));
-        let dynamics = dynamics_cost(track, imu, self.initial, self.config)?;
-        let BatchInput { ranges, anchors, .. } = self.input;
-        Ok(TrackFit { dynamics, residuals: track_residuals(track, ranges, anchors, self.config.mounting.lever_arm) })
+        let BatchInput { imu, ranges, anchors, .. } = self.input;
+        TrackFit::of(track, imu.iter().map(|s| Ok(*s)), self.initial, self.config, (ranges, anchors))
     }
 
     fn blend(&mut self, (_, a): &mut Self::Pass, (_, b): &mut Self::Pass, alpha: f64) -> Result<()> {

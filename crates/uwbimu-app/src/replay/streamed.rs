@@ -49,7 +49,7 @@ use truth_match::TruthMatch;
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::io::{IoResult as Result, Mapping, RecordingSurvey};
-use crate::map_smoothing::{blend_state, dynamics_cost, map_passes, node_track, track_residuals, MapRunner, Track, TrackFit};
+use crate::map_smoothing::{blend_state, map_passes, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Method};
@@ -314,7 +314,7 @@ fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> 
 /// `smoothing.outlier_passes` > 0 reads the file again without the ranges its smoothed track
 /// calls NLOS, as the batch runner does ([`crate::outlier_smoothing`]), then its MAP passes
 /// (`smoothing.map_passes` > 0, [`crate::map_smoothing`]), and hands on the last pass kept; it
-/// keeps the ranges (24 B each) in memory meanwhile and spills the IMU samples (56 B each). When the progress's cancel flag is
+/// keeps the ranges (24 B each) in memory meanwhile and, on a log of IMU and ranges only, spills the IMU samples (56 B each). When the progress's cancel flag is
 /// raised the run stops after the current event and hands on the forward steps so far (not
 /// smoothed).
 ///
@@ -344,7 +344,10 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         let out = StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) };
         return run_pass(method, input, kind, imu_span_s, out, &mut EventsOfPass::default(), None, None)?.finish(survey, None);
     }
-    let imu = Some(Spill::create(input.spill_dir, "IMU samples")?);
+    // The MAP passes run on a log of IMU and ranges only (the objective has no terms for other
+    // sensors): only then are the IMU samples spilled for it.
+    let only_ranges = survey_sensors(survey).next().is_none();
+    let imu = only_ranges.then(|| Spill::create(input.spill_dir, "IMU samples")).transpose()?;
     let mut ranges = EventsOfPass { kept: Some(Vec::new()), imu, left_out: &[], seen: 0 };
     let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None, None)?;
     pass.smooth(input, kind.core)?;
@@ -370,12 +373,11 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     let passes = smoothing.outlier_passes_or_zero();
     let (mut pass, left_out) = leave_out_long_ranges(pass, passes, &all, smoothing.outlier_sigmas, residuals, again)?;
     pass.left_out = left_out;
-    // As the batch runner: the MAP passes from the outlier passes' last, on a log of the IMU and
-    // ranges only (the objective has no terms for other sensors).
+    // As the batch runner: the MAP passes from the outlier passes' last (`imu` is None on a log
+    // with other sensors).
     let guided = pass.stream.estimator_mut().is_some_and(|f| (kind.guide)(f, None));
     let initial = input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
-    let only_ranges = survey_sensors(survey).next().is_none();
-    let (Some(imu), Some(initial), true) = (imu, initial, smoothing.map_passes_or_zero() > 0 && guided && only_ranges) else {
+    let (Some(imu), Some(initial), true) = (imu, initial, smoothing.map_passes_or_zero() > 0 && guided) else {
         return pass.finish(survey, Some(on_step));
     };
     let config = model.as_ref().map_or(input.config, |m| &m.config).clone();
@@ -450,9 +452,7 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
         let imu = self.imu.oldest_first()?.map(|v| v.map(|v| imu_from_flat(&v)));
-        let dynamics = dynamics_cost(track, imu, &self.initial, &self.config)?;
-        let anchors = &self.input.survey.anchors.positions;
-        Ok(TrackFit { dynamics, residuals: track_residuals(track, self.ranges, anchors, self.config.mounting.lever_arm) })
+        TrackFit::of(track, imu, &self.initial, &self.config, (self.ranges, &self.input.survey.anchors.positions))
     }
 
     /// Writes the blend into a new spill, newest first as the smoothed steps are kept.
