@@ -21,6 +21,7 @@ pub mod live_settings;
 mod mapping;
 pub mod mcap_read;
 pub mod msg_schema;
+pub mod payloads;
 mod recording;
 pub mod recording_out;
 pub mod reorder;

@@ -108,6 +108,7 @@ mod scratch;
 pub mod sigma_points;
 mod smoothing_record;
 mod tight;
+mod widening;
 
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::Result;
@@ -118,7 +119,7 @@ use uwbimu_vocabulary::sensors::Observation;
 use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
-pub use self::core::{CoreSnapshot, InertialCore, ReacquisitionWidening};
+pub use self::core::{CoreSnapshot, InertialCore};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
 pub use self::pending::PendingPropagation;
@@ -127,6 +128,7 @@ pub(crate) use self::tight::check_ranges;
 pub use self::tight::{
     BiasModel, Composition, ConstraintSwitches, TightFilter, UpdateStrategy, DEFAULT_BIAS_TAU_S, SIGMA_POINTS,
 };
+pub use self::widening::ReacquisitionWidening;
 
 /// The verbs of every filter, 15-state or planar: propagate with an IMU sample, update with an
 /// epoch of ranges or an observation. The pipeline, the Python streaming classes and the batch

@@ -62,7 +62,7 @@ use crate::multilateration::LsConfig;
 use crate::pipeline::{Estimator, Marginals, StepRecord};
 use crate::update::{vector_step, UpdateReport};
 
-pub use cekf::{MovingAverage, MAX_AGE_S, RATE_HORIZON_S};
+pub use cekf::{MovingAverage, MAX_AGE_S};
 pub use model::{level, PlanarCov, PlanarGeometry, PlanarState, PLANAR_DIM, VX, VY, X, Y};
 
 /// Time constant of the accelerometer's pull on roll and pitch, s (see the module doc: the

@@ -11,7 +11,9 @@
 //! filters that take it (`uwbimu_estimation`), its gate rule and its docs.
 
 use crate::error::{Error, Result};
+use crate::math::Vec3;
 use crate::records::{AltitudeSample, MagSample, OdometrySample, TdoaMeasurement};
+use crate::validate::anchor_index;
 
 /// How the rows of a sensor's table must be ordered in time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,6 +95,149 @@ pub trait SensorRecord: Copy + Sized {
     /// `values` in one of [`SensorRecord::LAYOUTS`] (by its length), to `out`; `anchor_count` for
     /// the anchor columns. Fails naming `name` and the row.
     fn from_row(name: &'static str, row: usize, values: &[f64], anchor_count: usize, out: &mut Vec<Self>) -> Result<()>;
+}
+
+impl SensorRecord for MagSample {
+    const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "mx", "my", "mz"]];
+    const TIME_ORDER: TimeOrder = TimeOrder::Increasing;
+
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn at(&self, t_s: f64) -> Self {
+        Self { t_s, ..*self }
+    }
+
+    fn value(&self) -> f64 {
+        self.field.norm()
+    }
+
+    fn table(records: &[Self]) -> (usize, Vec<f64>) {
+        (4, records.iter().flat_map(|m| [m.t_s, m.field.x, m.field.y, m.field.z]).collect())
+    }
+
+    fn from_row(_: &'static str, _: usize, v: &[f64], _: usize, out: &mut Vec<Self>) -> Result<()> {
+        out.push(Self { t_s: v[0], field: Vec3::new(v[1], v[2], v[3]) });
+        Ok(())
+    }
+}
+
+impl SensorRecord for TdoaMeasurement {
+    const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "anchor i", "anchor j", "d_ij"]];
+    const TIME_ORDER: TimeOrder = TimeOrder::NonDecreasing;
+    const ANCHOR_COLUMNS: &'static [usize] = &[1, 2];
+
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn at(&self, t_s: f64) -> Self {
+        Self { t_s, ..*self }
+    }
+
+    fn value(&self) -> f64 {
+        self.tdoa_m
+    }
+
+    fn anchors(&self) -> [Option<usize>; 2] {
+        [Some(self.anchor_i), Some(self.anchor_j)]
+    }
+
+    fn table(records: &[Self]) -> (usize, Vec<f64>) {
+        (4, records.iter().flat_map(|m| [m.t_s, m.anchor_i as f64, m.anchor_j as f64, m.tdoa_m]).collect())
+    }
+
+    /// Both anchors known and distinct.
+    fn from_row(name: &'static str, row: usize, v: &[f64], anchor_count: usize, out: &mut Vec<Self>) -> Result<()> {
+        let (anchor_i, anchor_j) = (anchor_index(name, row, v[1], anchor_count)?, anchor_index(name, row, v[2], anchor_count)?);
+        if anchor_i == anchor_j {
+            return Err(Error::InvalidValue { name, row, value: v[1], reason: "anchor i and anchor j must differ" });
+        }
+        out.push(Self { t_s: v[0], anchor_i, anchor_j, tdoa_m: v[3] });
+        Ok(())
+    }
+}
+
+impl SensorRecord for AltitudeSample {
+    const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "z"]];
+    const TIME_ORDER: TimeOrder = TimeOrder::Increasing;
+
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn at(&self, t_s: f64) -> Self {
+        Self { t_s, ..*self }
+    }
+
+    fn value(&self) -> f64 {
+        self.z_m
+    }
+
+    fn table(records: &[Self]) -> (usize, Vec<f64>) {
+        (2, records.iter().flat_map(|m| [m.t_s, m.z_m]).collect())
+    }
+
+    fn from_row(_: &'static str, _: usize, v: &[f64], _: usize, out: &mut Vec<Self>) -> Result<()> {
+        out.push(Self { t_s: v[0], z_m: v[1] });
+        Ok(())
+    }
+}
+
+impl SensorRecord for OdometrySample {
+    const LAYOUTS: &'static [&'static [&'static str]] = &[&["t", "speed"], &["t", "vx", "vy", "vz"]];
+    const TIME_ORDER: TimeOrder = TimeOrder::Increasing;
+    const MISSING_ALLOWED: bool = true;
+
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn at(&self, t_s: f64) -> Self {
+        Self { t_s, ..*self }
+    }
+
+    fn value(&self) -> f64 {
+        self.speed_mps
+    }
+
+    fn axis(&self) -> Option<usize> {
+        Some(self.axis)
+    }
+
+    /// `t, speed` when every record is of the x axis, else `t, vx, vy, vz` with one row per time
+    /// (consecutive records of one time) and NaN for an axis not read.
+    fn table(records: &[Self]) -> (usize, Vec<f64>) {
+        if records.iter().all(|m| m.axis == 0) {
+            return (2, records.iter().flat_map(|m| [m.t_s, m.speed_mps]).collect());
+        }
+        let mut values: Vec<f64> = Vec::new();
+        let mut last_t = None;
+        for m in records {
+            if last_t != Some(m.t_s) {
+                values.extend([m.t_s, f64::NAN, f64::NAN, f64::NAN]);
+                last_t = Some(m.t_s);
+            }
+            let row = values.len() - 4;
+            values[row + 1 + m.axis] = m.speed_mps;
+        }
+        (4, values)
+    }
+
+    /// One record per axis measured (not NaN); a row that measures none is refused.
+    fn from_row(name: &'static str, row: usize, v: &[f64], _: usize, out: &mut Vec<Self>) -> Result<()> {
+        let before = out.len();
+        out.extend(v[1..].iter().enumerate().filter(|(_, s)| !s.is_nan()).map(|(axis, &speed_mps)| Self {
+            t_s: v[0],
+            axis,
+            speed_mps,
+        }));
+        if out.len() == before {
+            return Err(Error::InvalidValue { name, row, value: f64::NAN, reason: "the row measures no axis (all NaN)" });
+        }
+        Ok(())
+    }
 }
 
 /// Declares the sensor registry (see the module doc): one row per sensor — its [`Observation`]

@@ -12,7 +12,7 @@
 use uwbimu_vocabulary::math::{skew, Cov, Mat3, Quat, Vec3};
 use uwbimu_vocabulary::state::{ATT, BG, POS, VEL};
 
-use crate::io::recording_out::{align8, cdr_with_header, push_cdr_string};
+use crate::io::payloads::{align8, cdr_with_header, push_cdr_string};
 
 /// One estimate to publish.
 #[derive(Debug, Clone, Copy)]

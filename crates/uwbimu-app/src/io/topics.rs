@@ -23,7 +23,7 @@ use crate::io::cdr::{decode, Value};
 use crate::io::field_path::{Condition, FieldPath, PointPath};
 use crate::io::mcap_read::ChannelInfo;
 use crate::io::msg_schema::{normalize, MsgSchema};
-use crate::io::recording_out::uwb_range_cdr;
+use crate::io::payloads::uwb_range_cdr;
 use crate::io::{
     AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
     TDOA_DEFAULT,
@@ -608,7 +608,7 @@ mod tests {
     #[test]
     fn json_range_round_trips_and_rejects_unknown_keys() {
         let mut out = Vec::new();
-        let bytes = crate::io::recording_out::range_json(12.25, "A3", 4.5, Some(0.01), 1);
+        let bytes = crate::io::payloads::range_json(12.25, "A3", 4.5, Some(0.01), 1);
         assert_eq!(decode_json(&bytes, Some("/uwb/t9"), &mut out).unwrap(), Some(12_250_000_000));
         assert_eq!((out[0].anchor_id.as_str(), out[0].range_m, out[0].variance_m2), ("A3", 4.5, Some(0.01)));
         assert_eq!(out[0].tag_id.as_deref(), Some("1"), "the message's tag wins over the topic");
@@ -631,7 +631,7 @@ mod tests {
         assert_eq!(stamp, Some(3_000_000_005));
         assert_eq!((again[0].anchor_id.as_str(), again[0].range_m, again[0].tag_id.as_deref()), ("A2", 4.5, Some("1")));
         assert_eq!(again[0].variance_m2, None);
-        let untagged = crate::io::recording_out::range_json(1.0, "A3", 4.5, None, 0);
+        let untagged = crate::io::payloads::range_json(1.0, "A3", 4.5, None, 0);
         decode_json(&untagged, Some("/uwb/t9"), &mut out).unwrap();
         decode_json(&untagged, None, &mut out).unwrap();
         assert_eq!((out[1].tag_id.as_deref(), out[2].tag_id.as_deref()), (Some("/uwb/t9"), None));

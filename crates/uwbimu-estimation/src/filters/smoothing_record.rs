@@ -9,7 +9,7 @@
 
 use uwbimu_vocabulary::state::{ErrCov, NominalState, PackedErrCov, PACKED_LEN, STATE_FLAT_LEN};
 
-use super::core::ReacquisitionWidening;
+use super::widening::ReacquisitionWidening;
 use crate::ins::ImuInterval;
 
 /// Longest run of segments between two checkpoints: bounds what the backward pass recomputes

@@ -9,8 +9,6 @@ use uwbimu_vocabulary::sensors::SensorKind;
 use uwbimu_vocabulary::state::NominalState;
 
 use super::Marginals;
-#[cfg(doc)]
-use super::Streams;
 use crate::gate::GateCounts;
 use crate::update::UpdateReport;
 
@@ -199,6 +197,6 @@ pub struct Trace {
     /// What the run counted: rejections, repairs, ranges before the start.
     pub health: Health,
     /// The estimate with the covariance of its position, velocity and attitude errors, sampled
-    /// every [`Streams::marginals_every_s`] (empty when not asked for).
+    /// every [`crate::pipeline::Streams::marginals_every_s`] (empty when not asked for).
     pub marginals: Vec<Marginals>,
 }

@@ -47,13 +47,6 @@ use crate::update::UpdateReport;
 /// 1) rather than reaching further back (see the module doc).
 pub const MAX_AGE_S: f64 = 0.125;
 
-/// Horizon of the convergence test that restarts the average, s: the filter counts as converged
-/// on a range once the predicted range rate is good to the range σ over this time. It was the
-/// window's span (0.5 s) before [`MAX_AGE_S`] was cut to 0.125 s, and is kept: the laxer test
-/// that 0.125 s would give let the average run through transients (Wang et al. 2018's lab,
-/// `lab_robot` NLOS, x max 0.297 → 0.314 m).
-pub const RATE_HORIZON_S: f64 = 0.5;
-
 /// Per-anchor moving average over the last `window` ranges (fewer at the start), moved to the
 /// current time, with fixed storage allocated once (see the module doc).
 #[derive(Debug, Clone)]

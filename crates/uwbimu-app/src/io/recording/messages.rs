@@ -167,7 +167,8 @@ impl MessageDecoder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::recording_out::{imu_cdr, IMU_MSG};
+    use crate::io::payloads::imu_cdr;
+    use crate::io::recording_out::IMU_MSG;
     use uwbimu_vocabulary::math::Vec3;
     use uwbimu_vocabulary::records::ImuSample;
 
@@ -176,9 +177,9 @@ mod tests {
         builtin_interfaces/Time stamp\nstring frame_id\n";
 
     fn range_cdr(t_s: f64, anchor: &str, range: f64) -> Vec<u8> {
-        let mut b = crate::io::recording_out::cdr_with_header(t_s, "uwb", 64);
-        crate::io::recording_out::push_cdr_string(&mut b, anchor);
-        crate::io::recording_out::align8(&mut b);
+        let mut b = crate::io::payloads::cdr_with_header(t_s, "uwb", 64);
+        crate::io::payloads::push_cdr_string(&mut b, anchor);
+        crate::io::payloads::align8(&mut b);
         b.extend_from_slice(&range.to_le_bytes());
         b
     }
@@ -229,8 +230,8 @@ mod tests {
         let mut out = Vec::new();
         d.decode("/uwb", 7_000_000_000, &range_cdr(0.0, "A0", 2.0), &mut out).unwrap();
         let mut bare = vec![0u8, 1, 0, 0];
-        crate::io::recording_out::push_cdr_string(&mut bare, "A1");
-        crate::io::recording_out::align8(&mut bare);
+        crate::io::payloads::push_cdr_string(&mut bare, "A1");
+        crate::io::payloads::align8(&mut bare);
         bare.extend_from_slice(&3.0f64.to_le_bytes());
         d.decode("/bare", 7_000_000_000, &bare, &mut out).unwrap();
         let times: Vec<f64> = out.iter().map(|r| if let RecordItem::Range(m, _) = r { m.t_s } else { f64::NAN }).collect();

@@ -66,7 +66,8 @@ mod tests {
 
     use super::*;
     use crate::io::mcap_read::SchemaInfo;
-    use crate::io::recording_out::{anchor_range_cdr, ANCHOR_RANGE_MSG};
+    use crate::io::payloads::anchor_range_cdr;
+    use crate::io::recording_out::ANCHOR_RANGE_MSG;
     use crate::io::IoError as Error;
 
     fn channel(schema: &str, text: &str) -> ChannelInfo {

@@ -170,7 +170,8 @@ mod tests {
 
     use super::*;
     use crate::io::mcap_read::SchemaInfo;
-    use crate::io::recording_out::{altitude_cdr, odometry_cdr, ODOMETRY_MSG, RANGE_MSG};
+    use crate::io::payloads::{altitude_cdr, odometry_cdr};
+    use crate::io::recording_out::{ODOMETRY_MSG, RANGE_MSG};
 
     fn channel(schema: &str, text: &str) -> ChannelInfo {
         let schema = SchemaInfo { name: schema.into(), encoding: "ros2msg".into(), data: text.as_bytes().to_vec() };
