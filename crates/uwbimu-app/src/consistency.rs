@@ -54,10 +54,11 @@ use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{quat_exp, Mat3, Vec3};
 use uwbimu_vocabulary::records::TruthSample;
-use uwbimu_vocabulary::sensors::SensorKind;
+use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use crate::generality::Settings;
 use crate::methods::run_method;
+use crate::model_choice::ModelChoice;
 use crate::registry::{Input, Method};
 use crate::run::{BatchInput, BatchOutput};
 use crate::sim::{
@@ -199,14 +200,20 @@ pub fn initial_uncertainty(name: &str) -> InitialState {
 }
 
 /// The filter configuration of a run of `sim` under `settings` ([`Settings::Matched`]: the
-/// simulator's true noise, [`matched_config`]); model selection stays as configured (on: `best`
-/// chooses its range-error model as a user's run does). The plane constraint (`criekf`) gets the
-/// height the vehicle drives at, [`PLANE_HEIGHT_M`], unless the settings set one, as a user of it
-/// would measure it: unset, the plane is the initial height, taken as exact, and the error drawn
-/// into the initial state would hold the whole track off by that much.
+/// simulator's true noise, [`matched_config`]). Told the true noise, a method that chooses its
+/// range-error model has nothing to choose: model selection is off under [`Settings::Matched`]
+/// ([`choice_with_true_noise`] checks that the choice would keep the configuration), and stays
+/// as configured otherwise (on with the defaults: `best` chooses as a user's run does). The plane
+/// constraint (`criekf`) gets the height the vehicle drives at, [`PLANE_HEIGHT_M`], unless the
+/// settings set one, as a user of it would measure it: unset, the plane is the initial height,
+/// taken as exact, and the error drawn into the initial state would hold the whole track off by
+/// that much.
 pub fn settings_config(sim: &SimConfig, settings: Settings<'_>) -> FilterConfig {
     let mut config = settings.config(&matched_config(sim));
     config.constraints.plane_height.get_or_insert(PLANE_HEIGHT_M);
+    if settings == Settings::Matched {
+        config.model_selection.enabled = false;
+    }
     config
 }
 
@@ -270,14 +277,8 @@ struct RunSamples {
 pub fn monte_carlo(methods: &[Method], name: &str, seeds: &[u64], settings: Settings<'_>) -> Result<Vec<Consistency>> {
     let scenario_name = known_scenario(SCENARIOS, "consistency scenario", name)?;
     let per_seed = crate::parallel::map_all(seeds, |&seed| {
-        let sim = scenario(name, seed)?;
-        let data = simulate(&sim)?;
-        let config = settings_config(&sim, settings);
-        let truth0 = data.truth.first().ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        rng.set_stream(STREAM_INITIAL);
-        let initial = drawn_initial(truth0, &initial_uncertainty(name), &mut rng);
-        methods.iter().map(|&method| run_once(method, &sim, &data, &config, &initial)).collect::<Result<Vec<_>>>()
+        let run = SeedRun::new(name, seed, settings)?;
+        methods.iter().map(|&method| run_once(method, &run)).collect::<Result<Vec<_>>>()
     });
     let by_method = by_method(methods.len(), per_seed)?;
     methods.iter().zip(by_method).map(|(&method, runs)| gather(method, scenario_name, runs)).collect()
@@ -331,31 +332,75 @@ fn gather(method: Method, scenario: &'static str, runs: Vec<RunSamples>) -> Resu
     })
 }
 
+/// One seed of a scenario as every method's run of it sees it: the simulated log, the
+/// configuration `settings` give ([`settings_config`]) and the initial state drawn for the seed.
+struct SeedRun {
+    sim: SimConfig,
+    data: SimData,
+    config: FilterConfig,
+    initial: InitialState,
+    /// Time of the first IMU sample, s.
+    t0_s: f64,
+}
+
+impl SeedRun {
+    fn new(name: &str, seed: u64, settings: Settings<'_>) -> Result<Self> {
+        let sim = scenario(name, seed)?;
+        let data = simulate(&sim)?;
+        let config = settings_config(&sim, settings);
+        let truth0 = data.truth.first().ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(STREAM_INITIAL);
+        let initial = drawn_initial(truth0, &initial_uncertainty(name), &mut rng);
+        let t0_s = truth0.t_s;
+        Ok(Self { sim, data, config, initial, t0_s })
+    }
+
+    /// The measurements of the other sensors `method` takes, within the first [`LOG_S`].
+    fn observations(&self, method: Method) -> Vec<Observation> {
+        let mut observations = self.data.observations_for(|kind| method.takes(Input::Sensor(kind)));
+        observations.truncate(observations.partition_point(|o| o.t_s() <= self.t0_s + LOG_S));
+        observations
+    }
+
+    /// The forward run's input: the first [`LOG_S`] of the log from the drawn initial state, the
+    /// marginals sampled every [`SAMPLE_INTERVAL_S`].
+    fn input<'a>(&'a self, observations: &'a [Observation]) -> BatchInput<'a> {
+        let end = self.t0_s + LOG_S;
+        BatchInput {
+            imu: &self.data.imu[..self.data.imu.partition_point(|s| s.t_s <= end)],
+            ranges: &self.data.ranges[..self.data.ranges.partition_point(|r| r.t_s <= end)],
+            anchors: &self.data.anchors,
+            initial: Some(&self.initial),
+            config: &self.config,
+            smooth: false,
+            observations,
+            progress: None,
+            marginals_every_s: Some(SAMPLE_INTERVAL_S),
+        }
+    }
+}
+
+/// The range-error model `method` chooses ([`crate::select::choose`]) on seed `seed` of the
+/// consistency scenario `name` when told the simulator's true noise, on the log and from the
+/// start a Monte Carlo run has: the configuration told should be kept, as there is nothing to
+/// correct (which is why [`settings_config`] turns the choice off for [`Settings::Matched`]).
+///
+/// # Errors
+/// An unknown scenario; a failed simulation or choice.
+pub fn choice_with_true_noise(method: Method, name: &str, seed: u64) -> Result<ModelChoice> {
+    let mut run = SeedRun::new(known_scenario(SCENARIOS, "consistency scenario", name)?, seed, Settings::Matched)?;
+    run.config.model_selection.enabled = true;
+    let observations = run.observations(method);
+    crate::select::choose(method, &run.input(&observations))
+}
+
 /// One run of `method` over the simulated run `data` of `sim` with `config` from `initial`.
-fn run_once(
-    method: Method,
-    sim: &SimConfig,
-    data: &SimData,
-    config: &FilterConfig,
-    initial: &InitialState,
-) -> Result<RunSamples> {
-    let truth0 = data.truth.first().ok_or_else(|| Error::InsufficientData("the run has no IMU sample".into()))?;
-    let (t0, end) = (truth0.t_s, truth0.t_s + LOG_S);
-    let imu = &data.imu[..data.imu.partition_point(|s| s.t_s <= end)];
-    let ranges = &data.ranges[..data.ranges.partition_point(|r| r.t_s <= end)];
-    let mut observations = data.observations_for(|kind| method.takes(Input::Sensor(kind)));
-    observations.truncate(observations.partition_point(|o| o.t_s() <= end));
-    let input = BatchInput {
-        imu,
-        ranges,
-        anchors: &data.anchors,
-        initial: Some(initial),
-        config,
-        smooth: false,
-        observations: &observations,
-        progress: None,
-        marginals_every_s: Some(SAMPLE_INTERVAL_S),
-    };
+fn run_once(method: Method, run: &SeedRun) -> Result<RunSamples> {
+    let SeedRun { sim, data, .. } = run;
+    let observations = run.observations(method);
+    let input = run.input(&observations);
+    let (imu, t0) = (input.imu, run.t0_s);
     let lever_arm = sim.lever_arm_m;
     match run_method(method, &input)? {
         BatchOutput::Inertial { trace, .. } => {
