@@ -617,3 +617,47 @@ def test_docs_list_every_live_key():
     text = (ROOT / "docs" / "live.md").read_text()
     table = {line.split("|")[1].strip().strip("`") for line in text.splitlines() if line.startswith("| `")}
     assert set(_native.live_setup(None)["live"]) <= table
+
+
+def test_a_model_change_refeeds_every_sensor_and_tag_of_the_window():
+    # The node's filter after the model change equals a filter of the chosen model fed every
+    # record from the start (the replay of the same input): TDoA, heights, wheel speeds and the
+    # second tag of the choice window included, and what came while the choice ran.
+    from uwbimu_rs.live import LiveNode
+
+    run = sim.zoo("agv_loop", seed=0, tag_separation_m=0.6, tdoa=True, altimeter=True, odometer=True)
+    end = run.imu[0, 0] + 30.0
+    ranges = run.ranges.copy()
+    ranges[:, 2] += np.array([0.4, -0.3, 0.5, 0.0, -0.4, 0.3, 0.0, 0.2])[ranges[:, 1].astype(int)]  # steady biases: the model changes
+    keyed = [((r[0], 0), ("imu", r[0], r[1:4], r[4:7])) for r in run.imu[run.imu[:, 0] <= end]]
+    keyed += [((r[0], 1), ("range", r[0], int(r[1]), r[2], int(r[3]))) for r in ranges[ranges[:, 0] <= end]]
+    keyed += [((r[0], 2), ("tdoa", r[0], int(r[1]), int(r[2]), r[3])) for r in run.tdoa[run.tdoa[:, 0] <= end]]
+    keyed += [((r[0], 3), ("altitude", r[0], r[1])) for r in run.altitude[run.altitude[:, 0] <= end]]
+    keyed += [((r[0], 4), ("odometry", r[0], r[1])) for r in run.odometry[run.odometry[:, 0] <= end]]
+    records = [r for _, r in sorted(keyed, key=lambda x: x[0])]
+    setup = _native.live_setup(None)
+    setup["live"]["choose_after_s"] = 15.0
+    setup["config"] = run.config
+    clock, sink = Clock(), Collect()
+    node = LiveNode(setup, run.anchors, sinks=[sink], clock=clock)
+    switched_at = None
+    for r in records:
+        clock.now = r[1]
+        node.feed("sim", [r])
+        if r[0] == "imu" and r[1] >= run.imu[0, 0] + 20.0 and switched_at is None:
+            node.wait_for_choice(120)  # the choice applied 5 s after it started
+            node.tick()
+            switched_at = r[1]
+    node.close()
+    assert node.chosen is not None and node.chosen.startswith("steady bias"), node.chosen
+    replay = uwbimu_rs.Best(run.anchors, initial=setup["initial"], config=node._config, reorder_window_s=setup["reorder_window_s"])
+    for r in records:
+        apply_record(replay, r)
+    replay.flush()
+    expected = replay.steps()
+    track = sink.track()
+    after = track[track[:, 0] > switched_at]
+    assert len(after) > 500
+    t = expected["t"].to_numpy()
+    want = expected.select("t", "x", "y", "z").to_numpy()[t > switched_at][: len(after)]
+    np.testing.assert_array_equal(after[:, :4], want)

@@ -129,11 +129,11 @@ def apply_record(f: Any, r: tuple[Any, ...]) -> list[Any]:
 
 @dataclass
 class _Choice:
-    """The model choice: records kept until ``choose_after_s`` of data, then the job."""
+    """The model choice: every record kept from the start until the chosen model is applied (the
+    new filter is fed them all), the job started once ``choose_after_s`` of IMU data is in."""
 
     after_s: float
-    imu: list[tuple[float, ...]] = field(default_factory=list)
-    ranges: list[tuple[float, float, float]] = field(default_factory=list)
+    records: list[tuple[Any, ...]] = field(default_factory=list)
     job: Future[dict[str, Any]] | None = None
     first_t: float | None = None
 
@@ -246,7 +246,7 @@ class LiveNode:
                     self._waiting.append((r[1], now))
                 if not self._apply(r):
                     w.rejected += 1
-                if self._choice is not None and self._choice.job is None:
+                if self._choice is not None:
                     self._keep_for_choice(r)
             self._emit()
         return len(records)
@@ -285,18 +285,21 @@ class LiveNode:
     def _keep_for_choice(self, r: tuple[Any, ...]) -> None:
         c = self._choice
         assert c is not None
+        c.records.append(r)
         if r[0] == "imu":
-            c.imu.append((r[1], *r[2], *r[3]))
             c.first_t = r[1] if c.first_t is None else c.first_t
-            if r[1] - c.first_t >= c.after_s and self._pool is not None:
+            if c.job is None and r[1] - c.first_t >= c.after_s and self._pool is not None:
                 self._start_choice()
-        elif r[0] == "range" and (r[4] or 0) == 0:
-            c.ranges.append((r[1], float(r[2]), r[3]))
 
     def _start_choice(self) -> None:
+        """The choice on the IMU samples and the ranges of every tag kept so far (the other
+        sensors do not enter it: :func:`choose_model` takes IMU and ranges)."""
         c = self._choice
         assert c is not None and self._pool is not None
-        imu, ranges = np.array(c.imu), np.array(c.ranges).reshape(-1, 3)
+        imu = np.array([(r[1], *r[2], *r[3]) for r in c.records if r[0] == "imu"])
+        ranges = np.array([(r[1], float(r[2]), r[3], float(r[4] or 0)) for r in c.records if r[0] == "range"]).reshape(-1, 4)
+        if not ranges[:, 3].any():
+            ranges = ranges[:, :3]
         log.info("choosing the model on %.0f s of data (%d IMU samples, %d ranges)", imu[-1, 0] - imu[0, 0], len(imu), len(ranges))
         method = cast(MethodName, self.method)
         c.job = self._pool.submit(
@@ -313,7 +316,8 @@ class LiveNode:
         return True
 
     def _finish_choice(self) -> None:
-        """Once the choice is made: a filter with the chosen model, fed everything kept."""
+        """Once the choice is made: a filter with the chosen model, fed every record kept (every
+        sensor and tag, up to the last one received), the replayed past not published again."""
         c = self._choice
         if c is None or c.job is None or not c.job.done():
             return
@@ -333,10 +337,11 @@ class LiveNode:
         self._config = result["config"]
         self._filter = self._new_filter(self._config)
         self._initialized = False
-        for row in c.imu:
-            self._filter.add_imu(row[0], row[1:4], row[4:7])
-        for t, a, rng in c.ranges:
-            self._filter.add_range(t, int(a), rng)
+        for r in c.records:
+            try:
+                apply_record(self._filter, r)
+            except ValueError:
+                pass  # refused and counted when it first came
         self._filter.steps()  # the replayed past is not published again
         if self._filter.lag_s is not None:
             self._filter.lagged_steps()
