@@ -13,8 +13,8 @@
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
-use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::app::sim::{preset, simulate, Trajectory};
+use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::sensors::SensorKind;
 

@@ -18,15 +18,16 @@ use std::time::Instant;
 
 use clap::Parser;
 use uwbimu_app::columns::{output_columns, step_column_names, step_row};
-use uwbimu_app::io::atomic_file::{write_atomically, AtomicFile};
-use uwbimu_app::io::csv_out::{write_columns_csv, CsvRowWriter};
-use uwbimu_app::io::foxglove_out::{write_trajectory_mcap, TrajectoryMcapWriter};
-use uwbimu_app::io::{read_recording_file, survey_recording_file, ReplayConfig};
-use uwbimu_app::io::{IoError as Error, IoResult as Result};
+use uwbimu_app::csv_out::{write_columns_csv, CsvRowWriter};
 use uwbimu_app::methods::{BatchOutput, Method};
 use uwbimu_app::replay::replay;
 use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
+use uwbimu_app::replay_config::ReplayConfig;
 use uwbimu_estimation::pipeline::{Progress, StepRecord};
+use uwbimu_io::atomic_file::{write_atomically, AtomicFile};
+use uwbimu_io::foxglove_out::{write_trajectory_mcap, TrajectoryMcapWriter};
+use uwbimu_io::{read_recording_file, survey_recording_file};
+use uwbimu_io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use args::{Args, Command};

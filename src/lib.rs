@@ -6,11 +6,15 @@
 //! robots; a seeded simulator; an MCAP reader and the `uwbimu-replay` program. The Python module
 //! `uwbimu_rs` wraps the same code.
 //!
-//! The crate is a facade over three layers, each its own crate:
+//! The crate is a facade over three layers and the formats, each its own crate:
 //!
 //! - [`vocabulary`]: math, state, records, errors, configuration;
 //! - [`estimation`]: the pieces and the filters composed of them, the event pipeline, the smoother;
-//! - [`app`]: the method registry, calibration, tuning, metrics, the simulator, MCAP I/O, replay.
+//! - [`app`]: the method registry, calibration, tuning, metrics, the simulator, the replay file
+//!   and replay;
+//! - `io` (feature `io`, crate `uwbimu_io`): MCAP, CDR and ROS 2 message schemas, topic mappings,
+//!   anchor and truth files, Foxglove output, the LinkTrack and DWM1001 serial protocols; it uses
+//!   the vocabulary only.
 //!
 //! Conventions: navigation frame ENU (z up), gravity `[0, 0, −9.80665]` m/s²; the accelerometer
 //! gives body-frame specific force (≈ `[0, 0, +9.81]` level and still), the gyroscope rad/s;
@@ -46,8 +50,14 @@ pub use uwbimu_vocabulary as vocabulary;
 pub use uwbimu_estimation as estimation;
 
 /// Layer 3, applications of the estimators: named methods, calibration, tuning, metrics, the
-/// simulator, MCAP I/O and replay (crate `uwbimu_app`).
+/// simulator, the replay file and replay (crate `uwbimu_app`).
 pub use uwbimu_app as app;
+
+/// The formats: MCAP recordings in and out, CDR and ROS 2 message schemas, topic mappings, anchor
+/// and truth files, Foxglove output, the serial protocols (crate `uwbimu_io`; it uses the
+/// vocabulary only).
+#[cfg(feature = "io")]
+pub use uwbimu_io as io;
 
 #[cfg(feature = "cli")]
 pub mod cli;

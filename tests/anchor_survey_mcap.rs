@@ -15,13 +15,13 @@ use std::process::{Command, Output};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use uwbimu_rs::app::io::anchor_ranges::read_anchor_ranges_file;
-use uwbimu_rs::app::io::anchors::read_anchor_file;
-use uwbimu_rs::app::io::mcap_read::McapEnd;
-use uwbimu_rs::app::io::recording_out::{write_anchor_ranges_mcap, write_recording_mcap, RecordingStreams};
-use uwbimu_rs::app::io::topics::RawAnchorRange;
-use uwbimu_rs::app::io::{IoError, Mapping, TopicRole};
 use uwbimu_rs::app::log_survey::{survey_ranges, Heights};
+use uwbimu_rs::io::anchor_ranges::read_anchor_ranges_file;
+use uwbimu_rs::io::anchors::read_anchor_file;
+use uwbimu_rs::io::mcap_read::McapEnd;
+use uwbimu_rs::io::recording_out::{write_anchor_ranges_mcap, write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::topics::RawAnchorRange;
+use uwbimu_rs::io::{IoError, Mapping, TopicRole};
 use uwbimu_rs::vocabulary::math::Vec3;
 
 /// The true site: six anchors on the walls of a 12 × 9 m hall, at 0.6–2.9 m.

@@ -10,12 +10,13 @@ use std::sync::{mpsc, OnceLock};
 use std::time::Duration;
 
 use proptest::prelude::*;
-use uwbimu_rs::app::io::cdr::decode;
-use uwbimu_rs::app::io::msg_schema::MsgSchema;
-use uwbimu_rs::app::io::payloads::imu_cdr;
-use uwbimu_rs::app::io::read_recording;
-use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
-use uwbimu_rs::app::io::{Mapping, ReplayConfig, UwbMapping};
+use uwbimu_rs::app::replay_config::ReplayConfig;
+use uwbimu_rs::io::cdr::decode;
+use uwbimu_rs::io::msg_schema::MsgSchema;
+use uwbimu_rs::io::payloads::imu_cdr;
+use uwbimu_rs::io::read_recording;
+use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::io::{Mapping, UwbMapping};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::records::{ImuSample, RangeMeasurement};
 

@@ -132,7 +132,8 @@ fn a_clean_run_keeps_the_plain_filter_and_three_anchors_select_nothing() {
 
 #[test]
 fn isas_walk1_keeps_the_plain_filter() {
-    use uwbimu_rs::app::io::{read_recording_file, ReplayConfig};
+    use uwbimu_rs::app::replay_config::ReplayConfig;
+    use uwbimu_rs::io::read_recording_file;
     let Some(mcap) = common::isas_walk1("isas-walk1.mcap") else { return };
     let cfg = ReplayConfig::read(&std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/isas-walk1.toml"))
         .expect("config");

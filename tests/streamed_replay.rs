@@ -13,15 +13,16 @@ mod common;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use uwbimu_rs::app::io::recording_out::{write_recording_mcap, RecordingStreams};
-use uwbimu_rs::app::io::{read_recording_file, survey_recording_file, ReplayConfig};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_rs::app::replay::{replay, ReplaySummary};
+use uwbimu_rs::app::replay_config::ReplayConfig;
 use uwbimu_rs::app::sim::{
     lever_arms_seen, matched_config, preset, simulate, zoo, AltimeterConfig, OdometerConfig, SimData, TdoaConfig,
 };
 use uwbimu_rs::estimation::pipeline::StepRecord;
+use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::{read_recording_file, survey_recording_file};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::config::RangeCalibration;
 use uwbimu_rs::vocabulary::math::Vec3;

@@ -8,7 +8,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
 use pyo3::PyErr;
 use pyo3::Python;
-use uwbimu_app::io::IoError;
+use uwbimu_io::IoError;
 use uwbimu_vocabulary::error::Error;
 
 create_exception!(uwbimu_rs._native, UwbImuError, PyValueError, "Base class of uwbimu_rs errors (a ValueError).");

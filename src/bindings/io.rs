@@ -9,16 +9,15 @@ use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use uwbimu_app::columns::{output_columns, step_column_names, step_row};
-use uwbimu_app::io::mcap_read::McapEnd;
-use uwbimu_app::io::recording_out::{write_recording_mcap, RecordingStreams};
-use uwbimu_app::io::truth_file::{read_truth_csv, TRUTH_COLUMNS};
-use uwbimu_app::io::{
-    read_recording_file, survey_recording_file, IoError, Mapping, ReadStats, Recording, RecordingSurvey, ReplayConfig,
-};
 use uwbimu_app::methods::Method;
 use uwbimu_app::replay::replay as replay_recording;
 use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_app::replay::ReplaySummary;
+use uwbimu_app::replay_config::ReplayConfig;
+use uwbimu_io::mcap_read::McapEnd;
+use uwbimu_io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_io::truth_file::{read_truth_csv, TRUTH_COLUMNS};
+use uwbimu_io::{read_recording_file, survey_recording_file, IoError, Mapping, ReadStats, Recording, RecordingSurvey};
 use uwbimu_vocabulary::sensors::SensorKind;
 
 use super::convert::columns;
@@ -64,7 +63,7 @@ fn with_read_bar<T: Send>(
     py: Python<'_>,
     path: &Path,
     progress: bool,
-    read: impl FnOnce(&mut dyn FnMut(u64)) -> uwbimu_app::io::IoResult<T> + Send,
+    read: impl FnOnce(&mut dyn FnMut(u64)) -> uwbimu_io::IoResult<T> + Send,
 ) -> PyResult<T> {
     if !path.exists() {
         return Err(missing_file(path).into());
@@ -323,7 +322,7 @@ fn read_truth<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict
 /// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
 /// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...; a tag beyond 0 in `tag`), the other
 /// sensors' arrays `sensors` (keywords of the registry) on their topics
-/// ([`uwbimu_app::io::recording_out::sensor_topic`]), anchors in the `uwbimu.anchors` metadata
+/// ([`uwbimu_io::recording_out::sensor_topic`]), anchors in the `uwbimu.anchors` metadata
 /// record; zstd chunks.
 #[pyfunction]
 #[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None, **sensors))]

@@ -11,15 +11,15 @@ use std::sync::Mutex;
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
-use uwbimu_app::io::foxglove_out::TrajectoryMcapWriter;
-use uwbimu_app::io::live_settings::LiveSettings;
-use uwbimu_app::io::msg_schema::{ArrayKind, FieldType, MsgSchema};
-use uwbimu_app::io::ros_out::{
+use uwbimu_io::foxglove_out::TrajectoryMcapWriter;
+use uwbimu_io::live_settings::LiveSettings;
+use uwbimu_io::msg_schema::{ArrayKind, FieldType, MsgSchema};
+use uwbimu_io::ros_out::{
     diagnostic_array_cdr, odometry_cdr, pose_with_covariance_cdr, DiagnosticLevel, DiagnosticStatus, Frames, PoseEstimate,
 };
-use uwbimu_app::io::ros_types::{dds_topic_name, dds_type_name, full_definition};
-use uwbimu_app::io::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
-use uwbimu_app::io::{survey_recording_file, AnchorLayout, MessageDecoder as CoreDecoder, RecordItem};
+use uwbimu_io::ros_types::{dds_topic_name, dds_type_name, full_definition};
+use uwbimu_io::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
+use uwbimu_io::{survey_recording_file, AnchorLayout, MessageDecoder as CoreDecoder, RecordItem};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_from_wxyz, Cov, Vec3};
 
@@ -157,7 +157,7 @@ fn ros_fields(type_name: &str, definition: &str) -> PyResult<Vec<(String, Vec<Fi
         .collect())
 }
 
-/// Decodes messages one at a time through the mapping of a replay file (`uwbimu_app::io::MessageDecoder`).
+/// Decodes messages one at a time through the mapping of a replay file (`uwbimu_io::MessageDecoder`).
 #[pyclass(name = "MessageDecoder", module = "uwbimu_rs._native")]
 pub struct PyMessageDecoder(CoreDecoder);
 
@@ -255,7 +255,7 @@ impl PyMessageDecoder {
 /// `(PoseWithCovarianceStamped, Odometry)` in frame `parent` (child `child`). `quaternion` is
 /// [w, x, y, z] body → navigation, `angular_rate` the body rate without its bias, `covariance`
 /// the filter's (15, 15) in the order δp, δv, δθ (body), δb_a, δb_g; the messages carry it in
-/// their own conventions (`uwbimu_app::io::ros_out`).
+/// their own conventions (`uwbimu_io::ros_out`).
 #[pyfunction]
 #[pyo3(signature = (t, position, velocity, quaternion, angular_rate, covariance, *, parent="map", child="base_link"))]
 #[allow(clippy::too_many_arguments)]
@@ -347,7 +347,7 @@ impl PyTrajectoryWriter {
     #[new]
     fn new(path: PathBuf) -> PyResult<Self> {
         let label = path.display().to_string();
-        let file = File::create(&path).map_err(|e| uwbimu_app::io::IoError::io(&label, e))?;
+        let file = File::create(&path).map_err(|e| uwbimu_io::IoError::io(&label, e))?;
         let writer = TrajectoryMcapWriter::new(BufWriter::new(file), &label, PATH_PERIOD_S, PATH_SPACING_S)?;
         Ok(Self(Mutex::new(Some(writer))))
     }
@@ -368,7 +368,7 @@ impl PyTrajectoryWriter {
             self.0.lock().map_err(|_| Error::InvalidCall("TrajectoryWriter.close: a previous write failed".into()))?.take();
         if let Some(w) = taken {
             let mut out = w.finish()?;
-            std::io::Write::flush(&mut out).map_err(|e| uwbimu_app::io::IoError::io("trajectory", e))?;
+            std::io::Write::flush(&mut out).map_err(|e| uwbimu_io::IoError::io("trajectory", e))?;
         }
         Ok(())
     }

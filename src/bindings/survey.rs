@@ -4,9 +4,10 @@
 use numpy::{IntoPyArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use uwbimu_estimation::anchor_survey::{survey_anchors as survey, AnchorPair, SurveyPriors};
+use uwbimu_estimation::anchor_survey::{survey_anchors as survey, SurveyPriors};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::records::AnchorPair;
 
 use super::convert::{array, matrices_array, points_array, table};
 use super::errors::PyResult;

@@ -4,9 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
-use uwbimu_app::io::IoResult as Result;
-use uwbimu_app::io::{AnchorMapping, ReplayConfig, TimeSource};
 use uwbimu_app::methods::{Input, Method};
+use uwbimu_app::replay_config::ReplayConfig;
+use uwbimu_io::IoResult as Result;
+use uwbimu_io::{AnchorMapping, TimeSource};
 
 /// Replay an MCAP recording of IMU and UWB ranges and/or TDoA through a uwbimu_rs filter, or
 /// survey the anchors from a log of anchor-to-anchor ranges (`uwbimu-replay survey FILE`).

@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use signal_hook::consts::{SIGINT, SIGTERM};
 use signal_hook::SigId;
-use uwbimu_app::io::{IoError as Error, IoResult as Result};
+use uwbimu_io::{IoError as Error, IoResult as Result};
 
 /// The signal handlers of one replay, removed when dropped.
 pub(crate) struct Interrupt {

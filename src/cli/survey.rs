@@ -5,10 +5,10 @@
 use std::io::Write;
 use std::path::Path;
 
-use uwbimu_app::io::anchors::write_anchor_file;
-use uwbimu_app::io::IoResult as Result;
-use uwbimu_app::io::ReplayConfig;
 use uwbimu_app::log_survey::{survey_log_file, Heights, LogSurvey};
+use uwbimu_app::replay_config::ReplayConfig;
+use uwbimu_io::anchors::write_anchor_file;
+use uwbimu_io::IoResult as Result;
 
 use super::args::SurveyArgs;
 use super::report::{file_and_topics, stdout_error};

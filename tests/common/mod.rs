@@ -3,11 +3,11 @@
 
 pub mod figures;
 
-use uwbimu_rs::app::io::Recording;
 use uwbimu_rs::app::methods::BatchInput;
 use uwbimu_rs::app::sim::{SimConfig, SimData};
 use uwbimu_rs::estimation::filters::InertialFilter;
 use uwbimu_rs::estimation::pipeline::{Estimator, Event, StepRecord, Stream, StreamOptions, Streams};
+use uwbimu_rs::io::Recording;
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;
 

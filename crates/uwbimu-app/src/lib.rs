@@ -1,8 +1,8 @@
 //! Layer 3 of uwbimu_rs, applications of the estimators: the named methods and their batch
-//! runner, range-bias calibration, anchor refinement and noise tuning from a log, MCAP recordings and replay, output
-//! columns, metrics, the scenario simulator, the generality matrix and the Monte Carlo consistency
-//! checks. Depends on `uwbimu_vocabulary` and `uwbimu_estimation`; the compiler keeps it from
-//! being used by them.
+//! runner, range-bias calibration, anchor refinement and noise tuning from a log, the replay file and
+//! replay of recordings (read and written by `uwbimu_io`), output columns, metrics, the scenario simulator, the generality matrix and the Monte Carlo consistency
+//! checks. Depends on `uwbimu_vocabulary`, `uwbimu_estimation` and (feature `io`) `uwbimu_io`;
+//! the compiler keeps it from being used by them.
 //!
 //! Inside, the modules import one way, without a cycle: the method registry (`registry`) imports
 //! no other module; the runner (`run`) the registry; the model selection ([`select`]) the runner;
@@ -15,10 +15,10 @@ pub mod calibrate;
 pub mod columns;
 #[cfg(feature = "sim")]
 pub mod consistency;
+#[cfg(feature = "io")]
+pub mod csv_out;
 #[cfg(feature = "sim")]
 pub mod generality;
-#[cfg(feature = "io")]
-pub mod io;
 #[cfg(feature = "io")]
 pub mod log_survey;
 pub mod map_smoothing;
@@ -31,6 +31,8 @@ pub mod parallel;
 mod registry;
 #[cfg(feature = "io")]
 pub mod replay;
+#[cfg(feature = "io")]
+pub mod replay_config;
 mod run;
 pub mod select;
 #[cfg(feature = "sim")]

@@ -1,5 +1,5 @@
 //! The anchor survey of a log of anchor-to-anchor ranges (`uwbimu-replay survey`): the ranges read
-//! through the mapping ([`crate::io::anchor_ranges`]), the known mounting heights by row or by id
+//! through the mapping ([`uwbimu_io::anchor_ranges`]), the known mounting heights by row or by id
 //! ([`Heights`]), [`survey_anchors`] on them, and the residuals summed up per pair
 //! ([`PairResiduals`]).
 
@@ -9,8 +9,8 @@ use std::path::Path;
 use uwbimu_estimation::anchor_survey::{survey_anchors, AnchorSurvey, SurveyPriors};
 use uwbimu_vocabulary::error::Error as CoreError;
 
-use crate::io::anchor_ranges::{read_anchor_ranges_file, AnchorRangeStats, AnchorRanges};
-use crate::io::{IoResult as Result, Mapping};
+use uwbimu_io::anchor_ranges::{read_anchor_ranges_file, AnchorRangeStats, AnchorRanges};
+use uwbimu_io::{IoResult as Result, Mapping};
 
 /// The mounting heights the user knows, m.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -127,7 +127,7 @@ pub fn survey_ranges(ranges: AnchorRanges, heights: &Heights) -> Result<LogSurve
     let AnchorRanges { anchor_ids, pairs, stats } = ranges;
     if pairs.is_empty() {
         let topics: Vec<&str> =
-            stats.topics.iter().filter(|t| t.role == crate::io::TopicRole::AnchorRanges).map(|t| t.topic.as_str()).collect();
+            stats.topics.iter().filter(|t| t.role == uwbimu_io::TopicRole::AnchorRanges).map(|t| t.topic.as_str()).collect();
         let unknown: Vec<&str> = stats.unknown_ids.iter().map(String::as_str).collect();
         return Err(CoreError::InsufficientData(format!(
             "no usable anchor-to-anchor range on {}: {} decoded, {} not finite, negative or of one anchor with itself, \

@@ -10,19 +10,19 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use uwbimu_estimation::pipeline::{Measured, Progress, UpdateRecord};
 
-use crate::io::IoResult as Result;
+use uwbimu_io::IoResult as Result;
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::PosePoint;
 use uwbimu_vocabulary::sensors::{merge, observations, Observation, SensorKind};
 
-use crate::io::Recording;
 use crate::methods::run_method;
 use crate::metrics::{evaluate, Evaluation};
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
 use crate::run::{BatchInput, BatchOutput};
+use uwbimu_io::Recording;
 
 /// What the filter did with one anchor's ranges (or with one sensor's readings).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -145,7 +145,7 @@ pub struct ReplaySummary {
     /// Ground-truth samples read.
     pub n_ground_truth: usize,
     /// Bytes lost at the end of a recording that ends before its footer (0 for a complete file;
-    /// [`crate::io::mcap_read::McapEnd::lost_bytes`]).
+    /// [`uwbimu_io::mcap_read::McapEnd::lost_bytes`]).
     pub truncated_bytes: u64,
     /// Per anchor: what the filter did with its ranges.
     pub anchors: Vec<AnchorUpdateStats>,

@@ -23,6 +23,7 @@ use std::collections::{BTreeMap, VecDeque};
 use nalgebra::{DMatrix, DVector};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Mat3, Vec3};
+use uwbimu_vocabulary::records::AnchorPair;
 
 use crate::robust::MEstimator;
 pub use crate::robust::{HUBER_K, TUKEY_C};
@@ -33,17 +34,6 @@ const MIN_SCALE_M: f64 = 0.005;
 const NLOS_SCALES: f64 = 3.0;
 /// Gauss–Newton iterations at most.
 const MAX_ITERATIONS: usize = 60;
-
-/// One measured range between two anchors.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AnchorPair {
-    /// Index of the first anchor.
-    pub i: usize,
-    /// Index of the second anchor.
-    pub j: usize,
-    /// Measured distance, m.
-    pub range_m: f64,
-}
 
 /// What is known besides the ranges.
 #[derive(Debug, Clone, Default, PartialEq)]

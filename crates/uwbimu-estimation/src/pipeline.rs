@@ -48,4 +48,4 @@ pub use records::{
     Health, MapObjective, Measured, StepRecord, Trace, UpdateRecord, STATUS_LATE, STATUS_REJECTED, STATUS_REPAIRED,
 };
 pub use smoothing::{run_smoothed, smooth_recording, smoothed_nodes, smoothed_steps};
-pub use stream::{self_initialize, Builder, Stream, StreamOptions, DEFAULT_REORDER_WINDOW_S};
+pub use stream::{self_initialize, Builder, Stream, StreamOptions};

@@ -28,6 +28,10 @@ pub use sections::{
     MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
+/// Default reorder window of a stream of measurements, s: how late a measurement may arrive and
+/// still be put in time order (a stream's, and a replay mapping's `reorder_window_s`).
+pub const DEFAULT_REORDER_WINDOW_S: f64 = 0.5;
+
 /// A configuration value as it arrives from a dict: a scalar or a vector.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ConfigValue {

@@ -1,7 +1,7 @@
 //! The error of the vocabulary and estimation layers (and of the applications that only compute):
 //! invalid input, configuration or call, and numerical failure. One `#[non_exhaustive]` enum with
 //! structured fields. Reading and writing files has its own error in the layer that does it
-//! (`uwbimu_app::io::IoError`, which wraps this one); the Python bindings map both to exceptions
+//! (`uwbimu_io::IoError`, which wraps this one); the Python bindings map both to exceptions
 //! in one place.
 
 /// Everything that can go wrong in uwbimu_rs.

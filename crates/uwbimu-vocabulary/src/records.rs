@@ -84,5 +84,16 @@ pub struct OdometrySample {
     pub speed_mps: f64,
 }
 
+/// One measured range between two anchors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnchorPair {
+    /// Index of the first anchor.
+    pub i: usize,
+    /// Index of the second anchor.
+    pub j: usize,
+    /// Measured distance, m.
+    pub range_m: f64,
+}
+
 /// One trajectory point: time s, position m, orientation (None for `uwb_ls`).
 pub type PosePoint = (f64, Vec3, Option<Quat>);

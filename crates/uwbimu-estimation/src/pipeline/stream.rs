@@ -23,12 +23,11 @@ use uwbimu_vocabulary::records::ImuSample;
 use uwbimu_vocabulary::sensors::Observation;
 
 use super::{Estimator, Event, Health, Pipeline, StepRecord, Streams, UpdateRecord};
+use uwbimu_vocabulary::config::DEFAULT_REORDER_WINDOW_S;
+
 use crate::gate::Gate;
 use crate::init::{SelfInit, SelfInitializer};
 use crate::units::{check_imu_units, check_window as unit_check_window, UNIT_CHECK_SAMPLES};
-
-/// Default reorder window of a stream, s (the replay's: `reorder_window_s` of a mapping).
-pub const DEFAULT_REORDER_WINDOW_S: f64 = 0.5;
 
 /// How a [`Stream`] treats late data.
 #[derive(Debug, Clone, Copy, PartialEq)]

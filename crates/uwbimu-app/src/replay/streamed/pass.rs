@@ -16,10 +16,10 @@ use super::ordered::Ordered;
 use super::spilled::{smooth_spilled, step_from_flat, Spills, StepSink, StepsOut, STEP_FLAT_LEN};
 use super::truth_match::{hand_on, TruthMatch};
 use super::{survey_sensors, FilterKind, Prefix, Run, StreamedInput, StreamedReplay, UpdateTally};
-use crate::io::spill::Spill;
-use crate::io::{stream_recording_file, IoResult as Result, RecordItem, RecordingSurvey};
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
+use uwbimu_io::spill::Spill;
+use uwbimu_io::{stream_recording_file, IoResult as Result, RecordItem, RecordingSurvey};
 
 /// What one pass of [`run`] does with the events besides filtering them: the ranges to leave
 /// out, by their order in the stream; all of them kept when `kept` is Some, and the IMU samples
@@ -40,7 +40,7 @@ impl EventsOfPass<'_> {
     /// Whether the released `event` goes to the filter (a range left out does not).
     ///
     /// # Errors
-    /// [`crate::io::IoError::Io`] when an IMU sample cannot be spilled.
+    /// [`uwbimu_io::IoError::Io`] when an IMU sample cannot be spilled.
     pub(super) fn passes(&mut self, event: &Event) -> Result<bool> {
         let r = match event {
             Event::Range(r) => r,
@@ -158,7 +158,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     });
     let cancelled_run = match read {
         Ok(()) => false,
-        Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => true,
+        Err(uwbimu_io::IoError::Core(CoreError::Interrupted { .. })) => true,
         Err(e) => return Err(e),
     };
     if !cancelled_run {
@@ -212,8 +212,8 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
                 self.smoothing_repairs = repairs;
                 Some(s)
             }
-            Err(crate::io::IoError::Core(CoreError::Interrupted { .. })) => None,
-            Err(crate::io::IoError::Core(CoreError::NotPositiveDefinite { .. })) => {
+            Err(uwbimu_io::IoError::Core(CoreError::Interrupted { .. })) => None,
+            Err(uwbimu_io::IoError::Core(CoreError::NotPositiveDefinite { .. })) => {
                 self.smoothing_failed = true;
                 None
             }

@@ -12,8 +12,8 @@ use uwbimu_vocabulary::math::Mat3;
 use uwbimu_vocabulary::state::{NominalState, STATE_FLAT_LEN};
 
 use super::truth_match::TruthMatch;
-use crate::io::spill::Spill;
-use crate::io::IoResult as Result;
+use uwbimu_io::spill::Spill;
+use uwbimu_io::IoResult as Result;
 
 /// Numbers in a stored step ([`step_to_flat`]).
 pub(super) const STEP_FLAT_LEN: usize = 1 + STATE_FLAT_LEN + 9 + 2;

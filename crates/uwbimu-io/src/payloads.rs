@@ -1,0 +1,136 @@
+//! Message payloads as bytes, one encoder per message we write: XCDR1 little-endian CDR of the
+//! ROS 2 messages (`sensor_msgs/msg/Imu`, `sensor_msgs/msg/Range`, `nav_msgs/msg/Odometry`, our
+//! `uwbimu_msgs` TDoA, anchor-range and UWB-range messages) and the `uwbimu.UwbRange` JSON. The
+//! recording writer ([`crate::recording_out`]) and the topic converters use them.
+
+use serde_json::json;
+use uwbimu_vocabulary::records::{ImuSample, TdoaMeasurement};
+
+/// Splits non-negative seconds into (sec, nanosec, total ns).
+pub(crate) fn split_time(t_s: f64) -> (u64, u64, u64) {
+    let ns = (t_s.max(0.0) * 1e9).round() as u64;
+    (ns / 1_000_000_000, ns % 1_000_000_000, ns)
+}
+
+/// Appends an XCDR1 little-endian string (aligned to 4 after the encapsulation header).
+pub(crate) fn push_cdr_string(b: &mut Vec<u8>, text: &str) {
+    while (b.len() - 4) % 4 != 0 {
+        b.push(0);
+    }
+    b.extend_from_slice(&(text.len() as u32 + 1).to_le_bytes());
+    b.extend_from_slice(text.as_bytes());
+    b.push(0);
+}
+
+/// Starts an XCDR1 little-endian message: the encapsulation header and a `std_msgs/Header`.
+pub(crate) fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<u8> {
+    let (sec, nsec, _) = split_time(t_s);
+    let mut b = Vec::with_capacity(capacity);
+    b.extend_from_slice(&[0, 1, 0, 0]);
+    b.extend_from_slice(&(sec as i32).to_le_bytes());
+    b.extend_from_slice(&(nsec as u32).to_le_bytes());
+    push_cdr_string(&mut b, frame_id);
+    b
+}
+
+/// One range as XCDR1 little-endian `uwbimu_msgs/msg/UwbRange` (see
+/// [`crate::topics::UWB_RANGE_MSG_NAME`]), stamped `(sec, nanosec)`, frame `uwb`.
+pub fn uwb_range_cdr((sec, nsec): (i32, u32), anchor_id: &str, range_m: f64, variance_m2: f64, tag: &str) -> Vec<u8> {
+    let mut b = Vec::with_capacity(64);
+    b.extend_from_slice(&[0, 1, 0, 0]);
+    b.extend_from_slice(&sec.to_le_bytes());
+    b.extend_from_slice(&nsec.to_le_bytes());
+    push_cdr_string(&mut b, "uwb");
+    push_cdr_string(&mut b, anchor_id);
+    align8(&mut b);
+    b.extend_from_slice(&range_m.to_le_bytes());
+    b.extend_from_slice(&variance_m2.to_le_bytes());
+    push_cdr_string(&mut b, tag);
+    b
+}
+
+/// Pads an XCDR1 message to the next 8-byte boundary (before a float64).
+pub(crate) fn align8(b: &mut Vec<u8>) {
+    while (b.len() - 4) % 8 != 0 {
+        b.push(0);
+    }
+}
+
+/// One IMU sample as XCDR1 little-endian `sensor_msgs/msg/Imu` (frame `imu_link`, identity
+/// orientation with `covariance[0] = −1` meaning "no orientation").
+pub fn imu_cdr(s: &ImuSample) -> Vec<u8> {
+    let mut b = cdr_with_header(s.t_s, "imu_link", 324);
+    align8(&mut b);
+    let mut doubles = [0.0f64; 37];
+    doubles[3] = 1.0; // orientation w
+    doubles[4] = -1.0; // orientation unknown
+    doubles[13..16].copy_from_slice(s.gyro.as_slice());
+    doubles[25..28].copy_from_slice(s.accel.as_slice());
+    for d in doubles {
+        b.extend_from_slice(&d.to_le_bytes());
+    }
+    b
+}
+
+/// One range as `uwbimu.UwbRange` JSON; a tag beyond 0 is written as its index (`"tag": "1"`).
+pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f64>, tag: usize) -> Vec<u8> {
+    let (sec, nsec, _) = split_time(t_s);
+    let mut v = json!({"timestamp": {"sec": sec, "nsec": nsec}, "anchor_id": anchor_id, "range": range_m});
+    if let Some(var) = variance_m2 {
+        v["variance"] = json!(var);
+    }
+    if tag > 0 {
+        v["tag"] = json!(tag.to_string());
+    }
+    v.to_string().into_bytes()
+}
+
+/// A message of two anchor ids and a float64 after the header, as XCDR1 little-endian (the
+/// layout of [`TDOA_MSG`](crate::recording_out::TDOA_MSG) and [`ANCHOR_RANGE_MSG`](crate::recording_out::ANCHOR_RANGE_MSG)).
+fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> {
+    let mut b = cdr_with_header(t_s, "", 48);
+    push_cdr_string(&mut b, anchor_i);
+    push_cdr_string(&mut b, anchor_j);
+    align8(&mut b);
+    b.extend_from_slice(&value.to_le_bytes());
+    b
+}
+
+/// One TDoA as XCDR1 little-endian [`TDOA_MSG`](crate::recording_out::TDOA_MSG), anchor ids `A{i}`, `A{j}`.
+pub fn tdoa_cdr(m: &TdoaMeasurement) -> Vec<u8> {
+    id_pair_cdr(m.t_s, &format!("A{}", m.anchor_i), &format!("A{}", m.anchor_j), m.tdoa_m)
+}
+
+/// One anchor-to-anchor range as XCDR1 little-endian [`ANCHOR_RANGE_MSG`](crate::recording_out::ANCHOR_RANGE_MSG).
+pub fn anchor_range_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, range_m: f64) -> Vec<u8> {
+    id_pair_cdr(t_s, anchor_i, anchor_j, range_m)
+}
+
+/// One height as XCDR1 little-endian [`RANGE_MSG`](crate::recording_out::RANGE_MSG) (frame `altimeter`, infrared), `range = z`;
+/// its limits are wide open (`±f32::MAX`), as a simulated height may be negative.
+pub fn altitude_cdr(t_s: f64, z_m: f64) -> Vec<u8> {
+    let mut b = cdr_with_header(t_s, "altimeter", 48);
+    b.push(1); // radiation_type INFRARED
+    while (b.len() - 4) % 4 != 0 {
+        b.push(0);
+    }
+    for v in [0.0, -f32::MAX, f32::MAX, z_m as f32] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b
+}
+
+/// One body velocity as XCDR1 little-endian [`ODOMETRY_MSG`](crate::recording_out::ODOMETRY_MSG) (frames `odom` → `base_link`,
+/// identity pose, zero covariances), NaN for an axis not measured.
+pub fn odometry_cdr(t_s: f64, velocity: [f64; 3]) -> Vec<u8> {
+    let mut b = cdr_with_header(t_s, "odom", 720);
+    push_cdr_string(&mut b, "base_link");
+    align8(&mut b);
+    let mut doubles = [0.0f64; 85];
+    doubles[6] = 1.0; // orientation w
+    doubles[43..46].copy_from_slice(&velocity);
+    for d in doubles {
+        b.extend_from_slice(&d.to_le_bytes());
+    }
+    b
+}
