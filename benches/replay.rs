@@ -9,7 +9,7 @@ use std::io::Cursor;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::replay;
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{read_recording, Mapping};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;

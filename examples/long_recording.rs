@@ -14,7 +14,7 @@ use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
 use uwbimu_rs::app::sim::{preset, simulate, Trajectory};
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::sensors::SensorKind;
 

@@ -19,7 +19,7 @@ use uwbimu_rs::app::generality::{run_cell, Cell, Settings, Start};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::{compare_with_truth, replay};
 use uwbimu_rs::app::replay_config::ReplayConfig;
-use uwbimu_rs::io::truth_file::read_truth_csv;
+use uwbimu_rs::io::files::truth_file::read_truth_csv;
 use uwbimu_rs::io::{read_recording_file, Recording};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;

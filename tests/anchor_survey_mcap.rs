@@ -16,11 +16,11 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use uwbimu_rs::app::log_survey::{survey_ranges, Heights};
-use uwbimu_rs::io::anchor_ranges::read_anchor_ranges_file;
-use uwbimu_rs::io::anchors::read_anchor_file;
-use uwbimu_rs::io::mcap_read::McapEnd;
-use uwbimu_rs::io::recording_out::{write_anchor_ranges_mcap, write_recording_mcap, RecordingStreams};
-use uwbimu_rs::io::topics::RawAnchorRange;
+use uwbimu_rs::io::files::anchors::read_anchor_file;
+use uwbimu_rs::io::mapping::topics::RawAnchorRange;
+use uwbimu_rs::io::recordings::anchor_ranges::read_anchor_ranges_file;
+use uwbimu_rs::io::recordings::mcap_read::McapEnd;
+use uwbimu_rs::io::recordings::recording_out::{write_anchor_ranges_mcap, write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{IoError, Mapping, TopicRole};
 use uwbimu_rs::vocabulary::math::Vec3;
 

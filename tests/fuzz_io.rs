@@ -11,11 +11,11 @@ use std::time::Duration;
 
 use proptest::prelude::*;
 use uwbimu_rs::app::replay_config::ReplayConfig;
-use uwbimu_rs::io::cdr::decode;
-use uwbimu_rs::io::msg_schema::MsgSchema;
-use uwbimu_rs::io::payloads::imu_cdr;
 use uwbimu_rs::io::read_recording;
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::io::ros::cdr::decode;
+use uwbimu_rs::io::ros::msg_schema::MsgSchema;
+use uwbimu_rs::io::ros::payloads::imu_cdr;
 use uwbimu_rs::io::{Mapping, UwbMapping};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::records::{ImuSample, RangeMeasurement};
@@ -210,7 +210,7 @@ fn the_unmutated_file_reads() {
 
 /// Every single-byte mutation of the valid file is read (or rejected) without hanging: the
 /// `mcap` crate's streaming decompressor spins on a chunk whose declared size is larger than its
-/// data, so chunks are decompressed by `io::mcap_read` itself.
+/// data, so chunks are decompressed by `uwbimu_io::recordings::mcap_read` itself.
 #[test]
 fn every_single_byte_mutation_ends() {
     let good = valid_file();

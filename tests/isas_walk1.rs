@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::{compare_with_truth, replay};
 use uwbimu_rs::app::replay_config::ReplayConfig;
-use uwbimu_rs::io::truth_file::read_truth_csv;
+use uwbimu_rs::io::files::truth_file::read_truth_csv;
 use uwbimu_rs::io::AnchorMapping;
 use uwbimu_rs::io::{read_recording_file, Recording};
 
@@ -51,7 +51,7 @@ fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     assert!(rec.imu.windows(2).all(|w| w[1].t_s > w[0].t_s));
     assert!(rec.ranges.windows(2).all(|w| w[1].t_s >= w[0].t_s));
     // Anchor positions carried by the messages agree with anchors.csv (float32 in the message).
-    let file = uwbimu_rs::io::anchors::read_anchor_file(&common::isas_walk1("anchors.csv").unwrap()).unwrap();
+    let file = uwbimu_rs::io::files::anchors::read_anchor_file(&common::isas_walk1("anchors.csv").unwrap()).unwrap();
     assert_eq!(rec.anchor_ids.len(), 5);
     for (id, p) in rec.anchor_ids.iter().zip(&rec.anchors) {
         assert!((file[id] - p).norm() < 1e-6, "anchor {id}: {p:?} vs {:?}", file[id]);

@@ -15,9 +15,9 @@ use std::process::{Command, Output, Stdio};
 use std::time::Duration;
 
 use uwbimu_rs::app::sim::{preset, simulate, SimData, Trajectory};
-use uwbimu_rs::io::atomic_file::partial_path;
-use uwbimu_rs::io::mcap_read::{read_mcap, McapEnd, McapEvent};
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
+use uwbimu_rs::io::files::atomic_file::partial_path;
+use uwbimu_rs::io::recordings::mcap_read::{read_mcap, McapEnd, McapEvent};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams, IMU_MSG};
 use uwbimu_rs::vocabulary::math::Vec3;
 use uwbimu_rs::vocabulary::sensors::SensorKind;
 

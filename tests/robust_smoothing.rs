@@ -11,8 +11,8 @@ use uwbimu_rs::app::replay::compare_with_truth;
 use uwbimu_rs::app::replay_config::ReplayConfig;
 use uwbimu_rs::app::sim::{preset, simulate, zoo, SimData};
 use uwbimu_rs::estimation::pipeline::StepRecord;
+use uwbimu_rs::io::files::truth_file::read_truth_csv;
 use uwbimu_rs::io::read_recording_file;
-use uwbimu_rs::io::truth_file::read_truth_csv;
 use uwbimu_rs::vocabulary::config::FilterConfig;
 
 /// `best` smoothed, self-initialised: the steps and the ranges the robust smoothing left out.

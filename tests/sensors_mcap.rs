@@ -15,7 +15,7 @@ use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::replay::replay;
 use uwbimu_rs::app::replay_config::ReplayConfig;
 use uwbimu_rs::app::sim::{self, AltimeterConfig, OdometerConfig, Scenario, SimData};
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{read_recording, IoError as Error, Mapping, Recording};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;

@@ -21,7 +21,7 @@ use uwbimu_rs::app::sim::{
     lever_arms_seen, matched_config, preset, simulate, zoo, AltimeterConfig, OdometerConfig, SimData, TdoaConfig,
 };
 use uwbimu_rs::estimation::pipeline::StepRecord;
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{read_recording_file, survey_recording_file};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::config::RangeCalibration;

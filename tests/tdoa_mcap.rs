@@ -16,7 +16,7 @@ use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::replay::{compare_with_truth, replay};
 use uwbimu_rs::app::replay_config::ReplayConfig;
 use uwbimu_rs::app::sim::{simulate, zoo, SimData, TdoaConfig};
-use uwbimu_rs::io::recording_out::{write_recording_mcap, RecordingStreams};
+use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{read_recording, IoError as Error, Mapping, Recording};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;

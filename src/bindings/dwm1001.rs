@@ -1,10 +1,10 @@
-//! Bindings of the DWM1001 UART TLV `dwm_loc_get` decoder ([`uwbimu_io::dwm1001`]): the
+//! Bindings of the DWM1001 UART TLV `dwm_loc_get` decoder ([`uwbimu_io::serial::dwm1001`]): the
 //! `DwmDecoder` class (bytes in, responses out as dicts) and `encode_dwm_loc_get` (a response for
 //! tests and simulated modules).
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
-use uwbimu_io::dwm1001::{encode_loc_get, DwmLocation, DwmPosition, DwmRange, DwmStream};
+use uwbimu_io::serial::dwm1001::{encode_loc_get, DwmLocation, DwmPosition, DwmRange, DwmStream};
 use uwbimu_vocabulary::error::Error;
 
 use super::convert::fields_dict;

@@ -14,9 +14,9 @@ use uwbimu_app::replay::replay as replay_recording;
 use uwbimu_app::replay::streamed::{replay_streamed, StreamedInput};
 use uwbimu_app::replay::ReplaySummary;
 use uwbimu_app::replay_config::ReplayConfig;
-use uwbimu_io::mcap_read::McapEnd;
-use uwbimu_io::recording_out::{write_recording_mcap, RecordingStreams};
-use uwbimu_io::truth_file::{read_truth_csv, TRUTH_COLUMNS};
+use uwbimu_io::files::truth_file::{read_truth_csv, TRUTH_COLUMNS};
+use uwbimu_io::recordings::mcap_read::McapEnd;
+use uwbimu_io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_io::{read_recording_file, survey_recording_file, IoError, Mapping, ReadStats, Recording, RecordingSurvey};
 use uwbimu_vocabulary::sensors::SensorKind;
 
@@ -322,7 +322,7 @@ fn read_truth<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict
 /// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
 /// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...; a tag beyond 0 in `tag`), the other
 /// sensors' arrays `sensors` (keywords of the registry) on their topics
-/// ([`uwbimu_io::recording_out::sensor_topic`]), anchors in the `uwbimu.anchors` metadata
+/// ([`uwbimu_io::recordings::recording_out::sensor_topic`]), anchors in the `uwbimu.anchors` metadata
 /// record; zstd chunks.
 #[pyfunction]
 #[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None, **sensors))]

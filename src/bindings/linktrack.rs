@@ -1,10 +1,10 @@
-//! Bindings of the Nooploop LinkTrack frame decoder ([`uwbimu_io::linktrack`]): the
+//! Bindings of the Nooploop LinkTrack frame decoder ([`uwbimu_io::serial::linktrack`]): the
 //! `LinkTrackDecoder` class (bytes in, frames out as dicts) and `encode_linktrack_node_frame2`
 //! (a `NodeFrame2` for tests and simulated devices).
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
-use uwbimu_io::linktrack::{encode_node_frame2, LinkTrackFrame, LinkTrackStream, NodeFrame2, NodeRange2, TagFrame0};
+use uwbimu_io::serial::linktrack::{encode_node_frame2, LinkTrackFrame, LinkTrackStream, NodeFrame2, NodeRange2, TagFrame0};
 use uwbimu_vocabulary::error::Error;
 
 use super::convert::fields_dict;

@@ -11,14 +11,14 @@ use std::sync::Mutex;
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
-use uwbimu_io::foxglove_out::TrajectoryMcapWriter;
-use uwbimu_io::live_settings::LiveSettings;
-use uwbimu_io::msg_schema::{ArrayKind, FieldType, MsgSchema};
-use uwbimu_io::ros_out::{
+use uwbimu_io::files::live_settings::LiveSettings;
+use uwbimu_io::mapping::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
+use uwbimu_io::recordings::foxglove_out::TrajectoryMcapWriter;
+use uwbimu_io::ros::msg_schema::{ArrayKind, FieldType, MsgSchema};
+use uwbimu_io::ros::out::{
     diagnostic_array_cdr, odometry_cdr, pose_with_covariance_cdr, DiagnosticLevel, DiagnosticStatus, Frames, PoseEstimate,
 };
-use uwbimu_io::ros_types::{dds_topic_name, dds_type_name, full_definition};
-use uwbimu_io::topics::{json_range_to_cdr, UWB_RANGE_JSON, UWB_RANGE_MSG_NAME};
+use uwbimu_io::ros::types::{dds_topic_name, dds_type_name, full_definition};
 use uwbimu_io::{survey_recording_file, AnchorLayout, MessageDecoder as CoreDecoder, RecordItem};
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::{quat_from_wxyz, Cov, Vec3};
@@ -255,7 +255,7 @@ impl PyMessageDecoder {
 /// `(PoseWithCovarianceStamped, Odometry)` in frame `parent` (child `child`). `quaternion` is
 /// [w, x, y, z] body → navigation, `angular_rate` the body rate without its bias, `covariance`
 /// the filter's (15, 15) in the order δp, δv, δθ (body), δb_a, δb_g; the messages carry it in
-/// their own conventions (`uwbimu_io::ros_out`).
+/// their own conventions (`uwbimu_io::ros::out`).
 #[pyfunction]
 #[pyo3(signature = (t, position, velocity, quaternion, angular_rate, covariance, *, parent="map", child="base_link"))]
 #[allow(clippy::too_many_arguments)]

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use uwbimu_app::log_survey::{survey_log_file, Heights, LogSurvey};
 use uwbimu_app::replay_config::ReplayConfig;
-use uwbimu_io::anchors::write_anchor_file;
+use uwbimu_io::files::anchors::write_anchor_file;
 use uwbimu_io::IoResult as Result;
 
 use super::args::SurveyArgs;

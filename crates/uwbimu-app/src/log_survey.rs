@@ -1,5 +1,5 @@
 //! The anchor survey of a log of anchor-to-anchor ranges (`uwbimu-replay survey`): the ranges read
-//! through the mapping ([`uwbimu_io::anchor_ranges`]), the known mounting heights by row or by id
+//! through the mapping ([`uwbimu_io::recordings::anchor_ranges`]), the known mounting heights by row or by id
 //! ([`Heights`]), [`survey_anchors`] on them, and the residuals summed up per pair
 //! ([`PairResiduals`]).
 
@@ -9,7 +9,7 @@ use std::path::Path;
 use uwbimu_estimation::anchor_survey::{survey_anchors, AnchorSurvey, SurveyPriors};
 use uwbimu_vocabulary::error::Error as CoreError;
 
-use uwbimu_io::anchor_ranges::{read_anchor_ranges_file, AnchorRangeStats, AnchorRanges};
+use uwbimu_io::recordings::anchor_ranges::{read_anchor_ranges_file, AnchorRangeStats, AnchorRanges};
 use uwbimu_io::{IoResult as Result, Mapping};
 
 /// The mounting heights the user knows, m.

@@ -145,7 +145,7 @@ pub struct ReplaySummary {
     /// Ground-truth samples read.
     pub n_ground_truth: usize,
     /// Bytes lost at the end of a recording that ends before its footer (0 for a complete file;
-    /// [`uwbimu_io::mcap_read::McapEnd::lost_bytes`]).
+    /// [`uwbimu_io::recordings::mcap_read::McapEnd::lost_bytes`]).
     pub truncated_bytes: u64,
     /// Per anchor: what the filter did with its ranges.
     pub anchors: Vec<AnchorUpdateStats>,

@@ -11,7 +11,7 @@ use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::registry::{Method, DEFAULT_METHOD};
-use uwbimu_io::live_settings::LiveSettings;
+use uwbimu_io::files::live_settings::LiveSettings;
 use uwbimu_io::Mapping;
 
 /// A parsed replay file.

@@ -1,38 +1,24 @@
 //! The formats of uwbimu_rs, a crate of their own: it knows the measurement vocabulary
 //! (`uwbimu_vocabulary`) and nothing above it — no estimator, no runner — and the compiler keeps
-//! it so. MCAP logs in and out: streaming reading ([`mcap_read`]), the ros2msg schema parser
-//! ([`msg_schema`]) and generic CDR decoder ([`cdr`]), field-path mappings ([`field_path`],
-//! [`Mapping`]), per-topic decoders ([`topics`]), anchor tables ([`anchors`]), the bounded
-//! reorder window ([`reorder`]), the whole-recording reader ([`read_recording`]), the reader of
-//! anchor-to-anchor ranges ([`anchor_ranges`]), ground-truth files ([`truth_file`]) and the
-//! writers: Foxglove trajectories ([`foxglove_out`]), recordings
-//! ([`recording_out`]), message payloads ([`payloads`]), ROS 2 outputs ([`ros_out`]); the spill
-//! of records to disk ([`spill`]); the Nooploop LinkTrack serial frames ([`linktrack`])
-//! and the DWM1001 UART TLV `dwm_loc_get` response ([`dwm1001`]).
+//! it so. A folder per job:
+//!
+//! - [`ros`]: ROS 2 messages — the ros2msg schema parser, the generic CDR decoder, the type
+//!   definitions, the payload encoders and the ROS 2 outputs (pose, odometry);
+//! - [`recordings`]: MCAP files — the streaming reader, the whole-recording reader
+//!   ([`read_recording`]), the recording writer, the Foxglove trajectory writer and the reader of
+//!   anchor-to-anchor ranges;
+//! - [`mapping`]: how a recording's topics become measurements — the mapping ([`Mapping`]), field
+//!   paths, per-topic decoders and the bounded reorder window;
+//! - [`files`]: the other files — anchor tables, ground-truth files, atomic writes, the spill of
+//!   records to disk, the `[live]` table of the replay file;
+//! - [`serial`]: the Nooploop LinkTrack frames and the DWM1001 UART TLV `dwm_loc_get` response.
 
-pub mod anchor_ranges;
-pub mod anchors;
-pub mod atomic_file;
-pub mod cdr;
-pub mod dwm1001;
 mod error;
-pub mod field_path;
-pub mod foxglove_out;
-pub mod linktrack;
-pub mod live_settings;
-mod mapping;
-pub mod mcap_read;
-pub mod msg_schema;
-pub mod payloads;
-mod recording;
-pub mod recording_out;
-pub mod reorder;
-mod resync;
-pub mod ros_out;
-pub mod ros_types;
-pub mod spill;
-pub mod topics;
-pub mod truth_file;
+pub mod files;
+pub mod mapping;
+pub mod recordings;
+pub mod ros;
+pub mod serial;
 
 pub use error::{IoError, IoResult};
 pub use mapping::{
@@ -40,7 +26,7 @@ pub use mapping::{
     TimeSource, UwbMapping, ANCHOR_RANGE_DEFAULT, ANCHOR_RANGE_I_DEFAULT, ANCHOR_RANGE_J_DEFAULT, BODY_AXES,
     TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
 };
-pub use recording::{
+pub use recordings::recording::{
     read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, MessageDecoder, ReadStats,
     RecordItem, Recording, RecordingSurvey, SensorReadCounts, TopicCounts, TopicRole, TopicStats,
 };

@@ -3,6 +3,9 @@
 //! the `[mapping]` table of a replay TOML file, or from a Python dict (as JSON).
 
 mod check;
+pub mod field_path;
+pub mod reorder;
+pub mod topics;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -201,7 +204,7 @@ pub struct TdoaMapping {
 }
 
 /// Default path of an anchor-to-anchor range's first anchor id: the field of our
-/// `uwbimu_msgs/msg/AnchorRange` ([`crate::recording_out::ANCHOR_RANGE_MSG`]).
+/// `uwbimu_msgs/msg/AnchorRange` ([`crate::recordings::recording_out::ANCHOR_RANGE_MSG`]).
 pub const ANCHOR_RANGE_I_DEFAULT: &str = "anchor_i";
 /// Default path of an anchor-to-anchor range's second anchor id (our message's field).
 pub const ANCHOR_RANGE_J_DEFAULT: &str = "anchor_j";
@@ -266,7 +269,7 @@ pub struct GroundTruthMapping {
     /// `pose.pose.position`).
     pub position: Option<String>,
     /// A CSV file of time (s) and position (m); header row optional, column names as in
-    /// [`crate::truth_file::TRUTH_COLUMNS`].
+    /// [`crate::files::truth_file::TRUTH_COLUMNS`].
     pub file: Option<PathBuf>,
 }
 

@@ -30,7 +30,7 @@ use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_estimation::smoother::Guide;
-use uwbimu_io::spill::Spill;
+use uwbimu_io::files::spill::Spill;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;

@@ -132,7 +132,7 @@ mod tests {
     fn every_sensor_with_a_message_has_its_table_named_as_it() {
         use uwbimu_vocabulary::sensors::SensorKind;
         for kind in SensorKind::ALL {
-            let written = crate::recording_out::sensor_topic(*kind).is_some();
+            let written = crate::recordings::recording_out::sensor_topic(*kind).is_some();
             let mapped = NESTED.iter().any(|(name, _)| *name == kind.info().name);
             assert_eq!(
                 written,

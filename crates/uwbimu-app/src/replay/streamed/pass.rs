@@ -18,7 +18,7 @@ use super::truth_match::{hand_on, TruthMatch};
 use super::{survey_sensors, FilterKind, Prefix, Run, StreamedInput, StreamedReplay, UpdateTally};
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
-use uwbimu_io::spill::Spill;
+use uwbimu_io::files::spill::Spill;
 use uwbimu_io::{stream_recording_file, IoResult as Result, RecordItem, RecordingSurvey};
 
 /// What one pass of [`run`] does with the events besides filtering them: the ranges to leave

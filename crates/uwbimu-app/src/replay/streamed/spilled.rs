@@ -12,7 +12,7 @@ use uwbimu_vocabulary::math::Mat3;
 use uwbimu_vocabulary::state::{NominalState, STATE_FLAT_LEN};
 
 use super::truth_match::TruthMatch;
-use uwbimu_io::spill::Spill;
+use uwbimu_io::files::spill::Spill;
 use uwbimu_io::IoResult as Result;
 
 /// Numbers in a stored step ([`step_to_flat`]).

@@ -7,10 +7,10 @@ use uwbimu_vocabulary::records::{AltitudeSample, OdometrySample};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use super::{cdr_schema, default_stamp, stamp_ns};
-use crate::cdr::decode;
-use crate::field_path::{FieldPath, PointPath};
-use crate::mcap_read::ChannelInfo;
-use crate::msg_schema::MsgSchema;
+use crate::mapping::field_path::{FieldPath, PointPath};
+use crate::recordings::mcap_read::ChannelInfo;
+use crate::ros::cdr::decode;
+use crate::ros::msg_schema::MsgSchema;
 use crate::{AltitudeMapping, IoError as Error, IoResult as Result, OdometryMapping};
 
 /// A decoded observation (time 0 until the reader stamps it) and whether it can be used: false
@@ -169,9 +169,9 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::mcap_read::SchemaInfo;
-    use crate::payloads::{altitude_cdr, odometry_cdr};
-    use crate::recording_out::{ODOMETRY_MSG, RANGE_MSG};
+    use crate::recordings::mcap_read::SchemaInfo;
+    use crate::recordings::recording_out::{ODOMETRY_MSG, RANGE_MSG};
+    use crate::ros::payloads::{altitude_cdr, odometry_cdr};
 
     fn channel(schema: &str, text: &str) -> ChannelInfo {
         let schema = SchemaInfo { name: schema.into(), encoding: "ros2msg".into(), data: text.as_bytes().to_vec() };

@@ -8,8 +8,8 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::mcap_read::{ChannelInfo, SchemaInfo};
-use crate::msg_schema::MsgSchema;
+use crate::recordings::mcap_read::{ChannelInfo, SchemaInfo};
+use crate::ros::msg_schema::MsgSchema;
 use crate::{IoError as Error, IoResult as Result, Mapping};
 
 use super::reader::{decode_message, message_time, role_for, Decoded, Item, Role, Scratch};
@@ -167,8 +167,8 @@ impl MessageDecoder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::payloads::imu_cdr;
-    use crate::recording_out::IMU_MSG;
+    use crate::recordings::recording_out::IMU_MSG;
+    use crate::ros::payloads::imu_cdr;
     use uwbimu_vocabulary::math::Vec3;
     use uwbimu_vocabulary::records::ImuSample;
 
@@ -177,9 +177,9 @@ mod tests {
         builtin_interfaces/Time stamp\nstring frame_id\n";
 
     fn range_cdr(t_s: f64, anchor: &str, range: f64) -> Vec<u8> {
-        let mut b = crate::payloads::cdr_with_header(t_s, "uwb", 64);
-        crate::payloads::push_cdr_string(&mut b, anchor);
-        crate::payloads::align8(&mut b);
+        let mut b = crate::ros::payloads::cdr_with_header(t_s, "uwb", 64);
+        crate::ros::payloads::push_cdr_string(&mut b, anchor);
+        crate::ros::payloads::align8(&mut b);
         b.extend_from_slice(&range.to_le_bytes());
         b
     }
@@ -230,8 +230,8 @@ mod tests {
         let mut out = Vec::new();
         d.decode("/uwb", 7_000_000_000, &range_cdr(0.0, "A0", 2.0), &mut out).unwrap();
         let mut bare = vec![0u8, 1, 0, 0];
-        crate::payloads::push_cdr_string(&mut bare, "A1");
-        crate::payloads::align8(&mut bare);
+        crate::ros::payloads::push_cdr_string(&mut bare, "A1");
+        crate::ros::payloads::align8(&mut bare);
         bare.extend_from_slice(&3.0f64.to_le_bytes());
         d.decode("/bare", 7_000_000_000, &bare, &mut out).unwrap();
         let times: Vec<f64> = out.iter().map(|r| if let RecordItem::Range(m, _) = r { m.t_s } else { f64::NAN }).collect();

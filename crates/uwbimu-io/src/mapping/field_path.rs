@@ -8,8 +8,8 @@
 use crate::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::math::Vec3;
 
-use crate::cdr::Value;
-use crate::msg_schema::{ArrayKind, FieldType, MsgSchema, Primitive};
+use crate::ros::cdr::Value;
+use crate::ros::msg_schema::{ArrayKind, FieldType, MsgSchema, Primitive};
 
 /// One step of a resolved path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -271,7 +271,7 @@ impl Condition {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cdr::Value::{Array, Float, Struct, UInt};
+    use crate::ros::cdr::Value::{Array, Float, Struct, UInt};
 
     fn schema() -> MsgSchema {
         MsgSchema::parse(

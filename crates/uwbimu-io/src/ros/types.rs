@@ -4,11 +4,11 @@
 //!
 //! [`full_definition`] gives the text an MCAP `ros2msg` schema carries (the type's own `.msg`,
 //! then a line of `=` and `MSG: pkg/msg/Type` with each dependency), which both
-//! [`crate::msg_schema::MsgSchema::parse`] and a DDS type builder read.
+//! [`crate::ros::msg_schema::MsgSchema::parse`] and a DDS type builder read.
 
 use std::path::{Path, PathBuf};
 
-use crate::msg_schema::{nested_type_names, normalize};
+use crate::ros::msg_schema::{nested_type_names, normalize};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::{IoError as Error, IoResult as Result};
@@ -122,8 +122,8 @@ pub fn dds_topic_name(topic: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg_schema::MsgSchema;
-    use crate::recording_out::{IMU_MSG, ODOMETRY_MSG};
+    use crate::recordings::recording_out::{IMU_MSG, ODOMETRY_MSG};
+    use crate::ros::msg_schema::MsgSchema;
 
     /// The field layout of every type of a schema, as (type name, [(field, element, array)]).
     fn layout(s: &MsgSchema) -> Vec<(String, Vec<String>)> {

@@ -144,7 +144,7 @@ pub fn read_anchor_file(path: &Path) -> Result<BTreeMap<String, Vec3>> {
 /// Writes anchor positions (`ids[k]` at `positions[k]`, m, rounded to 0.1 mm) as a file
 /// [`read_anchor_file`] reads back, by extension: `.csv` (`id,x_m,y_m,z_m` then a row per
 /// anchor), `.toml` (`[anchors]`, `"id" = [x, y, z]`) or `.json` (`{"id": [x, y, z]}`). The
-/// file is replaced only once complete ([`crate::atomic_file::write_atomically`]).
+/// file is replaced only once complete ([`crate::files::atomic_file::write_atomically`]).
 ///
 /// # Errors
 /// [`Error::Format`] for an unknown extension, ids and positions of different lengths, a
@@ -178,7 +178,7 @@ pub fn write_anchor_file(path: &Path, ids: &[String], positions: &[Vec3]) -> Res
         "json" => serde_json::to_string_pretty(&xyz).map_err(|e| fail(e.to_string()))? + "\n",
         _ => return Err(fail(format!("unknown extension `{ext}` (expected .csv, .toml or .json)"))),
     };
-    crate::atomic_file::write_atomically(path, |file| {
+    crate::files::atomic_file::write_atomically(path, |file| {
         std::io::Write::write_all(file, text.as_bytes()).map_err(|e| Error::io(path.display(), e))
     })
 }

@@ -1,5 +1,5 @@
-//! The resynchronising scan the serial-stream decoders share ([`crate::linktrack`],
-//! [`crate::dwm1001`]): bytes arrive in pieces cut anywhere, frames start at a known byte,
+//! The resynchronising scan the serial-stream decoders share ([`crate::serial::linktrack`],
+//! [`crate::serial::dwm1001`]): bytes arrive in pieces cut anywhere, frames start at a known byte,
 //! and a candidate that turns out not to be a frame costs one byte before the search goes on.
 
 /// What the bytes from a start byte are, as a protocol's [`Framing::classify`] says.

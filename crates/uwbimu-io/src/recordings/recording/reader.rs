@@ -4,12 +4,12 @@
 
 use std::collections::BTreeMap;
 
-use crate::anchors::{parse_anchor_metadata, ANCHORS_METADATA};
-use crate::mcap_read::{read_mcap, ChannelInfo, McapEnd, McapEvent};
-use crate::reorder::ReorderBuffer;
-use crate::topics::{
+use crate::files::anchors::{parse_anchor_metadata, ANCHORS_METADATA};
+use crate::mapping::reorder::ReorderBuffer;
+use crate::mapping::topics::{
     AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawObservation, RawRange, RawTdoa, SensorDecoder, TdoaDecoder,
 };
+use crate::recordings::mcap_read::{read_mcap, ChannelInfo, McapEnd, McapEvent};
 use crate::{IoError as Error, IoResult as Result};
 use crate::{Mapping, TimeSource};
 use uwbimu_vocabulary::math::Vec3;

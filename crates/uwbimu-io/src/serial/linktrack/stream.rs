@@ -5,7 +5,7 @@ use super::{
     LinkTrackFrame, FRAME_HEADER, NODE_FRAME2_FIXED_LEN, NODE_FRAME2_MARK, NODE_FRAME2_MAX_LEN, NODE_FRAME2_MIN_LEN,
     TAG_FRAME0_LEN, TAG_FRAME0_MARK,
 };
-use crate::resync::{push_frames, Framing, Scan};
+use crate::serial::resync::{push_frames, Framing, Scan};
 
 /// Bytes appended to the buffer per step of [`LinkTrackStream::push`]: the buffer never holds
 /// more than this plus one incomplete frame.

@@ -9,7 +9,7 @@
 
 use crate::{IoError as Error, IoResult as Result};
 
-use crate::msg_schema::{ArrayKind, FieldType, MsgSchema, Primitive};
+use crate::ros::msg_schema::{ArrayKind, FieldType, MsgSchema, Primitive};
 
 /// A decoded value.
 #[derive(Debug, Clone, PartialEq)]

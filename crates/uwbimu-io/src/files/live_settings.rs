@@ -9,7 +9,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::ros_types::full_definition;
+use crate::ros::types::full_definition;
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::{IoError as Error, IoResult as Result, Mapping};

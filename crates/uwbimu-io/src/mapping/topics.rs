@@ -18,12 +18,12 @@ use crate::{IoError as Error, IoResult as Result};
 use serde::Deserialize;
 use uwbimu_vocabulary::math::Vec3;
 
-use crate::anchors::json_id;
-use crate::cdr::{decode, Value};
-use crate::field_path::{Condition, FieldPath, PointPath};
-use crate::mcap_read::ChannelInfo;
-use crate::msg_schema::{normalize, MsgSchema};
-use crate::payloads::uwb_range_cdr;
+use crate::files::anchors::json_id;
+use crate::mapping::field_path::{Condition, FieldPath, PointPath};
+use crate::recordings::mcap_read::ChannelInfo;
+use crate::ros::cdr::{decode, Value};
+use crate::ros::msg_schema::{normalize, MsgSchema};
+use crate::ros::payloads::uwb_range_cdr;
 use crate::{
     AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
     TDOA_DEFAULT,
@@ -55,7 +55,7 @@ pub struct RawRange {
 pub const UWB_RANGE_MSG_NAME: &str = "uwbimu_msgs/msg/UwbRange";
 
 /// Schema name of the TDoA message the recordings we write carry (CDR; `idA`, `idB`,
-/// `distanceDiff` as in the Crazyflie `estTDOA` event, see [`crate::recording_out::TDOA_MSG`]).
+/// `distanceDiff` as in the Crazyflie `estTDOA` event, see [`crate::recordings::recording_out::TDOA_MSG`]).
 pub const TDOA_MSG_NAME: &str = "uwbimu_msgs/msg/Tdoa";
 
 /// One decoded TDoA before anchor ids become indices.
@@ -510,7 +510,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::mcap_read::SchemaInfo;
+    use crate::recordings::mcap_read::SchemaInfo;
 
     const HEADER: &str = "===\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n\
                           ===\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n";
@@ -608,7 +608,7 @@ mod tests {
     #[test]
     fn json_range_round_trips_and_rejects_unknown_keys() {
         let mut out = Vec::new();
-        let bytes = crate::payloads::range_json(12.25, "A3", 4.5, Some(0.01), 1);
+        let bytes = crate::ros::payloads::range_json(12.25, "A3", 4.5, Some(0.01), 1);
         assert_eq!(decode_json(&bytes, Some("/uwb/t9"), &mut out).unwrap(), Some(12_250_000_000));
         assert_eq!((out[0].anchor_id.as_str(), out[0].range_m, out[0].variance_m2), ("A3", 4.5, Some(0.01)));
         assert_eq!(out[0].tag_id.as_deref(), Some("1"), "the message's tag wins over the topic");
@@ -617,10 +617,10 @@ mod tests {
             id: 1,
             topic: "/uwb".into(),
             message_encoding: "cdr".into(),
-            schema: Some(std::sync::Arc::new(crate::mcap_read::SchemaInfo {
+            schema: Some(std::sync::Arc::new(crate::recordings::mcap_read::SchemaInfo {
                 name: UWB_RANGE_MSG_NAME.into(),
                 encoding: "ros2msg".into(),
-                data: crate::ros_types::full_definition(UWB_RANGE_MSG_NAME, &[]).unwrap().into_bytes(),
+                data: crate::ros::types::full_definition(UWB_RANGE_MSG_NAME, &[]).unwrap().into_bytes(),
             })),
         };
         assert!(RangeDecoder::recognises(&cdr_channel));
@@ -631,7 +631,7 @@ mod tests {
         assert_eq!(stamp, Some(3_000_000_005));
         assert_eq!((again[0].anchor_id.as_str(), again[0].range_m, again[0].tag_id.as_deref()), ("A2", 4.5, Some("1")));
         assert_eq!(again[0].variance_m2, None);
-        let untagged = crate::payloads::range_json(1.0, "A3", 4.5, None, 0);
+        let untagged = crate::ros::payloads::range_json(1.0, "A3", 4.5, None, 0);
         decode_json(&untagged, Some("/uwb/t9"), &mut out).unwrap();
         decode_json(&untagged, None, &mut out).unwrap();
         assert_eq!((out[1].tag_id.as_deref(), out[2].tag_id.as_deref()), (Some("/uwb/t9"), None));

@@ -12,7 +12,7 @@
 use uwbimu_vocabulary::math::{skew, Cov, Mat3, Quat, Vec3};
 use uwbimu_vocabulary::state::{ATT, BG, POS, VEL};
 
-use crate::payloads::{align8, cdr_with_header, push_cdr_string};
+use crate::ros::payloads::{align8, cdr_with_header, push_cdr_string};
 
 /// One estimate to publish.
 #[derive(Debug, Clone, Copy)]
@@ -170,9 +170,9 @@ fn push_len(b: &mut Vec<u8>, n: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cdr::{decode, Value};
-    use crate::msg_schema::{FieldType, MsgSchema};
-    use crate::ros_types::full_definition;
+    use crate::ros::cdr::{decode, Value};
+    use crate::ros::msg_schema::{FieldType, MsgSchema};
+    use crate::ros::types::full_definition;
     use nalgebra::Vector3;
 
     /// The value at `path` below `v`, a value of the schema's type `ty`; with the type it has.

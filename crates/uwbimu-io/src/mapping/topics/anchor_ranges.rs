@@ -3,12 +3,12 @@
 //! between them, the input of the anchor survey.
 
 use super::id_pairs::{IdPairDecoder, PairPaths};
-use crate::mcap_read::ChannelInfo;
+use crate::recordings::mcap_read::ChannelInfo;
 use crate::IoResult as Result;
 use crate::{AnchorRangeMapping, ANCHOR_RANGE_DEFAULT, ANCHOR_RANGE_I_DEFAULT, ANCHOR_RANGE_J_DEFAULT};
 
 /// Schema name of the anchor-to-anchor range message the recordings we write carry (CDR;
-/// `anchor_i`, `anchor_j`, `range`, see [`crate::recording_out::ANCHOR_RANGE_MSG`]).
+/// `anchor_i`, `anchor_j`, `range`, see [`crate::recordings::recording_out::ANCHOR_RANGE_MSG`]).
 pub const ANCHOR_RANGE_MSG_NAME: &str = "uwbimu_msgs/msg/AnchorRange";
 
 /// One decoded anchor-to-anchor range before anchor ids become rows.
@@ -65,9 +65,9 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::mcap_read::SchemaInfo;
-    use crate::payloads::anchor_range_cdr;
-    use crate::recording_out::ANCHOR_RANGE_MSG;
+    use crate::recordings::mcap_read::SchemaInfo;
+    use crate::recordings::recording_out::ANCHOR_RANGE_MSG;
+    use crate::ros::payloads::anchor_range_cdr;
     use crate::IoError as Error;
 
     fn channel(schema: &str, text: &str) -> ChannelInfo {

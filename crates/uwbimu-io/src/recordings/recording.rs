@@ -12,8 +12,8 @@ mod survey;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-use crate::mcap_read::McapEnd;
-use crate::truth_file::read_truth_csv;
+use crate::files::truth_file::read_truth_csv;
+use crate::recordings::mcap_read::McapEnd;
 use crate::{IoError as Error, IoResult as Result, Mapping};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};

@@ -3,10 +3,10 @@
 //! resolved once against the channel's schema, each selecting one value per measurement.
 
 use super::{cdr_schema, default_stamp, stamp_ns};
-use crate::cdr::decode;
-use crate::field_path::FieldPath;
-use crate::mcap_read::ChannelInfo;
-use crate::msg_schema::MsgSchema;
+use crate::mapping::field_path::FieldPath;
+use crate::recordings::mcap_read::ChannelInfo;
+use crate::ros::cdr::decode;
+use crate::ros::msg_schema::MsgSchema;
 use crate::{IoError as Error, IoResult as Result};
 
 /// The paths of one mapping section (`section.anchor_i`, `section.anchor_j`, `section.<value>`),

@@ -18,7 +18,7 @@
 //! "DWM1001 Firmware API Guide" and was checked against public host code; see `docs/dwm1001.md`
 //! for the sources and what is assumed.
 
-use crate::resync::{push_frames, Framing, Scan};
+use crate::serial::resync::{push_frames, Framing, Scan};
 
 /// The `dwm_loc_get` request: TLV type `0x0C`, length 0.
 pub const LOC_GET_REQUEST: [u8; 2] = [0x0C, 0x00];

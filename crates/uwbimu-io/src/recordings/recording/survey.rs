@@ -5,8 +5,8 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use crate::anchors::{read_anchor_file, AnchorTable};
-use crate::topics::RawRange;
+use crate::files::anchors::{read_anchor_file, AnchorTable};
+use crate::mapping::topics::RawRange;
 use crate::{IoError as Error, IoResult as Result, Mapping};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement, TdoaMeasurement};

@@ -1,7 +1,7 @@
 //! Message payloads as bytes, one encoder per message we write: XCDR1 little-endian CDR of the
 //! ROS 2 messages (`sensor_msgs/msg/Imu`, `sensor_msgs/msg/Range`, `nav_msgs/msg/Odometry`, our
 //! `uwbimu_msgs` TDoA, anchor-range and UWB-range messages) and the `uwbimu.UwbRange` JSON. The
-//! recording writer ([`crate::recording_out`]) and the topic converters use them.
+//! recording writer ([`crate::recordings::recording_out`]) and the topic converters use them.
 
 use serde_json::json;
 use uwbimu_vocabulary::records::{ImuSample, TdoaMeasurement};
@@ -34,7 +34,7 @@ pub(crate) fn cdr_with_header(t_s: f64, frame_id: &str, capacity: usize) -> Vec<
 }
 
 /// One range as XCDR1 little-endian `uwbimu_msgs/msg/UwbRange` (see
-/// [`crate::topics::UWB_RANGE_MSG_NAME`]), stamped `(sec, nanosec)`, frame `uwb`.
+/// [`crate::mapping::topics::UWB_RANGE_MSG_NAME`]), stamped `(sec, nanosec)`, frame `uwb`.
 pub fn uwb_range_cdr((sec, nsec): (i32, u32), anchor_id: &str, range_m: f64, variance_m2: f64, tag: &str) -> Vec<u8> {
     let mut b = Vec::with_capacity(64);
     b.extend_from_slice(&[0, 1, 0, 0]);
@@ -86,7 +86,7 @@ pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f
 }
 
 /// A message of two anchor ids and a float64 after the header, as XCDR1 little-endian (the
-/// layout of [`TDOA_MSG`](crate::recording_out::TDOA_MSG) and [`ANCHOR_RANGE_MSG`](crate::recording_out::ANCHOR_RANGE_MSG)).
+/// layout of [`TDOA_MSG`](crate::recordings::recording_out::TDOA_MSG) and [`ANCHOR_RANGE_MSG`](crate::recordings::recording_out::ANCHOR_RANGE_MSG)).
 fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> {
     let mut b = cdr_with_header(t_s, "", 48);
     push_cdr_string(&mut b, anchor_i);
@@ -96,17 +96,17 @@ fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> 
     b
 }
 
-/// One TDoA as XCDR1 little-endian [`TDOA_MSG`](crate::recording_out::TDOA_MSG), anchor ids `A{i}`, `A{j}`.
+/// One TDoA as XCDR1 little-endian [`TDOA_MSG`](crate::recordings::recording_out::TDOA_MSG), anchor ids `A{i}`, `A{j}`.
 pub fn tdoa_cdr(m: &TdoaMeasurement) -> Vec<u8> {
     id_pair_cdr(m.t_s, &format!("A{}", m.anchor_i), &format!("A{}", m.anchor_j), m.tdoa_m)
 }
 
-/// One anchor-to-anchor range as XCDR1 little-endian [`ANCHOR_RANGE_MSG`](crate::recording_out::ANCHOR_RANGE_MSG).
+/// One anchor-to-anchor range as XCDR1 little-endian [`ANCHOR_RANGE_MSG`](crate::recordings::recording_out::ANCHOR_RANGE_MSG).
 pub fn anchor_range_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, range_m: f64) -> Vec<u8> {
     id_pair_cdr(t_s, anchor_i, anchor_j, range_m)
 }
 
-/// One height as XCDR1 little-endian [`RANGE_MSG`](crate::recording_out::RANGE_MSG) (frame `altimeter`, infrared), `range = z`;
+/// One height as XCDR1 little-endian [`RANGE_MSG`](crate::recordings::recording_out::RANGE_MSG) (frame `altimeter`, infrared), `range = z`;
 /// its limits are wide open (`±f32::MAX`), as a simulated height may be negative.
 pub fn altitude_cdr(t_s: f64, z_m: f64) -> Vec<u8> {
     let mut b = cdr_with_header(t_s, "altimeter", 48);
@@ -120,7 +120,7 @@ pub fn altitude_cdr(t_s: f64, z_m: f64) -> Vec<u8> {
     b
 }
 
-/// One body velocity as XCDR1 little-endian [`ODOMETRY_MSG`](crate::recording_out::ODOMETRY_MSG) (frames `odom` → `base_link`,
+/// One body velocity as XCDR1 little-endian [`ODOMETRY_MSG`](crate::recordings::recording_out::ODOMETRY_MSG) (frames `odom` → `base_link`,
 /// identity pose, zero covariances), NaN for an axis not measured.
 pub fn odometry_cdr(t_s: f64, velocity: [f64; 3]) -> Vec<u8> {
     let mut b = cdr_with_header(t_s, "odom", 720);

@@ -17,9 +17,9 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
-use crate::anchors::ANCHORS_METADATA;
-use crate::payloads::{altitude_cdr, anchor_range_cdr, imu_cdr, odometry_cdr, range_json, split_time, tdoa_cdr};
-use crate::topics::{RawAnchorRange, ANCHOR_RANGE_MSG_NAME, TDOA_MSG_NAME, UWB_RANGE_JSON, UWB_RANGE_JSON_SCHEMA};
+use crate::files::anchors::ANCHORS_METADATA;
+use crate::mapping::topics::{RawAnchorRange, ANCHOR_RANGE_MSG_NAME, TDOA_MSG_NAME, UWB_RANGE_JSON, UWB_RANGE_JSON_SCHEMA};
+use crate::ros::payloads::{altitude_cdr, anchor_range_cdr, imu_cdr, odometry_cdr, range_json, split_time, tdoa_cdr};
 
 /// The ros2msg text of a header's dependencies (`std_msgs/Header`, `builtin_interfaces/Time`),
 /// appended to the definitions that have a header.

@@ -10,10 +10,10 @@ use std::path::Path;
 
 use uwbimu_vocabulary::records::AnchorPair;
 
-use crate::anchors::read_anchor_file;
-use crate::mcap_read::{read_mcap, McapEnd, McapEvent};
-use crate::recording::topic_list;
-use crate::topics::{AnchorRangeDecoder, RawAnchorRange, ANCHOR_RANGE_MSG_NAME};
+use crate::files::anchors::read_anchor_file;
+use crate::mapping::topics::{AnchorRangeDecoder, RawAnchorRange, ANCHOR_RANGE_MSG_NAME};
+use crate::recordings::mcap_read::{read_mcap, McapEnd, McapEvent};
+use crate::recordings::recording::topic_list;
 use crate::{IoError as Error, IoResult as Result, Mapping, TopicRole, TopicStats};
 
 /// What reading a log of anchor-to-anchor ranges found.
