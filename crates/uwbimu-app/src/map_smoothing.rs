@@ -343,12 +343,18 @@ pub fn map_passes<R: MapRunner>(
         let mut kept = None;
         for halving in 0..=HALVINGS {
             let alpha = 0.5_f64.powi(halving as i32);
-            // The full step is the pass's own track; a shorter one a blend (none: nodes differ).
-            let blended = if halving == 0 { None } else { Some(blend_track(&track, &next_track, alpha)) };
-            let Some(trial) = blended.as_ref().map_or(Some(&next_track), Option::as_ref) else { break };
-            let trial_cost = objective(runner, trial, ranges, &scale, smoothing)?.total();
+            // The full step is the pass's own track (None here); a shorter one a blend, which
+            // ends the halving when the two tracks' nodes differ.
+            let blended = match halving {
+                0 => None,
+                _ => match blend_track(&track, &next_track, alpha) {
+                    Some(blend) => Some(blend),
+                    None => break,
+                },
+            };
+            let trial_cost = objective(runner, blended.as_ref().unwrap_or(&next_track), ranges, &scale, smoothing)?.total();
             if trial_cost < cost {
-                kept = Some((alpha, blended.flatten().unwrap_or(next_track), trial_cost));
+                kept = Some((alpha, blended.unwrap_or(next_track), trial_cost));
                 break;
             }
         }
