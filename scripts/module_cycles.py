@@ -199,14 +199,14 @@ def split_path(text: str) -> list[str]:
     return [s for s in re.split(r"\s*::\s*", re.sub(rf"\s+as\s+{_IDENT}$", "", text.strip())) if s]
 
 
-def circles(edges: dict[tuple[str, ...], dict[tuple[str, ...], str]]) -> list[list[tuple[str, ...]]]:
+def circles(edges: dict[Module, dict[Module, str]]) -> list[list[Module]]:
     """The strongly connected sets of more than one file (Tarjan's algorithm)."""
-    index: dict[tuple[str, ...], int] = {}
-    low: dict[tuple[str, ...], int] = {}
-    stack: list[tuple[str, ...]] = []
-    found: list[list[tuple[str, ...]]] = []
+    index: dict[Module, int] = {}
+    low: dict[Module, int] = {}
+    stack: list[Module] = []
+    found: list[list[Module]] = []
 
-    def visit(v: tuple[str, ...]) -> None:
+    def visit(v: Module) -> None:
         index[v] = low[v] = len(index)
         stack.append(v)
         for w in edges.get(v, {}):

@@ -4,12 +4,11 @@
 use std::io::Write;
 use std::path::Path;
 
+use uwbimu_io::files::atomic_file::write_atomically;
+use uwbimu_io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::error::Error as CoreError;
 
-use uwbimu_io::{IoError as Error, IoResult as Result};
-
 use crate::columns::Columns;
-use uwbimu_io::files::atomic_file::write_atomically;
 
 /// Writes a CSV file one row at a time: the header when created, then each row as its values
 /// (`f64::to_string`) separated by commas, one line per row.

@@ -11,6 +11,7 @@ use serde::Serialize;
 use uwbimu_estimation::pipeline::{Measured, Progress, UpdateRecord};
 
 use uwbimu_io::IoResult as Result;
+use uwbimu_io::Recording;
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
@@ -22,7 +23,6 @@ use crate::metrics::{evaluate, Evaluation};
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
 use crate::run::{BatchInput, BatchOutput};
-use uwbimu_io::Recording;
 
 /// What the filter did with one anchor's ranges (or with one sensor's readings).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

@@ -6,13 +6,13 @@
 
 use std::path::Path;
 
+use uwbimu_io::files::live_settings::LiveSettings;
+use uwbimu_io::Mapping;
 use uwbimu_io::{IoError as Error, IoResult as Result};
 use uwbimu_vocabulary::config::{ConfigValue, FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::registry::{Method, DEFAULT_METHOD};
-use uwbimu_io::files::live_settings::LiveSettings;
-use uwbimu_io::Mapping;
 
 /// A parsed replay file.
 #[derive(Debug, Clone, PartialEq)]

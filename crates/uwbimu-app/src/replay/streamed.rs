@@ -31,6 +31,7 @@ use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, S
 use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_estimation::smoother::Guide;
 use uwbimu_io::files::spill::Spill;
+use uwbimu_io::{IoError, IoResult as Result, Mapping, RecordingSurvey};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
@@ -53,7 +54,6 @@ use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
 use crate::registry::{methods, Method};
 use crate::run::{check_inputs, check_tags, BatchInput};
-use uwbimu_io::{IoResult as Result, Mapping, RecordingSurvey};
 
 /// What [`replay_streamed`] is given besides the method.
 #[derive(Debug, Clone, Copy)]
@@ -319,7 +319,7 @@ fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> 
 /// smoothed).
 ///
 /// # Errors
-/// As [`crate::methods::run_method`] and the file's read; [`uwbimu_io::IoError::Io`] when the
+/// As [`crate::methods::run_method`] and the file's read; [`IoError::Io`] when the
 /// temporary files of smoothing cannot be written.
 pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     method: Method,
@@ -363,7 +363,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         let out = StepsOut::spilled(input.spill_dir)?;
         // A log that cannot start without the ranges left out keeps the pass before.
         let mut rerun = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref(), None) {
-            Err(uwbimu_io::IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
+            Err(IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
             other => other?,
         };
         rerun.smooth(&again_input, kind.core)?;
@@ -440,7 +440,7 @@ fn residuals_of<E>(
 
 impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i, E> {
     type Pass = Pass<'a, E>;
-    type Error = uwbimu_io::IoError;
+    type Error = IoError;
 
     fn residuals(&mut self, pass: &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
         residuals_of(pass, self.ranges, self.input)
@@ -473,7 +473,7 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
         let input = StreamedInput { progress: self.quiet, ..*self.input };
         let out = StepsOut::spilled(input.spill_dir)?;
         let guide = Some(Arc::new(guide));
-        let declined = |e: &uwbimu_io::IoError| matches!(e, uwbimu_io::IoError::Core(CoreError::NotPositiveDefinite { .. }));
+        let declined = |e: &IoError| matches!(e, IoError::Core(CoreError::NotPositiveDefinite { .. }));
         let mut rerun =
             match run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut EventsOfPass::default(), self.model, guide)
             {
@@ -493,7 +493,7 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
 /// replay the whole recording ([`super::replay`]).
 ///
 /// # Errors
-/// As [`super::replay`]; [`uwbimu_io::IoError::Io`] when the temporary files of smoothing cannot be
+/// As [`super::replay`]; [`IoError::Io`] when the temporary files of smoothing cannot be
 /// written in `input.spill_dir`; the errors of `on_step` as they are.
 pub fn replay_streamed(
     method: Method,

@@ -6,10 +6,10 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use uwbimu_estimation::pipeline::Event;
+use uwbimu_io::IoResult as Result;
 use uwbimu_vocabulary::config::FilterConfig;
 
 use crate::uwb_clock::UwbClock;
-use uwbimu_io::IoResult as Result;
 
 /// Puts the events of the reader (in time order) into the batch order after the range time
 /// offset: an event is released once no later input can come before it, i.e. once an input

@@ -7,6 +7,8 @@ use std::sync::Arc;
 use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Estimator, Event, MapObjective, Progress, Stream};
 use uwbimu_estimation::smoother::Guide;
+use uwbimu_io::files::spill::Spill;
+use uwbimu_io::{stream_recording_file, IoError, IoResult as Result, RecordItem, RecordingSurvey};
 use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
@@ -18,8 +20,6 @@ use super::truth_match::{hand_on, TruthMatch};
 use super::{survey_sensors, FilterKind, Prefix, Run, StreamedInput, StreamedReplay, UpdateTally};
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
-use uwbimu_io::files::spill::Spill;
-use uwbimu_io::{stream_recording_file, IoResult as Result, RecordItem, RecordingSurvey};
 
 /// What one pass of [`run`] does with the events besides filtering them: the ranges to leave
 /// out, by their order in the stream; all of them kept when `kept` is Some, and the IMU samples
@@ -40,7 +40,7 @@ impl EventsOfPass<'_> {
     /// Whether the released `event` goes to the filter (a range left out does not).
     ///
     /// # Errors
-    /// [`uwbimu_io::IoError::Io`] when an IMU sample cannot be spilled.
+    /// [`IoError::Io`] when an IMU sample cannot be spilled.
     pub(super) fn passes(&mut self, event: &Event) -> Result<bool> {
         let r = match event {
             Event::Range(r) => r,
@@ -158,7 +158,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     });
     let cancelled_run = match read {
         Ok(()) => false,
-        Err(uwbimu_io::IoError::Core(CoreError::Interrupted { .. })) => true,
+        Err(IoError::Core(CoreError::Interrupted { .. })) => true,
         Err(e) => return Err(e),
     };
     if !cancelled_run {
@@ -212,8 +212,8 @@ impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
                 self.smoothing_repairs = repairs;
                 Some(s)
             }
-            Err(uwbimu_io::IoError::Core(CoreError::Interrupted { .. })) => None,
-            Err(uwbimu_io::IoError::Core(CoreError::NotPositiveDefinite { .. })) => {
+            Err(IoError::Core(CoreError::Interrupted { .. })) => None,
+            Err(IoError::Core(CoreError::NotPositiveDefinite { .. })) => {
                 self.smoothing_failed = true;
                 None
             }

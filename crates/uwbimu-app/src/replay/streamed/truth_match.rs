@@ -4,11 +4,11 @@
 use std::collections::VecDeque;
 
 use uwbimu_estimation::pipeline::StepRecord;
+use uwbimu_io::IoResult as Result;
 use uwbimu_vocabulary::math::Vec3;
 
 use super::super::TruthRmse;
 use crate::metrics::TruthErrors;
-use uwbimu_io::IoResult as Result;
 
 /// Ground truth matched to the steps in time order: each step's truth is interpolated between
 /// the truth samples around it ([`TruthErrors`]), so the truth up to the step's time is given
