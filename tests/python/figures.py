@@ -1,5 +1,5 @@
 """Measured figures stored beside the tests (``tests/figures/<name>.csv``), the Python side of
-``tests/common/figures.rs``: :func:`hold` fails a figure more than 10 % (plus 2 mm) above its
+``tests/integration/common/figures.rs``: :func:`hold` fails a figure more than 10 % (plus 2 mm) above its
 stored value; with ``UPDATE_BOUNDS=1`` it records the figure instead and prints what moved. A
 figure more than 1 % worse (higher) is not stored unless ``UPDATE_BOUNDS_ALLOW_WORSE=1`` is set
 too: it is printed as ``worse:`` and ``scripts/update_test_bounds.sh`` fails. Snapshots, not

@@ -269,7 +269,7 @@ def test_crlb_beside_the_filter_error(los_run, filter_config):
     b = bound.filter(late)
     mse = (e["e_h"] ** 2).mean()
     crlb_h = (b["crlb_x"] ** 2 + b["crlb_y"] ** 2).mean()
-    assert mse > 0.5 * crlb_h  # one run: loose Monte-Carlo tolerance (6 runs in tests/crlb.rs)
+    assert mse > 0.5 * crlb_h  # one run: loose Monte-Carlo tolerance (6 runs in tests/integration/crlb.rs)
     with pytest.raises(ValueError, match=r"truth: expected shape \(N, 11\)"):
         uwbimu_rs.crlb(los_run.imu, los_run.ranges, los_run.anchors, np.zeros((3, 4)))
 

@@ -142,7 +142,7 @@ def test_isas_walk1_replay_with_the_checked_in_config():
     mapping["ground_truth"] = {"file": str(ISAS / "gt_anchor_frame.csv")}
     frame, info = uwbimu_rs.replay(ISAS / "isas-walk1.mcap", config_file=config_file, mapping=mapping)
     assert info["method"] == "best" and info["smoothed"] and frame.height == 4839
-    # Same figure as the Rust test tests/isas_walk1.rs (measured 0.121 m).
+    # Same figure as the Rust test tests/integration/isas_walk1.rs (measured 0.121 m).
     assert info["rmse_horizontal_aligned_m"] < 0.25
     data = uwbimu_rs.read_mcap(ISAS / "isas-walk1.mcap", mapping=mapping)
     assert data["ranges"].height == 4266 and data["ground_truth"].height > 3000

@@ -65,7 +65,7 @@ def test_json_summary_equals_replay_info(recording):
     assert summary["outputs"] == [str(csv)] and csv.exists()
     assert summary["method"] == info["method"] == "ekf" and summary["smoothed"] is info["smoothed"] is False
     # The command line streams the file and adds the errors up as they go: the same figures to
-    # rounding (tests/streamed_replay.rs holds the steps to 1e-9).
+    # rounding (tests/integration/streamed_replay.rs holds the steps to 1e-9).
     figures = ("rmse_horizontal_m", "rmse_horizontal_aligned_m", "rmse_3d_m", "rmse_3d_aligned_m", "mean_nis")
     for key in figures:
         assert abs(summary[key] - info[key]) <= 1e-9, key

@@ -14,7 +14,7 @@
 //!
 //! With matched or default settings the model selection ([`crate::select`]) is off: the matrix
 //! measures the compositions themselves (a selecting method would run each cell 8·F + 1 times);
-//! the selection is checked on its own rigs (tests/select.rs, docs/model-selection.md).
+//! the selection is checked on its own rigs (tests/integration/select.rs, docs/model-selection.md).
 
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::error::{Error, Result};

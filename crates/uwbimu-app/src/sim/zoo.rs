@@ -76,7 +76,7 @@ pub const ZOO_NAMES: &[&str] = &[
 
 /// The scenarios in which UWB is lost for good after the first second ([`ZOO_NAMES`]' last two):
 /// no method can match `uwb_ls` over them (it has no fix after the first second), so the
-/// generality matrix leaves them out and `tests/uwb_lost.rs` bounds them.
+/// generality matrix leaves them out and `tests/integration/uwb_lost.rs` bounds them.
 pub const UWB_LOST_NAMES: &[&str] = &["still_tdoa_lost", "moving_uwb_lost"];
 
 /// One zoo scenario: what to simulate and how a user would configure a filter for it.

@@ -1,8 +1,6 @@
 //! The loosely coupled ESKF of Liu et al. 2019.
 
-mod common;
-
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::metrics::evaluate;
 use uwbimu_rs::app::sim::{preset, simulate};
 use uwbimu_rs::estimation::filters::{Eskf, InertialFilter};

@@ -1,9 +1,7 @@
 //! The covariance at a filter rate (`ins.covariance_interval_s`): the nominal state at every IMU
 //! sample, the covariance over merged intervals, brought up to date before each update.
 
-mod common;
-
-use common::{horizontal_errors, rms, truth_initial};
+use crate::common::{horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::sim::{simulate, zoo};
 use uwbimu_rs::estimation::filters::{Filter, InertialFilter, Riekf};
 use uwbimu_rs::estimation::pipeline::{run, Estimator};

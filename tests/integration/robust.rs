@@ -1,9 +1,7 @@
 //! The robust filters of Li & Wang 2020: REKF and RIEKF against their definitions and against the
 //! plain and iterated EKF.
 
-mod common;
-
-use common::{config_for, horizontal_errors, paper_config, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, paper_config, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, SimData};
 use uwbimu_rs::estimation::filters::{Ekf, Iekf, InertialFilter, Rekf, Riekf};
 use uwbimu_rs::estimation::pipeline::{run, Trace};
@@ -176,7 +174,7 @@ fn li_wang_2020_nlos_table_over_five_seeds() {
             [(format!("li_wang_2020_nlos,{name},mean"), *mean), (format!("li_wang_2020_nlos,{name},max"), *max)]
         })
         .collect();
-    let failures = common::figures::hold("robust", &measured);
+    let failures = crate::common::figures::hold("robust", &measured);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 

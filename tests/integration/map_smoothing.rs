@@ -5,8 +5,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use uwbimu_rs::app::map_smoothing::dynamics_cost;
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{preset, simulate, zoo, SimData, ZOO_NAMES};
@@ -31,14 +29,18 @@ fn best_smoothed(input: &BatchInput<'_>, map_passes: Option<u32>, outlier_passes
 /// Horizontal RMSE against the simulated truth, the first 10 s left out.
 fn rmse_after_10_s(steps: &[StepRecord], data: &SimData) -> f64 {
     let t0 = steps[0].t_s + 10.0;
-    let errors: Vec<f64> =
-        common::horizontal_errors(steps, data).into_iter().zip(steps).filter(|(_, s)| s.t_s >= t0).map(|(e, _)| e).collect();
-    common::rms(&errors)
+    let errors: Vec<f64> = crate::common::horizontal_errors(steps, data)
+        .into_iter()
+        .zip(steps)
+        .filter(|(_, s)| s.t_s >= t0)
+        .map(|(e, _)| e)
+        .collect();
+    crate::common::rms(&errors)
 }
 
 /// (plain RTS, outlier passes, MAP) RMSE after 10 s and the MAP passes run.
 fn three_ways(data: &SimData, config: &FilterConfig) -> ([f64; 3], u32) {
-    let input = common::batch(data, None, config);
+    let input = crate::common::batch(data, None, config);
     let (plain, _) = best_smoothed(&input, Some(0), Some(0));
     let (outlier, _) = best_smoothed(&input, Some(0), None);
     let (map, passes) = best_smoothed(&input, None, None);
@@ -53,7 +55,7 @@ fn the_map_passes_take_nlos_out_of_the_track_and_leave_a_clean_walk() {
     for name in ["hall_vehicle_nlos", "lab_robot_nlos"] {
         let sim = preset(name, 33).unwrap();
         let data = simulate(&sim).unwrap();
-        let ([plain, outlier, map], passes) = three_ways(&data, &common::config_for(&sim));
+        let ([plain, outlier, map], passes) = three_ways(&data, &crate::common::config_for(&sim));
         println!("{name}: plain {plain:.4} m, outlier passes {outlier:.4} m, MAP {map:.4} m in {passes} passes");
         assert!((1..=5).contains(&passes), "{passes}");
         assert!(map < 0.9 * outlier && map < 0.75 * plain, "{name}: {plain} / {outlier} / {map}");
@@ -77,7 +79,7 @@ fn the_objective_never_rises_from_one_kept_pass_to_the_next_on_every_zoo_scenari
             println!("{name}: no ranges");
             return 0;
         }
-        let input = BatchInput { smooth: true, ..common::batch(&data, None, &scenario.config) };
+        let input = BatchInput { smooth: true, ..crate::common::batch(&data, None, &scenario.config) };
         let BatchOutput::Inertial { trace, smoothed: Some(_), .. } = run_method(Method::Best, &input).unwrap() else {
             panic!("{name}: best did not smooth");
         };

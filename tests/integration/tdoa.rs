@@ -2,9 +2,7 @@
 //! TDoA in the iterated filters, every policy with the unscented strategy, refusals, and every sensor at
 //! unrelated, jittered and interleaved rates through one event pipeline (streaming = batch).
 
-mod common;
-
-use common::{figures, horizontal_errors, rms, streamed_positions};
+use crate::common::{figures, horizontal_errors, rms, streamed_positions};
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{self, MagConfig, Scenario, SimData, TdoaConfig};
 use uwbimu_rs::estimation::filters::Filter;

@@ -6,8 +6,6 @@
 //! scale, offset, tag ids) change what is read exactly as they say, and a mapping that does not
 //! fit fails naming its key.
 
-mod common;
-
 use std::io::Cursor;
 use std::path::Path;
 
@@ -83,7 +81,7 @@ fn heights_speeds_and_tags_read_back_as_written_and_replay_like_the_arrays() {
     assert_eq!((counts.used, counts.invalid), (data.odometry.len(), 0));
     // The replay of the file follows the batch run on the run's own arrays.
     let initial = s.true_initial(&data).expect("initial");
-    let input = BatchInput { observations: &written, ..common::batch(&data, Some(&initial), &s.config) };
+    let input = BatchInput { observations: &written, ..crate::common::batch(&data, Some(&initial), &s.config) };
     let Ok(BatchOutput::Inertial { trace, .. }) = run_method(Method::Riekf, &input) else { panic!("batch run") };
     let replayed = replay(&rec, Method::Riekf, &s.config, Some(&initial), false, None).expect("replay");
     let steps = replayed.trajectory();

@@ -7,7 +7,7 @@
 //! filters) is checked with a Cholesky factorisation, and a step where it fails is allowed only
 //! in a run whose guards acted (numerical repairs counted). What the guards did is printed.
 //!
-//! `cargo test --release --test long_run_health -- --ignored --nocapture` runs it (about 10
+//! `cargo test --release --test integration long_run_health:: -- --ignored --nocapture` runs it (about 10
 //! minutes on two cores); `UWBIMU_HEALTH_STEPS=1000000` shortens it. The figures are in
 //! docs/reliability.md.
 

@@ -1,8 +1,6 @@
 //! Range-bias calibration (`uwbimu_rs::app::calibrate`) on a simulated run with known per-anchor
 //! biases: recovered with ground truth, and without it up to what the smoothed track absorbs.
 
-mod common;
-
 use uwbimu_rs::app::calibrate::{calibrate_with_truth, calibrate_without_truth};
 use uwbimu_rs::app::methods::BatchInput;
 use uwbimu_rs::app::methods::Method;
@@ -51,15 +49,15 @@ fn known_biases_are_recovered() {
             assert!(truth_relative.abs() < 0.05 || relative.signum() == truth_relative.signum());
             // Each error held to its measured figure (tests/figures/calibrate.csv).
             let a = w.anchor;
-            common::figures::hold_one("calibrate", &format!("with_truth,{seed},{a},bias_error"), (w.bias_m - b).abs());
-            common::figures::hold_one(
+            crate::common::figures::hold_one("calibrate", &format!("with_truth,{seed},{a},bias_error"), (w.bias_m - b).abs());
+            crate::common::figures::hold_one(
                 "calibrate",
                 &format!("from_log,{seed},{a},relative_bias_error"),
                 (relative - truth_relative).abs(),
             );
         }
         assert!((with.common_offset_m - mean).abs() < 0.01);
-        common::figures::hold_one(
+        crate::common::figures::hold_one(
             "calibrate",
             &format!("with_truth,{seed},common_offset_error"),
             (with.common_offset_m - mean).abs(),

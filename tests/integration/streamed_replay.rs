@@ -8,8 +8,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -207,7 +205,9 @@ fn tdoa_streams_as_it_runs_whole() {
 
 #[test]
 fn the_real_log_streams_as_it_runs_whole() {
-    let (Some(mcap), Some(truth)) = (common::isas_walk1("isas-walk1.mcap"), common::isas_walk1("gt_anchor_frame.csv")) else {
+    let (Some(mcap), Some(truth)) =
+        (crate::common::isas_walk1("isas-walk1.mcap"), crate::common::isas_walk1("gt_anchor_frame.csv"))
+    else {
         return;
     };
     let mut cfg = ReplayConfig::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/isas-walk1.toml")).unwrap();

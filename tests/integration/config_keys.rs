@@ -11,8 +11,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::parallel::map_all;
 use uwbimu_rs::app::sim::{preset, simulate, MagConfig, SimData, TdoaConfig};
@@ -22,12 +20,12 @@ use uwbimu_rs::vocabulary::math::Vec3;
 /// Keys that cannot act on this rig, and why (each is checked to do nothing here).
 const INERT_HERE: &[(&str, &str)] = &[
     ("ranging.epoch_window_s", "the rig's ranges of one epoch share their time: any window groups them alike"),
-    ("gate.enabled", "the rig has no impossible measurement to reject (tests/impossible_data.rs has them)"),
+    ("gate.enabled", "the rig has no impossible measurement to reject (tests/integration/impossible_data.rs has them)"),
     ("gate.tdoa_margin_m", "no impossible TDoA on the rig"),
     ("gate.hall_margin_m", "no range beyond the hall on the rig"),
     ("gate.accel_range", "the rig's IMU never saturates"),
     ("gate.gyro_range", "the rig's IMU never saturates"),
-    ("gate.speed_range", "the rig has no odometry (tests/sensors.rs rejects an impossible speed)"),
+    ("gate.speed_range", "the rig has no odometry (tests/integration/sensors.rs rejects an impossible speed)"),
     (
         "gate.refuse_unit_slips",
         "the rig's IMU is in SI units (crates/uwbimu-estimation/src/units.rs and tests/python/test_streaming.py hold the slips)",
@@ -46,20 +44,29 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("constraints.outage_zupt_after_s", "the rig has no UWB outage"),
     ("model_selection.enabled", "the selection keeps the input configuration on this rig"),
     ("model_selection.window_s", "the selection keeps the input configuration on this rig"),
-    ("smoothing.outlier_passes", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.outlier_sigmas", "the runs here are forward passes (tests/robust_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.map_passes", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.map_min_decrease", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.kernel_width", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.cauchy", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.huber", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("smoothing.symmetric", "the runs here are forward passes (tests/map_smoothing.rs holds the smoothed ones)"),
-    ("altitude.std", "the rig has no altitude sensor (tests/sensors.rs holds its effect)"),
-    ("altitude.offset_std", "the rig has no altitude sensor (tests/sensors.rs holds the offset state)"),
-    ("altitude.offset_walk", "the rig has no altitude sensor (tests/sensors.rs holds the offset state)"),
-    ("odometry.std", "the rig has no odometry (tests/sensors.rs holds its effect)"),
-    ("odometry.nonholonomic", "the rig has no odometry (tests/consistency.rs holds its effect)"),
-    ("odometry.nonholonomic_std", "the rig has no odometry (tests/consistency.rs holds its effect)"),
+    (
+        "smoothing.outlier_passes",
+        "the runs here are forward passes (tests/integration/robust_smoothing.rs holds the smoothed ones)",
+    ),
+    (
+        "smoothing.outlier_sigmas",
+        "the runs here are forward passes (tests/integration/robust_smoothing.rs holds the smoothed ones)",
+    ),
+    ("smoothing.map_passes", "the runs here are forward passes (tests/integration/map_smoothing.rs holds the smoothed ones)"),
+    (
+        "smoothing.map_min_decrease",
+        "the runs here are forward passes (tests/integration/map_smoothing.rs holds the smoothed ones)",
+    ),
+    ("smoothing.kernel_width", "the runs here are forward passes (tests/integration/map_smoothing.rs holds the smoothed ones)"),
+    ("smoothing.cauchy", "the runs here are forward passes (tests/integration/map_smoothing.rs holds the smoothed ones)"),
+    ("smoothing.huber", "the runs here are forward passes (tests/integration/map_smoothing.rs holds the smoothed ones)"),
+    ("smoothing.symmetric", "the runs here are forward passes (tests/integration/map_smoothing.rs holds the smoothed ones)"),
+    ("altitude.std", "the rig has no altitude sensor (tests/integration/sensors.rs holds its effect)"),
+    ("altitude.offset_std", "the rig has no altitude sensor (tests/integration/sensors.rs holds the offset state)"),
+    ("altitude.offset_walk", "the rig has no altitude sensor (tests/integration/sensors.rs holds the offset state)"),
+    ("odometry.std", "the rig has no odometry (tests/integration/sensors.rs holds its effect)"),
+    ("odometry.nonholonomic", "the rig has no odometry (tests/integration/consistency.rs holds its effect)"),
+    ("odometry.nonholonomic_std", "the rig has no odometry (tests/integration/consistency.rs holds its effect)"),
 ];
 
 /// Settings a key needs to act, set in both runs: the bias parameters act only with bias states,
@@ -149,13 +156,13 @@ fn run(data: &SimData, method: Method, config: &FilterConfig, tdoa: bool) -> (f6
     };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input).unwrap() else { unreachable!() };
     let t0 = data.imu[0].t_s + 10.0;
-    let errors: Vec<f64> = common::horizontal_errors(&trace.steps, data)
+    let errors: Vec<f64> = crate::common::horizontal_errors(&trace.steps, data)
         .into_iter()
         .zip(&trace.steps)
         .filter(|(_, s)| s.t_s >= t0)
         .map(|(e, _)| e)
         .collect();
-    (common::rms(&errors), trace.steps.iter().map(|s| s.state.position).collect())
+    (crate::common::rms(&errors), trace.steps.iter().map(|s| s.state.position).collect())
 }
 
 /// One key moved: the settings of both runs, the moved value, and who reads it.
@@ -236,11 +243,11 @@ fn every_config_key_acts_and_is_held_to_its_figure() {
     }
     let listed: Vec<&str> = INERT_HERE.iter().map(|(k, _)| *k).collect();
     assert_eq!(inert, listed, "keys without effect on this rig (list them in INERT_HERE with the reason, or make them act)");
-    let mut failures = common::figures::hold("config_keys", &measured);
+    let mut failures = crate::common::figures::hold("config_keys", &measured);
     // The effect may not grow or shrink: the largest move of the track stays within 10 % (plus
     // 1 µm) of its stored figure both ways.
-    let stored = common::figures::stored("config_keys");
-    for (name, value) in measured.iter().filter(|(k, _)| k.ends_with(",moved") && !common::figures::updating()) {
+    let stored = crate::common::figures::stored("config_keys");
+    for (name, value) in measured.iter().filter(|(k, _)| k.ends_with(",moved") && !crate::common::figures::updating()) {
         if let Some(figure) = stored.get(name).filter(|f| (value - **f).abs() > 0.1 * **f + 1e-6) {
             failures.push(format!("{name}: the key's effect moved the track {value:.3e} m, stored {figure:.3e} m"));
         }

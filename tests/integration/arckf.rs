@@ -1,8 +1,6 @@
 //! ARCKF against CKF on the ARCKF paper's experiments (Tables 4 and 6), over several seeds.
 
-mod common;
-
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, OverrideValue, SimData, LABEL_OUTLIER};
 use uwbimu_rs::estimation::filters::{Arckf, Ckf};
 use uwbimu_rs::estimation::pipeline::{run, Trace};

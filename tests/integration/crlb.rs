@@ -1,8 +1,6 @@
 //! Posterior CRLB (the ARCKF paper's eqs. (43)–(44)).
 
-mod common;
-
-use common::{paper_config, truth_initial};
+use crate::common::{paper_config, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimData};
 use uwbimu_rs::estimation::crlb::posterior_crlb;
 use uwbimu_rs::estimation::filters::{Ekf, Filter, InertialFilter};

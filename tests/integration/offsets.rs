@@ -1,8 +1,6 @@
 //! Time offset and lever arm calibration ([`uwbimu_rs::app::offsets`]) on simulated runs with a known
 //! lever arm, UWB stamps that lag the measurement, and per-anchor biases.
 
-mod common;
-
 use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
 use uwbimu_rs::app::offsets::{calibrate_offsets_with_truth, calibrate_offsets_without_truth};
 use uwbimu_rs::app::sim;
@@ -30,7 +28,7 @@ fn time_offset_lever_arm_and_biases_come_back() {
         // The user knows nothing: defaults, lever arm and offset zero, self-initialised.
         let mut base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
         base.mounting.lever_arm = LeverArms::default();
-        let input = common::batch(&data, None, &base);
+        let input = crate::common::batch(&data, None, &base);
         let with = calibrate_offsets_with_truth(&input, &tag).expect("with truth");
         let without = calibrate_offsets_without_truth(&input, Method::Riekf, 20).expect("without truth");
         println!("{scenario} {seed} with truth: tau {:?}, biases {:?}", with.time_offset_s, with.biases);
@@ -42,10 +40,11 @@ fn time_offset_lever_arm_and_biases_come_back() {
         for (a, truth) in with.biases.anchors.iter().zip(biases) {
             assert!((a.bias_m - truth).abs() < 0.015, "bias {} vs {truth}", a.bias_m);
             let key = format!("with_truth,{scenario},{seed},{},bias_error", a.anchor);
-            common::figures::hold_one("offsets", &key, (a.bias_m - truth).abs());
+            crate::common::figures::hold_one("offsets", &key, (a.bias_m - truth).abs());
         }
         // Each figure held to its measured value (tests/figures/offsets.csv).
-        let hold = |what: &str, value: f64| common::figures::hold_one("offsets", &format!("{what},{scenario},{seed}"), value);
+        let hold =
+            |what: &str, value: f64| crate::common::figures::hold_one("offsets", &format!("{what},{scenario},{seed}"), value);
         hold("with_truth,time_offset_error_s", (with.time_offset_s.0 + LAG_S).abs());
         // From the log alone (20 EM passes): measured τ within 0.007–0.009 s; the lever arm error
         // falls from 0.177 m to 0.109–0.128 m (x best, y and z poorly observed with yaw turns).
@@ -56,14 +55,15 @@ fn time_offset_lever_arm_and_biases_come_back() {
         hold("from_log,time_offset_error_s", (without.time_offset_s.0 + LAG_S).abs());
         hold("from_log,lever_arm_error_m", (l - lever).norm());
         let rmse = |c: &FilterConfig| {
-            let BatchOutput::Inertial { trace, .. } = run_method(Method::Riekf, &common::batch(&data, None, c)).expect("run")
+            let BatchOutput::Inertial { trace, .. } =
+                run_method(Method::Riekf, &crate::common::batch(&data, None, c)).expect("run")
             else {
                 unreachable!()
             };
             let t0 = trace.steps[0].t_s;
-            let e = common::horizontal_errors(&trace.steps, &data);
+            let e = crate::common::horizontal_errors(&trace.steps, &data);
             let kept: Vec<f64> = trace.steps.iter().zip(e).filter(|(s, _)| s.t_s >= t0 + 10.0).map(|(_, e)| e).collect();
-            common::rms(&kept)
+            crate::common::rms(&kept)
         };
         let (before, after) = (rmse(&base), rmse(&without.apply_to(&base).expect("config")));
         println!("   riekf RMSE: uncalibrated {before:.3}, calibrated from the log {after:.3}");

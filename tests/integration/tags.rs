@@ -1,11 +1,9 @@
 //! Several UWB tags on one body, end to end against the simulator's truth: the heading the tags'
 //! geometry makes observable, the refusals (a tag without a lever arm, a method of one tag), and
 //! streaming = batch with the tags' ranges interleaved. Their consistency is held by
-//! tests/consistency.rs (`two_tags`).
+//! tests/integration/consistency.rs (`two_tags`).
 
-mod common;
-
-use common::{rms, streamed_positions};
+use crate::common::{rms, streamed_positions};
 use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
 use uwbimu_rs::app::sim::{self, Scenario, SimData};
 use uwbimu_rs::estimation::filters::Riekf;
@@ -38,7 +36,7 @@ fn heading_run(method: Method, s: &Scenario, data: &SimData, heading_off: f64) -
 
 /// [`heading_run`] from `initial` (None: self-initialised).
 fn heading_run_from(method: Method, s: &Scenario, data: &SimData, initial: Option<&InitialState>) -> Vec<(f64, f64, f64)> {
-    let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &common::batch(data, initial, &s.config)) else {
+    let Ok(BatchOutput::Inertial { trace, .. }) = run_method(method, &crate::common::batch(data, initial, &s.config)) else {
         panic!("{method:?} failed")
     };
     let t0 = data.imu[0].t_s;
@@ -82,9 +80,10 @@ fn a_tag_without_a_lever_arm_and_a_method_of_one_tag_are_refused() {
     let (s, data) = agv(0, 0.5);
     let mut one_arm = s.config.clone();
     one_arm.mounting.lever_arm = sim::SimConfig::default().lever_arms();
-    let e = run_method(Method::Riekf, &common::batch(&data, None, &one_arm)).expect_err("tag 1 has no lever arm").to_string();
+    let e =
+        run_method(Method::Riekf, &crate::common::batch(&data, None, &one_arm)).expect_err("tag 1 has no lever arm").to_string();
     assert!(e.contains("from tag 1") && e.contains("mounting.lever_arm gives 1 tag"), "{e}");
-    let e = run_method(Method::Eskf, &common::batch(&data, None, &s.config)).expect_err("eskf fuses one tag").to_string();
+    let e = run_method(Method::Eskf, &crate::common::batch(&data, None, &s.config)).expect_err("eskf fuses one tag").to_string();
     assert!(e.contains("eskf fuses one tag") && e.contains("riekf"), "{e}");
 }
 

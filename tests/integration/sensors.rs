@@ -1,11 +1,9 @@
 //! The sensors besides UWB and the IMU end to end, against the simulator's truth: an altitude over
 //! coplanar anchors, wheel odometry through a UWB outage, their gate rules, their keys, a method
 //! that does not take them, and streaming = batch with every sensor interleaved. Their
-//! consistency is held by tests/consistency.rs (`coplanar_altitude`, `outage_odometry`).
+//! consistency is held by tests/integration/consistency.rs (`coplanar_altitude`, `outage_odometry`).
 
-mod common;
-
-use common::{rms, streamed_positions};
+use crate::common::{rms, streamed_positions};
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Input, Method};
 use uwbimu_rs::app::sim::{self, AltimeterConfig, OdometerConfig, Outage, Scenario, SimData};
 use uwbimu_rs::estimation::filters::Riekf;

@@ -4,8 +4,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::replay::compare_with_truth;
 use uwbimu_rs::app::replay_config::ReplayConfig;
@@ -31,9 +29,13 @@ fn best_smoothed(input: &BatchInput<'_>, passes: Option<u32>) -> (Vec<StepRecord
 /// Horizontal RMSE against the simulated truth, the first 10 s left out.
 fn rmse_after_10_s(steps: &[StepRecord], data: &SimData) -> f64 {
     let t0 = steps[0].t_s + 10.0;
-    let errors: Vec<f64> =
-        common::horizontal_errors(steps, data).into_iter().zip(steps).filter(|(_, s)| s.t_s >= t0).map(|(e, _)| e).collect();
-    common::rms(&errors)
+    let errors: Vec<f64> = crate::common::horizontal_errors(steps, data)
+        .into_iter()
+        .zip(steps)
+        .filter(|(_, s)| s.t_s >= t0)
+        .map(|(e, _)| e)
+        .collect();
+    crate::common::rms(&errors)
 }
 
 #[test]
@@ -42,8 +44,8 @@ fn nlos_ranges_leave_the_smoothed_hall_and_a_clean_run_stays() {
     // hall_vehicle_nlos 0.110 → 0.088 m with 170 of 1118 ranges left out; handheld_walk
     // 0.0972 → 0.0972 m with 3 of 3248 left out.
     let hall = simulate(&preset("hall_vehicle_nlos", 7).unwrap()).unwrap();
-    let config = common::config_for(&preset("hall_vehicle_nlos", 7).unwrap());
-    let input = common::batch(&hall, None, &config);
+    let config = crate::common::config_for(&preset("hall_vehicle_nlos", 7).unwrap());
+    let input = crate::common::batch(&hall, None, &config);
     let (plain, none) = best_smoothed(&input, Some(0));
     let (robust, left_out) = best_smoothed(&input, None);
     let (a, b) = (rmse_after_10_s(&plain, &hall), rmse_after_10_s(&robust, &hall));
@@ -54,7 +56,7 @@ fn nlos_ranges_leave_the_smoothed_hall_and_a_clean_run_stays() {
 
     let walk = simulate(&zoo("handheld_walk", 7).unwrap().sim).unwrap();
     let defaults = FilterConfig::default();
-    let input = common::batch(&walk, None, &defaults);
+    let input = crate::common::batch(&walk, None, &defaults);
     let (plain, _) = best_smoothed(&input, Some(0));
     let (robust, left_out) = best_smoothed(&input, None);
     let (a, b) = (rmse_after_10_s(&plain, &walk), rmse_after_10_s(&robust, &walk));
@@ -67,14 +69,16 @@ fn nlos_ranges_leave_the_smoothed_hall_and_a_clean_run_stays() {
 fn the_walks_nlos_bursts_leave_its_smoothed_track() {
     // isas-walk1, defaults, self-initialised, first 10 s left out, horizontal RMSE after rigid
     // alignment. Measured: plain RTS 0.0757 m, robust 0.0716 m, 79 of 4266 ranges left out.
-    let (Some(mcap), Some(truth)) = (common::isas_walk1("isas-walk1.mcap"), common::isas_walk1("gt_anchor_frame.csv")) else {
+    let (Some(mcap), Some(truth)) =
+        (crate::common::isas_walk1("isas-walk1.mcap"), crate::common::isas_walk1("gt_anchor_frame.csv"))
+    else {
         return;
     };
     let cfg = ReplayConfig::read(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/isas-walk1.toml")).unwrap();
     let rec = read_recording_file(&mcap, &cfg.mapping, |_| {}).unwrap();
     let truth = read_truth_csv(&truth).unwrap();
     let defaults = FilterConfig::default();
-    let input = common::recording_batch(&rec, &defaults, true);
+    let input = crate::common::recording_batch(&rec, &defaults, true);
     let aligned = |steps: &[StepRecord]| {
         let t0 = steps[0].t_s + 10.0;
         let track: Vec<_> =

@@ -4,8 +4,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use std::path::PathBuf;
 
 use uwbimu_rs::app::methods::Method;
@@ -29,9 +27,9 @@ type Truth = Vec<(f64, uwbimu_rs::vocabulary::math::Vec3)>;
 /// The recording with the checked-in mapping, its file and the ground truth; None (the test is
 /// skipped, with a message) without `../shared/data`.
 fn isas(cfg: &ReplayConfig) -> Option<(Recording, PathBuf, Truth)> {
-    let mcap = common::isas_walk1("isas-walk1.mcap")?;
+    let mcap = crate::common::isas_walk1("isas-walk1.mcap")?;
     let rec = read_recording_file(&mcap, &cfg.mapping, |_| {}).unwrap();
-    let truth = read_truth_csv(&common::isas_walk1("gt_anchor_frame.csv")?).unwrap();
+    let truth = read_truth_csv(&crate::common::isas_walk1("gt_anchor_frame.csv")?).unwrap();
     Some((rec, mcap, truth))
 }
 
@@ -51,7 +49,7 @@ fn mapping_reads_imu_valid_ranges_and_anchor_positions() {
     assert!(rec.imu.windows(2).all(|w| w[1].t_s > w[0].t_s));
     assert!(rec.ranges.windows(2).all(|w| w[1].t_s >= w[0].t_s));
     // Anchor positions carried by the messages agree with anchors.csv (float32 in the message).
-    let file = uwbimu_rs::io::files::anchors::read_anchor_file(&common::isas_walk1("anchors.csv").unwrap()).unwrap();
+    let file = uwbimu_rs::io::files::anchors::read_anchor_file(&crate::common::isas_walk1("anchors.csv").unwrap()).unwrap();
     assert_eq!(rec.anchor_ids.len(), 5);
     for (id, p) in rec.anchor_ids.iter().zip(&rec.anchors) {
         assert!((file[id] - p).norm() < 1e-6, "anchor {id}: {p:?} vs {:?}", file[id]);
@@ -183,7 +181,7 @@ fn range_biases_from_the_log_with_and_without_ground_truth() {
     let cfg = config();
     let Some((rec, _, truth)) = isas(&cfg) else { return };
     let defaults = FilterConfig::default();
-    let input = common::recording_batch(&rec, &defaults, true);
+    let input = crate::common::recording_batch(&rec, &defaults, true);
     let with = calibrate_with_truth(&input, &truth).unwrap();
     let without = calibrate_without_truth(&input, Method::Riekf, 8).unwrap();
     let mut worst = 0.0f64;

@@ -4,7 +4,7 @@
 //! declaration changes, regenerate the tables with
 //!
 //! ```text
-//! UPDATE_DOCS=1 cargo test --test docs_tables
+//! UPDATE_DOCS=1 cargo test --test integration docs_tables::
 //! ```
 
 use std::path::Path;
@@ -58,7 +58,7 @@ fn check_block(file: &str, name: &str, table: &str) {
         assert_eq!(
             &text[start..end],
             table,
-            "{file}: the `{name}` table is stale; regenerate it with `UPDATE_DOCS=1 cargo test --test docs_tables`"
+            "{file}: the `{name}` table is stale; regenerate it with `UPDATE_DOCS=1 cargo test --test integration docs_tables::`"
         );
     }
 }

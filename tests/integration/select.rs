@@ -3,8 +3,6 @@
 //! chosen on: steady per-anchor biases (injected, every range long, or anchors surveyed off), range errors that
 //! wander (Gauss–Markov, τ 1 s), sustained NLOS on two anchors, clean runs, and isas-walk1.
 
-mod common;
-
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -22,18 +20,19 @@ fn zoo(name: &str, seed: u64) -> (sim::SimData, FilterConfig) {
 
 /// Forward horizontal RMSE of `best` with `config` after the first 10 s.
 fn forward_rmse(data: &sim::SimData, config: &FilterConfig) -> f64 {
-    let BatchOutput::Inertial { trace, .. } = run_method(Method::Best, &common::batch(data, None, config)).expect("run") else {
+    let BatchOutput::Inertial { trace, .. } = run_method(Method::Best, &crate::common::batch(data, None, config)).expect("run")
+    else {
         panic!("not inertial")
     };
     let t0 = trace.steps[0].t_s;
-    let errors = common::horizontal_errors(&trace.steps, data);
+    let errors = crate::common::horizontal_errors(&trace.steps, data);
     let kept: Vec<f64> = trace.steps.iter().zip(errors).filter(|(s, _)| s.t_s >= t0 + 10.0).map(|(_, e)| e).collect();
-    common::rms(&kept)
+    crate::common::rms(&kept)
 }
 
 /// `best`'s choice on `data` and the forward RMSE with selection off, then with the choice.
 fn choice_and_rmse(data: &sim::SimData, config: &FilterConfig) -> (ModelChoice, f64, f64) {
-    let choice = choose(Method::Best, &common::batch(data, None, config)).expect("choose");
+    let choice = choose(Method::Best, &crate::common::batch(data, None, config)).expect("choose");
     let mut plain = config.clone();
     plain.model_selection.enabled = false;
     let (before, after) = (forward_rmse(data, &plain), forward_rmse(data, &choice.config));
@@ -110,7 +109,7 @@ fn wandering_errors_and_sustained_nlos_are_not_read_as_steady_biases() {
 #[test]
 fn a_clean_run_keeps_the_plain_filter_and_three_anchors_select_nothing() {
     let (data, config) = zoo("drone_flight", 32);
-    let choice = choose(Method::Best, &common::batch(&data, None, &config)).expect("choose");
+    let choice = choose(Method::Best, &crate::common::batch(&data, None, &config)).expect("choose");
     assert_eq!(choice.chosen, 0, "{}", choice.reason);
     assert!(choice.reason.starts_with("kept the input configuration"));
     assert_eq!(choice.candidates.len(), 8);
@@ -122,7 +121,7 @@ fn a_clean_run_keeps_the_plain_filter_and_three_anchors_select_nothing() {
     let (mut data, config) = zoo("forklift", 32);
     data.anchors.truncate(3);
     data.ranges.retain(|r| r.anchor < 3);
-    let choice = choose(Method::Best, &common::batch(&data, None, &config)).expect("choose");
+    let choice = choose(Method::Best, &crate::common::batch(&data, None, &config)).expect("choose");
     assert!(choice.candidates.is_empty() && choice.chosen().is_none());
     assert!(choice.reason.contains("3 anchors"), "{}", choice.reason);
     let mut off = config.clone();
@@ -134,7 +133,7 @@ fn a_clean_run_keeps_the_plain_filter_and_three_anchors_select_nothing() {
 fn isas_walk1_keeps_the_plain_filter() {
     use uwbimu_rs::app::replay_config::ReplayConfig;
     use uwbimu_rs::io::read_recording_file;
-    let Some(mcap) = common::isas_walk1("isas-walk1.mcap") else { return };
+    let Some(mcap) = crate::common::isas_walk1("isas-walk1.mcap") else { return };
     let cfg = ReplayConfig::read(&std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/isas-walk1.toml"))
         .expect("config");
     let rec = read_recording_file(&mcap, &cfg.mapping, |_| {}).expect("read");

@@ -1,9 +1,7 @@
 //! Motion constraints of Li & Wang 2020 §2.2: still detection, and each constraint lowering the error
 //! on a case built for it.
 
-mod common;
-
-use common::{config_for, rms, truth_initial};
+use crate::common::{config_for, rms, truth_initial};
 use uwbimu_rs::app::sim::{simulate, DriveOptions, NlosConfig, NlosWindow, SimConfig, SimData, Trajectory, UwbConfig};
 use uwbimu_rs::estimation::filters::Ekf;
 use uwbimu_rs::estimation::pipeline::{run, Trace};
@@ -178,14 +176,14 @@ fn zoo_forward_rmse(method: uwbimu_rs::app::methods::Method, name: &str, seed: u
     // The outage guard off: it would give `riekf` the zero-velocity constraint in forklift's
     // 5 s outage too (riekf 1.02 → 0.16 m on seed 6), and the comparison is of the compositions.
     config.constraints.outage_zupt = false;
-    // `best`'s composition as declared: its choice of model on the log is tested in tests/select.rs.
+    // `best`'s composition as declared: its choice of model on the log is tested in tests/integration/select.rs.
     config.model_selection.enabled = false;
     // The update in the invariant error for every method (`best`'s own): the comparison is of
     // the constraint and the skew.
     config.ins.invariant_update = Some(true);
-    let input = uwbimu_rs::app::methods::BatchInput { smooth: false, ..common::batch(&data, None, &config) };
+    let input = uwbimu_rs::app::methods::BatchInput { smooth: false, ..crate::common::batch(&data, None, &config) };
     let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
-    let errors = common::horizontal_errors(&trace.steps, &data);
+    let errors = crate::common::horizontal_errors(&trace.steps, &data);
     let t0 = trace.steps[0].t_s;
     let kept: Vec<f64> = trace.steps.iter().zip(errors).filter(|(s, _)| s.t_s >= t0 + 10.0).map(|(_, e)| e).collect();
     rms(&kept)
@@ -245,7 +243,7 @@ fn the_outage_guard_never_fires_on_a_log_that_starts_in_motion() {
     let data = simulate(&sim).expect("sim");
     let config = settings_config(&sim, Settings::Matched);
     let initial = truth_initial(&data, Vec3::zeros());
-    let input = uwbimu_rs::app::methods::BatchInput { initial: Some(&initial), ..common::batch(&data, None, &config) };
+    let input = uwbimu_rs::app::methods::BatchInput { initial: Some(&initial), ..crate::common::batch(&data, None, &config) };
     for &method in Method::ALL.iter().filter(|m| m.info().streaming_class.is_some()) {
         let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
         assert_eq!(trace.steps.len(), data.truth.len());

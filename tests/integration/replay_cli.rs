@@ -6,8 +6,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Cursor};
 use std::path::{Path, PathBuf};
@@ -224,7 +222,7 @@ fn mappings_that_do_not_fit_are_reported() {
 
 #[test]
 fn mappings_that_do_not_fit_the_real_log_are_reported() {
-    let Some(isas) = common::isas_walk1("isas-walk1.mcap") else { return };
+    let Some(isas) = crate::common::isas_walk1("isas-walk1.mcap") else { return };
     let config = write(
         "misfit.toml",
         b"[mapping]\nimu_topic = \"/waveshare_sense_hat_b\"\n[mapping.uwb]\ntopics = [\"/rtls_flares\"]\nrange = \"ranges[].rng\"\nanchor_id = \"ranges[].id\"\n",

@@ -6,14 +6,12 @@
 //! `python examples/zoo_matrix.py` (the same cells).
 //!
 //! Each cell is also held to its own measured figure (`tests/figures/generality.csv`, every
-//! cell's RMSE and `uwb_ls`'s; [`common::figures`]): a 10 % regression of any method on any
+//! cell's RMSE and `uwb_ls`'s; [`crate::common::figures`]): a 10 % regression of any method on any
 //! scenario fails. `bash scripts/update_test_bounds.sh` re-measures it and lists what moved.
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
-use common::figures;
+use crate::common::figures;
 use uwbimu_rs::app::generality::{cells, run_cell, run_cells, Cell, Settings, Start};
 use uwbimu_rs::app::methods::Method;
 use uwbimu_rs::app::sim::{UWB_LOST_NAMES, ZOO_NAMES};
@@ -41,7 +39,7 @@ fn bound(method: &str, scenario: &str, start: Start) -> f64 {
     )
 }
 
-/// The zoo but the scenarios that lose UWB for good (`tests/uwb_lost.rs`): the matrix compares
+/// The zoo but the scenarios that lose UWB for good (`tests/integration/uwb_lost.rs`): the matrix compares
 /// with `uwb_ls`, which has no fix there after the first second.
 fn scenarios() -> Vec<&'static str> {
     ZOO_NAMES.iter().copied().filter(|n| !UWB_LOST_NAMES.contains(n)).collect()

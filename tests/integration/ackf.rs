@@ -1,8 +1,6 @@
 //! ACKF (the ACKF paper): gravity and geomagnetic aiding with adaptive covariances.
 
-mod common;
-
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate, DriveOptions, MagConfig, MagDisturbance, SimConfig, SimData, Trajectory};
 use uwbimu_rs::estimation::filters::{Ackf, Ckf, Filter};
 use uwbimu_rs::estimation::pipeline::{run, run_streams, Streams, Trace};

@@ -3,8 +3,6 @@
 //! (`moving_uwb_lost`), every inertial method, self-initialised and from the true start. Figures:
 //! docs/design-notes.md#uwb-lost (`cargo run --release --example uwb_lost`).
 
-mod common;
-
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim::{self, Scenario, SimData};
 use uwbimu_rs::estimation::init::SelfInit;

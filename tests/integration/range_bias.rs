@@ -1,8 +1,6 @@
 //! Range bias states ([`uwbimu_rs::estimation::filters::bias_states`]) and noise tuning ([`uwbimu_rs::app::tune`]) on
 //! simulated runs whose truth is known; and `best` smooths by default.
 
-mod common;
-
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::sim;
 use uwbimu_rs::app::tune::{tune, Objective};
@@ -14,9 +12,9 @@ fn rmse(output: &BatchOutput, data: &sim::SimData) -> f64 {
     let BatchOutput::Inertial { trace, smoothed, .. } = output else { panic!("not inertial") };
     let steps = smoothed.as_deref().unwrap_or(&trace.steps);
     let t0 = steps[0].t_s;
-    let errors = common::horizontal_errors(steps, data);
+    let errors = crate::common::horizontal_errors(steps, data);
     let kept: Vec<f64> = steps.iter().zip(errors).filter(|(s, _)| s.t_s >= t0 + 10.0).map(|(_, e)| e).collect();
-    common::rms(&kept)
+    crate::common::rms(&kept)
 }
 
 fn with(config: &FilterConfig, pairs: &[(&str, ConfigValue)]) -> FilterConfig {
@@ -38,7 +36,8 @@ fn bias_states_recover_constant_anchor_biases_and_the_track() {
             r.range_m += biases[r.anchor];
         }
         let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
-        let run = |method: Method, config: &FilterConfig| run_method(method, &common::batch(&data, None, config)).expect("run");
+        let run =
+            |method: Method, config: &FilterConfig| run_method(method, &crate::common::batch(&data, None, config)).expect("run");
         let states = with(&base, &[("range_bias.states", ConfigValue::Flag(true))]);
         let off = run(Method::Riekf, &base);
         let consider = run(Method::Riekf, &with(&states, &[("range_bias.consider", ConfigValue::Flag(true))]));
@@ -95,7 +94,7 @@ fn tuning_by_held_out_ranges_finds_lower_noise_on_a_matched_imu() {
     let s = sim::zoo("agv_loop", 9).expect("zoo");
     let data = sim::simulate(&s.sim).expect("sim");
     let base = FilterConfig { mounting: s.config.mounting, ..FilterConfig::default() };
-    let input = common::batch(&data, None, &base);
+    let input = crate::common::batch(&data, None, &base);
     let tuned = tune(Method::Riekf, &input, Objective::HeldOutRanges, 2).expect("tune");
     assert!(tuned.score < tuned.initial_score);
     assert_eq!(tuned.trials.len(), 1 + 2 * 3 * 4);

@@ -1,9 +1,7 @@
 //! Wang et al. 2018: the planar EKF / UKF / errors-complementary EKF and the 15-state UKF on simulated
 //! runs of the `lab_robot` presets (6 anchors, 4 m × 3 m, UWB 40 Hz σ 0.0514 m).
 
-mod common;
-
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::methods::{run_method, BatchOutput, Method};
 use uwbimu_rs::app::sim::{preset, simulate, SimData};
 use uwbimu_rs::estimation::filters::{InertialFilter, Ukf};
@@ -12,7 +10,7 @@ use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_rs::vocabulary::math::Vec3;
 
 fn steps(method: Method, data: &SimData, initial: Option<&InitialState>, config: &FilterConfig) -> Vec<StepRecord> {
-    let input = common::batch(data, initial, config);
+    let input = crate::common::batch(data, initial, config);
     match run_method(method, &input).expect("run") {
         BatchOutput::Inertial { trace, .. } => trace.steps,
         BatchOutput::Multilateration(_) => unreachable!("inertial method"),
@@ -34,7 +32,7 @@ const PLANAR: [Method; 3] = [Method::Ekf2d, Method::Ukf2d, Method::Cekf2d];
 
 /// Mean horizontal error of `uwb_ls` on the same run, against the true tag position.
 fn uwb_ls_mean(data: &SimData, sim: &uwbimu_rs::app::sim::SimConfig, config: &FilterConfig) -> f64 {
-    let input = common::batch(data, None, config);
+    let input = crate::common::batch(data, None, config);
     let BatchOutput::Multilateration(fixes) = run_method(Method::UwbLs, &input).expect("uwb_ls") else { unreachable!("uwb_ls") };
     let e: Vec<f64> = fixes
         .iter()

@@ -1,9 +1,7 @@
 //! `Ekf` on simulated data: strapdown accuracy, accuracy against UWB-only, covariance health,
 //! self-initialisation.
 
-mod common;
-
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::metrics::evaluate;
 use uwbimu_rs::app::sim::{preset, simulate, ImuNoise, SimConfig, Trajectory};
 use uwbimu_rs::estimation::filters::{Ekf, Filter, InertialFilter};

@@ -1,8 +1,6 @@
 //! RTS smoothing of recorded runs.
 
-mod common;
-
-use common::{config_for, horizontal_errors, rms, truth_initial};
+use crate::common::{config_for, horizontal_errors, rms, truth_initial};
 use uwbimu_rs::app::sim::{preset, simulate};
 use uwbimu_rs::estimation::filters::{Ekf, InertialFilter, Riekf};
 use uwbimu_rs::estimation::pipeline::{run, run_smoothed};
