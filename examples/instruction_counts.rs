@@ -14,9 +14,12 @@
 //! `epoch` do before each call: copy the filter back to its state after set-up, so that every
 //! update does the same work). The rig is the criterion benches' (`benches/common/rig.rs`).
 
+use uwbimu_rs::app::methods::{Method, Run};
+use uwbimu_rs::estimation::filters::{InertialVisitor, NamedFilter};
 use uwbimu_rs::estimation::pipeline::Estimator;
-use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_rs::estimation::planar::PlanarFilter;
 use uwbimu_rs::estimation::update::UpdateReport;
+use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
 
 #[path = "../benches/common/rig.rs"]
 mod rig;
@@ -46,6 +49,22 @@ fn run<F: Estimator + Clone>(mut set_up: F, call: &str, n: usize) -> Result<(), 
     Ok(())
 }
 
+/// [`run`] on the rig with an inertial filter type.
+struct Calls<'a> {
+    initial: &'a InitialState,
+    config: &'a FilterConfig,
+    call: &'a str,
+    n: usize,
+}
+
+impl InertialVisitor for Calls<'_> {
+    type Output = Result<(), Box<dyn std::error::Error>>;
+
+    fn visit<F: NamedFilter>(self) -> Self::Output {
+        run(F::build(rig::anchors(), self.initial, self.config.clone())?, self.call, self.n)
+    }
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (list, filter, call, n) = match args.as_slice() {
@@ -55,27 +74,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (initial, config) = (rig::initial(), rig::config());
     let mut found = false;
-    macro_rules! dispatch {
-        (inertial $ty:ident, [], $($doc:literal),+) => {
-            if list {
-                println!(stringify!($ty));
-            } else if filter == stringify!($ty) {
-                found = true;
-                run(uwbimu_rs::estimation::filters::$ty::new(rig::anchors(), &initial, config.clone())?, call, n)?;
-            }
+    for method in Method::ALL {
+        let name = match method.info().run {
+            Run::Inertial(kind) => kind.type_name().to_string(),
+            Run::Planar(kind) => format!("{kind:?}2d"),
+            Run::Multilateration => continue,
         };
-        (planar $kind:ident, [], $($doc:literal),+) => {
-            let name = format!("{}2d", stringify!($kind));
-            if list {
-                println!("{name}");
-            } else if filter == name {
-                found = true;
-                run(PlanarFilter::new(PlanarKind::$kind, rig::anchors(), &initial, &config)?, call, n)?;
+        if list {
+            println!("{name}");
+        } else if filter == name {
+            found = true;
+            match method.info().run {
+                Run::Inertial(kind) => kind.visit(Calls { initial: &initial, config: &config, call, n })?,
+                Run::Planar(kind) => run(PlanarFilter::new(kind, rig::anchors(), &initial, &config)?, call, n)?,
+                Run::Multilateration => {}
             }
-        };
-        (multilateration, [], $($doc:literal),+) => {};
+        }
     }
-    uwbimu_rs::app::for_each_streaming_filter!(dispatch);
     // The range-bias-state variant of one filter (the bar: within 2× of its base).
     if list {
         println!("RiekfBias");

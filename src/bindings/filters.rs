@@ -33,18 +33,10 @@ pub(super) use reports::health_dict;
 use reports::PyUpdateReport;
 pub(super) use state::{initial_dict, read_optional_initial};
 
-/// Adds the streaming class of a registry row that has one to the module `$m`.
-macro_rules! register_class {
-    (inertial $ty:ident, [$m:ident], $($doc:literal),+) => {
-        $m.add_class::<classes::$ty>()?;
-    };
-    ($run:ident $($ty:ident)?, [$m:ident], $($doc:literal),+) => {};
-}
-
 /// Adds the filter classes and functions to the native module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFilterConfig>()?;
-    uwbimu_app::for_each_streaming_filter!(register_class m);
+    classes::add_streaming_classes(m)?;
     m.add_class::<PyUpdateReport>()?;
     m.add_function(wrap_pyfunction!(run_filter, m)?)?;
     m.add_function(wrap_pyfunction!(run_filters, m)?)?;

@@ -244,7 +244,7 @@ fn the_outage_guard_never_fires_on_a_log_that_starts_in_motion() {
     let config = settings_config(&sim, Settings::Matched);
     let initial = truth_initial(&data, Vec3::zeros());
     let input = uwbimu_rs::app::methods::BatchInput { initial: Some(&initial), ..crate::common::batch(&data, None, &config) };
-    for &method in Method::ALL.iter().filter(|m| m.info().streaming_class.is_some()) {
+    for &method in Method::ALL.iter().filter(|m| m.info().streaming_class().is_some()) {
         let BatchOutput::Inertial { trace, .. } = run_method(method, &input).expect("run") else { panic!("not inertial") };
         assert_eq!(trace.steps.len(), data.truth.len());
         let moving = |k: usize| data.truth[k].velocity.norm() > 0.3;

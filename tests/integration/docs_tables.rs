@@ -36,7 +36,7 @@ fn method_table() -> String {
         let info = m.info();
         let takes: Vec<&str> = info.takes.iter().map(|i| i.name()).collect();
         let smoothing = info.smoothing.name();
-        let class = info.streaming_class.map_or("–".to_string(), |c| format!("`{c}`"));
+        let class = info.streaming_class().map_or("–".to_string(), |c| format!("`{c}`"));
         let doc = info.doc.split_whitespace().collect::<Vec<_>>().join(" ");
         out += &format!("| `{}` | {} | {smoothing} | {class} | {} |\n", info.name, takes.join(", "), doc.replace('|', "\\|"));
     }

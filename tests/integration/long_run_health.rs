@@ -18,7 +18,7 @@ use std::time::Instant;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use uwbimu_rs::estimation::filters::{self, InertialFilter};
+use uwbimu_rs::estimation::filters::{InertialFilter, InertialKind, InertialVisitor, NamedFilter};
 use uwbimu_rs::estimation::pipeline::{Estimator, Event, Pipeline};
 use uwbimu_rs::estimation::planar::{PlanarFilter, PlanarKind};
 use uwbimu_rs::vocabulary::config::{FilterConfig, InitialState};
@@ -210,12 +210,16 @@ fn report(name: &str, h: &Health) {
     );
 }
 
-macro_rules! inertial_health {
-    (inertial $ty:ident, [], $($doc:literal),+) => {{
-        let f = filters::$ty::new(surveyed_anchors(), &initial(), FilterConfig::default()).unwrap();
-        report(stringify!($ty), &long_run(f, steps(), full_covariance_spd));
-    }};
-    ($run:ident $($ty:ident)?, [], $($doc:literal),+) => {};
+/// The long run of an inertial filter type, reported under its name.
+struct InertialHealth;
+
+impl InertialVisitor for InertialHealth {
+    type Output = ();
+
+    fn visit<F: NamedFilter>(self) {
+        let f = F::build(surveyed_anchors(), &initial(), FilterConfig::default()).unwrap();
+        report(F::NAME, &long_run(f, steps(), full_covariance_spd));
+    }
 }
 
 #[test]
@@ -223,7 +227,9 @@ macro_rules! inertial_health {
 fn every_filter_stays_finite_and_positive_definite_for_hours() {
     println!("| filter | IMU steps | steps not SPD | gate rejections | numerical repairs | max error after 10 s, m | final error, m | wall s |");
     println!("|---|---|---|---|---|---|---|---|");
-    uwbimu_rs::app::for_each_streaming_filter!(inertial_health);
+    for kind in InertialKind::ALL {
+        kind.visit(InertialHealth);
+    }
     for kind in [PlanarKind::Ekf, PlanarKind::Ukf, PlanarKind::Cekf] {
         let f = PlanarFilter::new(kind, surveyed_anchors(), &initial(), &FilterConfig::default()).unwrap();
         report(&format!("{kind:?} (planar)"), &long_run(f, steps(), |_| Ok(())));

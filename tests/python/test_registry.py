@@ -65,6 +65,11 @@ def test_streaming_classes_are_the_registry_rows_that_have_one() -> None:
     exported = {name for name in uwbimu_rs.__all__ if isinstance(getattr(uwbimu_rs, name), type)}
     streaming = {name for name in exported if hasattr(getattr(uwbimu_rs, name), "add_range")}
     assert streaming == declared
+    # A class's docstring is its method's row of the registry.
+    for name, row in uwbimu_rs.METHODS.items():
+        if row["streaming_class"]:
+            doc = getattr(_native, row["streaming_class"]).__doc__
+            assert doc.startswith(row["summary"]) and not doc.endswith("\n"), name
 
 
 def test_methods_detail_table_lists_every_method_once() -> None:

@@ -1,16 +1,16 @@
 //! The named methods of the batch API and the function that runs one of them over whole arrays:
 //! [`run_method`] applies the range time offset and calibration of the configuration, lets a
 //! method that chooses its model choose it ([`crate::select`]) and runs it; [`run_many`] runs many
-//! recordings. The registry of the methods (`registry.rs`: [`Method`], [`Input`], [`MethodInfo`],
-//! [`Smoothing`]) and the runner under these functions (`run.rs`: [`BatchInput`], [`BatchOutput`],
-//! the dispatch to the filters) are private modules of their own, below the model selection that
-//! `run_method` calls; this module is their public path.
+//! recordings. The registry of the methods (`registry.rs`: [`Method`], [`Run`], [`Input`],
+//! [`MethodInfo`], [`Smoothing`]) and the runner under these functions (`run.rs`: [`BatchInput`],
+//! [`BatchOutput`], the dispatch to the filters) are private modules of their own, below the model
+//! selection that `run_method` calls; this module is their public path.
 
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::sensors::{merge, Observation};
 
 use crate::model_choice::ModelChoice;
-pub use crate::registry::{Input, Method, MethodInfo, Smoothing, DEFAULT_METHOD};
+pub use crate::registry::{Input, Method, MethodInfo, Run, Smoothing, DEFAULT_METHOD};
 use crate::run::{check_inputs, check_tags, dispatch};
 pub use crate::run::{BatchInput, BatchOutput};
 use crate::uwb_clock::UwbClock;

@@ -1,8 +1,11 @@
 //! The method registry: one row per named method of the batch API (the `methods!` declaration)
-//! and what the library says about each — [`Method`], its name, what it takes ([`Input`]), its
-//! smoothing ([`Smoothing`]), its streaming class, its doc ([`MethodInfo`]). It depends on no other
-//! module of this crate; how a method runs is the runner's ([`crate::run`], [`crate::methods`]).
+//! and what the library says about each — [`Method`], its name, how it runs ([`Run`]: the filter
+//! it runs, whose type is its streaming class), what it takes ([`Input`]), its smoothing
+//! ([`Smoothing`]), its doc ([`MethodInfo`]). It depends on no other module of this crate; the
+//! runner runs a method by its [`Run`] ([`crate::run`], [`crate::methods`]).
 
+use uwbimu_estimation::filters::InertialKind;
+use uwbimu_estimation::planar::PlanarKind;
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::sensors::SensorKind;
 
@@ -57,18 +60,31 @@ impl Smoothing {
     }
 }
 
-/// One row of the method registry (the `methods!` declaration in this module): everything the library says about a method
-/// besides how it runs.
+/// How a method runs: the solver or filter of its registry row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Run {
+    /// UWB-only least squares per epoch ([`uwbimu_estimation::multilateration::uwb_ls`]); not
+    /// streamed.
+    Multilateration,
+    /// The 15-state filter of the type the kind names, which is also the method's streaming
+    /// class.
+    Inertial(InertialKind),
+    /// A planar filter of Wang et al. (2018) ([`uwbimu_estimation::planar::PlanarFilter`]).
+    Planar(PlanarKind),
+}
+
+/// One row of the method registry (the `methods!` declaration in this module): everything the
+/// library says about a method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MethodInfo {
     /// The name the batch API, replay files and the CLI take.
     pub name: &'static str,
+    /// How it runs.
+    pub run: Run,
     /// The measurements it takes besides IMU samples.
     pub takes: &'static [Input],
     /// When it is smoothed.
     pub smoothing: Smoothing,
-    /// Its streaming class in Python (`uwbimu_rs.<class>`), if it has one.
-    pub streaming_class: Option<&'static str>,
     /// Whether the batch method chooses its range-error model, NLOS skew and range noise on the
     /// log ([`crate::select`]); a row says `chooses_model: true`, the others leave it out.
     pub chooses_model: bool,
@@ -76,82 +92,28 @@ pub struct MethodInfo {
     pub doc: &'static str,
 }
 
-/// The rows of the method registry: one row per method — variant, name, how it runs (`run:`), what
-/// it takes, its smoothing and whether it chooses its model, with its doc; an inertial method's
-/// filter is also its streaming class. Adding a method is adding a row.
-///
-/// `methods!(callback)` hands the rows to the macro `callback`, which declares what follows from
-/// them: here `declare_registry!` ([`Method`], [`Method::ALL`], [`Method::info`] and the macro
-/// [`for_each_streaming_filter!`](crate::for_each_streaming_filter)), in [`crate::run`] the
-/// dispatch of [`crate::methods::run_method`], in `crate::replay::streamed` the dispatch of the
-/// streamed replay. A callback that declares a macro of its own is given a `$` after its name
-/// (`methods!(callback $)`) to write that macro's `$` with.
-macro_rules! methods {
-    ($callback:ident $($d:tt)?) => { $callback! { $($d)?
-    /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
-    UwbLs { name: "uwb_ls", run: multilateration, takes: [Ranges], smoothing: Never },
-    /// The tightly coupled EKF of Li & Wang (2020).
-    Ekf { name: "ekf", run: inertial(Ekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
-    Iekf { name: "iekf", run: inertial(Iekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
-    Rekf { name: "rekf", run: inertial(Rekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
-    Riekf { name: "riekf", run: inertial(Riekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
-    Criekf { name: "criekf", run: inertial(Criekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Ckf { name: "ckf", run: inertial(Ckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Arckf { name: "arckf", run: inertial(Arckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
-    Ackf {
-        name: "ackf",
-        run: inertial(Ackf),
-        takes: [Ranges, Tags, Tdoa, Magnetometer, Altitude, Odometry],
-        smoothing: OnRequest,
-    },
-    /// The loosely coupled error-state filter of Liu et al. (2019).
-    Eskf { name: "eskf", run: inertial(Eskf), takes: [Ranges], smoothing: OnRequest },
-    /// The Sage–Husa adaptive ESKF of Liu et al. (2019).
-    Shaf { name: "shaf", run: inertial(Shaf), takes: [Ranges], smoothing: OnRequest },
-    /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
-    Shfaf { name: "shfaf", run: inertial(Shfaf), takes: [Ranges], smoothing: OnRequest },
-    /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
-    Ukf { name: "ukf", run: inertial(Ukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
-    Rukf { name: "rukf", run: inertial(Rukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
-    /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
-    Ekf2d { name: "ekf2d", run: planar(Ekf), takes: [Ranges], smoothing: Never },
-    /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
-    Ukf2d { name: "ukf2d", run: planar(Ukf), takes: [Ranges], smoothing: Never },
-    /// The planar errors-complementary EKF of Wang et al. (2018), eqs. (15)–(18).
-    ///
-    /// Ranges pass through a moving average first.
-    Cekf2d { name: "cekf2d", run: planar(Cekf), takes: [Ranges], smoothing: Never },
-    /// The recommended method for real logs (ours), smoothed unless a forward pass is asked for.
-    ///
-    /// RIEKF with its range test skewed against long ranges, updates in the invariant error and
-    /// the zero-velocity constraint while still ([`uwbimu_estimation::filters::Best`]),
-    /// re-acquisition on divergence, a heading watch that resets a wrong heading, and
-    /// self-initialisation when no initial state is given. Before it runs it chooses its
-    /// range-error model, NLOS skew and range noise on the log by held-out anchors
-    /// ([`crate::select`]).
-    Best { name: "best", run: inertial(Best), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: ByDefault, chooses_model: true },
-    } };
+impl MethodInfo {
+    /// Its streaming class in Python (`uwbimu_rs.<class>`), if it has one: the type of its
+    /// inertial filter ([`InertialKind::type_name`]).
+    pub fn streaming_class(&self) -> Option<&'static str> {
+        match self.run {
+            Run::Inertial(kind) => Some(kind.type_name()),
+            Run::Multilateration | Run::Planar(_) => None,
+        }
+    }
 }
-pub(crate) use methods;
 
-/// Declares [`Method`], [`Method::ALL`], [`Method::info`] (names, parsing, capabilities, error
-/// lists) and the macro [`for_each_streaming_filter!`](crate::for_each_streaming_filter) with which
-/// the Python bindings declare and register one class per streaming filter, from the rows of
-/// [`methods!`].
-macro_rules! declare_registry {
-    ($d:tt $(
+/// Declares [`Method`] (a variant per row, with the row's doc), [`Method::ALL`] and
+/// [`Method::info`] from the rows it is given; its one invocation below is the registry. A row
+/// gives the variant, then its name, how it runs (`run:`, a [`Run`] with its [`InertialKind`] or
+/// [`PlanarKind`] named without the enum: `Inertial(Ekf)`), what it takes (an [`Input`] or a
+/// sensor of [`SensorKind`]), its smoothing, and `chooses_model: true` when it chooses its model.
+macro_rules! methods {
+    ($(
         $(#[doc = $doc:literal])+
         $variant:ident {
             name: $name:literal,
-            run: $run:ident $(($ty:ident))?,
+            run: $run:ident $(($kind:ident))?,
             takes: [$($input:ident),+],
             smoothing: $smoothing:ident
             $(, chooses_model: $chooses:literal)? $(,)?
@@ -172,38 +134,80 @@ macro_rules! declare_registry {
                 match self {
                     $(Method::$variant => &MethodInfo {
                         name: $name,
-                        takes: &[$(declare_registry!(@input $input)),+],
+                        run: methods!(@run $run $($kind)?),
+                        takes: &[$(methods!(@input $input)),+],
                         smoothing: Smoothing::$smoothing,
-                        streaming_class: declare_registry!(@class $run $($ty)?),
-                        chooses_model: declare_registry!(@chooses $($chooses)?),
+                        chooses_model: methods!(@chooses $($chooses)?),
                         doc: concat!($($doc, "\n"),+),
                     },)+
                 }
             }
         }
-
-        /// Calls `$callback!(run [Type], [extra…], "doc", …)` once for every method: `run` how it
-        /// runs (`inertial`, `planar`, `multilateration`), `Type` its filter in
-        /// `uwbimu_estimation::filters` when it is inertial (its streaming class), `extra` the
-        /// tokens given after the callback's name (the Python bindings declare and register one
-        /// class per inertial method with it, named as the type).
-        #[macro_export]
-        macro_rules! for_each_streaming_filter {
-            ($d callback:ident $d($d extra:tt)*) => {
-                $($d callback!($run $($ty)?, [$d($d extra)*], $($doc),+);)+
-            };
-        }
     };
+    (@run Multilateration) => { Run::Multilateration };
+    (@run Inertial $kind:ident) => { Run::Inertial(InertialKind::$kind) };
+    (@run Planar $kind:ident) => { Run::Planar(PlanarKind::$kind) };
     (@input Ranges) => { Input::Ranges };
     (@input Tags) => { Input::Tags };
     (@input $sensor:ident) => { Input::Sensor(SensorKind::$sensor) };
     (@chooses) => { false };
     (@chooses $chooses:literal) => { $chooses };
-    (@class inertial $ty:ident) => { Some(stringify!($ty)) };
-    (@class $run:ident $($ty:ident)?) => { None };
 }
 
-methods!(declare_registry $);
+// The registry: one row per method. Adding a method is adding a row (and, for a new inertial
+// filter type, the type: docs/architecture.md, "Adding things").
+methods! {
+    /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
+    UwbLs { name: "uwb_ls", run: Multilateration, takes: [Ranges], smoothing: Never },
+    /// The tightly coupled EKF of Li & Wang (2020).
+    Ekf { name: "ekf", run: Inertial(Ekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
+    Iekf { name: "iekf", run: Inertial(Iekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
+    Rekf { name: "rekf", run: Inertial(Rekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
+    Riekf { name: "riekf", run: Inertial(Riekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
+    Criekf { name: "criekf", run: Inertial(Criekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
+    Ckf { name: "ckf", run: Inertial(Ckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
+    Arckf { name: "arckf", run: Inertial(Arckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
+    Ackf {
+        name: "ackf",
+        run: Inertial(Ackf),
+        takes: [Ranges, Tags, Tdoa, Magnetometer, Altitude, Odometry],
+        smoothing: OnRequest,
+    },
+    /// The loosely coupled error-state filter of Liu et al. (2019).
+    Eskf { name: "eskf", run: Inertial(Eskf), takes: [Ranges], smoothing: OnRequest },
+    /// The Sage–Husa adaptive ESKF of Liu et al. (2019).
+    Shaf { name: "shaf", run: Inertial(Shaf), takes: [Ranges], smoothing: OnRequest },
+    /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
+    Shfaf { name: "shfaf", run: Inertial(Shfaf), takes: [Ranges], smoothing: OnRequest },
+    /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
+    Ukf { name: "ukf", run: Inertial(Ukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
+    Rukf { name: "rukf", run: Inertial(Rukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
+    Ekf2d { name: "ekf2d", run: Planar(Ekf), takes: [Ranges], smoothing: Never },
+    /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
+    Ukf2d { name: "ukf2d", run: Planar(Ukf), takes: [Ranges], smoothing: Never },
+    /// The planar errors-complementary EKF of Wang et al. (2018), eqs. (15)–(18).
+    ///
+    /// Ranges pass through a moving average first.
+    Cekf2d { name: "cekf2d", run: Planar(Cekf), takes: [Ranges], smoothing: Never },
+    /// The recommended method for real logs (ours), smoothed unless a forward pass is asked for.
+    ///
+    /// RIEKF with its range test skewed against long ranges, updates in the invariant error and
+    /// the zero-velocity constraint while still ([`uwbimu_estimation::filters::Best`]),
+    /// re-acquisition on divergence, a heading watch that resets a wrong heading, and
+    /// self-initialisation when no initial state is given. Before it runs it chooses its
+    /// range-error model, NLOS skew and range noise on the log by held-out anchors
+    /// ([`crate::select`]).
+    Best { name: "best", run: Inertial(Best), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: ByDefault, chooses_model: true },
+}
 
 impl Method {
     /// The method's name.
@@ -260,6 +264,11 @@ impl Method {
         Self::ALL.iter().filter(|m| keep(**m)).map(|m| m.name()).collect::<Vec<_>>().join(", ")
     }
 
+    /// The method that runs the inertial filter `kind` (every kind is one method's filter).
+    pub fn of_filter(kind: InertialKind) -> Option<Self> {
+        Self::ALL.iter().copied().find(|m| m.info().run == Run::Inertial(kind))
+    }
+
     /// Parses a method name; the error lists the allowed names.
     pub fn parse(name: &str) -> Result<Self> {
         Self::ALL
@@ -301,6 +310,15 @@ mod tests {
         assert_eq!(Method::names_where(|m| m.takes(Input::Sensor(SensorKind::Magnetometer))), "ackf");
         assert!(!Method::UwbLs.smoothable() && !Method::Ekf2d.takes_tdoa() && Method::Best.takes_tdoa());
         // A method streams exactly when it runs a 15-state filter (the smoothable ones).
-        assert!(Method::ALL.iter().all(|m| m.info().streaming_class.is_some() == m.smoothable()));
+        assert!(Method::ALL.iter().all(|m| m.info().streaming_class().is_some() == m.smoothable()));
+    }
+
+    #[test]
+    fn each_inertial_kind_is_the_filter_of_one_method() {
+        for kind in InertialKind::ALL {
+            let runs = Method::ALL.iter().filter(|m| m.info().run == Run::Inertial(kind));
+            assert_eq!(runs.count(), 1, "{kind:?}");
+            assert_eq!(Method::of_filter(kind).and_then(|m| m.info().streaming_class()), Some(kind.type_name()));
+        }
     }
 }

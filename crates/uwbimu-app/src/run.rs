@@ -1,5 +1,5 @@
 //! The runner under the batch API: what a run is given and produces ([`BatchInput`],
-//! [`BatchOutput`]), the dispatch of a method to its filter from the registry's rows
+//! [`BatchOutput`]), the dispatch of a method to its filter by its registry row's [`Run`]
 //! ([`crate::registry`]), the runs of the inertial and planar filters and of `uwb_ls`, and the
 //! checks of what a method is given. It runs a method as configured: the entry points that first
 //! apply the range time offset and calibration and let a method choose its model
@@ -8,7 +8,7 @@
 
 use std::sync::Arc;
 
-use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_estimation::filters::{InertialFilter, InertialVisitor, NamedFilter};
 use uwbimu_estimation::gate::Gate;
 use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
@@ -28,7 +28,7 @@ use uwbimu_vocabulary::state::NominalState;
 use crate::map_smoothing::{blend_state, map_passes, node_track, MapPasses, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
-use crate::registry::{methods, Input, Method};
+use crate::registry::{Input, Method, Run};
 
 /// What a batch run produced.
 // Made once per run and taken apart at once: boxing the trace would only add an indirection.
@@ -110,30 +110,33 @@ pub const SMOOTHING_FAILED: &str =
 /// and the held-out range score of the model selection ([`crate::select`]) all leave it out.
 pub const SETTLE_S: f64 = 10.0;
 
-/// Declares `dispatch`, the run of each method of the rows of [`methods!`] by how it runs
-/// (`run:`): `uwb_ls` by multilateration, an inertial method by its filter type, a planar one by
-/// its [`PlanarKind`].
-macro_rules! declare_dispatch {
-    ($($(#[$doc:meta])* $variant:ident { name: $name:literal, run: $run:ident $(($ty:ident))?, $($row:tt)* }),+ $(,)?) => {
-        /// Runs `method` as configured, on measurements already offset and calibrated (see
-        /// [`crate::methods::run_method`]); a method that chooses its model does not choose here.
-        pub(crate) fn dispatch(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-            match method {
-                $(Method::$variant => declare_dispatch!(@run input, $run $($ty)?),)+
-            }
+/// Runs `method` as configured, on measurements already offset and calibrated (see
+/// [`crate::methods::run_method`]), as its registry row says it runs ([`Run`]); a method that
+/// chooses its model does not choose here.
+pub(crate) fn dispatch(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    match method.info().run {
+        Run::Multilateration => {
+            let ls = LsConfig::from_filter_config(input.config);
+            Ok(BatchOutput::Multilateration(uwb_ls(&plausible_ranges(input), input.anchors, &ls)))
         }
-    };
-    (@run $input:ident, multilateration) => {{
-        let ls = LsConfig::from_filter_config($input.config);
-        Ok(BatchOutput::Multilateration(uwb_ls(&plausible_ranges($input), $input.anchors, &ls)))
-    }};
-    (@run $input:ident, inertial $ty:ident) => {
-        run_inertial(|i| uwbimu_estimation::filters::$ty::new($input.anchors.to_vec(), i, $input.config.clone()), $input)
-    };
-    (@run $input:ident, planar $kind:ident) => { run_planar(PlanarKind::$kind, $input) };
+        Run::Inertial(kind) => kind.visit(RunInertial(input)),
+        Run::Planar(kind) => run_planar(kind, input),
+    }
 }
 
-methods!(declare_dispatch);
+/// The run of an inertial method with the filter type its
+/// [`InertialKind`](uwbimu_estimation::filters::InertialKind) names: builds it from
+/// the input's anchors and configuration and runs it ([`run_inertial`]).
+struct RunInertial<'i, 'a>(&'i BatchInput<'a>);
+
+impl InertialVisitor for RunInertial<'_, '_> {
+    type Output = Result<BatchOutput>;
+
+    fn visit<F: NamedFilter>(self) -> Result<BatchOutput> {
+        let input = self.0;
+        run_inertial(|i| F::build(input.anchors.to_vec(), i, input.config.clone()), input)
+    }
+}
 
 /// Fails when `method` is asked to smooth and cannot, or is given measurements of a sensor
 /// (`kinds`, one per measurement or per sensor) it does not take; the message lists the methods

@@ -21,6 +21,10 @@
 //! Other rows can be composed with [`TightFilter::new`] and a [`Composition`]; every policy works
 //! with every strategy. The loosely coupled [`Eskf`], [`Shaf`] and [`Shfaf`] fuse a per-epoch
 //! UWB fix instead.
+//!
+//! Each of these types is a [`NamedFilter`] (built from the anchors, the initial state and the
+//! configuration) named by a variant of [`InertialKind`], whose [`InertialKind::visit`] is the
+//! one `match` from a method's filter to its type.
 
 /// Implements [`Filter`] and [`InertialFilter`] for a newtype over another filter (`self.0`), so a
 /// named filter is only its constructor.
@@ -100,6 +104,7 @@ pub mod bias_states;
 pub mod constraints;
 mod core;
 pub mod heading_watch;
+mod kind;
 mod loose;
 mod named;
 mod pending;
@@ -110,7 +115,7 @@ mod smoothing_record;
 mod tight;
 mod widening;
 
-use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{MagSample, TdoaMeasurement};
@@ -120,6 +125,7 @@ use crate::update::UpdateReport;
 
 pub use self::ackf::Ackf;
 pub use self::core::{CoreSnapshot, InertialCore};
+pub use self::kind::{InertialKind, InertialVisitor};
 pub use self::loose::{Eskf, Shaf, Shfaf};
 pub use self::named::*;
 pub use self::pending::PendingPropagation;
@@ -220,4 +226,15 @@ pub trait InertialFilter: Filter {
     fn reported_covariance(&self) -> uwbimu_vocabulary::state::ErrCov {
         *self.core().covariance()
     }
+}
+
+/// An inertial filter type of its own name, built from the anchors, the initial state and the
+/// configuration alone: the types [`InertialKind`] names ([`TightFilter`] also takes a
+/// composition).
+pub trait NamedFilter: InertialFilter + Clone + Send + Sync + 'static {
+    /// The type's name (the Python streaming class is named so).
+    const NAME: &'static str;
+
+    /// Builds the filter as the type's `new` does; anchors in the navigation frame, m.
+    fn build(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self>;
 }

@@ -3,6 +3,7 @@
 
 use pyo3::prelude::*;
 use uwbimu_app::methods::{Input, Method};
+use uwbimu_estimation::filters::InertialKind;
 use uwbimu_vocabulary::error::Error;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::validate;
@@ -67,18 +68,15 @@ pub(super) fn tag_arg(call: &'static str, tag: f64, count: usize) -> PyResult<us
     Err(Error::BadArgument { call, arg: format!("tag={tag}"), reason }.into())
 }
 
-/// The registry row whose streaming class is `class`.
-fn method_of_class(class: &str) -> Option<Method> {
-    Method::ALL.iter().copied().find(|m| m.info().streaming_class == Some(class))
-}
-
-/// Refuses the streaming call `call` when the class's method does not take `input`.
-pub(super) fn check_takes(call: &'static str, class: &str, input: Input) -> PyResult<()> {
-    match method_of_class(class) {
+/// Refuses the streaming call `call` when the method of the class of the filter `kind` does not
+/// take `input`.
+pub(super) fn check_takes(call: &'static str, kind: InertialKind, input: Input) -> PyResult<()> {
+    match Method::of_filter(kind) {
         Some(m) if !m.takes(input) => Err(Error::InvalidCall(format!(
-            "{call}: {class} does not take {} (these do: {})",
+            "{call}: {} does not take {} (these do: {})",
+            kind.type_name(),
             input.name(),
-            Method::names_where(|m| m.takes(input) && m.info().streaming_class.is_some())
+            Method::names_where(|m| m.takes(input) && m.info().streaming_class().is_some())
         ))
         .into()),
         _ => Ok(()),

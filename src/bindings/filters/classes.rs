@@ -1,12 +1,13 @@
-//! The streaming classes: one Python class per registry row with a streaming filter
-//! (`uwbimu_app::methods`), declared by `py_filter!`.
+//! The streaming classes: one Python class per inertial filter type ([`InertialKind`]), listed once
+//! in the `streaming_classes!` declaration below and declared each by `py_filter!`; its docstring
+//! is the registry row of its method (`uwbimu_app::methods`).
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::columns::step_columns;
-use uwbimu_app::methods::Input;
-use uwbimu_estimation::filters::InertialFilter;
+use uwbimu_app::methods::{Input, Method};
+use uwbimu_estimation::filters::{InertialFilter, InertialKind};
 use uwbimu_estimation::pipeline::{smoothed_nodes, Event, FixedLag, Stream, StreamOptions};
 use uwbimu_vocabulary::anchor_ids::AnchorIds;
 use uwbimu_vocabulary::config::InitialState;
@@ -31,10 +32,10 @@ const RECORD_CAPACITY: usize = 1 << 16;
 
 /// A Python class wrapping one named filter, with the streaming API: the filter driven by its own
 /// [`Stream`] (the batch API's event loop behind a reorder buffer, self-initialising without an
-/// initial state), so streaming equals batch.
+/// initial state), so streaming equals batch. Its docstring is [`class_doc`].
 macro_rules! py_filter {
-    ($(#[$doc:meta])* $py:ident, $core:ty) => {
-        $(#[$doc])*
+    ($py:ident, $core:ty) => {
+        #[doc = concat!("The streaming class of the filter `", stringify!($py), "`; its Python docstring is [`class_doc`].")]
         #[pyclass(module = "uwbimu_rs._native")]
         pub struct $py(Stream<$core>, Option<AnchorIds>, RecentSteps, Option<Lagged>);
 
@@ -94,6 +95,13 @@ macro_rules! py_filter {
 
         #[pymethods]
         impl $py {
+            /// The class's docstring ([`class_doc`]).
+            #[classattr]
+            #[pyo3(name = "__doc__")]
+            fn doc() -> String {
+                class_doc(InertialKind::$py)
+            }
+
             #[new]
             #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false, keep_steps=10_000, lag_s=None))]
             #[allow(clippy::too_many_arguments)]
@@ -224,7 +232,7 @@ macro_rules! py_filter {
             /// raise ValueError.
             fn add_tdoa(&mut self, py: Python<'_>, t: f64, i: f64, j: f64, d_ij: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_tdoa";
-                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Tdoa))?;
+                check_takes(CALL, InertialKind::$py, Input::Sensor(SensorKind::Tdoa))?;
                 let (anchor_i, anchor_j) = (self.anchor_row(CALL, "i", i)?, self.anchor_row(CALL, "j", j)?);
                 if anchor_i == anchor_j {
                     return Err(Error::BadArgument { call: CALL, arg: format!("i=j={i}"), reason: "the two anchors must differ".into() }.into());
@@ -237,7 +245,7 @@ macro_rules! py_filter {
             /// uses one (the ACKF paper), the others raise ValueError.
             fn add_magnetometer(&mut self, py: Python<'_>, t: f64, field: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_magnetometer";
-                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Magnetometer))?;
+                check_takes(CALL, InertialKind::$py, Input::Sensor(SensorKind::Magnetometer))?;
                 let field = vec3_arg(CALL, field, "field")?;
                 self.push(py, CALL, Event::Observation(Observation::Magnetometer(MagSample { t_s: t, field })))
             }
@@ -247,7 +255,7 @@ macro_rules! py_filter {
             /// take altitude raise ValueError.
             fn add_altitude(&mut self, py: Python<'_>, t: f64, z: f64) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_altitude";
-                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Altitude))?;
+                check_takes(CALL, InertialKind::$py, Input::Sensor(SensorKind::Altitude))?;
                 let m = AltitudeSample { t_s: t, z_m: finite(CALL, "z", z)? };
                 self.push(py, CALL, Event::Observation(Observation::Altitude(m)))
             }
@@ -258,7 +266,7 @@ macro_rules! py_filter {
             /// do not take odometry raise ValueError.
             fn add_odometry(&mut self, py: Python<'_>, t: f64, speed: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_odometry";
-                check_takes(CALL, stringify!($py), Input::Sensor(SensorKind::Odometry))?;
+                check_takes(CALL, InertialKind::$py, Input::Sensor(SensorKind::Odometry))?;
                 let row: Vec<f64> = std::iter::once(t).chain(array(speed, "speed")?.as_array().iter().copied()).collect();
                 let mut reports = Vec::new();
                 for m in validate_records::<OdometrySample>(CALL, &[&row], 0)? {
@@ -381,18 +389,47 @@ macro_rules! py_filter {
     };
 }
 
-/// Declares the streaming class of a registry row that has one, named as its filter.
-macro_rules! streaming_class {
-    (inertial $ty:ident, [], $($doc:literal),+) => {
-        py_filter!($(#[doc = $doc])+ $ty, uwbimu_estimation::filters::$ty);
+/// Declares the streaming classes of the filter types listed, each named as its type (a variant of
+/// [`InertialKind`]) by `py_filter!`, with [`add_streaming_classes`] that adds them to the module.
+macro_rules! streaming_classes {
+    ($($py:ident),+ $(,)?) => {
+        $(py_filter!($py, uwbimu_estimation::filters::$py);)+
+
+        /// Adds the streaming classes to the module `m`.
+        pub(super) fn add_streaming_classes(m: &Bound<'_, PyModule>) -> PyResult<()> {
+            $(m.add_class::<$py>()?;)+
+            Ok(())
+        }
+
+        /// The filter of each streaming class, in the order of the declaration.
+        #[cfg(test)]
+        const STREAMING_CLASSES: &[InertialKind] = &[$(InertialKind::$py),+];
     };
-    ($run:ident $($ty:ident)?, [], $($doc:literal),+) => {};
 }
 
-uwbimu_app::for_each_streaming_filter!(streaming_class);
+streaming_classes!(Ekf, Iekf, Rekf, Riekf, Criekf, Ckf, Arckf, Ackf, Eskf, Shaf, Shfaf, Ukf, Rukf, Best);
+
+/// The docstring of the streaming class of the filter `kind`: the doc of its method's registry
+/// row, each line without the space after `///` (as pyo3 writes a doc comment). pyo3 takes a
+/// class's doc comment only as literals, and the row is where the text is written once: the class
+/// attribute `__doc__` is set from it.
+fn class_doc(kind: InertialKind) -> String {
+    let doc = Method::of_filter(kind).map_or("", |m| m.info().doc);
+    doc.lines().map(|line| line.strip_prefix(' ').unwrap_or(line)).collect::<Vec<_>>().join("\n")
+}
 
 /// The polars DataFrame of native columns, built by the Python helper the batch functions use
 /// (`uwbimu_rs._convert.frame`: the same dtypes as `run_filter`'s frame).
 fn data_frame<'py>(py: Python<'py>, cols: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyAny>> {
     Ok(py.import("uwbimu_rs._convert")?.getattr("frame")?.call1((cols,))?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_streaming_classes_are_the_inertial_kinds() {
+        assert_eq!(STREAMING_CLASSES, InertialKind::ALL);
+    }
 }

@@ -33,7 +33,7 @@ pub(super) fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>
         let row = PyDict::new(py);
         row.set_item("takes", info.takes.iter().map(|i| i.name()).collect::<Vec<_>>())?;
         row.set_item("smoothing", info.smoothing.name())?;
-        row.set_item("streaming_class", info.streaming_class)?;
+        row.set_item("streaming_class", info.streaming_class())?;
         row.set_item("chooses_model", method.chooses_its_model())?;
         row.set_item("summary", method.summary())?;
         table.set_item(info.name, row)?;

@@ -26,14 +26,14 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use uwbimu_estimation::filters::{InertialCore, SmoothingRecord};
+use uwbimu_estimation::filters::{InertialCore, InertialVisitor, NamedFilter, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
-use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_estimation::planar::PlanarFilter;
 use uwbimu_estimation::smoother::Guide;
 use uwbimu_io::files::spill::Spill;
 use uwbimu_io::{IoError, IoResult as Result, Mapping, RecordingSurvey};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
-use uwbimu_vocabulary::error::Error as CoreError;
+use uwbimu_vocabulary::error::{Error as CoreError, Result as CoreResult};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::SensorKind;
@@ -52,7 +52,7 @@ use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTal
 use crate::map_smoothing::{blend_state, map_passes, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
-use crate::registry::{methods, Method};
+use crate::registry::{self, Method};
 use crate::run::{check_inputs, check_tags, BatchInput};
 
 /// What [`replay_streamed`] is given besides the method.
@@ -161,11 +161,15 @@ impl Prefix {
     }
 }
 
+/// Builds the filter of a streamed replay for the anchors, from the initial state, with the
+/// configuration.
+pub(crate) type BuildFilter<E> = Arc<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> CoreResult<E> + Send + Sync>;
+
 /// The filter of one streamed replay: how to build it and where its INS core is (None: nothing to
 /// smooth, the planar filters).
 pub(crate) struct FilterKind<E> {
-    /// Builds the filter for the anchors, from the initial state, with the configuration.
-    pub build: fn(Vec<Vec3>, &InitialState, FilterConfig) -> uwbimu_vocabulary::error::Result<E>,
+    /// Builds the filter.
+    pub build: BuildFilter<E>,
     /// Its INS core, to record and smooth.
     pub core: fn(&mut E) -> Option<&mut InertialCore>,
     /// The smoothing settings it runs with (its composition's where the configuration leaves
@@ -200,7 +204,7 @@ impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
     fn start(&mut self, config: &FilterConfig) -> Result<()> {
         let anchors = self.input.survey.anchors.positions.clone();
         let options = StreamOptions { reorder_window_s: 0.0, strict: true };
-        let (build, core, smooth) = (self.kind.build, self.kind.core, self.input.smooth);
+        let (build, core, smooth) = (Arc::clone(&self.kind.build), self.kind.core, self.input.smooth);
         let (guide, set_guide) = (self.guide.clone(), self.kind.guide);
         let make = move |anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig| {
             let mut filter = build(anchors, initial, config)?;
@@ -500,48 +504,43 @@ pub fn replay_streamed(
     input: &StreamedInput<'_>,
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
-    dispatch_streamed(method, input, on_step)
-}
-
-/// Declares `dispatch_streamed`, the streamed replay of each method of the rows of the registry
-/// (`methods!`, [`crate::registry`]) by how it runs (`run:`): an inertial method with its filter
-/// type, a planar one with its [`PlanarKind`]; `uwb_ls` is not streamed.
-macro_rules! declare_streamed_dispatch {
-    ($($(#[$doc:meta])* $variant:ident { name: $name:literal, run: $run:ident $(($ty:ident))?, $($row:tt)* }),+ $(,)?) => {
-        /// Replays a recording streamed from its file with `method` ([`replay_streamed`]);
-        /// `uwb_ls` is not streamed (it needs no IMU: the whole-recording replay serves it).
-        fn dispatch_streamed(
-            method: Method,
-            input: &StreamedInput<'_>,
-            on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
-        ) -> Result<StreamedReplay> {
-            match method {
-                $(Method::$variant => declare_streamed_dispatch!(@stream method, input, on_step, $run $($ty)?),)+
-            }
+    match method.info().run {
+        registry::Run::Multilateration => {
+            Err(CoreError::InvalidCall(format!("{} is not streamed: replay the whole recording", method.name())).into())
         }
-    };
-    (@stream $method:ident, $input:ident, $on_step:ident, multilateration) => {
-        Err(CoreError::InvalidCall(format!("{} is not streamed: replay the whole recording", $method.name())).into())
-    };
-    (@stream $method:ident, $input:ident, $on_step:ident, inertial $ty:ident) => {{
-        use uwbimu_estimation::filters::InertialFilter as _;
-        let kind = FilterKind {
-            build: uwbimu_estimation::filters::$ty::new,
-            core: |f: &mut uwbimu_estimation::filters::$ty| Some(f.core_mut()),
-            smoothing: |f: &uwbimu_estimation::filters::$ty| f.config().smoothing,
-            guide: |f: &mut uwbimu_estimation::filters::$ty, g| f.set_guide(g),
-        };
-        run($method, $input, &kind, $on_step)
-    }};
-    (@stream $method:ident, $input:ident, $on_step:ident, planar $kind:ident) => {{
-        let kind = FilterKind {
-            build: |anchors, initial, config| PlanarFilter::new(PlanarKind::$kind, anchors, initial, &config),
-            core: |_: &mut PlanarFilter| None,
-            smoothing: |_: &PlanarFilter| SmoothingConfig::default(),
-            guide: |_: &mut PlanarFilter, _| false,
-        };
-        run($method, $input, &kind, $on_step)
-    }};
+        registry::Run::Inertial(kind) => kind.visit(StreamInertial { method, input, on_step }),
+        registry::Run::Planar(kind) => {
+            let filter = FilterKind {
+                build: Arc::new(move |anchors, initial: &InitialState, config: FilterConfig| {
+                    PlanarFilter::new(kind, anchors, initial, &config)
+                }),
+                core: |_: &mut PlanarFilter| None,
+                smoothing: |_: &PlanarFilter| SmoothingConfig::default(),
+                guide: |_: &mut PlanarFilter, _| false,
+            };
+            run(method, input, &filter, on_step)
+        }
+    }
 }
 
-methods!(declare_streamed_dispatch);
+/// The streamed replay of an inertial method with the filter type its
+/// [`InertialKind`](uwbimu_estimation::filters::InertialKind) names ([`run`]).
+struct StreamInertial<'a, 'i, 's> {
+    method: Method,
+    input: &'a StreamedInput<'i>,
+    on_step: &'s mut dyn FnMut(&StepRecord) -> Result<()>,
+}
+
+impl InertialVisitor for StreamInertial<'_, '_, '_> {
+    type Output = Result<StreamedReplay>;
+
+    fn visit<F: NamedFilter>(self) -> Result<StreamedReplay> {
+        let filter = FilterKind {
+            build: Arc::new(F::build),
+            core: |f: &mut F| Some(f.core_mut()),
+            smoothing: |f: &F| f.config().smoothing,
+            guide: |f: &mut F, g| f.set_guide(g),
+        };
+        run(self.method, self.input, &filter, self.on_step)
+    }
+}

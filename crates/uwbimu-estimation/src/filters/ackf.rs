@@ -9,7 +9,7 @@ use uwbimu_vocabulary::sensors::Observation;
 use uwbimu_vocabulary::state::ErrVec;
 
 use crate::filters::BiasModel;
-use crate::filters::{Composition, Filter, InertialCore, InertialFilter, TightFilter, UpdateStrategy};
+use crate::filters::{Composition, Filter, InertialCore, InertialFilter, NamedFilter, TightFilter, UpdateStrategy};
 use crate::models::attitude::{VectorAxis, VectorSensor};
 use crate::models::{Geometry, ScalarModel};
 use crate::robust::aiding::AidingUncertainty;
@@ -176,6 +176,14 @@ impl Filter for Ackf {
             Some(m) => self.vector_update(&body, &m, VectorSensor::Magnetometer, self.aiding.mag_std),
             None => Ok(UpdateReport::skipped()),
         }
+    }
+}
+
+impl NamedFilter for Ackf {
+    const NAME: &'static str = "Ackf";
+
+    fn build(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
+        Self::new(anchors, initial, config)
     }
 }
 

@@ -9,7 +9,7 @@ use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::state::{ErrCov, ErrVec, ERR_DIM, POS, VEL};
 
 use crate::filters::constraints::Constraints;
-use crate::filters::{Filter, InertialCore, InertialFilter};
+use crate::filters::{Filter, InertialCore, InertialFilter, NamedFilter};
 use crate::models::loose::{position_measurement, velocity_measurement, TagFix};
 use crate::multilateration::{solve_epoch, LsConfig};
 use crate::robust::{chi2_quantile, DivergenceMonitor};
@@ -200,6 +200,14 @@ impl Eskf {
     }
 }
 
+impl NamedFilter for Eskf {
+    const NAME: &'static str = "Eskf";
+
+    fn build(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
+        Self::new(anchors, initial, config)
+    }
+}
+
 impl InertialFilter for Eskf {
     fn still(&self) -> bool {
         self.constraints.still()
@@ -293,7 +301,14 @@ macro_rules! adaptive_eskf {
             pub fn new(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
                 Ok(Self(Eskf::adaptive(anchors, initial, config, $variant)?))
             }
+        }
 
+        impl NamedFilter for $name {
+            const NAME: &'static str = stringify!($name);
+
+            fn build(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
+                Self::new(anchors, initial, config)
+            }
         }
 
         delegate_filter!($name);

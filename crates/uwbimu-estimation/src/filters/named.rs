@@ -6,7 +6,7 @@ use uwbimu_vocabulary::error::Result;
 use uwbimu_vocabulary::math::Vec3;
 
 use crate::filters::{BiasModel, ConstraintSwitches};
-use crate::filters::{Composition, TightFilter, UpdateStrategy};
+use crate::filters::{Composition, NamedFilter, TightFilter, UpdateStrategy};
 use crate::robust::{chi2_quantile_1dof, RangeNoisePolicy};
 
 macro_rules! named_filter {
@@ -26,7 +26,14 @@ macro_rules! named_filter {
                 };
                 Ok(Self(TightFilter::new(anchors, initial, config, composition)?))
             }
+        }
 
+        impl NamedFilter for $name {
+            const NAME: &'static str = stringify!($name);
+
+            fn build(anchors: Vec<Vec3>, initial: &InitialState, config: FilterConfig) -> Result<Self> {
+                Self::new(anchors, initial, config)
+            }
         }
 
         delegate_filter!($name);
