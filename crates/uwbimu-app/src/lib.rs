@@ -37,6 +37,7 @@ mod run;
 pub mod select;
 #[cfg(feature = "sim")]
 pub mod sim;
+mod smoothing_passes;
 pub mod track;
 pub mod tune;
 mod uwb_clock;

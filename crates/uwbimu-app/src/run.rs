@@ -25,10 +25,11 @@ use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 use uwbimu_vocabulary::state::NominalState;
 
-use crate::map_smoothing::{blend_state, map_passes, node_track, MapPasses, MapRunner, Track, TrackFit};
+use crate::map_smoothing::{blend_state, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
-use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
+use crate::outlier_smoothing::{Residual, ResidualWalk};
 use crate::registry::{Input, Method, Run};
+use crate::smoothing_passes::{after_first_pass, PassRunner};
 
 /// What a batch run produced.
 // Made once per run and taken apart at once: boxing the trace would only add an indirection.
@@ -225,57 +226,28 @@ fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
 }
 
 /// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
-/// A smoothed run then runs its outlier passes ([`outlier_smooth`]) and, from their last pass, its
-/// MAP passes (`smoothing.map_passes` > 0, [`map_smooth`]), which keep a pass only when it lowers
-/// the objective, so that they never end above where the outlier passes left it; a run whose
-/// smoother failed numerically carries the warning [`SMOOTHING_FAILED`].
+/// A smoothed run then takes the passes after its first in the order every runner takes them
+/// ([`after_first_pass`]: the outlier passes, then from their last the MAP passes), here held in
+/// memory ([`InMemory`]); a run whose smoother failed numerically carries the warning
+/// [`SMOOTHING_FAILED`].
 fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
     let mut warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
     let (initial, init) = initial_state(input)?;
     let (trace, smoothed, smoothing) = run_pass(&build, &initial, input, None)?;
-    let mut pass = outlier_smooth(&build, input, (trace, smoothed, init), &smoothing)?;
-    if smoothing.map_passes_or_zero() > 0 {
-        let left_out = pass.0.health.smoothing_left_out;
-        let done;
-        (pass, done) = map_smooth(&build, &initial, input, pass, &smoothing)?;
-        let health = &mut pass.0.health;
-        (health.smoothing_left_out, health.map_passes, health.map_objective) = (left_out, done.passes, done.objective);
-    }
-    let (trace, smoothed, init) = pass;
+    let quiet = input.progress.map(Progress::sharing_cancel);
+    let mut runner = InMemory {
+        build: &build,
+        initial: &initial,
+        input: BatchInput { progress: quiet.as_ref(), ..*input },
+        map_config: None,
+        map_init: None,
+    };
+    let done = after_first_pass(&mut runner, (trace, smoothed, init), input.ranges, &smoothing)?;
+    let (mut trace, smoothed, init) = done.pass;
+    let health = &mut trace.health;
+    (health.smoothing_left_out, health.map_passes, health.map_objective) = (done.left_out, done.map.passes, done.map.objective);
     warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
-}
-
-/// The outlier passes of [`run_inertial`] after its `first` smoothed pass: with
-/// `smoothing.outlier_passes` > 0, the ranges its smoothed track calls NLOS are left out and the
-/// log runs again (initialised as a log without them would be), until no range is added or the
-/// passes are spent ([`crate::outlier_smoothing`]). Returns the last complete pass (the one
-/// before, if a log without them cannot start), with the ranges left out counted in its health.
-fn outlier_smooth<F: InertialFilter>(
-    build: &impl Fn(&InitialState) -> Result<F>,
-    input: &BatchInput<'_>,
-    first: SmoothedPass,
-    smoothing: &SmoothingConfig,
-) -> Result<SmoothedPass> {
-    let quiet = input.progress.map(Progress::sharing_cancel);
-    let residuals = |(_, smoothed, _): &mut SmoothedPass| Ok(smoothed.as_deref().map(|steps| residuals_of(input, steps)));
-    let again = |left_out: &[bool]| {
-        let kept: Vec<RangeMeasurement> = input.ranges.iter().zip(left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
-        let again_input = BatchInput { ranges: &kept, progress: quiet.as_ref(), ..*input };
-        // A log that cannot start without the ranges left out keeps the pass before.
-        let rerun = initial_state(&again_input)
-            .and_then(|(initial, init)| run_pass(build, &initial, &again_input, None).map(|pass| (pass, init)));
-        let ((trace, smoothed, _), init) = match rerun {
-            Err(Error::InsufficientData(_)) => return Ok(None),
-            other => other?,
-        };
-        Ok(complete(&trace, &smoothed, quiet.as_ref()).then_some((trace, smoothed, init)))
-    };
-    let passes = smoothing.outlier_passes_or_zero();
-    let ((mut trace, smoothed, init), left_out) =
-        leave_out_long_ranges(first, passes, input.ranges, smoothing.outlier_sigmas, residuals, again)?;
-    trace.health.smoothing_left_out = left_out;
-    Ok((trace, smoothed, init))
 }
 
 /// Whether a pass of the smoothing ran to its end: smoothed, neither failed numerically nor
@@ -291,57 +263,69 @@ fn residuals_of(input: &BatchInput<'_>, steps: &[StepRecord]) -> Vec<Option<Resi
     walk.finish()
 }
 
-/// The MAP passes of [`run_inertial`] after its `first` smoothed pass ([`crate::map_smoothing`]):
-/// each pass runs from the same `initial` state with the filter guided by the previous pass's
-/// track. A filter that takes no guide, or a log with other sensors than the IMU and the ranges
-/// (the objective has no terms for them), keeps the first pass; a cancelled run ends the passes.
-fn map_smooth<F: InertialFilter>(
-    build: &impl Fn(&InitialState) -> Result<F>,
-    initial: &InitialState,
-    input: &BatchInput<'_>,
-    first: SmoothedPass,
-    smoothing: &SmoothingConfig,
-) -> Result<(SmoothedPass, MapPasses)> {
-    let (trace, smoothed, init) = first;
-    let mut filter = build(initial)?;
-    // The objective has no terms for the other sensors: it could not judge a pass on them.
-    if !filter.set_guide(None) || !input.observations.is_empty() {
-        return Ok(((trace, smoothed, init), MapPasses::default()));
-    }
-    let quiet = input.progress.map(Progress::sharing_cancel);
-    let config = filter.config().clone();
-    let mut runner = InMemory { build, initial, config: &config, input: BatchInput { progress: quiet.as_ref(), ..*input } };
-    let ((trace, smoothed), done) = map_passes(&mut runner, (trace, smoothed), input.ranges, smoothing)?;
-    Ok(((trace, smoothed, init), done))
-}
-
-/// The MAP passes of a batch run, held in memory: a pass is its trace and smoothed steps.
+/// The passes of a batch run after its first ([`after_first_pass`]), held in memory. Its runs do
+/// not count IMU samples (`input.progress` shares only the caller's cancel flag).
 struct InMemory<'a, B> {
     build: &'a B,
+    /// The state the first pass and every MAP pass start from (the objective's prior).
     initial: &'a InitialState,
-    /// The configuration the filter runs with (the objective's noise and mounting).
-    config: &'a FilterConfig,
     input: BatchInput<'a>,
+    /// The configuration the filter runs with (the objective's noise and mounting), once the MAP
+    /// passes are ready ([`PassRunner::prepare_map`]).
+    map_config: Option<FilterConfig>,
+    /// The self-initialisation a MAP pass reports: that of the pass the MAP passes start from.
+    map_init: Option<Box<SelfInit>>,
+}
+
+impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> PassRunner for InMemory<'_, B> {
+    /// A log that cannot start without the ranges left out keeps the pass before.
+    fn without(&mut self, left_out: &[bool]) -> Result<Option<SmoothedPass>> {
+        let kept: Vec<RangeMeasurement> =
+            self.input.ranges.iter().zip(left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
+        let again_input = BatchInput { ranges: &kept, ..self.input };
+        let rerun = initial_state(&again_input)
+            .and_then(|(initial, init)| run_pass(self.build, &initial, &again_input, None).map(|pass| (pass, init)));
+        let ((trace, smoothed, _), init) = match rerun {
+            Err(Error::InsufficientData(_)) => return Ok(None),
+            other => other?,
+        };
+        Ok(complete(&trace, &smoothed, self.input.progress).then_some((trace, smoothed, init)))
+    }
+
+    /// A filter that takes no guide, or a log with other sensors than the IMU and the ranges,
+    /// runs no MAP pass.
+    fn prepare_map(&mut self, pass: &mut SmoothedPass) -> Result<bool> {
+        let mut filter = (self.build)(self.initial)?;
+        if !filter.set_guide(None) || !self.input.observations.is_empty() {
+            return Ok(false);
+        }
+        self.map_config = Some(filter.config().clone());
+        self.map_init.clone_from(&pass.2);
+        Ok(true)
+    }
 }
 
 impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemory<'_, B> {
-    type Pass = (Trace, Option<Vec<StepRecord>>);
+    type Pass = SmoothedPass;
     type Error = Error;
 
-    fn residuals(&mut self, (_, smoothed): &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
+    fn residuals(&mut self, (_, smoothed, _): &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
         Ok(smoothed.as_deref().map(|steps| residuals_of(&self.input, steps)))
     }
 
-    fn track(&mut self, (_, smoothed): &mut Self::Pass) -> Result<Option<Track>> {
+    fn track(&mut self, (_, smoothed, _): &mut Self::Pass) -> Result<Option<Track>> {
         smoothed.as_deref().map(|steps| node_track(steps.iter().map(|s| Ok(*s)))).transpose()
     }
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
         let BatchInput { imu, ranges, anchors, .. } = self.input;
-        TrackFit::of(track, imu.iter().map(|s| Ok(*s)), self.initial, self.config, (ranges, anchors))
+        let Some(config) = self.map_config.as_ref() else {
+            return Err(Error::InvalidCall("the MAP objective before its passes are ready".into()));
+        };
+        TrackFit::of(track, imu.iter().map(|s| Ok(*s)), self.initial, config, (ranges, anchors))
     }
 
-    fn blend(&mut self, (_, a): &mut Self::Pass, (_, b): &mut Self::Pass, alpha: f64) -> Result<()> {
+    fn blend(&mut self, (_, a, _): &mut Self::Pass, (_, b, _): &mut Self::Pass, alpha: f64) -> Result<()> {
         if let (Some(a), Some(b)) = (a.as_deref(), b.as_deref_mut()) {
             for (x, y) in a.iter().zip(b.iter_mut()) {
                 y.state = blend_state(&x.state, &y.state, alpha);
@@ -356,7 +340,7 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
             Err(Error::NotPositiveDefinite { .. }) => return Ok(None),
             other => other?,
         };
-        Ok(complete(&trace, &smoothed, self.input.progress).then_some((trace, smoothed)))
+        Ok(complete(&trace, &smoothed, self.input.progress).then_some((trace, smoothed, self.map_init.clone())))
     }
 }
 

@@ -49,11 +49,12 @@ use spilled::{step_from_flat, step_to_flat, StepsOut};
 use truth_match::TruthMatch;
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
-use crate::map_smoothing::{blend_state, map_passes, node_track, MapRunner, Track, TrackFit};
+use crate::map_smoothing::{blend_state, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
-use crate::outlier_smoothing::{leave_out_long_ranges, Residual, ResidualWalk};
+use crate::outlier_smoothing::{Residual, ResidualWalk};
 use crate::registry::{self, Method};
 use crate::run::{check_inputs, check_tags, BatchInput};
+use crate::smoothing_passes::{after_first_pass, PassRunner};
 
 /// What [`replay_streamed`] is given besides the method.
 #[derive(Debug, Clone, Copy)]
@@ -314,11 +315,11 @@ fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> 
 /// Replays the recording of `input` through `method` (an inertial or planar filter) as the
 /// whole-recording replay does, reading the file once more and handing each output step to
 /// `on_step` in time order: the forward step as soon as the events at its time are in, or, when
-/// smoothing, the smoothed steps after the RTS pass. A smoothed run whose filter runs with
-/// `smoothing.outlier_passes` > 0 reads the file again without the ranges its smoothed track
-/// calls NLOS, as the batch runner does ([`crate::outlier_smoothing`]), then its MAP passes
-/// (`smoothing.map_passes` > 0, [`crate::map_smoothing`]), and hands on the last pass kept; it
-/// keeps the ranges (24 B each) in memory meanwhile and, on a log of IMU and ranges only, spills the IMU samples (56 B each). When the progress's cancel flag is
+/// smoothing, the smoothed steps after the RTS pass. A smoothed run then takes the passes after
+/// its first as the batch runner does ([`after_first_pass`]: the outlier passes, each reading the
+/// file again without the ranges the smoothed track calls NLOS, then the MAP passes), and hands on
+/// the last pass kept; it keeps the ranges (24 B each) in memory meanwhile and, on a log of IMU
+/// and ranges only, spills the IMU samples (56 B each) for the MAP objective. When the progress's cancel flag is
 /// raised the run stops after the current event and hands on the forward steps so far (not
 /// smoothed).
 ///
@@ -360,30 +361,6 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         return pass.finish(survey, Some(on_step));
     };
     let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
-    let residuals = |pass: &mut Pass<'_, E>| residuals_of(pass, &all, input);
-    let again = |left_out: &[bool]| -> Result<Option<Pass<'_, E>>> {
-        let again_input = StreamedInput { progress: quiet.as_ref(), ..*input };
-        let mut again_ranges = EventsOfPass { left_out, ..EventsOfPass::default() };
-        let out = StepsOut::spilled(input.spill_dir)?;
-        // A log that cannot start without the ranges left out keeps the pass before.
-        let mut rerun = match run_pass(method, &again_input, kind, imu_span_s, out, &mut again_ranges, model.as_ref(), None) {
-            Err(IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
-            other => other?,
-        };
-        rerun.smooth(&again_input, kind.core)?;
-        let complete = rerun.smoothed.is_some() && !quiet.as_ref().is_some_and(Progress::cancelled);
-        Ok(complete.then_some(rerun))
-    };
-    let passes = smoothing.outlier_passes_or_zero();
-    let (mut pass, left_out) = leave_out_long_ranges(pass, passes, &all, smoothing.outlier_sigmas, residuals, again)?;
-    pass.left_out = left_out;
-    // As the batch runner: the MAP passes from the outlier passes' last (`imu` is None on a log
-    // with other sensors).
-    let guided = pass.stream.estimator_mut().is_some_and(|f| (kind.guide)(f, None));
-    let initial = input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
-    let (Some(imu), Some(initial), true) = (imu, initial, smoothing.map_passes_or_zero() > 0 && guided) else {
-        return pass.finish(survey, Some(on_step));
-    };
     let config = model.as_ref().map_or(input.config, |m| &m.config).clone();
     let mut runner = Spilled {
         method,
@@ -395,15 +372,16 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         ranges: &all,
         imu,
         config,
-        initial,
+        initial: None,
     };
-    let (mut pass, done) = map_passes(&mut runner, pass, &all, &smoothing)?;
-    (pass.left_out, pass.map_passes, pass.map_objective) = (left_out, done.passes, done.objective);
+    let done = after_first_pass(&mut runner, pass, &all, &smoothing)?;
+    let mut pass = done.pass;
+    (pass.left_out, pass.map_passes, pass.map_objective) = (done.left_out, done.map.passes, done.map.objective);
     pass.finish(survey, Some(on_step))
 }
 
-/// The MAP passes of a streamed replay: a pass reads the file again, its smoothed steps spilled to
-/// disk and read back oldest first.
+/// The passes of a streamed replay after its first ([`after_first_pass`]): a pass reads the file
+/// again, its smoothed steps spilled to disk and read back oldest first.
 struct Spilled<'a, 'i, E> {
     method: Method,
     input: &'a StreamedInput<'i>,
@@ -413,12 +391,40 @@ struct Spilled<'a, 'i, E> {
     quiet: Option<&'a Progress>,
     /// Every range of the first pass, in stream order.
     ranges: &'a [RangeMeasurement],
-    /// Every IMU sample of the first pass, in time order.
-    imu: Spill<IMU_FLAT_LEN>,
+    /// Every IMU sample of the first pass, in time order (None on a log with other sensors than
+    /// the IMU and the ranges, which runs no MAP pass).
+    imu: Option<Spill<IMU_FLAT_LEN>>,
     /// The configuration the filter runs with (the objective's noise and mounting).
     config: FilterConfig,
-    /// The state every pass starts from (the objective's prior).
-    initial: InitialState,
+    /// The state every MAP pass starts from (the objective's prior), once they are ready
+    /// ([`PassRunner::prepare_map`]).
+    initial: Option<InitialState>,
+}
+
+impl<'a, E: Estimator + Send + Sync + 'static> PassRunner for Spilled<'a, '_, E> {
+    /// A log that cannot start without the ranges left out keeps the pass before.
+    fn without(&mut self, left_out: &[bool]) -> Result<Option<Pass<'a, E>>> {
+        let again_input = StreamedInput { progress: self.quiet, ..*self.input };
+        let mut again_ranges = EventsOfPass { left_out, ..EventsOfPass::default() };
+        let out = StepsOut::spilled(self.input.spill_dir)?;
+        let rerun = run_pass(self.method, &again_input, self.kind, self.imu_span_s, out, &mut again_ranges, self.model, None);
+        let mut rerun = match rerun {
+            Err(IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
+            other => other?,
+        };
+        rerun.smooth(&again_input, self.kind.core)?;
+        let complete = rerun.smoothed.is_some() && !self.quiet.is_some_and(Progress::cancelled);
+        Ok(complete.then_some(rerun))
+    }
+
+    /// The MAP passes start from the given initial state, or from the self-initialisation of the
+    /// pass they start from; a filter that takes no guide, or a log with other sensors (no IMU
+    /// samples spilled), runs none.
+    fn prepare_map(&mut self, pass: &mut Pass<'a, E>) -> Result<bool> {
+        let guided = pass.stream.estimator_mut().is_some_and(|f| (self.kind.guide)(f, None));
+        self.initial = self.input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
+        Ok(guided && self.imu.is_some() && self.initial.is_some())
+    }
 }
 
 /// The smoothed steps of a pass, oldest first (None when it has none).
@@ -455,8 +461,11 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
     }
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
-        let imu = self.imu.oldest_first()?.map(|v| v.map(|v| imu_from_flat(&v)));
-        TrackFit::of(track, imu, &self.initial, &self.config, (self.ranges, &self.input.survey.anchors.positions))
+        let (Some(imu), Some(initial)) = (self.imu.as_mut(), self.initial.as_ref()) else {
+            return Err(CoreError::InvalidCall("the MAP objective before its passes are ready".into()).into());
+        };
+        let imu = imu.oldest_first()?.map(|v| v.map(|v| imu_from_flat(&v)));
+        TrackFit::of(track, imu, initial, &self.config, (self.ranges, &self.input.survey.anchors.positions))
     }
 
     /// Writes the blend into a new spill, newest first as the smoothed steps are kept.
