@@ -52,7 +52,7 @@ use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTal
 use crate::map_smoothing::{blend_state, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{Residual, ResidualWalk};
-use crate::registry::{self, Method};
+use crate::registry::{Method, Run};
 use crate::run::{check_inputs, check_tags, BatchInput};
 use crate::smoothing_passes::{after_first_pass, PassRunner};
 
@@ -182,7 +182,7 @@ pub(crate) struct FilterKind<E> {
 }
 
 /// The state of a run while the events stream past.
-struct Run<'a, 'f, E> {
+struct RunState<'a, 'f, E> {
     method: Method,
     input: &'a StreamedInput<'a>,
     kind: &'a FilterKind<E>,
@@ -200,7 +200,7 @@ struct Run<'a, 'f, E> {
     guide: Option<Arc<Guide>>,
 }
 
-impl<E: Estimator + Send + Sync + 'static> Run<'_, '_, E> {
+impl<E: Estimator + Send + Sync + 'static> RunState<'_, '_, E> {
     /// Builds the stream with the chosen (or given) configuration.
     fn start(&mut self, config: &FilterConfig) -> Result<()> {
         let anchors = self.input.survey.anchors.positions.clone();
@@ -514,11 +514,11 @@ pub fn replay_streamed(
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
     match method.info().run {
-        registry::Run::Multilateration => {
+        Run::Multilateration => {
             Err(CoreError::InvalidCall(format!("{} is not streamed: replay the whole recording", method.name())).into())
         }
-        registry::Run::Inertial(kind) => kind.visit(StreamInertial { method, input, on_step }),
-        registry::Run::Planar(kind) => {
+        Run::Inertial(kind) => kind.visit(StreamInertial { method, input, on_step }),
+        Run::Planar(kind) => {
             let filter = FilterKind {
                 build: Arc::new(move |anchors, initial: &InitialState, config: FilterConfig| {
                     PlanarFilter::new(kind, anchors, initial, &config)

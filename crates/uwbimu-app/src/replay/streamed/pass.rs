@@ -17,7 +17,7 @@ use uwbimu_vocabulary::sensors::Observation;
 use super::ordered::Ordered;
 use super::spilled::{smooth_spilled, step_from_flat, Spills, StepSink, StepsOut, STEP_FLAT_LEN};
 use super::truth_match::{hand_on, TruthMatch};
-use super::{survey_sensors, FilterKind, Prefix, Run, StreamedInput, StreamedReplay, UpdateTally};
+use super::{survey_sensors, FilterKind, Prefix, RunState, StreamedInput, StreamedReplay, UpdateTally};
 use crate::model_choice::ModelChoice;
 use crate::registry::Method;
 
@@ -112,7 +112,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     // kept: the choice (the input configuration, and why) comes at once.
     let scorable = survey.anchors.positions.len() >= crate::select::MIN_BLOCK_ANCHORS && survey.n_ranges > 0;
     let selecting = choosing && scorable;
-    let mut run = Run {
+    let mut run = RunState {
         method,
         input,
         kind,
@@ -177,7 +177,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         .into());
     }
     run.collect(true)?;
-    let Run { stream, model, out, tally, handed_on, last_t_s, .. } = run;
+    let RunState { stream, model, out, tally, handed_on, last_t_s, .. } = run;
     let Some(stream) = stream else { return Err(CoreError::InvalidCall("the stream was not started".into()).into()) };
     Ok(Pass {
         stream,
