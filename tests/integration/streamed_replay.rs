@@ -122,6 +122,15 @@ fn assert_same(path: &Path, cfg: &ReplayConfig, method: Method, smooth: bool) ->
     assert_eq!(sa.model, sb.model, "{what}: model choice");
     assert_eq!(sa.smoothing_left_out, sb.smoothing_left_out, "{what}: ranges the robust smoothing left out");
     assert_eq!(sa.map_passes, sb.map_passes, "{what}: MAP passes");
+    assert_eq!(sa.map_objective.len(), sb.map_objective.len(), "{what}: MAP objective");
+    for (x, y) in sa.map_objective.iter().zip(&sb.map_objective) {
+        assert!(
+            (x - y).abs() < 1e-9 * x.abs().max(1.0),
+            "{what}: MAP objective {:?} vs {:?}",
+            sa.map_objective,
+            sb.map_objective
+        );
+    }
     let (na, nb) = (sa.mean_nis.unwrap(), sb.mean_nis.unwrap());
     assert!((na - nb).abs() < 1e-9 * na.abs().max(1.0), "{what}: NIS {na} vs {nb}");
     let (ra, rb) = (sa.rmse.unwrap(), sb.rmse.unwrap());

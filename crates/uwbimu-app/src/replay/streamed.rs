@@ -362,6 +362,8 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     };
     let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
     let config = model.as_ref().map_or(input.config, |m| &m.config).clone();
+    // As the batch runner: the MAP objective's prior is the state the first pass started from.
+    let initial = input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
     let mut runner = Spilled {
         method,
         input,
@@ -372,7 +374,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         ranges: &all,
         imu,
         config,
-        initial: None,
+        initial,
     };
     let done = after_first_pass(&mut runner, pass, &all, &smoothing)?;
     let mut pass = done.pass;
@@ -396,8 +398,8 @@ struct Spilled<'a, 'i, E> {
     imu: Option<Spill<IMU_FLAT_LEN>>,
     /// The configuration the filter runs with (the objective's noise and mounting).
     config: FilterConfig,
-    /// The state every MAP pass starts from (the objective's prior), once they are ready
-    /// ([`PassRunner::prepare_map`]).
+    /// The state the first pass started from, given or self-initialised (the MAP objective's
+    /// prior; None when the first pass never initialised).
     initial: Option<InitialState>,
 }
 
@@ -417,12 +419,10 @@ impl<'a, E: Estimator + Send + Sync + 'static> PassRunner for Spilled<'a, '_, E>
         Ok(complete.then_some(rerun))
     }
 
-    /// The MAP passes start from the given initial state, or from the self-initialisation of the
-    /// pass they start from; a filter that takes no guide, or a log with other sensors (no IMU
-    /// samples spilled), runs none.
+    /// A filter that takes no guide, a log with other sensors (no IMU samples spilled) or a first
+    /// pass that never initialised runs no MAP pass.
     fn prepare_map(&mut self, pass: &mut Pass<'a, E>) -> Result<bool> {
         let guided = pass.stream.estimator_mut().is_some_and(|f| (self.kind.guide)(f, None));
-        self.initial = self.input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
         Ok(guided && self.imu.is_some() && self.initial.is_some())
     }
 }
@@ -462,7 +462,7 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
         let (Some(imu), Some(initial)) = (self.imu.as_mut(), self.initial.as_ref()) else {
-            return Err(CoreError::InvalidCall("the MAP objective before its passes are ready".into()).into());
+            return Err(CoreError::InvalidCall("the MAP objective without the IMU samples or the initial state".into()).into());
         };
         let imu = imu.oldest_first()?.map(|v| v.map(|v| imu_from_flat(&v)));
         TrackFit::of(track, imu, initial, &self.config, (self.ranges, &self.input.survey.anchors.positions))
