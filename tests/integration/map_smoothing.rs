@@ -26,25 +26,20 @@ fn best_smoothed(input: &BatchInput<'_>, map_passes: Option<u32>, outlier_passes
     (steps, trace.health.map_passes)
 }
 
-/// Horizontal RMSE against the simulated truth, the first 10 s left out.
-fn rmse_after_10_s(steps: &[StepRecord], data: &SimData) -> f64 {
-    let t0 = steps[0].t_s + 10.0;
-    let errors: Vec<f64> = crate::common::horizontal_errors(steps, data)
-        .into_iter()
-        .zip(steps)
-        .filter(|(_, s)| s.t_s >= t0)
-        .map(|(e, _)| e)
-        .collect();
-    crate::common::rms(&errors)
-}
-
 /// (plain RTS, outlier passes, MAP) RMSE after 10 s and the MAP passes run.
 fn three_ways(data: &SimData, config: &FilterConfig) -> ([f64; 3], u32) {
     let input = crate::common::batch(data, None, config);
     let (plain, _) = best_smoothed(&input, Some(0), Some(0));
     let (outlier, _) = best_smoothed(&input, Some(0), None);
     let (map, passes) = best_smoothed(&input, None, None);
-    ([rmse_after_10_s(&plain, data), rmse_after_10_s(&outlier, data), rmse_after_10_s(&map, data)], passes)
+    (
+        [
+            crate::common::rmse_after_10_s(&plain, data),
+            crate::common::rmse_after_10_s(&outlier, data),
+            crate::common::rmse_after_10_s(&map, data),
+        ],
+        passes,
+    )
 }
 
 #[test]

@@ -7,7 +7,7 @@
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::replay::compare_with_truth;
 use uwbimu_rs::app::replay_config::ReplayConfig;
-use uwbimu_rs::app::sim::{preset, simulate, zoo, SimData};
+use uwbimu_rs::app::sim::{preset, simulate, zoo};
 use uwbimu_rs::estimation::pipeline::StepRecord;
 use uwbimu_rs::io::files::truth_file::read_truth_csv;
 use uwbimu_rs::io::read_recording_file;
@@ -26,18 +26,6 @@ fn best_smoothed(input: &BatchInput<'_>, passes: Option<u32>) -> (Vec<StepRecord
     (steps, trace.health.smoothing_left_out)
 }
 
-/// Horizontal RMSE against the simulated truth, the first 10 s left out.
-fn rmse_after_10_s(steps: &[StepRecord], data: &SimData) -> f64 {
-    let t0 = steps[0].t_s + 10.0;
-    let errors: Vec<f64> = crate::common::horizontal_errors(steps, data)
-        .into_iter()
-        .zip(steps)
-        .filter(|(_, s)| s.t_s >= t0)
-        .map(|(e, _)| e)
-        .collect();
-    crate::common::rms(&errors)
-}
-
 #[test]
 fn nlos_ranges_leave_the_smoothed_hall_and_a_clean_run_stays() {
     // Seed 7, not one of the tables' seeds, noise matched to the simulator. Measured:
@@ -48,7 +36,7 @@ fn nlos_ranges_leave_the_smoothed_hall_and_a_clean_run_stays() {
     let input = crate::common::batch(&hall, None, &config);
     let (plain, none) = best_smoothed(&input, Some(0));
     let (robust, left_out) = best_smoothed(&input, None);
-    let (a, b) = (rmse_after_10_s(&plain, &hall), rmse_after_10_s(&robust, &hall));
+    let (a, b) = (crate::common::rmse_after_10_s(&plain, &hall), crate::common::rmse_after_10_s(&robust, &hall));
     println!("hall_vehicle_nlos: plain RTS {a:.4} m, robust {b:.4} m, {left_out} of {} ranges left out", hall.ranges.len());
     assert_eq!(none, 0);
     assert!((120..220).contains(&left_out), "{left_out}");
@@ -59,7 +47,7 @@ fn nlos_ranges_leave_the_smoothed_hall_and_a_clean_run_stays() {
     let input = crate::common::batch(&walk, None, &defaults);
     let (plain, _) = best_smoothed(&input, Some(0));
     let (robust, left_out) = best_smoothed(&input, None);
-    let (a, b) = (rmse_after_10_s(&plain, &walk), rmse_after_10_s(&robust, &walk));
+    let (a, b) = (crate::common::rmse_after_10_s(&plain, &walk), crate::common::rmse_after_10_s(&robust, &walk));
     println!("handheld_walk: plain RTS {a:.4} m, robust {b:.4} m, {left_out} of {} ranges left out", walk.ranges.len());
     assert!(left_out < walk.ranges.len() / 200, "{left_out}");
     assert!(b < 1.05 * a, "{a} → {b}");

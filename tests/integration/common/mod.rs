@@ -69,6 +69,14 @@ pub fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
 
+/// Horizontal RMSE of `steps` against the simulated truth, the first 10 s of steps left out.
+pub fn rmse_after_10_s(steps: &[StepRecord], data: &SimData) -> f64 {
+    let t0 = steps[0].t_s + 10.0;
+    let errors: Vec<f64> =
+        horizontal_errors(steps, data).into_iter().zip(steps).filter(|(_, s)| s.t_s >= t0).map(|(e, _)| e).collect();
+    rms(&errors)
+}
+
 /// The real recording `../shared/data/isas-walk1/<name>` beside the repository (or under the
 /// directory `UWBIMU_SHARED` names), or None (with a message) when it is not there: a user's
 /// clone has no `../shared`; CI has it beside the clone.
