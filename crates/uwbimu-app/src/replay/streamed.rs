@@ -406,17 +406,8 @@ struct Spilled<'a, 'i, E> {
 impl<'a, E: Estimator + Send + Sync + 'static> PassRunner for Spilled<'a, '_, E> {
     /// A log that cannot start without the ranges left out keeps the pass before.
     fn without(&mut self, left_out: &[bool]) -> Result<Option<Pass<'a, E>>> {
-        let again_input = StreamedInput { progress: self.quiet, ..*self.input };
-        let mut again_ranges = EventsOfPass { left_out, ..EventsOfPass::default() };
-        let out = StepsOut::spilled(self.input.spill_dir)?;
-        let rerun = run_pass(self.method, &again_input, self.kind, self.imu_span_s, out, &mut again_ranges, self.model, None);
-        let mut rerun = match rerun {
-            Err(IoError::Core(CoreError::InsufficientData(_))) => return Ok(None),
-            other => other?,
-        };
-        rerun.smooth(&again_input, self.kind.core)?;
-        let complete = rerun.smoothed.is_some() && !self.quiet.is_some_and(Progress::cancelled);
-        Ok(complete.then_some(rerun))
+        let declined = |e: &CoreError| matches!(e, CoreError::InsufficientData(_));
+        self.rerun(&mut EventsOfPass { left_out, ..EventsOfPass::default() }, None, declined)
     }
 
     /// A filter that takes no guide, a log with other sensors (no IMU samples spilled) or a first
@@ -483,17 +474,28 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
 
     /// A guided pass that fails numerically is declined ([`MapRunner::again`]).
     fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>> {
+        let declined = |e: &CoreError| matches!(e, CoreError::NotPositiveDefinite { .. });
+        self.rerun(&mut EventsOfPass::default(), Some(Arc::new(guide)), declined)
+    }
+}
+
+impl<'a, E: Estimator + Send + Sync + 'static> Spilled<'a, '_, E> {
+    /// The file read, filtered and smoothed again with the model of the first pass, leaving out
+    /// and keeping ranges as `ranges` says, guided by `guide` when given; None when the run fails
+    /// with an error `declined` accepts (the pass before is kept), or does not run to its end:
+    /// cancelled, or its smoother failed numerically (which leaves it unsmoothed).
+    fn rerun(
+        &self,
+        ranges: &mut EventsOfPass<'_>,
+        guide: Option<Arc<Guide>>,
+        declined: impl Fn(&CoreError) -> bool,
+    ) -> Result<Option<Pass<'a, E>>> {
         let input = StreamedInput { progress: self.quiet, ..*self.input };
         let out = StepsOut::spilled(input.spill_dir)?;
-        let guide = Some(Arc::new(guide));
-        let declined = |e: &IoError| matches!(e, IoError::Core(CoreError::NotPositiveDefinite { .. }));
-        let mut rerun =
-            match run_pass(self.method, &input, self.kind, self.imu_span_s, out, &mut EventsOfPass::default(), self.model, guide)
-            {
-                Err(e) if declined(&e) => return Ok(None),
-                other => other?,
-            };
-        // A smoothing that failed numerically leaves the pass unsmoothed: declined below.
+        let mut rerun = match run_pass(self.method, &input, self.kind, self.imu_span_s, out, ranges, self.model, guide) {
+            Err(IoError::Core(e)) if declined(&e) => return Ok(None),
+            other => other?,
+        };
         rerun.smooth(&input, self.kind.core)?;
         let complete = rerun.smoothed.is_some() && !self.quiet.is_some_and(Progress::cancelled);
         Ok(complete.then_some(rerun))
