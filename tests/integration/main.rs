@@ -43,3 +43,17 @@ mod tdoa;
 mod tdoa_mcap;
 mod uwb_lost;
 mod wang_2018;
+
+/// Every file of this directory is a module of this binary: a test file left out of the list
+/// above would build and run nowhere.
+#[test]
+fn every_test_file_is_a_module_here() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/integration");
+    let source = std::fs::read_to_string(dir.join("main.rs")).expect("read main.rs");
+    for entry in std::fs::read_dir(&dir).expect("read tests/integration") {
+        let name = entry.expect("a directory entry").file_name().to_string_lossy().into_owned();
+        if let Some(module) = name.strip_suffix(".rs").filter(|m| *m != "main") {
+            assert!(source.contains(&format!("\nmod {module};\n")), "tests/integration/{name} is not declared in main.rs");
+        }
+    }
+}
