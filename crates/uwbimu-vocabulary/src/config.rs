@@ -9,17 +9,19 @@
 //! (`range_std`, `zupt`, …) were removed rather than kept as aliases.
 
 mod lever_arms;
-mod parse;
+pub(crate) mod parse;
 mod range_calibration;
-mod sections;
+pub(crate) mod sections;
 
 use parse::{flag, non_negative, quaternion, vec3, vec3_or_scalar};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
+use crate::sensors::pose_fix::PoseFixConfig;
 
 pub use lever_arms::{LeverArms, MAX_TAGS};
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
+pub(crate) use sections::section;
 pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, AltitudeConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig,
     ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig,
@@ -80,6 +82,8 @@ pub struct FilterConfig {
     pub altitude: AltitudeConfig,
     /// Wheel odometry's noise.
     pub odometry: OdometryConfig,
+    /// An external pose fix's lever arm and trust.
+    pub pose_fix: PoseFixConfig,
     /// Per-anchor cubic range calibration (Wang et al. 2018 §2.2, §4.1) applied to the ranges before any
     /// batch method runs; empty by default. Set from Python as `{anchor: [c0, c1, c2, c3]}` under
     /// the key `range_calibration` (a table, not a section field).
@@ -115,6 +119,7 @@ macro_rules! for_each_section {
             { let $s = $($r)+ c.aiding; $body },
             { let $s = $($r)+ c.altitude; $body },
             { let $s = $($r)+ c.odometry; $body },
+            { let $s = $($r)+ c.pose_fix; $body },
         ]
     }};
 }

@@ -7,13 +7,17 @@
 //! ([`SensorRecord`]). The layers above derive their lists from [`SensorKind::ALL`] (the inputs a
 //! method takes, the Python keyword arguments and the stub, the update columns).
 //!
-//! Adding a sensor: its record (a [`SensorRecord`]), a row here, its measurement model and the
-//! filters that take it (`uwbimu_estimation`), its gate rule and its docs.
+//! Adding a sensor: its record (a [`SensorRecord`]) and configuration section in a module of its
+//! own ([`pose_fix`] is the example), a row here, its measurement model (`uwbimu_estimation`), its
+//! topic decoder (`uwbimu_io`) and its docs page (docs/architecture.md, "Adding a sensor").
+
+pub mod pose_fix;
 
 use crate::error::{Error, Result};
 use crate::math::Vec3;
 use crate::records::{AltitudeSample, MagSample, OdometrySample, TdoaMeasurement};
 use crate::validate::anchor_index;
+use pose_fix::PoseFix;
 
 /// How the rows of a sensor's table must be ordered in time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,6 +55,10 @@ pub struct SensorInfo {
     pub time_order: TimeOrder,
     /// The clock of its times.
     pub clock: Clock,
+    /// Whether every filter that applies scalar measurement models takes it (the registry's
+    /// `Aiding` input); false for a sensor only a method of its paper takes (the magnetometer of
+    /// `ackf`), which that method's row names.
+    pub aiding: bool,
     /// The columns of its table that hold anchor indices ([`SensorRecord::ANCHOR_COLUMNS`]).
     pub anchor_columns: &'static [usize],
 }
@@ -250,7 +258,8 @@ macro_rules! sensors {
             keyword: $keyword:literal,
             label: $label:literal,
             rank: $rank:literal,
-            clock: $clock:ident $(,)?
+            clock: $clock:ident,
+            aiding: $aiding:literal $(,)?
         }
     ),+ $(,)?) => {
         /// A measurement applied on its own at its own time (not gathered into range epochs):
@@ -282,6 +291,7 @@ macro_rules! sensors {
                         layouts: <$record as SensorRecord>::LAYOUTS,
                         time_order: <$record as SensorRecord>::TIME_ORDER,
                         clock: Clock::$clock,
+                        aiding: $aiding,
                         anchor_columns: <$record as SensorRecord>::ANCHOR_COLUMNS,
                     },)+
                 }
@@ -370,13 +380,16 @@ macro_rules! sensors {
 
 sensors! {
     /// A magnetometer sample (geomagnetic aiding of the ACKF paper, `uwbimu_estimation::filters::Ackf`).
-    Magnetometer(MagSample) { name: "magnetometer", keyword: "mag", label: "magnetometer samples", rank: 1, clock: Imu },
+    Magnetometer(MagSample) { name: "magnetometer", keyword: "mag", label: "magnetometer samples", rank: 1, clock: Imu, aiding: false },
     /// A time difference of arrival (`uwbimu_estimation::models::tdoa::Tdoa`).
-    Tdoa(TdoaMeasurement) { name: "tdoa", keyword: "tdoa", label: "TDoA", rank: 2, clock: Uwb },
+    Tdoa(TdoaMeasurement) { name: "tdoa", keyword: "tdoa", label: "TDoA", rank: 2, clock: Uwb, aiding: true },
     /// An altitude reading (`uwbimu_estimation::models::altitude::Altitude`).
-    Altitude(AltitudeSample) { name: "altitude", keyword: "altitude", label: "altitude", rank: 3, clock: Imu },
+    Altitude(AltitudeSample) { name: "altitude", keyword: "altitude", label: "altitude", rank: 3, clock: Imu, aiding: true },
     /// An odometry reading along one body axis (`uwbimu_estimation::models::odometry::BodyVelocity`).
-    Odometry(OdometrySample) { name: "odometry", keyword: "odometry", label: "odometry", rank: 4, clock: Imu },
+    Odometry(OdometrySample) { name: "odometry", keyword: "odometry", label: "odometry", rank: 4, clock: Imu, aiding: true },
+    /// An external pose fix: a position and optionally a yaw ([`pose_fix`],
+    /// `uwbimu_estimation::models::pose_fix`).
+    PoseFix(PoseFix) { name: "pose_fix", keyword: "pose_fix", label: "pose fixes", rank: 5, clock: Imu, aiding: true },
 }
 
 /// Rank of a range among events at one time: after every sensor of the registry.

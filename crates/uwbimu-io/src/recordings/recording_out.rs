@@ -95,7 +95,7 @@ pub fn sensor_topic(kind: SensorKind) -> Option<(&'static str, &'static str, &'s
         SensorKind::Tdoa => Some(("/tdoa", TDOA_MSG_NAME, TDOA_MSG)),
         SensorKind::Altitude => Some(("/altitude", "sensor_msgs/msg/Range", RANGE_MSG)),
         SensorKind::Odometry => Some(("/odom", "nav_msgs/msg/Odometry", ODOMETRY_MSG)),
-        SensorKind::Magnetometer => None,
+        SensorKind::Magnetometer | SensorKind::PoseFix => None,
     }
 }
 
@@ -187,7 +187,7 @@ pub fn write_recording_mcap<W: Write + Seek>(
                         next[2] = k + observations[k..].iter().take_while(same_time).count();
                         odometry_cdr(t, velocity)
                     }
-                    Observation::Magnetometer(_) => continue,
+                    Observation::Magnetometer(_) | Observation::PoseFix(_) => continue,
                 };
                 (sensor_ch.get(&o.kind()).copied().unwrap_or(imu_ch), data)
             }

@@ -6,7 +6,7 @@
 use crate::config::lever_arms::{lever_arms, LeverArms};
 use crate::config::parse::{
     at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
-    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole, ToValue,
+    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole,
 };
 use crate::config::ConfigValue;
 use crate::error::{Error, Result};
@@ -63,7 +63,8 @@ pub trait Section {
     fn entries(&self) -> Vec<(&'static str, ConfigValue)>;
 }
 
-fn unknown_field<S: Section>(key: &str) -> Error {
+/// The error for a key `section.key` a section does not have, listing the keys it has.
+pub(crate) fn unknown_field<S: Section>(key: &str) -> Error {
     let allowed: Vec<String> = S::KEYS.iter().map(|k| format!("{}.{k}", S::NAME)).collect();
     Error::unknown_option("config", &format!("{}.{key}", S::NAME), allowed.iter().map(String::as_str))
 }
@@ -88,27 +89,28 @@ macro_rules! section {
             }
         }
 
-        impl Section for $name {
+        impl $crate::config::Section for $name {
             const NAME: &'static str = $section;
             const KEYS: &'static [&'static str] = &[$( stringify!($field) ),*];
             const DOCS: &'static [&'static str] = &[$( concat!($($fdoc, " "),*) ),*];
 
-            fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+            fn set(&mut self, key: &str, value: &$crate::config::ConfigValue) -> $crate::error::Result<()> {
                 match key {
                     $( stringify!($field) => self.$field = ($parse)(concat!($section, ".", stringify!($field)), value)?, )*
-                    _ => return Err(unknown_field::<Self>(key)),
+                    _ => return Err($crate::config::sections::unknown_field::<Self>(key)),
                 }
                 Ok(())
             }
 
-            fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
+            fn entries(&self) -> Vec<(&'static str, $crate::config::ConfigValue)> {
                 let mut out = Vec::with_capacity(Self::KEYS.len());
-                $( if let Some(v) = ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
+                $( if let Some(v) = $crate::config::parse::ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
                 out
             }
         }
     };
 }
+pub(crate) use section;
 
 /// Default window of the epoch rule, s: covers a sweep over 8 anchors at 5 ms per anchor plus
 /// jitter, and stays below the 50 ms period of a 20 Hz sweep.
