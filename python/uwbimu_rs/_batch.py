@@ -32,12 +32,9 @@ def run_filter(
     covariance: bool = False,
     updates: Literal[False] = False,
     smooth: bool | None = None,
-    mag: np.ndarray | None = None,
-    tdoa: np.ndarray | None = None,
-    altitude: np.ndarray | None = None,
-    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[False] = False,
+    **sensors: np.ndarray | None,
 ) -> pl.DataFrame: ...
 
 
@@ -53,12 +50,9 @@ def run_filter(
     covariance: bool = False,
     updates: Literal[True],
     smooth: bool | None = None,
-    mag: np.ndarray | None = None,
-    tdoa: np.ndarray | None = None,
-    altitude: np.ndarray | None = None,
-    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[False] = False,
+    **sensors: np.ndarray | None,
 ) -> tuple[pl.DataFrame, pl.DataFrame]: ...
 
 
@@ -74,12 +68,9 @@ def run_filter(
     covariance: bool = False,
     updates: Literal[False] = False,
     smooth: bool | None = None,
-    mag: np.ndarray | None = None,
-    tdoa: np.ndarray | None = None,
-    altitude: np.ndarray | None = None,
-    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[True],
+    **sensors: np.ndarray | None,
 ) -> tuple[pl.DataFrame, dict[str, Any]]: ...
 
 
@@ -95,12 +86,9 @@ def run_filter(
     covariance: bool = False,
     updates: Literal[True],
     smooth: bool | None = None,
-    mag: np.ndarray | None = None,
-    tdoa: np.ndarray | None = None,
-    altitude: np.ndarray | None = None,
-    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: Literal[True],
+    **sensors: np.ndarray | None,
 ) -> tuple[pl.DataFrame, pl.DataFrame, dict[str, Any]]: ...
 
 
@@ -115,12 +103,9 @@ def run_filter(
     covariance: bool = False,
     updates: bool = False,
     smooth: bool | None = None,
-    mag: np.ndarray | None = None,
-    tdoa: np.ndarray | None = None,
-    altitude: np.ndarray | None = None,
-    odometry: np.ndarray | None = None,
     progress: bool = False,
     info: bool = False,
+    **sensors: np.ndarray | None,
 ) -> (
     pl.DataFrame
     | tuple[pl.DataFrame, pl.DataFrame]
@@ -159,27 +144,14 @@ def run_filter(
         ones (None: only for ``"best"``) (inertial methods only; the updates frame stays the forward
         pass's — with ``smoothing.outlier_passes``, on by default in ``"best"``, that of the last
         pass, without the ranges the robust smoothing left out).
-    mag : numpy.ndarray, shape (N, 4), optional
-        Magnetometer samples ``t, mx, my, mz`` (IMU frame, any unit, time strictly increasing);
-        only ``ackf`` uses them (geomagnetic aiding of the ACKF paper), other methods raise ValueError.
-    tdoa : numpy.ndarray, shape (M, 4), optional
-        Time differences of arrival ``t, i, j, d_ij`` with ``d_ij = |p − a_j| − |p − a_i|`` [m]
-        (Loco Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time,
-        noise σ = ``tdoa_std``. Alone (``ranges`` an empty ``(0, 3)`` array; without ``initial`` the
-        filter initialises itself from TDoA fixes) or with ranges. Taken by the methods whose
-        ``METHODS[name]["takes"]`` lists ``"tdoa"`` (the tightly coupled ones) through their own noise policy (the robust ones down-weight TDoA
-        outliers by χ² inflation); the others raise ValueError.
-    altitude : numpy.ndarray, shape (M, 2), optional
-        Heights ``t, z`` [m] of the body origin in the navigation frame (up), time strictly
-        increasing, noise σ = ``altitude.std`` (docs/altitude.md): a time-of-flight height sensor
-        over a flat floor, or a barometer with its offset to the frame removed. Taken by the
-        methods whose ``METHODS[name]["takes"]`` lists ``"altitude"``.
-    odometry : numpy.ndarray, shape (M, 2) or (M, 4), optional
-        Wheel odometry: ``t, speed`` [m/s] along the body x axis, or ``t, vx, vy, vz`` in the body
-        frame with NaN for an axis not measured (e.g. ``vy = vz = 0`` for the non-holonomic
-        constraint of a car, NaN to leave an axis free); time strictly increasing, noise
-        σ = ``odometry.std`` per axis (docs/odometry.md). Taken by the methods whose
-        ``METHODS[name]["takes"]`` lists ``"odometry"``.
+    **sensors : numpy.ndarray, optional
+        The other sensors' arrays by keyword, one per sensor of :data:`SENSORS` (its
+        ``keyword``, one row per reading in one of its ``columns`` layouts, time first), each
+        taken by the methods whose ``METHODS[name]["takes"]`` lists the sensor; the others raise
+        ValueError. TDoA alone (``ranges`` an empty ``(0, 3)`` array) starts the filter from TDoA
+        fixes. The keywords:
+
+{sensor_keywords}
     progress : bool, default False
         Draw a one-line bar on stderr of the IMU samples processed (then "smoothing" during
         the smoothing pass) while the run goes on.
@@ -251,10 +223,7 @@ def run_filter(
         covariance=covariance,
         updates=updates,
         smooth=smooth,
-        mag=mag,
-        tdoa=tdoa,
-        altitude=altitude,
-        odometry=odometry,
+        **sensors,
         progress=progress,
     )
     if updates:
@@ -262,6 +231,18 @@ def run_filter(
             raise ValueError(f"method {method!r} has no filter updates to report")
         return (frame, upd, run_info) if info else (frame, upd)
     return (frame, run_info) if info else frame
+
+
+def _sensor_keywords() -> str:
+    """The ``**sensors`` keywords of :func:`run_filter`'s docstring, one per row of :data:`SENSORS`."""
+    lines = []
+    for row in _native.SENSORS.values():
+        layouts = " or ".join(f"``({len(c)})`` ``{', '.join(c)}``" for c in row["columns"])
+        lines.append(f"        ``{row['keyword']}`` : {layouts}\n            {row['doc']}")
+    return "\n".join(lines)
+
+
+run_filter.__doc__ = (run_filter.__doc__ or "").replace("{sensor_keywords}", _sensor_keywords())
 
 
 def run_frames(
@@ -275,11 +256,8 @@ def run_frames(
     covariance: bool = False,
     updates: bool = False,
     smooth: bool | None = None,
-    mag: np.ndarray | None = None,
-    tdoa: np.ndarray | None = None,
-    altitude: np.ndarray | None = None,
-    odometry: np.ndarray | None = None,
     progress: bool = False,
+    **sensors: np.ndarray | None,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None, dict[str, Any]]:
     """:func:`run_filter` for callers that take any method (private to the package): the updates
     frame is None when not asked for or when the method has none (``uwb_ls``) instead of an error;
@@ -294,10 +272,7 @@ def run_frames(
         covariance=covariance,
         updates=updates,
         smooth=smooth,
-        mag=mag,
-        tdoa=tdoa,
-        altitude=altitude,
-        odometry=odometry,
+        **sensors,
         progress=progress,
     )
     info = _run_info(info)

@@ -149,8 +149,8 @@ _MethodName = Literal[
 class _MethodRow(TypedDict):
     """What the registry says of one method."""
 
-    takes: list[Literal["ranges", "tags", "tdoa", "magnetometer", "altitude", "odometry"]]
-    """The measurements it takes besides IMU samples."""
+    takes: list[str]
+    """The measurements it takes besides IMU samples: names of :data:`INPUTS`."""
     smoothing: Literal["never", "on_request", "by_default"]
     """Whether and when :func:`run_filter` RTS-smooths its run."""
     streaming_class: str | None
@@ -179,6 +179,8 @@ class _SensorRow(TypedDict):
     """The columns of its array, one list per accepted layout; column 0 is the time (s)."""
     rank: int
     """Its rank among measurements at one time (the IMU first, ranges last)."""
+    doc: str
+    """What it is: its columns, units, noise keys and docs page (the row's doc comment)."""
 
 SENSORS: dict[str, _SensorRow]
 """The sensor registry (``crates/uwbimu-vocabulary/src/sensors.rs``), one row per sensor besides
@@ -534,6 +536,15 @@ class _StreamingFilter:
         with ``axis`` set. The methods whose ``METHODS[name]["takes"]`` lacks ``"odometry"``
         raise ``UwbImuError``; so do a reading with no axis, a wrong length or an infinite
         value. A speed beyond ``gate.speed_range`` is counted by the gate, not applied."""
+
+    def add_sensor(self, name: str, row: ArrayLike) -> list[UpdateReport]:
+        """Take one reading of the sensor ``name`` (a key of :data:`SENSORS`) as one row of its
+        table, time first — a row of the array :func:`run_filter` takes for it, in one of
+        ``SENSORS[name]["columns"]`` — checked as those rows are and applied at its own time
+        (e.g. ``f.add_sensor("pose_fix", [t, x, y, z, sx, sy, sz])``). The methods whose
+        ``METHODS[name]["takes"]`` lacks the sensor raise ``UwbImuError``; so do an unknown
+        sensor and a row the array would refuse. A reading the gate finds impossible is
+        counted, not applied."""
 
     def apply_ranges_now(self, t: float, anchors: Sequence[int], ranges: Sequence[float]) -> list[UpdateReport]:
         """Apply ranges all measured at ``t`` jointly, at once — bypassing the epoch rule, the

@@ -83,6 +83,7 @@ ZooName = Literal[
     "forklift",
     "tdoa_drone",
     "tilted_walk",
+    "shelf_aisles",
     "still_tdoa_lost",
     "moving_uwb_lost",
 ]
@@ -126,6 +127,10 @@ class SimResult:
     altitude_offsets : numpy.ndarray, shape (M,), float64
         The true offset of each altitude reading, m (a barometer's wandering reference; overrides
         ``altimeter_offset_m``, ``altimeter_offset_walk``).
+    pose_fix : numpy.ndarray, shape (M, 7) or (M, 9), float64, or None
+        External pose fixes ``t, x, y, z, sx, sy, sz`` (with ``yaw, s_yaw`` when
+        ``pose_fix_yaw_std_rad`` > 0; override ``pose_fix=True``), as
+        :func:`uwbimu_rs.run_filter` takes them (``pose_fix=``).
     odometry : numpy.ndarray, shape (M, 2) or (M, 4), float64, or None
         Wheel odometry ``t, speed`` (body x), or ``t, vx, vy, vz`` with ``odometer_lateral=True``
         (override ``odometer=True``), as :func:`uwbimu_rs.run_filter` takes it (``odometry=``).
@@ -161,6 +166,7 @@ class SimResult:
     altitude: np.ndarray | None
     altitude_offsets: np.ndarray
     odometry: np.ndarray | None
+    pose_fix: np.ndarray | None
     accel_bias: np.ndarray
     gyro_bias: np.ndarray
     nlos_windows: np.ndarray
@@ -186,11 +192,15 @@ class SimResult:
         ]
         if self.tdoa is not None:
             parts.append(f"tdoa={self.tdoa.shape}")
-        for name in ("mag", "altitude", "odometry"):
-            table = getattr(self, name)
-            if table is not None:
-                parts.append(f"{name}={table.shape}")
+        parts += [f"{k}={v.shape}" for k, v in self.sensors().items() if k != "tdoa"]
         return f"SimResult({', '.join(parts)})"
+
+    def sensors(self) -> dict[str, np.ndarray]:
+        """The run's arrays of the sensors of :data:`uwbimu_rs.SENSORS` it has, by keyword, as
+        :func:`uwbimu_rs.run_filter` takes them (``run_filter(m, r.imu, r.ranges, r.anchors,
+        **r.sensors())``)."""
+        tables = {row["keyword"]: getattr(self, row["keyword"]) for row in _native.SENSORS.values()}
+        return {k: v for k, v in tables.items() if v is not None}
 
 
 def _result(d: dict) -> SimResult:
@@ -206,6 +216,7 @@ def _result(d: dict) -> SimResult:
         altitude=d["altitude"],
         altitude_offsets=d["altitude_offsets"],
         odometry=d["odometry"],
+        pose_fix=d["pose_fix"],
         accel_bias=d["accel_bias"],
         gyro_bias=d["gyro_bias"],
         nlos_windows=d["nlos_windows"],

@@ -240,6 +240,7 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
     d.set_item("altitude", sensor_table(py, &data.altitude)?)?;
     d.set_item("altitude_offsets", data.altitude_offsets.clone().into_pyarray(py))?;
     d.set_item("odometry", sensor_table(py, &data.odometry)?)?;
+    d.set_item("pose_fix", sensor_table(py, &data.pose_fix)?)?;
     d.set_item("tdoa_labels", data.tdoa_labels.clone().into_pyarray(py))?;
     d.set_item("accel_bias", vec3_rows(py, &data.accel_bias)?)?;
     d.set_item("gyro_bias", vec3_rows(py, &data.gyro_bias)?)?;
@@ -253,7 +254,8 @@ fn run<'py>(py: Python<'py>, cfg: SimConfig, config: Option<FilterConfig>) -> Py
 /// Simulates a named preset with optional overrides (a dict and/or keyword arguments); returns a
 /// dict of arrays (imu (N,7), ranges (M,3) or (M,4) with several tags, range_labels (M,), anchors (K,3), truth columns,
 /// mag (N,4) or None, tdoa (M,4) = t, i, j, d_ij or None, tdoa_labels (M,), altitude (M,2) = t, z
-/// or None, altitude_offsets (M,), odometry (M,2) = t, speed or (M,4) = t, vx, vy, vz or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
+/// or None, altitude_offsets (M,), odometry (M,2) = t, speed or (M,4) = t, vx, vy, vz or None,
+/// pose_fix (M,7) = t, x, y, z, sx, sy, sz or (M,9) with yaw, s_yaw, or None, accel_bias / gyro_bias (N,3), nlos_windows (W,4) = anchor, start, end, bias,
 /// accel_outlier_times (P,) s).
 #[pyfunction]
 #[pyo3(signature = (name, seed = 0, overrides = None, **kwargs))]

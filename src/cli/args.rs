@@ -110,7 +110,7 @@ pub(super) struct SurveyArgs {
 /// The method names of the registry, each with its summary (shown by `--help`).
 fn method_names() -> clap::builder::PossibleValuesParser {
     clap::builder::PossibleValuesParser::new(Method::ALL.iter().map(|m| {
-        let sensors: Vec<&str> = m.info().takes.iter().filter(|i| **i != Input::Ranges).map(|i| i.name()).collect();
+        let sensors: Vec<&str> = m.inputs().filter(|i| *i != Input::Ranges).map(Input::name).collect();
         let takes = if sensors.is_empty() { String::new() } else { format!(" Takes {}.", sensors.join(", ")) };
         clap::builder::PossibleValue::new(m.name()).help(format!("{}{takes}", m.summary()))
     }))

@@ -25,6 +25,7 @@ mod loose;
 mod map_smoothing;
 mod offsets;
 mod planar_tilt;
+mod pose_fix;
 mod range_bias;
 mod ranging;
 mod replay_cli;

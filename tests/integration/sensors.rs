@@ -11,7 +11,7 @@ use uwbimu_rs::estimation::gate::Rejection;
 use uwbimu_rs::estimation::pipeline::{run_streams, Streams, Trace};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::records::{AltitudeSample, OdometrySample};
-use uwbimu_rs::vocabulary::sensors::{merge, observations, Observation};
+use uwbimu_rs::vocabulary::sensors::{merge, observations, Observation, SensorKind};
 
 /// The methods checked: the plain, the robust iterated and the recommended one.
 const METHODS: [Method; 3] = [Method::Ekf, Method::Riekf, Method::Best];
@@ -221,8 +221,8 @@ fn impossible_heights_and_speeds_are_counted_and_dropped() {
         trace
     };
     let (spoiled, deleted) = (trace(&taken(Method::Riekf, &bad)), trace(&taken(Method::Riekf, &without)));
-    assert_eq!(spoiled.health.rejected.of(Rejection::AltitudeBeyondHall), 2);
-    assert_eq!(spoiled.health.rejected.of(Rejection::SpeedBeyondRange), 1);
+    assert_eq!(spoiled.health.rejected.of(Rejection::Sensor(SensorKind::Altitude)), 2);
+    assert_eq!(spoiled.health.rejected.of(Rejection::Sensor(SensorKind::Odometry)), 1);
     assert_eq!(deleted.health.rejected.total(), 0);
     let first_difference = spoiled.steps.iter().zip(&deleted.steps).position(|(a, b)| a.state != b.state);
     assert_eq!(first_difference, None, "a rejected reading is as if it never came");

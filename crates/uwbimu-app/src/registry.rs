@@ -18,11 +18,15 @@ pub enum Input {
     Tags,
     /// A sensor of the registry ([`uwbimu_vocabulary::sensors`]).
     Sensor(SensorKind),
+    /// In a row: every sensor the registry marks `aiding` (those every filter that applies
+    /// scalar measurement models takes), so a new such sensor needs no row changed.
+    Aiding,
 }
 
 impl Input {
     /// Every input a method may take, in this order: ranges, ranges from several tags, then each
-    /// sensor of the registry (`uwbimu_rs.INPUTS`).
+    /// sensor of the registry (`uwbimu_rs.INPUTS`; [`Input::Aiding`] is a row's shorthand, not an
+    /// input).
     pub fn all() -> impl Iterator<Item = Input> {
         [Self::Ranges, Self::Tags].into_iter().chain(SensorKind::ALL.iter().map(|k| Self::Sensor(*k)))
     }
@@ -34,6 +38,7 @@ impl Input {
             Self::Ranges => "ranges",
             Self::Tags => "tags",
             Self::Sensor(kind) => kind.info().name,
+            Self::Aiding => "aiding",
         }
     }
 }
@@ -81,7 +86,8 @@ pub struct MethodInfo {
     pub name: &'static str,
     /// How it runs.
     pub run: Run,
-    /// The measurements it takes besides IMU samples.
+    /// The measurements it takes besides IMU samples, as its row lists them ([`Method::takes`]
+    /// reads [`Input::Aiding`]).
     pub takes: &'static [Input],
     /// When it is smoothed.
     pub smoothing: Smoothing,
@@ -149,6 +155,7 @@ macro_rules! methods {
     (@run Planar $kind:ident) => { Run::Planar(PlanarKind::$kind) };
     (@input Ranges) => { Input::Ranges };
     (@input Tags) => { Input::Tags };
+    (@input Aiding) => { Input::Aiding };
     (@input $sensor:ident) => { Input::Sensor(SensorKind::$sensor) };
     (@chooses) => { false };
     (@chooses $chooses:literal) => { $chooses };
@@ -160,24 +167,24 @@ methods! {
     /// UWB-only least squares per epoch (Liu et al. 2019 eqs. (8)–(13), then Gauss–Newton).
     UwbLs { name: "uwb_ls", run: Multilateration, takes: [Ranges], smoothing: Never },
     /// The tightly coupled EKF of Li & Wang (2020).
-    Ekf { name: "ekf", run: Inertial(Ekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Ekf { name: "ekf", run: Inertial(Ekf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The iterated EKF (Li & Wang 2020, Algorithm 1 without re-weighting).
-    Iekf { name: "iekf", run: Inertial(Iekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Iekf { name: "iekf", run: Inertial(Iekf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The robust EKF of Li & Wang (2020) (χ² inflation against the prior).
-    Rekf { name: "rekf", run: Inertial(Rekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Rekf { name: "rekf", run: Inertial(Rekf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The robust iterated EKF of Li & Wang (2020) (Algorithm 1).
-    Riekf { name: "riekf", run: Inertial(Riekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Riekf { name: "riekf", run: Inertial(Riekf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// RIEKF with zero-velocity, pseudo-velocity and plane constraints (Li & Wang 2020, CRIEKF).
-    Criekf { name: "criekf", run: Inertial(Criekf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Criekf { name: "criekf", run: Inertial(Criekf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Ckf { name: "ckf", run: Inertial(Ckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Ckf { name: "ckf", run: Inertial(Ckf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The adaptive-robust complementary Kalman filter of the ARCKF paper (Sensors 2018).
-    Arckf { name: "arckf", run: Inertial(Arckf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Arckf { name: "arckf", run: Inertial(Arckf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The adaptive complementary Kalman filter with gravity and geomagnetic aiding (the ACKF paper).
     Ackf {
         name: "ackf",
         run: Inertial(Ackf),
-        takes: [Ranges, Tags, Tdoa, Magnetometer, Altitude, Odometry],
+        takes: [Ranges, Tags, Aiding, Magnetometer],
         smoothing: OnRequest,
     },
     /// The loosely coupled error-state filter of Liu et al. (2019).
@@ -187,9 +194,9 @@ methods! {
     /// The Sage–Husa fuzzy adaptive ESKF of Liu et al. (2019).
     Shfaf { name: "shfaf", run: Inertial(Shfaf), takes: [Ranges], smoothing: OnRequest },
     /// The 15-state error-state UKF (Wang et al. 2018 eqs. (11)–(14) on the INS error state).
-    Ukf { name: "ukf", run: Inertial(Ukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Ukf { name: "ukf", run: Inertial(Ukf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The robust 15-state error-state UKF (ours): ukf's update with rekf's χ² inflation.
-    Rukf { name: "rukf", run: Inertial(Rukf), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: OnRequest },
+    Rukf { name: "rukf", run: Inertial(Rukf), takes: [Ranges, Tags, Aiding], smoothing: OnRequest },
     /// The planar 4-state EKF of Wang et al. (2018) (eqs. (5)–(10)).
     Ekf2d { name: "ekf2d", run: Planar(Ekf), takes: [Ranges], smoothing: Never },
     /// The planar 4-state UKF of Wang et al. (2018) (eqs. (11)–(14)).
@@ -206,7 +213,7 @@ methods! {
     /// self-initialisation when no initial state is given. Before it runs it chooses its
     /// range-error model, NLOS skew and range noise on the log by held-out anchors
     /// ([`crate::select`]).
-    Best { name: "best", run: Inertial(Best), takes: [Ranges, Tags, Tdoa, Altitude, Odometry], smoothing: ByDefault, chooses_model: true },
+    Best { name: "best", run: Inertial(Best), takes: [Ranges, Tags, Aiding], smoothing: ByDefault, chooses_model: true },
 }
 
 impl Method {
@@ -248,9 +255,16 @@ impl Method {
         self.info().chooses_model
     }
 
-    /// Whether the method takes `input`.
+    /// Whether the method takes `input`: its row lists it, or lists [`Input::Aiding`] and the
+    /// registry marks the sensor `aiding`.
     pub fn takes(self, input: Input) -> bool {
-        self.info().takes.contains(&input)
+        let listed = |i| self.info().takes.contains(&i);
+        listed(input) || matches!(input, Input::Sensor(kind) if kind.info().aiding && listed(Input::Aiding))
+    }
+
+    /// The inputs the method takes, in [`Input::all`] order (`METHODS[name]["takes"]`).
+    pub fn inputs(self) -> impl Iterator<Item = Input> {
+        Input::all().filter(move |i| self.takes(*i))
     }
 
     /// Whether the method takes TDoA (the tightly coupled inertial filters; the loosely coupled
@@ -308,6 +322,11 @@ mod tests {
     fn capabilities_follow_the_rows() {
         assert_eq!(Method::names_where(Method::smooths_by_default), "best");
         assert_eq!(Method::names_where(|m| m.takes(Input::Sensor(SensorKind::Magnetometer))), "ackf");
+        // A sensor marked aiding is taken by every method whose row says `Aiding`, no other.
+        let pose_fix = Input::Sensor(SensorKind::PoseFix);
+        assert_eq!(Method::names_where(|m| m.takes(pose_fix)), Method::names_where(|m| m.takes(Input::Sensor(SensorKind::Tdoa))));
+        let ackf: Vec<&str> = Method::Ackf.inputs().map(Input::name).collect();
+        assert_eq!(ackf, ["ranges", "tags", "magnetometer", "tdoa", "altitude", "odometry", "pose_fix"]);
         assert!(!Method::UwbLs.smoothable() && !Method::Ekf2d.takes_tdoa() && Method::Best.takes_tdoa());
         // A method streams exactly when it runs a 15-state filter (the smoothable ones).
         assert!(Method::ALL.iter().all(|m| m.info().streaming_class().is_some() == m.smoothable()));

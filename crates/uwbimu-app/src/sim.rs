@@ -28,6 +28,7 @@ mod imu;
 mod odometer;
 mod outliers;
 mod overlay;
+mod pose_fix;
 mod presets;
 mod tdoa;
 mod trajectory;
@@ -42,6 +43,7 @@ use uwbimu_vocabulary::math::{Quat, Vec3};
 use uwbimu_vocabulary::records::{
     AltitudeSample, ImuSample, MagSample, OdometrySample, RangeMeasurement, TdoaMeasurement, TruthSample,
 };
+use uwbimu_vocabulary::sensors::pose_fix::PoseFix;
 use uwbimu_vocabulary::sensors::{merge, observations, Observation, SensorKind};
 use uwbimu_vocabulary::validate::{invalid, non_negative, positive};
 
@@ -50,6 +52,7 @@ pub use imu::{ideal_imu, ImuNoise, MagConfig, MagDisturbance};
 pub use odometer::OdometerConfig;
 pub use outliers::{AccelOutliers, SEED002_ACCEL_OUTLIER_STD_MPS2};
 pub use overlay::{Overlay, Sinusoid};
+pub use pose_fix::PoseFixSimConfig;
 pub(crate) use presets::hall_anchors;
 pub use presets::{preset, PRESET_ALIASES, PRESET_NAMES};
 pub use tdoa::TdoaConfig;
@@ -74,6 +77,8 @@ const STREAM_TDOA: u64 = 5;
 const STREAM_ALTITUDE: u64 = 6;
 /// ChaCha stream of the odometry noise.
 const STREAM_ODOMETRY: u64 = 7;
+/// ChaCha stream of the pose-fix noise.
+const STREAM_POSE_FIX: u64 = 8;
 
 /// Everything the simulator needs.
 #[derive(Debug, Clone, PartialEq)]
@@ -105,6 +110,8 @@ pub struct SimConfig {
     pub altimeter: Option<AltimeterConfig>,
     /// Wheel odometry (`None` = none).
     pub odometer: Option<OdometerConfig>,
+    /// External pose fixes (`None` = none).
+    pub pose_fix: Option<PoseFixSimConfig>,
     /// Abnormal accelerometer samples (the ARCKF paper's §4.1); none by default.
     pub accel_outliers: AccelOutliers,
     /// Seed of all random draws.
@@ -136,6 +143,7 @@ impl Default for SimConfig {
             tdoa: None,
             altimeter: None,
             odometer: None,
+            pose_fix: None,
             accel_outliers: AccelOutliers::default(),
             seed: 0,
             start_s: 0.0,
@@ -172,6 +180,8 @@ pub struct SimData {
     pub altitude_offsets: Vec<f64>,
     /// Odometry readings in time order, one per axis measured (empty without an odometer).
     pub odometry: Vec<OdometrySample>,
+    /// External pose fixes in time order (empty without a pose-fix source).
+    pub pose_fix: Vec<PoseFix>,
     /// True accelerometer bias (IMU frame) at each IMU time, m/s².
     pub accel_bias: Vec<Vec3>,
     /// True gyroscope bias (IMU frame) at each IMU time, rad/s.
@@ -184,11 +194,16 @@ pub struct SimData {
 
 impl SimData {
     /// The run's measurements of the sensors of the registry whose kind passes `keep` (the
-    /// magnetometer, TDoA, altitude, odometry), merged in time order ([`uwbimu_vocabulary::sensors::merge`]): what a
-    /// method that takes them gets.
+    /// magnetometer, TDoA, altitude, odometry, pose fixes), merged in time order
+    /// ([`uwbimu_vocabulary::sensors::merge`]): what a method that takes them gets.
     pub fn observations_for(&self, keep: impl Fn(SensorKind) -> bool) -> Vec<Observation> {
-        let sets =
-            [observations(&self.mag), observations(&self.tdoa), observations(&self.altitude), observations(&self.odometry)];
+        let sets = [
+            observations(&self.mag),
+            observations(&self.tdoa),
+            observations(&self.altitude),
+            observations(&self.odometry),
+            observations(&self.pose_fix),
+        ];
         let kept: Vec<&[Observation]> =
             sets.iter().filter(|s| s.first().is_some_and(|o| keep(o.kind()))).map(Vec::as_slice).collect();
         merge(&kept)
@@ -360,6 +375,17 @@ impl SimConfig {
                 return Err(invalid("odometer.scale_error", format!("must be in (−1, 1), got {}", o.scale_error)));
             }
         }
+        if let Some(f) = &self.pose_fix {
+            positive("pose_fix.rate_hz", f.rate_hz)?;
+            positive("pose_fix.std_m", f.std_m)?;
+            if let Some(s) = f.yaw_std_rad {
+                positive("pose_fix.yaw_std_rad", s)?;
+            }
+            finite_vec("pose_fix.lever_arm_m", &f.lever_arm_m)?;
+            for (start, end) in &f.gaps {
+                ordered("pose_fix.gaps", *start, *end)?;
+            }
+        }
         if let Some(m) = &self.magnetometer {
             finite_vec("magnetometer.field_nav", &m.field_nav)?;
             non_negative("magnetometer.noise_std", m.noise_std)?;
@@ -458,6 +484,11 @@ fn odometer_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut OdometerCo
     c.odometer.as_mut().ok_or_else(|| invalid(key, "the odometer is off; set odometer=True"))
 }
 
+/// The pose-fix source of `c`, or the error for a `pose_fix_*` override while it is off.
+fn pose_fix_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut PoseFixSimConfig> {
+    c.pose_fix.as_mut().ok_or_else(|| invalid(key, "the pose fixes are off; set pose_fix=True"))
+}
+
 /// The magnetometer model of `c`, or the error for a `mag_*` override while it is off.
 fn magnetometer_on<'a>(c: &'a mut SimConfig, key: &str) -> Result<&'a mut MagConfig> {
     c.magnetometer.as_mut().ok_or_else(|| invalid(key, "the magnetometer is off; set magnetometer=True"))
@@ -480,6 +511,10 @@ overrides! {
     number odometer_rate_hz(c, key) { &mut odometer_on(c, key)?.rate_hz };
     number odometer_std_mps(c, key) { &mut odometer_on(c, key)?.std_mps };
     number odometer_scale_error(c, key) { &mut odometer_on(c, key)?.scale_error };
+    switch pose_fix(c, on) { if on { c.pose_fix.get_or_insert_with(PoseFixSimConfig::default); } else { c.pose_fix = None; } };
+    number pose_fix_rate_hz(c, key) { &mut pose_fix_on(c, key)?.rate_hz };
+    number pose_fix_std_m(c, key) { &mut pose_fix_on(c, key)?.std_m };
+    value pose_fix_yaw_std_rad(c, x) { if let Some(f) = c.pose_fix.as_mut() { f.yaw_std_rad = (x > 0.0).then_some(x); } };
     value tag_separation_m(c, x) {
         c.more_tags_m = if x != 0.0 { vec![c.lever_arm_m + Vec3::new(x, 0.0, 0.0)] } else { Vec::new() };
     };
@@ -553,6 +588,11 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
         None => Vec::new(),
     };
     odometry.drain(..odometry.partition_point(|m| m.t_s < cfg.start_s));
+    let mut pose_fix = match &cfg.pose_fix {
+        Some(f) => pose_fix::synthesise(cfg, f, &mut stream(STREAM_POSE_FIX)),
+        None => Vec::new(),
+    };
+    pose_fix.drain(..pose_fix.partition_point(|m| m.t_s < cfg.start_s));
     let delivered = uwb_out.ranges.partition_point(|r| r.t_s < cfg.start_s);
     uwb_out.ranges.drain(..delivered);
     uwb_out.labels.drain(..delivered);
@@ -573,6 +613,7 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimData> {
         altitude,
         altitude_offsets,
         odometry,
+        pose_fix,
         accel_bias: imu_out.accel_bias,
         gyro_bias: imu_out.gyro_bias,
         nlos_windows: uwb_out.windows,

@@ -6,18 +6,32 @@
 //! | [`Rejection::ImuBeyondRange`] | an accelerometer axis beyond `accel_range` or a gyroscope axis beyond `gyro_range` |
 //! | [`Rejection::NegativeRange`] | a range below 0 m |
 //! | [`Rejection::RangeBeyondHall`] | a range longer than the farthest point of the anchors' bounding box, grown by `hall_margin_m`, from its anchor |
-//! | [`Rejection::TdoaBeyondBaseline`] | `\|d_ij\|` beyond the baseline `‖a_i − a_j‖` plus `tdoa_margin_m` (the triangle inequality) |
-//! | [`Rejection::AltitudeBeyondHall`] | a height outside the anchors' bounding box grown by `hall_margin_m` |
-//! | [`Rejection::SpeedBeyondRange`] | an odometry reading beyond `speed_range` |
+//! | [`Rejection::Sensor`] | a reading of a sensor of the registry its rule refuses ([`SensorRule`], beside each model), counted under the sensor's `rejection` name |
 //!
-//! A dropped IMU sample leaves the previous one held over the longer interval. Magnetometer
-//! samples pass.
+//! The sensors' rules: `tdoa_beyond_baseline`, `|d_ij|` beyond the baseline `‖a_i − a_j‖` plus
+//! `tdoa_margin_m` (the triangle inequality); `altitude_beyond_hall`, a height outside the grown
+//! box; `speed_beyond_range`, an odometry reading beyond `speed_range`; `pose_fix_beyond_hall`,
+//! a fix's position outside the grown box. Magnetometer samples pass. A dropped IMU sample leaves
+//! the previous one held over the longer interval.
 
 use uwbimu_vocabulary::config::GateConfig;
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::sensors::Observation;
+use uwbimu_vocabulary::sensors::SensorKind;
 
+#[cfg(doc)]
+use crate::models::aiding::SensorRule;
+use crate::models::aiding::{plausible, Hall};
 use crate::pipeline::Event;
+
+/// How many sensors of the registry have a rule (a `rejection` name).
+const SENSOR_RULES: usize = {
+    let (mut n, mut i) = (0, 0);
+    while i < SensorKind::ALL.len() {
+        n += SensorKind::ALL[i].info().rejection.is_some() as usize;
+        i += 1;
+    }
+    n
+};
 
 /// Why the gate dropped a measurement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -28,24 +42,27 @@ pub enum Rejection {
     NegativeRange,
     /// A range longer than any tag position near the anchors allows.
     RangeBeyondHall,
-    /// A TDoA beyond the baseline between its two anchors.
-    TdoaBeyondBaseline,
-    /// An altitude no tag near the anchors can have.
-    AltitudeBeyondHall,
-    /// An odometry reading faster than the platform can go.
-    SpeedBeyondRange,
+    /// A reading its sensor's rule refuses (a sensor whose row has a `rejection` name).
+    Sensor(SensorKind),
 }
 
 impl Rejection {
-    /// Every kind, in the order of [`GateCounts::by_kind`].
-    pub const ALL: [Rejection; 6] = [
-        Self::ImuBeyondRange,
-        Self::NegativeRange,
-        Self::RangeBeyondHall,
-        Self::TdoaBeyondBaseline,
-        Self::AltitudeBeyondHall,
-        Self::SpeedBeyondRange,
-    ];
+    /// Every kind, in the order of [`GateCounts::by_kind`]: the IMU's and the ranges', then the
+    /// sensors' in registry order.
+    pub const ALL: [Rejection; 3 + SENSOR_RULES] = {
+        let mut all = [Self::ImuBeyondRange; 3 + SENSOR_RULES];
+        all[1] = Self::NegativeRange;
+        all[2] = Self::RangeBeyondHall;
+        let (mut at, mut i) = (3, 0);
+        while i < SensorKind::ALL.len() {
+            if SensorKind::ALL[i].info().rejection.is_some() {
+                all[at] = Self::Sensor(SensorKind::ALL[i]);
+                at += 1;
+            }
+            i += 1;
+        }
+        all
+    };
 
     /// The kind's name in reports (`health` in Python, the CLI summary).
     pub fn name(self) -> &'static str {
@@ -53,10 +70,13 @@ impl Rejection {
             Self::ImuBeyondRange => "imu_beyond_range",
             Self::NegativeRange => "negative_range",
             Self::RangeBeyondHall => "range_beyond_hall",
-            Self::TdoaBeyondBaseline => "tdoa_beyond_baseline",
-            Self::AltitudeBeyondHall => "altitude_beyond_hall",
-            Self::SpeedBeyondRange => "speed_beyond_range",
+            Self::Sensor(kind) => kind.info().rejection.unwrap_or(kind.info().name),
         }
+    }
+
+    /// Its place in [`Rejection::ALL`].
+    fn index(self) -> usize {
+        Self::ALL.iter().position(|r| *r == self).unwrap_or(0)
     }
 }
 
@@ -69,17 +89,17 @@ pub struct GateCounts {
 impl GateCounts {
     /// Counts one rejection.
     pub fn count(&mut self, r: Rejection) {
-        self.counts[r as usize] += 1;
+        self.counts[r.index()] += 1;
     }
 
     /// The count of one kind.
     pub fn of(&self, r: Rejection) -> usize {
-        self.counts[r as usize]
+        self.counts[r.index()]
     }
 
     /// Every kind with its count, in [`Rejection::ALL`] order.
     pub fn by_kind(&self) -> impl Iterator<Item = (Rejection, usize)> + '_ {
-        Rejection::ALL.into_iter().map(|r| (r, self.of(r)))
+        Rejection::ALL.into_iter().zip(self.counts)
     }
 
     /// All rejections.
@@ -94,8 +114,8 @@ pub struct Gate {
     config: GateConfig,
     anchors: Vec<Vec3>,
     longest_range_m: Vec<f64>,
-    /// The grown box's lowest and highest z, m.
-    heights_m: (f64, f64),
+    /// The grown box's lowest and highest corners, m.
+    hall: (Vec3, Vec3),
 }
 
 impl Gate {
@@ -106,7 +126,7 @@ impl Gate {
         let hi = anchors.iter().fold(Vec3::repeat(f64::NEG_INFINITY), |m, a| m.sup(a)) + margin;
         // The farthest corner of the box from each anchor.
         let longest_range_m = anchors.iter().map(|a| Vec3::from_fn(|i, _| (a[i] - lo[i]).max(hi[i] - a[i])).norm()).collect();
-        Self { config: *config, anchors: anchors.to_vec(), longest_range_m, heights_m: (lo.z, hi.z) }
+        Self { config: *config, anchors: anchors.to_vec(), longest_range_m, hall: (lo, hi) }
     }
 
     /// Why `event` is impossible, or None when it passes (always None when the gate is off).
@@ -123,18 +143,10 @@ impl Gate {
             }
             Event::Range(r) if r.range_m < 0.0 => Some(Rejection::NegativeRange),
             Event::Range(r) => (r.range_m > self.longest_range_m[r.anchor]).then_some(Rejection::RangeBeyondHall),
-            Event::Observation(Observation::Tdoa(m)) => {
-                let baseline = (self.anchors[m.anchor_i] - self.anchors[m.anchor_j]).norm();
-                (m.tdoa_m.abs() > baseline + self.config.tdoa_margin_m).then_some(Rejection::TdoaBeyondBaseline)
+            Event::Observation(o) => {
+                let hall = Hall { anchors: &self.anchors, lo: self.hall.0, hi: self.hall.1, config: &self.config };
+                (!plausible(o, &hall)).then_some(Rejection::Sensor(o.kind()))
             }
-            Event::Observation(Observation::Altitude(m)) => {
-                let (lo, hi) = self.heights_m;
-                (!(lo..=hi).contains(&m.z_m)).then_some(Rejection::AltitudeBeyondHall)
-            }
-            Event::Observation(Observation::Odometry(m)) => {
-                (m.speed_mps.abs() > self.config.speed_range).then_some(Rejection::SpeedBeyondRange)
-            }
-            Event::Observation(Observation::Magnetometer(_)) => None,
         }
     }
 }
@@ -142,6 +154,8 @@ impl Gate {
 #[cfg(test)]
 mod tests {
     use uwbimu_vocabulary::records::{AltitudeSample, ImuSample, OdometrySample, RangeMeasurement, TdoaMeasurement};
+    use uwbimu_vocabulary::sensors::pose_fix::PoseFix;
+    use uwbimu_vocabulary::sensors::Observation;
 
     use super::*;
 
@@ -155,8 +169,8 @@ mod tests {
         let tdoa = |d| Event::Observation(Observation::Tdoa(TdoaMeasurement { t_s: 0.0, anchor_i: 0, anchor_j: 1, tdoa_m: d }));
         assert_eq!(gate().check(&tdoa(10.4)), None);
         assert_eq!(gate().check(&tdoa(-10.4)), None);
-        assert_eq!(gate().check(&tdoa(10.6)), Some(Rejection::TdoaBeyondBaseline));
-        assert_eq!(gate().check(&tdoa(-10.6)), Some(Rejection::TdoaBeyondBaseline));
+        assert_eq!(gate().check(&tdoa(10.6)), Some(Rejection::Sensor(SensorKind::Tdoa)));
+        assert_eq!(gate().check(&tdoa(-10.6)), Some(Rejection::Sensor(SensorKind::Tdoa)));
     }
 
     #[test]
@@ -165,12 +179,28 @@ mod tests {
         // Anchors' z spans [0, 3], grown by 5 m.
         assert_eq!(gate().check(&altitude(-4.99)), None);
         assert_eq!(gate().check(&altitude(7.99)), None);
-        assert_eq!(gate().check(&altitude(-5.01)), Some(Rejection::AltitudeBeyondHall));
-        assert_eq!(gate().check(&altitude(1200.0)), Some(Rejection::AltitudeBeyondHall));
+        assert_eq!(gate().check(&altitude(-5.01)), Some(Rejection::Sensor(SensorKind::Altitude)));
+        assert_eq!(gate().check(&altitude(1200.0)), Some(Rejection::Sensor(SensorKind::Altitude)));
         let speed = |speed_mps| Event::Observation(Observation::Odometry(OdometrySample { t_s: 0.0, axis: 0, speed_mps }));
         assert_eq!(gate().check(&speed(-29.0)), None);
-        assert_eq!(gate().check(&speed(-31.0)), Some(Rejection::SpeedBeyondRange));
-        assert_eq!(gate().check(&speed(31.0)), Some(Rejection::SpeedBeyondRange));
+        assert_eq!(gate().check(&speed(-31.0)), Some(Rejection::Sensor(SensorKind::Odometry)));
+        assert_eq!(gate().check(&speed(31.0)), Some(Rejection::Sensor(SensorKind::Odometry)));
+        let fix = |x: f64, z: f64| {
+            let (position, position_std) = (Vec3::new(x, 4.0, z), Vec3::repeat(0.1));
+            Event::Observation(Observation::PoseFix(PoseFix {
+                t_s: 0.0,
+                position,
+                position_std,
+                yaw_rad: f64::NAN,
+                yaw_std_rad: f64::NAN,
+            }))
+        };
+        // The grown box: x in [-5, 15], z in [-5, 8].
+        assert_eq!(gate().check(&fix(14.99, 7.99)), None);
+        assert_eq!(gate().check(&fix(15.01, 1.0)), Some(Rejection::Sensor(SensorKind::PoseFix)));
+        assert_eq!(gate().check(&fix(3.0, -5.01)), Some(Rejection::Sensor(SensorKind::PoseFix)));
+        let names: Vec<&str> = Rejection::ALL.iter().map(|r| r.name()).collect();
+        assert_eq!(names[3..], ["tdoa_beyond_baseline", "altitude_beyond_hall", "speed_beyond_range", "pose_fix_beyond_hall"]);
     }
 
     #[test]

@@ -2,12 +2,14 @@
 //! error state. The scalar ones the tightly coupled filters update with implement
 //! [`ScalarModel`]; one test checks every model's Jacobian against central differences.
 
+pub mod aiding;
 pub mod altitude;
 pub mod attitude;
 pub mod loose;
 mod model;
 pub mod motion;
 pub mod odometry;
+pub mod pose_fix;
 pub mod range;
 pub mod tdoa;
 
@@ -32,6 +34,8 @@ mod tests {
             jacobian_failures::<altitude::Altitude>(),
             jacobian_failures::<odometry::BodyVelocity>(),
             jacobian_failures::<odometry::NonHolonomic>(),
+            jacobian_failures::<pose_fix::FixAxis>(),
+            jacobian_failures::<pose_fix::FixYaw>(),
         ]
         .into_iter()
         .flatten()

@@ -55,12 +55,17 @@ pub struct SensorInfo {
     pub time_order: TimeOrder,
     /// The clock of its times.
     pub clock: Clock,
+    /// The name of the gate's count of its readings no sensor or geometry can produce
+    /// (`uwbimu_estimation::gate`, the `health` of a run); None for a sensor the gate passes.
+    pub rejection: Option<&'static str>,
     /// Whether every filter that applies scalar measurement models takes it (the registry's
     /// `Aiding` input); false for a sensor only a method of its paper takes (the magnetometer of
     /// `ackf`), which that method's row names.
     pub aiding: bool,
     /// The columns of its table that hold anchor indices ([`SensorRecord::ANCHOR_COLUMNS`]).
     pub anchor_columns: &'static [usize],
+    /// Its row's doc comment (one line per doc line): what it is and where it is documented.
+    pub doc: &'static str,
 }
 
 /// A sensor's record: how one row of its table (in one of its layouts) becomes a record, and its
@@ -259,6 +264,7 @@ macro_rules! sensors {
             label: $label:literal,
             rank: $rank:literal,
             clock: $clock:ident,
+            rejection: $rejection:expr,
             aiding: $aiding:literal $(,)?
         }
     ),+ $(,)?) => {
@@ -291,8 +297,10 @@ macro_rules! sensors {
                         layouts: <$record as SensorRecord>::LAYOUTS,
                         time_order: <$record as SensorRecord>::TIME_ORDER,
                         clock: Clock::$clock,
+                        rejection: $rejection,
                         aiding: $aiding,
                         anchor_columns: <$record as SensorRecord>::ANCHOR_COLUMNS,
+                        doc: concat!($($doc, "\n"),+),
                     },)+
                 }
             }
@@ -379,17 +387,37 @@ macro_rules! sensors {
 }
 
 sensors! {
-    /// A magnetometer sample (geomagnetic aiding of the ACKF paper, `uwbimu_estimation::filters::Ackf`).
-    Magnetometer(MagSample) { name: "magnetometer", keyword: "mag", label: "magnetometer samples", rank: 1, clock: Imu, aiding: false },
-    /// A time difference of arrival (`uwbimu_estimation::models::tdoa::Tdoa`).
-    Tdoa(TdoaMeasurement) { name: "tdoa", keyword: "tdoa", label: "TDoA", rank: 2, clock: Uwb, aiding: true },
-    /// An altitude reading (`uwbimu_estimation::models::altitude::Altitude`).
-    Altitude(AltitudeSample) { name: "altitude", keyword: "altitude", label: "altitude", rank: 3, clock: Imu, aiding: true },
-    /// An odometry reading along one body axis (`uwbimu_estimation::models::odometry::BodyVelocity`).
-    Odometry(OdometrySample) { name: "odometry", keyword: "odometry", label: "odometry", rank: 4, clock: Imu, aiding: true },
-    /// An external pose fix: a position and optionally a yaw ([`pose_fix`],
-    /// `uwbimu_estimation::models::pose_fix`).
-    PoseFix(PoseFix) { name: "pose_fix", keyword: "pose_fix", label: "pose fixes", rank: 5, clock: Imu, aiding: true },
+    /// Magnetometer samples `t, mx, my, mz` in the IMU frame, in the unit of the configured
+    /// field (µT, T), time strictly increasing; only `ackf` uses them (the ACKF paper's
+    /// geomagnetic aiding).
+    Magnetometer(MagSample) {
+        name: "magnetometer", keyword: "mag", label: "magnetometer samples", rank: 1, clock: Imu, rejection: None, aiding: false,
+    },
+    /// Time differences of arrival `t, i, j, d_ij`, `d_ij = ‖p − a_j‖ − ‖p − a_i‖` in m (Loco
+    /// Positioning TDoA2/TDoA3), time non-decreasing, each applied at its own time with σ
+    /// `ranging.tdoa_std`, with ranges or alone (docs/tdoa.md).
+    Tdoa(TdoaMeasurement) {
+        name: "tdoa", keyword: "tdoa", label: "TDoA", rank: 2, clock: Uwb, rejection: Some("tdoa_beyond_baseline"), aiding: true,
+    },
+    /// Heights `t, z` in m of the body origin, navigation frame, up, time strictly increasing,
+    /// σ `altitude.std`: a time-of-flight sensor over a flat floor or a barometer
+    /// (docs/altitude.md).
+    Altitude(AltitudeSample) {
+        name: "altitude", keyword: "altitude", label: "altitude", rank: 3, clock: Imu, rejection: Some("altitude_beyond_hall"), aiding: true,
+    },
+    /// Wheel odometry `t, speed` along the body x axis, or `t, vx, vy, vz` in the body frame
+    /// with NaN for an axis not measured, m/s, time strictly increasing, σ `odometry.std` per
+    /// axis (docs/odometry.md).
+    Odometry(OdometrySample) {
+        name: "odometry", keyword: "odometry", label: "odometry", rank: 4, clock: Imu, rejection: Some("speed_beyond_range"), aiding: true,
+    },
+    /// External pose fixes `t, x, y, z, sx, sy, sz`, optionally with `yaw, s_yaw` (NaN where a
+    /// fix gives none): the position in m of the point at `pose_fix.lever_arm` and the body's
+    /// yaw in rad (ENU, from east), navigation frame, each with its σ, time strictly increasing
+    /// (docs/pose-fix.md).
+    PoseFix(PoseFix) {
+        name: "pose_fix", keyword: "pose_fix", label: "pose fixes", rank: 5, clock: Imu, rejection: Some("pose_fix_beyond_hall"), aiding: true,
+    },
 }
 
 /// Rank of a range among events at one time: after every sensor of the registry.

@@ -275,6 +275,27 @@ macro_rules! py_filter {
                 Ok(reports)
             }
 
+            /// Takes one reading of the sensor `name` (a key of `SENSORS`) as one row of its table,
+            /// time first: the row `run_filter`'s array of that sensor holds
+            /// (`SENSORS[name]["columns"]`), anchor columns by index or, for anchors given by
+            /// id, by id. It is checked as that array's rows are and applied at its own time.
+            /// The methods that do not take the sensor raise ValueError.
+            fn add_sensor(&mut self, py: Python<'_>, name: &str, row: &Bound<'_, PyAny>) -> PyResult<Vec<PyUpdateReport>> {
+                const CALL: &str = "add_sensor";
+                let kind = SensorKind::parse(name)?;
+                check_takes(CALL, InertialKind::$py, Input::Sensor(kind))?;
+                let mut row: Vec<f64> = array(row, "row")?.as_array().iter().copied().collect();
+                let width = row.len();
+                for &col in kind.info().anchor_columns.iter().filter(|c| **c < width) {
+                    row[col] = self.anchor_row(CALL, "row", row[col])? as f64;
+                }
+                let mut reports = Vec::new();
+                for o in kind.observations(&[&row], self.anchor_count())? {
+                    reports.extend(self.push(py, CALL, Event::Observation(o))?);
+                }
+                Ok(reports)
+            }
+
             /// Applies the ranges of one epoch, all measured at `t` (s), at once — bypassing the
             /// epoch rule and the plausibility gate: anchor indices (M,) and ranges (M,) m. The
             /// buffered data up to `t` and the open epoch are applied first. Returns the reports.

@@ -8,7 +8,7 @@ use uwbimu_vocabulary::sensors::SensorKind;
 use super::super::errors::PyResult;
 
 /// The sensor registry as a dict by name: `keyword`, `label`, `columns` (the accepted layouts),
-/// `rank`.
+/// `rank`, `doc` (the row's doc comment).
 pub(super) fn sensors_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let table = PyDict::new(py);
     for kind in SensorKind::ALL {
@@ -18,6 +18,7 @@ pub(super) fn sensors_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>
         row.set_item("label", info.label)?;
         row.set_item("columns", info.layouts.iter().map(|l| l.to_vec()).collect::<Vec<_>>())?;
         row.set_item("rank", info.rank)?;
+        row.set_item("doc", info.doc.lines().map(str::trim).collect::<Vec<_>>().join(" "))?;
         table.set_item(info.name, row)?;
     }
     Ok(table)
@@ -31,7 +32,7 @@ pub(super) fn methods_table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>
     for method in Method::ALL {
         let info = method.info();
         let row = PyDict::new(py);
-        row.set_item("takes", info.takes.iter().map(|i| i.name()).collect::<Vec<_>>())?;
+        row.set_item("takes", method.inputs().map(|i| i.name()).collect::<Vec<_>>())?;
         row.set_item("smoothing", info.smoothing.name())?;
         row.set_item("streaming_class", info.streaming_class())?;
         row.set_item("chooses_model", method.chooses_its_model())?;

@@ -26,6 +26,7 @@
 //! | `forklift` | stop-and-go with quick turns, IMU mounted z down (declared) | 4, hall | 100 Hz | 8 Hz, 5 ms | two anchors surveyed 0.2 m off, a 5 s outage |
 //! | `tdoa_drone` | drone: 3 s on the ground, then a slow figure-8 at 1.5 m | 8, cuboid | 1000 Hz | 10 Hz, 1 ms; TDoA 22 rounds/s (176/s), σ 0.1 m | per-pair TDoA biases ±0.1–0.5 m, 1.2 % impossible TDoA |
 //! | `tilted_walk` | walking at 1.1 m/s with a phone-like tag held tilted (mean roll 12°, pitch −18°, drifting ±6–8°) and swinging (±8° roll at 1 Hz, ±6° pitch at 2 Hz) | 5, mixed | 100 Hz | 20 Hz, 3 ms | a handheld IMU that is never level |
+//! | `shelf_aisles` | AGV between shelf rows, stops at the ends | 4, hall | 100 Hz | 10 Hz, 3 ms | two anchors +0.5–0.9 m NLOS for 40 s, a 10 s outage; pose fixes (a camera on floor fiducials, 1 Hz, σ 3 cm and 0.02 rad, seen on part of the route) |
 //! | `still_tdoa_lost` | still drone 1.5 m up, tilted 2° / 1°, 11 s | 8, cuboid | 1000 Hz | TDoA only, 22.5 rounds/s (180 /s), lost after 1 s | no invented motion without UWB |
 //! | `moving_uwb_lost` | robot: 2 s still, a 6 m leg at 1 m/s, stop, turn, 4 m leg (14.5 s) | 4, hall | 100 Hz | 10 Hz, 4 ms, lost after 1 s of motion | IMU-only in motion stays finite |
 //!
@@ -46,8 +47,8 @@ use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::{Quat, Vec3};
 
 use crate::sim::{
-    hall_anchors, DriveOptions, ImuNoise, NlosConfig, NlosWindow, Outage, Overlay, SimConfig, SimData, Sinusoid, TdoaConfig,
-    Trajectory, UwbConfig,
+    hall_anchors, DriveOptions, ImuNoise, NlosConfig, NlosWindow, Outage, Overlay, PoseFixSimConfig, SimConfig, SimData,
+    Sinusoid, TdoaConfig, Trajectory, UwbConfig,
 };
 
 /// Names accepted by [`zoo`], in the order of the table above.
@@ -70,6 +71,7 @@ pub const ZOO_NAMES: &[&str] = &[
     "forklift",
     "tdoa_drone",
     "tilted_walk",
+    "shelf_aisles",
     "still_tdoa_lost",
     "moving_uwb_lost",
 ];
@@ -139,6 +141,9 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     }
     if let Some(o) = &sim.odometer {
         c.odometry.std = o.std_mps.max(1e-3);
+    }
+    if let Some(f) = &sim.pose_fix {
+        c.pose_fix.lever_arm = f.lever_arm_m;
     }
     c.ins.accel_noise_density = n.accel_noise_density.max(1e-4);
     c.ins.gyro_noise_density = n.gyro_noise_density.max(1e-5);
@@ -464,6 +469,32 @@ pub fn zoo(name: &str, seed: u64) -> Result<Scenario> {
                     outages: vec![Outage { start_s: start_s + with_uwb_s, end_s: end_s + 1.0 }],
                     ..staggered(10.0, 0.1, 2.0)
                 },
+                ..base
+            }
+        }
+        "shelf_aisles" => {
+            // Up and down three aisles between shelf rows; the shelves shadow two anchors for 40 s
+            // and all of them for 10 s. The camera sees the floor fiducials on two thirds of the
+            // route.
+            let aisles = [(1.5, 1.5), (8.5, 1.5), (8.5, 4.0), (1.5, 4.0), (1.5, 6.5), (8.5, 6.5), (8.5, 1.5), (1.5, 1.5)];
+            let points = aisles.map(|(x, y)| Vec3::new(x, y, 0.3));
+            let opts = DriveOptions { speed_mps: 1.0, ramp_s: 1.0, dwell_s: 2.0, turn_time_s: 1.5, still_s: 3.0 };
+            let nlos = sustained_nlos(&[1, 2], (0.5, 0.9), 15.0, 55.0);
+            SimConfig {
+                trajectory: Trajectory::waypoints(&points, &opts)?,
+                anchors: hall_anchors(),
+                uwb: UwbConfig {
+                    nlos: Some(nlos),
+                    outages: vec![Outage { start_s: 30.0, end_s: 40.0 }],
+                    ..staggered(10.0, 0.1, 3.0)
+                },
+                pose_fix: Some(PoseFixSimConfig {
+                    rate_hz: 1.0,
+                    std_m: 0.03,
+                    yaw_std_rad: Some(0.02),
+                    lever_arm_m: Vec3::new(0.3, 0.0, 0.5),
+                    gaps: vec![(8.0, 20.0), (44.0, 52.0)],
+                }),
                 ..base
             }
         }

@@ -20,10 +20,10 @@ use crate::filters::scratch::Scratch;
 use crate::filters::sigma_points::UnscentedWeights;
 use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::invariant::ErrorConvention;
-use crate::models::altitude::Altitude;
+use crate::models::aiding::{finite, visit_scalar_aiding, ModelSink, ScalarAiding, ScalarAidingVisitor};
 use crate::models::odometry::{BodyVelocity, NonHolonomic};
 use crate::models::range::Range;
-use crate::models::ScalarPrediction;
+use crate::models::{ScalarModel, ScalarPrediction};
 #[cfg(doc)]
 use crate::robust::tested_nis;
 use crate::robust::{RangeNoisePolicy, RobustnessFactor, SageHusa, SageHusaConfig, SageHusaVariant};
@@ -41,7 +41,7 @@ pub(crate) use self::checks::{check_ranges, not_taken};
 pub use self::composition::{BiasModel, Composition, ConstraintSwitches, UpdateStrategy, DEFAULT_BIAS_TAU_S};
 pub use self::strategies::SIGMA_POINTS;
 
-use self::checks::{check_tdoa, check_value};
+use self::checks::check_tdoa;
 use self::noise::RANGE_NOISE_BOUNDS;
 use self::strategies::Strategy;
 
@@ -246,13 +246,14 @@ impl Filter for TightFilter {
     /// - a TDoA, with χ² inflation for the robust filters (an L1 robustness factor needs an epoch
     ///   of ranges, so TDoA take `Cu = 1`, and the adaptive per-anchor range noise is for ranges
     ///   only), after the TDoA re-acquisition rule ([`crate::filters::reacquire::TdoaWatch`]);
-    /// - an altitude ([`Altitude`]) and an odometry reading ([`BodyVelocity`]), with the robust
-    ///   filters' symmetric test. A reading of the body x axis brings the non-holonomic
+    /// - an odometry reading ([`BodyVelocity`]), with the robust filters' symmetric test. A reading of the body x axis brings the non-holonomic
     ///   constraint ([`NonHolonomic`], `odometry.nonholonomic`) on the axes the odometry has not
     ///   measured so far (the readings of one time come x first, so a stream that measures y and
     ///   z is constrained on them at its first time only). An odometry reading counts as aiding for the outage guard
     ///   ([`Constraints::note_aiding`]): with the velocity measured, a UWB outage is no reason to
-    ///   assume the platform stopped; an altitude does not (it leaves the horizontal free).
+    ///   assume the platform stopped;
+    /// - a reading of any sensor applied as scalar models alone ([`ScalarAiding`]: an altitude, a
+    ///   pose fix), with the robust filters' symmetric test, noting aiding as its sensor says.
     ///
     /// While the platform is still, the heading is held ([`Constraints::hold_heading`]).
     fn observe(&mut self, observation: &Observation) -> Result<UpdateReport> {
@@ -265,12 +266,8 @@ impl Filter for TightFilter {
                 }
                 Ok(report)
             }
-            Observation::Altitude(m) => {
-                check_value("update_altitude", m.z_m)?;
-                self.aided_update(m.t_s, false, |f| f.apply_model(Altitude { z_m: m.z_m }))
-            }
             Observation::Odometry(m) => {
-                check_value("update_odometry", m.speed_mps)?;
+                finite("update_odometry", 1, m.speed_mps)?;
                 if m.axis > 2 {
                     return Err(Error::InvalidCall(format!("odometry axis {} is not a body axis (0–2)", m.axis)));
                 }
@@ -286,8 +283,32 @@ impl Filter for TightFilter {
                     Ok(report)
                 })
             }
-            other => Err(not_taken(other)),
+            other => visit_scalar_aiding(other, ApplyAiding(self)).unwrap_or_else(|| Err(not_taken(other))),
         }
+    }
+}
+
+/// Applies a reading of a sensor the filter takes as scalar models ([`ScalarAiding`]): checked,
+/// then through [`TightFilter::aided_update`], noting aiding as the sensor says.
+struct ApplyAiding<'a>(&'a mut TightFilter);
+
+impl ScalarAidingVisitor for ApplyAiding<'_> {
+    type Output = Result<UpdateReport>;
+
+    fn visit<R: ScalarAiding>(self, record: &R) -> Result<UpdateReport> {
+        record.check()?;
+        self.0.aided_update(record.t_s(), R::NOTES_AIDING, |f| record.apply(f))
+    }
+}
+
+/// The filter's strategy and noise policy at the filter time ([`TightFilter::apply_model`]).
+impl ModelSink for TightFilter {
+    fn config(&self) -> &FilterConfig {
+        &self.config
+    }
+
+    fn apply<M: ScalarModel>(&mut self, m: M) -> Result<UpdateReport> {
+        self.apply_model(m)
     }
 }
 

@@ -3,9 +3,13 @@
 //! whose offset to the frame is removed.
 
 use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::error::Result;
+use uwbimu_vocabulary::records::AltitudeSample;
 use uwbimu_vocabulary::state::{ErrVec, NominalState, POS};
 
+use crate::models::aiding::{finite, Hall, ModelSink, ScalarAiding, SensorRule};
 use crate::models::{AdditiveBias, Block, Geometry, ScalarModel, ScalarPrediction};
+use crate::update::UpdateReport;
 
 /// `h(x) = p_z` (`+ b_alt` with the offset state, `altitude.offset_std` > 0), Jacobian `e_zᵀ` on
 /// δp (and 1 on the offset), noise `altitude.std`, the filter's symmetric robust test.
@@ -38,5 +42,30 @@ impl ScalarModel for Altitude {
 
     fn examples() -> Vec<Self> {
         vec![Self { z_m: 1.2 }]
+    }
+}
+
+/// The gate passes a height within the grown hall's.
+impl SensorRule for AltitudeSample {
+    fn plausible(&self, hall: &Hall<'_>) -> bool {
+        (hall.lo.z..=hall.hi.z).contains(&self.z_m)
+    }
+}
+
+/// One [`Altitude`] model per reading; a height leaves the horizontal free, so it is no aiding
+/// for the outage guard.
+impl ScalarAiding for AltitudeSample {
+    const NOTES_AIDING: bool = false;
+
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn check(&self) -> Result<()> {
+        finite("update_altitude", 1, self.z_m)
+    }
+
+    fn apply<S: ModelSink>(&self, sink: &mut S) -> Result<UpdateReport> {
+        sink.apply(Altitude { z_m: self.z_m })
     }
 }

@@ -10,8 +10,10 @@
 use nalgebra::SMatrix;
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::math::{skew, Mat3, Vec3};
+use uwbimu_vocabulary::records::MagSample;
 use uwbimu_vocabulary::state::{NominalState, ATT, BA, ERR_DIM};
 
+use crate::models::aiding::{Hall, SensorRule};
 use crate::models::{Block, Geometry, ScalarModel, ScalarPrediction};
 
 /// Which body-frame sensor observes the reference vector.
@@ -88,5 +90,13 @@ impl ScalarModel for VectorAxis {
             .into_iter()
             .flat_map(|(sensor, reference)| (0..3).map(move |axis| Self { sensor, reference, axis, reading: 0.0 }))
             .collect()
+    }
+}
+
+/// The gate passes every magnetometer sample (a disturbed field is the adaptive aiding's to
+/// weigh, `uwbimu_estimation::robust::aiding`).
+impl SensorRule for MagSample {
+    fn plausible(&self, _: &Hall<'_>) -> bool {
+        true
     }
 }

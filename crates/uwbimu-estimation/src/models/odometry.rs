@@ -8,8 +8,10 @@
 
 use uwbimu_vocabulary::config::FilterConfig;
 use uwbimu_vocabulary::math::skew;
+use uwbimu_vocabulary::records::OdometrySample;
 use uwbimu_vocabulary::state::{ErrVec, NominalState, ATT, VEL};
 
+use crate::models::aiding::{Hall, SensorRule};
 use crate::models::{Block, Geometry, ScalarModel, ScalarPrediction};
 
 /// `h(x) = (Rᵀ·v)_axis`, noise `odometry.std`, the filter's symmetric robust test.
@@ -82,5 +84,12 @@ impl ScalarModel for NonHolonomic {
 
     fn examples() -> Vec<Self> {
         vec![Self { axis: 1 }, Self { axis: 2 }]
+    }
+}
+
+/// The gate passes a reading within `gate.speed_range`.
+impl SensorRule for OdometrySample {
+    fn plausible(&self, hall: &Hall<'_>) -> bool {
+        self.speed_mps.abs() <= hall.config.speed_range
     }
 }

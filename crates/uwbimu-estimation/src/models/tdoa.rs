@@ -1,7 +1,10 @@
 //! A time difference of arrival (ours: the difference of two range models).
 
 use uwbimu_vocabulary::config::FilterConfig;
+use uwbimu_vocabulary::records::TdoaMeasurement;
 use uwbimu_vocabulary::state::NominalState;
+
+use crate::models::aiding::{Hall, SensorRule};
 
 use crate::models::range::Range;
 use crate::models::{Block, Geometry, ScalarModel, ScalarPrediction};
@@ -50,6 +53,15 @@ impl ScalarModel for Tdoa {
 
     fn examples() -> Vec<Self> {
         vec![Tdoa { anchor_i: 0, anchor_j: 1, tdoa_m: 0.0 }, Tdoa { anchor_i: 2, anchor_j: 0, tdoa_m: 0.0 }]
+    }
+}
+
+/// The gate passes a TDoA whose `|d_ij|` stays within the baseline `‖a_i − a_j‖` plus
+/// `gate.tdoa_margin_m` (the triangle inequality).
+impl SensorRule for TdoaMeasurement {
+    fn plausible(&self, hall: &Hall<'_>) -> bool {
+        let baseline = (hall.anchors[self.anchor_i] - hall.anchors[self.anchor_j]).norm();
+        self.tdoa_m.abs() <= baseline + hall.config.tdoa_margin_m
     }
 }
 

@@ -448,7 +448,7 @@ fn take(initializer: &mut SelfInitializer, gate: &Gate, event: &Event) -> Result
             Ok(None)
         }
         // The initial fix is from UWB alone (the first range epoch's multilateration).
-        Event::Observation(Observation::Magnetometer(_) | Observation::Altitude(_) | Observation::Odometry(_)) => Ok(None),
+        Event::Observation(_) => Ok(None),
     }
 }
 

@@ -1,19 +1,10 @@
-//! The input checks of the tightly coupled filter: an epoch of ranges, a TDoA, a measured value,
-//! and the refusal of an observation a filter does not take.
+//! The input checks of the tightly coupled filter: an epoch of ranges, a TDoA, and the refusal
+//! of an observation a filter does not take.
 
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::TdoaMeasurement;
 use uwbimu_vocabulary::sensors::Observation;
-
-/// Refuses a measured value that is not finite, naming the call.
-pub(super) fn check_value(name: &'static str, value: f64) -> Result<()> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(Error::NonFinite { name, row: 0, col: 1, value })
-    }
-}
 
 /// The error for an observation a filter does not take.
 pub(crate) fn not_taken(observation: &Observation) -> Error {
