@@ -67,6 +67,8 @@ const INERT_HERE: &[(&str, &str)] = &[
     ("odometry.std", "the rig has no odometry (tests/integration/sensors.rs holds its effect)"),
     ("odometry.nonholonomic", "the rig has no odometry (tests/integration/consistency.rs holds its effect)"),
     ("odometry.nonholonomic_std", "the rig has no odometry (tests/integration/consistency.rs holds its effect)"),
+    ("pose_fix.lever_arm", "the rig has no pose fix (tests/integration/pose_fix.rs holds its effect)"),
+    ("pose_fix.std_scale", "the rig has no pose fix (tests/integration/pose_fix.rs holds its effect)"),
 ];
 
 /// Settings a key needs to act, set in both runs: the bias parameters act only with bias states,

@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use uwbimu_rs::app::methods::Method;
+use uwbimu_rs::app::methods::{Input, Method};
 use uwbimu_rs::vocabulary::config::{ConfigValue, FilterConfig};
 
 /// A default as the docs show it.
@@ -34,7 +34,7 @@ fn method_table() -> String {
     let mut out = String::from("| method | takes | smoothing | streaming class | what |\n|---|---|---|---|---|\n");
     for m in Method::ALL {
         let info = m.info();
-        let takes: Vec<&str> = info.takes.iter().map(|i| i.name()).collect();
+        let takes: Vec<&str> = m.inputs().map(Input::name).collect();
         let smoothing = info.smoothing.name();
         let class = info.streaming_class().map_or("–".to_string(), |c| format!("`{c}`"));
         let doc = info.doc.split_whitespace().collect::<Vec<_>>().join(" ");

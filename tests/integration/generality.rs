@@ -14,7 +14,7 @@
 use crate::common::figures;
 use uwbimu_rs::app::generality::{cells, run_cell, run_cells, Cell, Settings, Start};
 use uwbimu_rs::app::methods::Method;
-use uwbimu_rs::app::sim::{UWB_LOST_NAMES, ZOO_NAMES};
+use uwbimu_rs::app::sim::{SENSOR_SCENARIO_NAMES, UWB_LOST_NAMES, ZOO_NAMES};
 
 const SEEDS: [u64; 3] = [0, 1, 2];
 
@@ -40,9 +40,10 @@ fn bound(method: &str, scenario: &str, start: Start) -> f64 {
 }
 
 /// The zoo but the scenarios that lose UWB for good (`tests/integration/uwb_lost.rs`): the matrix compares
-/// with `uwb_ls`, which has no fix there after the first second.
+/// with `uwb_ls`, which has no fix there after the first second; and the scenarios built for a
+/// sensor the matrix does not feed (`SENSOR_SCENARIO_NAMES`, held by that sensor's test).
 fn scenarios() -> Vec<&'static str> {
-    ZOO_NAMES.iter().copied().filter(|n| !UWB_LOST_NAMES.contains(n)).collect()
+    ZOO_NAMES.iter().copied().filter(|n| !UWB_LOST_NAMES.contains(n) && !SENSOR_SCENARIO_NAMES.contains(n)).collect()
 }
 
 fn key(cell: &Cell<'_>) -> String {

@@ -10,7 +10,10 @@ import re
 import typing
 from pathlib import Path
 
+import pytest
+
 import uwbimu_rs
+import uwbimu_rs.sim
 from uwbimu_rs import _native
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -85,31 +88,31 @@ def test_methods_detail_table_lists_every_method_once() -> None:
 
 def test_sensor_lists_are_the_sensor_registry() -> None:
     """The sensor registry (crates/uwbimu-vocabulary/src/sensors.rs): ``run_filter``'s keyword
-    arguments for sensor arrays, the stub's ``takes`` names and each streaming class's
-    ``add_<sensor>`` call are its rows."""
+    arguments for sensor arrays (``**sensors``, documented from the rows), the inputs a method
+    takes and each streaming class's ``add_sensor`` are its rows."""
     import inspect
 
     sensors = uwbimu_rs.SENSORS
     keywords = {row["keyword"] for row in sensors.values()}
     assert len(keywords) == len(sensors)
     params = inspect.signature(uwbimu_rs.run_filter).parameters
-    array_kwargs = {
-        name
-        for name, p in params.items()
-        if p.kind is inspect.Parameter.KEYWORD_ONLY and "ndarray" in str(p.annotation) and name not in {"initial"}
-    }
-    assert array_kwargs == keywords, "run_filter's sensor keyword arguments differ from SENSORS"
-    takes_literal = re.search(r'takes: list\[Literal\[([^\]]*)\]\]', STUB.read_text())
-    assert takes_literal, "no takes Literal in the stub"
-    named = {n.strip().strip('"') for n in takes_literal.group(1).split(",")}
+    assert params["sensors"].kind is inspect.Parameter.VAR_KEYWORD
+    doc = uwbimu_rs.run_filter.__doc__ or ""
+    for row in sensors.values():
+        assert f"``{row['keyword']}`` :" in doc and row["doc"] in doc, f"run_filter's docstring lacks {row['keyword']}"
     # Besides the sensors a method takes ranges, and ranges from several tags: INPUTS, from the
     # registry's Input.
     inputs = uwbimu_rs.INPUTS
     assert set(sensors) <= set(inputs) and len(set(inputs)) == len(inputs)
-    assert named == set(inputs)
     for name, row in uwbimu_rs.METHODS.items():
         assert set(row["takes"]) <= set(inputs), name
     assert set(inputs) == {i for row in uwbimu_rs.METHODS.values() for i in row["takes"]}, "an input no method takes"
-    for cls in {row["streaming_class"] for row in uwbimu_rs.METHODS.values()} - {None}:
-        for sensor in sensors:
-            assert hasattr(getattr(uwbimu_rs, cls), f"add_{sensor}"), f"{cls} has no add_{sensor}"
+    r = uwbimu_rs.sim.zoo("agv_loop", seed=0)
+    for name in {row["streaming_class"] for row in uwbimu_rs.METHODS.values()} - {None}:
+        f = getattr(uwbimu_rs, name)(r.anchors, initial=r.initial)
+        for sensor, row in sensors.items():
+            # A row of no layout's width: refused for its width (or as not taken), never as unknown.
+            with pytest.raises(ValueError) as e:
+                f.add_sensor(sensor, [0.0])
+            said = str(e.value)
+            assert "unknown sensor" not in said and (sensor in said or row["keyword"] in said), f"{name}: {said}"

@@ -104,3 +104,43 @@ def test_wrong_odometry_and_altitude_tables_say_what_they_should_be():
         uwbimu_rs.run_filter("eskf", r.imu, r.ranges, r.anchors, altitude=np.array([[1.0, 0.3]]))
     with pytest.raises(ValueError, match="altitude"):
         uwbimu_rs.run_filter(*args, initial=r.initial, altitude=np.array([[1.0, np.inf]]))
+
+
+def test_pose_fixes_stream_through_add_sensor_as_the_batch_takes_them():
+    # shelf_aisles: 1 Hz fixes of σ 3 cm with yaw; the streamed filter fed every record in time
+    # order gives the batch run's track (the batch run as the oracle).
+    r = sim.zoo("shelf_aisles", seed=0)
+    assert r.pose_fix is not None and r.pose_fix.shape[1] == 9 and "pose_fix" in uwbimu_rs.METHODS["ekf"]["takes"]
+    cut = r.imu[:, 0] <= 20.0
+    imu, ranges, fixes = r.imu[cut], r.ranges[r.ranges[:, 0] <= 20.0], r.pose_fix[r.pose_fix[:, 0] <= 20.0]
+    batch = uwbimu_rs.run_filter("ekf", imu, ranges, r.anchors, initial=r.initial, config=r.config, pose_fix=fixes)
+    f = uwbimu_rs.Ekf(r.anchors, initial=r.initial, config=r.config, reorder_window_s=0.0)
+    events = [(s[0], 0, s) for s in imu] + [(x[0], 1, x) for x in ranges] + [(p[0], 2, p) for p in fixes]
+    fix_reports = []
+    for t, kind, row in sorted(events, key=lambda e: (e[0], e[1])):
+        if kind == 0:
+            f.add_imu(t, row[1:4], row[4:7])
+        elif kind == 1:
+            f.add_range(t, row[1], row[2])
+        else:
+            fix_reports += f.add_sensor("pose_fix", row)
+    f.flush()
+    assert len(fix_reports) == len(fixes) and {x.sensor for x in fix_reports} == {"pose_fix"}
+    both = f.steps().join(batch, on="t", suffix="_batch")
+    assert both.height >= batch.height - 1
+    np.testing.assert_allclose(both.select("x", "y", "z").to_numpy(), both.select("x_batch", "y_batch", "z_batch").to_numpy(), atol=1e-9)
+
+
+def test_add_sensor_refuses_an_unknown_sensor_a_wrong_row_and_a_method_that_does_not_take_it():
+    r = sim.zoo("agv_loop", seed=0)
+    f = uwbimu_rs.Ekf(r.anchors, initial=r.initial, reorder_window_s=0.0)
+    with pytest.raises(ValueError, match="unknown sensor `pose_fixes`"):
+        f.add_sensor("pose_fixes", [0.0, 1.0, 2.0, 0.3, 0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match=r"pose_fix.*\(7\) = t, x, y, z, sx, sy, sz"):
+        f.add_sensor("pose_fix", [0.0, 1.0, 2.0])
+    with pytest.raises(ValueError, match="σ must be > 0"):
+        f.add_sensor("pose_fix", [0.0, 1.0, 2.0, 0.3, 0.1, 0.0, 0.1])
+    assert f.add_sensor("pose_fix", [0.0, 500.0, 2.0, 0.3, 0.1, 0.1, 0.1]) == []
+    assert f.health["rejected"]["pose_fix_beyond_hall"] == 1
+    with pytest.raises(ValueError, match="pose_fix"):
+        uwbimu_rs.Eskf(r.anchors, initial=r.initial).add_sensor("pose_fix", [0.0, 1.0, 2.0, 0.3, 0.1, 0.1, 0.1])

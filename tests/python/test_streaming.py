@@ -280,6 +280,7 @@ def test_impossible_measurements_are_counted_not_applied_and_not_raised():
         "tdoa_beyond_baseline": 1,
         "altitude_beyond_hall": 0,
         "speed_beyond_range": 0,
+        "pose_fix_beyond_hall": 0,
     }
     np.testing.assert_allclose(f.state["position"], AT_REST["position"], atol=1e-3)
 

@@ -61,7 +61,7 @@ pub use uwb::{
     NlosConfig, NlosWindow, Outage, RandomShielding, ShieldingWindow, UwbConfig, LABEL_LOS, LABEL_NLOS, LABEL_OUTLIER,
 };
 pub(crate) use zoo::cuboid8;
-pub use zoo::{lever_arms_seen, matched_config, true_initial, zoo, Scenario, UWB_LOST_NAMES, ZOO_NAMES};
+pub use zoo::{lever_arms_seen, matched_config, true_initial, zoo, Scenario, SENSOR_SCENARIO_NAMES, UWB_LOST_NAMES, ZOO_NAMES};
 
 /// ChaCha stream of the IMU noise.
 const STREAM_IMU: u64 = 1;

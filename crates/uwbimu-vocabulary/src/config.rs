@@ -9,25 +9,23 @@
 //! (`range_std`, `zupt`, …) were removed rather than kept as aliases.
 
 mod lever_arms;
-pub(crate) mod parse;
+mod parse;
 mod range_calibration;
-pub(crate) mod sections;
+mod sections;
 
 use parse::{flag, non_negative, quaternion, vec3, vec3_or_scalar};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
-use crate::sensors::pose_fix::PoseFixConfig;
 
 pub use lever_arms::{LeverArms, MAX_TAGS};
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
-pub(crate) use sections::section;
 pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, AltitudeConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig,
-    ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig,
-    SageHusaSection, Section, SmoothingConfig, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY, DEFAULT_EPOCH_WINDOW_S,
-    DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW, MAX_EPOCH_WINDOW_S, MAX_MAP_PASSES,
-    MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
+    ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, PoseFixConfig, RangeBiasConfig, RangingConfig,
+    RobustConfig, SageHusaSection, Section, SmoothingConfig, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY,
+    DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW,
+    MAX_EPOCH_WINDOW_S, MAX_MAP_PASSES, MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
 
 /// Default reorder window of a stream of measurements, s: how late a measurement may arrive and

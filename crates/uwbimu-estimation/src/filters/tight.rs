@@ -20,10 +20,10 @@ use crate::filters::scratch::Scratch;
 use crate::filters::sigma_points::UnscentedWeights;
 use crate::filters::{Filter, InertialCore, InertialFilter};
 use crate::invariant::ErrorConvention;
-use crate::models::aiding::{finite, visit_scalar_aiding, ModelSink, ScalarAiding, ScalarAidingVisitor};
+use crate::models::aiding::{finite, ModelSink, ScalarAiding, ScalarAidingVisitor};
 use crate::models::odometry::{BodyVelocity, NonHolonomic};
 use crate::models::range::Range;
-use crate::models::{ScalarModel, ScalarPrediction};
+use crate::models::{visit_scalar_aiding, ScalarModel, ScalarPrediction};
 #[cfg(doc)]
 use crate::robust::tested_nis;
 use crate::robust::{RangeNoisePolicy, RobustnessFactor, SageHusa, SageHusaConfig, SageHusaVariant};
@@ -301,7 +301,7 @@ impl ScalarAidingVisitor for ApplyAiding<'_> {
     }
 }
 
-/// The filter's strategy and noise policy at the filter time ([`TightFilter::apply_model`]).
+/// The filter's strategy and noise policy at the filter time (its `apply_model`).
 impl ModelSink for TightFilter {
     fn config(&self) -> &FilterConfig {
         &self.config

@@ -2,15 +2,17 @@
 //! once per record type in its model's module: the gate's rule ([`SensorRule`], judged in the
 //! [`Hall`]) and, for a sensor the tightly coupled filters apply reading by reading as scalar
 //! models, how ([`ScalarAiding`], through a [`ModelSink`]). [`visit_rule`] and
-//! [`visit_scalar_aiding`] are the one `match` on [`Observation`] each; a new sensor is an arm in
-//! each and the implementations beside its model.
+//! [`visit_scalar_aiding`] (in `models.rs`, beside the models' list) are the one `match` on
+//! [`Observation`] each; a new sensor is an arm in each and the implementations beside its model.
 
 use uwbimu_vocabulary::config::{FilterConfig, GateConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::sensors::Observation;
 
-use crate::models::ScalarModel;
+#[cfg(doc)]
+use crate::models::visit_scalar_aiding;
+use crate::models::{visit_rule, ScalarModel};
 use crate::update::UpdateReport;
 
 /// What the gate judges a reading in: the anchors, the box they span grown by
@@ -102,27 +104,6 @@ pub trait ScalarAidingVisitor {
     type Output;
     /// Does the job with `record`.
     fn visit<R: ScalarAiding>(self, record: &R) -> Self::Output;
-}
-
-/// Hands the observation's record to `visitor` as a [`SensorRule`].
-pub fn visit_rule<V: RuleVisitor>(observation: &Observation, visitor: V) -> V::Output {
-    match observation {
-        Observation::Magnetometer(m) => visitor.visit(m),
-        Observation::Tdoa(m) => visitor.visit(m),
-        Observation::Altitude(m) => visitor.visit(m),
-        Observation::Odometry(m) => visitor.visit(m),
-        Observation::PoseFix(m) => visitor.visit(m),
-    }
-}
-
-/// Hands the observation's record to `visitor` as a [`ScalarAiding`]; None for a sensor that is
-/// not applied that way.
-pub fn visit_scalar_aiding<V: ScalarAidingVisitor>(observation: &Observation, visitor: V) -> Option<V::Output> {
-    match observation {
-        Observation::Altitude(m) => Some(visitor.visit(m)),
-        Observation::PoseFix(m) => Some(visitor.visit(m)),
-        Observation::Magnetometer(_) | Observation::Tdoa(_) | Observation::Odometry(_) => None,
-    }
 }
 
 /// Whether `observation` passes its sensor's rule in `hall`.

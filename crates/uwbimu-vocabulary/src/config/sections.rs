@@ -6,7 +6,7 @@
 use crate::config::lever_arms::{lever_arms, LeverArms};
 use crate::config::parse::{
     at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
-    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole,
+    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole, vec3, ToValue,
 };
 use crate::config::ConfigValue;
 use crate::error::{Error, Result};
@@ -63,8 +63,7 @@ pub trait Section {
     fn entries(&self) -> Vec<(&'static str, ConfigValue)>;
 }
 
-/// The error for a key `section.key` a section does not have, listing the keys it has.
-pub(crate) fn unknown_field<S: Section>(key: &str) -> Error {
+fn unknown_field<S: Section>(key: &str) -> Error {
     let allowed: Vec<String> = S::KEYS.iter().map(|k| format!("{}.{k}", S::NAME)).collect();
     Error::unknown_option("config", &format!("{}.{key}", S::NAME), allowed.iter().map(String::as_str))
 }
@@ -89,28 +88,27 @@ macro_rules! section {
             }
         }
 
-        impl $crate::config::Section for $name {
+        impl Section for $name {
             const NAME: &'static str = $section;
             const KEYS: &'static [&'static str] = &[$( stringify!($field) ),*];
             const DOCS: &'static [&'static str] = &[$( concat!($($fdoc, " "),*) ),*];
 
-            fn set(&mut self, key: &str, value: &$crate::config::ConfigValue) -> $crate::error::Result<()> {
+            fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
                 match key {
                     $( stringify!($field) => self.$field = ($parse)(concat!($section, ".", stringify!($field)), value)?, )*
-                    _ => return Err($crate::config::sections::unknown_field::<Self>(key)),
+                    _ => return Err(unknown_field::<Self>(key)),
                 }
                 Ok(())
             }
 
-            fn entries(&self) -> Vec<(&'static str, $crate::config::ConfigValue)> {
+            fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
                 let mut out = Vec::with_capacity(Self::KEYS.len());
-                $( if let Some(v) = $crate::config::parse::ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
+                $( if let Some(v) = ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
                 out
             }
         }
     };
 }
-pub(crate) use section;
 
 /// Default window of the epoch rule, s: covers a sweep over 8 anchors at 5 ms per anchor plus
 /// jitter, and stays below the 50 ms period of a 20 Hz sweep.
@@ -487,6 +485,19 @@ section! {
         /// σ of the non-holonomic constraint per axis, m/s (it covers the sideways velocity of an
         /// IMU mounted off the rear axle in a turn, and wheel slip).
         nonholonomic_std: f64 = 0.1, positive;
+    }
+}
+
+section! {
+    /// An external pose fix (`uwbimu_estimation::models::pose_fix`): where its point sits on the
+    /// body and how far its stated σ is trusted.
+    PoseFixConfig = "pose_fix" {
+        /// Position of the fix's point in the body frame, m (a camera's optical centre, a lidar's
+        /// origin; the localiser's frame is taken to be the navigation frame).
+        lever_arm: Vec3 = Vec3::zeros(), vec3;
+        /// Factor on every σ a fix states, dimensionless (> 0): above 1 for a localiser whose
+        /// covariance is overconfident, as visual–inertial odometry's often is.
+        std_scale: f64 = 1.0, positive;
     }
 }
 

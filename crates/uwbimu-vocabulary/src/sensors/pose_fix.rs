@@ -1,11 +1,10 @@
 //! An external pose fix (ours; none of the five papers fuses one): the position of a point on the
 //! body, and optionally the body's yaw, from a localiser of its own — a visual tag, visual–inertial
 //! odometry, a lidar localiser — each with its σ, in the navigation frame. Its record
-//! ([`PoseFix`]), its table and its configuration section ([`PoseFixConfig`]) are declared here;
-//! its measurement model is `uwbimu_estimation::models::pose_fix`.
+//! ([`PoseFix`]) and its table are declared here, its configuration section with the others
+//! ([`crate::config::PoseFixConfig`]), its measurement model in
+//! `uwbimu_estimation::models::pose_fix`.
 
-use crate::config::parse::{positive, vec3};
-use crate::config::section;
 use crate::error::{Error, Result};
 use crate::math::Vec3;
 use crate::sensors::{SensorRecord, TimeOrder};
@@ -87,23 +86,10 @@ impl SensorRecord for PoseFix {
     }
 }
 
-section! {
-    /// An external pose fix (`uwbimu_estimation::models::pose_fix`): where its point sits on the
-    /// body and how far its stated σ is trusted.
-    PoseFixConfig = "pose_fix" {
-        /// Position of the fix's point in the body frame, m (a camera's optical centre, a lidar's
-        /// origin; the localiser's frame is taken to be the navigation frame).
-        lever_arm: Vec3 = Vec3::zeros(), vec3;
-        /// Factor on every σ a fix states, dimensionless (> 0): above 1 for a localiser whose
-        /// covariance is overconfident, as visual–inertial odometry's often is.
-        std_scale: f64 = 1.0, positive;
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{ConfigValue, Section};
+    use crate::config::{ConfigValue, PoseFixConfig, Section};
     use crate::sensors::validate_records;
 
     #[test]
