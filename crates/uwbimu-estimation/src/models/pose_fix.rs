@@ -136,9 +136,9 @@ impl ScalarAiding for PoseFix {
     fn apply<S: ModelSink>(&self, sink: &mut S) -> Result<UpdateReport> {
         let c = sink.config().pose_fix;
         let mut reports = [UpdateReport::skipped(); 4];
-        for axis in 0..3 {
+        for (axis, report) in reports.iter_mut().take(3).enumerate() {
             let std_m = c.std_scale * self.position_std[axis];
-            reports[axis] = sink.apply(FixAxis { axis, value_m: self.position[axis], std_m, lever_arm: c.lever_arm })?;
+            *report = sink.apply(FixAxis { axis, value_m: self.position[axis], std_m, lever_arm: c.lever_arm })?;
         }
         let models = if self.has_yaw() {
             reports[3] = sink.apply(FixYaw { yaw_rad: self.yaw_rad, std_rad: c.std_scale * self.yaw_std_rad })?;
