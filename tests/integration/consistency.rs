@@ -313,3 +313,8 @@ fn consistent_with_odometry_through_a_uwb_outage() {
 fn consistent_with_two_tags_while_the_heading_converges() {
     check_scenario("two_tags");
 }
+
+#[test]
+fn consistent_with_pose_fixes_through_a_uwb_outage() {
+    check_scenario("outage_pose_fix");
+}

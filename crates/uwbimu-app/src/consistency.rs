@@ -21,8 +21,9 @@
 //! | `coplanar_altitude` | as `moving_start` | consumer | 5 Hz, the four anchors coplanar at 2.2 m; a 25 Hz altitude, σ 0.05 m | the altitude model where the ranges barely fix the height |
 //! | `outage_odometry` | as `moving_start` | consumer | 5 Hz, out from 10 s to 30 s; a 50 Hz wheel speed (body x), σ 0.05 m/s | the odometry model carrying a 20 s outage |
 //! | `two_tags` | as `moving_start`, heading σ 0.2 rad | consumer | 5 Hz from two tags 0.6 m apart along body x, taking turns | the heading made observable by the tags' geometry |
+//! | `outage_pose_fix` | as `moving_start` | consumer | 5 Hz, out from 10 s to 30 s; 2 Hz pose fixes at a lever arm of (0.2, 0.1, 0.3) m, σ 0.05 m and 0.05 rad in yaw | the pose-fix models (position at a lever arm, yaw) carrying a 20 s outage |
 //!
-//! The last three carry an input besides the IMU and one tag's ranges ([`scenario_inputs`]); a
+//! The last four carry an input besides the IMU and one tag's ranges ([`scenario_inputs`]); a
 //! method is run on them only when it takes that input.
 //!
 //! **A run** is the first [`LOG_S`] of the scenario's log. The filter is given the truth at the
@@ -62,8 +63,8 @@ use crate::model_choice::ModelChoice;
 use crate::registry::{Input, Method};
 use crate::run::{BatchInput, BatchOutput};
 use crate::sim::{
-    cuboid8, hall_anchors, matched_config, simulate, AltimeterConfig, ImuNoise, OdometerConfig, Outage, SimConfig, SimData,
-    Trajectory, UwbConfig,
+    cuboid8, hall_anchors, matched_config, simulate, AltimeterConfig, ImuNoise, OdometerConfig, Outage, PoseFixSimConfig,
+    SimConfig, SimData, Trajectory, UwbConfig,
 };
 
 /// The scenarios of [`scenario`], in the order of the module table.
@@ -78,6 +79,7 @@ pub const SCENARIOS: &[&str] = &[
     "coplanar_altitude",
     "outage_odometry",
     "two_tags",
+    "outage_pose_fix",
 ];
 
 /// Height of the coplanar anchors of `coplanar_altitude`, m.
@@ -90,6 +92,7 @@ pub fn scenario_inputs(name: &str) -> &'static [Input] {
         "coplanar_altitude" => &[Input::Sensor(SensorKind::Altitude)],
         "outage_odometry" => &[Input::Sensor(SensorKind::Odometry)],
         "two_tags" => &[Input::Tags],
+        "outage_pose_fix" => &[Input::Sensor(SensorKind::PoseFix)],
         _ => &[],
     }
 }
@@ -180,6 +183,18 @@ pub fn scenario(name: &str, seed: u64) -> Result<SimConfig> {
             let mut base = moving(5.0, consumer)?;
             base.uwb.outages.push(Outage { start_s: MOVING_START_S + 10.0, end_s: MOVING_START_S + 30.0 });
             SimConfig { odometer: Some(OdometerConfig::default()), ..base }
+        }
+        "outage_pose_fix" => {
+            let mut base = moving(5.0, consumer)?;
+            base.uwb.outages.push(Outage { start_s: MOVING_START_S + 10.0, end_s: MOVING_START_S + 30.0 });
+            let fixes = PoseFixSimConfig {
+                rate_hz: 2.0,
+                std_m: 0.05,
+                yaw_std_rad: Some(0.05),
+                lever_arm_m: Vec3::new(0.2, 0.1, 0.3),
+                gaps: Vec::new(),
+            };
+            SimConfig { pose_fix: Some(fixes), ..base }
         }
         _ => return Err(Error::unknown_option("consistency scenario", name, SCENARIOS.iter().copied())),
     };
