@@ -160,7 +160,8 @@ def run_filter(
         (t, epoch_t, sensor, anchor, anchor_j, tag, axis, value, innovation, nis, accepted, weight,
         inflation, down_weighted, iterations, prior_fading, reacquired, bias, bias_std):
         ``sensor`` is ``"range"`` or a name of :data:`SENSORS` (a polars Enum); ``value`` the
-        range, TDoA d_ij, altitude [m] or speed [m/s] (a magnetometer sample's field norm);
+        range, TDoA d_ij, altitude [m] or speed [m/s] (a magnetometer sample's field norm, a pose
+        fix's distance from the origin);
         ``anchor`` a range's anchor or a TDoA's i, ``anchor_j`` a TDoA's j, ``tag`` a range's
         tag, ``axis`` an odometry reading's body axis, each −1 where it does not apply;
         ``bias``, ``bias_std``: the estimated additive bias after the update (a range's anchor

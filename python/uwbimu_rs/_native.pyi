@@ -270,7 +270,8 @@ class UpdateReport:
     def value(self) -> float:
         """The value as measured: a range (before alignment to the epoch's reference time) or a
         TDoA's ``d_ij``, m; an altitude, m; an odometry speed, m/s; a magnetometer sample's field
-        norm."""
+        norm; a pose fix's distance from the origin, m (its report is the fix as a whole:
+        docs/pose-fix.md)."""
 
     @property
     def innovation(self) -> float:
