@@ -31,9 +31,7 @@ pub enum TopicRole {
     Imu,
     /// UWB ranges.
     Uwb,
-    /// TDoA.
-    Tdoa,
-    /// A sensor of the registry without anchors (altitude, odometry).
+    /// A sensor of the registry (TDoA, altitude, odometry, …).
     Sensor(SensorKind),
     /// Anchor list.
     Anchors,
@@ -51,7 +49,6 @@ impl TopicRole {
         match self {
             Self::Imu => "imu",
             Self::Uwb => "uwb",
-            Self::Tdoa => "tdoa",
             Self::Sensor(kind) => kind.info().name,
             Self::Anchors => "anchors",
             Self::AnchorRanges => "anchor ranges",
@@ -60,9 +57,9 @@ impl TopicRole {
         }
     }
 
-    /// Whether the topic's messages become filter inputs (IMU, ranges, TDoA, other sensors).
+    /// Whether the topic's messages become filter inputs (IMU, ranges, the sensors).
     pub fn feeds_filter(self) -> bool {
-        matches!(self, Self::Imu | Self::Uwb | Self::Tdoa | Self::Sensor(_))
+        matches!(self, Self::Imu | Self::Uwb | Self::Sensor(_))
     }
 }
 
