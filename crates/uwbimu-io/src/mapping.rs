@@ -268,13 +268,8 @@ impl Mapping {
                 reason: format!("must be >= 0, got {}", self.reorder_window_s),
             });
         }
-        for (field, scale) in [("uwb.scale", self.uwb.scale), ("anchor_ranges.scale", self.anchor_ranges.scale)] {
-            if let Some(s) = scale {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(Error::Mapping { field: field.into(), reason: format!("must be > 0, got {s}") });
-                }
-            }
-        }
+        topics::positive("uwb.scale", self.uwb.scale)?;
+        topics::positive("anchor_ranges.scale", self.anchor_ranges.scale)?;
         for row in topics::SENSORS {
             row.validate(&self)?;
         }

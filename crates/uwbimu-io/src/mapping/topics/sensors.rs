@@ -149,6 +149,17 @@ pub trait DecodeSensor: Send + Sync {
     fn decode(&self, data: &[u8], out: &mut Vec<Reading>) -> Result<Option<i64>>;
 }
 
+/// Checks that `value`, when given, is finite and > 0 (a scale, a σ); the error names `field`.
+///
+/// # Errors
+/// [`crate::IoError::Mapping`] naming `field`.
+pub(crate) fn positive(field: &str, value: Option<f64>) -> Result<()> {
+    match value.filter(|v| !(v.is_finite() && *v > 0.0)) {
+        Some(v) => Err(crate::IoError::Mapping { field: field.into(), reason: format!("must be > 0, got {v}") }),
+        None => Ok(()),
+    }
+}
+
 /// A channel's schema with the path of its messages' stamp: where the rows' decoders start.
 #[derive(Debug, Clone)]
 pub(crate) struct StampedSchema {

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use uwbimu_vocabulary::records::OdometrySample;
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
-use super::{DecodeSensor, Reading, SensorIo, StampedSchema};
+use super::{positive, DecodeSensor, Reading, SensorIo, StampedSchema};
 use crate::mapping::field_path::PointPath;
 use crate::recordings::mcap_read::ChannelInfo;
 use crate::ros::payloads::{align8, cdr_with_header, push_cdr_string};
@@ -88,9 +88,7 @@ impl SensorIo for OdometryIo {
 
     /// A scale > 0 and known, distinct axes ([`OdometryMapping::axis_indices`]).
     fn validate(&self, m: &Mapping) -> Result<()> {
-        if let Some(s) = m.odometry.scale.filter(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(Error::Mapping { field: "odometry.scale".into(), reason: format!("must be > 0, got {s}") });
-        }
+        positive("odometry.scale", m.odometry.scale)?;
         m.odometry.axis_indices().map(drop)
     }
 

@@ -8,10 +8,10 @@ use uwbimu_vocabulary::records::TdoaMeasurement;
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use super::super::id_pairs::{IdPairDecoder, PairPaths};
-use super::{DecodeSensor, Reading, SensorIo};
+use super::{positive, DecodeSensor, Reading, SensorIo};
 use crate::recordings::mcap_read::ChannelInfo;
 use crate::ros::payloads::id_pair_cdr;
-use crate::{IoError as Error, IoResult as Result, Mapping};
+use crate::{IoResult as Result, Mapping};
 
 /// Default path of a TDoA's anchor i: the Crazyflie estimator's `estTDOA` event field.
 pub const TDOA_ANCHOR_I_DEFAULT: &str = "idA";
@@ -77,10 +77,7 @@ impl SensorIo for TdoaIo {
 
     /// A scale > 0.
     fn validate(&self, m: &Mapping) -> Result<()> {
-        match m.tdoa.scale.filter(|s| !(s.is_finite() && *s > 0.0)) {
-            Some(s) => Err(Error::Mapping { field: "tdoa.scale".into(), reason: format!("must be > 0, got {s}") }),
-            None => Ok(()),
-        }
+        positive("tdoa.scale", m.tdoa.scale)
     }
 
     fn reads(&self) -> &'static [&'static str] {
@@ -92,7 +89,7 @@ impl SensorIo for TdoaIo {
         m.tdoa.topics.is_empty() && channel.schema.as_ref().is_some_and(|s| s.name == TDOA_MSG_NAME)
     }
 
-    /// The `[mapping.tdoa]` field paths; [`Error::Mapping`] names the `tdoa.*` key of a path that
+    /// The `[mapping.tdoa]` field paths; [`crate::IoError::Mapping`] names the `tdoa.*` key of a path that
     /// does not fit.
     fn decoder(&self, channel: &ChannelInfo, m: &Mapping) -> Result<Box<dyn DecodeSensor>> {
         let m = &m.tdoa;
@@ -123,7 +120,7 @@ impl SensorIo for TdoaIo {
 struct TdoaDecoder(IdPairDecoder);
 
 impl DecodeSensor for TdoaDecoder {
-    /// [`Error::Mapping`] if the mapped paths select different numbers of values.
+    /// [`crate::IoError::Mapping`] if the mapped paths select different numbers of values.
     fn decode(&self, data: &[u8], out: &mut Vec<Reading>) -> Result<Option<i64>> {
         self.0.decode(data, |anchor_i, anchor_j, tdoa_m| out.push(Reading::Tdoa(RawTdoa { anchor_i, anchor_j, tdoa_m })))
     }
@@ -140,6 +137,7 @@ mod tests {
 
     use super::*;
     use crate::recordings::mcap_read::SchemaInfo;
+    use crate::IoError as Error;
 
     /// A Crazyflie-style message without header: `Tdoa[] tdoa` of `{uint8 idA, uint8 idB,
     /// float32 distanceDiff}` (mm), two entries: (3, 5, 1250) and (5, 0, −500).
