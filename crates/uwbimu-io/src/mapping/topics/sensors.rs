@@ -15,10 +15,12 @@
 //! below and its row in `sensor_rows!`.
 
 mod altitude;
+mod magnetometer;
 mod odometry;
 mod tdoa;
 
 pub use altitude::*;
+pub use magnetometer::*;
 pub use odometry::*;
 pub use tdoa::*;
 
@@ -39,6 +41,8 @@ use crate::{IoResult as Result, Mapping};
 macro_rules! sensor_rows {
     ($then:ident) => {
         $then! {
+            /// Magnetometer messages.
+            magnetometer: Magnetometer => MagnetometerIo(MagnetometerMapping),
             /// TDoA messages.
             tdoa: Tdoa => TdoaIo(TdoaMapping),
             /// Height messages.
