@@ -17,11 +17,13 @@
 mod altitude;
 mod magnetometer;
 mod odometry;
+mod pose_fix;
 mod tdoa;
 
 pub use altitude::*;
 pub use magnetometer::*;
 pub use odometry::*;
+pub use pose_fix::*;
 pub use tdoa::*;
 
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
@@ -49,6 +51,8 @@ macro_rules! sensor_rows {
             altitude: Altitude => AltitudeIo(AltitudeMapping),
             /// Body-velocity messages.
             odometry: Odometry => OdometryIo(OdometryMapping),
+            /// Pose messages read as pose fixes.
+            pose_fix: PoseFix => PoseFixIo(PoseFixMapping),
         }
     };
 }
