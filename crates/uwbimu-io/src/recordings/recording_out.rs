@@ -13,7 +13,6 @@ use std::io::{Seek, Write};
 use crate::{IoError as Error, IoResult as Result};
 use mcap::records::{MessageHeader, Metadata};
 use mcap::WriteOptions;
-use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
@@ -75,8 +74,7 @@ pub struct RecordingStreams<'a> {
 /// output in errors.
 ///
 /// # Errors
-/// [`Error::Mcap`] if writing fails; [`CoreError::InvalidCall`] for readings of a sensor without
-/// an io row.
+/// [`Error::Mcap`] if writing fails.
 pub fn write_recording_mcap<W: Write + Seek>(
     sink: W,
     label: &str,
@@ -85,9 +83,6 @@ pub fn write_recording_mcap<W: Write + Seek>(
     compress: bool,
 ) -> Result<()> {
     let RecordingStreams { imu, ranges, observations, anchors } = *streams;
-    if let Some(o) = observations.iter().find(|o| sensor_io(o.kind()).is_none()) {
-        return Err(CoreError::InvalidCall(format!("{} cannot be written to MCAP yet", o.kind().info().label)).into());
-    }
     let err = |source: mcap::McapError| Error::Mcap { path: label.to_string(), source };
     let mut w =
         WriteOptions::new().profile("").compression(compress.then_some(mcap::Compression::Zstd)).create(sink).map_err(err)?;
@@ -100,7 +95,7 @@ pub fn write_recording_mcap<W: Write + Seek>(
     }
     let mut sensor_ch: BTreeMap<SensorKind, (u16, &dyn SensorIo)> = BTreeMap::new();
     for kind in SensorKind::ALL.iter().filter(|k| observations.iter().any(|o| o.kind() == **k)) {
-        let Some(row) = sensor_io(*kind) else { continue };
+        let row = sensor_io(*kind);
         let (topic, type_name) = row.written();
         let id = w.add_schema(type_name, "ros2msg", full_definition(type_name, &[])?.as_bytes()).map_err(err)?;
         sensor_ch.insert(*kind, (w.add_channel(id, topic, "cdr", &BTreeMap::new()).map_err(err)?, row));
@@ -128,7 +123,7 @@ pub fn write_recording_mcap<W: Write + Seek>(
                 (uwb, range_json(t, &format!("A{}", ranges[k].anchor), ranges[k].range_m, variance, ranges[k].tag))
             }
             _ => {
-                // Every observation's sensor has a channel (checked above).
+                // Every observation's sensor has its channel (added above), and its row encodes it.
                 let Some(&(channel_id, row)) = sensor_ch.get(&observations[k].kind()) else { continue };
                 let Some((data, n)) = row.encode(&observations[k..]) else { continue };
                 next[2] = k + n;

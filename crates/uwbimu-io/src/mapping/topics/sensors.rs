@@ -58,11 +58,19 @@ macro_rules! sensor_rows {
 }
 pub(crate) use sensor_rows;
 
-/// Declares [`SENSORS`] from the rows.
+/// Declares [`SENSORS`] and [`sensor_io`] from the rows.
 macro_rules! rows {
     ($($(#[doc = $doc:literal])* $name:ident: $kind:ident => $row:ident($section:ident),)+) => {
         /// Every sensor's io row, in the registry's order.
         pub const SENSORS: &[&dyn SensorIo] = &[$(&$row,)+];
+
+        /// The io row of the sensor `kind`: every sensor of the registry has one (this is a
+        /// `match` over the list, so a sensor without one does not compile).
+        pub fn sensor_io(kind: SensorKind) -> &'static dyn SensorIo {
+            match kind {
+                $(SensorKind::$kind => &$row,)+
+            }
+        }
 
         /// The sensors' names as the list spells them, with their kinds.
         #[cfg(test)]
@@ -70,11 +78,6 @@ macro_rules! rows {
     };
 }
 sensor_rows!(rows);
-
-/// The io row of the sensor `kind` (None: a sensor without one yet).
-pub fn sensor_io(kind: SensorKind) -> Option<&'static dyn SensorIo> {
-    SENSORS.iter().copied().find(|row| row.kind() == kind)
-}
 
 /// A decoded observation (time 0 until the reader stamps it, [`Observation::at`]) and whether it
 /// can be used: false for a value that is not finite or outside the limits the message states.
@@ -217,15 +220,14 @@ mod tests {
     use crate::ros::types::full_definition;
 
     #[test]
-    fn the_rows_are_the_registry_s_sensors_in_its_order_named_as_it() {
+    fn every_sensor_of_the_registry_has_its_row_in_its_order_named_as_it() {
         let kinds: Vec<SensorKind> = SENSORS.iter().map(|r| r.kind()).collect();
-        let registry: Vec<SensorKind> = SensorKind::ALL.iter().copied().filter(|k| kinds.contains(k)).collect();
-        assert_eq!(kinds, registry);
+        assert_eq!(kinds, SensorKind::ALL);
         let listed: Vec<SensorKind> = LISTED.iter().map(|(_, k)| *k).collect();
         assert_eq!(listed, kinds, "the list's kinds are its rows' kinds");
         for (name, kind) in LISTED {
             assert_eq!(*name, kind.info().name, "{kind:?}: its section is named as the sensor");
-            assert_eq!(sensor_io(*kind).map(|r| r.kind()), Some(*kind));
+            assert_eq!(sensor_io(*kind).kind(), *kind);
         }
     }
 

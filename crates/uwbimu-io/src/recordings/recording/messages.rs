@@ -109,7 +109,7 @@ impl MessageDecoder {
         let m = &self.mapping;
         let mapped_stamp = match tag {
             TopicRole::Uwb => m.uwb.stamp.is_some(),
-            TopicRole::Sensor(kind) => sensor_io(kind).is_some_and(|row| row.stamp(m).is_some()),
+            TopicRole::Sensor(kind) => sensor_io(kind).stamp(m).is_some(),
             _ => false,
         };
         let stamped =
