@@ -1656,11 +1656,13 @@ class MessageDecoder:
     def anchors(self) -> NDArray[np.float64]:
         """Anchor positions (K, 3), m, in filter-index order."""
     def add_topic(self, topic: str, schema_name: str, schema_text: str, encoding: str = "cdr") -> str | None:
-        """Announce a topic; its role when it feeds the filter, else None."""
+        """Announce a topic; its role when it feeds the filter (``imu``, ``uwb`` or a sensor's
+        name), else None."""
     def decode(self, topic: str, arrival_s: float, data: bytes) -> list[tuple[Any, ...]]:
         """The records of one message: ``("imu", t, accel, gyro)``, ``("range", t, anchor, range,
-        tag)``, ``("tdoa", t, i, j, d_ij)``, ``(sensor, t, values...)``; none for a message
-        that does not decode (counted)."""
+        tag)``, or ``(sensor, t, values...)``: a sensor's name and one row of its table, as
+        ``add_sensor`` takes it (``("tdoa", t, i, j, d_ij)``, ``("magnetometer", t, mx, my,
+        mz)``, ...); none for a message that does not decode (counted)."""
     @property
     def counts(self) -> dict[str, dict[str, Any]]:
         """Per topic: ``messages``, ``records``, ``errors``, ``arrival_stamps``, ``last_error``."""

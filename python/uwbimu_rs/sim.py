@@ -356,16 +356,18 @@ def simulate(
 def write_mcap(run: SimResult, path: str | os.PathLike[str], *, range_std: float | None = None) -> None:
     """Write a simulated run as an MCAP recording that ``uwbimu-replay`` and :func:`uwbimu_rs.replay`
     read: CDR ``sensor_msgs/msg/Imu`` on ``/imu``, JSON ``uwbimu.UwbRange`` on ``/uwb`` (anchor
-    ids ``A0``, ``A1``, ...; a tag beyond 0 in ``tag``; ``variance = range_std²`` when given),
-    the run's TDoA (if any) as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (fields ``idA``,
-    ``idB``, ``distanceDiff``, the ``[mapping.tdoa]`` defaults; no ``/uwb`` when the run has TDoA
-    and no ranges), its heights as ``sensor_msgs/msg/Range`` on ``/altitude`` and its body
-    velocities as ``nav_msgs/msg/Odometry`` on ``/odom`` (read with ``{"uwb": {"topics":
-    ["/uwb"]}, "altitude": {"topics": ["/altitude"]}, "odometry": {"topics": ["/odom"], "axes":
-    ["x", "y", "z"]}}``), and the anchor positions in the ``uwbimu.anchors`` metadata record. The
-    magnetometer is not written."""
-    sensors = {"tdoa": run.tdoa, "altitude": run.altitude, "odometry": run.odometry}
-    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std, **sensors)
+    ids ``A0``, ``A1``, ...; a tag beyond 0 in ``tag``; ``variance = range_std²`` when given; no
+    ``/uwb`` when the run has TDoA and no ranges), each of its other sensors (:meth:`SimResult.sensors`)
+    as its row of the io writes it — TDoA as CDR ``uwbimu_msgs/msg/Tdoa`` on ``/tdoa`` (fields
+    ``idA``, ``idB``, ``distanceDiff``, the ``[mapping.tdoa]`` defaults), heights as
+    ``sensor_msgs/msg/Range`` on ``/altitude``, body velocities as ``nav_msgs/msg/Odometry`` on
+    ``/odom``, magnetometer samples as ``sensor_msgs/msg/MagneticField`` on ``/mag`` (in µT, as
+    simulated), pose fixes as ``geometry_msgs/msg/PoseWithCovarianceStamped`` on ``/pose_fix`` —
+    and the anchor positions in the ``uwbimu.anchors`` metadata record. Read back with ``{"uwb":
+    {"topics": ["/uwb"]}, "altitude": {"topics": ["/altitude"]}, "odometry": {"topics": ["/odom"],
+    "axes": ["x", "y", "z"]}, "magnetometer": {"topics": ["/mag"]}, "pose_fix": {"topics":
+    ["/pose_fix"]}}`` (TDoA is found without a mapping)."""
+    _native.write_mcap(os.fspath(path), run.imu, run.ranges, run.anchors, range_std=range_std, **run.sensors())
 
 
 def zoo(name: ZooName, *, seed: int = 0, **overrides: float | bool) -> SimResult:

@@ -322,7 +322,7 @@ fn read_truth<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict
 /// Writes a recording as MCAP: IMU as CDR `sensor_msgs/msg/Imu` on `/imu`, ranges as JSON
 /// `uwbimu.UwbRange` on `/uwb` (anchor ids `A0`, `A1`, ...; a tag beyond 0 in `tag`), the other
 /// sensors' arrays `sensors` (keywords of the registry) on their topics
-/// ([`uwbimu_io::recordings::recording_out::sensor_topic`]), anchors in the `uwbimu.anchors` metadata
+/// ([`uwbimu_io::mapping::topics::SensorIo::written`]), anchors in the `uwbimu.anchors` metadata
 /// record; zstd chunks.
 #[pyfunction]
 #[pyo3(signature = (path, imu, ranges, anchors, *, range_std=None, **sensors))]

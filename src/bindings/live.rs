@@ -85,10 +85,11 @@ fn live_setup<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&st
 /// The ROS 2 topics the live node subscribes to for the replay file `config` (with the mapping
 /// JSON `mapping` merged in), and whether it also takes every other topic the mapping can read
 /// (`discover`: the mapping names no UWB or TDoA topic). `topics` holds
-/// `(topic, type, definition, dds_topic, dds_type)` of the IMU topic, then the UWB, TDoA,
-/// altitude and odometry topics. `type` (and `dds_type`) is None for a UWB topic without a type
-/// in `live.types`; `definition` is None when the type is None or its `.msg` is found nowhere
-/// (the node then learns both from the graph).
+/// `(topic, type, definition, dds_topic, dds_type)` of the IMU topic, then the UWB topics, then
+/// each sensor's (its mapping section's topics, typed as its io row reads them:
+/// `uwbimu_io::mapping::topics::SensorIo::reads`). `type` (and `dds_type`) is None for a UWB
+/// topic without a type in `live.types`; `definition` is None when the type is None or its `.msg`
+/// is found nowhere (the node then learns both from the graph).
 #[pyfunction]
 #[pyo3(signature = (config=None, *, mapping=None))]
 fn live_subscriptions<'py>(py: Python<'py>, config: Option<PathBuf>, mapping: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
@@ -192,9 +193,9 @@ impl PyMessageDecoder {
     }
 
     /// Announces `topic` with its schema name and `ros2msg` text (or JSON schema, encoding
-    /// `json`); returns its role when its messages feed the filter (`imu`, `uwb`, `tdoa`,
-    /// `altitude`, `odometry`), else None (anchor lists, ground truth, topics the mapping does
-    /// not use).
+    /// `json`); returns its role when its messages feed the filter (`imu`, `uwb` or a sensor's
+    /// name: `tdoa`, `altitude`, `magnetometer`, …), else None (anchor lists, ground truth,
+    /// topics the mapping does not use).
     #[pyo3(signature = (topic, schema_name, schema_text, encoding="cdr"))]
     fn add_topic(&mut self, topic: &str, schema_name: &str, schema_text: &str, encoding: &str) -> PyResult<Option<&'static str>> {
         let role = self.0.add_topic(topic, schema_name, schema_text, encoding)?;
@@ -204,9 +205,12 @@ impl PyMessageDecoder {
     /// Decodes one message of `topic` that arrived at `arrival_s` (its time when the mapping
     /// reads log times or its type has no stamp; a zero stamp stays zero). Returns its records
     /// as tuples:
-    /// `("imu", t, accel, gyro)`, `("range", t, anchor, range, tag)`, `("tdoa", t, i, j, d_ij)`,
-    /// or `(sensor, t, values…)` for the other sensors (`altitude`: z; `odometry`: its table
-    /// row). A message that does not decode yields none and is counted in `counts`.
+    /// `("imu", t, accel, gyro)`, `("range", t, anchor, range, tag)`, or `(sensor, t, values…)`
+    /// for the other sensors: the sensor's name and one row of its table (its layout in
+    /// `SensorInfo::layouts`, as `add_sensor(name, row)` takes it: `tdoa` t, i, j, d_ij;
+    /// `altitude` t, z; `odometry` t, speed or t, vx, vy, vz; `magnetometer` t, mx, my, mz;
+    /// `pose_fix` t, x, y, z, sx, sy, sz and, with a yaw, yaw, s_yaw). A message that does not
+    /// decode yields none and is counted in `counts`.
     fn decode<'py>(&mut self, py: Python<'py>, topic: &str, arrival_s: f64, data: &[u8]) -> PyResult<Bound<'py, PyList>> {
         let mut records = Vec::new();
         self.0.decode(topic, (arrival_s * 1e9).round() as i64, data, &mut records)?;
@@ -221,7 +225,7 @@ impl PyMessageDecoder {
                 RecordItem::Sensor(o) => {
                     let kind = o.kind();
                     let (_, row) = kind.table(std::slice::from_ref(&o));
-                    let mut items: Vec<Bound<'py, PyAny>> = vec![kind.info().keyword.into_pyobject(py)?.into_any()];
+                    let mut items: Vec<Bound<'py, PyAny>> = vec![kind.info().name.into_pyobject(py)?.into_any()];
                     for v in row {
                         items.push(v.into_pyobject(py)?.into_any());
                     }

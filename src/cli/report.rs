@@ -8,8 +8,9 @@ use uwbimu_app::methods::Method;
 use uwbimu_app::replay::ReplaySummary;
 use uwbimu_app::replay_config::ReplayConfig;
 use uwbimu_estimation::pipeline::Health;
+use uwbimu_io::mapping::topics::{TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
 use uwbimu_io::{IoError as Error, IoResult as Result};
-use uwbimu_io::{ReadStats, TopicStats, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT};
+use uwbimu_io::{ReadStats, TopicStats};
 use uwbimu_vocabulary::sensors::SensorKind;
 
 /// A failed write to stdout (e.g. a closed pipe) as an error naming it.

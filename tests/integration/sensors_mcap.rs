@@ -1,10 +1,12 @@
-//! Altitude, odometry and several tags through MCAP: a simulated run written with its heights
-//! (`sensor_msgs/msg/Range`), body velocities (`nav_msgs/msg/Odometry`) and two tags, read back
-//! through `[mapping.altitude]`, `[mapping.odometry]` and the tag of `[mapping.uwb]`. Oracle: the
-//! run's own arrays — what is read equals what was written (f32 heights to their precision) and
-//! the replay of the file follows the batch run on the arrays; the mapping's choices (axes,
-//! scale, offset, tag ids) change what is read exactly as they say, and a mapping that does not
-//! fit fails naming its key.
+//! Altitude, odometry, the magnetometer, pose fixes and several tags through MCAP: a simulated
+//! run written with its heights (`sensor_msgs/msg/Range`), body velocities
+//! (`nav_msgs/msg/Odometry`), field samples (`sensor_msgs/msg/MagneticField`), pose fixes of its
+//! truth (`geometry_msgs/msg/PoseWithCovarianceStamped`) and two tags, read back through
+//! `[mapping.altitude]`, `[mapping.odometry]`, `[mapping.magnetometer]`, `[mapping.pose_fix]`
+//! and the tag of `[mapping.uwb]`. Oracle: the run's own arrays — what is read equals what was written (f32
+//! heights to their precision) and the replay of the file follows the batch run on the arrays;
+//! the mapping's choices (axes, scale, offset, tag ids) change what is read exactly as they say,
+//! and a mapping that does not fit fails naming its key.
 
 use std::io::Cursor;
 use std::path::Path;
@@ -12,12 +14,14 @@ use std::path::Path;
 use uwbimu_rs::app::methods::{run_method, BatchInput, BatchOutput, Method};
 use uwbimu_rs::app::replay::replay;
 use uwbimu_rs::app::replay_config::ReplayConfig;
-use uwbimu_rs::app::sim::{self, AltimeterConfig, OdometerConfig, Scenario, SimData};
+use uwbimu_rs::app::sim::{self, AltimeterConfig, MagConfig, OdometerConfig, Scenario, SimData};
 use uwbimu_rs::io::recordings::recording_out::{write_recording_mcap, RecordingStreams};
 use uwbimu_rs::io::{read_recording, IoError as Error, Mapping, Recording};
 use uwbimu_rs::vocabulary::config::FilterConfig;
 use uwbimu_rs::vocabulary::math::Vec3;
-use uwbimu_rs::vocabulary::sensors::{Observation, SensorKind};
+use uwbimu_rs::vocabulary::records::TruthSample;
+use uwbimu_rs::vocabulary::sensors::pose_fix::PoseFix;
+use uwbimu_rs::vocabulary::sensors::{merge, Observation, SensorKind};
 
 /// `agv_loop` with an altimeter, an odometer measuring all three axes and a second tag 0.6 m
 /// ahead; its configuration matched to the sensors with both lever arms.
@@ -38,9 +42,13 @@ fn heights_and_speeds(data: &SimData) -> Vec<Observation> {
 }
 
 fn mcap(data: &SimData) -> Vec<u8> {
+    mcap_of(data, &heights_and_speeds(data))
+}
+
+/// The run's IMU samples, ranges and `observations` as MCAP.
+fn mcap_of(data: &SimData, observations: &[Observation]) -> Vec<u8> {
     let mut buf = Cursor::new(Vec::new());
-    let observations = heights_and_speeds(data);
-    let streams = RecordingStreams { imu: &data.imu, ranges: &data.ranges, observations: &observations, anchors: &data.anchors };
+    let streams = RecordingStreams { imu: &data.imu, ranges: &data.ranges, observations, anchors: &data.anchors };
     write_recording_mcap(&mut buf, "sensors", &streams, None, true).expect("write");
     buf.into_inner()
 }
@@ -148,4 +156,59 @@ fn a_mapping_that_does_not_fit_fails_naming_its_key() {
     let rec = read(&bytes, "[mapping.altitude]\ntopics = [\"/odom\"]\nvalue = \"pose.pose.position.z\"\n").expect("read");
     assert!(rec.observations.iter().all(|o| o.kind() == SensorKind::Altitude && o.value() == 0.0));
     assert!(!rec.observations.is_empty());
+}
+
+/// Pose fixes of the run's truth: every tenth IMU time, the body origin with σ (3, 4, 10) cm and,
+/// every other fix, its true yaw with σ 0.05 rad.
+fn pose_fixes(data: &SimData) -> Vec<Observation> {
+    let fix = |(k, t): (usize, &TruthSample)| {
+        let (yaw_rad, yaw_std_rad) = if k % 2 == 0 { (t.orientation.euler_angles().2, 0.05) } else { (f64::NAN, f64::NAN) };
+        let position_std = Vec3::new(0.03, 0.04, 0.1);
+        Observation::PoseFix(PoseFix { t_s: t.t_s, position: t.position, position_std, yaw_rad, yaw_std_rad })
+    };
+    data.truth.iter().step_by(10).enumerate().map(fix).collect()
+}
+
+#[test]
+fn magnetometer_samples_and_pose_fixes_read_back_as_written() {
+    // `agv_loop` with a magnetometer (µT, at the IMU times) and pose fixes of its truth: every
+    // sample and fix at its time to the nanosecond; the field, the fixes' positions and σ bit for
+    // bit, their yaw to 1e-12 rad (a quaternion in the message); `scale` multiplies the field;
+    // unnamed, the topics are not read.
+    let mut s = sim::zoo("agv_loop", 4).expect("zoo");
+    s.sim.magnetometer = Some(MagConfig::default());
+    let data = sim::simulate(&s.sim).expect("simulate");
+    let mag = data.observations_for(|k| k == SensorKind::Magnetometer);
+    let fixes = pose_fixes(&data);
+    assert_eq!((mag.len(), fixes.len()), (data.imu.len(), data.imu.len().div_ceil(10)));
+    let written = merge(&[&mag, &fixes]);
+    let bytes = mcap_of(&data, &written);
+    let both = "[mapping.magnetometer]\ntopics = [\"/mag\"]\n[mapping.pose_fix]\ntopics = [\"/pose_fix\"]\n";
+    let rec = read(&bytes, both).expect("read");
+    assert_eq!(rec.observations.len(), written.len());
+    for (a, b) in rec.observations.iter().zip(&written) {
+        assert!((a.t_s() - b.t_s()).abs() < 1e-9, "{a:?} vs {b:?}");
+        match (a.at(b.t_s()), b) {
+            (Observation::PoseFix(a), Observation::PoseFix(b)) => {
+                assert_eq!((a.position, a.position_std, a.has_yaw()), (b.position, b.position_std, b.has_yaw()));
+                assert!(
+                    !b.has_yaw() || ((a.yaw_rad - b.yaw_rad).abs() < 1e-12 && a.yaw_std_rad == b.yaw_std_rad),
+                    "{a:?} vs {b:?}"
+                );
+            }
+            (a, b) => assert_eq!(a, *b),
+        }
+    }
+    for (kind, n) in [(SensorKind::Magnetometer, mag.len()), (SensorKind::PoseFix, fixes.len())] {
+        let counts = rec.stats.sensors[&kind];
+        assert_eq!((counts.used, counts.invalid), (n, 0), "{kind:?}");
+    }
+    let tesla = read(&bytes, "[mapping.magnetometer]\ntopics = [\"/mag\"]\nscale = 1e-6\n").expect("read");
+    let field = |o: &Observation| match o {
+        Observation::Magnetometer(m) => m.field,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(tesla.observations.len(), mag.len());
+    assert!(tesla.observations.iter().zip(&mag).all(|(a, b)| field(a) == 1e-6 * field(b)));
+    assert!(read(&bytes, "").expect("read").observations.is_empty());
 }

@@ -331,6 +331,67 @@ def test_cli_errors_exit_2_with_one_line(tmp_path):
     assert p.returncode == 2 and "--lag nan: must be finite" in p.stderr and len(p.stderr.strip().splitlines()) == 1
 
 
+def _sensor_rig(tmp_path: Path) -> tuple[Any, Path, Path]:
+    """stop_and_go with a magnetometer and pose fixes with a yaw (2 Hz), written by
+    ``sim.write_mcap``, and a replay file for ``ackf`` (it takes both) that reads them with the
+    anchors of the run."""
+    run = sim.zoo("stop_and_go", seed=5, magnetometer=True, pose_fix=True, pose_fix_yaw_std_rad=0.05)
+    mcap = tmp_path / "sensors.mcap"
+    sim.write_mcap(run, mcap)
+    anchors = "\n".join(f"A{k} = [{a[0]}, {a[1]}, {a[2]}]" for k, a in enumerate(run.anchors))
+    cfg = tmp_path / "sensors.toml"
+    cfg.write_text(
+        'method = "ackf"\n[mapping.magnetometer]\ntopics = ["/mag"]\n[mapping.pose_fix]\ntopics = ["/pose_fix"]\n'
+        f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n"
+    )
+    return run, mcap, cfg
+
+
+def test_magnetometer_and_pose_fix_messages_become_their_rows_and_reach_the_filter(tmp_path):
+    # The recording's MagneticField and PoseWithCovarianceStamped messages, decoded through the
+    # mapping as the node decodes what DDS delivers: each gives one record, the sensor's name and
+    # its table row — the run's own row (fields, positions and σ bit for bit, yaw to 1e-12 rad,
+    # stamps to the nanosecond) — and the node feeds every one to ackf's add_sensor, refusing
+    # none.
+    from uwbimu_rs.live._sources import mcap_messages
+
+    run, mcap, cfg = _sensor_rig(tmp_path)
+    decoder = _native.MessageDecoder(cfg)
+    clock = Clock()
+    node = node_for(decoder.anchors, clock=clock, method="ackf")
+    t_end = run.imu[0, 0] + 20.0
+    roles: dict[str, str | None] = {}
+    rows: dict[str, list[tuple[Any, ...]]] = {"magnetometer": [], "pose_fix": []}
+    for schema, channel, message in mcap_messages(str(mcap)):
+        if channel.topic not in roles:
+            roles[channel.topic] = decoder.add_topic(channel.topic, schema.name, schema.data.decode(), channel.message_encoding)
+        clock.now = message.log_time * 1e-9
+        if roles[channel.topic] is None or clock.now > t_end:
+            continue
+        records = decoder.decode(channel.topic, clock.now, message.data)
+        for r in records:
+            if r[0] in rows:
+                rows[r[0]].append(r[1:])
+        node.feed(channel.topic, records)
+    node.close()
+    assert (roles["/mag"], roles["/pose_fix"]) == ("magnetometer", "pose_fix")
+    mag, fixes = np.array(rows["magnetometer"]), np.array(rows["pose_fix"])
+    assert len(mag) > 1000 and len(fixes) > 30 and fixes.shape[1] == 9
+    np.testing.assert_allclose(mag[:, 0], run.mag[: len(mag), 0], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(mag[:, 1:], run.mag[: len(mag), 1:])
+    want = run.pose_fix[: len(fixes)]
+    np.testing.assert_allclose(fixes[:, 0], want[:, 0], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(fixes[:, 1:7], want[:, 1:7])
+    yaw_error = np.angle(np.exp(1j * (fixes[:, 7] - want[:, 7])))
+    assert np.abs(yaw_error).max() < 1e-12 and np.array_equal(fixes[:, 8], want[:, 8])
+    watches = {s["hardware_id"]: s for s in node.statuses()[1:]}
+    for topic, n in [("/mag", len(mag)), ("/pose_fix", len(fixes))]:
+        values = watches[topic]["values"]
+        assert (values["records"], values["rejected"]) == (n, 0), (topic, values)
+    assert not any(k.startswith("refused.") for k in node.statuses()[0]["values"])
+    assert node.filter.initialized
+
+
 # ---------------------------------------------------------------------------------------------
 # End to end
 # ---------------------------------------------------------------------------------------------
@@ -493,6 +554,24 @@ def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
     assert "no UWB topic named: taking every topic on the graph that the mapping reads" in err
     assert "subscribed to /uwb (uwbimu_msgs/msg/UwbRange) as uwb" in err
     assert "subscribed to /imu (sensor_msgs/msg/Imu) as imu" in err
+
+
+def test_magnetometer_and_pose_fixes_over_dds_equal_the_replay(tmp_path):
+    # The recording of _sensor_rig played over DDS (MagneticField on /mag,
+    # PoseWithCovarianceStamped on /pose_fix) through a node running ackf: it subscribes both
+    # with their types, feeds every message to the filter (none refused), and each pose it
+    # publishes equals the forward replay's step of the same time, the replay reading the same
+    # file through the same mapping.
+    run, mcap, cfg = _sensor_rig(tmp_path)
+    live, steps, err = _through_the_node(tmp_path, mcap, cfg, 19)
+    _assert_equals_the_replay(live, steps, mcap, cfg)
+    assert "subscribed to /mag (sensor_msgs/msg/MagneticField) as magnetometer" in err
+    assert "subscribed to /pose_fix (geometry_msgs/msg/PoseWithCovarianceStamped) as pose_fix" in err
+    for topic, n in [("/mag", len(run.mag)), ("/pose_fix", len(run.pose_fix))]:
+        # The node's last status of the topic (silent by then: the player has finished).
+        counts = re.search(rf"\[{topic}\] [^:]+: \{{'messages': (\d+), 'records': (\d+), 'rejected': (\d+)", err)
+        assert counts is not None and tuple(map(int, counts.groups())) == (n, n, 0), (topic, counts)
+    assert "refused." not in err
 
 
 def test_a_simulated_linktrack_through_a_pseudo_terminal(tmp_path):

@@ -8,7 +8,8 @@
 //!   ([`read_recording`]), the recording writer, the Foxglove trajectory writer and the reader of
 //!   anchor-to-anchor ranges;
 //! - [`mapping`]: how a recording's topics become measurements — the mapping ([`Mapping`]), field
-//!   paths, per-topic decoders and the bounded reorder window;
+//!   paths, per-topic decoders, the io of each sensor of the registry (a row each,
+//!   [`mapping::topics::SensorIo`]) and the bounded reorder window;
 //! - [`files`]: the other files — anchor tables, ground-truth files, atomic writes, the spill of
 //!   records to disk, the `[live]` table of the replay file;
 //! - [`serial`]: the Nooploop LinkTrack frames and the DWM1001 UART TLV `dwm_loc_get` response.
@@ -22,9 +23,8 @@ pub mod serial;
 
 pub use error::{IoError, IoResult};
 pub use mapping::{
-    AltitudeMapping, AnchorFrom, AnchorMapping, AnchorRangeMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping,
-    TimeSource, UwbMapping, ANCHOR_RANGE_DEFAULT, ANCHOR_RANGE_I_DEFAULT, ANCHOR_RANGE_J_DEFAULT, BODY_AXES,
-    TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT, TDOA_DEFAULT,
+    AnchorFrom, AnchorMapping, AnchorRangeMapping, GroundTruthMapping, Mapping, TimeSource, UwbMapping, ANCHOR_RANGE_DEFAULT,
+    ANCHOR_RANGE_I_DEFAULT, ANCHOR_RANGE_J_DEFAULT,
 };
 pub use recordings::recording::{
     read_recording, read_recording_file, stream_recording_file, survey_recording_file, AnchorLayout, MessageDecoder, ReadStats,

@@ -97,112 +97,6 @@ impl UwbMapping {
     }
 }
 
-/// How height messages are read (section `[mapping.altitude]`): each selected value `v` becomes
-/// the altitude `z = offset + scale·v` (m, navigation frame, up, of the body origin). A
-/// `sensor_msgs/Range` (a rangefinder looking down: its range is the height above the floor,
-/// `offset` the floor's z) is read at `range` and a reading outside its `min_range`..`max_range`
-/// is dropped and counted, as ROS specifies; any other message needs the path of its height
-/// (`pose.position.z`, `point.z`, `altitude`).
-#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct AltitudeMapping {
-    /// Height topics (none: no altitude is read).
-    #[serde(default)]
-    pub topics: Vec<String>,
-    /// Path of the height; default `range` (sensor_msgs/Range).
-    pub value: Option<String>,
-    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
-    pub stamp: Option<String>,
-    /// Factor from the message's unit to metres, negative for a field that points down
-    /// (default 1).
-    pub scale: Option<f64>,
-    /// z of the zero of the reading (the floor under a rangefinder), m (default 0).
-    pub offset: Option<f64>,
-}
-
-/// How body-velocity messages are read (section `[mapping.odometry]`): the velocity at
-/// `velocity` (default by schema: `twist.twist.linear` for `nav_msgs/Odometry` and
-/// `geometry_msgs/TwistWithCovarianceStamped`, `twist.linear` for `geometry_msgs/TwistStamped`),
-/// in the body frame (ROS: the `child_frame_id`), gives one reading per axis of `axes` whose value
-/// is not NaN.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct OdometryMapping {
-    /// Velocity topics (none: no odometry is read).
-    #[serde(default)]
-    pub topics: Vec<String>,
-    /// Path of the velocity (a message with x, y, z).
-    pub velocity: Option<String>,
-    /// The body axes measured, of `x`, `y`, `z`; default `["x"]`: a wheel encoder measures the
-    /// speed along x, and the zeros its driver writes for y and z are the non-holonomic
-    /// constraint (`odometry.nonholonomic_std`), not measurements.
-    pub axes: Option<Vec<String>>,
-    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
-    pub stamp: Option<String>,
-    /// Factor from the message's unit to m/s (default 1).
-    pub scale: Option<f64>,
-}
-
-/// The names of the body axes, by index, as [`OdometryMapping::axes`] spells them.
-pub const BODY_AXES: [&str; 3] = ["x", "y", "z"];
-
-impl OdometryMapping {
-    /// The indices of [`OdometryMapping::axes`] (default x).
-    ///
-    /// # Errors
-    /// [`Error::Mapping`] for an unknown or repeated axis, or none.
-    pub fn axis_indices(&self) -> Result<Vec<usize>> {
-        let Some(axes) = &self.axes else { return Ok(vec![0]) };
-        let mut out = Vec::with_capacity(axes.len());
-        for a in axes {
-            let Some(k) = BODY_AXES.iter().position(|n| n == a) else {
-                return Err(Error::Mapping {
-                    field: "odometry.axes".into(),
-                    reason: format!("unknown axis `{a}`; axes are x, y, z"),
-                });
-            };
-            if out.contains(&k) {
-                return Err(Error::Mapping { field: "odometry.axes".into(), reason: format!("axis `{a}` given twice") });
-            }
-            out.push(k);
-        }
-        if out.is_empty() {
-            return Err(Error::Mapping { field: "odometry.axes".into(), reason: "no axis; give some of x, y, z".into() });
-        }
-        Ok(out)
-    }
-}
-
-/// Default path of a TDoA's anchor i: the Crazyflie estimator's `estTDOA` event field.
-pub const TDOA_ANCHOR_I_DEFAULT: &str = "idA";
-/// Default path of a TDoA's anchor j: the Crazyflie estimator's `estTDOA` event field.
-pub const TDOA_ANCHOR_J_DEFAULT: &str = "idB";
-/// Default path of a TDoA's distance difference: the Crazyflie estimator's `estTDOA` event field.
-pub const TDOA_DEFAULT: &str = "distanceDiff";
-
-/// How TDoA messages are read (section `[mapping.tdoa]`). A message (or each element of an
-/// array, with paths such as `tdoa[].idA`) gives anchor ids i and j and `d_ij = ‖p − a_j‖ −
-/// ‖p − a_i‖` — the Crazyflie convention: `distanceDiff` is the distance to anchor `idB` minus
-/// the distance to anchor `idA`. The defaults are the field names of the Crazyflie `estTDOA`
-/// event (`idA`, `idB`, `distanceDiff`), which the recordings we write also use.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct TdoaMapping {
-    /// TDoA topics (empty: every channel with our `uwbimu_msgs/msg/Tdoa` schema).
-    #[serde(default)]
-    pub topics: Vec<String>,
-    /// Path of the id of anchor i; default [`TDOA_ANCHOR_I_DEFAULT`].
-    pub anchor_i: Option<String>,
-    /// Path of the id of anchor j; default [`TDOA_ANCHOR_J_DEFAULT`].
-    pub anchor_j: Option<String>,
-    /// Path of `d_ij`; default [`TDOA_DEFAULT`].
-    pub tdoa: Option<String>,
-    /// Path of the stamp (`sec`/`nanosec` message); default `header.stamp` when present.
-    pub stamp: Option<String>,
-    /// Factor from the message's unit to metres (0.001 for mm).
-    pub scale: Option<f64>,
-}
-
 /// Default path of an anchor-to-anchor range's first anchor id: the field of our
 /// `uwbimu_msgs/msg/AnchorRange` ([`crate::recordings::recording_out::ANCHOR_RANGE_MSG`]).
 pub const ANCHOR_RANGE_I_DEFAULT: &str = "anchor_i";
@@ -273,61 +167,61 @@ pub struct GroundTruthMapping {
     pub file: Option<PathBuf>,
 }
 
-/// The whole mapping.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct Mapping {
-    /// Clock used to order messages.
-    #[serde(default)]
-    pub time_source: TimeSource,
-    /// Messages up to this much older than the newest one seen are put back in order; older ones
-    /// are counted and dropped, s.
-    #[serde(default = "default_window")]
-    pub reorder_window_s: f64,
-    /// IMU topic (default: the only `sensor_msgs/msg/Imu` channel).
-    pub imu_topic: Option<String>,
-    /// UWB range messages.
-    #[serde(default)]
-    pub uwb: UwbMapping,
-    /// TDoA messages.
-    #[serde(default)]
-    pub tdoa: TdoaMapping,
-    /// Height messages.
-    #[serde(default)]
-    pub altitude: AltitudeMapping,
-    /// Body-velocity messages.
-    #[serde(default)]
-    pub odometry: OdometryMapping,
-    /// Anchor-to-anchor range messages (read by the anchor survey only).
-    #[serde(default)]
-    pub anchor_ranges: AnchorRangeMapping,
-    /// Anchor positions.
-    #[serde(default)]
-    pub anchors: AnchorMapping,
-    /// Ground truth (optional).
-    #[serde(default)]
-    pub ground_truth: GroundTruthMapping,
+/// Declares [`Mapping`] with a section per sensor io row (the rows of `sensor_rows!`, each its
+/// sensor's table `[mapping.<name>]`), its `Default`, and [`SENSOR_SECTIONS`].
+macro_rules! mapping {
+    ($($(#[doc = $doc:literal])* $name:ident: $kind:ident => $row:ident($section:ident),)+) => {
+        /// The whole mapping.
+        #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct Mapping {
+            /// Clock used to order messages.
+            #[serde(default)]
+            pub time_source: TimeSource,
+            /// Messages up to this much older than the newest one seen are put back in order;
+            /// older ones are counted and dropped, s.
+            #[serde(default = "default_window")]
+            pub reorder_window_s: f64,
+            /// IMU topic (default: the only `sensor_msgs/msg/Imu` channel).
+            pub imu_topic: Option<String>,
+            /// UWB range messages.
+            #[serde(default)]
+            pub uwb: UwbMapping,
+            $($(#[doc = $doc])* #[serde(default)] pub $name: topics::$section,)+
+            /// Anchor-to-anchor range messages (read by the anchor survey only).
+            #[serde(default)]
+            pub anchor_ranges: AnchorRangeMapping,
+            /// Anchor positions.
+            #[serde(default)]
+            pub anchors: AnchorMapping,
+            /// Ground truth (optional).
+            #[serde(default)]
+            pub ground_truth: GroundTruthMapping,
+        }
+
+        impl Default for Mapping {
+            fn default() -> Self {
+                Self {
+                    time_source: TimeSource::Header,
+                    reorder_window_s: default_window(),
+                    imu_topic: None,
+                    uwb: UwbMapping::default(),
+                    $($name: topics::$section::default(),)+
+                    anchor_ranges: AnchorRangeMapping::default(),
+                    anchors: AnchorMapping::default(),
+                    ground_truth: GroundTruthMapping::default(),
+                }
+            }
+        }
+
+        /// The sensors' sections of [`Mapping`], each with the checker of its keys.
+        const SENSOR_SECTIONS: &[(&str, check::Checker)] = &[$((stringify!($name), check::leaves::<topics::$section>),)+];
+    };
 }
+topics::sensor_rows!(mapping);
 
 fn default_window() -> f64 {
     uwbimu_vocabulary::config::DEFAULT_REORDER_WINDOW_S
-}
-
-impl Default for Mapping {
-    fn default() -> Self {
-        Self {
-            time_source: TimeSource::Header,
-            reorder_window_s: default_window(),
-            imu_topic: None,
-            uwb: UwbMapping::default(),
-            tdoa: TdoaMapping::default(),
-            altitude: AltitudeMapping::default(),
-            odometry: OdometryMapping::default(),
-            anchor_ranges: AnchorRangeMapping::default(),
-            anchors: AnchorMapping::default(),
-            ground_truth: GroundTruthMapping::default(),
-        }
-    }
 }
 
 impl Mapping {
@@ -360,13 +254,13 @@ impl Mapping {
         m.validate()
     }
 
-    /// Checks the numeric settings, the tag ids, the anchor rows of the anchor ranges and the
-    /// odometry axes.
+    /// Checks the numeric settings, the tag ids, the anchor rows of the anchor ranges and each
+    /// sensor's section ([`topics::SensorIo::validate`]).
     ///
     /// # Errors
-    /// [`Error::Mapping`] for a negative window, a non-positive scale (a zero or non-finite
-    /// altitude scale), more tag ids than tags or a repeated one, an empty or repeated
-    /// `anchor_ranges.anchor_ids`, a bad axis.
+    /// [`Error::Mapping`] for a negative window, a non-positive scale, more tag ids than tags or
+    /// a repeated one, an empty or repeated `anchor_ranges.anchor_ids`, a sensor's section that
+    /// does not validate (a bad odometry axis, a zero altitude scale, …).
     pub fn validate(self) -> Result<Self> {
         if !(self.reorder_window_s.is_finite() && self.reorder_window_s >= 0.0) {
             return Err(Error::Mapping {
@@ -374,27 +268,10 @@ impl Mapping {
                 reason: format!("must be >= 0, got {}", self.reorder_window_s),
             });
         }
-        let scales = [
-            ("uwb.scale", self.uwb.scale),
-            ("tdoa.scale", self.tdoa.scale),
-            ("odometry.scale", self.odometry.scale),
-            ("anchor_ranges.scale", self.anchor_ranges.scale),
-        ];
-        for (field, scale) in scales {
-            if let Some(s) = scale {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(Error::Mapping { field: field.into(), reason: format!("must be > 0, got {s}") });
-                }
-            }
-        }
-        if let Some(s) = self.altitude.scale.filter(|s| !s.is_finite() || *s == 0.0) {
-            return Err(Error::Mapping {
-                field: "altitude.scale".into(),
-                reason: format!("must be finite and non-zero, got {s}"),
-            });
-        }
-        if let Some(o) = self.altitude.offset.filter(|o| !o.is_finite()) {
-            return Err(Error::Mapping { field: "altitude.offset".into(), reason: format!("must be finite, got {o}") });
+        topics::positive("uwb.scale", self.uwb.scale)?;
+        topics::positive("anchor_ranges.scale", self.anchor_ranges.scale)?;
+        for row in topics::SENSORS {
+            row.validate(&self)?;
         }
         if let Some(ids) = &self.uwb.tag_ids {
             let repeated = ids.iter().enumerate().find(|(i, id)| ids[..*i].contains(id));
@@ -413,7 +290,6 @@ impl Mapping {
                 });
             }
         }
-        self.odometry.axis_indices()?;
         Ok(self)
     }
 }

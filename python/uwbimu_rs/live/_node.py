@@ -111,20 +111,16 @@ def streaming_class(method: str) -> type:
 
 def apply_record(f: Any, r: tuple[Any, ...]) -> list[Any]:
     """Give one record (a tuple of :meth:`MessageDecoder.decode` or :func:`linktrack_records`)
-    to the streaming filter ``f``; returns the update reports of the call. Raises ``ValueError``
-    as the call does, and for a record of no kind the filter takes."""
+    to the streaming filter ``f``; returns the update reports of the call. An IMU sample and a
+    range have their own calls; any other sensor's record, ``(name, t, values...)``, is one row
+    of its table and goes to ``f.add_sensor(name, row)``. Raises ``ValueError`` as the call does
+    (a sensor the filter does not take among them)."""
     kind = r[0]
     if kind == "imu":
         return list(f.add_imu(r[1], r[2], r[3]))
     if kind == "range":
         return list(f.add_range(r[1], r[2], r[3], r[4]))
-    if kind == "tdoa":
-        return list(f.add_tdoa(r[1], r[2], r[3], r[4]))
-    if kind == "altitude":
-        return list(f.add_altitude(r[1], r[2]))
-    if kind == "odometry":
-        return list(f.add_odometry(r[1], r[2] if len(r) == 3 else list(r[2:])))
-    raise ValueError(f"a record of kind {kind!r}: the filter takes imu, range, tdoa, altitude and odometry")
+    return list(f.add_sensor(kind, list(r[1:])))
 
 
 @dataclass

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+use crate::mapping::topics::SENSORS;
 use crate::ros::types::full_definition;
 use uwbimu_vocabulary::error::Error as CoreError;
 
@@ -21,8 +22,10 @@ pub struct LiveSettings {
     /// DDS domain id, the `ROS_DOMAIN_ID` of the ROS 2 graph.
     pub domain_id: u32,
     /// ROS 2 type (`pkg/msg/Type`) of an input topic, by topic. Unlisted: `sensor_msgs/msg/Imu`
-    /// for the IMU, `sensor_msgs/msg/Range` for altitude, `nav_msgs/msg/Odometry` for odometry,
-    /// `uwbimu_msgs/msg/Tdoa` for TDoA; a UWB topic's type is learnt from its publishers.
+    /// for the IMU, for a sensor's topic the first type its io row reads
+    /// ([`crate::mapping::topics::SensorIo::reads`]: `uwbimu_msgs/msg/Tdoa` for TDoA,
+    /// `sensor_msgs/msg/Range` for altitude, `nav_msgs/msg/Odometry` for odometry, …); a UWB
+    /// topic's type is learnt from its publishers.
     pub types: BTreeMap<String, String>,
     /// Folders with the `.msg` files of types not bundled, as a ROS 2 workspace lays them out
     /// (`<dir>/<pkg>/msg/<Type>.msg`); relative to the replay file.
@@ -125,16 +128,16 @@ impl LiveSettings {
 
     /// The topics to subscribe to for `mapping`, with their types and definitions: the IMU
     /// topic (`imu_topic`, default `/imu` unless the node [discovers](Self::discovers) its
-    /// topics), then the UWB, TDoA, altitude and odometry topics. A UWB topic without a type in
-    /// `live.types` has none (the node learns it from the graph); a type whose `.msg` is found
-    /// nowhere has no definition.
+    /// topics), then the UWB topics, then each sensor's (in the registry's order, [`SENSORS`]).
+    /// A UWB topic without a type in `live.types` has none (the node learns it from the graph);
+    /// a type whose `.msg` is found nowhere has no definition.
     pub fn subscriptions(&self, mapping: &Mapping) -> Vec<Subscription> {
         let imu = mapping.imu_topic.clone().or_else(|| (!Self::discovers(mapping)).then(|| "/imu".to_string()));
         let mut wanted: Vec<(String, Option<&str>)> = imu.into_iter().map(|t| (t, Some("sensor_msgs/msg/Imu"))).collect();
         wanted.extend(mapping.uwb.topics.iter().map(|t| (t.clone(), None)));
-        wanted.extend(mapping.tdoa.topics.iter().map(|t| (t.clone(), Some("uwbimu_msgs/msg/Tdoa"))));
-        wanted.extend(mapping.altitude.topics.iter().map(|t| (t.clone(), Some("sensor_msgs/msg/Range"))));
-        wanted.extend(mapping.odometry.topics.iter().map(|t| (t.clone(), Some("nav_msgs/msg/Odometry"))));
+        for row in SENSORS {
+            wanted.extend(row.topics(mapping).iter().map(|t| (t.clone(), row.reads().first().copied())));
+        }
         wanted
             .into_iter()
             .map(|(topic, default)| {

@@ -8,20 +8,16 @@ use serde::de::{self, DeserializeOwned, Visitor};
 use serde_json::Value;
 use uwbimu_vocabulary::suggest;
 
-use super::{
-    AltitudeMapping, AnchorMapping, AnchorRangeMapping, GroundTruthMapping, Mapping, OdometryMapping, TdoaMapping, UwbMapping,
-};
+use super::{AnchorMapping, AnchorRangeMapping, GroundTruthMapping, Mapping, UwbMapping, SENSOR_SECTIONS};
 use crate::{IoError as Error, IoResult as Result};
 
 /// Checks the keys of the table at a path.
-type Checker = fn(&str, &Value) -> Result<()>;
+pub(super) type Checker = fn(&str, &Value) -> Result<()>;
 
-/// The tables nested in [`Mapping`], each with the checker of its keys.
-const NESTED: [(&str, Checker); 7] = [
+/// The tables nested in [`Mapping`] besides the sensors' ([`SENSOR_SECTIONS`]), each with the
+/// checker of its keys.
+const NESTED: [(&str, Checker); 4] = [
     ("uwb", leaves::<UwbMapping>),
-    ("tdoa", leaves::<TdoaMapping>),
-    ("altitude", leaves::<AltitudeMapping>),
-    ("odometry", leaves::<OdometryMapping>),
     ("anchor_ranges", leaves::<AnchorRangeMapping>),
     ("anchors", leaves::<AnchorMapping>),
     ("ground_truth", leaves::<GroundTruthMapping>),
@@ -30,7 +26,7 @@ const NESTED: [(&str, Checker); 7] = [
 /// Checks every key of a whole mapping (`value` is the `[mapping]` table / the `mapping=` dict).
 pub(super) fn check(value: &Value) -> Result<()> {
     for (key, v) in table::<Mapping>("", value)? {
-        match NESTED.iter().find(|(name, _)| *name == key) {
+        match NESTED.iter().chain(SENSOR_SECTIONS).find(|(name, _)| *name == key) {
             Some((_, nested)) => nested(key, v)?,
             None => leaf::<Mapping>("", key, v)?,
         }
@@ -69,7 +65,7 @@ fn table<'v, T: DeserializeOwned>(path: &str, value: &'v Value) -> Result<Vec<(&
 }
 
 /// Checks each entry of the table at `path` on its own against `T`.
-fn leaves<T: DeserializeOwned>(path: &str, value: &Value) -> Result<()> {
+pub(super) fn leaves<T: DeserializeOwned>(path: &str, value: &Value) -> Result<()> {
     table::<T>(path, value)?.into_iter().try_for_each(|(key, v)| leaf::<T>(path, key, v))
 }
 
@@ -121,26 +117,24 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_nested_tables_are_fields_of_the_mapping() {
+    fn the_nested_tables_are_the_fields_of_the_mapping() {
         let top = fields_of::<Mapping>();
         assert!(top.contains(&"imu_topic") && top.contains(&"time_source"), "{top:?}");
-        assert!(NESTED.iter().all(|(name, _)| top.contains(name)));
+        let nested: Vec<&str> = NESTED.iter().chain(SENSOR_SECTIONS).map(|(name, _)| *name).collect();
+        let leaves: Vec<&str> =
+            top.iter().copied().filter(|f| !["time_source", "reorder_window_s", "imu_topic"].contains(f)).collect();
+        assert_eq!(nested.len(), leaves.len(), "{nested:?} vs {leaves:?}");
+        assert!(leaves.iter().all(|f| nested.contains(f)), "{nested:?} vs {leaves:?}");
         assert!(fields_of::<UwbMapping>().contains(&"anchor_id"));
     }
 
     #[test]
-    fn every_sensor_with_a_message_has_its_table_named_as_it() {
-        use uwbimu_vocabulary::sensors::SensorKind;
-        for kind in SensorKind::ALL {
-            let written = crate::recordings::recording_out::sensor_topic(*kind).is_some();
-            let mapped = NESTED.iter().any(|(name, _)| *name == kind.info().name);
-            assert_eq!(
-                written,
-                mapped,
-                "{kind:?}: written to MCAP {written}, read through [mapping.{}] {mapped}",
-                kind.info().name
-            );
-        }
+    fn every_sensor_row_has_its_table_named_as_it() {
+        let rows: Vec<&str> = crate::mapping::topics::SENSORS.iter().map(|r| r.kind().info().name).collect();
+        let sections: Vec<&str> = SENSOR_SECTIONS.iter().map(|(name, _)| *name).collect();
+        assert_eq!(rows, sections);
+        let e = check(&serde_json::json!({"altitude": {"scael": 2.0}})).unwrap_err().to_string();
+        assert!(e.contains("`mapping.altitude.scael`") && e.contains("did you mean `scale`?"), "{e}");
     }
 
     #[test]

@@ -1,18 +1,16 @@
 //! Per-channel decoders: IMU (`sensor_msgs/msg/Imu` or anything with the same fields), UWB ranges
 //! (vendor messages through the field mapping, `sensor_msgs/msg/Range`, our JSON
-//! `uwbimu.UwbRange`), TDoA and anchor-to-anchor ranges (through the field mapping), anchor
-//! lists, ground-truth poses, and the sensors without anchors ([`SensorDecoder`]: altitude,
-//! odometry). Each decoder is built once per channel from its schema, so a mapping that does not
-//! fit fails before the first message.
+//! `uwbimu.UwbRange`), anchor-to-anchor ranges (through the field mapping), anchor lists,
+//! ground-truth poses, and the registry's sensors, each through its io row ([`SensorIo`]: TDoA,
+//! altitude, odometry, …). Each decoder is built once per channel from its schema, so a mapping
+//! that does not fit fails before the first message.
 
 mod anchor_ranges;
 mod id_pairs;
 mod sensors;
 
 pub use anchor_ranges::{AnchorRangeDecoder, RawAnchorRange, ANCHOR_RANGE_MSG_NAME};
-pub use sensors::{RawObservation, SensorDecoder};
-
-use id_pairs::{IdPairDecoder, PairPaths};
+pub use sensors::*;
 
 use crate::{IoError as Error, IoResult as Result};
 use serde::Deserialize;
@@ -24,10 +22,7 @@ use crate::recordings::mcap_read::ChannelInfo;
 use crate::ros::cdr::{decode, Value};
 use crate::ros::msg_schema::{normalize, MsgSchema};
 use crate::ros::payloads::uwb_range_cdr;
-use crate::{
-    AnchorFrom, AnchorMapping, GroundTruthMapping, TdoaMapping, UwbMapping, TDOA_ANCHOR_I_DEFAULT, TDOA_ANCHOR_J_DEFAULT,
-    TDOA_DEFAULT,
-};
+use crate::{AnchorFrom, AnchorMapping, GroundTruthMapping, UwbMapping};
 
 /// Schema name of our JSON range message.
 pub const UWB_RANGE_JSON: &str = "uwbimu.UwbRange";
@@ -53,21 +48,6 @@ pub struct RawRange {
 /// `range`, `variance` (NaN: none), `tag` (empty: the first tag)), which `uwbimu-play` publishes
 /// for a recording's JSON ranges and a live node reads without a mapping.
 pub const UWB_RANGE_MSG_NAME: &str = "uwbimu_msgs/msg/UwbRange";
-
-/// Schema name of the TDoA message the recordings we write carry (CDR; `idA`, `idB`,
-/// `distanceDiff` as in the Crazyflie `estTDOA` event, see [`crate::recordings::recording_out::TDOA_MSG`]).
-pub const TDOA_MSG_NAME: &str = "uwbimu_msgs/msg/Tdoa";
-
-/// One decoded TDoA before anchor ids become indices.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RawTdoa {
-    /// Id of anchor i as text.
-    pub anchor_i: String,
-    /// Id of anchor j as text.
-    pub anchor_j: String,
-    /// `d_ij = ‖p − a_j‖ − ‖p − a_i‖`, m.
-    pub tdoa_m: f64,
-}
 
 /// Parses the channel's `ros2msg` schema (CDR channels only).
 pub fn cdr_schema(channel: &ChannelInfo) -> Result<MsgSchema> {
@@ -406,43 +386,6 @@ impl CdrRangeDecoder {
     }
 }
 
-/// Decodes TDoA messages through the `[mapping.tdoa]` field paths.
-#[derive(Debug, Clone)]
-pub struct TdoaDecoder(IdPairDecoder);
-
-impl TdoaDecoder {
-    /// Whether a channel carries our TDoA message ([`TDOA_MSG_NAME`]).
-    pub fn recognises(channel: &ChannelInfo) -> bool {
-        channel.schema.as_ref().is_some_and(|s| s.name == TDOA_MSG_NAME)
-    }
-
-    /// Builds the decoder for a CDR channel.
-    ///
-    /// # Errors
-    /// [`Error::Mapping`] if a path does not fit the schema (names the `tdoa.*` key),
-    /// [`Error::Format`] for an unknown encoding or schema.
-    pub fn new(channel: &ChannelInfo, m: &TdoaMapping) -> Result<Self> {
-        let paths = PairPaths {
-            section: "tdoa",
-            anchor_i: m.anchor_i.as_deref().unwrap_or(TDOA_ANCHOR_I_DEFAULT),
-            anchor_j: m.anchor_j.as_deref().unwrap_or(TDOA_ANCHOR_J_DEFAULT),
-            value: ("tdoa", m.tdoa.as_deref().unwrap_or(TDOA_DEFAULT)),
-            stamp: m.stamp.as_deref(),
-            scale: m.scale.unwrap_or(1.0),
-        };
-        Ok(Self(IdPairDecoder::new(channel, &paths)?))
-    }
-
-    /// Decodes one message: (stamp ns if any); its TDoA are pushed to `out`.
-    ///
-    /// # Errors
-    /// [`Error::Format`] for a payload that does not decode, [`Error::Mapping`] if the mapped
-    /// paths select different numbers of values.
-    pub fn decode(&self, data: &[u8], out: &mut Vec<RawTdoa>) -> Result<Option<i64>> {
-        self.0.decode(data, |anchor_i, anchor_j, tdoa_m| out.push(RawTdoa { anchor_i, anchor_j, tdoa_m }))
-    }
-}
-
 /// Decodes anchor-list messages (id and position per entry).
 #[derive(Debug, Clone)]
 pub struct AnchorListDecoder {
@@ -563,46 +506,6 @@ mod tests {
         let ch = channel("/uwb/b2", true);
         let d = RangeDecoder::new(&ch, &UwbMapping::default()).unwrap();
         assert!(matches!(d.decode(&payload(false), &mut Vec::new()), Err(Error::Format { .. })));
-    }
-
-    /// A Crazyflie-style message without header: `Tdoa[] tdoa` of `{uint8 idA, uint8 idB,
-    /// float32 distanceDiff}` (mm), two entries: (3, 5, 1250) and (5, 0, −500).
-    fn cf_tdoa() -> (ChannelInfo, Vec<u8>) {
-        let text = "Tdoa[] tdoa\n===\nMSG: cf/Tdoa\nuint8 idA\nuint8 idB\nfloat32 distanceDiff\n";
-        let schema = SchemaInfo { name: "cf/msg/TdoaArray".into(), encoding: "ros2msg".into(), data: text.into() };
-        let ch = ChannelInfo { id: 2, topic: "/cf/tdoa".into(), message_encoding: "cdr".into(), schema: Some(Arc::new(schema)) };
-        let mut b = vec![0, 1, 0, 0];
-        b.extend_from_slice(&2u32.to_le_bytes());
-        for (i, j, d) in [(3u8, 5u8, 1250.0f32), (5, 0, -500.0)] {
-            b.extend_from_slice(&[i, j, 0, 0]);
-            b.extend_from_slice(&d.to_le_bytes());
-        }
-        (ch, b)
-    }
-
-    #[test]
-    fn tdoa_arrays_with_integer_ids_decode_through_the_mapping() {
-        let (ch, payload) = cf_tdoa();
-        let m = TdoaMapping {
-            anchor_i: Some("tdoa[].idA".into()),
-            anchor_j: Some("tdoa[].idB".into()),
-            tdoa: Some("tdoa[].distanceDiff".into()),
-            scale: Some(0.001),
-            ..TdoaMapping::default()
-        };
-        assert!(!TdoaDecoder::recognises(&ch));
-        let mut out = Vec::new();
-        assert_eq!(TdoaDecoder::new(&ch, &m).unwrap().decode(&payload, &mut out).unwrap(), None);
-        let got: Vec<(&str, &str, f64)> = out.iter().map(|t| (t.anchor_i.as_str(), t.anchor_j.as_str(), t.tdoa_m)).collect();
-        assert_eq!(got, [("3", "5", 1.25), ("5", "0", -0.5)]);
-        // Paths selecting different numbers of values, a non-id anchor, a missing field.
-        let one = TdoaMapping { anchor_j: Some("tdoa[0].idB".into()), ..m.clone() };
-        let e = TdoaDecoder::new(&ch, &one).unwrap().decode(&payload, &mut out).unwrap_err().to_string();
-        assert!(e.contains("select 2, 1 and 2 values"), "{e}");
-        let not_id = TdoaMapping { anchor_i: Some("tdoa[].distanceDiff".into()), ..m.clone() };
-        assert!(matches!(TdoaDecoder::new(&ch, &not_id), Err(Error::Mapping { field, .. }) if field == "tdoa.anchor_i"));
-        let e = TdoaDecoder::new(&ch, &TdoaMapping::default()).unwrap_err().to_string();
-        assert!(e.contains("tdoa.anchor_i") && e.contains("has no field `idA`"), "{e}");
     }
 
     #[test]

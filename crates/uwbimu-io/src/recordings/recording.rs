@@ -1,5 +1,6 @@
 //! Reads one MCAP file through a [`Mapping`] into time-ordered IMU samples, ranges and TDoA
-//! (anchor and tag ids turned into indices), the readings of the other sensors (altitude, odometry), anchor positions and ground truth, with statistics of what was
+//! (anchor and tag ids turned into indices), the readings of the other sensors (magnetometer,
+//! altitude, odometry, pose fix), anchor positions and ground truth, with statistics of what was
 //! found, dropped and reordered. Messages are decoded as they stream past; only the small decoded
 //! records are kept ([`read_recording`]), or none of them: [`survey_recording_file`] learns the
 //! anchors and the statistics in a first pass, and [`stream_recording_file`] then gives the
@@ -31,9 +32,7 @@ pub enum TopicRole {
     Imu,
     /// UWB ranges.
     Uwb,
-    /// TDoA.
-    Tdoa,
-    /// A sensor of the registry without anchors (altitude, odometry).
+    /// A sensor of the registry (TDoA, altitude, odometry, …).
     Sensor(SensorKind),
     /// Anchor list.
     Anchors,
@@ -51,7 +50,6 @@ impl TopicRole {
         match self {
             Self::Imu => "imu",
             Self::Uwb => "uwb",
-            Self::Tdoa => "tdoa",
             Self::Sensor(kind) => kind.info().name,
             Self::Anchors => "anchors",
             Self::AnchorRanges => "anchor ranges",
@@ -60,9 +58,9 @@ impl TopicRole {
         }
     }
 
-    /// Whether the topic's messages become filter inputs (IMU, ranges, TDoA, other sensors).
+    /// Whether the topic's messages become filter inputs (IMU, ranges, the sensors).
     pub fn feeds_filter(self) -> bool {
-        matches!(self, Self::Imu | Self::Uwb | Self::Tdoa | Self::Sensor(_))
+        matches!(self, Self::Imu | Self::Uwb | Self::Sensor(_))
     }
 }
 
@@ -102,7 +100,7 @@ pub struct AnchorReadCounts {
     pub bad_value: usize,
 }
 
-/// The readings of one sensor without anchors (altitude, odometry) as read.
+/// The readings of one sensor without anchors (magnetometer, altitude, odometry, pose fix) as read.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SensorReadCounts {
     /// Readings passed to the filter.
@@ -134,7 +132,7 @@ pub struct ReadStats {
     pub unknown_tag_ids: BTreeSet<String>,
     /// Usable ranges per tag index, whether or not their anchor has a position.
     pub ranges_per_tag: BTreeMap<usize, usize>,
-    /// Per sensor without anchors (altitude, odometry): how its readings were used.
+    /// Per sensor without anchors (magnetometer, altitude, odometry, pose fix): how its readings were used.
     pub sensors: BTreeMap<SensorKind, SensorReadCounts>,
     /// TDoA with an anchor that has no known position (dropped).
     pub tdoa_unknown_anchor: usize,
@@ -171,7 +169,7 @@ pub struct Recording {
     pub range_variances: Vec<f64>,
     /// TDoA, non-decreasing time; `anchor_i`, `anchor_j` index [`Recording::anchors`].
     pub tdoa: Vec<TdoaMeasurement>,
-    /// The readings of the sensors without anchors (altitude, odometry), non-decreasing time.
+    /// The readings of the sensors without anchors (magnetometer, altitude, odometry, pose fix), non-decreasing time.
     pub observations: Vec<Observation>,
     /// Anchor ids, one per anchor index.
     pub anchor_ids: Vec<String>,

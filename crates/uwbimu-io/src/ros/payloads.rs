@@ -1,10 +1,12 @@
-//! Message payloads as bytes, one encoder per message we write: XCDR1 little-endian CDR of the
-//! ROS 2 messages (`sensor_msgs/msg/Imu`, `sensor_msgs/msg/Range`, `nav_msgs/msg/Odometry`, our
-//! `uwbimu_msgs` TDoA, anchor-range and UWB-range messages) and the `uwbimu.UwbRange` JSON. The
-//! recording writer ([`crate::recordings::recording_out`]) and the topic converters use them.
+//! Message payloads as bytes: the pieces of XCDR1 little-endian CDR every encoder uses (header,
+//! strings, alignment), and an encoder per message we write that no sensor's io row owns
+//! (`sensor_msgs/msg/Imu`, our `uwbimu_msgs` anchor-range and UWB-range messages) and the
+//! `uwbimu.UwbRange` JSON; each sensor's message is encoded in its row
+//! ([`crate::mapping::topics::SensorIo::encode`]). The recording writer
+//! ([`crate::recordings::recording_out`]) and the topic converters use them.
 
 use serde_json::json;
-use uwbimu_vocabulary::records::{ImuSample, TdoaMeasurement};
+use uwbimu_vocabulary::records::ImuSample;
 
 /// Splits non-negative seconds into (sec, nanosec, total ns).
 pub(crate) fn split_time(t_s: f64) -> (u64, u64, u64) {
@@ -86,8 +88,8 @@ pub fn range_json(t_s: f64, anchor_id: &str, range_m: f64, variance_m2: Option<f
 }
 
 /// A message of two anchor ids and a float64 after the header, as XCDR1 little-endian (the
-/// layout of [`TDOA_MSG`](crate::recordings::recording_out::TDOA_MSG) and [`ANCHOR_RANGE_MSG`](crate::recordings::recording_out::ANCHOR_RANGE_MSG)).
-fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> {
+/// layout of [`TDOA_MSG_NAME`](crate::mapping::topics::TDOA_MSG_NAME) and [`ANCHOR_RANGE_MSG`](crate::recordings::recording_out::ANCHOR_RANGE_MSG)).
+pub(crate) fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> {
     let mut b = cdr_with_header(t_s, "", 48);
     push_cdr_string(&mut b, anchor_i);
     push_cdr_string(&mut b, anchor_j);
@@ -96,41 +98,7 @@ fn id_pair_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, value: f64) -> Vec<u8> 
     b
 }
 
-/// One TDoA as XCDR1 little-endian [`TDOA_MSG`](crate::recordings::recording_out::TDOA_MSG), anchor ids `A{i}`, `A{j}`.
-pub fn tdoa_cdr(m: &TdoaMeasurement) -> Vec<u8> {
-    id_pair_cdr(m.t_s, &format!("A{}", m.anchor_i), &format!("A{}", m.anchor_j), m.tdoa_m)
-}
-
 /// One anchor-to-anchor range as XCDR1 little-endian [`ANCHOR_RANGE_MSG`](crate::recordings::recording_out::ANCHOR_RANGE_MSG).
 pub fn anchor_range_cdr(t_s: f64, anchor_i: &str, anchor_j: &str, range_m: f64) -> Vec<u8> {
     id_pair_cdr(t_s, anchor_i, anchor_j, range_m)
-}
-
-/// One height as XCDR1 little-endian [`RANGE_MSG`](crate::recordings::recording_out::RANGE_MSG) (frame `altimeter`, infrared), `range = z`;
-/// its limits are wide open (`±f32::MAX`), as a simulated height may be negative.
-pub fn altitude_cdr(t_s: f64, z_m: f64) -> Vec<u8> {
-    let mut b = cdr_with_header(t_s, "altimeter", 48);
-    b.push(1); // radiation_type INFRARED
-    while (b.len() - 4) % 4 != 0 {
-        b.push(0);
-    }
-    for v in [0.0, -f32::MAX, f32::MAX, z_m as f32] {
-        b.extend_from_slice(&v.to_le_bytes());
-    }
-    b
-}
-
-/// One body velocity as XCDR1 little-endian [`ODOMETRY_MSG`](crate::recordings::recording_out::ODOMETRY_MSG) (frames `odom` → `base_link`,
-/// identity pose, zero covariances), NaN for an axis not measured.
-pub fn odometry_cdr(t_s: f64, velocity: [f64; 3]) -> Vec<u8> {
-    let mut b = cdr_with_header(t_s, "odom", 720);
-    push_cdr_string(&mut b, "base_link");
-    align8(&mut b);
-    let mut doubles = [0.0f64; 85];
-    doubles[6] = 1.0; // orientation w
-    doubles[43..46].copy_from_slice(&velocity);
-    for d in doubles {
-        b.extend_from_slice(&d.to_le_bytes());
-    }
-    b
 }

@@ -8,13 +8,15 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::mapping::topics::SENSORS;
 use crate::ros::msg_schema::{nested_type_names, normalize};
 use uwbimu_vocabulary::error::Error as CoreError;
 
 use crate::{IoError as Error, IoResult as Result};
 
 /// The bundled `.msg` texts, by normalised name (`pkg/Type`): what the node reads (IMU, range,
-/// odometry, our TDoA and anchor-range messages) and writes (pose, odometry, diagnostics).
+/// odometry, our TDoA and anchor-range messages) and writes (pose, odometry, diagnostics); the
+/// sensors' io rows bundle the types only they read ([`SensorIo::definitions`](crate::mapping::topics::SensorIo::definitions)).
 const BUNDLED: &[(&str, &str)] = &[
     ("std_msgs/Header", "builtin_interfaces/Time stamp\nstring frame_id\n"),
     ("builtin_interfaces/Time", "int32 sec\nuint32 nanosec\n"),
@@ -55,10 +57,12 @@ const BUNDLED: &[(&str, &str)] = &[
     ("uwbimu_msgs/AnchorRange", "std_msgs/Header header\nstring anchor_i\nstring anchor_j\nfloat64 range\n"),
 ];
 
-/// The `.msg` text of one type (no dependency sections): bundled, else the first
-/// `<dir>/<pkg>/msg/<Type>.msg` (or `<dir>/<Type>.msg`) of `msg_paths`.
+/// The `.msg` text of one type (no dependency sections): bundled (here, or by a sensor's io
+/// row, [`SensorIo::definitions`](crate::mapping::topics::SensorIo::definitions)), else the first `<dir>/<pkg>/msg/<Type>.msg` (or
+/// `<dir>/<Type>.msg`) of `msg_paths`.
 fn own_definition(name: &str, msg_paths: &[PathBuf]) -> Result<String> {
-    if let Some((_, text)) = BUNDLED.iter().find(|(n, _)| *n == name) {
+    let sensors = SENSORS.iter().flat_map(|row| row.definitions());
+    if let Some((_, text)) = BUNDLED.iter().chain(sensors).find(|(n, _)| *n == name) {
         return Ok(text.lines().map(str::trim).collect::<Vec<_>>().join("\n") + "\n");
     }
     let (pkg, ty) = name.split_once('/').unwrap_or(("", name));
@@ -122,7 +126,7 @@ pub fn dds_topic_name(topic: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recordings::recording_out::{IMU_MSG, ODOMETRY_MSG};
+    use crate::recordings::recording_out::IMU_MSG;
     use crate::ros::msg_schema::MsgSchema;
 
     /// The field layout of every type of a schema, as (type name, [(field, element, array)]).
@@ -139,16 +143,14 @@ mod tests {
 
     #[test]
     fn bundled_definitions_parse_as_the_recordings_write_them() {
-        for (name, written) in [("sensor_msgs/msg/Imu", IMU_MSG), ("nav_msgs/msg/Odometry", ODOMETRY_MSG)] {
-            let ours = MsgSchema::parse(name, &full_definition(name, &[]).unwrap()).unwrap();
-            let theirs = MsgSchema::parse(name, written).unwrap();
-            assert_eq!(ours.root().fields.len(), theirs.root().fields.len(), "{name}");
-            let mut a = layout(&ours);
-            let mut b = layout(&theirs);
-            a.sort();
-            b.sort();
-            assert_eq!(a, b, "{name}");
-        }
+        let name = "sensor_msgs/msg/Imu";
+        let ours = MsgSchema::parse(name, &full_definition(name, &[]).unwrap()).unwrap();
+        let theirs = MsgSchema::parse(name, IMU_MSG).unwrap();
+        assert_eq!(ours.root().fields.len(), theirs.root().fields.len());
+        let (mut a, mut b) = (layout(&ours), layout(&theirs));
+        a.sort();
+        b.sort();
+        assert_eq!(a, b);
         for name in ["geometry_msgs/msg/PoseWithCovarianceStamped", "diagnostic_msgs/msg/DiagnosticArray"] {
             MsgSchema::parse(name, &full_definition(name, &[]).unwrap()).unwrap();
         }

@@ -1,221 +1,248 @@
-//! Decoders of the registry's sensors that refer to no anchor: heights (`[mapping.altitude]`,
-//! [`AltitudeMapping`]) and body velocities (`[mapping.odometry]`, [`OdometryMapping`]). A message
-//! gives observations ready for the filters but for their time, which the reader sets from the
-//! message's stamp ([`Observation::at`]), each with whether it can be used.
+//! The io of the registry's sensors (`uwbimu_vocabulary::sensors`, every sensor besides the IMU
+//! and the UWB ranges): a row per sensor, each in a file of its own that holds everything only
+//! that sensor says — its mapping section `[mapping.<name>]`, the ROS 2 types it reads with their
+//! default field paths, its decoder, the `.msg` texts it brings, and the message it is written as
+//! (topic, type, encoder) — behind one trait, [`SensorIo`].
+//!
+//! The rows are listed once, in `sensor_rows!`; every other list of sensors in this crate is made
+//! from that list: the sections of [`Mapping`] and the checks of their keys, the roles of a
+//! recording's channels and the check that the topics a section names exist, the stamps of the
+//! live node's topics and its subscriptions, the `.msg` texts [`crate::ros::types`] bundles, and
+//! the streams of the recording writer.
+//!
+//! Adding a sensor's io: a file here with its section, a unit struct implementing [`SensorIo`],
+//! its decoder and its encoder (`altitude.rs` is a small example), its `mod` and `pub use` lines
+//! below and its row in `sensor_rows!`.
 
-use uwbimu_vocabulary::records::{AltitudeSample, OdometrySample};
+mod altitude;
+mod magnetometer;
+mod odometry;
+mod pose_fix;
+mod tdoa;
+
+pub use altitude::*;
+pub use magnetometer::*;
+pub use odometry::*;
+pub use pose_fix::*;
+pub use tdoa::*;
+
 use uwbimu_vocabulary::sensors::{Observation, SensorKind};
 
 use super::{cdr_schema, default_stamp, stamp_ns};
-use crate::mapping::field_path::{FieldPath, PointPath};
+use crate::mapping::field_path::FieldPath;
 use crate::recordings::mcap_read::ChannelInfo;
-use crate::ros::cdr::decode;
+use crate::ros::cdr::{decode, Value};
 use crate::ros::msg_schema::MsgSchema;
-use crate::{AltitudeMapping, IoError as Error, IoResult as Result, OdometryMapping};
+use crate::{IoResult as Result, Mapping};
 
-/// A decoded observation (time 0 until the reader stamps it) and whether it can be used: false
-/// for a value that is not finite or outside the limits the message states.
+/// The sensors' io rows, in the registry's order, one line each: `name: Kind => Row(Section)`
+/// with the doc of the section — `name` is the sensor's name ([`SensorKind`]'s `info().name`),
+/// the field of [`Mapping`] and the table `[mapping.<name>]`; `Row` its [`SensorIo`] and
+/// `Section` the struct of its table. Hands the rows to the macro `$then`, which makes one of the
+/// lists of the module doc.
+macro_rules! sensor_rows {
+    ($then:ident) => {
+        $then! {
+            /// Magnetometer messages.
+            magnetometer: Magnetometer => MagnetometerIo(MagnetometerMapping),
+            /// TDoA messages.
+            tdoa: Tdoa => TdoaIo(TdoaMapping),
+            /// Height messages.
+            altitude: Altitude => AltitudeIo(AltitudeMapping),
+            /// Body-velocity messages.
+            odometry: Odometry => OdometryIo(OdometryMapping),
+            /// Pose messages read as pose fixes.
+            pose_fix: PoseFix => PoseFixIo(PoseFixMapping),
+        }
+    };
+}
+pub(crate) use sensor_rows;
+
+/// Declares [`SENSORS`] and [`sensor_io`] from the rows.
+macro_rules! rows {
+    ($($(#[doc = $doc:literal])* $name:ident: $kind:ident => $row:ident($section:ident),)+) => {
+        /// Every sensor's io row, in the registry's order.
+        pub const SENSORS: &[&dyn SensorIo] = &[$(&$row,)+];
+
+        /// The io row of the sensor `kind`: every sensor of the registry has one (this is a
+        /// `match` over the list, so a sensor without one does not compile).
+        pub fn sensor_io(kind: SensorKind) -> &'static dyn SensorIo {
+            match kind {
+                $(SensorKind::$kind => &$row,)+
+            }
+        }
+
+        /// The sensors' names as the list spells them, with their kinds.
+        #[cfg(test)]
+        const LISTED: &[(&str, SensorKind)] = &[$((stringify!($name), SensorKind::$kind),)+];
+    };
+}
+sensor_rows!(rows);
+
+/// A decoded observation (time 0 until the reader stamps it, [`Observation::at`]) and whether it
+/// can be used: false for a value that is not finite or outside the limits the message states.
 pub type RawObservation = (Observation, bool);
 
-/// Decodes the messages of one sensor topic.
+/// What a sensor's decoder makes of a message.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reading {
+    /// An observation ready for the filters but for its time.
+    Sensor(RawObservation),
+    /// A TDoA whose anchors are still ids.
+    Tdoa(RawTdoa),
+}
+
+/// A sensor's io: how its messages are read (its section of the mapping, its decoder) and how
+/// its records are written (topic, type, payload). One unit struct per sensor implements it, in
+/// the sensor's file; [`SENSORS`] lists them.
+pub trait SensorIo: Sync {
+    /// The sensor.
+    fn kind(&self) -> SensorKind;
+
+    /// The topics its section names (`topics`): it reads those, and the channels it
+    /// [recognises](SensorIo::recognises).
+    fn topics<'m>(&self, m: &'m Mapping) -> &'m [String];
+
+    /// The path of the stamp its section gives (`stamp`; None: `header.stamp` when the message
+    /// has a header).
+    fn stamp<'m>(&self, m: &'m Mapping) -> Option<&'m str>;
+
+    /// Checks the numbers of its section ([`Mapping::validate`]).
+    ///
+    /// # Errors
+    /// [`crate::IoError::Mapping`] naming the key.
+    fn validate(&self, _m: &Mapping) -> Result<()> {
+        Ok(())
+    }
+
+    /// The ROS 2 types (`pkg/msg/Type`) it reads without field paths; the live node subscribes a
+    /// topic of its section as the first, unless `live.types` names another.
+    fn reads(&self) -> &'static [&'static str];
+
+    /// The `.msg` texts, `(pkg/Type, text)` without dependency sections, of the types it reads
+    /// or writes that [`crate::ros::types`] does not bundle for the others; there they are
+    /// bundled too ([`crate::ros::types::full_definition`]).
+    fn definitions(&self) -> &'static [(&'static str, &'static str)] {
+        &[]
+    }
+
+    /// Whether it reads a channel its section does not name (a schema of its own).
+    fn recognises(&self, _m: &Mapping, _channel: &ChannelInfo) -> bool {
+        false
+    }
+
+    /// Its decoder of `channel`, built once from the channel's schema.
+    ///
+    /// # Errors
+    /// [`crate::IoError::Mapping`] when its section's paths do not fit the schema (naming the
+    /// key), [`crate::IoError::Format`] for an unknown encoding or schema.
+    fn decoder(&self, channel: &ChannelInfo, m: &Mapping) -> Result<Box<dyn DecodeSensor>>;
+
+    /// The topic and the ROS 2 type (`pkg/msg/Type`) of the messages the recording writer writes
+    /// its records as; the schema is the type's [`crate::ros::types::full_definition`].
+    fn written(&self) -> (&'static str, &'static str);
+
+    /// The payload (XCDR1 little-endian, of the [written](SensorIo::written) type) of the first
+    /// of `observations` and of those right after it that share its message (the odometry
+    /// readings of one time), with how many it holds (≥ 1); None when the first is not of this
+    /// sensor. Reading it back through the default mapping gives the records again.
+    fn encode(&self, observations: &[Observation]) -> Option<(Vec<u8>, usize)>;
+}
+
+/// A sensor's decoder of one channel ([`SensorIo::decoder`]).
+pub trait DecodeSensor: Send + Sync {
+    /// Decodes one message: its stamp, ns (None: none, or zero); its readings are pushed to
+    /// `out`.
+    ///
+    /// # Errors
+    /// [`crate::IoError::Format`] for a payload that does not decode,
+    /// [`crate::IoError::Mapping`] when the paths select values that do not go together.
+    fn decode(&self, data: &[u8], out: &mut Vec<Reading>) -> Result<Option<i64>>;
+}
+
+/// Checks that `value`, when given, is finite and > 0 (a scale, a σ); the error names `field`.
+///
+/// # Errors
+/// [`crate::IoError::Mapping`] naming `field`.
+pub(crate) fn positive(field: &str, value: Option<f64>) -> Result<()> {
+    match value.filter(|v| !(v.is_finite() && *v > 0.0)) {
+        Some(v) => Err(crate::IoError::Mapping { field: field.into(), reason: format!("must be > 0, got {v}") }),
+        None => Ok(()),
+    }
+}
+
+/// A channel's schema with the path of its messages' stamp: where the rows' decoders start.
 #[derive(Debug, Clone)]
-pub struct SensorDecoder {
-    schema: MsgSchema,
+pub(crate) struct StampedSchema {
+    /// The channel's schema.
+    pub schema: MsgSchema,
     stamp: Option<FieldPath>,
-    reading: Reading,
 }
 
-/// What a message's values become.
-#[derive(Debug, Clone)]
-enum Reading {
-    /// `z = offset + scale·value`, usable between the values at `limits` (sensor_msgs/Range's
-    /// `min_range`, `max_range`) when given.
-    Altitude { value: FieldPath, scale: f64, offset: f64, limits: Option<(FieldPath, FieldPath)> },
-    /// One reading per axis of `axes` of the velocity, times `scale`.
-    Odometry { velocity: PointPath, axes: Vec<usize>, scale: f64 },
-}
-
-/// The stamp path: the mapping's (`key`), else `header.stamp` when the schema has a header.
-fn stamp_path(schema: &MsgSchema, key: &str, given: Option<&str>) -> Result<Option<FieldPath>> {
-    match given {
-        Some(p) => Ok(Some(FieldPath::resolve(schema, key, p)?)),
-        None => default_stamp(schema, key),
-    }
-}
-
-impl SensorDecoder {
-    /// The decoder of a height topic: `range` of a `sensor_msgs/Range` (within its limits), or
-    /// the mapped `altitude.value` of any message.
+impl StampedSchema {
+    /// The schema of `channel` with its stamp at `given` (resolved as the key `key`), else at
+    /// `header.stamp` when the schema has a header.
     ///
     /// # Errors
-    /// [`Error::Mapping`] when the path does not fit the schema or is missing for a message that
-    /// is not a `sensor_msgs/Range`; [`Error::Format`] for an unknown encoding or schema.
-    pub fn altitude(channel: &ChannelInfo, m: &AltitudeMapping) -> Result<Self> {
+    /// As [`cdr_schema`]; [`crate::IoError::Mapping`] for a stamp path that does not fit.
+    pub(crate) fn new(channel: &ChannelInfo, key: &str, given: Option<&str>) -> Result<Self> {
         let schema = cdr_schema(channel)?;
-        let is_range = schema.name() == "sensor_msgs/Range";
-        let text = match (&m.value, is_range) {
-            (Some(p), _) => p.as_str(),
-            (None, true) => "range",
-            (None, false) => {
-                return Err(Error::Mapping {
-                    field: "altitude.value".into(),
-                    reason: format!(
-                        "topic `{}` ({}) needs the path of its height, e.g. `pose.position.z`",
-                        channel.topic,
-                        schema.name()
-                    ),
-                })
-            }
+        let stamp = match given {
+            Some(p) => Some(FieldPath::resolve(&schema, key, p)?),
+            None => default_stamp(&schema, key)?,
         };
-        let value = FieldPath::resolve(&schema, "altitude.value", text)?.require_numeric("altitude.value")?;
-        let limits = match is_range && m.value.is_none() {
-            true => Some((
-                FieldPath::resolve(&schema, "altitude.value", "min_range")?,
-                FieldPath::resolve(&schema, "altitude.value", "max_range")?,
-            )),
-            false => None,
-        };
-        let stamp = stamp_path(&schema, "altitude.stamp", m.stamp.as_deref())?;
-        let reading = Reading::Altitude { value, scale: m.scale.unwrap_or(1.0), offset: m.offset.unwrap_or(0.0), limits };
-        Ok(Self { schema, stamp, reading })
+        Ok(Self { schema, stamp })
     }
 
-    /// The decoder of a body-velocity topic: the mapped `odometry.velocity`, by default the
-    /// linear twist of `nav_msgs/Odometry`, `geometry_msgs/TwistStamped` or
-    /// `geometry_msgs/TwistWithCovarianceStamped`.
+    /// Decodes a payload: the message and its stamp, ns (None: none, or zero).
     ///
     /// # Errors
-    /// As [`SensorDecoder::altitude`], for the `odometry.*` keys.
-    pub fn odometry(channel: &ChannelInfo, m: &OdometryMapping) -> Result<Self> {
-        let schema = cdr_schema(channel)?;
-        let default = match schema.name() {
-            "nav_msgs/Odometry" | "geometry_msgs/TwistWithCovarianceStamped" => Some("twist.twist.linear"),
-            "geometry_msgs/TwistStamped" => Some("twist.linear"),
-            _ => None,
-        };
-        let Some(text) = m.velocity.as_deref().or(default) else {
-            return Err(Error::Mapping {
-                field: "odometry.velocity".into(),
-                reason: format!(
-                    "topic `{}` ({}) needs the path of its body velocity, e.g. `twist.linear`",
-                    channel.topic,
-                    schema.name()
-                ),
-            });
-        };
-        let velocity = PointPath::resolve(&schema, "odometry.velocity", text)?;
-        let stamp = stamp_path(&schema, "odometry.stamp", m.stamp.as_deref())?;
-        let reading = Reading::Odometry { velocity, axes: m.axis_indices()?, scale: m.scale.unwrap_or(1.0) };
-        Ok(Self { schema, stamp, reading })
-    }
-
-    /// The sensor it decodes.
-    pub fn kind(&self) -> SensorKind {
-        match self.reading {
-            Reading::Altitude { .. } => SensorKind::Altitude,
-            Reading::Odometry { .. } => SensorKind::Odometry,
-        }
-    }
-
-    /// Decodes one message: (stamp ns if any); its observations are pushed to `out`. An
-    /// odometry axis whose value is NaN is not measured and gives nothing.
-    ///
-    /// # Errors
-    /// [`Error::Format`] for a payload that does not decode.
-    pub fn decode(&self, data: &[u8], out: &mut Vec<RawObservation>) -> Result<Option<i64>> {
+    /// [`crate::IoError::Format`] for a payload that does not decode.
+    pub(crate) fn decode(&self, data: &[u8]) -> Result<(Value, Option<i64>)> {
         let v = decode(&self.schema, data)?;
-        let mut values = Vec::new();
-        match &self.reading {
-            Reading::Altitude { value, scale, offset, limits } => {
-                value.collect(&v, &mut values)?;
-                let number = |p: &FieldPath| -> Result<f64> { Ok(p.get(&v)?.as_f64().unwrap_or(f64::NAN)) };
-                let (lo, hi) = match limits {
-                    Some((lo, hi)) => (number(lo)?, number(hi)?),
-                    None => (f64::NEG_INFINITY, f64::INFINITY),
-                };
-                for x in values.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)) {
-                    let z_m = offset + scale * x;
-                    out.push((
-                        Observation::Altitude(AltitudeSample { t_s: 0.0, z_m }),
-                        z_m.is_finite() && (lo..=hi).contains(&x),
-                    ));
-                }
-            }
-            Reading::Odometry { velocity, axes, scale } => {
-                velocity.path.collect(&v, &mut values)?;
-                for point in values.iter().map(|p| velocity.point(p)) {
-                    let Some(point) = point else {
-                        return Err(Error::Format {
-                            what: format!("field `{}`", velocity.path.text),
-                            reason: "not a point".into(),
-                        });
-                    };
-                    for &axis in axes {
-                        let speed_mps = scale * point[axis];
-                        if !speed_mps.is_nan() {
-                            let reading = OdometrySample { t_s: 0.0, axis, speed_mps };
-                            out.push((Observation::Odometry(reading), speed_mps.is_finite()));
-                        }
-                    }
-                }
-            }
-        }
-        stamp_ns(self.stamp.as_ref(), &v)
+        let stamp = stamp_ns(self.stamp.as_ref(), &v)?;
+        Ok((v, stamp))
     }
+}
+
+/// A CDR channel `/t` of the type `type_name` with its bundled definition (for the rows' tests).
+#[cfg(test)]
+pub(crate) fn test_channel(type_name: &str) -> ChannelInfo {
+    let text = crate::ros::types::full_definition(type_name, &[]).unwrap_or_default();
+    let schema =
+        crate::recordings::mcap_read::SchemaInfo { name: type_name.into(), encoding: "ros2msg".into(), data: text.into_bytes() };
+    ChannelInfo { id: 1, topic: "/t".into(), message_encoding: "cdr".into(), schema: Some(std::sync::Arc::new(schema)) }
 }
 
 #[cfg(test)]
 mod tests {
-    use std::sync::Arc;
-
     use super::*;
-    use crate::recordings::mcap_read::SchemaInfo;
-    use crate::recordings::recording_out::{ODOMETRY_MSG, RANGE_MSG};
-    use crate::ros::payloads::{altitude_cdr, odometry_cdr};
-
-    fn channel(schema: &str, text: &str) -> ChannelInfo {
-        let schema = SchemaInfo { name: schema.into(), encoding: "ros2msg".into(), data: text.as_bytes().to_vec() };
-        ChannelInfo { id: 1, topic: "/t".into(), message_encoding: "cdr".into(), schema: Some(Arc::new(schema)) }
-    }
-
-    /// `altitude_cdr` with the limits `min_range`, `max_range` set to `lo`, `hi`.
-    fn range_within(t_s: f64, z: f64, lo: f32, hi: f32) -> Vec<u8> {
-        let mut b = altitude_cdr(t_s, z);
-        let n = b.len();
-        b[n - 12..n - 8].copy_from_slice(&lo.to_le_bytes());
-        b[n - 8..n - 4].copy_from_slice(&hi.to_le_bytes());
-        b
-    }
+    use crate::ros::types::full_definition;
 
     #[test]
-    fn a_rangefinder_reading_outside_its_limits_is_unusable_and_scale_offset_apply() {
-        let ch = channel("sensor_msgs/msg/Range", RANGE_MSG);
-        let m = AltitudeMapping { scale: Some(2.0), offset: Some(-0.5), ..AltitudeMapping::default() };
-        let d = SensorDecoder::altitude(&ch, &m).unwrap();
-        assert_eq!(d.kind(), SensorKind::Altitude);
-        let mut out = Vec::new();
-        for (z, usable) in [(1.25, true), (0.05, false), (4.5, false), (f64::INFINITY, false)] {
-            assert_eq!(d.decode(&range_within(3.5, z, 0.1, 4.0), &mut out).unwrap(), Some(3_500_000_000));
-            let (o, ok) = out.pop().unwrap();
-            assert_eq!(ok, usable, "{z}");
-            if usable {
-                assert_eq!(o.value(), -0.5 + 2.0 * 1.25);
-            }
+    fn every_sensor_of_the_registry_has_its_row_in_its_order_named_as_it() {
+        let kinds: Vec<SensorKind> = SENSORS.iter().map(|r| r.kind()).collect();
+        assert_eq!(kinds, SensorKind::ALL);
+        let listed: Vec<SensorKind> = LISTED.iter().map(|(_, k)| *k).collect();
+        assert_eq!(listed, kinds, "the list's kinds are its rows' kinds");
+        for (name, kind) in LISTED {
+            assert_eq!(*name, kind.info().name, "{kind:?}: its section is named as the sensor");
+            assert_eq!(sensor_io(*kind).kind(), *kind);
         }
     }
 
     #[test]
-    fn odometry_gives_one_reading_per_mapped_axis_not_nan() {
-        let ch = channel("nav_msgs/msg/Odometry", ODOMETRY_MSG);
-        let m = OdometryMapping { axes: Some(vec!["z".into(), "x".into(), "y".into()]), ..OdometryMapping::default() };
-        let d = SensorDecoder::odometry(&ch, &m).unwrap();
-        let mut out = Vec::new();
-        d.decode(&odometry_cdr(1.0, [1.5, f64::NAN, f64::INFINITY]), &mut out).unwrap();
-        let got: Vec<(Option<usize>, f64, bool)> = out.iter().map(|(o, ok)| (o.axis(), o.value(), *ok)).collect();
-        assert_eq!(got, [(Some(2), f64::INFINITY, false), (Some(0), 1.5, true)], "y is NaN: not measured");
-        let x_only = SensorDecoder::odometry(&ch, &OdometryMapping::default()).unwrap();
-        out.clear();
-        x_only.decode(&odometry_cdr(1.0, [1.5, 0.0, 0.0]), &mut out).unwrap();
-        assert_eq!(out.len(), 1);
+    fn the_rows_write_to_topics_of_their_own_and_their_types_are_bundled() {
+        let topics: Vec<&str> = SENSORS.iter().map(|row| row.written().0).collect();
+        for (i, topic) in topics.iter().enumerate() {
+            assert!(topic.starts_with('/') && !topics[..i].contains(topic), "{topic}");
+        }
+        for row in SENSORS {
+            let (_, type_name) = row.written();
+            assert_eq!(row.reads().first(), Some(&type_name), "{:?}: it reads what it writes, first", row.kind());
+            for t in row.reads() {
+                assert!(full_definition(t, &[]).is_ok(), "{t}: its definition is bundled");
+            }
+        }
     }
 }

@@ -8,6 +8,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+use crate::mapping::topics::sensor_io;
 use crate::recordings::mcap_read::{ChannelInfo, SchemaInfo};
 use crate::ros::msg_schema::MsgSchema;
 use crate::{IoError as Error, IoResult as Result, Mapping};
@@ -108,7 +109,7 @@ impl MessageDecoder {
         let m = &self.mapping;
         let mapped_stamp = match tag {
             TopicRole::Uwb => m.uwb.stamp.is_some(),
-            TopicRole::Tdoa => m.tdoa.stamp.is_some(),
+            TopicRole::Sensor(kind) => sensor_io(kind).stamp(m).is_some(),
             _ => false,
         };
         let stamped =

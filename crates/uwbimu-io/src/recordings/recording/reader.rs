@@ -7,12 +7,13 @@ use std::collections::BTreeMap;
 use crate::files::anchors::{parse_anchor_metadata, ANCHORS_METADATA};
 use crate::mapping::reorder::ReorderBuffer;
 use crate::mapping::topics::{
-    AnchorListDecoder, ImuDecoder, PoseDecoder, RangeDecoder, RawObservation, RawRange, RawTdoa, SensorDecoder, TdoaDecoder,
+    AnchorListDecoder, DecodeSensor, ImuDecoder, PoseDecoder, RangeDecoder, RawObservation, RawRange, RawTdoa, Reading, SENSORS,
 };
 use crate::recordings::mcap_read::{read_mcap, ChannelInfo, McapEnd, McapEvent};
 use crate::{IoError as Error, IoResult as Result};
 use crate::{Mapping, TimeSource};
 use uwbimu_vocabulary::math::Vec3;
+use uwbimu_vocabulary::sensors::SensorKind;
 
 use super::{topic_list, ReadStats, TopicRole, TopicStats};
 
@@ -30,8 +31,8 @@ pub(super) enum Item {
 pub(super) enum Role {
     Imu(Box<ImuDecoder>),
     Uwb(Box<RangeDecoder>),
-    Tdoa(Box<TdoaDecoder>),
-    Sensor(Box<SensorDecoder>),
+    /// A sensor of the registry, through its io row's decoder.
+    Sensor(SensorKind, Box<dyn DecodeSensor>),
     Anchors(Box<AnchorListDecoder>),
     Truth(Box<PoseDecoder>),
     Ignored,
@@ -97,14 +98,10 @@ pub(super) fn role_for(mapping: &Mapping, channel: &ChannelInfo, has_imu: bool, 
     if m.uwb.topics.iter().any(|t| t == topic) {
         return Ok(Role::Uwb(Box::new(RangeDecoder::new(channel, &m.uwb)?)));
     }
-    if m.altitude.topics.iter().any(|t| t == topic) {
-        return Ok(Role::Sensor(Box::new(SensorDecoder::altitude(channel, &m.altitude)?)));
-    }
-    if m.odometry.topics.iter().any(|t| t == topic) {
-        return Ok(Role::Sensor(Box::new(SensorDecoder::odometry(channel, &m.odometry)?)));
-    }
-    if m.tdoa.topics.iter().any(|t| t == topic) || (m.tdoa.topics.is_empty() && TdoaDecoder::recognises(channel)) {
-        return Ok(Role::Tdoa(Box::new(TdoaDecoder::new(channel, &m.tdoa)?)));
+    // A sensor whose section names the topic, else one that recognises its schema.
+    let named = SENSORS.iter().find(|row| row.topics(m).iter().any(|t| t == topic));
+    if let Some(row) = named.or_else(|| SENSORS.iter().find(|row| row.recognises(m, channel))) {
+        return Ok(Role::Sensor(row.kind(), row.decoder(channel, m)?));
     }
     if m.anchors.topic.as_deref() == Some(topic) {
         return Ok(Role::Anchors(Box::new(AnchorListDecoder::new(channel, &m.anchors)?)));
@@ -127,8 +124,7 @@ impl Role {
         match self {
             Role::Imu(_) => TopicRole::Imu,
             Role::Uwb(_) => TopicRole::Uwb,
-            Role::Tdoa(_) => TopicRole::Tdoa,
-            Role::Sensor(d) => TopicRole::Sensor(d.kind()),
+            Role::Sensor(kind, _) => TopicRole::Sensor(*kind),
             Role::Anchors(_) => TopicRole::Anchors,
             Role::Truth(_) => TopicRole::GroundTruth,
             Role::Ignored => TopicRole::Ignored,
@@ -140,8 +136,7 @@ impl Role {
 #[derive(Default)]
 pub(super) struct Scratch {
     ranges: Vec<RawRange>,
-    tdoa: Vec<RawTdoa>,
-    sensors: Vec<RawObservation>,
+    readings: Vec<Reading>,
 }
 
 /// What one message held besides its items.
@@ -183,14 +178,12 @@ pub(super) fn decode_message(
             }));
             s
         }
-        Role::Tdoa(d) => {
-            let s = d.decode(data, &mut scratch.tdoa)?;
-            items.extend(scratch.tdoa.drain(..).map(Item::Tdoa));
-            s
-        }
-        Role::Sensor(d) => {
-            let s = d.decode(data, &mut scratch.sensors)?;
-            items.extend(scratch.sensors.drain(..).map(Item::Sensor));
+        Role::Sensor(_, d) => {
+            let s = d.decode(data, &mut scratch.readings)?;
+            items.extend(scratch.readings.drain(..).map(|r| match r {
+                Reading::Sensor(o) => Item::Sensor(o),
+                Reading::Tdoa(t) => Item::Tdoa(t),
+            }));
             s
         }
         Role::Ignored => return Ok(Decoded::Ignored),
@@ -343,20 +336,17 @@ fn check_topics<S>(r: &mut Reader<'_, S>) -> Result<()> {
             None => missing("imu_topic", "no sensor_msgs/msg/Imu topic".into()),
         });
     }
-    let named = [
-        ("uwb.topics", &m.uwb.topics),
-        ("tdoa.topics", &m.tdoa.topics),
-        ("altitude.topics", &m.altitude.topics),
-        ("odometry.topics", &m.odometry.topics),
-    ];
-    for (field, topics) in named {
+    let uwb = ("uwb".to_string(), m.uwb.topics.as_slice());
+    let sensors = SENSORS.iter().map(|row| (row.kind().info().name.to_string(), row.topics(m)));
+    for (section, topics) in std::iter::once(uwb).chain(sensors) {
+        let field = format!("{section}.topics");
         for t in topics {
             if !r.stats.topics.iter().any(|s| &s.topic == t) {
-                return Err(missing(field, format!("topic `{t}` not found")));
+                return Err(missing(&field, format!("topic `{t}` not found")));
             }
         }
     }
-    if !has(TopicRole::Uwb) && !has(TopicRole::Tdoa) {
+    if !has(TopicRole::Uwb) && !has(TopicRole::Sensor(SensorKind::Tdoa)) {
         return Err(match misfit {
             Some(e) => e,
             None => missing(

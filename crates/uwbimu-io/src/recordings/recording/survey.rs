@@ -24,7 +24,7 @@ pub enum RecordItem {
     Range(RangeMeasurement, f64),
     /// A TDoA.
     Tdoa(TdoaMeasurement),
-    /// A reading of a sensor without anchors (altitude, odometry).
+    /// A reading of a sensor without anchors (magnetometer, altitude, odometry, pose fix).
     Sensor(Observation),
     /// A ground-truth position (time s, position m), from the ground-truth topic.
     Truth(f64, Vec3),
