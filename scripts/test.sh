@@ -4,6 +4,8 @@
 # skipped tests of each suite (the real-log tests skip without ../shared/data). The Python tests
 # but the real-log ones (marker needs_isas) run as on a user's clone, with UWBIMU_SHARED naming a
 # directory that does not exist: one that reads ../shared without the marker fails here.
+# pytest runs on every core (pytest-xdist, `-n auto`); the tests that must not run beside each
+# other share one worker (tests/python/conftest.py, ONE_WORKER).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -17,6 +19,7 @@ if [ -s "$skipped_log" ]; then
 else
     echo "Rust: 0 tests skipped"
 fi
-UWBIMU_SHARED="$PWD/target/no-shared" .venv/bin/python -m pytest -q -rs -m "not needs_isas" tests/python || status=$?
-.venv/bin/python -m pytest -q -rs -m needs_isas tests/python || status=$?
+xdist=(-n auto --dist loadgroup)
+UWBIMU_SHARED="$PWD/target/no-shared" .venv/bin/python -m pytest -q -rs "${xdist[@]}" -m "not needs_isas" tests/python || status=$?
+.venv/bin/python -m pytest -q -rs "${xdist[@]}" -m needs_isas tests/python || status=$?
 exit "$status"
