@@ -8,9 +8,15 @@
 # other share one worker (tests/python/conftest.py, ONE_WORKER).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
 skipped_log="$PWD/target/skipped-tests.log"
 mkdir -p target && rm -f "$skipped_log"
+# The Rust tests build while setup.sh installs the Python packages (into a new .venv 164 s, 30 s of
+# it CPU: pip mostly waits on the disk); its build of the extension waits for cargo's lock. A
+# failed build is reported by the `cargo test` below, which builds again.
+cargo test --workspace --no-run --quiet >target/test-build.log 2>&1 &
+build=$!
+bash scripts/setup.sh || { kill "$build" 2>/dev/null; exit 1; }
+wait "$build" || true
 status=0
 UWBIMU_SKIPPED_LOG="$skipped_log" cargo test --workspace --quiet --no-fail-fast || status=$?
 if [ -s "$skipped_log" ]; then
