@@ -1,6 +1,7 @@
 """uwbimu_rs.fleet on a local Ray of 2 CPUs: a dozen generated logs with a corrupt and a truncated
 one, outputs against serial replay, re-runs, a worker killed mid-task, sweeps, the real log."""
 
+# Under xdist this file's tests share one worker (conftest.py, ONE_WORKER).
 from __future__ import annotations
 
 import dataclasses

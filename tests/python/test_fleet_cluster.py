@@ -1,6 +1,7 @@
 """The multi-node recipe of docs/fleet.md as run: a head and a second Ray node on this machine
 (scripts/fleet_two_nodes.sh), ``fleet.replay`` across both, outputs equal to serial replay."""
 
+# Under xdist this file's tests share one worker (conftest.py, ONE_WORKER).
 from __future__ import annotations
 
 import re

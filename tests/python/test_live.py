@@ -4,6 +4,7 @@ through the node to a subscriber, against ``replay`` of the same log, and a simu
 module through a pseudo-terminal, against the truth. The oracles are the truth of the simulator
 and the batch/streaming result of the same inputs, never the node's earlier output."""
 
+# Under xdist this file's tests share one worker (conftest.py, ONE_WORKER).
 from __future__ import annotations
 
 import json
