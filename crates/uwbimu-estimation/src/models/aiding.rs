@@ -8,7 +8,7 @@
 use uwbimu_vocabulary::config::{FilterConfig, GateConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::sensors::Observation;
+use uwbimu_vocabulary::sensors::{Observation, SensorRecord};
 
 #[cfg(doc)]
 use crate::models::visit_scalar_aiding;
@@ -60,13 +60,10 @@ pub trait ModelSink {
 /// A sensor the tightly coupled filters apply reading by reading as scalar models, with nothing
 /// kept between readings (TDoA and odometry, which keep watches and measured axes, are applied by
 /// the filter itself).
-pub trait ScalarAiding: Copy {
+pub trait ScalarAiding: SensorRecord {
     /// Whether a reading counts as aiding for the outage guard (`constraints`): it measures the
     /// position or the velocity, so a UWB outage is no reason to assume the platform stopped.
     const NOTES_AIDING: bool;
-
-    /// Time, s.
-    fn t_s(&self) -> f64;
 
     /// Refuses a reading whose values are not finite, naming the streaming call.
     ///

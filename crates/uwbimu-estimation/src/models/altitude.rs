@@ -57,10 +57,6 @@ impl SensorRule for AltitudeSample {
 impl ScalarAiding for AltitudeSample {
     const NOTES_AIDING: bool = false;
 
-    fn t_s(&self) -> f64 {
-        self.t_s
-    }
-
     fn check(&self) -> Result<()> {
         finite("update_altitude", 1, self.z_m)
     }

@@ -114,14 +114,9 @@ impl SensorRule for PoseFix {
 impl ScalarAiding for PoseFix {
     const NOTES_AIDING: bool = true;
 
-    fn t_s(&self) -> f64 {
-        self.t_s
-    }
-
     fn check(&self) -> Result<()> {
-        let values = [self.position.x, self.position.y, self.position.z, self.position_std.x, self.position_std.y];
-        for (i, v) in values.into_iter().chain([self.position_std.z]).enumerate() {
-            finite("add_pose_fix", 1 + i, v)?;
+        for (i, v) in self.position.iter().chain(self.position_std.iter()).enumerate() {
+            finite("add_pose_fix", 1 + i, *v)?;
         }
         if self.has_yaw() {
             finite("add_pose_fix", 7, self.yaw_rad)?;
@@ -153,15 +148,12 @@ impl ScalarAiding for PoseFix {
 /// One report of the models of a fix (see [`PoseFix`]'s `apply`): the position's innovation norm
 /// from the first three.
 fn whole(reports: &[UpdateReport]) -> UpdateReport {
-    let innovation = reports[..3].iter().map(|r| r.innovation.powi(2)).sum::<f64>().sqrt();
-    let fold = |f: fn(f64, f64) -> f64, init: f64, g: fn(&UpdateReport) -> f64| reports.iter().map(g).fold(init, f);
-    let inflation = fold(f64::max, 1.0, |r| r.inflation);
     UpdateReport {
-        innovation,
+        innovation: reports[..3].iter().map(|r| r.innovation.powi(2)).sum::<f64>().sqrt(),
         nis: reports.iter().map(|r| r.nis).sum(),
         accepted: reports.iter().all(|r| r.accepted),
-        weight: fold(f64::min, 1.0, |r| r.weight),
-        inflation,
+        weight: reports.iter().map(|r| r.weight).fold(1.0, f64::min),
+        inflation: reports.iter().map(|r| r.inflation).fold(1.0, f64::max),
         down_weighted: reports.iter().any(|r| r.down_weighted),
         iterations: reports.iter().map(|r| r.iterations).max().unwrap_or(0),
         ..UpdateReport::skipped()
