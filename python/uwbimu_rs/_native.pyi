@@ -323,7 +323,7 @@ class _StreamingFilter:
     """Streaming API shared by the 15-state filter classes (documented once here; each class below
     is one named composition of the shared pieces). Constructed as ``Cls(anchors, *,
     initial=None, config=None, record=False, reorder_window_s=None, strict=False,
-    keep_steps=10000, lag_s=None)``.
+    keep_steps=10000, lag_s=None, choose_after_s=None)``.
 
     A robot loop feeds whatever arrives, in any order within the reorder window, and reads the
     state::
@@ -377,6 +377,18 @@ class _StreamingFilter:
         filter RTS-smooths the last ``1.5 * lag_s`` of its run and emits the estimates at least
         ``lag_s`` old (:meth:`lagged_steps`), in bounded memory (docs/streaming.md,
         "Fixed-lag smoothing"). None: off. Not with ``record=True``.
+    choose_after_s : float, optional
+        Only for a class whose method chooses its model (``METHODS[name]["chooses_model"]``:
+        :class:`Best`): once an IMU sample this many seconds after the first one is in, the
+        filter chooses its model on everything it was given so far, as :func:`choose_model`
+        does on the same data, in a thread of its own while it runs on with the configured
+        model; when the choice is made, the next call that feeds it applies it (a model change
+        replays every input so far, every sensor and tag, through a new filter of the chosen
+        model, whose steps and lagged rows of the past are not given again). See
+        :attr:`choosing`, :attr:`choice_window`, :attr:`model_choice`, :meth:`wait_for_choice`
+        and docs/streaming.md, "Choosing the model while running". None: the model as
+        configured (also with ``model_selection.enabled`` off). While the choice is pending,
+        :meth:`apply_ranges_now` raises.
 
     Raises
     ------
@@ -385,7 +397,8 @@ class _StreamingFilter:
     ValueError
         Bad anchor shape or values, ``initial`` / ``config`` not a dict, a negative window, a
         negative, infinite or NaN ``lag_s``, or ``lag_s`` with ``record=True`` or
-        ``keep_steps=0``.
+        ``keep_steps=0``; ``choose_after_s`` for a class whose method does not choose its model
+        (the message names those that do), or not finite and above 0.
     """
 
     def __new__(
@@ -399,6 +412,7 @@ class _StreamingFilter:
         strict: bool = False,
         keep_steps: int = 10000,
         lag_s: float | None = None,
+        choose_after_s: float | None = None,
     ) -> _S: ...
     def steps(self) -> pl.DataFrame:
         """The steps made since the previous call (or the start), one row per IMU sample, oldest
@@ -465,6 +479,34 @@ class _StreamingFilter:
         """The (15, 15) smoothed error covariance (δp, δv, δθ, δb_a, δb_g) of the newest
         fixed-lag row emitted, a copy; None before the first. Raises ``UwbImuError`` without
         ``lag_s``."""
+
+    @property
+    def choosing(self) -> bool:
+        """Whether the model choice (``choose_after_s``) is pending: waiting for its data,
+        running, or made and applied at the next call that feeds the filter. False without
+        ``choose_after_s`` and with ``model_selection.enabled`` off."""
+
+    @property
+    def choice_window(self) -> dict[str, Any] | None:
+        """The data the model choice runs on, from its start until it is applied (None
+        otherwise): ``duration_s`` (first to last IMU sample, s), ``imu``, ``ranges`` (every
+        tag's) and ``observations`` (the other sensors' readings), counts."""
+
+    @property
+    def model_choice(self) -> dict[str, Any] | None:
+        """The model choice once applied (None before, and without ``choose_after_s``): the
+        dict of :func:`choose_model` — ``config`` (nested dict of the chosen configuration),
+        ``overrides`` (``{key: value}`` it changes), ``chosen`` (label; None when no selection
+        ran), ``reason``, ``candidates`` (a list of dicts: ``label``, ``score``, ``per_anchor``,
+        ``overrides``) — with ``switched`` (whether the filter now runs with the chosen model:
+        false when it kept the configured one, the reason saying why) and ``window`` (as
+        :attr:`choice_window`)."""
+
+    def wait_for_choice(self, timeout_s: float) -> bool:
+        """Block, without the GIL, until the model choice that has started is made or
+        ``timeout_s`` (s, finite, >= 0) has passed, then apply it (for tests and trials: a robot
+        does not wait; the next call that feeds the filter applies it). Returns whether a choice
+        was waited for (False when none was running)."""
 
     def add_imu(self, t: float, accel: ArrayLike, gyro: ArrayLike) -> list[UpdateReport]:
         """Take the IMU sample at time ``t``.

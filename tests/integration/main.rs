@@ -39,6 +39,7 @@ mod sensors_mcap;
 mod sim;
 mod smoother;
 mod streamed_replay;
+mod streaming_choice;
 mod tags;
 mod tdoa;
 mod tdoa_mcap;

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import polars as pl
 import pytest
 
 import uwbimu_rs
@@ -699,22 +700,31 @@ def test_docs_list_every_live_key():
     assert set(_native.live_setup(None)["live"]) <= table
 
 
+def biased_sensor_records(end_after_s: float) -> tuple[Any, list[tuple[Any, ...]]]:
+    """A zoo run with TDoA, heights, wheel speeds and two tags whose ranges have steady biases
+    per anchor (the model choice changes the model), and its records up to ``end_after_s`` after
+    the start, in time order."""
+    # Noisy TDoA: beside precise TDoA of the same anchors the biased ranges hardly move the
+    # track, and the choice (on every sensor of the window) rightly keeps the configured model.
+    run = sim.zoo("agv_loop", seed=0, tag_separation_m=0.6, tdoa=True, tdoa_std_m=1.0, altimeter=True, odometer=True)
+    end = run.imu[0, 0] + end_after_s
+    ranges = run.ranges.copy()
+    ranges[:, 2] += np.array([0.4, -0.3, 0.5, 0.0, -0.4, 0.3, 0.0, 0.2])[ranges[:, 1].astype(int)]
+    keyed = [((r[0], 0), ("imu", r[0], r[1:4], r[4:7])) for r in run.imu[run.imu[:, 0] <= end]]
+    keyed += [((r[0], 1), ("range", r[0], int(r[1]), r[2], int(r[3]))) for r in ranges[ranges[:, 0] <= end]]
+    keyed += [((r[0], 2), ("tdoa", r[0], int(r[1]), int(r[2]), r[3])) for r in run.tdoa[run.tdoa[:, 0] <= end]]
+    keyed += [((r[0], 3), ("altitude", r[0], r[1])) for r in run.altitude[run.altitude[:, 0] <= end]]
+    keyed += [((r[0], 4), ("odometry", r[0], r[1])) for r in run.odometry[run.odometry[:, 0] <= end]]
+    return run, [r for _, r in sorted(keyed, key=lambda x: x[0])]
+
+
 def test_a_model_change_refeeds_every_sensor_and_tag_of_the_window():
     # The node's filter after the model change equals a filter of the chosen model fed every
     # record from the start (the replay of the same input): TDoA, heights, wheel speeds and the
     # second tag of the choice window included, and what came while the choice ran.
     from uwbimu_rs.live import LiveNode
 
-    run = sim.zoo("agv_loop", seed=0, tag_separation_m=0.6, tdoa=True, altimeter=True, odometer=True)
-    end = run.imu[0, 0] + 30.0
-    ranges = run.ranges.copy()
-    ranges[:, 2] += np.array([0.4, -0.3, 0.5, 0.0, -0.4, 0.3, 0.0, 0.2])[ranges[:, 1].astype(int)]  # steady biases: the model changes
-    keyed = [((r[0], 0), ("imu", r[0], r[1:4], r[4:7])) for r in run.imu[run.imu[:, 0] <= end]]
-    keyed += [((r[0], 1), ("range", r[0], int(r[1]), r[2], int(r[3]))) for r in ranges[ranges[:, 0] <= end]]
-    keyed += [((r[0], 2), ("tdoa", r[0], int(r[1]), int(r[2]), r[3])) for r in run.tdoa[run.tdoa[:, 0] <= end]]
-    keyed += [((r[0], 3), ("altitude", r[0], r[1])) for r in run.altitude[run.altitude[:, 0] <= end]]
-    keyed += [((r[0], 4), ("odometry", r[0], r[1])) for r in run.odometry[run.odometry[:, 0] <= end]]
-    records = [r for _, r in sorted(keyed, key=lambda x: x[0])]
+    run, records = biased_sensor_records(30.0)
     setup = _native.live_setup(None)
     setup["live"]["choose_after_s"] = 15.0
     setup["config"] = run.config
@@ -725,12 +735,14 @@ def test_a_model_change_refeeds_every_sensor_and_tag_of_the_window():
         clock.now = r[1]
         node.feed("sim", [r])
         if r[0] == "imu" and r[1] >= run.imu[0, 0] + 20.0 and switched_at is None:
-            node.wait_for_choice(120)  # the choice applied 5 s after it started
+            assert node.wait_for_choice(120)  # the choice applied 5 s after it started
             node.tick()
             switched_at = r[1]
     node.close()
     assert node.chosen is not None and node.chosen.startswith("steady bias"), node.chosen
-    replay = uwbimu_rs.Best(run.anchors, initial=setup["initial"], config=node._config, reorder_window_s=setup["reorder_window_s"])
+    made = node.filter.model_choice
+    assert made["switched"] and made["chosen"] == node.chosen
+    replay = uwbimu_rs.Best(run.anchors, initial=setup["initial"], config=made["config"], reorder_window_s=setup["reorder_window_s"])
     for r in records:
         apply_record(replay, r)
     replay.flush()
@@ -741,3 +753,30 @@ def test_a_model_change_refeeds_every_sensor_and_tag_of_the_window():
     t = expected["t"].to_numpy()
     want = expected.select("t", "x", "y", "z").to_numpy()[t > switched_at][: len(after)]
     np.testing.assert_array_equal(after[:, :4], want)
+
+
+def test_a_model_change_drives_the_fixed_lag_smoother_over_the_replay_too():
+    # With lag_s, the rows the smoother emits after the model change are those of a filter of the
+    # chosen model fed every record from the start; none of the replayed past comes again.
+    run, records = biased_sensor_records(30.0)
+    f = uwbimu_rs.Best(run.anchors, config=run.config, lag_s=1.0, choose_after_s=15.0)
+    before, after, switched = [], [], False
+    for r in records:
+        apply_record(f, r)
+        (after if switched else before).append(f.lagged_steps())
+        if r[0] == "imu" and r[1] >= run.imu[0, 0] + 20.0 and not switched:
+            assert f.wait_for_choice(120) and f.model_choice is not None  # applied by the wait
+            switched = True
+    f.flush()
+    after.append(f.lagged_steps())
+    made = f.model_choice
+    assert made["switched"] and made["chosen"].startswith("steady bias"), made["reason"]
+    replay = uwbimu_rs.Best(run.anchors, config=made["config"], lag_s=1.0)
+    for r in records:
+        apply_record(replay, r)
+    replay.flush()
+    want = replay.lagged_steps()
+    got, past = pl.concat(after), pl.concat(before)
+    assert got.height > 500 and got["t"][0] > past["t"][-1]
+    assert want.filter(pl.col("t") > past["t"][-1]).height == got.height  # nor a gap
+    np.testing.assert_array_equal(got.to_numpy(), want.tail(got.height).to_numpy())

@@ -479,6 +479,23 @@ def test_fixed_lag_arguments_are_checked():
     assert g.lag_s == 0.5 and g.lagged_covariance is None and g.lagged_steps().height == 0
 
 
+def test_only_a_class_whose_method_chooses_its_model_takes_choose_after_s():
+    choosers = [row["streaming_class"] for row in uwbimu_rs.METHODS.values() if row["chooses_model"] and row["streaming_class"]]
+    assert choosers == ["Best"]
+    with pytest.raises(ValueError, match=r"Ekf: choose_after_s=5 is taken only by a class whose method chooses its model \(Best\)"):
+        uwbimu_rs.Ekf(ANCHORS, choose_after_s=5)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="choose_after_s"):
+            uwbimu_rs.Best(ANCHORS, choose_after_s=bad)
+    f = uwbimu_rs.Best(ANCHORS, choose_after_s=5)
+    assert f.choosing and f.choice_window is None and f.model_choice is None
+    assert not f.wait_for_choice(0.0)  # none running
+    with pytest.raises(ValueError, match="wait_for_choice: timeout_s=-1"):
+        f.wait_for_choice(-1.0)
+    plain = uwbimu_rs.Best(ANCHORS)
+    assert not plain.choosing and plain.model_choice is None
+
+
 def test_fixed_lag_is_more_accurate_than_the_causal_estimate():
     # handheld_walk, seed 57 (used nowhere else): the horizontal RMSE after 10 s of the rows of
     # every lag, scored at the IMU times, is below 0.8 times the causal steps'. Measured: causal

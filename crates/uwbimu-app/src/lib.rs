@@ -8,7 +8,8 @@
 //! no other module; the runner (`run`) the registry; the model selection ([`select`]) the runner;
 //! [`methods`] (the batch API, and the public path of the registry's and the runner's items) the
 //! selection; calibration, anchor refinement, tuning, offsets, replay, the generality matrix and the consistency
-//! checks [`methods`].
+//! checks [`methods`]; the window of events a method chooses its model on (`model_window`)
+//! [`methods`], and the streamed replay and the [`streaming_choice`] that window.
 
 pub mod anchor_refine;
 pub mod calibrate;
@@ -25,6 +26,7 @@ pub mod map_smoothing;
 pub mod methods;
 pub mod metrics;
 mod model_choice;
+mod model_window;
 pub mod offsets;
 pub mod outlier_smoothing;
 pub mod parallel;
@@ -38,6 +40,7 @@ pub mod select;
 #[cfg(feature = "sim")]
 pub mod sim;
 mod smoothing_passes;
+pub mod streaming_choice;
 pub mod track;
 pub mod tune;
 mod uwb_clock;

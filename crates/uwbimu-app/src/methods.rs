@@ -61,11 +61,7 @@ pub(crate) fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<B
 /// cannot score (no self-initialisation in its window, a failing fold) the input configuration,
 /// saying why: choosing never costs a run.
 pub(crate) fn choose_or_keep(method: Method, input: &BatchInput<'_>) -> ModelChoice {
-    crate::select::choose(method, input).unwrap_or_else(|e| {
-        let mut config = input.config.clone();
-        config.model_selection.enabled = false;
-        ModelChoice { config, candidates: Vec::new(), chosen: 0, reason: format!("no selection: {e}") }
-    })
+    crate::select::choose(method, input).unwrap_or_else(|e| ModelChoice::kept(input.config, e))
 }
 
 /// Runs `method` over many recordings, in parallel on all cores with the `parallel` feature

@@ -35,6 +35,14 @@ pub struct ModelChoice {
 }
 
 impl ModelChoice {
+    /// No selection: `config` as given, with `model_selection.enabled` off (as a choice's
+    /// configuration), no candidates, and the reason `no selection: {why}`.
+    pub fn kept(config: &FilterConfig, why: impl std::fmt::Display) -> Self {
+        let mut config = config.clone();
+        config.model_selection.enabled = false;
+        Self { config, candidates: Vec::new(), chosen: 0, reason: format!("no selection: {why}") }
+    }
+
     /// The chosen candidate (None when no selection ran).
     pub fn chosen(&self) -> Option<&Candidate> {
         self.candidates.get(self.chosen)

@@ -4,8 +4,9 @@ A :class:`LiveNode` owns one streaming filter (``best`` unless the replay file o
 names another). Sources hand it decoded records (:meth:`LiveNode.feed`) or raw messages of a
 mapped topic (:meth:`LiveNode.feed_message`); after each call the new steps go to the sinks
 (:class:`Sink`: DDS, Foxglove, an MCAP file), and with ``live.lag_s`` the fixed-lag smoothed pose
-(:meth:`Sink.smoothed_pose`). :meth:`LiveNode.tick` runs the wall-clock duties:
-silent sensors, diagnostics, and the model choice once ``live.choose_after_s`` of data is in.
+(:meth:`Sink.smoothed_pose`). :meth:`LiveNode.tick` runs the wall-clock duties: silent sensors
+and diagnostics. The model choice of ``best`` (``live.choose_after_s``) runs inside the filter
+(its ``choose_after_s``); the node only says what it did.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from typing import Any, Protocol, cast
@@ -21,7 +21,6 @@ from typing import Any, Protocol, cast
 import numpy as np
 
 from uwbimu_rs import _native
-from uwbimu_rs._calibration import choose_model
 from uwbimu_rs._typing import MethodName
 
 log = logging.getLogger("uwbimu.live")
@@ -123,17 +122,6 @@ def apply_record(f: Any, r: tuple[Any, ...]) -> list[Any]:
     return list(f.add_sensor(kind, list(r[1:])))
 
 
-@dataclass
-class _Choice:
-    """The model choice: every record kept from the start until the chosen model is applied (the
-    new filter is fed them all), the job started once ``choose_after_s`` of IMU data is in."""
-
-    after_s: float
-    records: list[tuple[Any, ...]] = field(default_factory=list)
-    job: Future[dict[str, Any]] | None = None
-    first_t: float | None = None
-
-
 class LiveNode:
     """The estimator of ``uwbimu-live``: feeds records to a streaming filter and the estimate to
     the sinks; thread-safe (sources may call from their own threads).
@@ -166,11 +154,18 @@ class LiveNode:
         self.anchors = np.asarray(anchors, dtype=np.float64)
         self.sinks = sinks or []
         self.clock = clock
-        self._setup = setup
         self._cls = streaming_class(self.method)
-        self._config: Any = setup["config"]
         self._lock = threading.RLock()
-        self._filter = self._new_filter(self._config)
+        choose = float(self.live["choose_after_s"])
+        chooses = _native.METHODS[cast(MethodName, self.method)]["chooses_model"] and choose > 0
+        self._filter = self._cls(
+            self.anchors,
+            initial=setup["initial"],
+            config=setup["config"],
+            reorder_window_s=setup["reorder_window_s"],
+            lag_s=self.live.get("lag_s"),
+            choose_after_s=choose if chooses else None,
+        )
         self._watches: dict[str, SensorWatch] = {}
         self._last_gyro = np.zeros(3)
         self._last_publish = -np.inf
@@ -182,29 +177,19 @@ class LiveNode:
         self._initialized = False
         self.chosen: str | None = None
         """Label of the chosen model (None: the configuration as given)."""
+        self._choice_started = False
+        self._choice_told = False
         self.poses_published = 0
         self._waiting: deque[tuple[float, float]] = deque()
         self.latencies: deque[float] = deque(maxlen=1_000_000)
         """Seconds from each IMU message's arrival to the first step that includes it."""
-        choose = float(self.live["choose_after_s"])
-        self._choice = _Choice(choose) if choose > 0 and self.method == "best" else None
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="uwbimu-choice") if self._choice else None
         log.info(
             "method %s, %d anchors; %s",
             self.method,
             len(self.anchors),
-            f"choosing the model after {choose:g} s of data" if self._choice else "model as configured",
+            f"choosing the model after {choose:g} s of data" if self._filter.choosing else "model as configured",
         )
         log.info("waiting for IMU data (the filter initialises itself once still, then moving)")
-
-    def _new_filter(self, config: Any) -> Any:
-        return self._cls(
-            self.anchors,
-            initial=self._setup["initial"],
-            config=config,
-            reorder_window_s=self._setup["reorder_window_s"],
-            lag_s=self.live.get("lag_s"),
-        )
 
     # ---------------------------------------------------------------------------------------
     # Input
@@ -242,8 +227,6 @@ class LiveNode:
                     self._waiting.append((r[1], now))
                 if not self._apply(r):
                     w.rejected += 1
-                if self._choice is not None:
-                    self._keep_for_choice(r)
             self._emit()
         return len(records)
 
@@ -278,75 +261,60 @@ class LiveNode:
                 for s in self.sinks:
                     s.range_update(u)
 
-    def _keep_for_choice(self, r: tuple[Any, ...]) -> None:
-        c = self._choice
-        assert c is not None
-        c.records.append(r)
-        if r[0] == "imu":
-            c.first_t = r[1] if c.first_t is None else c.first_t
-            if c.job is None and r[1] - c.first_t >= c.after_s and self._pool is not None:
-                self._start_choice()
-
-    def _start_choice(self) -> None:
-        """The choice on the IMU samples and the ranges of every tag kept so far (the other
-        sensors do not enter it: :func:`choose_model` takes IMU and ranges)."""
-        c = self._choice
-        assert c is not None and self._pool is not None
-        imu = np.array([(r[1], *r[2], *r[3]) for r in c.records if r[0] == "imu"])
-        ranges = np.array([(r[1], float(r[2]), r[3], float(r[4] or 0)) for r in c.records if r[0] == "range"]).reshape(-1, 4)
-        if not ranges[:, 3].any():
-            ranges = ranges[:, :3]
-        log.info("choosing the model on %.0f s of data (%d IMU samples, %d ranges)", imu[-1, 0] - imu[0, 0], len(imu), len(ranges))
-        method = cast(MethodName, self.method)
-        c.job = self._pool.submit(
-            choose_model, method, imu, ranges, self.anchors, initial=self._setup["initial"], config=self._config
-        )
-
     def wait_for_choice(self, timeout_s: float) -> bool:
-        """Block until a model choice that has started is made (for trials and tests: a robot
-        does not wait; :meth:`tick` applies it). Returns whether one was waited for."""
-        c = self._choice
-        if c is None or c.job is None:
-            return False
-        c.job.exception(timeout=timeout_s)
-        return True
+        """Block until a model choice that has started is made and applied (for trials and
+        tests: a robot does not wait; the filter applies it at the next record). Returns whether
+        one was waited for."""
+        waited = bool(self._filter.wait_for_choice(timeout_s))
+        with self._lock:
+            self._follow_choice()
+        return waited
 
-    def _finish_choice(self) -> None:
-        """Once the choice is made: a filter with the chosen model, fed every record kept (every
-        sensor and tag, up to the last one received), the replayed past not published again."""
-        c = self._choice
-        if c is None or c.job is None or not c.job.done():
+    def _follow_choice(self) -> None:
+        """Say what the filter's model choice did since the last call: its start, then what it
+        chose and whether the filter switched (it then replayed every record so far, every sensor
+        and tag, with the chosen model; the replayed past is not published again)."""
+        if self._choice_told:
             return
-        self._choice = None
-        if self._pool is not None:
-            self._pool.shutdown(wait=False)
-        try:
-            result = c.job.result()
-        except ValueError as e:
-            log.warning("model choice failed, keeping the configured model: %s", e)
+        f = self._filter
+        if f.choosing:
+            window = f.choice_window
+            if window is not None and not self._choice_started:
+                self._say_choosing(window)
             return
-        self.chosen = result["chosen"]
-        if not result["overrides"]:
-            log.info("model chosen: %s (%s) — the configured model, kept", result["chosen"], result["reason"])
+        self._choice_told = True
+        made = f.model_choice
+        if made is None:  # no choice asked
             return
-        log.info("model chosen: %s (%s); switching: %s", result["chosen"], result["reason"], result["overrides"])
-        self._config = result["config"]
-        self._filter = self._new_filter(self._config)
-        self._initialized = False
-        for r in c.records:
-            try:
-                apply_record(self._filter, r)
-            except ValueError:
-                pass  # refused and counted when it first came
-        self._filter.steps()  # the replayed past is not published again
-        if self._filter.lag_s is not None:
-            self._filter.lagged_steps()
+        if not self._choice_started:
+            self._say_choosing(made["window"])
+        self.chosen = made["chosen"]
+        if made["chosen"] is None:
+            log.warning("model choice failed, keeping the configured model: %s", made["reason"])
+        elif made["switched"]:
+            log.info("model chosen: %s (%s); switching: %s", made["chosen"], made["reason"], made["overrides"])
+            self._initialized = False
+        elif made["overrides"]:
+            log.warning("model chosen: %s (%s)", made["chosen"], made["reason"])
+        else:
+            log.info("model chosen: %s (%s) — the configured model, kept", made["chosen"], made["reason"])
+
+    def _say_choosing(self, window: dict[str, Any]) -> None:
+        self._choice_started = True
+        log.info(
+            "choosing the model on %.0f s of data (%d IMU samples, %d ranges, %d other readings)",
+            window["duration_s"],
+            window["imu"],
+            window["ranges"],
+            window["observations"],
+        )
 
     # ---------------------------------------------------------------------------------------
     # Output
     # ---------------------------------------------------------------------------------------
 
     def _emit(self) -> None:
+        self._follow_choice()
         f = self._filter
         if not f.initialized:
             return
@@ -412,10 +380,10 @@ class LiveNode:
                 publish(pose)
 
     def tick(self) -> None:
-        """The wall-clock duties: silent sensors, the model choice, diagnostics."""
+        """The wall-clock duties: silent sensors, diagnostics (and the log of the model choice)."""
         now = self.clock()
         with self._lock:
-            self._finish_choice()
+            self._follow_choice()
             silent_after = float(self.live["silent_after_s"])
             for w in self._watches.values():
                 last = w.since if w.last_arrival is None else w.last_arrival
@@ -439,7 +407,7 @@ class LiveNode:
         health = f.health
         values: dict[str, Any] = {
             "method": self.method,
-            "model": self.chosen or ("choosing" if self._choice else "as configured"),
+            "model": self.chosen or ("choosing" if f.choosing else "as configured"),
             "initialized": f.initialized,
             "poses_published": self.poses_published,
             "smoothed_poses_published": self.smoothed_poses_published,
@@ -488,5 +456,3 @@ class LiveNode:
             self._emit()
             for s in self.sinks:
                 s.close()
-            if self._pool is not None:
-                self._pool.shutdown(wait=False, cancel_futures=True)

@@ -2,20 +2,25 @@
 //! in the `streaming_classes!` declaration below and declared each by `py_filter!`; its docstring
 //! is the registry row of its method (`uwbimu_app::methods`).
 
+use std::time::Duration;
+
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use uwbimu_app::columns::step_columns;
 use uwbimu_app::methods::{Input, Method};
-use uwbimu_estimation::filters::{InertialFilter, InertialKind};
+use uwbimu_app::streaming_choice::{ChoiceSettings, ChoiceWindow, ChoosingStream, OpenStream, Refed};
+use uwbimu_estimation::filters::{InertialFilter, InertialKind, NamedFilter};
 use uwbimu_estimation::pipeline::{smoothed_nodes, Event, FixedLag, Stream, StreamOptions};
 use uwbimu_vocabulary::anchor_ids::AnchorIds;
-use uwbimu_vocabulary::config::InitialState;
 use uwbimu_vocabulary::config::DEFAULT_REORDER_WINDOW_S;
+use uwbimu_vocabulary::config::{FilterConfig, InitialState};
 use uwbimu_vocabulary::error::Error;
+use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{AltitudeSample, ImuSample, MagSample, OdometrySample, RangeMeasurement, TdoaMeasurement};
 use uwbimu_vocabulary::sensors::{validate_records, Observation, SensorKind};
 
+use super::super::calibrate::model_choice_dict;
 use super::super::convert::{array, columns};
 use super::super::errors::PyResult;
 use super::super::repr;
@@ -32,16 +37,17 @@ const RECORD_CAPACITY: usize = 1 << 16;
 
 /// A Python class wrapping one named filter, with the streaming API: the filter driven by its own
 /// [`Stream`] (the batch API's event loop behind a reorder buffer, self-initialising without an
-/// initial state), so streaming equals batch. Its docstring is [`class_doc`].
+/// initial state), so streaming equals batch, in a [`ChoosingStream`] that chooses the model of a
+/// method that chooses it (`choose_after_s`). Its docstring is [`class_doc`].
 macro_rules! py_filter {
     ($py:ident, $core:ty) => {
         #[doc = concat!("The streaming class of the filter `", stringify!($py), "`; its Python docstring is [`class_doc`].")]
         #[pyclass(module = "uwbimu_rs._native")]
-        pub struct $py(Stream<$core>, Option<AnchorIds>, RecentSteps, Option<Lagged>);
+        pub struct $py(ChoosingStream<$core>, Option<AnchorIds>, RecentSteps, Option<Lagged>);
 
         impl $py {
             fn estimator(&self, what: &str) -> PyResult<&$core> {
-                self.0.estimator().ok_or_else(|| {
+                self.0.stream().estimator().ok_or_else(|| {
                     Error::InvalidCall(format!(
                         "{what}: the filter has not initialised itself yet (see `initialized`; feed IMU samples and ranges, or give `initial=`)"
                     ))
@@ -50,7 +56,7 @@ macro_rules! py_filter {
             }
 
             fn anchor_count(&self) -> usize {
-                self.0.anchor_count()
+                self.0.stream().anchor_count()
             }
 
             /// The anchor row of the argument `arg` of `call`: an anchor index, or with anchors
@@ -67,21 +73,42 @@ macro_rules! py_filter {
             }
 
             /// Gives `event` to the stream (which checks its time) and emits the unit check's
-            /// warnings; returns the reports of the updates it applied.
+            /// warnings; returns the reports of the updates it applied. A model choice that has
+            /// ended is applied after it (`switch_if_chosen`).
             fn push(&mut self, py: Python<'_>, call: &'static str, event: Event) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.push(call, event)?;
-                super::super::errors::warn_all(py, &self.0.take_warnings())?;
-                self.applied(false)
+                super::super::errors::warn_all(py, &self.0.stream_mut().take_warnings())?;
+                let reports = self.applied(false)?;
+                self.switch_if_chosen();
+                Ok(reports)
+            }
+
+            /// Applies a model choice that has ended (`choose_after_s`, [`ChoosingStream`]): on a
+            /// model change the stream replays the input with the chosen model, the fixed-lag
+            /// smoother (`lag_s`) driven over the replay again as it was the first time; the
+            /// replay's steps and rows are not kept (they were, once).
+            fn switch_if_chosen(&mut self) {
+                let (lagged, mut restarted) = (self.3.as_ref(), None);
+                let switched = self.0.switch_if_chosen(&mut |stream, refed| {
+                    if let Some(lagged) = lagged {
+                        // A failed pass skips its rows and the smoother goes on, as it did when
+                        // the data first came.
+                        let _ = restarted.get_or_insert_with(|| lagged.restarted()).after(stream, refed == Refed::Flush);
+                    }
+                });
+                if let (true, Some(lagged), Some(restarted)) = (switched, self.3.as_mut(), restarted) {
+                    lagged.take_smoother(restarted);
+                }
             }
 
             /// The reports of the updates the last call applied; the steps it made move into
             /// the kept ones (`steps()`), and the fixed-lag smoother (`lag_s`) passes when due
             /// (with `finish`, emits the rest).
             fn applied(&mut self, finish: bool) -> PyResult<Vec<PyUpdateReport>> {
-                self.2.collect(&mut self.0);
-                let reports = applied_reports(&mut self.0);
+                self.2.collect(self.0.stream_mut());
+                let reports = applied_reports(self.0.stream_mut());
                 if let Some(lagged) = self.3.as_mut() {
-                    lagged.after(&mut self.0, finish)?;
+                    lagged.after(self.0.stream_mut(), finish)?;
                 }
                 Ok(reports)
             }
@@ -103,7 +130,7 @@ macro_rules! py_filter {
             }
 
             #[new]
-            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false, keep_steps=10_000, lag_s=None))]
+            #[pyo3(signature = (anchors, *, initial=None, config=None, record=false, reorder_window_s=None, strict=false, keep_steps=10_000, lag_s=None, choose_after_s=None))]
             #[allow(clippy::too_many_arguments)]
             fn new(
                 anchors: &Bound<'_, PyAny>,
@@ -114,33 +141,70 @@ macro_rules! py_filter {
                 strict: bool,
                 keep_steps: usize,
                 lag_s: Option<f64>,
+                choose_after_s: Option<f64>,
             ) -> PyResult<Self> {
                 let reorder_window_s = reorder_window_s.unwrap_or(DEFAULT_REORDER_WINDOW_S);
                 let lagged = Lagged::new(lag_s, record, keep_steps)?;
-                let lag = lagged.is_some();
                 let (anchors, ids) = read_anchors(anchors)?;
                 let config = read_config(config)?;
+                let initial = read_optional_initial(initial)?;
+                let choice = choose_after_s
+                    .map(|after_s| choice_settings(InertialKind::$py, after_s, &anchors, initial.as_ref()))
+                    .transpose()?;
+                let recording = Recording { record, lag: lagged.is_some(), steps: keep_steps > 0 };
                 let options = StreamOptions { reorder_window_s, strict };
-                let build = {
-                    let anchors = anchors.clone();
-                    let config = config.clone();
-                    move |initial: &InitialState| -> uwbimu_vocabulary::error::Result<$core> {
-                        let mut filter = <$core>::new(anchors.clone(), initial, config.clone())?;
-                        if record {
-                            filter.core_mut().start_recording(RECORD_CAPACITY);
-                        }
-                        if lag {
-                            FixedLag::start_recording(filter.core_mut());
-                        }
-                        Ok(filter)
-                    }
-                };
-                let mut stream = match read_optional_initial(initial)? {
-                    Some(initial) => Stream::new(build(&initial)?, options)?,
-                    None => Stream::self_initializing(anchors, config, Box::new(build), options)?,
-                };
-                let steps = RecentSteps::new(keep_steps, &mut stream);
-                Ok(Self(stream, ids, steps, lagged))
+                let open = open_stream::<$core>(anchors, initial, options, recording);
+                let stream = ChoosingStream::new(config, open, choice)?;
+                Ok(Self(stream, ids, RecentSteps::new(keep_steps), lagged))
+            }
+
+            /// Whether the model choice (`choose_after_s`) is pending: waiting for its data,
+            /// running, or ended and applied at the next call that feeds the filter. False
+            /// without ``choose_after_s`` and with ``model_selection.enabled`` off.
+            #[getter]
+            fn choosing(&self) -> bool {
+                self.0.choosing()
+            }
+
+            /// The data the model choice runs on, once it started and until it is applied (None
+            /// otherwise): a dict with `duration_s` (from the first IMU sample to the last one),
+            /// `imu`, `ranges` and `observations` (the other sensors' readings), counts.
+            #[getter]
+            fn choice_window<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+                self.0.choice_window().map(|w| window_dict(py, &w)).transpose()
+            }
+
+            /// The model choice once applied (None before, and without ``choose_after_s``): the
+            /// dict of ``choose_model`` (`config`, `overrides`, `chosen` label or None, `reason`,
+            /// `candidates` as a list of dicts) with `switched` (whether the filter runs with the
+            /// chosen model now: false when the configured one was kept, the reason says why) and
+            /// `window` (as ``choice_window``).
+            #[getter]
+            fn model_choice<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+                let Some(made) = self.0.choice() else { return Ok(None) };
+                let d = model_choice_dict(py, &made.choice)?;
+                d.set_item("switched", made.switched)?;
+                d.set_item("window", window_dict(py, &made.window)?)?;
+                Ok(Some(d))
+            }
+
+            /// Blocks, without the GIL, until the model choice that has started has ended or
+            /// `timeout_s` (s, finite and >= 0) has passed, then applies it (for tests and trials:
+            /// a robot does not wait; the next call that feeds the filter applies it). Returns
+            /// whether a choice was waited for (False when none was running).
+            fn wait_for_choice(slf: &Bound<'_, Self>, timeout_s: f64) -> PyResult<bool> {
+                let timeout = Duration::try_from_secs_f64(timeout_s).map_err(|_| Error::BadArgument {
+                    call: "wait_for_choice",
+                    arg: format!("timeout_s={timeout_s}"),
+                    reason: "must be finite and >= 0 s".into(),
+                })?;
+                let Some(waiter) = slf.try_borrow().map_err(PyErr::from)?.0.waiter() else { return Ok(false) };
+                slf.py().detach(|| waiter.wait(timeout));
+                // Busy elsewhere (another thread's call): that call or the next applies it.
+                if let Ok(mut this) = slf.try_borrow_mut() {
+                    this.switch_if_chosen();
+                }
+                Ok(true)
             }
 
             /// The steps made since the previous call (or since the start), one row per IMU
@@ -222,7 +286,7 @@ macro_rules! py_filter {
             fn add_range(&mut self, py: Python<'_>, t: f64, anchor: f64, range: f64, tag: Option<f64>) -> PyResult<Vec<PyUpdateReport>> {
                 const CALL: &str = "add_range";
                 let anchor = self.anchor_row(CALL, "anchor", anchor)?;
-                let tag = tag_arg(CALL, tag.unwrap_or(0.0), self.0.tag_count())?;
+                let tag = tag_arg(CALL, tag.unwrap_or(0.0), self.0.stream().tag_count())?;
                 let r = RangeMeasurement { t_s: t, anchor, range_m: finite(CALL, "range", range)?, tag };
                 self.push(py, CALL, Event::Range(r))
             }
@@ -323,8 +387,10 @@ macro_rules! py_filter {
             /// ``lag_s``, emits every fixed-lag row not yet emitted. Returns the reports.
             fn flush(&mut self, py: Python<'_>) -> PyResult<Vec<PyUpdateReport>> {
                 self.0.flush()?;
-                super::super::errors::warn_all(py, &self.0.take_warnings())?;
-                self.applied(true)
+                super::super::errors::warn_all(py, &self.0.stream_mut().take_warnings())?;
+                let reports = self.applied(true)?;
+                self.switch_if_chosen();
+                Ok(reports)
             }
 
             /// `Name(anchors=4, initialized=False, t=None)`: the anchor count, whether the
@@ -342,19 +408,19 @@ macro_rules! py_filter {
             /// Ranges waiting in the open epoch.
             #[getter]
             fn pending(&self) -> usize {
-                self.0.pending_ranges()
+                self.0.stream().pending_ranges()
             }
 
             /// Events waiting in the reorder buffer or kept for the self-initialisation.
             #[getter]
             fn buffered(&self) -> usize {
-                self.0.buffered()
+                self.0.stream().buffered()
             }
 
             /// Whether the filter has an initial state (given, or found from the data).
             #[getter]
             fn initialized(&self) -> bool {
-                self.0.estimator().is_some()
+                self.0.stream().estimator().is_some()
             }
 
             /// How the filter was initialised: None while waiting; else a dict with `from`
@@ -362,11 +428,11 @@ macro_rules! py_filter {
             /// ("motion" or "fallback"), as the batch `info`.
             #[getter]
             fn init_info<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-                if self.0.estimator().is_none() {
+                if self.0.stream().estimator().is_none() {
                     return Ok(None);
                 }
                 let d = PyDict::new(py);
-                match self.0.self_init() {
+                match self.0.stream().self_init() {
                     Some(s) => {
                         d.set_item("from", "self")?;
                         init_info_items(&d, s)?;
@@ -380,14 +446,14 @@ macro_rules! py_filter {
             /// `ranges_before_start`, `reordered`, `late_dropped`.
             #[getter]
             fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-                health_dict(py, &self.0.health())
+                health_dict(py, &self.0.stream().health())
             }
 
             /// Filter time, s (None before the first IMU sample is applied; the filter lags the
             /// newest data by the reorder window).
             #[getter]
             fn time(&self) -> Option<f64> {
-                self.0.estimator().and_then(|e| e.core().time_s())
+                self.0.stream().estimator().and_then(|e| e.core().time_s())
             }
 
             /// Snapshot of the nominal state: dict of numpy arrays `position`, `velocity`,
@@ -408,6 +474,73 @@ macro_rules! py_filter {
             }
         }
     };
+}
+
+/// What the filter and the stream of a streaming class record.
+#[derive(Debug, Clone, Copy)]
+struct Recording {
+    /// The filter's run, for `smooth()` (`record=True`).
+    record: bool,
+    /// The filter's run for the fixed-lag smoother (`lag_s`).
+    lag: bool,
+    /// The stream's steps, for `steps()` (`keep_steps > 0`).
+    steps: bool,
+}
+
+/// Opens the stream of a streaming class of the filter `F` with the configuration it is given
+/// ([`OpenStream`]): for `anchors`, from `initial` (None: self-initialising), with `options`,
+/// recording as `recording` says.
+fn open_stream<F: NamedFilter>(
+    anchors: Vec<Vec3>,
+    initial: Option<InitialState>,
+    options: StreamOptions,
+    recording: Recording,
+) -> OpenStream<F> {
+    Box::new(move |config: &FilterConfig| {
+        let build = {
+            let (anchors, config) = (anchors.clone(), config.clone());
+            move |initial: &InitialState| -> uwbimu_vocabulary::error::Result<F> {
+                let mut filter = F::build(anchors.clone(), initial, config.clone())?;
+                if recording.record {
+                    filter.core_mut().start_recording(RECORD_CAPACITY);
+                }
+                if recording.lag {
+                    FixedLag::start_recording(filter.core_mut());
+                }
+                Ok(filter)
+            }
+        };
+        let mut stream = match &initial {
+            Some(initial) => Stream::new(build(initial)?, options)?,
+            None => Stream::self_initializing(anchors.clone(), config.clone(), Box::new(build), options)?,
+        };
+        if recording.steps {
+            stream.record_steps();
+        }
+        Ok(stream)
+    })
+}
+
+/// The model choice of `choose_after_s` for the streaming class of `kind` ([`ChoiceSettings`]).
+fn choice_settings(
+    kind: InertialKind,
+    after_s: f64,
+    anchors: &[Vec3],
+    initial: Option<&InitialState>,
+) -> PyResult<ChoiceSettings> {
+    let method = Method::of_filter(kind)
+        .ok_or_else(|| Error::InvalidCall(format!("choose_after_s: {} is the filter of no method", kind.type_name())))?;
+    Ok(ChoiceSettings { method, after_s, anchors: anchors.to_vec(), initial: initial.cloned() })
+}
+
+/// The data of a model choice as a dict: `duration_s`, `imu`, `ranges`, `observations`.
+fn window_dict<'py>(py: Python<'py>, w: &ChoiceWindow) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("duration_s", w.duration_s)?;
+    d.set_item("imu", w.imu)?;
+    d.set_item("ranges", w.ranges)?;
+    d.set_item("observations", w.observations)?;
+    Ok(d)
 }
 
 /// Declares the streaming classes of the filter types listed, each named as its type (a variant of

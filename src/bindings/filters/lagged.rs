@@ -12,6 +12,8 @@ use super::recent_steps::RecentSteps;
 /// for `lagged_steps()` (the oldest dropped and counted beyond).
 pub(super) struct Lagged {
     smoother: FixedLag,
+    /// The smoother as it was made, before it saw anything (for [`Lagged::restarted`]).
+    unused: FixedLag,
     kept: RecentSteps,
     incoming: Vec<StepRecord>,
 }
@@ -30,7 +32,20 @@ impl Lagged {
         if keep_steps == 0 {
             return Err(refuse("needs keep_steps > 0: its rows wait there for lagged_steps()"));
         }
-        Ok(Some(Self { smoother, kept: RecentSteps::bounded(keep_steps), incoming: Vec::new() }))
+        Ok(Some(Self { unused: smoother.clone(), smoother, kept: RecentSteps::new(keep_steps), incoming: Vec::new() }))
+    }
+
+    /// A smoother of the same lag that has seen nothing and keeps no rows: for a stream that
+    /// starts again from its first event (a model change), whose replayed rows were emitted once
+    /// already. Drive it with [`Lagged::after`], then [`Lagged::take_smoother`].
+    pub(super) fn restarted(&self) -> Self {
+        Self { smoother: self.unused.clone(), unused: self.unused.clone(), kept: RecentSteps::new(0), incoming: Vec::new() }
+    }
+
+    /// Goes on with the smoother of `restarted` (driven over the new stream's replay) in place of
+    /// this one's; the rows kept for `lagged_steps()` stay.
+    pub(super) fn take_smoother(&mut self, restarted: Self) {
+        self.smoother = restarted.smoother;
     }
 
     /// After a call that fed `stream`: a pass when one is due (or, with `finish`, the rest up to

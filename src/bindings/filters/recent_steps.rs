@@ -18,11 +18,10 @@ pub(super) struct RecentSteps {
 }
 
 impl RecentSteps {
-    /// Keeps up to `capacity` steps; with a capacity above 0 `stream` records them from now on.
-    pub(super) fn new<E: Estimator>(capacity: usize, stream: &mut Stream<E>) -> Self {
-        if capacity > 0 {
-            stream.record_steps();
-        }
+    /// Keeps up to `capacity` steps, none with a capacity of 0: moved in from a stream that
+    /// records them ([`Stream::record_steps`], [`RecentSteps::collect`]) or given
+    /// ([`RecentSteps::keep`], a stream's fixed-lag rows).
+    pub(super) fn new(capacity: usize) -> Self {
         Self { kept: VecDeque::new(), capacity, incoming: Vec::new(), dropped: 0 }
     }
 
@@ -34,12 +33,6 @@ impl RecentSteps {
         }
         stream.move_steps(&mut self.incoming);
         self.keep_incoming();
-    }
-
-    /// Keeps up to `capacity` steps moved in with [`RecentSteps::keep`] (a stream's fixed-lag
-    /// rows), none with a capacity of 0.
-    pub(super) fn bounded(capacity: usize) -> Self {
-        Self { kept: VecDeque::new(), capacity, incoming: Vec::new(), dropped: 0 }
     }
 
     /// Moves `steps` in (leaving it empty), dropping the oldest beyond the capacity.

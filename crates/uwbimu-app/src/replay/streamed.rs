@@ -35,7 +35,7 @@ use uwbimu_io::{IoError, IoResult as Result, Mapping, RecordingSurvey};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::{Error as CoreError, Result as CoreResult};
 use uwbimu_vocabulary::math::Vec3;
-use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
+use uwbimu_vocabulary::records::RangeMeasurement;
 use uwbimu_vocabulary::sensors::SensorKind;
 use uwbimu_vocabulary::state::NominalState;
 
@@ -51,9 +51,10 @@ use truth_match::TruthMatch;
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
 use crate::map_smoothing::{blend_state, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
+use crate::model_window::ModelWindow;
 use crate::outlier_smoothing::{Residual, ResidualWalk};
 use crate::registry::{Method, Run};
-use crate::run::{check_inputs, check_tags, BatchInput};
+use crate::run::{check_inputs, check_tags};
 use crate::smoothing_passes::{after_first_pass, PassRunner};
 
 /// What [`replay_streamed`] is given besides the method.
@@ -133,32 +134,18 @@ impl StreamedReplay {
 /// The events of the first `window_s` of the log, kept for the model selection.
 struct Prefix {
     end_s: f64,
-    events: Vec<Event>,
+    window: ModelWindow,
 }
 
 impl Prefix {
-    /// The model chosen on the kept events ([`crate::methods::choose_or_keep`] on them as arrays).
+    /// Keeps the events up to `end_s`.
+    fn new(end_s: f64) -> Self {
+        Self { end_s, window: ModelWindow::default() }
+    }
+
+    /// The model chosen on the kept events ([`ModelWindow::choose`]).
     fn choose(&self, method: Method, input: &StreamedInput<'_>) -> ModelChoice {
-        let (mut imu, mut ranges, mut observations) = (Vec::<ImuSample>::new(), Vec::new(), Vec::new());
-        for e in &self.events {
-            match e {
-                Event::Imu(s) => imu.push(*s),
-                Event::Range(r) => ranges.push(*r),
-                Event::Observation(o) => observations.push(*o),
-            }
-        }
-        let batch = BatchInput {
-            imu: &imu,
-            ranges: &ranges,
-            anchors: &input.survey.anchors.positions,
-            initial: input.initial,
-            config: input.config,
-            smooth: false,
-            observations: &observations,
-            progress: None,
-            marginals_every_s: None,
-        };
-        crate::methods::choose_or_keep(method, &batch)
+        self.window.choose(method, &input.survey.anchors.positions, input.initial, input.config)
     }
 }
 
@@ -234,7 +221,7 @@ impl<E: Estimator + Send + Sync + 'static> RunState<'_, '_, E> {
     fn event(&mut self, event: Event) -> Result<()> {
         if let Some(prefix) = self.prefix.as_mut() {
             if event.t_s() <= prefix.end_s {
-                prefix.events.push(event);
+                prefix.window.push(event);
                 return Ok(());
             }
             self.choose()?;
@@ -248,8 +235,8 @@ impl<E: Estimator + Send + Sync + 'static> RunState<'_, '_, E> {
         let choice = prefix.choose(self.method, self.input);
         self.start(&choice.config)?;
         self.model = Some(choice);
-        for e in prefix.events {
-            self.feed(e)?;
+        for e in prefix.window.events() {
+            self.feed(*e)?;
         }
         Ok(())
     }

@@ -116,7 +116,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         method,
         input,
         kind,
-        prefix: selecting.then(|| Prefix { end_s: imu_span_s.0 + input.config.model_selection.window_s, events: Vec::new() }),
+        prefix: selecting.then(|| Prefix::new(imu_span_s.0 + input.config.model_selection.window_s)),
         stream: None,
         model: None,
         out,
@@ -132,7 +132,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         run.start(&choice.config)?;
         run.model = Some(choice.clone());
     } else if choosing && !scorable {
-        let empty = Prefix { end_s: imu_span_s.0, events: Vec::new() };
+        let empty = Prefix::new(imu_span_s.0);
         let choice = empty.choose(method, input);
         run.start(&choice.config)?;
         run.model = Some(choice);
