@@ -108,7 +108,7 @@ fn altitude(seeds: u64, methods: &[Method]) -> Res<()> {
                         })?,
                     };
                     if offset_state {
-                        (config.altitude.offset_std, config.altitude.offset_walk) = (0.5, altimeter.offset_walk);
+                        (config.sensors.altitude.offset_std, config.sensors.altitude.offset_walk) = (0.5, altimeter.offset_walk);
                     }
                     let data = simulate(&sim)?;
                     for (k, with) in [false, true].into_iter().enumerate() {

@@ -288,7 +288,7 @@ fn sim_zoo<'py>(
     apply(&mut scenario.sim, &collect_overrides([overrides, kwargs])?)?;
     let matched = sim::matched_config(&scenario.sim);
     scenario.config.ranging.tdoa_std = matched.ranging.tdoa_std;
-    (scenario.config.altitude, scenario.config.odometry) = (matched.altitude, matched.odometry);
+    (scenario.config.sensors.altitude, scenario.config.sensors.odometry) = (matched.sensors.altitude, matched.sensors.odometry);
     scenario.config.mounting.lever_arm = sim::lever_arms_seen(&scenario.sim, &scenario.config.mounting.imu_rotation);
     let d = run(py, scenario.sim, Some(scenario.config))?;
     d.set_item("default_sensors", scenario.default_sensors)?;

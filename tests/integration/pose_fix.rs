@@ -71,10 +71,10 @@ fn the_lever_arm_places_the_fixes_and_a_large_std_scale_silences_them() {
     let fixes = observations(&data.pose_fix);
     let rmse_with = |s: &Scenario, fixes: &[Observation]| rmse(&steps(Method::Ekf, s, &data, &initial, fixes).0, &data);
     let (told, without) = (rmse_with(&s, &fixes), rmse_with(&s, &[]));
-    s.config.pose_fix.lever_arm = Vec3::zeros();
+    s.config.sensors.pose_fix.lever_arm = Vec3::zeros();
     let untold = rmse_with(&s, &fixes);
-    s.config.pose_fix.lever_arm = s.sim.pose_fix.as_ref().expect("fixes").lever_arm_m;
-    s.config.pose_fix.std_scale = 1e4;
+    s.config.sensors.pose_fix.lever_arm = s.sim.pose_fix.as_ref().expect("fixes").lever_arm_m;
+    s.config.sensors.pose_fix.std_scale = 1e4;
     let silenced = rmse_with(&s, &fixes);
     eprintln!("RMSE with the lever arm {told:.3} m, without it {untold:.3} m; σ × 1e4 {silenced:.3} m; no fixes {without:.3} m");
     // The camera sits 0.3 m ahead of the IMU: fixes taken at the IMU pull the track off by that.

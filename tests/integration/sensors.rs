@@ -88,7 +88,7 @@ fn the_altitude_noise_key_sets_its_weight() {
         rms(&run(Method::Ekf, &s, &data, &obs, config).iter().map(|(_, e, x)| e[2] - x[2]).collect::<Vec<_>>())
     };
     let mut loose = s.config.clone();
-    loose.altitude.std = 1.0;
+    loose.sensors.altitude.std = 1.0;
     let (matched, told_loose) = (z(&s.config), z(&loose));
     assert!(told_loose > 2.0 * matched, "σ 1 m: {told_loose}, matched: {matched}");
 }
@@ -105,7 +105,7 @@ fn a_barometer_offset_state_tracks_the_wandering_offset() {
     for seed in 0..2 {
         let (s, data) = scenario("stop_and_go", seed, |sim| sim.altimeter = Some(baro.clone()));
         let mut offset_state = s.config.clone();
-        (offset_state.altitude.offset_std, offset_state.altitude.offset_walk) = (0.5, 0.02);
+        (offset_state.sensors.altitude.offset_std, offset_state.sensors.altitude.offset_walk) = (0.5, 0.02);
         for method in [Method::Ekf, Method::Riekf] {
             let obs = taken(method, &data);
             let z = |obs: &[Observation], config: &FilterConfig| {
@@ -141,7 +141,7 @@ fn a_barometer_offset_state_tracks_the_wandering_offset() {
 fn the_offset_state_needs_a_kalman_strategy() {
     let (s, data) = scenario("stop_and_go", 0, |sim| sim.altimeter = Some(AltimeterConfig::default()));
     let mut config = s.config.clone();
-    config.altitude.offset_std = 0.5;
+    config.sensors.altitude.offset_std = 0.5;
     let initial = s.true_initial(&data).expect("initial");
     let input = BatchInput {
         imu: &data.imu,

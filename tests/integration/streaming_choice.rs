@@ -50,7 +50,7 @@ fn a_model_change_equals_the_replay_of_every_sensor_and_tag_with_the_chosen_mode
     let matched = matched_config(&scenario.sim);
     let mut config = scenario.config.clone();
     config.ranging.tdoa_std = matched.ranging.tdoa_std;
-    (config.altitude, config.odometry) = (matched.altitude, matched.odometry);
+    (config.sensors.altitude, config.sensors.odometry) = (matched.sensors.altitude, matched.sensors.odometry);
     config.mounting.lever_arm = lever_arms_seen(&scenario.sim, &config.mounting.imu_rotation);
     let mut data = simulate(&scenario.sim).unwrap();
     for r in &mut data.ranges {

@@ -9,39 +9,31 @@
 //! (`range_std`, `zupt`, …) were removed rather than kept as aliases.
 
 mod lever_arms;
-mod parse;
+pub(crate) mod parse;
 mod range_calibration;
-mod sections;
+pub(crate) mod sections;
+pub(crate) mod value;
 
 use parse::{flag, non_negative, quaternion, vec3, vec3_or_scalar};
 
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
+use crate::sensors::SensorSections;
 
 pub use lever_arms::{LeverArms, MAX_TAGS};
 pub use range_calibration::{eval_cubic, Cubic, RangeCalibration};
 pub use sections::{
     check_window, AdaptiveConfig, AidingConfig, AltitudeConfig, ConstraintsConfig, GateConfig, InitConfig, InsConfig,
-    ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, PoseFixConfig, RangeBiasConfig, RangingConfig,
-    RobustConfig, SageHusaSection, Section, SmoothingConfig, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY,
+    ModelSelectionConfig, MountingConfig, OdometryConfig, PlanarConfig, RangeBiasConfig, RangingConfig, RobustConfig,
+    SageHusaSection, Section, SectionVisitor, SectionVisitorMut, SmoothingConfig, UnscentedConfig, DEFAULT_ACCEL_NOISE_DENSITY,
     DEFAULT_EPOCH_WINDOW_S, DEFAULT_GYRO_NOISE_DENSITY, DEFAULT_RANGE_STD_M, DEFAULT_TDOA_STD_M, MAX_CEKF_WINDOW,
     MAX_EPOCH_WINDOW_S, MAX_MAP_PASSES, MAX_OUTLIER_PASSES, MAX_SAGE_HUSA_WINDOW, MAX_SPEED_HISTORY, MAX_ZUPT_WINDOW,
 };
+pub use value::ConfigValue;
 
 /// Default reorder window of a stream of measurements, s: how late a measurement may arrive and
 /// still be put in time order (a stream's, and a replay mapping's `reorder_window_s`).
 pub const DEFAULT_REORDER_WINDOW_S: f64 = 0.5;
-
-/// A configuration value as it arrives from a dict: a scalar or a vector.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ConfigValue {
-    /// A single number.
-    Scalar(f64),
-    /// A sequence of numbers.
-    Vector(Vec<f64>),
-    /// A switch.
-    Flag(bool),
-}
 
 /// Settings of every filter, in sections (see the module doc).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -76,20 +68,18 @@ pub struct FilterConfig {
     pub planar: PlanarConfig,
     /// Gravity and geomagnetic aiding of `ackf`.
     pub aiding: AidingConfig,
-    /// An altitude sensor's noise.
-    pub altitude: AltitudeConfig,
-    /// Wheel odometry's noise.
-    pub odometry: OdometryConfig,
-    /// An external pose fix's lever arm and trust.
-    pub pose_fix: PoseFixConfig,
+    /// The sections of the sensors of the registry that have one (`altitude`, `odometry`,
+    /// `pose_fix`, …), declared by their rows ([`crate::sensors`]).
+    pub sensors: SensorSections,
     /// Per-anchor cubic range calibration (Wang et al. 2018 §2.2, §4.1) applied to the ranges before any
     /// batch method runs; empty by default. Set from Python as `{anchor: [c0, c1, c2, c3]}` under
     /// the key `range_calibration` (a table, not a section field).
     pub range_calibration: RangeCalibration,
 }
 
-/// Calls `$body` with `$s` bound to each section of `$config` in declaration order (`mut`:
-/// mutably); the one list of the sections.
+/// Calls `$body` with `$s` bound to each section of `$config` but the sensors' in declaration
+/// order (`mut`: mutably); the one list of those sections ([`FilterConfig::visit_sections`] adds
+/// the sensors').
 macro_rules! for_each_section {
     ($config:expr, |$s:ident| $body:expr) => {
         for_each_section!(@ [&] $config, |$s| $body)
@@ -115,21 +105,45 @@ macro_rules! for_each_section {
             { let $s = $($r)+ c.unscented; $body },
             { let $s = $($r)+ c.planar; $body },
             { let $s = $($r)+ c.aiding; $body },
-            { let $s = $($r)+ c.altitude; $body },
-            { let $s = $($r)+ c.odometry; $body },
-            { let $s = $($r)+ c.pose_fix; $body },
         ]
     }};
 }
 
-/// Sets `field` of `s` when `s` is the section named `section`; None when it is another.
-fn set_in<S: Section>(s: &mut S, section: &str, field: &str, value: &ConfigValue) -> Option<Result<()>> {
-    (S::NAME == section).then(|| s.set(field, value))
+/// Sets `field` of the section named `section` (its result stays None when no section has the
+/// name).
+struct SetIn<'a> {
+    section: &'a str,
+    field: &'a str,
+    value: &'a ConfigValue,
+    result: Option<Result<()>>,
 }
 
-/// `(section name, its field names, their docs)` for a section type.
-fn docs_of<S: Section>(_: &S) -> (&'static str, &'static [&'static str], &'static [&'static str]) {
-    (S::NAME, S::KEYS, S::DOCS)
+impl SectionVisitorMut for SetIn<'_> {
+    fn visit<S: Section>(&mut self, s: &mut S) {
+        if S::NAME == self.section {
+            self.result = Some(s.set(self.field, self.value));
+        }
+    }
+}
+
+/// `(section name, its field names, their docs)` of each section visited.
+#[derive(Default)]
+struct Docs(Vec<(&'static str, &'static [&'static str], &'static [&'static str])>);
+
+impl SectionVisitor for Docs {
+    fn visit<S: Section>(&mut self, _: &S) {
+        self.0.push((S::NAME, S::KEYS, S::DOCS));
+    }
+}
+
+/// `(section name, its entries)` of each section visited.
+#[derive(Default)]
+struct Entries(Vec<(&'static str, Vec<(&'static str, ConfigValue)>)>);
+
+impl SectionVisitor for Entries {
+    fn visit<S: Section>(&mut self, s: &S) {
+        self.0.push((S::NAME, s.entries()));
+    }
 }
 
 /// One configuration key as the declaration gives it: the key, its default and its doc.
@@ -143,17 +157,26 @@ pub struct KeyDoc {
     pub doc: String,
 }
 
-/// `(section name, its entries)` for a section.
-fn entries_of<S: Section>(s: &S) -> (&'static str, Vec<(&'static str, ConfigValue)>) {
-    (S::NAME, s.entries())
-}
-
 impl FilterConfig {
+    /// Calls `v` with each section in declaration order, the sensors' last.
+    pub fn visit_sections(&self, v: &mut impl SectionVisitor) {
+        for_each_section!(self, |s| v.visit(s));
+        self.sensors.visit(v);
+    }
+
+    /// Calls `v` with each section, mutably, in declaration order, the sensors' last.
+    pub fn visit_sections_mut(&mut self, v: &mut impl SectionVisitorMut) {
+        for_each_section!(mut &mut *self, |s| v.visit(s));
+        self.sensors.visit_mut(v);
+    }
+
     /// Every section key with its default and doc, in declaration order (the source of the key
     /// tables in the docs and of `FilterConfig.describe()` in Python).
     pub fn key_docs() -> Vec<KeyDoc> {
         let defaults = Self::default().entries();
-        for_each_section!(&Self::default(), |s| docs_of(s))
+        let mut docs = Docs::default();
+        Self::default().visit_sections(&mut docs);
+        docs.0
             .into_iter()
             .flat_map(|(section, fields, docs)| fields.iter().zip(docs.iter()).map(move |(f, d)| (section, *f, *d)))
             .map(|(section, field, doc)| {
@@ -179,8 +202,9 @@ impl FilterConfig {
     /// error that lists the allowed ones.
     pub fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
         if let Some((section, field)) = key.split_once('.') {
-            let set = for_each_section!(mut self, |s| set_in(s, section, field, value));
-            return set.into_iter().flatten().next().unwrap_or_else(|| Err(Self::unknown(key)));
+            let mut set = SetIn { section, field, value, result: None };
+            self.visit_sections_mut(&mut set);
+            return set.result.unwrap_or_else(|| Err(Self::unknown(key)));
         }
         if key == "range_calibration" {
             return Err(crate::validate::invalid(
@@ -222,7 +246,10 @@ impl FilterConfig {
     /// The configuration as `(section.field, value)` pairs (unset optional fields and the
     /// `range_calibration` table left out).
     pub fn entries(&self) -> Vec<(String, ConfigValue)> {
-        for_each_section!(self, |s| entries_of(s))
+        let mut entries = Entries::default();
+        self.visit_sections(&mut entries);
+        entries
+            .0
             .into_iter()
             .flat_map(|(section, entries)| entries.into_iter().map(move |(f, v)| (format!("{section}.{f}"), v)))
             .collect()

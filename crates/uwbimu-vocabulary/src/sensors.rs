@@ -13,11 +13,12 @@
 
 pub mod pose_fix;
 
+use crate::config::sections::{AltitudeConfig, OdometryConfig, SectionVisitor, SectionVisitorMut};
 use crate::error::{Error, Result};
 use crate::math::Vec3;
 use crate::records::{AltitudeSample, MagSample, OdometrySample, TdoaMeasurement};
 use crate::validate::anchor_index;
-use pose_fix::PoseFix;
+use pose_fix::{PoseFix, PoseFixConfig};
 
 /// How the rows of a sensor's table must be ordered in time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -265,7 +266,8 @@ macro_rules! sensors {
             rank: $rank:literal,
             clock: $clock:ident,
             rejection: $rejection:expr,
-            aiding: $aiding:literal $(,)?
+            aiding: $aiding:literal
+            $(, section: $sfield:ident: $sty:ty)? $(,)?
         }
     ),+ $(,)?) => {
         /// A measurement applied on its own at its own time (not gathered into range epochs):
@@ -378,6 +380,28 @@ macro_rules! sensors {
             }
         }
 
+        /// The configuration sections of the sensors whose row declares one, in registry order:
+        /// a field of [`crate::config::FilterConfig`], its keys `<section>.<field>`.
+        #[derive(Debug, Clone, Copy, PartialEq, Default)]
+        pub struct SensorSections {
+            $($(
+                #[doc = concat!("The section of ", $label, " (keys `", stringify!($sfield), ".*`).")]
+                pub $sfield: $sty,
+            )?)+
+        }
+
+        impl SensorSections {
+            /// Calls `v` with each section, in registry order.
+            pub fn visit(&self, v: &mut impl SectionVisitor) {
+                $($( v.visit(&self.$sfield); )?)+
+            }
+
+            /// Calls `v` with each section, mutably, in registry order.
+            pub fn visit_mut(&mut self, v: &mut impl SectionVisitorMut) {
+                $($( v.visit(&mut self.$sfield); )?)+
+            }
+        }
+
         $(impl From<$record> for Observation {
             fn from(m: $record) -> Self {
                 Self::$variant(m)
@@ -404,12 +428,14 @@ sensors! {
     /// (docs/altitude.md).
     Altitude(AltitudeSample) {
         name: "altitude", keyword: "altitude", label: "altitude", rank: 3, clock: Imu, rejection: Some("altitude_beyond_hall"), aiding: true,
+        section: altitude: AltitudeConfig,
     },
     /// Wheel odometry `t, speed` along the body x axis, or `t, vx, vy, vz` in the body frame
     /// with NaN for an axis not measured, m/s, time strictly increasing, σ `odometry.std` per
     /// axis (docs/odometry.md).
     Odometry(OdometrySample) {
         name: "odometry", keyword: "odometry", label: "odometry", rank: 4, clock: Imu, rejection: Some("speed_beyond_range"), aiding: true,
+        section: odometry: OdometryConfig,
     },
     /// External pose fixes `t, x, y, z, sx, sy, sz`, optionally with `yaw, s_yaw` (NaN where a
     /// fix gives none): the position in m of the point at `pose_fix.lever_arm` and the body's
@@ -417,6 +443,7 @@ sensors! {
     /// (docs/pose-fix.md).
     PoseFix(PoseFix) {
         name: "pose_fix", keyword: "pose_fix", label: "pose fixes", rank: 5, clock: Imu, rejection: Some("pose_fix_beyond_hall"), aiding: true,
+        section: pose_fix: PoseFixConfig,
     },
 }
 

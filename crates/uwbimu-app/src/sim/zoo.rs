@@ -144,13 +144,13 @@ pub fn matched_config(sim: &SimConfig) -> FilterConfig {
     c.ranging.range_std = (u.range_std_m.powi(2) + u.uniform_noise_m.powi(2) / 3.0).sqrt();
     c.ranging.tdoa_std = sim.tdoa.as_ref().map_or(uwbimu_vocabulary::config::DEFAULT_TDOA_STD_M, |t| t.std_m.max(1e-3));
     if let Some(a) = &sim.altimeter {
-        c.altitude.std = a.std_m.max(1e-3);
+        c.sensors.altitude.std = a.std_m.max(1e-3);
     }
     if let Some(o) = &sim.odometer {
-        c.odometry.std = o.std_mps.max(1e-3);
+        c.sensors.odometry.std = o.std_mps.max(1e-3);
     }
     if let Some(f) = &sim.pose_fix {
-        c.pose_fix.lever_arm = f.lever_arm_m;
+        c.sensors.pose_fix.lever_arm = f.lever_arm_m;
     }
     c.ins.accel_noise_density = n.accel_noise_density.max(1e-4);
     c.ins.gyro_noise_density = n.gyro_noise_density.max(1e-5);

@@ -154,7 +154,7 @@ impl TightFilter {
         };
         let convention = ErrorConvention::chosen(config.ins.invariant_update, ErrorConvention::Multiplicative);
         let mut core = InertialCore::new(initial, &config)?;
-        let biased_altitude = config.altitude.offset_std > 0.0;
+        let biased_altitude = config.sensors.altitude.offset_std > 0.0;
         let biases = if config.range_bias.states || biased_altitude {
             if matches!(strategy, Strategy::Unscented(_)) {
                 return Err(Error::InvalidCall(
@@ -164,7 +164,7 @@ impl TightFilter {
             }
             let states = BiasStates::new(
                 config.range_bias.states.then_some(config.range_bias),
-                biased_altitude.then_some(config.altitude),
+                biased_altitude.then_some(config.sensors.altitude),
                 anchors.len(),
             )?;
             core.track_cross_covariance(states.slots_in_use());
@@ -274,7 +274,7 @@ impl Filter for TightFilter {
                 self.odometry_axes |= 1 << m.axis;
                 self.aided_update(m.t_s, true, |f| {
                     let report = f.apply_model(BodyVelocity { axis: m.axis, speed_mps: m.speed_mps })?;
-                    if m.axis == 0 && f.config.odometry.nonholonomic {
+                    if m.axis == 0 && f.config.sensors.odometry.nonholonomic {
                         let unmeasured = f.odometry_axes;
                         for axis in (1..3).filter(|a| unmeasured & (1 << a) == 0) {
                             f.apply_model(NonHolonomic { axis })?;

@@ -33,7 +33,7 @@ impl ScalarModel for Altitude {
     }
 
     fn nominal_var(&self, config: &FilterConfig) -> f64 {
-        config.altitude.std.powi(2)
+        config.sensors.altitude.std.powi(2)
     }
 
     fn additive_bias(&self) -> Option<AdditiveBias> {

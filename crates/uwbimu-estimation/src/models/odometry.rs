@@ -46,7 +46,7 @@ impl ScalarModel for BodyVelocity {
     }
 
     fn nominal_var(&self, config: &FilterConfig) -> f64 {
-        config.odometry.std.powi(2)
+        config.sensors.odometry.std.powi(2)
     }
 
     fn examples() -> Vec<Self> {
@@ -79,7 +79,7 @@ impl ScalarModel for NonHolonomic {
     }
 
     fn nominal_var(&self, config: &FilterConfig) -> f64 {
-        config.odometry.nonholonomic_std.powi(2)
+        config.sensors.odometry.nonholonomic_std.powi(2)
     }
 
     fn examples() -> Vec<Self> {

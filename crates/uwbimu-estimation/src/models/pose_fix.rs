@@ -129,7 +129,7 @@ impl ScalarAiding for PoseFix {
     /// model's NIS (χ² with 3 or 4 degrees of freedom), accepted when every model was, the least
     /// weight and the largest inflation.
     fn apply<S: ModelSink>(&self, sink: &mut S) -> Result<UpdateReport> {
-        let c = sink.config().pose_fix;
+        let c = sink.config().sensors.pose_fix;
         let mut reports = [UpdateReport::skipped(); 4];
         for (axis, report) in reports.iter_mut().take(3).enumerate() {
             let std_m = c.std_scale * self.position_std[axis];

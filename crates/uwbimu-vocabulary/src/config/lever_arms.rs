@@ -2,7 +2,7 @@
 //! tag, tag 0 first.
 
 use crate::config::parse::{vector, ToValue};
-use crate::config::ConfigValue;
+use crate::config::value::ConfigValue;
 use crate::error::Result;
 use crate::math::Vec3;
 use crate::validate::invalid;

@@ -1,7 +1,7 @@
 //! Reading and writing one configuration value: the parsers each field of a section names in its
 //! declaration ([`crate::config::sections`]), and [`ToValue`] for writing fields back.
 
-use crate::config::ConfigValue;
+use crate::config::value::ConfigValue;
 use crate::error::Result;
 use crate::math::{quat_from_wxyz, Quat, Vec3};
 use crate::validate::{self, invalid};

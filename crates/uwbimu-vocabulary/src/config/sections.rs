@@ -6,9 +6,9 @@
 use crate::config::lever_arms::{lever_arms, LeverArms};
 use crate::config::parse::{
     at_least_one, bounded_count, count, flag, gravity, half_open_unit, non_negative, open_unit, positive, probability,
-    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole, vec3, ToValue,
+    quaternion, scalar, some_at_least_one, some_flag, some_positive, some_scalar, some_whole,
 };
-use crate::config::ConfigValue;
+use crate::config::value::ConfigValue;
 use crate::error::{Error, Result};
 use crate::math::{Quat, Vec3};
 use crate::validate::invalid;
@@ -63,12 +63,29 @@ pub trait Section {
     fn entries(&self) -> Vec<(&'static str, ConfigValue)>;
 }
 
-fn unknown_field<S: Section>(key: &str) -> Error {
+/// Visits sections of different types one after the other
+/// ([`crate::config::FilterConfig::visit_sections`]).
+pub trait SectionVisitor {
+    /// Called with one section.
+    fn visit<S: Section>(&mut self, section: &S);
+}
+
+/// Visits sections of different types one after the other, mutably
+/// ([`crate::config::FilterConfig::visit_sections_mut`]).
+pub trait SectionVisitorMut {
+    /// Called with one section.
+    fn visit<S: Section>(&mut self, section: &mut S);
+}
+
+/// The error of a field `key` that section `S` does not have; it lists the section's keys.
+pub(crate) fn unknown_field<S: Section>(key: &str) -> Error {
     let allowed: Vec<String> = S::KEYS.iter().map(|k| format!("{}.{k}", S::NAME)).collect();
     Error::unknown_option("config", &format!("{}.{key}", S::NAME), allowed.iter().map(String::as_str))
 }
 
-/// Declares a section: `Name = "section" { /// doc  field: Type = default, parser; … }`.
+/// Declares a section: `Name = "section" { /// doc  field: Type = default, parser; … }`. A
+/// sensor's section is declared in the sensor's module (`crate::sensors::pose_fix`), with the
+/// parsers of [`crate::config::parse`] in scope.
 macro_rules! section {
     (
         $(#[$doc:meta])*
@@ -88,27 +105,28 @@ macro_rules! section {
             }
         }
 
-        impl Section for $name {
+        impl $crate::config::sections::Section for $name {
             const NAME: &'static str = $section;
             const KEYS: &'static [&'static str] = &[$( stringify!($field) ),*];
             const DOCS: &'static [&'static str] = &[$( concat!($($fdoc, " "),*) ),*];
 
-            fn set(&mut self, key: &str, value: &ConfigValue) -> Result<()> {
+            fn set(&mut self, key: &str, value: &$crate::config::value::ConfigValue) -> $crate::error::Result<()> {
                 match key {
                     $( stringify!($field) => self.$field = ($parse)(concat!($section, ".", stringify!($field)), value)?, )*
-                    _ => return Err(unknown_field::<Self>(key)),
+                    _ => return Err($crate::config::sections::unknown_field::<Self>(key)),
                 }
                 Ok(())
             }
 
-            fn entries(&self) -> Vec<(&'static str, ConfigValue)> {
-                let mut out = Vec::with_capacity(Self::KEYS.len());
-                $( if let Some(v) = ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
+            fn entries(&self) -> Vec<(&'static str, $crate::config::value::ConfigValue)> {
+                let mut out = Vec::with_capacity(<Self as $crate::config::sections::Section>::KEYS.len());
+                $( if let Some(v) = $crate::config::parse::ToValue::to_value(&self.$field) { out.push((stringify!($field), v)); } )*
                 out
             }
         }
     };
 }
+pub(crate) use section;
 
 /// Default window of the epoch rule, s: covers a sweep over 8 anchors at 5 ms per anchor plus
 /// jitter, and stays below the 50 ms period of a 20 Hz sweep.
@@ -485,19 +503,6 @@ section! {
         /// σ of the non-holonomic constraint per axis, m/s (it covers the sideways velocity of an
         /// IMU mounted off the rear axle in a turn, and wheel slip).
         nonholonomic_std: f64 = 0.1, positive;
-    }
-}
-
-section! {
-    /// An external pose fix (`uwbimu_estimation::models::pose_fix`): where its point sits on the
-    /// body and how far its stated σ is trusted.
-    PoseFixConfig = "pose_fix" {
-        /// Position of the fix's point in the body frame, m (a camera's optical centre, a lidar's
-        /// origin; the localiser's frame is taken to be the navigation frame).
-        lever_arm: Vec3 = Vec3::zeros(), vec3;
-        /// Factor on every σ a fix states, dimensionless (> 0): above 1 for a localiser whose
-        /// covariance is overconfident, as visual–inertial odometry's often is.
-        std_scale: f64 = 1.0, positive;
     }
 }
 

@@ -1,13 +1,27 @@
 //! An external pose fix (ours; none of the five papers fuses one): the position of a point on the
 //! body, and optionally the body's yaw, from a localiser of its own — a visual tag, visual–inertial
 //! odometry, a lidar localiser — each with its σ, in the navigation frame. Its record
-//! ([`PoseFix`]) and its table are declared here, its configuration section with the others
-//! ([`crate::config::PoseFixConfig`]), its measurement model in
-//! `uwbimu_estimation::models::pose_fix`.
+//! ([`PoseFix`]), its table and its configuration section ([`PoseFixConfig`], keys `pose_fix.*`)
+//! are declared here, its measurement model in `uwbimu_estimation::models::pose_fix`.
 
+use crate::config::parse::{positive, vec3};
+use crate::config::sections::section;
 use crate::error::{Error, Result};
 use crate::math::Vec3;
 use crate::sensors::{SensorRecord, TimeOrder};
+
+section! {
+    /// An external pose fix (`uwbimu_estimation::models::pose_fix`): where its point sits on the
+    /// body and how far its stated σ is trusted.
+    PoseFixConfig = "pose_fix" {
+        /// Position of the fix's point in the body frame, m (a camera's optical centre, a lidar's
+        /// origin; the localiser's frame is taken to be the navigation frame).
+        lever_arm: Vec3 = Vec3::zeros(), vec3;
+        /// Factor on every σ a fix states, dimensionless (> 0): above 1 for a localiser whose
+        /// covariance is overconfident, as visual–inertial odometry's often is.
+        std_scale: f64 = 1.0, positive;
+    }
+}
 
 /// One pose fix: the position of the fix's point on the body (at `pose_fix.lever_arm`) and
 /// optionally the body's yaw, navigation frame, with the σ of each.
@@ -89,7 +103,7 @@ impl SensorRecord for PoseFix {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{ConfigValue, PoseFixConfig, Section};
+    use crate::config::{ConfigValue, Section};
     use crate::sensors::validate_records;
 
     #[test]
