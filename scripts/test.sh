@@ -13,12 +13,15 @@ mkdir -p target && rm -f "$skipped_log"
 # The Rust tests build while setup.sh installs the Python packages (into a new .venv 164 s, 30 s of
 # it CPU: pip mostly waits on the disk); its build of the extension waits for cargo's lock. A
 # failed build is reported by the `cargo test` below, which builds again.
-cargo test --workspace --no-run --quiet >target/test-build.log 2>&1 &
+cargo test --workspace --tests --no-run --quiet >target/test-build.log 2>&1 &
 build=$!
 bash scripts/setup.sh || { kill "$build" 2>/dev/null; exit 1; }
 wait "$build" || true
 status=0
-UWBIMU_SKIPPED_LOG="$skipped_log" cargo test --workspace --quiet --no-fail-fast || status=$?
+# The test targets (unit and integration) and then the doc tests; the examples are not built
+# here: clippy in scripts/lint.sh checks every one, and the Python tests build those they run.
+UWBIMU_SKIPPED_LOG="$skipped_log" cargo test --workspace --tests --quiet --no-fail-fast || status=$?
+cargo test --workspace --doc --quiet || status=$?
 if [ -s "$skipped_log" ]; then
     echo "Rust: $(cut -d: -f1 "$skipped_log" | sort -u | wc -l) tests skipped:"
     sort -u "$skipped_log" | sed 's/^/  skipped: /'

@@ -336,14 +336,17 @@ def test_cli_errors_exit_2_with_one_line(tmp_path):
 def _sensor_rig(tmp_path: Path) -> tuple[Any, Path, Path]:
     """stop_and_go with a magnetometer and pose fixes with a yaw (2 Hz), written by
     ``sim.write_mcap``, and a replay file for ``ackf`` (it takes both) that reads them with the
-    anchors of the run."""
+    anchors of the run. Its reorder window is 2 s of log time (0.5 s of wall time at the 4×
+    pace the tests play it at): with the default 0.5 s (0.125 s of wall time for four topics) the
+    DDS test failed once on a loaded machine, the node's poses up to 3.4 cm off the replay's, as a
+    message later than the window is dropped; the replay orders the file whatever the window."""
     run = sim.zoo("stop_and_go", seed=5, magnetometer=True, pose_fix=True, pose_fix_yaw_std_rad=0.05)
     mcap = tmp_path / "sensors.mcap"
     sim.write_mcap(run, mcap)
     anchors = "\n".join(f"A{k} = [{a[0]}, {a[1]}, {a[2]}]" for k, a in enumerate(run.anchors))
     cfg = tmp_path / "sensors.toml"
     cfg.write_text(
-        'method = "ackf"\n[mapping.magnetometer]\ntopics = ["/mag"]\n[mapping.pose_fix]\ntopics = ["/pose_fix"]\n'
+        'method = "ackf"\n[mapping]\nreorder_window_s = 2.0\n[mapping.magnetometer]\ntopics = ["/mag"]\n[mapping.pose_fix]\ntopics = ["/pose_fix"]\n'
         f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n"
     )
     return run, mcap, cfg
