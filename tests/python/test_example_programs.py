@@ -1,6 +1,7 @@
-"""The example programs that test_examples.py does not import: the Rust examples (built as
-`cargo test --workspace` builds them, so its build is reused) and the isas-walk1 table, each with fast
-settings, checked for what its text says it prints."""
+"""The example programs that test_examples.py does not import: the Rust examples (each built
+here with ``--workspace``, so the library of the test build is reused; scripts/test.sh builds no
+example) and the isas-walk1 table, each with fast settings, checked for what its text says it
+prints."""
 
 from __future__ import annotations
 
@@ -22,8 +23,8 @@ needs_cargo = pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is
 
 def cargo_example(name: str, *args: str) -> str:
     """The stdout of the Rust example ``name`` run with ``args`` (fails the test on a non-zero
-    exit). Built with ``--workspace``, as ``cargo test --workspace`` builds it: a build of the root
-    package alone unifies the dependencies' features differently and compiles the library again."""
+    exit). Built with ``--workspace``, as the test build is: a build of the root package alone
+    unifies the dependencies' features differently and compiles the library again."""
     build = subprocess.run(
         ["cargo", "build", "-q", "--workspace", "--example", name, "--message-format=json"],
         cwd=ROOT, capture_output=True, text=True, timeout=900,
