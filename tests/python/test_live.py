@@ -337,9 +337,11 @@ def _sensor_rig(tmp_path: Path) -> tuple[Any, Path, Path]:
     """stop_and_go with a magnetometer and pose fixes with a yaw (2 Hz), written by
     ``sim.write_mcap``, and a replay file for ``ackf`` (it takes both) that reads them with the
     anchors of the run. Its reorder window is 2 s of log time (0.5 s of wall time at the 4×
-    pace the tests play it at): with the default 0.5 s (0.125 s of wall time for four topics) the
-    DDS test failed once on a loaded machine, the node's poses up to 3.4 cm off the replay's, as a
-    message later than the window is dropped; the replay orders the file whatever the window."""
+    pace the tests play it at), the default's 0.125 s of wall time being short for four topics on
+    a loaded machine; the replay orders the file whatever the window. Its inputs are reliable
+    (``live.reliable_inputs``): with best-effort readers a node starved of CPU (three busy loops
+    beside it on two cores) lost up to a fifth of the IMU and magnetometer messages, and its
+    poses went millimetres off the replay's."""
     run = sim.zoo("stop_and_go", seed=5, magnetometer=True, pose_fix=True, pose_fix_yaw_std_rad=0.05)
     mcap = tmp_path / "sensors.mcap"
     sim.write_mcap(run, mcap)
@@ -347,7 +349,7 @@ def _sensor_rig(tmp_path: Path) -> tuple[Any, Path, Path]:
     cfg = tmp_path / "sensors.toml"
     cfg.write_text(
         'method = "ackf"\n[mapping]\nreorder_window_s = 2.0\n[mapping.magnetometer]\ntopics = ["/mag"]\n[mapping.pose_fix]\ntopics = ["/pose_fix"]\n'
-        f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n"
+        f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\nreliable_inputs = true\n"
     )
     return run, mcap, cfg
 
@@ -458,15 +460,18 @@ def _isas_config(tmp_path: Path) -> Path:
         base
         + "\n[config.model_selection]\nenabled = false\n"
         + f'\n[mapping.anchors]\nfile = "{ISAS / "anchors.csv"}"\n'
-        + "\n[live]\nchoose_after_s = 0\n"
+        + "\n[live]\nchoose_after_s = 0\nreliable_inputs = true\n"
     )
     return cfg
 
 
-def _through_the_node(tmp_path: Path, mcap: Path, cfg: Path, domain: int, topics: list[str] | None = None) -> tuple[np.ndarray, int, str]:
-    """Play ``mcap`` over DDS (loopback, domain ``domain``) through a node run with ``cfg``;
-    returns the poses this process received (t, x, y, z), the steps in the node's MCAP output
-    and the node's log, once SIGTERM stopped it."""
+def _through_the_node(
+    tmp_path: Path, mcap: Path, cfg: Path, domain: int, t_wait: float, topics: list[str] | None = None
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Play ``mcap`` over DDS (loopback, domain ``domain``) through a node run with ``cfg``
+    until its pose of time ``t_wait`` came (or 5 s without a pose); returns the poses this
+    process received and the steps of the node's MCAP output (t, x, y, z each), and the node's
+    log, once SIGTERM stopped it."""
     from uwbimu_rs.live import DdsBus, idl_type
 
     env = _loopback_env(domain)
@@ -492,9 +497,14 @@ def _through_the_node(tmp_path: Path, mcap: Path, cfg: Path, domain: int, topics
     try:
         while player.poll() is None:
             bus.spin_once(0.1)
-        end = time.monotonic() + 3.0
-        while time.monotonic() < end:
-            bus.spin_once(0.1)
+        # The player has ended once the node's reliable readers hold every message; the node may
+        # still be working through them on a loaded machine: wait for its pose of the last time
+        # (or 5 s without a pose, this subscriber being best effort).
+        quiet_since = time.monotonic()
+        while not (got and got[-1][0] >= t_wait - 1e-6) and time.monotonic() - quiet_since < 5.0:
+            if bus.spin_once(0.1):
+                quiet_since = time.monotonic()
+        bus.spin_once(0.5)
     finally:
         node.send_signal(signal.SIGTERM)
         _, err = node.communicate(timeout=30)
@@ -506,26 +516,42 @@ def _through_the_node(tmp_path: Path, mcap: Path, cfg: Path, domain: int, topics
     from mcap.reader import make_reader
 
     with open(out, "rb") as f:
-        summary = make_reader(f).get_summary()
-    counts = {summary.channels[c].topic: n for c, n in summary.statistics.channel_message_counts.items()}
-    return np.array(got), counts["/uwbimu/pose"], err
+        poses = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(topics=["/uwbimu/pose"])]
+    track = np.array(
+        [(p["timestamp"]["sec"] + p["timestamp"]["nsec"] * 1e-9, *(p["pose"]["position"][k] for k in "xyz")) for p in poses]
+    )
+    return np.array(got), track, err
 
 
-def _assert_equals_the_replay(live: np.ndarray, steps_written: int, mcap: Path, cfg: Path) -> None:
-    """Each received pose equals the forward replay's step of the same time, and the node's
-    MCAP output holds every step — but the last sample's when no data came after it, as a stream
-    gives a step only once data after it arrives (docs/streaming.md)."""
+def _replay(mcap: Path, cfg: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The forward replay of ``mcap`` with ``cfg``: its step times and positions."""
     replay, _ = uwbimu_rs.replay(mcap, config_file=cfg, smooth=False)
-    t = replay["t"].to_numpy()
-    ref = np.column_stack([replay["x"].to_numpy(), replay["y"].to_numpy(), replay["z"].to_numpy()])
+    return replay["t"].to_numpy(), np.column_stack([replay["x"].to_numpy(), replay["y"].to_numpy(), replay["z"].to_numpy()])
+
+
+def _live_and_replay(tmp_path: Path, mcap: Path, cfg: Path, domain: int, topics: list[str] | None = None) -> str:
+    """Runs ``mcap`` through the node (:func:`_through_the_node`) and checks it against the
+    forward replay of the same file and mapping: the node's MCAP output holds every step, each
+    equal to the replay's — but the last sample's when no data came after it, as a stream gives
+    a step only once data after it arrives (docs/streaming.md) — and each pose received over
+    DDS equals the replay's step of the same time. Returns the node's log."""
+    t, ref = _replay(mcap, cfg)
+    # The node holds the last reorder window's steps until it stops (it flushes then).
+    t_wait = float(t[-1]) - _native.live_setup(cfg)["reorder_window_s"] - 0.05
+    live, track, err = _through_the_node(tmp_path, mcap, cfg, domain, t_wait, topics)
+    assert len(track) in (len(t) - 1, len(t)), (len(track), len(t))
+    np.testing.assert_allclose(track[:, 0], t[: len(track)], rtol=0, atol=1e-6)
+    assert np.abs(track[:, 1:] - ref[: len(track)]).max() < 1e-9
     nearest = np.abs(t[None, :] - live[:, :1]).argmin(axis=1)
     matched = np.abs(t[nearest] - live[:, 0]) < 1e-6
     # The replay starts at the first IMU sample (the self-initialisation replays from there); the
-    # node publishes from the moment it decided (isas-walk1: 30 s into the 59 s walk): most steps
-    # from its first pose on (measured 91 % on isas-walk1, 98 % on the simulated recording).
-    assert matched.mean() > 0.99 and len(live) > 0.8 * np.sum(t >= live[0, 0])
+    # node publishes from the moment it decided (isas-walk1: 30 s into the 59 s walk). This
+    # subscriber is best effort and the node's writer keeps the last 100 poses: most steps from
+    # the first pose on arrive (measured 91 % on isas-walk1, 98 % on the simulated recording on an
+    # idle machine; 68 % with three busy loops beside it on two cores).
+    assert matched.mean() > 0.99 and len(live) > 0.5 * np.sum(t >= live[0, 0])
     assert np.abs(live[matched, 1:] - ref[nearest[matched]]).max() < 1e-9
-    assert steps_written in (len(t) - 1, len(t))
+    return err
 
 
 @needs_isas
@@ -535,8 +561,7 @@ def test_isas_walk1_over_dds_equals_the_replay(tmp_path):
     # poses: each equals the forward replay's step of the same time.
     mcap = ISAS / "isas-walk1.mcap"
     cfg = _isas_config(tmp_path)
-    live, steps, err = _through_the_node(tmp_path, mcap, cfg, 17, ["/waveshare_sense_hat_b", "/rtls_flares"])
-    _assert_equals_the_replay(live, steps, mcap, cfg)
+    err = _live_and_replay(tmp_path, mcap, cfg, 17, ["/waveshare_sense_hat_b", "/rtls_flares"])
     assert "/rtls_flares: learnt fraunhofer_rtls_flare/msg/RTLSStick from its publisher" in err
 
 
@@ -551,10 +576,9 @@ def test_a_simulated_recording_over_dds_equals_the_replay(tmp_path):
     anchors = "\n".join(f"A{k} = [{a[0]}, {a[1]}, {a[2]}]" for k, a in enumerate(run.anchors))
     cfg.write_text(
         '[config.model_selection]\nenabled = false\n'
-        f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\n"
+        f"[mapping.anchors.positions]\n{anchors}\n[live]\nchoose_after_s = 0\nreliable_inputs = true\n"
     )
-    live, steps, err = _through_the_node(tmp_path, mcap, cfg, 18)
-    _assert_equals_the_replay(live, steps, mcap, cfg)
+    err = _live_and_replay(tmp_path, mcap, cfg, 18)
     assert "late_dropped': 0" in err
     assert "no UWB topic named: taking every topic on the graph that the mapping reads" in err
     assert "subscribed to /uwb (uwbimu_msgs/msg/UwbRange) as uwb" in err
@@ -568,8 +592,7 @@ def test_magnetometer_and_pose_fixes_over_dds_equal_the_replay(tmp_path):
     # publishes equals the forward replay's step of the same time, the replay reading the same
     # file through the same mapping.
     run, mcap, cfg = _sensor_rig(tmp_path)
-    live, steps, err = _through_the_node(tmp_path, mcap, cfg, 19)
-    _assert_equals_the_replay(live, steps, mcap, cfg)
+    err = _live_and_replay(tmp_path, mcap, cfg, 19)
     assert "subscribed to /mag (sensor_msgs/msg/MagneticField) as magnetometer" in err
     assert "subscribed to /pose_fix (geometry_msgs/msg/PoseWithCovarianceStamped) as pose_fix" in err
     for topic, n in [("/mag", len(run.mag)), ("/pose_fix", len(run.pose_fix))]:

@@ -118,7 +118,10 @@ def run(argv: list[str]) -> int:
             source = McapSource(args.mcap, decoder, node, rate=args.rate)
         else:
             assert subscriptions is not None
-            source = DdsSource(bus, subscriptions["topics"], decoder, node, live["msg_paths"], discover=subscriptions["discover"])
+            source = DdsSource(
+                bus, subscriptions["topics"], decoder, node, live["msg_paths"],
+                discover=subscriptions["discover"], reliable=live["reliable_inputs"],
+            )
     except (ValueError, OSError, ImportError) as e:
         print(f"uwbimu-live: {e}", file=sys.stderr)
         for s in sinks:

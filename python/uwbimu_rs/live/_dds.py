@@ -83,12 +83,13 @@ def idl_type(type_name: str, definition: str) -> type:
 
 
 def _qos(reliable: bool, depth: int) -> Any:
+    """Reliable or best effort, keeping the last ``depth`` samples (0: all of them)."""
     from cyclonedds.core import Policy
     from cyclonedds.qos import Qos
     from cyclonedds.util import duration
 
     kind = Policy.Reliability.Reliable(duration(milliseconds=100)) if reliable else Policy.Reliability.BestEffort
-    return Qos(kind, Policy.History.KeepLast(depth))
+    return Qos(kind, Policy.History.KeepLast(depth) if depth > 0 else Policy.History.KeepAll)
 
 
 class DdsBus:
@@ -115,14 +116,18 @@ class DdsBus:
             self._topics[dds_topic] = Topic(self.participant, dds_topic, idl)
         return self._topics[dds_topic]
 
-    def subscribe(self, dds_topic: str, idl: type, on_sample: Callable[[bytes, int], None], *, depth: int = 1000) -> None:
+    def subscribe(
+        self, dds_topic: str, idl: type, on_sample: Callable[[bytes, int], None], *, depth: int = 1000, reliable: bool = False
+    ) -> None:
         """Call ``on_sample(payload, source_timestamp_ns)`` for each sample of ``dds_topic``
         from :meth:`spin_once`. The reader is best effort (keep last ``depth``), so it matches
-        both reliable publishers and the best-effort ones of ROS 2's sensor-data profile."""
+        both reliable publishers and the best-effort ones of ROS 2's sensor-data profile; with
+        ``reliable`` it is reliable and keeps every sample until taken (``live.reliable_inputs``:
+        nothing a reliable publisher sent is lost, best-effort publishers are not matched)."""
         from cyclonedds.core import ReadCondition, SampleState, ViewState, InstanceState
         from cyclonedds.sub import DataReader
 
-        reader = DataReader(self.participant, self._topic(dds_topic, idl), qos=_qos(False, depth))
+        reader = DataReader(self.participant, self._topic(dds_topic, idl), qos=_qos(reliable, 0 if reliable else depth))
         cond = ReadCondition(reader, SampleState.Any | ViewState.Any | InstanceState.Any)
         self.waitset.attach(cond)
         self._readers.append((reader, on_sample, cond))
@@ -170,6 +175,13 @@ class DdsBus:
         for stamp, _, on_sample, data in taken:
             on_sample(data, stamp)
         return len(taken)
+
+    def delivered(self, write: Callable[[bytes], None], timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` until every reliable reader acknowledged what a publisher of
+        :meth:`publisher` wrote; whether they all did (best-effort readers acknowledge nothing)."""
+        from cyclonedds.util import duration
+
+        return bool(write.writer.wait_for_acks(duration(microseconds=int(timeout_s * 1e6))))  # type: ignore[attr-defined]
 
     def matched_subscribers(self, write: Callable[[bytes], None]) -> int:
         """How many readers a publisher of :meth:`publisher` reaches."""

@@ -153,7 +153,10 @@ def _play(args: argparse.Namespace) -> int:
         write(convert(message.data) if convert else message.data)
         n += 1
     log.info("played %d messages%s", n, " (stopped)" if stop.stopped else "")
-    time.sleep(0.2)  # let reliable writers deliver what is queued
+    time.sleep(0.2)  # let what is queued reach best-effort readers
+    late = [t for t, w in writers.items() if not bus.delivered(w, 30.0)]
+    if late:
+        log.warning("%s: not acknowledged by every reliable reader within 30 s", ", ".join(late))
     bus.close()
     return 0
 

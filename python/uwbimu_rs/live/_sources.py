@@ -24,7 +24,8 @@ class DdsSource:
     when its first publisher appears: the type is the publisher's, the definition the bundled
     or ``live.msg_paths`` one, else the one the publisher's type information gives. With
     ``discover`` (the mapping names no UWB or TDoA topic) every other topic that appears is
-    offered to the mapping the same way, and taken when it reads it (an IMU, a range message)."""
+    offered to the mapping the same way, and taken when it reads it (an IMU, a range message).
+    ``reliable`` subscribes reliable, keeping every sample (``live.reliable_inputs``)."""
 
     finished = False
 
@@ -37,11 +38,12 @@ class DdsSource:
         msg_paths: list[str],
         *,
         discover: bool = False,
+        reliable: bool = False,
     ) -> None:
         from uwbimu_rs.live._graph import Graph
 
         self.bus, self.decoder, self.node, self.msg_paths = bus, decoder, node, msg_paths
-        self.discover = discover
+        self.discover, self.reliable = discover, reliable
         self.pending: dict[str, tuple[str, str | None]] = {}
         self._seen: set[str] = set()
         for topic, type_name, definition, dds_topic, _ in subscriptions:
@@ -68,7 +70,7 @@ class DdsSource:
         def on_sample(data: bytes, _stamp_ns: int) -> None:
             node.feed_message(decoder, topic, data)
 
-        self.bus.subscribe(dds_topic, idl_type(type_name, definition), on_sample)
+        self.bus.subscribe(dds_topic, idl_type(type_name, definition), on_sample, reliable=self.reliable)
         log.info("subscribed to %s (%s) as %s", topic, type_name, role)
 
     def _discover(self) -> None:

@@ -51,6 +51,10 @@ pub struct LiveSettings {
     pub choose_after_s: f64,
     /// Baud rate of a LinkTrack serial port.
     pub linktrack_baud: u32,
+    /// Subscribe reliable with the whole history kept: a reliable publisher then loses no sample
+    /// to a busy node (its latency grows instead), but a best-effort one (ROS 2's sensor-data
+    /// profile) is no longer matched. False: best effort, keep last 1000, matching both.
+    pub reliable_inputs: bool,
     /// Lag of the fixed-lag smoothed pose, s (finite, ≥ 0; the streaming classes' `lag_s`,
     /// `FixedLag` of `uwbimu_estimation::pipeline`); None (the key absent): none published.
     pub lag_s: Option<f64>,
@@ -75,6 +79,7 @@ impl Default for LiveSettings {
             silent_after_s: 1.0,
             choose_after_s: 60.0,
             linktrack_baud: 921_600,
+            reliable_inputs: false,
             lag_s: None,
             smoothed_pose_topic: "/uwbimu/pose_smoothed".into(),
         }
