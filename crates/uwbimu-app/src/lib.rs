@@ -36,6 +36,7 @@ pub mod replay;
 #[cfg(feature = "io")]
 pub mod replay_config;
 mod run;
+mod runner;
 pub mod select;
 #[cfg(feature = "sim")]
 pub mod sim;

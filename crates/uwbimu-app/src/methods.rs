@@ -11,19 +11,19 @@ use uwbimu_vocabulary::sensors::{merge, Observation};
 
 use crate::model_choice::ModelChoice;
 pub use crate::registry::{Input, Method, MethodInfo, Run, Smoothing, DEFAULT_METHOD};
-use crate::run::{check_inputs, check_tags, dispatch};
+use crate::run::run_batch;
 pub use crate::run::{BatchInput, BatchOutput};
 use crate::uwb_clock::UwbClock;
 
 /// Runs `method` over one recording. A non-empty `config.range_calibration` (Wang et al. 2018 §2.2) and a
-/// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method.
+/// non-zero `ranging.time_offset_s` are applied to the measurements first, for every method; then
+/// the run takes the one sequence of a run (`runner::run_log`), in which a method that
+/// chooses its model ([`Method::chooses_its_model`]) chooses it (`choose_or_keep`) unless
+/// `model_selection.enabled` is off.
 pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    check_inputs(method, false, input.observations.iter().map(Observation::kind))?;
-    let tagged = input.ranges.iter().enumerate().filter(|(_, r)| r.tag != 0);
-    check_tags(method, input.config, tagged.map(|(row, r)| (format!("ranges row {row}"), r.tag)))?;
     let config = input.config;
     if config.ranging.time_offset_s == 0.0 && config.range_calibration.is_empty() {
-        return run_calibrated(method, input);
+        return run_batch(method, input, Some(choose_or_keep));
     }
     config.range_calibration.check_anchors(input.anchors.len())?;
     let mut clock = UwbClock::new(config, input.imu.first().zip(input.imu.last()).map(|(a, b)| (a.t_s, b.t_s)));
@@ -37,24 +37,7 @@ pub fn run_method(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput>
     };
     let mut config = config.clone();
     config.ranging.time_offset_s = 0.0;
-    run_calibrated(method, &BatchInput { ranges: &ranges, observations, config: &config, ..*input })
-}
-
-/// Runs `method` on measurements already calibrated; a method that chooses its model
-/// ([`Method::chooses_its_model`]) first chooses it ([`crate::select::choose`]) unless
-/// `model_selection.enabled` is off, and runs with the choice (with the input configuration when
-/// the selection fails, saying why in the reported choice).
-pub(crate) fn run_calibrated(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    check_inputs(method, input.smooth, [])?;
-    if !(method.chooses_its_model() && input.config.model_selection.enabled) {
-        return dispatch(method, input);
-    }
-    let choice = choose_or_keep(method, input);
-    let mut output = dispatch(method, &BatchInput { config: &choice.config, ..*input })?;
-    if let BatchOutput::Inertial { model, .. } = &mut output {
-        *model = Some(Box::new(choice));
-    }
-    Ok(output)
+    run_batch(method, &BatchInput { ranges: &ranges, observations, config: &config, ..*input }, Some(choose_or_keep))
 }
 
 /// The model `method` chooses on `input` ([`crate::select::choose`]); on a log the selection

@@ -1,35 +1,38 @@
 //! The runner under the batch API: what a run is given and produces ([`BatchInput`],
 //! [`BatchOutput`]), the dispatch of a method to its filter by its registry row's [`Run`]
-//! ([`crate::registry`]), the runs of the inertial and planar filters and of `uwb_ls`, and the
-//! checks of what a method is given. It runs a method as configured: the entry points that first
-//! apply the range time offset and calibration and let a method choose its model
-//! ([`crate::methods::run_method`]) sit above it, as does the model selection
-//! ([`crate::select`]), which runs its candidates through it.
+//! ([`crate::registry`]), and the steps of a run on whole arrays ([`InMemory`], the batch
+//! [`LogRunner`] of the one sequence of a run, [`run_log`]) for the inertial and planar filters;
+//! `uwb_ls` runs epoch by epoch. The entry point that first applies the range time offset and
+//! calibration ([`crate::methods::run_method`]) sits above it and passes the model choice down
+//! ([`Chooser`]), as does the model selection ([`crate::select`]), which runs its candidates
+//! through it as configured ([`dispatch`]).
 
 use std::sync::Arc;
 
-use uwbimu_estimation::filters::{InertialFilter, InertialVisitor, NamedFilter};
+use uwbimu_estimation::filters::{InertialVisitor, NamedFilter};
 use uwbimu_estimation::gate::Gate;
 use uwbimu_estimation::init::SelfInit;
 use uwbimu_estimation::multilateration::{uwb_ls, Fix, LsConfig};
 #[cfg(doc)]
 use uwbimu_estimation::pipeline::Health;
-use uwbimu_estimation::pipeline::{run_streams, self_initialize, smoothed_steps, Event, Progress, StepRecord, Streams, Trace};
-use uwbimu_estimation::planar::{PlanarFilter, PlanarKind};
+use uwbimu_estimation::pipeline::{
+    run_streams, self_initialize, smoothed_steps, Estimator, Event, Progress, StepRecord, Streams, Trace,
+};
 use uwbimu_estimation::smoother::Guide;
 use uwbimu_estimation::units::check_imu_units;
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
 use uwbimu_vocabulary::error::{Error, Result};
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::{ImuSample, RangeMeasurement};
-use uwbimu_vocabulary::sensors::{Observation, SensorKind};
+use uwbimu_vocabulary::sensors::Observation;
 use uwbimu_vocabulary::state::NominalState;
 
 use crate::map_smoothing::{blend_state, node_track, MapRunner, Track, TrackFit};
 use crate::model_choice::ModelChoice;
 use crate::outlier_smoothing::{Residual, ResidualWalk};
-use crate::registry::{Input, Method, Run};
-use crate::smoothing_passes::{after_first_pass, PassRunner};
+use crate::registry::{Method, Run};
+use crate::runner::{check_inputs, check_tags, run_log, FilterKind, LogRunner};
+use crate::smoothing_passes::{AfterFirstPass, PassRunner};
 
 /// What a batch run produced.
 // Made once per run and taken apart at once: boxing the trace would only add an indirection.
@@ -113,74 +116,53 @@ pub const SETTLE_S: f64 = 10.0;
 
 /// Runs `method` as configured, on measurements already offset and calibrated (see
 /// [`crate::methods::run_method`]), as its registry row says it runs ([`Run`]); a method that
-/// chooses its model does not choose here.
+/// chooses its model does not choose here ([`run_batch`] with a chooser does).
 pub(crate) fn dispatch(method: Method, input: &BatchInput<'_>) -> Result<BatchOutput> {
+    run_batch(method, input, None)
+}
+
+/// Chooses the model a method runs with on a batch input ([`crate::methods::choose_or_keep`],
+/// passed down so that this runner does not depend on the selection that runs through it).
+pub(crate) type Chooser = fn(Method, &BatchInput<'_>) -> ModelChoice;
+
+/// Runs `method` on measurements already offset and calibrated, as its registry row says it
+/// runs ([`Run`]): `uwb_ls` epoch by epoch, the inertial and planar filters through the one
+/// sequence of a run ([`run_log`]) with their passes in memory ([`InMemory`]). A method that
+/// chooses its model chooses it with `chooser` when given.
+pub(crate) fn run_batch(method: Method, input: &BatchInput<'_>, chooser: Option<Chooser>) -> Result<BatchOutput> {
     match method.info().run {
         Run::Multilateration => {
+            check_batch(method, input)?;
             let ls = LsConfig::from_filter_config(input.config);
             Ok(BatchOutput::Multilateration(uwb_ls(&plausible_ranges(input), input.anchors, &ls)))
         }
-        Run::Inertial(kind) => kind.visit(RunInertial(input)),
-        Run::Planar(kind) => run_planar(kind, input),
+        Run::Inertial(kind) => kind.visit(RunInertial { method, input, chooser }),
+        Run::Planar(kind) => run_in_memory(method, input, chooser, &FilterKind::planar(kind)),
     }
 }
 
-/// The run of an inertial method with the filter type its
-/// [`InertialKind`](uwbimu_estimation::filters::InertialKind) names: builds it from
-/// the input's anchors and configuration and runs it ([`run_inertial`]).
-struct RunInertial<'i, 'a>(&'i BatchInput<'a>);
+/// The batch run of an inertial method with the filter type its
+/// [`InertialKind`](uwbimu_estimation::filters::InertialKind) names ([`run_in_memory`]).
+struct RunInertial<'i, 'a> {
+    method: Method,
+    input: &'i BatchInput<'a>,
+    chooser: Option<Chooser>,
+}
 
 impl InertialVisitor for RunInertial<'_, '_> {
     type Output = Result<BatchOutput>;
 
     fn visit<F: NamedFilter>(self) -> Result<BatchOutput> {
-        let input = self.0;
-        run_inertial(|i| F::build(input.anchors.to_vec(), i, input.config.clone()), input)
+        run_in_memory(self.method, self.input, self.chooser, &FilterKind::<F>::inertial())
     }
 }
 
-/// Fails when `method` is asked to smooth and cannot, or is given measurements of a sensor
-/// (`kinds`, one per measurement or per sensor) it does not take; the message lists the methods
-/// that can.
-pub(crate) fn check_inputs(method: Method, smooth: bool, kinds: impl IntoIterator<Item = SensorKind>) -> Result<()> {
-    if let Some(kind) = kinds.into_iter().find(|k| !method.takes(Input::Sensor(*k))) {
-        let label = kind.info().label;
-        return Err(Error::InvalidCall(format!(
-            "{label} given, but {} does not take {label} (these do: {})",
-            method.name(),
-            Method::names_where(|m| m.takes(Input::Sensor(kind)))
-        )));
-    }
-    if smooth && !method.smoothable() {
-        return Err(Error::unknown_option(
-            "smoothing method",
-            method.name(),
-            Method::ALL.iter().filter(|m| m.smoothable()).map(|m| m.name()),
-        ));
-    }
-    Ok(())
-}
-
-/// Refuses ranges from a tag the configuration gives no lever arm for, and ranges from several
-/// tags for a method that fuses one; `tagged` gives the tags beyond 0 with where they are
-/// ("ranges row 12"), and the message says where and what to do.
-pub(crate) fn check_tags(method: Method, config: &FilterConfig, tagged: impl IntoIterator<Item = (String, usize)>) -> Result<()> {
-    let tags = config.mounting.lever_arm.tags();
-    for (place, tag) in tagged {
-        if tag >= tags {
-            return Err(Error::InvalidCall(format!(
-                "{place} is from tag {tag}, but mounting.lever_arm gives {tags} tag(s): give one [x, y, z] per tag, tag 0 first"
-            )));
-        }
-        if tag != 0 && !method.takes(Input::Tags) {
-            return Err(Error::InvalidCall(format!(
-                "ranges from tag {tag}, but {} fuses one tag (these fuse several: {})",
-                method.name(),
-                Method::names_where(|m| m.takes(Input::Tags))
-            )));
-        }
-    }
-    Ok(())
+/// The checks of a batch run: [`check_inputs`] with its sensors and smoothing, [`check_tags`]
+/// with the rows of its ranges.
+fn check_batch(method: Method, input: &BatchInput<'_>) -> Result<()> {
+    check_inputs(method, input.smooth, input.observations.iter().map(Observation::kind))?;
+    let tagged = input.ranges.iter().enumerate().filter(|(_, r)| r.tag != 0);
+    check_tags(method, input.config, tagged.map(|(row, r)| (format!("ranges row {row}"), r.tag)))
 }
 
 /// The ranges of `input` that pass the plausibility gate ([`Gate`]): `uwb_ls` does not run the
@@ -215,39 +197,32 @@ impl BatchInput<'_> {
     }
 }
 
-/// Runs a planar filter of Wang et al. 2018 (initialised like the inertial filters: x, y, velocity, yaw
-/// and gyro bias from the initial state).
-fn run_planar(kind: PlanarKind, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    let warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
-    let (initial, init) = initial_state(input)?;
-    let mut filter = PlanarFilter::new(kind, input.anchors.to_vec(), &initial, input.config)?;
-    let trace = run_streams(&mut filter, &Streams { observations: &[], ..input.streams() })?;
-    Ok(BatchOutput::Inertial { trace, init, smoothed: None, warnings, model: None })
-}
-
-/// Initialises (unless `initial` is given), builds the filter with `build` and runs the pipeline.
-/// A smoothed run then takes the passes after its first in the order every runner takes them
-/// ([`after_first_pass`]: the outlier passes, then from their last the MAP passes), here held in
-/// memory ([`InMemory`]); a run whose smoother failed numerically carries the warning
+/// Runs `method` with the filter `kind` through the sequence of a run ([`run_log`]), its passes
+/// held in memory ([`InMemory`]); a run whose smoother failed numerically carries the warning
 /// [`SMOOTHING_FAILED`].
-fn run_inertial<F: InertialFilter>(build: impl Fn(&InitialState) -> Result<F>, input: &BatchInput<'_>) -> Result<BatchOutput> {
-    let mut warnings = check_imu_units(input.imu, input.config.gate.refuse_unit_slips)?;
-    let (initial, init) = initial_state(input)?;
-    let (trace, smoothed, smoothing) = run_pass(&build, &initial, input, None)?;
+fn run_in_memory<E: Estimator>(
+    method: Method,
+    input: &BatchInput<'_>,
+    chooser: Option<Chooser>,
+    kind: &FilterKind<E>,
+) -> Result<BatchOutput> {
     let quiet = input.progress.map(Progress::sharing_cancel);
     let mut runner = InMemory {
-        build: &build,
-        initial: &initial,
-        input: BatchInput { progress: quiet.as_ref(), ..*input },
+        kind,
+        input: *input,
+        quiet: quiet.as_ref(),
+        chooser,
+        model: None,
+        initial: None,
+        warnings: Vec::new(),
+        smoothing: None,
         map_config: None,
         map_init: None,
     };
-    let done = after_first_pass(&mut runner, (trace, smoothed, init), input.ranges, &smoothing)?;
-    let (mut trace, smoothed, init) = done.pass;
-    let health = &mut trace.health;
-    (health.smoothing_left_out, health.map_passes, health.map_objective) = (done.left_out, done.map.passes, done.map.objective);
+    let (trace, smoothed, init) = run_log(method, chooser.is_some(), &mut runner)?;
+    let mut warnings = runner.warnings;
     warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
-    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: None })
+    Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: runner.model.map(Box::new) })
 }
 
 /// Whether a pass of the smoothing ran to its end: smoothed, neither failed numerically nor
@@ -263,13 +238,23 @@ fn residuals_of(input: &BatchInput<'_>, steps: &[StepRecord]) -> Vec<Option<Resi
     walk.finish()
 }
 
-/// The passes of a batch run after its first ([`after_first_pass`]), held in memory. Its runs do
-/// not count IMU samples (`input.progress` shares only the caller's cancel flag).
-struct InMemory<'a, B> {
-    build: &'a B,
-    /// The state the first pass and every MAP pass start from (the objective's prior).
-    initial: &'a InitialState,
+/// A batch run's steps ([`LogRunner`]): the arrays of its input, its passes held in memory.
+struct InMemory<'a, E> {
+    kind: &'a FilterKind<E>,
+    /// The input as given: the first pass counts its IMU samples on `input.progress`.
     input: BatchInput<'a>,
+    /// The progress of the passes after the first: it counts nothing and shares the caller's
+    /// cancel flag.
+    quiet: Option<&'a Progress>,
+    chooser: Option<Chooser>,
+    /// The model chosen ([`LogRunner::choose`]), whose configuration every pass runs with.
+    model: Option<ModelChoice>,
+    /// The state the first pass and every MAP pass start from (the objective's prior).
+    initial: Option<InitialState>,
+    /// What the unit check of the IMU found suspicious ([`check_imu_units`]).
+    warnings: Vec<String>,
+    /// The smoothing settings of the first pass's filter (None: nothing to smooth).
+    smoothing: Option<SmoothingConfig>,
     /// The configuration the filter runs with (the objective's noise and mounting), once the MAP
     /// passes are ready ([`PassRunner::prepare_map`]).
     map_config: Option<FilterConfig>,
@@ -277,40 +262,103 @@ struct InMemory<'a, B> {
     map_init: Option<Box<SelfInit>>,
 }
 
-impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> PassRunner for InMemory<'_, B> {
+impl<E> InMemory<'_, E> {
+    /// The configuration the passes run with: the chosen model's, else the input's.
+    fn config(&self) -> &FilterConfig {
+        self.model.as_ref().map_or(self.input.config, |m| &m.config)
+    }
+}
+
+impl<'a, E: Estimator> LogRunner for InMemory<'a, E> {
+    type Ranges = &'a [RangeMeasurement];
+
+    fn config(&self) -> &FilterConfig {
+        self.input.config
+    }
+
+    fn check(&self, method: Method) -> Result<()> {
+        check_batch(method, &self.input)
+    }
+
+    fn choose(&mut self, method: Method) -> Result<ModelChoice> {
+        let Some(chooser) = self.chooser else {
+            return Err(Error::InvalidCall("a model choice without a chooser".into()));
+        };
+        Ok(chooser(method, &self.input))
+    }
+
+    /// The unit check of the IMU, then the initial state (given, or self-initialised with the
+    /// chosen configuration) and the pass from it.
+    fn first_pass(&mut self, model: Option<ModelChoice>) -> Result<SmoothedPass> {
+        self.model = model;
+        self.warnings = check_imu_units(self.input.imu, self.config().gate.refuse_unit_slips)?;
+        let input = BatchInput { config: self.config(), ..self.input };
+        let (initial, init) = initial_state(&input)?;
+        let (trace, smoothed, smoothing) = run_pass(self.kind, &initial, &input, None)?;
+        (self.initial, self.smoothing) = (Some(initial), smoothing);
+        Ok((trace, smoothed, init))
+    }
+
+    fn later_passes(&mut self, (_, smoothed, _): &mut SmoothedPass) -> Result<Option<(Self::Ranges, SmoothingConfig)>> {
+        Ok(self.smoothing.filter(|_| smoothed.is_some()).map(|s| (self.input.ranges, s)))
+    }
+
+    fn keep(&mut self, done: AfterFirstPass<SmoothedPass>) -> SmoothedPass {
+        let (mut trace, smoothed, init) = done.pass;
+        let health = &mut trace.health;
+        (health.smoothing_left_out, health.map_passes, health.map_objective) =
+            (done.left_out, done.map.passes, done.map.objective);
+        (trace, smoothed, init)
+    }
+}
+
+impl<E: Estimator> InMemory<'_, E> {
+    /// The state the first pass started from.
+    fn start(&self) -> Result<&InitialState> {
+        self.initial.as_ref().ok_or_else(|| Error::InvalidCall("a later pass before the first".into()))
+    }
+
+    /// The input of the passes after the first: the chosen configuration, counting nothing.
+    fn later_input(&self) -> BatchInput<'_> {
+        BatchInput { config: self.config(), progress: self.quiet, ..self.input }
+    }
+}
+
+impl<E: Estimator> PassRunner for InMemory<'_, E> {
     /// A log that cannot start without the ranges left out keeps the pass before.
     fn without(&mut self, left_out: &[bool]) -> Result<Option<SmoothedPass>> {
         let kept: Vec<RangeMeasurement> =
             self.input.ranges.iter().zip(left_out).filter(|(_, out)| !**out).map(|(r, _)| *r).collect();
-        let again_input = BatchInput { ranges: &kept, ..self.input };
+        let again_input = BatchInput { ranges: &kept, ..self.later_input() };
         let rerun = initial_state(&again_input)
-            .and_then(|(initial, init)| run_pass(self.build, &initial, &again_input, None).map(|pass| (pass, init)));
+            .and_then(|(initial, init)| run_pass(self.kind, &initial, &again_input, None).map(|pass| (pass, init)));
         let ((trace, smoothed, _), init) = match rerun {
             Err(Error::InsufficientData(_)) => return Ok(None),
             other => other?,
         };
-        Ok(complete(&trace, &smoothed, self.input.progress).then_some((trace, smoothed, init)))
+        Ok(complete(&trace, &smoothed, self.quiet).then_some((trace, smoothed, init)))
     }
 
     /// A filter that takes no guide, or a log with other sensors than the IMU and the ranges,
     /// runs no MAP pass.
     fn prepare_map(&mut self, pass: &mut SmoothedPass) -> Result<bool> {
-        let mut filter = (self.build)(self.initial)?;
-        if !filter.set_guide(None) || !self.input.observations.is_empty() {
+        let mut filter = (self.kind.build)(self.input.anchors.to_vec(), self.start()?, self.config().clone())?;
+        if !(self.kind.guide)(&mut filter, None) || !self.input.observations.is_empty() {
             return Ok(false);
         }
-        self.map_config = Some(filter.config().clone());
+        self.map_config = (self.kind.config)(&filter).cloned();
         self.map_init.clone_from(&pass.2);
-        Ok(true)
+        Ok(self.map_config.is_some())
     }
 }
 
-impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemory<'_, B> {
+impl<E: Estimator> MapRunner for InMemory<'_, E> {
     type Pass = SmoothedPass;
     type Error = Error;
 
     fn residuals(&mut self, (_, smoothed, _): &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
-        Ok(smoothed.as_deref().map(|steps| residuals_of(&self.input, steps)))
+        let input = self.later_input();
+        Ok(smoothed.as_deref().map(|steps| residuals_of(&input, steps)))
     }
 
     fn track(&mut self, (_, smoothed, _): &mut Self::Pass) -> Result<Option<Track>> {
@@ -319,10 +367,10 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
         let BatchInput { imu, ranges, anchors, .. } = self.input;
-        let Some(config) = self.map_config.as_ref() else {
+        let (Some(config), Ok(initial)) = (self.map_config.as_ref(), self.start()) else {
             return Err(Error::InvalidCall("the MAP objective before its passes are ready".into()));
         };
-        TrackFit::of(track, imu.iter().map(|s| Ok(*s)), self.initial, config, (ranges, anchors))
+        TrackFit::of(track, imu.iter().map(|s| Ok(*s)), initial, config, (ranges, anchors))
     }
 
     fn blend(&mut self, (_, a, _): &mut Self::Pass, (_, b, _): &mut Self::Pass, alpha: f64) -> Result<()> {
@@ -336,58 +384,63 @@ impl<F: InertialFilter, B: Fn(&InitialState) -> Result<F>> MapRunner for InMemor
 
     /// A guided pass that fails numerically is declined ([`MapRunner::again`]).
     fn again(&mut self, guide: Guide) -> Result<Option<Self::Pass>> {
-        let (trace, smoothed, _) = match run_pass(self.build, self.initial, &self.input, Some(Arc::new(guide))) {
+        let input = self.later_input();
+        let (trace, smoothed, _) = match run_pass(self.kind, self.start()?, &input, Some(Arc::new(guide))) {
             Err(Error::NotPositiveDefinite { .. }) => return Ok(None),
             other => other?,
         };
-        Ok(complete(&trace, &smoothed, self.input.progress).then_some((trace, smoothed, self.map_init.clone())))
+        Ok(complete(&trace, &smoothed, self.quiet).then_some((trace, smoothed, self.map_init.clone())))
     }
 }
 
-/// A complete pass of [`run_inertial`]: the forward trace, its RTS-smoothed steps (None when the
-/// run was not smoothed) and the self-initialisation it started from.
+/// A complete pass of a batch run: the forward trace, its RTS-smoothed steps (None when the run
+/// was not smoothed) and the self-initialisation it started from.
 type SmoothedPass = (Trace, Option<Vec<StepRecord>>, Option<Box<SelfInit>>);
 
-/// One pass of [`run_inertial`] from `initial`, guided by `guide` when given (a MAP pass,
-/// [`InertialFilter::set_guide`]): the forward run, its RTS-smoothed steps when
-/// smoothing was asked for (None when the run was cancelled; the forward steps, with
-/// `health.smoothing_failed`, when the smoother failed numerically), and the smoothing settings
-/// the filter runs with (its composition's where the configuration leaves them unset).
-fn run_pass<F: InertialFilter>(
-    build: &impl Fn(&InitialState) -> Result<F>,
+/// One pass of a batch run from `initial` with the filter `kind` built with `input.config`,
+/// guided by `guide` when given (a MAP pass, [`FilterKind::guide`]): the forward run, and its
+/// RTS-smoothed steps when smoothing was asked for and the filter has an INS core (None when
+/// the run was cancelled; the forward steps, with `health.smoothing_failed`, when the smoother
+/// failed numerically), and the smoothing settings the filter runs with (None: it has nothing
+/// to smooth).
+fn run_pass<E: Estimator>(
+    kind: &FilterKind<E>,
     initial: &InitialState,
     input: &BatchInput<'_>,
     guide: Option<Arc<Guide>>,
-) -> Result<(Trace, Option<Vec<StepRecord>>, SmoothingConfig)> {
+) -> Result<(Trace, Option<Vec<StepRecord>>, Option<SmoothingConfig>)> {
     let BatchInput { imu, ranges, smooth, observations, progress, .. } = *input;
-    let mut filter = build(initial)?;
-    filter.set_guide(guide);
-    if smooth {
-        filter.core_mut().start_recording(imu.len() + ranges.len() + observations.len());
+    let mut filter = (kind.build)(input.anchors.to_vec(), initial, input.config.clone())?;
+    (kind.guide)(&mut filter, guide);
+    let smooth = smooth && (kind.core)(&mut filter).is_some();
+    if let (true, Some(core)) = (smooth, (kind.core)(&mut filter)) {
+        core.start_recording(imu.len() + ranges.len() + observations.len());
     }
     let mut trace = run_streams(&mut filter, &input.streams())?;
     // A cancelled run keeps its forward steps so far; it is not smoothed.
     let cancelled = || progress.is_some_and(Progress::cancelled);
-    let smoothed = if smooth && !cancelled() {
-        if let Some(p) = progress {
-            p.start_smoothing();
-        }
-        match smoothed_steps(&trace, filter.core(), progress) {
-            Err(Error::Interrupted { .. }) => None,
-            // A covariance the smoother cannot repair (not finite): the forward estimate stands in
-            // for the smoothed one, flagged, so that the run is never lost.
-            Err(Error::NotPositiveDefinite { .. }) => {
-                trace.health.smoothing_failed = true;
-                Some(trace.steps.clone())
+    let core = (kind.core)(&mut filter);
+    let smoothed = match core {
+        Some(core) if smooth && !cancelled() => {
+            if let Some(p) = progress {
+                p.start_smoothing();
             }
-            other => {
-                let (steps, repairs) = other?;
-                trace.health.smoothing_repairs = repairs;
-                Some(steps)
+            match smoothed_steps(&trace, core, progress) {
+                Err(Error::Interrupted { .. }) => None,
+                // A covariance the smoother cannot repair (not finite): the forward estimate stands
+                // in for the smoothed one, flagged, so that the run is never lost.
+                Err(Error::NotPositiveDefinite { .. }) => {
+                    trace.health.smoothing_failed = true;
+                    Some(trace.steps.clone())
+                }
+                other => {
+                    let (steps, repairs) = other?;
+                    trace.health.smoothing_repairs = repairs;
+                    Some(steps)
+                }
             }
         }
-    } else {
-        None
+        _ => None,
     };
-    Ok((trace, smoothed, filter.config().smoothing))
+    Ok((trace, smoothed, (kind.config)(&filter).map(|c| c.smoothing)))
 }

@@ -4,7 +4,7 @@
 //! ([`crate::map_smoothing`]: guided passes kept only when they lower the objective). The batch
 //! runner holds its passes in memory (`crate::run`), the streamed replay spills them to disk and
 //! reads the file again (`crate::replay::streamed`); each says how through [`PassRunner`], and
-//! the sequence is written once, here.
+//! the sequence of a run ([`crate::runner::run_log`]) takes these passes after its first.
 
 use std::cell::RefCell;
 

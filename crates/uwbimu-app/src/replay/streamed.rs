@@ -5,7 +5,9 @@
 //!
 //! - the events reach the filter in the batch order (time, then IMU, TDoA, range at equal times),
 //!   after the range time offset and calibration of the configuration;
-//! - a method that chooses its model ([`crate::select`]) keeps the first
+//! - the run takes the one sequence of a run (`crate::runner::run_log`), the batch runner's,
+//!   with the file as its log (`FromFile`);
+//! - a method that chooses its model ([`crate::select`]) first reads the file's first
 //!   `model_selection.window_s` of events, chooses on them as the batch run does on the same
 //!   window, and then runs from the start with its choice;
 //! - self-initialisation is the streaming filter's ([`Stream::self_initializing`]), which equals
@@ -26,14 +28,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use uwbimu_estimation::filters::{InertialCore, InertialVisitor, NamedFilter, SmoothingRecord};
+use uwbimu_estimation::filters::{InertialVisitor, NamedFilter, SmoothingRecord};
 use uwbimu_estimation::pipeline::{Builder, Estimator, Event, Health, Progress, StepRecord, Stream, StreamOptions, UpdateRecord};
-use uwbimu_estimation::planar::PlanarFilter;
 use uwbimu_estimation::smoother::Guide;
 use uwbimu_io::files::spill::Spill;
 use uwbimu_io::{IoError, IoResult as Result, Mapping, RecordingSurvey};
 use uwbimu_vocabulary::config::{FilterConfig, InitialState, SmoothingConfig};
-use uwbimu_vocabulary::error::{Error as CoreError, Result as CoreResult};
+use uwbimu_vocabulary::error::Error as CoreError;
 use uwbimu_vocabulary::math::Vec3;
 use uwbimu_vocabulary::records::RangeMeasurement;
 use uwbimu_vocabulary::sensors::SensorKind;
@@ -44,8 +45,8 @@ mod pass;
 mod spilled;
 mod truth_match;
 
-use pass::{imu_from_flat, run_pass, EventsOfPass, Pass, IMU_FLAT_LEN};
-use spilled::{step_from_flat, step_to_flat, StepsOut};
+use pass::{imu_from_flat, model_window, run_pass, EventsOfPass, Pass, IMU_FLAT_LEN};
+use spilled::{step_from_flat, step_to_flat, StepSink, StepsOut};
 use truth_match::TruthMatch;
 
 use super::{AnchorUpdateStats, ModelSummary, ReplaySummary, TruthRmse, UpdateTally};
@@ -54,8 +55,8 @@ use crate::model_choice::ModelChoice;
 use crate::model_window::ModelWindow;
 use crate::outlier_smoothing::{Residual, ResidualWalk};
 use crate::registry::{Method, Run};
-use crate::run::{check_inputs, check_tags};
-use crate::smoothing_passes::{after_first_pass, PassRunner};
+use crate::runner::{check_inputs, check_tags, run_log, FilterKind, LogRunner};
+use crate::smoothing_passes::{AfterFirstPass, PassRunner};
 
 /// What [`replay_streamed`] is given besides the method.
 #[derive(Debug, Clone, Copy)]
@@ -131,49 +132,10 @@ impl StreamedReplay {
     }
 }
 
-/// The events of the first `window_s` of the log, kept for the model selection.
-struct Prefix {
-    end_s: f64,
-    window: ModelWindow,
-}
-
-impl Prefix {
-    /// Keeps the events up to `end_s`.
-    fn new(end_s: f64) -> Self {
-        Self { end_s, window: ModelWindow::default() }
-    }
-
-    /// The model chosen on the kept events ([`ModelWindow::choose`]).
-    fn choose(&self, method: Method, input: &StreamedInput<'_>) -> ModelChoice {
-        self.window.choose(method, &input.survey.anchors.positions, input.initial, input.config)
-    }
-}
-
-/// Builds the filter of a streamed replay for the anchors, from the initial state, with the
-/// configuration.
-pub(crate) type BuildFilter<E> = Arc<dyn Fn(Vec<Vec3>, &InitialState, FilterConfig) -> CoreResult<E> + Send + Sync>;
-
-/// The filter of one streamed replay: how to build it and where its INS core is (None: nothing to
-/// smooth, the planar filters).
-pub(crate) struct FilterKind<E> {
-    /// Builds the filter.
-    pub build: BuildFilter<E>,
-    /// Its INS core, to record and smooth.
-    pub core: fn(&mut E) -> Option<&mut InertialCore>,
-    /// The smoothing settings it runs with (its composition's where the configuration leaves
-    /// them unset).
-    pub smoothing: fn(&E) -> SmoothingConfig,
-    /// Guides it in a pass of the MAP smoother; false when it takes no guide
-    /// ([`uwbimu_estimation::filters::InertialFilter::set_guide`]).
-    pub guide: fn(&mut E, Option<Arc<Guide>>) -> bool,
-}
-
 /// The state of a run while the events stream past.
 struct RunState<'a, 'f, E> {
-    method: Method,
     input: &'a StreamedInput<'a>,
     kind: &'a FilterKind<E>,
-    prefix: Option<Prefix>,
     stream: Option<Stream<E>>,
     model: Option<ModelChoice>,
     out: StepsOut<'f>,
@@ -217,30 +179,7 @@ impl<E: Estimator + Send + Sync + 'static> RunState<'_, '_, E> {
         Ok(())
     }
 
-    /// Takes one released event.
-    fn event(&mut self, event: Event) -> Result<()> {
-        if let Some(prefix) = self.prefix.as_mut() {
-            if event.t_s() <= prefix.end_s {
-                prefix.window.push(event);
-                return Ok(());
-            }
-            self.choose()?;
-        }
-        self.feed(event)
-    }
-
-    /// Chooses the model on the kept events, starts the stream and feeds them to it.
-    fn choose(&mut self) -> Result<()> {
-        let Some(prefix) = self.prefix.take() else { return Ok(()) };
-        let choice = prefix.choose(self.method, self.input);
-        self.start(&choice.config)?;
-        self.model = Some(choice);
-        for e in prefix.window.events() {
-            self.feed(*e)?;
-        }
-        Ok(())
-    }
-
+    /// Feeds one released event to the stream and hands on what it produced.
     fn feed(&mut self, event: Event) -> Result<()> {
         let Some(stream) = self.stream.as_mut() else { return Ok(()) };
         let imu = matches!(event, Event::Imu(_));
@@ -300,15 +239,16 @@ fn survey_sensors(survey: &RecordingSurvey) -> impl Iterator<Item = SensorKind> 
 }
 
 /// Replays the recording of `input` through `method` (an inertial or planar filter) as the
-/// whole-recording replay does, reading the file once more and handing each output step to
-/// `on_step` in time order: the forward step as soon as the events at its time are in, or, when
-/// smoothing, the smoothed steps after the RTS pass. A smoothed run then takes the passes after
-/// its first as the batch runner does ([`after_first_pass`]: the outlier passes, each reading the
-/// file again without the ranges the smoothed track calls NLOS, then the MAP passes), and hands on
-/// the last pass kept; it keeps the ranges (24 B each) in memory meanwhile and, on a log of IMU
-/// and ranges only, spills the IMU samples (56 B each) for the MAP objective. When the progress's cancel flag is
-/// raised the run stops after the current event and hands on the forward steps so far (not
-/// smoothed).
+/// whole-recording replay does, through the one sequence of a run ([`run_log`]) with the file as
+/// its log ([`FromFile`]), handing each output step to `on_step` in time order: the forward step
+/// as soon as the events at its time are in, or, when smoothing, the smoothed steps after the RTS
+/// pass. A smoothed run then takes the passes after its first as the batch runner does
+/// ([`crate::smoothing_passes::after_first_pass`]: the outlier passes, each reading the file again
+/// without the ranges the smoothed track calls NLOS, then the MAP passes), and hands on the last
+/// pass kept; it keeps the ranges (24 B each) in memory meanwhile and, on a log of IMU and ranges
+/// only, spills the IMU samples (56 B each) for the MAP objective. When the progress's cancel
+/// flag is raised the run stops after the current event and hands on the forward steps so far
+/// (not smoothed).
 ///
 /// # Errors
 /// As [`crate::methods::run_method`] and the file's read; [`IoError::Io`] when the
@@ -320,77 +260,125 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
     on_step: &mut dyn FnMut(&StepRecord) -> Result<()>,
 ) -> Result<StreamedReplay> {
     let survey = input.survey;
-    check_inputs(method, input.smooth, survey_sensors(survey))?;
-    let tagged = survey.stats.ranges_per_tag.keys().filter(|&&t| t != 0);
-    check_tags(method, input.config, tagged.map(|&t| ("a range of the recording".to_string(), t)))?;
-    let Some(imu_span_s) = survey.imu_span_s.filter(|_| survey.n_ranges + survey.n_tdoa > 0) else {
-        return Err(CoreError::InsufficientData(format!(
-            "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
-            survey.n_imu, survey.n_ranges, survey.n_tdoa
-        ))
-        .into());
-    };
-    input.config.range_calibration.check_anchors(survey.anchors.positions.len())?;
-    if !input.smooth {
-        let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
-        let out = StepsOut::Forward { on_step: &mut *on_step, truth: Box::new(truth) };
-        return run_pass(method, input, kind, imu_span_s, out, &mut EventsOfPass::default(), None, None)?.finish(survey, None);
-    }
-    // The MAP passes run on a log of IMU and ranges only (the objective has no terms for other
-    // sensors): only then are the IMU samples spilled for it.
-    let only_ranges = survey_sensors(survey).next().is_none();
-    let imu = only_ranges.then(|| Spill::create(input.spill_dir, "IMU samples")).transpose()?;
-    let mut ranges = EventsOfPass { kept: Some(Vec::new()), imu, left_out: &[], seen: 0 };
-    let mut pass = run_pass(method, input, kind, imu_span_s, StepsOut::spilled(input.spill_dir)?, &mut ranges, None, None)?;
-    pass.smooth(input, kind.core)?;
-    let (all, imu) = (ranges.kept.take().unwrap_or_default(), ranges.imu.take());
-    let Some(smoothing) = pass.stream.estimator().map(kind.smoothing) else {
-        return pass.finish(survey, Some(on_step));
-    };
-    let (quiet, model) = (input.progress.map(Progress::sharing_cancel), pass.model.clone());
-    let config = model.as_ref().map_or(input.config, |m| &m.config).clone();
-    // As the batch runner: the MAP objective's prior is the state the first pass started from.
-    let initial = input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
-    let mut runner = Spilled {
-        method,
+    let quiet = input.progress.map(Progress::sharing_cancel);
+    let mut runner = FromFile {
         input,
         kind,
-        imu_span_s,
-        model: model.as_ref(),
+        imu_span_s: survey.imu_span_s.filter(|_| survey.n_ranges + survey.n_tdoa > 0),
+        on_step: Some(on_step),
         quiet: quiet.as_ref(),
-        ranges: &all,
-        imu,
-        config,
-        initial,
+        model: None,
+        ranges: Arc::from([]),
+        imu: None,
+        initial: None,
     };
-    let done = after_first_pass(&mut runner, pass, &all, &smoothing)?;
-    let mut pass = done.pass;
-    (pass.left_out, pass.map_passes, pass.map_objective) = (done.left_out, done.map.passes, done.map.objective);
-    pass.finish(survey, Some(on_step))
+    let pass = run_log(method, true, &mut runner)?;
+    pass.finish(survey, runner.on_step.take())
 }
 
-/// The passes of a streamed replay after its first ([`after_first_pass`]): a pass reads the file
-/// again, its smoothed steps spilled to disk and read back oldest first.
-struct Spilled<'a, 'i, E> {
-    method: Method,
+/// A streamed replay's steps ([`LogRunner`]): each pass reads the file, its steps handed on
+/// (forward) or spilled to disk and read back oldest first (smoothed).
+struct FromFile<'a, 'i, E> {
     input: &'a StreamedInput<'i>,
     kind: &'a FilterKind<E>,
-    imu_span_s: (f64, f64),
-    model: Option<&'a ModelChoice>,
+    /// The span of the IMU samples (None: the recording has no IMU samples or nothing to fuse).
+    imu_span_s: Option<(f64, f64)>,
+    /// Where the steps go: the forward pass's, or the last kept pass's once smoothed.
+    on_step: Option<StepSink<'a>>,
+    /// The progress of the passes after the first: it counts nothing and shares the caller's
+    /// cancel flag.
     quiet: Option<&'a Progress>,
-    /// Every range of the first pass, in stream order.
-    ranges: &'a [RangeMeasurement],
+    /// The model chosen ([`LogRunner::choose`]), whose configuration every pass runs with.
+    model: Option<ModelChoice>,
+    /// Every range of the first pass, in stream order (kept when smoothing).
+    ranges: Arc<[RangeMeasurement]>,
     /// Every IMU sample of the first pass, in time order (None on a log with other sensors than
     /// the IMU and the ranges, which runs no MAP pass).
     imu: Option<Spill<IMU_FLAT_LEN>>,
-    /// The configuration the filter runs with (the objective's noise and mounting).
-    config: FilterConfig,
     /// The state the first pass started from, given or self-initialised (the MAP objective's
     /// prior; None when the first pass never initialised).
     initial: Option<InitialState>,
 }
 
-impl<'a, E: Estimator + Send + Sync + 'static> PassRunner for Spilled<'a, '_, E> {
+impl<E> FromFile<'_, '_, E> {
+    /// The span of the IMU samples, or why the recording cannot be run.
+    fn span(&self) -> Result<(f64, f64)> {
+        let survey = self.input.survey;
+        self.imu_span_s.ok_or_else(|| {
+            CoreError::InsufficientData(format!(
+                "the recording has {} IMU samples, {} usable ranges and {} usable TDoA",
+                survey.n_imu, survey.n_ranges, survey.n_tdoa
+            ))
+            .into()
+        })
+    }
+}
+
+impl<'a, E: Estimator + Send + Sync + 'static> LogRunner for FromFile<'a, '_, E> {
+    type Ranges = Arc<[RangeMeasurement]>;
+
+    fn config(&self) -> &FilterConfig {
+        self.input.config
+    }
+
+    fn check(&self, method: Method) -> Result<()> {
+        let (input, survey) = (self.input, self.input.survey);
+        check_inputs(method, input.smooth, survey_sensors(survey))?;
+        let tagged = survey.stats.ranges_per_tag.keys().filter(|&&t| t != 0);
+        check_tags(method, input.config, tagged.map(|&t| ("a range of the recording".to_string(), t)))?;
+        self.span()?;
+        Ok(input.config.range_calibration.check_anchors(survey.anchors.positions.len())?)
+    }
+
+    /// A log the selection cannot score for its anchors or its lack of ranges needs no window
+    /// read: the choice (the input configuration, and why) comes at once.
+    fn choose(&mut self, method: Method) -> Result<ModelChoice> {
+        let (input, survey) = (self.input, self.input.survey);
+        let scorable = survey.anchors.positions.len() >= crate::select::MIN_BLOCK_ANCHORS && survey.n_ranges > 0;
+        let window = if scorable { model_window(input, self.span()?)? } else { ModelWindow::default() };
+        Ok(window.choose(method, &survey.anchors.positions, input.initial, input.config))
+    }
+
+    /// A forward run hands its steps on as they come; a smoothed one spills them, keeps the
+    /// ranges and, on a log of IMU and ranges only (the MAP objective has no terms for other
+    /// sensors), spills the IMU samples, and is RTS-smoothed.
+    fn first_pass(&mut self, model: Option<ModelChoice>) -> Result<Pass<'a, E>> {
+        self.model = model;
+        let (input, span) = (self.input, self.span()?);
+        let survey = input.survey;
+        if !input.smooth {
+            let Some(on_step) = self.on_step.take() else {
+                return Err(CoreError::InvalidCall("a forward pass without a step sink".into()).into());
+            };
+            let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
+            let out = StepsOut::Forward { on_step, truth: Box::new(truth) };
+            return run_pass(input, self.kind, span, out, &mut EventsOfPass::default(), self.model.as_ref(), None);
+        }
+        let only_ranges = survey_sensors(survey).next().is_none();
+        let imu = only_ranges.then(|| Spill::create(input.spill_dir, "IMU samples")).transpose()?;
+        let mut ranges = EventsOfPass { kept: Some(Vec::new()), imu, left_out: &[], seen: 0 };
+        let out = StepsOut::spilled(input.spill_dir)?;
+        let mut pass = run_pass(input, self.kind, span, out, &mut ranges, self.model.as_ref(), None)?;
+        pass.smooth(input, self.kind.core)?;
+        (self.ranges, self.imu) = (ranges.kept.take().unwrap_or_default().into(), ranges.imu.take());
+        // As the batch runner: the MAP objective's prior is the state the first pass started from.
+        self.initial = input.initial.cloned().or_else(|| pass.stream.self_init().map(|s| s.initial.clone()));
+        Ok(pass)
+    }
+
+    fn later_passes(&mut self, pass: &mut Pass<'a, E>) -> Result<Option<(Self::Ranges, SmoothingConfig)>> {
+        let smoothing = pass.stream.estimator().and_then(self.kind.config).map(|c| c.smoothing);
+        Ok(smoothing.filter(|_| self.input.smooth).map(|s| (Arc::clone(&self.ranges), s)))
+    }
+
+    fn keep(&mut self, done: AfterFirstPass<Pass<'a, E>>) -> Pass<'a, E> {
+        let mut pass = done.pass;
+        (pass.left_out, pass.map_passes, pass.map_objective) = (done.left_out, done.map.passes, done.map.objective);
+        pass
+    }
+}
+
+impl<'a, E: Estimator + Send + Sync + 'static> PassRunner for FromFile<'a, '_, E> {
     /// A log that cannot start without the ranges left out keeps the pass before.
     fn without(&mut self, left_out: &[bool]) -> Result<Option<Pass<'a, E>>> {
         let declined = |e: &CoreError| matches!(e, CoreError::InsufficientData(_));
@@ -412,26 +400,20 @@ fn smoothed_steps<'p, E>(pass: &'p mut Pass<'_, E>) -> Result<Option<impl Iterat
     Ok(Some(smoothed.newest_first()?.map(|v| v.map(|v| step_from_flat(&v)))))
 }
 
-/// The residuals of `ranges` against a pass's smoothed track (None when it has none).
-fn residuals_of<E>(
-    pass: &mut Pass<'_, E>,
-    ranges: &[RangeMeasurement],
-    input: &StreamedInput<'_>,
-) -> Result<Option<Vec<Option<Residual>>>> {
-    let Some(steps) = smoothed_steps(pass)? else { return Ok(None) };
-    let mut walk = ResidualWalk::new(ranges, &input.survey.anchors.positions, input.config.mounting.lever_arm);
-    for step in steps {
-        walk.push(&step?);
-    }
-    Ok(Some(walk.finish()))
-}
-
-impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i, E> {
+impl<'a, E: Estimator + Send + Sync + 'static> MapRunner for FromFile<'a, '_, E> {
     type Pass = Pass<'a, E>;
     type Error = IoError;
 
+    /// The residuals of the first pass's ranges against a pass's smoothed track (None when it
+    /// has none).
     fn residuals(&mut self, pass: &mut Self::Pass) -> Result<Option<Vec<Option<Residual>>>> {
-        residuals_of(pass, self.ranges, self.input)
+        let Some(steps) = smoothed_steps(pass)? else { return Ok(None) };
+        let lever_arm = self.input.config.mounting.lever_arm;
+        let mut walk = ResidualWalk::new(&self.ranges, &self.input.survey.anchors.positions, lever_arm);
+        for step in steps {
+            walk.push(&step?);
+        }
+        Ok(Some(walk.finish()))
     }
 
     fn track(&mut self, pass: &mut Self::Pass) -> Result<Option<Track>> {
@@ -439,11 +421,12 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
     }
 
     fn fit(&mut self, track: &[(f64, NominalState)]) -> Result<TrackFit> {
+        let config = self.model.as_ref().map_or(self.input.config, |m| &m.config);
         let (Some(imu), Some(initial)) = (self.imu.as_mut(), self.initial.as_ref()) else {
             return Err(CoreError::InvalidCall("the MAP objective without the IMU samples or the initial state".into()).into());
         };
         let imu = imu.oldest_first()?.map(|v| v.map(|v| imu_from_flat(&v)));
-        TrackFit::of(track, imu, initial, &self.config, (self.ranges, &self.input.survey.anchors.positions))
+        TrackFit::of(track, imu, initial, config, (&self.ranges, &self.input.survey.anchors.positions))
     }
 
     /// Writes the blend into a new spill, newest first as the smoothed steps are kept.
@@ -466,7 +449,7 @@ impl<'a, 'i, E: Estimator + Send + Sync + 'static> MapRunner for Spilled<'a, 'i,
     }
 }
 
-impl<'a, E: Estimator + Send + Sync + 'static> Spilled<'a, '_, E> {
+impl<'a, E: Estimator + Send + Sync + 'static> FromFile<'a, '_, E> {
     /// The file read, filtered and smoothed again with the model of the first pass, leaving out
     /// and keeping ranges as `ranges` says, guided by `guide` when given; None when the run fails
     /// with an error `declined` accepts (the pass before is kept), or does not run to its end:
@@ -479,7 +462,7 @@ impl<'a, E: Estimator + Send + Sync + 'static> Spilled<'a, '_, E> {
     ) -> Result<Option<Pass<'a, E>>> {
         let input = StreamedInput { progress: self.quiet, ..*self.input };
         let out = StepsOut::spilled(input.spill_dir)?;
-        let mut rerun = match run_pass(self.method, &input, self.kind, self.imu_span_s, out, ranges, self.model, guide) {
+        let mut rerun = match run_pass(&input, self.kind, self.span()?, out, ranges, self.model.as_ref(), guide) {
             Err(IoError::Core(e)) if declined(&e) => return Ok(None),
             other => other?,
         };
@@ -507,17 +490,7 @@ pub fn replay_streamed(
             Err(CoreError::InvalidCall(format!("{} is not streamed: replay the whole recording", method.name())).into())
         }
         Run::Inertial(kind) => kind.visit(StreamInertial { method, input, on_step }),
-        Run::Planar(kind) => {
-            let filter = FilterKind {
-                build: Arc::new(move |anchors, initial: &InitialState, config: FilterConfig| {
-                    PlanarFilter::new(kind, anchors, initial, &config)
-                }),
-                core: |_: &mut PlanarFilter| None,
-                smoothing: |_: &PlanarFilter| SmoothingConfig::default(),
-                guide: |_: &mut PlanarFilter, _| false,
-            };
-            run(method, input, &filter, on_step)
-        }
+        Run::Planar(kind) => run(method, input, &FilterKind::planar(kind), on_step),
     }
 }
 
@@ -533,12 +506,6 @@ impl InertialVisitor for StreamInertial<'_, '_, '_> {
     type Output = Result<StreamedReplay>;
 
     fn visit<F: NamedFilter>(self) -> Result<StreamedReplay> {
-        let filter = FilterKind {
-            build: Arc::new(F::build),
-            core: |f: &mut F| Some(f.core_mut()),
-            smoothing: |f: &F| f.config().smoothing,
-            guide: |f: &mut F, g| f.set_guide(g),
-        };
-        run(self.method, self.input, &filter, self.on_step)
+        run(self.method, self.input, &FilterKind::<F>::inertial(), self.on_step)
     }
 }

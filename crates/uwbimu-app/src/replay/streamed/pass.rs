@@ -17,9 +17,10 @@ use uwbimu_vocabulary::sensors::Observation;
 use super::ordered::Ordered;
 use super::spilled::{smooth_spilled, step_from_flat, Spills, StepSink, StepsOut, STEP_FLAT_LEN};
 use super::truth_match::{hand_on, TruthMatch};
-use super::{survey_sensors, FilterKind, Prefix, RunState, StreamedInput, StreamedReplay, UpdateTally};
+use super::{survey_sensors, RunState, StreamedInput, StreamedReplay, UpdateTally};
 use crate::model_choice::ModelChoice;
-use crate::registry::Method;
+use crate::model_window::ModelWindow;
+use crate::runner::FilterKind;
 
 /// What one pass of [`run`] does with the events besides filtering them: the ranges to leave
 /// out, by their order in the stream; all of them kept when `kept` is Some, and the IMU samples
@@ -92,12 +93,10 @@ pub(super) struct Pass<'f, E> {
     pub(super) smoothing_failed: bool,
 }
 
-/// Reads the file once through `method` into `out`, leaving out and keeping ranges as `ranges`
-/// says, with the model `chosen` on an earlier pass (None: chosen now, when the method chooses),
-/// the filter guided by `guide` when given (a MAP pass).
-#[allow(clippy::too_many_arguments)]
+/// Reads the file once into `out` with the configuration of the model `chosen` (None: the
+/// input's), leaving out and keeping ranges as `ranges` says, the filter guided by `guide` when
+/// given (a MAP pass).
 pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
-    method: Method,
     input: &StreamedInput<'_>,
     kind: &FilterKind<E>,
     imu_span_s: (f64, f64),
@@ -107,18 +106,11 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     guide: Option<Arc<Guide>>,
 ) -> Result<Pass<'f, E>> {
     let survey = input.survey;
-    let choosing = chosen.is_none() && method.chooses_its_model() && input.config.model_selection.enabled;
-    // A log the selection cannot score for its anchors or its lack of ranges needs no window
-    // kept: the choice (the input configuration, and why) comes at once.
-    let scorable = survey.anchors.positions.len() >= crate::select::MIN_BLOCK_ANCHORS && survey.n_ranges > 0;
-    let selecting = choosing && scorable;
     let mut run = RunState {
-        method,
         input,
         kind,
-        prefix: selecting.then(|| Prefix::new(imu_span_s.0 + input.config.model_selection.window_s)),
         stream: None,
-        model: None,
+        model: chosen.cloned(),
         out,
         tally: UpdateTally::new(&survey.anchors.ids, survey_sensors(survey)),
         steps: Vec::new(),
@@ -128,17 +120,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         last_t_s: None,
         guide,
     };
-    if let Some(choice) = chosen {
-        run.start(&choice.config)?;
-        run.model = Some(choice.clone());
-    } else if choosing && !scorable {
-        let empty = Prefix::new(imu_span_s.0);
-        let choice = empty.choose(method, input);
-        run.start(&choice.config)?;
-        run.model = Some(choice);
-    } else if !selecting {
-        run.start(input.config)?;
-    }
+    run.start(chosen.map_or(input.config, |c| &c.config))?;
     let mut ordered = Ordered::new(input.config, imu_span_s);
     let mut released = Vec::new();
     let cancelled = || input.progress.is_some_and(Progress::cancelled);
@@ -146,15 +128,12 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         if cancelled() {
             return Err(CoreError::Interrupted { what: "replay" }.into());
         }
-        let event = match item {
-            RecordItem::Imu(s) => Event::Imu(s),
-            RecordItem::Range(r, _) => Event::Range(r),
-            RecordItem::Tdoa(m) => Event::Observation(Observation::Tdoa(m)),
-            RecordItem::Sensor(o) => Event::Observation(o),
-            RecordItem::Truth(t, p) => return run.truth(t, p),
+        let event = match event_of(item) {
+            Ok(event) => event,
+            Err((t, p)) => return run.truth(t, p),
         };
         ordered.push(event, &mut released)?;
-        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.event(e) } else { Ok(()) })
+        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.feed(e) } else { Ok(()) })
     });
     let cancelled_run = match read {
         Ok(()) => false,
@@ -163,9 +142,8 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     };
     if !cancelled_run {
         ordered.release(f64::INFINITY, &mut released);
-        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.event(e) } else { Ok(()) })?;
+        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.feed(e) } else { Ok(()) })?;
     }
-    run.choose()?;
     let Some(stream) = run.stream.as_mut() else {
         return Err(CoreError::InvalidCall("the stream was not started".into()).into());
     };
@@ -194,6 +172,60 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
         smoothing_repairs: 0,
         smoothing_failed: false,
     })
+}
+
+/// The filter's event of a record of the file, or the ground truth's time and position.
+fn event_of(item: RecordItem) -> std::result::Result<Event, (f64, Vec3)> {
+    Ok(match item {
+        RecordItem::Imu(s) => Event::Imu(s),
+        RecordItem::Range(r, _) => Event::Range(r),
+        RecordItem::Tdoa(m) => Event::Observation(Observation::Tdoa(m)),
+        RecordItem::Sensor(o) => Event::Observation(o),
+        RecordItem::Truth(t, p) => return Err((t, p)),
+    })
+}
+
+/// Why [`model_window`] stops reading: the first event after the window is out.
+const PAST_THE_WINDOW: &str = "the read of the model window";
+
+/// The events of the first `model_selection.window_s` of the log (from its first IMU sample), as
+/// a first pass feeds them to the filter (after the range time offset and calibration, in the
+/// batch order), for the model choice ([`ModelWindow::choose`]). The file is read up to the first
+/// event after the window; a cancelled read gives the events so far.
+///
+/// # Errors
+/// The file's read.
+pub(super) fn model_window(input: &StreamedInput<'_>, imu_span_s: (f64, f64)) -> Result<ModelWindow> {
+    let end_s = imu_span_s.0 + input.config.model_selection.window_s;
+    let mut window = ModelWindow::default();
+    let mut ordered = Ordered::new(input.config, imu_span_s);
+    let mut released = Vec::new();
+    let mut keep = |released: &mut Vec<Event>| -> Result<()> {
+        for e in released.drain(..) {
+            if e.t_s() > end_s {
+                return Err(CoreError::Interrupted { what: PAST_THE_WINDOW }.into());
+            }
+            window.push(e);
+        }
+        Ok(())
+    };
+    let cancelled = || input.progress.is_some_and(Progress::cancelled);
+    let read = stream_recording_file(input.path, input.mapping, input.survey, |item| {
+        if cancelled() {
+            return Err(CoreError::Interrupted { what: "replay" }.into());
+        }
+        let Ok(event) = event_of(item) else { return Ok(()) };
+        ordered.push(event, &mut released)?;
+        keep(&mut released)
+    });
+    let read = read.and_then(|()| {
+        ordered.release(f64::INFINITY, &mut released);
+        keep(&mut released)
+    });
+    match read {
+        Ok(()) | Err(IoError::Core(CoreError::Interrupted { .. })) => Ok(window),
+        Err(e) => Err(e),
+    }
 }
 
 impl<E: Estimator + Send + Sync + 'static> Pass<'_, E> {
