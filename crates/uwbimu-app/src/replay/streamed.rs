@@ -268,6 +268,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         on_step: Some(on_step),
         quiet: quiet.as_ref(),
         model: None,
+        window_end_s: f64::NEG_INFINITY,
         ranges: Arc::from([]),
         imu: None,
         initial: None,
@@ -290,6 +291,9 @@ struct FromFile<'a, 'i, E> {
     quiet: Option<&'a Progress>,
     /// The model chosen ([`LogRunner::choose`]), whose configuration every pass runs with.
     model: Option<ModelChoice>,
+    /// The end of the window the model was chosen on, when the file was read for it: the first
+    /// pass filters up to it before it honours the progress's cancel flag (else -∞).
+    window_end_s: f64,
     /// Every range of the first pass, in stream order (kept when smoothing).
     ranges: Arc<[RangeMeasurement]>,
     /// Every IMU sample of the first pass, in time order (None on a log with other sensors than
@@ -335,7 +339,13 @@ impl<'a, E: Estimator + Send + Sync + 'static> LogRunner for FromFile<'a, '_, E>
     fn choose(&mut self, method: Method) -> Result<ModelChoice> {
         let (input, survey) = (self.input, self.input.survey);
         let scorable = survey.anchors.positions.len() >= crate::select::MIN_BLOCK_ANCHORS && survey.n_ranges > 0;
-        let window = if scorable { model_window(input, self.span()?)? } else { ModelWindow::default() };
+        let window = if scorable {
+            let span = self.span()?;
+            self.window_end_s = span.0 + input.config.model_selection.window_s;
+            model_window(input, span, self.window_end_s)?
+        } else {
+            ModelWindow::default()
+        };
         Ok(window.choose(method, &survey.anchors.positions, input.initial, input.config))
     }
 
@@ -352,13 +362,14 @@ impl<'a, E: Estimator + Send + Sync + 'static> LogRunner for FromFile<'a, '_, E>
             };
             let truth = TruthMatch::new(survey.n_ground_truth, survey.truth_file.as_deref().unwrap_or_default());
             let out = StepsOut::Forward { on_step, truth: Box::new(truth) };
-            return run_pass(input, self.kind, span, out, &mut EventsOfPass::default(), self.model.as_ref(), None);
+            let model = self.model.as_ref();
+            return run_pass(input, self.kind, span, out, &mut EventsOfPass::default(), model, None, self.window_end_s);
         }
         let only_ranges = survey_sensors(survey).next().is_none();
         let imu = only_ranges.then(|| Spill::create(input.spill_dir, "IMU samples")).transpose()?;
         let mut ranges = EventsOfPass { kept: Some(Vec::new()), imu, left_out: &[], seen: 0 };
         let out = StepsOut::spilled(input.spill_dir)?;
-        let mut pass = run_pass(input, self.kind, span, out, &mut ranges, self.model.as_ref(), None)?;
+        let mut pass = run_pass(input, self.kind, span, out, &mut ranges, self.model.as_ref(), None, self.window_end_s)?;
         pass.smooth(input, self.kind.core)?;
         (self.ranges, self.imu) = (ranges.kept.take().unwrap_or_default().into(), ranges.imu.take());
         // As the batch runner: the MAP objective's prior is the state the first pass started from.
@@ -462,7 +473,8 @@ impl<'a, E: Estimator + Send + Sync + 'static> FromFile<'a, '_, E> {
     ) -> Result<Option<Pass<'a, E>>> {
         let input = StreamedInput { progress: self.quiet, ..*self.input };
         let out = StepsOut::spilled(input.spill_dir)?;
-        let mut rerun = match run_pass(&input, self.kind, self.span()?, out, ranges, self.model.as_ref(), guide) {
+        let (span, model) = (self.span()?, self.model.as_ref());
+        let mut rerun = match run_pass(&input, self.kind, span, out, ranges, model, guide, f64::NEG_INFINITY) {
             Err(IoError::Core(e)) if declined(&e) => return Ok(None),
             other => other?,
         };

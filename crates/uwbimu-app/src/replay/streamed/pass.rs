@@ -95,7 +95,10 @@ pub(super) struct Pass<'f, E> {
 
 /// Reads the file once into `out` with the configuration of the model `chosen` (None: the
 /// input's), leaving out and keeping ranges as `ranges` says, the filter guided by `guide` when
-/// given (a MAP pass).
+/// given (a MAP pass). The progress's cancel flag stops the read at the first event after
+/// `run_through_s`: a run cancelled while its model was being chosen still hands on the steps of
+/// the window it was chosen on, as they were read for the choice ([`model_window`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     input: &StreamedInput<'_>,
     kind: &FilterKind<E>,
@@ -104,6 +107,7 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     ranges: &mut EventsOfPass<'_>,
     chosen: Option<&ModelChoice>,
     guide: Option<Arc<Guide>>,
+    run_through_s: f64,
 ) -> Result<Pass<'f, E>> {
     let survey = input.survey;
     let mut run = RunState {
@@ -125,15 +129,21 @@ pub(super) fn run_pass<'f, E: Estimator + Send + Sync + 'static>(
     let mut released = Vec::new();
     let cancelled = || input.progress.is_some_and(Progress::cancelled);
     let read = stream_recording_file(input.path, input.mapping, survey, |item| {
-        if cancelled() {
-            return Err(CoreError::Interrupted { what: "replay" }.into());
-        }
         let event = match event_of(item) {
             Ok(event) => event,
             Err((t, p)) => return run.truth(t, p),
         };
         ordered.push(event, &mut released)?;
-        released.drain(..).try_for_each(|e| if ranges.passes(&e)? { run.feed(e) } else { Ok(()) })
+        released.drain(..).try_for_each(|e| {
+            if e.t_s() > run_through_s && cancelled() {
+                return Err(CoreError::Interrupted { what: "replay" }.into());
+            }
+            if ranges.passes(&e)? {
+                run.feed(e)
+            } else {
+                Ok(())
+            }
+        })
     });
     let cancelled_run = match read {
         Ok(()) => false,
@@ -188,15 +198,16 @@ fn event_of(item: RecordItem) -> std::result::Result<Event, (f64, Vec3)> {
 /// Why [`model_window`] stops reading: the first event after the window is out.
 const PAST_THE_WINDOW: &str = "the read of the model window";
 
-/// The events of the first `model_selection.window_s` of the log (from its first IMU sample), as
+/// The events of the log up to `end_s` (the end of the first `model_selection.window_s` from its
+/// first IMU sample), as
 /// a first pass feeds them to the filter (after the range time offset and calibration, in the
 /// batch order), for the model choice ([`ModelWindow::choose`]). The file is read up to the first
-/// event after the window; a cancelled read gives the events so far.
+/// event after the window, to the end whatever the progress's cancel flag says (the choice runs
+/// to its end, and the first pass then filters the window before it honours the flag).
 ///
 /// # Errors
 /// The file's read.
-pub(super) fn model_window(input: &StreamedInput<'_>, imu_span_s: (f64, f64)) -> Result<ModelWindow> {
-    let end_s = imu_span_s.0 + input.config.model_selection.window_s;
+pub(super) fn model_window(input: &StreamedInput<'_>, imu_span_s: (f64, f64), end_s: f64) -> Result<ModelWindow> {
     let mut window = ModelWindow::default();
     let mut ordered = Ordered::new(input.config, imu_span_s);
     let mut released = Vec::new();
@@ -209,11 +220,7 @@ pub(super) fn model_window(input: &StreamedInput<'_>, imu_span_s: (f64, f64)) ->
         }
         Ok(())
     };
-    let cancelled = || input.progress.is_some_and(Progress::cancelled);
     let read = stream_recording_file(input.path, input.mapping, input.survey, |item| {
-        if cancelled() {
-            return Err(CoreError::Interrupted { what: "replay" }.into());
-        }
         let Ok(event) = event_of(item) else { return Ok(()) };
         ordered.push(event, &mut released)?;
         keep(&mut released)
