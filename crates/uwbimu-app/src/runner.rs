@@ -46,8 +46,8 @@ pub(crate) trait LogRunner: PassRunner {
     fn first_pass(&mut self, model: Option<ModelChoice>) -> Result<Self::Pass, Self::Error>;
 
     /// What the passes after `first` need — the ranges of the run and the smoothing settings its
-    /// filter runs with (its composition's where the configuration leaves them unset) — or None when there are none: the run is not smoothed, or its filter
-    /// has nothing to smooth.
+    /// filter runs with (its composition's where the configuration leaves them unset) — or None
+    /// when there are none: the run is not smoothed, or its filter has nothing to smooth.
     fn later_passes(&mut self, first: &mut Self::Pass) -> Result<Option<(Self::Ranges, SmoothingConfig)>, Self::Error>;
 
     /// The last pass kept, with what the passes after the first did recorded in its health.

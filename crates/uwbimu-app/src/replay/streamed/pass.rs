@@ -1,6 +1,7 @@
 //! One pass of a streamed replay over the file: the events read, put in the batch order, the
 //! ranges of the pass left out or kept, and the steps handed on or spilled; then smoothed and
-//! finished into what the replay found.
+//! finished into what the replay found; and the read of the events a model is chosen on
+//! ([`model_window`]).
 
 use std::sync::Arc;
 
