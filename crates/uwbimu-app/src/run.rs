@@ -219,7 +219,7 @@ fn run_in_memory<E: Estimator>(
         map_config: None,
         map_init: None,
     };
-    let (trace, smoothed, init) = run_log(method, chooser.is_some(), &mut runner)?;
+    let (trace, smoothed, init) = run_log(method, &mut runner)?;
     let mut warnings = runner.warnings;
     warnings.extend(trace.health.smoothing_failed.then(|| SMOOTHING_FAILED.to_string()));
     Ok(BatchOutput::Inertial { trace, init, smoothed, warnings, model: runner.model.map(Box::new) })
@@ -262,17 +262,10 @@ struct InMemory<'a, E> {
     map_init: Option<Box<SelfInit>>,
 }
 
-impl<E> InMemory<'_, E> {
-    /// The configuration the passes run with: the chosen model's, else the input's.
-    fn config(&self) -> &FilterConfig {
-        self.model.as_ref().map_or(self.input.config, |m| &m.config)
-    }
-}
-
 impl<'a, E: Estimator> LogRunner for InMemory<'a, E> {
     type Ranges = &'a [RangeMeasurement];
 
-    fn config(&self) -> &FilterConfig {
+    fn given_config(&self) -> &FilterConfig {
         self.input.config
     }
 
@@ -280,19 +273,16 @@ impl<'a, E: Estimator> LogRunner for InMemory<'a, E> {
         check_batch(method, &self.input)
     }
 
-    fn choose(&mut self, method: Method) -> Result<ModelChoice> {
-        let Some(chooser) = self.chooser else {
-            return Err(Error::InvalidCall("a model choice without a chooser".into()));
-        };
-        Ok(chooser(method, &self.input))
+    fn choose(&mut self, method: Method) -> Result<Option<ModelChoice>> {
+        Ok(self.chooser.map(|chooser| chooser(method, &self.input)))
     }
 
     /// The unit check of the IMU, then the initial state (given, or self-initialised with the
     /// chosen configuration) and the pass from it.
     fn first_pass(&mut self, model: Option<ModelChoice>) -> Result<SmoothedPass> {
         self.model = model;
-        self.warnings = check_imu_units(self.input.imu, self.config().gate.refuse_unit_slips)?;
-        let input = BatchInput { config: self.config(), ..self.input };
+        self.warnings = check_imu_units(self.input.imu, self.run_config().gate.refuse_unit_slips)?;
+        let input = BatchInput { config: self.run_config(), ..self.input };
         let (initial, init) = initial_state(&input)?;
         let (trace, smoothed, smoothing) = run_pass(self.kind, &initial, &input, None)?;
         (self.initial, self.smoothing) = (Some(initial), smoothing);
@@ -312,7 +302,12 @@ impl<'a, E: Estimator> LogRunner for InMemory<'a, E> {
     }
 }
 
-impl<E: Estimator> InMemory<'_, E> {
+impl<E> InMemory<'_, E> {
+    /// The configuration the passes run with: the chosen model's, else the input's.
+    fn run_config(&self) -> &FilterConfig {
+        self.model.as_ref().map_or(self.input.config, |m| &m.config)
+    }
+
     /// The state the first pass started from.
     fn start(&self) -> Result<&InitialState> {
         self.initial.as_ref().ok_or_else(|| Error::InvalidCall("a later pass before the first".into()))
@@ -320,7 +315,7 @@ impl<E: Estimator> InMemory<'_, E> {
 
     /// The input of the passes after the first: the chosen configuration, counting nothing.
     fn later_input(&self) -> BatchInput<'_> {
-        BatchInput { config: self.config(), progress: self.quiet, ..self.input }
+        BatchInput { config: self.run_config(), progress: self.quiet, ..self.input }
     }
 }
 
@@ -342,7 +337,7 @@ impl<E: Estimator> PassRunner for InMemory<'_, E> {
     /// A filter that takes no guide, or a log with other sensors than the IMU and the ranges,
     /// runs no MAP pass.
     fn prepare_map(&mut self, pass: &mut SmoothedPass) -> Result<bool> {
-        let mut filter = (self.kind.build)(self.input.anchors.to_vec(), self.start()?, self.config().clone())?;
+        let mut filter = (self.kind.build)(self.input.anchors.to_vec(), self.start()?, self.run_config().clone())?;
         if !(self.kind.guide)(&mut filter, None) || !self.input.observations.is_empty() {
             return Ok(false);
         }
@@ -412,7 +407,6 @@ fn run_pass<E: Estimator>(
     let BatchInput { imu, ranges, smooth, observations, progress, .. } = *input;
     let mut filter = (kind.build)(input.anchors.to_vec(), initial, input.config.clone())?;
     (kind.guide)(&mut filter, guide);
-    let smooth = smooth && (kind.core)(&mut filter).is_some();
     if let (true, Some(core)) = (smooth, (kind.core)(&mut filter)) {
         core.start_recording(imu.len() + ranges.len() + observations.len());
     }

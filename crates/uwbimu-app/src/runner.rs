@@ -30,7 +30,7 @@ pub(crate) trait LogRunner: PassRunner {
     type Ranges: Deref<Target = [RangeMeasurement]>;
 
     /// The configuration the run is given (before any model choice).
-    fn config(&self) -> &FilterConfig;
+    fn given_config(&self) -> &FilterConfig;
 
     /// Fails when `method` is given what it does not take ([`check_inputs`], [`check_tags`]) or a
     /// log it cannot run.
@@ -38,8 +38,9 @@ pub(crate) trait LogRunner: PassRunner {
 
     /// The model `method` chooses on the first `model_selection.window_s` of the log
     /// ([`crate::model_window::ModelWindow`]); the configuration as given, saying why, when the
-    /// log cannot be scored.
-    fn choose(&mut self, method: Method) -> Result<ModelChoice, Self::Error>;
+    /// log cannot be scored; None when this runner does not choose (a candidate of the model
+    /// selection runs as configured).
+    fn choose(&mut self, method: Method) -> Result<Option<ModelChoice>, Self::Error>;
 
     /// The first pass with the configuration of `model` (None: the one given), from the given
     /// initial state or self-initialised, RTS-smoothed when the run is.
@@ -55,15 +56,15 @@ pub(crate) trait LogRunner: PassRunner {
 }
 
 /// Runs `method` through `runner` in the one order every runner takes: check, choose the model
-/// (when `choose` and the method chooses its model with `model_selection.enabled`), the first
-/// pass, the passes after it. Returns the last pass kept.
+/// (when the method chooses its model with `model_selection.enabled`), the first pass, the
+/// passes after it. Returns the last pass kept.
 ///
 /// # Errors
 /// The runner's, as each step gives them.
-pub(crate) fn run_log<R: LogRunner>(method: Method, choose: bool, runner: &mut R) -> Result<R::Pass, R::Error> {
+pub(crate) fn run_log<R: LogRunner>(method: Method, runner: &mut R) -> Result<R::Pass, R::Error> {
     runner.check(method)?;
-    let chooses = choose && method.chooses_its_model() && runner.config().model_selection.enabled;
-    let model = if chooses { Some(runner.choose(method)?) } else { None };
+    let chooses = method.chooses_its_model() && runner.given_config().model_selection.enabled;
+    let model = if chooses { runner.choose(method)? } else { None };
     let mut first = runner.first_pass(model)?;
     let Some((ranges, smoothing)) = runner.later_passes(&mut first)? else { return Ok(first) };
     let done = after_first_pass(runner, first, &ranges, &smoothing)?;

@@ -273,7 +273,7 @@ pub(crate) fn run<E: Estimator + Send + Sync + 'static>(
         imu: None,
         initial: None,
     };
-    let pass = run_log(method, true, &mut runner)?;
+    let pass = run_log(method, &mut runner)?;
     pass.finish(survey, runner.on_step.take())
 }
 
@@ -321,7 +321,7 @@ impl<E> FromFile<'_, '_, E> {
 impl<'a, E: Estimator + Send + Sync + 'static> LogRunner for FromFile<'a, '_, E> {
     type Ranges = Arc<[RangeMeasurement]>;
 
-    fn config(&self) -> &FilterConfig {
+    fn given_config(&self) -> &FilterConfig {
         self.input.config
     }
 
@@ -336,7 +336,7 @@ impl<'a, E: Estimator + Send + Sync + 'static> LogRunner for FromFile<'a, '_, E>
 
     /// A log the selection cannot score for its anchors or its lack of ranges needs no window
     /// read: the choice (the input configuration, and why) comes at once.
-    fn choose(&mut self, method: Method) -> Result<ModelChoice> {
+    fn choose(&mut self, method: Method) -> Result<Option<ModelChoice>> {
         let (input, survey) = (self.input, self.input.survey);
         let scorable = survey.anchors.positions.len() >= crate::select::MIN_BLOCK_ANCHORS && survey.n_ranges > 0;
         let window = if scorable {
@@ -346,7 +346,7 @@ impl<'a, E: Estimator + Send + Sync + 'static> LogRunner for FromFile<'a, '_, E>
         } else {
             ModelWindow::default()
         };
-        Ok(window.choose(method, &survey.anchors.positions, input.initial, input.config))
+        Ok(Some(window.choose(method, &survey.anchors.positions, input.initial, input.config)))
     }
 
     /// A forward run hands its steps on as they come; a smoothed one spills them, keeps the
